@@ -1,0 +1,68 @@
+"""RIS codebooks and the time-orthogonal profile expansion (section IV-A).
+
+A codebook supplies the first block of profiles, G̃ = G/Γ beams per RIS; the full sequence of
+G profiles follows eq. orthogonal_profiles, ω_{ℓ,(i−1)G̃+g̃} = b*_{ℓ,i} ω_{ℓ,g̃}, with B the
+first L+1 columns of the Γ-point DFT matrix (column 0, all ones, for the LOS path) and Γ the
+smallest divisor of G that is ≥ L+1 (DESIGN.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+ComplexArray = NDArray[np.complex128]
+
+
+def block_count(transmissions: int, n_ris: int) -> int:
+    """Γ: the smallest divisor of G that is ≥ L+1.
+
+    Raises ValueError when G has no such divisor (G < L+1).
+    """
+    for gamma in range(n_ris + 1, transmissions + 1):
+        if transmissions % gamma == 0:
+            return gamma
+    raise ValueError(
+        f"G = {transmissions} transmissions cannot hold L+1 = {n_ris + 1} time-orthogonal"
+        " blocks; use G ≥ L+1"
+    )
+
+
+def block_length(transmissions: int, n_ris: int) -> int:
+    """G̃ = G/Γ, the number of beams per RIS in the first block."""
+    return transmissions // block_count(transmissions, n_ris)
+
+
+def orthogonal_code_matrix(transmissions: int, n_ris: int) -> ComplexArray:
+    """B: the first L+1 columns of the Γ-point DFT matrix, [Γ, L+1]; |B_ij| = 1.
+
+    B^H B = Γ·I (orthogonal columns; the paper's normalisation B^H B = I cannot hold with unit
+    amplitude entries, and only the orthogonality matters).
+    """
+    gamma = block_count(transmissions, n_ris)
+    i = np.arange(gamma)[:, None]
+    col = np.arange(n_ris + 1)[None, :]
+    return np.asarray(np.exp(-2j * np.pi * i * col / gamma))
+
+
+def expand_profiles(first_block: ComplexArray, code_column: ComplexArray) -> ComplexArray:
+    """Full profile sequence of one RIS by eq. orthogonal_profiles.
+
+    first_block : [G̃, N] profiles ω_{ℓ,g̃}; code_column : [Γ] the vector b_ℓ.
+    Returns [G, N] with row (i−1)G̃ + g̃ equal to b*_{ℓ,i} ω_{ℓ,g̃}.
+    """
+    # [Γ, G̃, N] -> [G, N]
+    full = np.conj(code_column)[:, None, None] * first_block[None, :, :]
+    return full.reshape(-1, first_block.shape[1])
+
+
+def random_phases(
+    n_ris: int, beams: int, elements: list[int], rng: np.random.Generator
+) -> list[ComplexArray]:
+    """Unit-modulus profiles with phases ~ U[0, 2π) (Random Codebook), one [G̃, N_ℓ] per RIS."""
+    return [np.exp(1j * rng.uniform(0.0, 2 * np.pi, size=(beams, n))) for n in elements[:n_ris]]
+
+
+def phases_to_profiles(phases: list[list[list[float]]]) -> list[ComplexArray]:
+    """Explicit phases [rad] to unit-modulus profiles exp(jφ), one [G̃, N] per RIS."""
+    return [np.exp(1j * np.asarray(p, dtype=float)) for p in phases]

@@ -1,0 +1,172 @@
+"""Per-path Fisher information of eq. FIM_measurement, batched over UE pairs.
+
+With unit-modulus pilots x_k, the same pilot in every transmission and powers δ_g², every
+derivative of μ_{k,g} factors into a subcarrier part and a transmission part (DESIGN.md,
+derivation notes), so a path's block is
+
+    I_ab = (2P/σ²) · Re{ S_ab · conj(c_a) c_b · Q_{i(a) i(b)} },
+
+with S_ab the subcarrier sum (K, ∓jΣκ_k or Σκ_k², κ_k = 2πkΔf/c for the path length r = cτ),
+c_a the gain factor of parameter a (ρ, e^{−jβ} or −jρ) and Q the transmission Gram matrix
+Q = Σ_g δ_g² conj(t_g) t_g^T of t_g = ω_g^T [∂a_R/∂ξ, ∂a_R/∂ζ, a_R]. Cross-path blocks vanish
+under the time-orthogonal profiles, so the FIM of η is block-diagonal by path; each path's
+nuisance gain (α, β) is eliminated by a Schur complement, leaving an equivalent FIM on
+(ξ, ζ, r) for a RIS path and on r0 for the LOS path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.scenario import SystemParams
+from ris_planner.units import SPEED_OF_LIGHT
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+DEGENERATE_GAIN_RTOL = 1e-14
+"""A nuisance block whose determinant is below this fraction of the product of its diagonal
+is treated as carrying no information (a beam pattern with a null on the path): the Schur
+complement then uses the pseudo-inverse, which for that block is zero."""
+
+
+@dataclass(frozen=True)
+class Radio:
+    """The radio constants every FIM block needs (SI)."""
+
+    wavelength: float
+    snr_scale: float
+    """2P/σ² [1/W·W] – the factor of eq. FIM_measurement."""
+    subcarrier_sums: tuple[float, float, float]
+    """(S0, S1, S2) = (K, Σκ_k, Σκ_k²) with κ_k = 2πkΔf/c [rad/m], k = 1..K."""
+    transmissions: int
+
+    @classmethod
+    def from_system(cls, system: SystemParams) -> Radio:
+        k = np.arange(1, system.subcarriers + 1, dtype=float)
+        kappa = 2 * np.pi * k * system.subcarrier_spacing / SPEED_OF_LIGHT
+        return cls(
+            wavelength=system.wavelength,
+            snr_scale=2 * system.tx_power_w / system.noise_variance_w,
+            subcarrier_sums=(float(system.subcarriers), float(kappa.sum()), float((kappa**2).sum())),
+            transmissions=system.transmissions,
+        )
+
+    def subcarrier_matrix(self, delay_flags: NDArray[np.bool_]) -> ComplexArray:
+        """S_ab for parameters whose derivative carries −jκ_k (flag True) or 1 (False)."""
+        s0, s1, s2 = self.subcarrier_sums
+        f = np.asarray(delay_flags, dtype=bool)
+        return np.where(
+            f[:, None] & f[None, :],
+            s2,
+            np.where(f[:, None], 1j * s1, np.where(f[None, :], -1j * s1, s0)),
+        ).astype(complex)
+
+
+# RIS path parameters (ξ, ζ, r, α, β): index into t_g, and whether ∂/∂r acts (−jκ_k)
+_RIS_T_INDEX = np.array([0, 1, 2, 2, 2])
+_RIS_DELAY = np.array([False, False, True, False, False])
+# LOS path parameters (r0, α0, β0)
+_LOS_DELAY = np.array([True, False, False])
+
+
+def steering_gram(positions: FloatArray, wavelength: float) -> ComplexArray:
+    """V^H V for V = [∂a_R/∂ξ, ∂a_R/∂ζ, a_R] – independent of ξ, ζ, [3, 3].
+
+    With ∂a_R/∂ξ = jk·y ⊙ a_R, ∂a_R/∂ζ = jk·z ⊙ a_R and |a_R,n| = 1 (k = 2π/λ).
+    """
+    k = 2 * np.pi / wavelength
+    y, z = positions[:, 1], positions[:, 2]
+    return np.array(
+        [
+            [k**2 * (y @ y), k**2 * (y @ z), -1j * k * y.sum()],
+            [k**2 * (y @ z), k**2 * (z @ z), -1j * k * z.sum()],
+            [1j * k * y.sum(), 1j * k * z.sum(), float(len(y))],
+        ],
+        dtype=complex,
+    )
+
+
+def transmission_gram_expected(
+    positions: FloatArray, wavelength: float, total_weight: float
+) -> ComplexArray:
+    """E[Q] over uniform random phases: Σ_g δ_g² · V^H V, [3, 3] (E[conj(ω^T u) ω^T v] = u^H v)."""
+    return total_weight * steering_gram(positions, wavelength)
+
+
+def transmission_vectors(
+    profiles: ComplexArray, positions: FloatArray, xi: FloatArray, zeta: FloatArray, wavelength: float
+) -> ComplexArray:
+    """t_g = ω_g^T [∂a_R/∂ξ, ∂a_R/∂ζ, a_R] for all pairs in one matrix product.
+
+    profiles : [G̃, N]; positions : [N, 3]; xi, zeta : [P]. Returns [P, G̃, 3].
+    """
+    k = 2 * np.pi / wavelength
+    y, z = positions[:, 1], positions[:, 2]
+    # [P, N]
+    a = np.exp(1j * k * (xi[:, None] * y[None, :] + zeta[:, None] * z[None, :]))
+    # [N, P, 3]
+    v = np.stack([1j * k * y[None, :] * a, 1j * k * z[None, :] * a, a], axis=-1).transpose(1, 0, 2)
+    n_pairs = xi.shape[0]
+    # [G̃, P*3] -> [P, G̃, 3]: one (G̃ × N) @ (N × 3P) product
+    t = profiles @ v.reshape(v.shape[0], -1)
+    return t.reshape(profiles.shape[0], n_pairs, 3).transpose(1, 0, 2)
+
+
+def transmission_gram(t: ComplexArray, weights: FloatArray) -> ComplexArray:
+    """Q = Σ_g w_g conj(t_g) t_g^T, [P, 3, 3]; t : [P, G', 3], weights : [G'] (= δ_g²)."""
+    return np.asarray(np.conj(t).transpose(0, 2, 1) @ (t * weights[None, :, None]))
+
+
+def ris_path_fim(q: ComplexArray, alpha: FloatArray, radio: Radio) -> FloatArray:
+    """The 5×5 FIM block of one RIS path on (ξ, ζ, r, α, β) (eq. FIM_measurement), [P, 5, 5].
+
+    q : [P, 3, 3] or [3, 3] transmission Gram; alpha : [P] |ρ_ℓ|. The phase β drops out.
+    """
+    n = alpha.shape[0]
+    # [P, 5] gain factors: ρ, ρ, ρ, e^{−jβ}, −jρ (β = 0 without loss of generality)
+    c = np.zeros((n, 5), dtype=complex)
+    c[:, 0:3] = alpha[:, None]
+    c[:, 3] = 1.0
+    c[:, 4] = -1j * alpha
+    qb = np.broadcast_to(q, (n, 3, 3))
+    # [P, 5, 5]
+    q5 = qb[:, _RIS_T_INDEX[:, None], _RIS_T_INDEX[None, :]]
+    s = radio.subcarrier_matrix(_RIS_DELAY)
+    return radio.snr_scale * np.real(s[None] * np.conj(c)[:, :, None] * c[:, None, :] * q5)
+
+
+def los_path_fim(total_weight: float, alpha0: FloatArray, radio: Radio) -> FloatArray:
+    """The 3×3 FIM block of the LOS path on (r0, α0, β0), [P, 3, 3]; t_g = 1 for all g."""
+    n = alpha0.shape[0]
+    c = np.zeros((n, 3), dtype=complex)
+    c[:, 0] = alpha0
+    c[:, 1] = 1.0
+    c[:, 2] = -1j * alpha0
+    s = radio.subcarrier_matrix(_LOS_DELAY)
+    return radio.snr_scale * total_weight * np.real(s[None] * np.conj(c)[:, :, None] * c[:, None, :])
+
+
+def eliminate_nuisance(fim: FloatArray, n_keep: int) -> FloatArray:
+    """Equivalent FIM of the first ``n_keep`` parameters: A − C D⁺ Cᵀ, [P, n_keep, n_keep].
+
+    fim : [P, n, n] with the nuisance (α, β) as the trailing 2×2 block D.
+    """
+    a = fim[:, :n_keep, :n_keep]
+    cmat = fim[:, :n_keep, n_keep:]
+    d = fim[:, n_keep:, n_keep:]
+    det = d[:, 0, 0] * d[:, 1, 1] - d[:, 0, 1] * d[:, 1, 0]
+    scale = np.abs(d[:, 0, 0] * d[:, 1, 1])
+    ok = det > DEGENERATE_GAIN_RTOL * scale
+    # [P, 2, 2] closed-form inverse, zero where the block is degenerate
+    inv = np.zeros_like(d)
+    safe = np.where(ok, det, 1.0)
+    inv[:, 0, 0] = d[:, 1, 1] / safe
+    inv[:, 1, 1] = d[:, 0, 0] / safe
+    inv[:, 0, 1] = -d[:, 0, 1] / safe
+    inv[:, 1, 0] = -d[:, 1, 0] / safe
+    inv[~ok] = 0.0
+    return np.asarray(a - cmat @ inv @ cmat.transpose(0, 2, 1))

@@ -1,0 +1,288 @@
+"""The scenario document: pydantic models that are the JSON contract (DESIGN.md).
+
+One document drives the Python API, the CLI (``ris-planner bounds``) and the REST service
+(``POST /v1/bounds``). Defaults are the paper's Table I (``table_Simulation_parameters``).
+Units are SI unless the field name says otherwise (``tx_power_dbm``, ``noise_figure_db``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_validator,
+)
+
+from ris_planner.units import SPEED_OF_LIGHT, db_to_linear, dbm_to_watt
+
+KnownPart = Literal["clock", "height", "tx"]
+"""State parts that may be known: ``clock`` (B, round trip), ``height`` (z of both UEs), ``tx``."""
+
+MIN_UE_RIS_DISTANCE_M = 1e-3
+"""A UE closer than this to a RIS centre (or to the other UE) is rejected: the path gains of
+the Simulation Parameters section diverge there (|ρ| ∝ 1/d)."""
+
+MAX_COORDINATE_M = 1e6
+"""Coordinates beyond ±1000 km are rejected as unit mistakes (mm or degrees passed as metres)."""
+
+Point3 = Annotated[
+    list[float],
+    Field(min_length=3, max_length=3, description="[x, y, z] in metres (global frame)"),
+]
+
+
+def _finite_point(value: list[float], what: str) -> list[float]:
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what} must be finite numbers, got {value}")
+    if np.any(np.abs(arr) > MAX_COORDINATE_M):
+        raise ValueError(f"{what} must lie within ±{MAX_COORDINATE_M:g} m, got {value}")
+    return [float(v) for v in arr]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SystemParams(_Model):
+    """Radio parameters (Table I). ``P`` is the per-transmission power of eq.
+    transmission_matrix; the noise variance is σ² = W·N0·NF (linear)."""
+
+    carrier_hz: float = Field(30e9, gt=0, allow_inf_nan=False, description="Carrier f_c [Hz]")
+    bandwidth_hz: float = Field(400e6, gt=0, allow_inf_nan=False, description="Bandwidth W [Hz]")
+    subcarriers: int = Field(512, ge=1, le=65536, description="Pilot subcarriers K")
+    transmissions: int = Field(192, ge=1, le=100000, description="OFDM transmissions G")
+    tx_power_dbm: float = Field(
+        30.0, ge=-100, le=100, allow_inf_nan=False, description="Transmit power P [dBm]"
+    )
+    noise_psd_dbm_hz: float = Field(
+        -173.855, ge=-250, le=0, allow_inf_nan=False, description="Noise PSD N0 [dBm/Hz]"
+    )
+    noise_figure_db: float = Field(
+        10.0, ge=0, le=60, allow_inf_nan=False, description="Receiver noise figure [dB]"
+    )
+    clock_offset_m: float = Field(
+        5.0, ge=-1e6, le=1e6, allow_inf_nan=False, description="Clock offset B [m]"
+    )
+    los: bool = Field(True, description="Whether the TX–RX line-of-sight path exists")
+
+    @property
+    def wavelength(self) -> float:
+        """λ = c / f_c [m]."""
+        return SPEED_OF_LIGHT / self.carrier_hz
+
+    @property
+    def subcarrier_spacing(self) -> float:
+        """Δf = W / K [Hz] (DESIGN.md: the spacing that reproduces the paper's figures)."""
+        return self.bandwidth_hz / self.subcarriers
+
+    @property
+    def tx_power_w(self) -> float:
+        return float(dbm_to_watt(self.tx_power_dbm))
+
+    @property
+    def noise_variance_w(self) -> float:
+        """σ² = W · N0 · NF [W]."""
+        return float(
+            self.bandwidth_hz * dbm_to_watt(self.noise_psd_dbm_hz) * db_to_linear(self.noise_figure_db)
+        )
+
+
+class RIS(_Model):
+    """One RIS: pose and element grid (DESIGN.md conventions).
+
+    R = Rz(yaw)·Ry(pitch)·Rx(roll); the RIS faces its local +x axis; elements on the local
+    y–z plane, ``rows`` along z and ``cols`` along y; element n = r·cols + c.
+    """
+
+    position: Point3
+    orientation: Annotated[
+        list[float],
+        Field(min_length=3, max_length=3, description="Euler [yaw, pitch, roll] in radians"),
+    ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
+    cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
+    spacing_m: float | None = Field(
+        None, gt=0, allow_inf_nan=False, description="Element spacing [m]; default λ/2"
+    )
+
+    @field_validator("position")
+    @classmethod
+    def _check_position(cls, v: list[float]) -> list[float]:
+        return _finite_point(v, "RIS position")
+
+    @field_validator("orientation")
+    @classmethod
+    def _check_orientation(cls, v: list[float]) -> list[float]:
+        arr = np.asarray(v, dtype=float)
+        if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > 4 * math.pi):
+            raise ValueError(f"orientation must be finite radians within ±4π, got {v}")
+        return [float(x) for x in arr]
+
+    @property
+    def elements(self) -> int:
+        return self.rows * self.cols
+
+
+class RandomCodebook(_Model):
+    """Uniform random phases for the first block (section IV-A, Random Codebook), seeded."""
+
+    kind: Literal["random"] = "random"
+    seed: int = Field(0, ge=0, description="Seed of the phase draw (numpy default_rng)")
+
+
+class ExpectedRandomCodebook(_Model):
+    """Closed-form expectation of the FIM over uniform random phases (deterministic)."""
+
+    kind: Literal["expected_random"] = "expected_random"
+
+
+class ExplicitCodebook(_Model):
+    """Phases of the first block: one entry per RIS, G/Γ rows × N phases [rad]."""
+
+    kind: Literal["explicit"] = "explicit"
+    phases: list[list[list[float]]] = Field(
+        description="Per RIS: G/Γ rows (beams) × N element phases in radians"
+    )
+
+
+Codebook = Annotated[
+    RandomCodebook | ExpectedRandomCodebook | ExplicitCodebook,
+    Field(discriminator="kind"),
+]
+CodebookKind = Literal["random", "expected_random", "explicit"]
+
+
+def _points(value: Any, what: str) -> list[list[float]]:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
+        raise ValueError(f"{what} must be one [x, y, z] point or a non-empty list of them")
+    return [_finite_point(list(p), what) for p in arr]
+
+
+class Scenario(_Model):
+    """The scenario document of DESIGN.md.
+
+    ``tx`` and ``rx`` are one point each or equal-length lists of points (a batch of pairs).
+    """
+
+    description: str | None = Field(None, max_length=2000, description="Free text")
+    system: SystemParams = Field(default_factory=SystemParams)
+    ris: list[RIS] = Field(min_length=1, max_length=64, description="The RISs, in path order")
+    tx: list[float] | list[list[float]] = Field(description="TX position(s) [m]")
+    rx: list[float] | list[list[float]] = Field(description="RX position(s) [m]")
+    codebook: Codebook = Field(default_factory=RandomCodebook)
+    known: list[KnownPart] = Field(
+        default_factory=list, description="Known state parts: clock, height, tx"
+    )
+
+    @field_validator("tx", "rx", mode="before")
+    @classmethod
+    def _check_points(cls, v: Any) -> Any:
+        try:
+            _points(v, "UE position")
+        except (TypeError, ValueError) as exc:
+            raise ValueError(str(exc)) from None
+        return v
+
+    @field_validator("known")
+    @classmethod
+    def _unique_known(cls, v: list[str]) -> list[str]:
+        if len(set(v)) != len(v):
+            raise ValueError(f"known lists a part twice: {v}")
+        return v
+
+    @model_validator(mode="after")
+    def _check_geometry(self) -> Scenario:
+        tx, rx = self.tx_array, self.rx_array
+        if tx.shape != rx.shape:
+            raise ValueError(
+                f"tx and rx must hold the same number of points, got {len(tx)} and {len(rx)}"
+            )
+        if self.system.los and np.any(
+            np.linalg.norm(tx - rx, axis=-1) < MIN_UE_RIS_DISTANCE_M
+        ):
+            bad = int(np.argmax(np.linalg.norm(tx - rx, axis=-1) < MIN_UE_RIS_DISTANCE_M))
+            raise ValueError(f"tx equals rx in pair {bad}: the LOS gain λ/(4πd0) diverges")
+        for i, r in enumerate(self.ris):
+            p = np.asarray(r.position)
+            for name, pts in (("tx", tx), ("rx", rx)):
+                close = np.linalg.norm(pts - p, axis=-1) < MIN_UE_RIS_DISTANCE_M
+                if np.any(close):
+                    raise ValueError(
+                        f"{name} point {int(np.argmax(close))} lies on RIS {i} at {r.position}"
+                    )
+        if isinstance(self.codebook, ExplicitCodebook):
+            self._check_explicit(self.codebook)
+        return self
+
+    def _check_explicit(self, cb: ExplicitCodebook) -> None:
+        from ris_planner.codebooks import block_length
+
+        if len(cb.phases) != len(self.ris):
+            raise ValueError(
+                f"explicit codebook needs one phase block per RIS ({len(self.ris)}),"
+                f" got {len(cb.phases)}"
+            )
+        g_tilde = block_length(self.system.transmissions, len(self.ris))
+        for i, (block, r) in enumerate(zip(cb.phases, self.ris, strict=True)):
+            arr = np.asarray(block, dtype=float)
+            if arr.shape != (g_tilde, r.elements):
+                raise ValueError(
+                    f"explicit codebook for RIS {i} must be G/Γ × N = {g_tilde} × {r.elements}"
+                    f" phases, got shape {list(arr.shape)}"
+                )
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"explicit codebook for RIS {i} has non-finite phases")
+
+    @cached_property
+    def tx_array(self) -> NDArray[np.float64]:
+        """TX positions, [n_pairs, 3]."""
+        return np.asarray(_points(self.tx, "tx"), dtype=float)
+
+    @cached_property
+    def rx_array(self) -> NDArray[np.float64]:
+        """RX positions, [n_pairs, 3]."""
+        return np.asarray(_points(self.rx, "rx"), dtype=float)
+
+    @property
+    def is_batch(self) -> bool:
+        """True when tx/rx were given as lists of points (answers are lists in pair order)."""
+        return bool(np.asarray(self.tx, dtype=float).ndim == 2)
+
+
+PRESET_NAMES = ("paper-table1", "2-ris-L", "2-ris-P", "3-ris", "4-ris")
+"""Scenario presets shipped as package data (``ris_planner/presets/NAME.json``)."""
+
+
+def preset_document(name: str) -> dict[str, Any]:
+    """The raw JSON document of a named preset."""
+    if name not in PRESET_NAMES:
+        raise ValueError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
+    text = resources.files("ris_planner.presets").joinpath(f"{name}.json").read_text()
+    doc: dict[str, Any] = json.loads(text)
+    return doc
+
+
+def load_scenario(source: str | Path | dict[str, Any] | Scenario) -> Scenario:
+    """A :class:`Scenario` from a preset name, a JSON file path, a dict, or a Scenario."""
+    if isinstance(source, Scenario):
+        return source
+    if isinstance(source, dict):
+        return Scenario.model_validate(source)
+    if isinstance(source, str) and source in PRESET_NAMES:
+        return Scenario.model_validate(preset_document(source))
+    return Scenario.model_validate_json(Path(source).read_text())
