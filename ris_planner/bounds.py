@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from ris_planner import codebooks, fim, geometry
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
+    RIS,
     ExpectedRandomCodebook,
     ExplicitCodebook,
     KnownPart,
@@ -163,10 +164,44 @@ def first_block_profiles(scenario: Scenario) -> list[ComplexArray] | None:
     raise TypeError(f"unsupported codebook kind {cb.kind!r}")  # pragma: no cover
 
 
-def element_spacing(scenario: Scenario, index: int) -> float:
-    """Element spacing of RIS ``index`` [m] (default λ/2)."""
-    spacing = scenario.ris[index].spacing_m
-    return scenario.system.wavelength / 2 if spacing is None else spacing
+def los_path_information(
+    tx: FloatArray, rx: FloatArray, radio: fim.Radio, total_weight: float
+) -> PathInfo:
+    """The LOS path's equivalent FIM on cτ0 and its Jacobian; total_weight = Σ_g δ_g² (= G)."""
+    d0 = geometry.los_distance(tx, rx)
+    efim0 = fim.eliminate_nuisance(
+        fim.los_path_fim(total_weight, geometry.los_gain(d0, radio.wavelength), radio), 1
+    )
+    return PathInfo("los", efim0, geometry.los_jacobian(tx, rx))
+
+
+def ris_path_information(
+    ris: RIS,
+    tx: FloatArray,
+    rx: FloatArray,
+    radio: fim.Radio,
+    profile: ComplexArray | None,
+    block_count: int,
+    weights: FloatArray,
+    name: str = "ris",
+) -> tuple[PathInfo, NDArray[np.bool_]]:
+    """One RIS path's equivalent FIM on (ξ, ζ, cτ), its Jacobian, and far-field flags [P].
+
+    profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
+    block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks.
+    """
+    spacing = radio.wavelength / 2 if ris.spacing_m is None else ris.spacing_m
+    pos = geometry.element_positions(ris.rows, ris.cols, spacing)
+    geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
+    if profile is None:
+        q = fim.transmission_gram_expected(pos, radio.wavelength, block_count * weights.sum())
+    else:
+        t = fim.transmission_vectors(profile, pos, geo.xi, geo.zeta, radio.wavelength)
+        q = block_count * fim.transmission_gram(t, weights)
+    efim = fim.eliminate_nuisance(fim.ris_path_fim(q, geo.gain(radio.wavelength), radio), 3)
+    limit = geometry.fraunhofer_distance(ris.rows, ris.cols, spacing, radio.wavelength)
+    far = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
+    return PathInfo(name, efim, geo.jacobian()), far
 
 
 def path_information(
@@ -190,28 +225,16 @@ def path_information(
     weights = np.ones(g_tilde) if beam_powers is None else np.asarray(beam_powers, dtype=float)
     if weights.shape != (g_tilde,):
         raise ValueError(f"beam_powers must hold G/Γ = {g_tilde} values, got {weights.shape}")
-    total = float(gamma * weights.sum())
     paths: list[PathInfo] = []
     if system.los:
-        d0 = geometry.los_distance(tx, rx)
-        efim0 = fim.eliminate_nuisance(
-            fim.los_path_fim(total, geometry.los_gain(d0, radio.wavelength), radio), 1
-        )
-        paths.append(PathInfo("los", efim0, geometry.los_jacobian(tx, rx)))
+        paths.append(los_path_information(tx, rx, radio, float(gamma * weights.sum())))
     far = np.zeros((tx.shape[0], n_ris), dtype=bool)
     for idx, ris in enumerate(scenario.ris):
-        spacing = element_spacing(scenario, idx)
-        pos = geometry.element_positions(ris.rows, ris.cols, spacing)
-        geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
-        if profiles is None:
-            q = fim.transmission_gram_expected(pos, radio.wavelength, total)
-        else:
-            t = fim.transmission_vectors(profiles[idx], pos, geo.xi, geo.zeta, radio.wavelength)
-            q = gamma * fim.transmission_gram(t, weights)
-        efim = fim.eliminate_nuisance(fim.ris_path_fim(q, geo.gain(radio.wavelength), radio), 3)
-        paths.append(PathInfo(f"ris{idx + 1}", efim, geo.jacobian()))
-        limit = geometry.fraunhofer_distance(ris.rows, ris.cols, spacing, radio.wavelength)
-        far[:, idx] = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
+        prof = None if profiles is None else profiles[idx]
+        info, far[:, idx] = ris_path_information(
+            ris, tx, rx, radio, prof, gamma, weights, name=f"ris{idx + 1}"
+        )
+        paths.append(info)
     return paths, far
 
 
@@ -277,7 +300,7 @@ def compute_bounds(
     tx: ArrayLike | None = None,
     rx: ArrayLike | None = None,
     *,
-    profiles: list[ComplexArray] | None | str = "codebook",
+    profiles: list[ComplexArray] | str | None = "codebook",
     beam_powers: ArrayLike | None = None,
     known: list[KnownPart] | None = None,
 ) -> BoundsResult:

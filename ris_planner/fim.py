@@ -51,7 +51,11 @@ class Radio:
         return cls(
             wavelength=system.wavelength,
             snr_scale=2 * system.tx_power_w / system.noise_variance_w,
-            subcarrier_sums=(float(system.subcarriers), float(kappa.sum()), float((kappa**2).sum())),
+            subcarrier_sums=(
+                float(system.subcarriers),
+                float(kappa.sum()),
+                float((kappa**2).sum()),
+            ),
             transmissions=system.transmissions,
         )
 
@@ -98,7 +102,11 @@ def transmission_gram_expected(
 
 
 def transmission_vectors(
-    profiles: ComplexArray, positions: FloatArray, xi: FloatArray, zeta: FloatArray, wavelength: float
+    profiles: ComplexArray,
+    positions: FloatArray,
+    xi: FloatArray,
+    zeta: FloatArray,
+    wavelength: float,
 ) -> ComplexArray:
     """t_g = ω_g^T [∂a_R/∂ξ, ∂a_R/∂ζ, a_R] for all pairs in one matrix product.
 
@@ -147,7 +155,9 @@ def los_path_fim(total_weight: float, alpha0: FloatArray, radio: Radio) -> Float
     c[:, 1] = 1.0
     c[:, 2] = -1j * alpha0
     s = radio.subcarrier_matrix(_LOS_DELAY)
-    return radio.snr_scale * total_weight * np.real(s[None] * np.conj(c)[:, :, None] * c[:, None, :])
+    return (
+        radio.snr_scale * total_weight * np.real(s[None] * np.conj(c)[:, :, None] * c[:, None, :])
+    )
 
 
 def eliminate_nuisance(fim: FloatArray, n_keep: int) -> FloatArray:

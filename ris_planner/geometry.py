@@ -102,7 +102,10 @@ class RisPathGeometry:
         """
         n = self.d_tx.shape[0]
         jac = np.zeros((n, 3, 7))
-        for t_slice, u, d in ((slice(0, 3), self.u_tx, self.d_tx), (slice(3, 6), self.u_rx, self.d_rx)):
+        for t_slice, u, d in (
+            (slice(0, 3), self.u_tx, self.d_tx),
+            (slice(3, 6), self.u_rx, self.d_rx),
+        ):
             # [P, 3, 3]: projector orthogonal to u, divided by the distance
             proj = (np.eye(3)[None] - u[:, :, None] * u[:, None, :]) / d[:, None, None]
             # [P, 3, 3]: d t_local / d p (rows: local components)
@@ -164,7 +167,9 @@ def los_jacobian(tx: FloatArray, rx: FloatArray) -> FloatArray:
     return jac
 
 
-def steering_vector(positions: FloatArray, xi: ArrayLike, zeta: ArrayLike, wavelength: float) -> NDArray[np.complex128]:
+def steering_vector(
+    positions: FloatArray, xi: ArrayLike, zeta: ArrayLike, wavelength: float
+) -> NDArray[np.complex128]:
     """a_R(ξ, ζ) = exp(j 2π/λ Z^T [0, ξ, ζ]) (eq. RIS_equivalent_gain_xi_zeta).
 
     positions : [N, 3] local element positions; xi, zeta : [P]. Returns [P, N].

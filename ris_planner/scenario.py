@@ -95,7 +95,9 @@ class SystemParams(_Model):
     def noise_variance_w(self) -> float:
         """σ² = W · N0 · NF [W]."""
         return float(
-            self.bandwidth_hz * dbm_to_watt(self.noise_psd_dbm_hz) * db_to_linear(self.noise_figure_db)
+            self.bandwidth_hz
+            * dbm_to_watt(self.noise_psd_dbm_hz)
+            * db_to_linear(self.noise_figure_db)
         )
 
 
@@ -212,9 +214,7 @@ class Scenario(_Model):
             raise ValueError(
                 f"tx and rx must hold the same number of points, got {len(tx)} and {len(rx)}"
             )
-        if self.system.los and np.any(
-            np.linalg.norm(tx - rx, axis=-1) < MIN_UE_RIS_DISTANCE_M
-        ):
+        if self.system.los and np.any(np.linalg.norm(tx - rx, axis=-1) < MIN_UE_RIS_DISTANCE_M):
             bad = int(np.argmax(np.linalg.norm(tx - rx, axis=-1) < MIN_UE_RIS_DISTANCE_M))
             raise ValueError(f"tx equals rx in pair {bad}: the LOS gain λ/(4πd0) diverges")
         for i, r in enumerate(self.ris):

@@ -1,0 +1,12 @@
+"""The package's own error types (the service maps them to 4xx responses)."""
+
+from __future__ import annotations
+
+
+class RisPlannerError(ValueError):
+    """Base class: an input the engine cannot work with; the message says the rule, the value
+    that arrived and how to fix it."""
+
+
+class LimitExceededError(RisPlannerError):
+    """A request is larger than a configured limit (pairs, layouts, runs)."""
