@@ -30,9 +30,10 @@ FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
 SINGULAR_RCOND = 1e-12
-"""A Fisher matrix (after symmetric diagonal scaling to unit diagonal) whose smallest
-eigenvalue is below this fraction of its largest is singular: its inverse would be dominated
-by rounding (float64 ε ≈ 2.2e-16 times a 7×7 accumulation leaves ≥ 3 orders of margin)."""
+"""A Fisher matrix is singular when, after symmetric scaling to unit diagonal, a pivot of its
+LDLᵀ factorisation falls below this value. Every pivot is ≥ λ_min of the scaled matrix, so a
+pivot this small means cond ≥ 1e12: the inverse would be dominated by rounding (float64
+ε ≈ 2.2e-16 times a 7×7 accumulation leaves ≥ 3 orders of margin)."""
 
 STATE_NAMES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "clock")
 REASON_UNDERDETERMINED = "underdetermined"
@@ -52,21 +53,58 @@ def kept_states(known: list[KnownPart] | tuple[KnownPart, ...]) -> NDArray[np.in
     return np.array([i for i in range(7) if i not in drop], dtype=int)
 
 
+def _scaled_ldl(
+    f: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Batched LDLᵀ of unit-diagonal-scaled symmetric matrices, vectorised over the batch.
+
+    f : [P, n, n]. Returns (M = L⁻¹ [P, n, n], pivots D [P, n], scale d [P, n], singular [P])
+    with f = diag(d) L diag(D) Lᵀ diag(d). Singular pairs get pivots 1 (results overwritten).
+    """
+    n = f.shape[-1]
+    d = np.sqrt(np.clip(np.diagonal(f, axis1=1, axis2=2), 0.0, None))
+    singular = np.any(d <= 0.0, axis=1)
+    d_safe = np.where(d > 0.0, d, 1.0)
+    # [n, n, P]: batch last so every step is one vector operation over the pairs
+    a = np.moveaxis(f / (d_safe[:, :, None] * d_safe[:, None, :]), 0, -1)
+    low = np.zeros_like(a)
+    piv = np.ones((n, a.shape[-1]))
+    for j in range(n):
+        pj = a[j, j] - np.sum(low[j, :j] ** 2 * piv[:j], axis=0)
+        bad = ~(pj > SINGULAR_RCOND)
+        singular |= bad
+        piv[j] = np.where(bad, 1.0, pj)
+        if j + 1 < n:
+            coupling = np.sum(low[j + 1 :, :j] * (low[j, :j] * piv[:j])[None], axis=1)
+            low[j + 1 :, j] = (a[j + 1 :, j] - coupling) / piv[j]
+    # [n, n, P] M = L⁻¹ by forward substitution (L unit lower triangular)
+    inv_low = np.zeros_like(a)
+    for i in range(n):
+        inv_low[i, i] = 1.0
+        if i:
+            inv_low[i, :i] = -np.sum(low[i, :i, None] * inv_low[:i, :i], axis=0)
+    return np.moveaxis(inv_low, -1, 0), piv.T, d_safe, singular
+
+
+def fim_inverse_diagonal(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """diag(F⁻¹) for a batch of symmetric FIMs, ``inf`` where singular.
+
+    f : [P, n, n]. Returns (diag [P, n], singular [P]); diag(F⁻¹)_i = Σ_k M_ki² / (D_k d_i²).
+    """
+    m, piv, d, singular = _scaled_ldl(f)
+    diag = np.einsum("pki,pk->pi", m**2, 1.0 / piv) / d**2
+    diag[singular] = np.inf
+    return diag, singular
+
+
 def invert_fim(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Batched inverse of symmetric FIMs with singularity detection.
+    """Batched inverse (the CRB) of symmetric FIMs with singularity detection.
 
     f : [P, n, n]. Returns (crb [P, n, n] with ``inf`` on singular pairs, singular [P]).
     """
-    d = np.sqrt(np.clip(np.diagonal(f, axis1=1, axis2=2), 0.0, None))
-    zero_diag = np.any(d <= 0.0, axis=1)
-    d_safe = np.where(d > 0.0, d, 1.0)
-    # [P, n, n] unit-diagonal scaling keeps eigenvalues comparable across units (m, rad)
-    fn = f / (d_safe[:, :, None] * d_safe[:, None, :])
-    w, v = np.linalg.eigh(fn)
-    singular = zero_diag | (w[:, 0] <= SINGULAR_RCOND * w[:, -1])
-    w_safe = np.where(singular[:, None], 1.0, w)
-    crb_n = (v / w_safe[:, None, :]) @ v.transpose(0, 2, 1)
-    crb = crb_n / (d_safe[:, :, None] * d_safe[:, None, :])
+    m, piv, d, singular = _scaled_ldl(f)
+    crb = (m.transpose(0, 2, 1) / piv[:, None, :]) @ m
+    crb = crb / (d[:, :, None] * d[:, None, :])
     crb[singular] = np.inf
     return crb, singular
 
@@ -85,7 +123,17 @@ class PathInfo:
 
     def state_information(self) -> FloatArray:
         """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]."""
-        return np.asarray(self.jacobian.transpose(0, 2, 1) @ self.efim @ self.jacobian)
+        jac, efim = self.jacobian, self.efim
+        m = jac.shape[1]
+        # [P, m, 7]: Ĩ J as m broadcast products (small batched matmuls are slow in numpy)
+        ej = efim[:, :, 0, None] * jac[:, None, 0, :]
+        for b in range(1, m):
+            ej = ej + efim[:, :, b, None] * jac[:, None, b, :]
+        # [P, 7, 7]
+        out = jac[:, 0, :, None] * ej[:, 0, None, :]
+        for a in range(1, m):
+            out = out + jac[:, a, :, None] * ej[:, a, None, :]
+        return np.asarray(out)
 
 
 @dataclass(frozen=True)
@@ -168,11 +216,10 @@ def los_path_information(
     tx: FloatArray, rx: FloatArray, radio: fim.Radio, total_weight: float
 ) -> PathInfo:
     """The LOS path's equivalent FIM on cτ0 and its Jacobian; total_weight = Σ_g δ_g² (= G)."""
-    d0 = geometry.los_distance(tx, rx)
-    efim0 = fim.eliminate_nuisance(
-        fim.los_path_fim(total_weight, geometry.los_gain(d0, radio.wavelength), radio), 1
-    )
-    return PathInfo("los", efim0, geometry.los_jacobian(tx, rx))
+    alpha0 = geometry.los_gain(geometry.los_distance(tx, rx), radio.wavelength)
+    # the equivalent FIM scales with |ρ0|² (Ĩ(α) = α² Ĩ(1)): one 1×1 block at unit gain
+    unit = fim.eliminate_nuisance(fim.los_path_fim(total_weight, np.ones(1), radio), 1)
+    return PathInfo("los", alpha0[:, None, None] ** 2 * unit, geometry.los_jacobian(tx, rx))
 
 
 def ris_path_information(
@@ -193,12 +240,16 @@ def ris_path_information(
     spacing = radio.wavelength / 2 if ris.spacing_m is None else ris.spacing_m
     pos = geometry.element_positions(ris.rows, ris.cols, spacing)
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
+    alpha = geo.gain(radio.wavelength)
     if profile is None:
+        # E[Q] does not depend on ξ, ζ: one 3×3 EFIM at unit gain, scaled by α² per pair
         q = fim.transmission_gram_expected(pos, radio.wavelength, block_count * weights.sum())
+        unit = fim.eliminate_nuisance(fim.ris_path_fim(q, np.ones(1), radio), 3)
+        efim = alpha[:, None, None] ** 2 * unit
     else:
         t = fim.transmission_vectors(profile, pos, geo.xi, geo.zeta, radio.wavelength)
         q = block_count * fim.transmission_gram(t, weights)
-    efim = fim.eliminate_nuisance(fim.ris_path_fim(q, geo.gain(radio.wavelength), radio), 3)
+        efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 3)
     limit = geometry.fraunhofer_distance(ris.rows, ris.cols, spacing, radio.wavelength)
     far = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
     return PathInfo(name, efim, geo.jacobian()), far
@@ -247,8 +298,7 @@ def bounds_from_state_fim(
     than the unknown states makes every pair singular with an explicit reason.
     """
     keep = kept_states(known)
-    crb, singular = invert_fim(f[:, keep][:, :, keep])
-    diag = np.diagonal(crb, axis1=1, axis2=2)
+    diag, singular = fim_inverse_diagonal(f[:, keep][:, :, keep])
     reason = np.full(f.shape[0], None, dtype=object)
     if n_observations < keep.size:
         singular = np.ones(f.shape[0], dtype=bool)
@@ -275,8 +325,8 @@ def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
     """DEB [m] and SEBs per path (eqs. DEB, SEB1, SEB2) from the equivalent FIMs."""
     out: dict[str, dict[str, FloatArray]] = {}
     for p in paths:
-        crb, _ = invert_fim(p.efim)
-        sd = np.sqrt(np.diagonal(crb, axis1=1, axis2=2))
+        diag, _ = fim_inverse_diagonal(p.efim)
+        sd = np.sqrt(diag)
         if p.efim.shape[1] == 1:
             out[p.name] = {"deb_m": sd[:, 0]}
         else:

@@ -111,17 +111,17 @@ def transmission_vectors(
     """t_g = ω_g^T [∂a_R/∂ξ, ∂a_R/∂ζ, a_R] for all pairs in one matrix product.
 
     profiles : [G̃, N]; positions : [N, 3]; xi, zeta : [P]. Returns [P, G̃, 3].
+    Uses ω^T(jk·y ⊙ a) = (jk·y ⊙ ω)^T a: one (3G̃ × N) @ (N × P) product.
     """
     k = 2 * np.pi / wavelength
     y, z = positions[:, 1], positions[:, 2]
-    # [P, N]
-    a = np.exp(1j * k * (xi[:, None] * y[None, :] + zeta[:, None] * z[None, :]))
-    # [N, P, 3]
-    v = np.stack([1j * k * y[None, :] * a, 1j * k * z[None, :] * a, a], axis=-1).transpose(1, 0, 2)
-    n_pairs = xi.shape[0]
-    # [G̃, P*3] -> [P, G̃, 3]: one (G̃ × N) @ (N × 3P) product
-    t = profiles @ v.reshape(v.shape[0], -1)
-    return t.reshape(profiles.shape[0], n_pairs, 3).transpose(1, 0, 2)
+    # [3G̃, N] derivative-weighted profiles
+    w3 = np.concatenate([profiles * (1j * k * y), profiles * (1j * k * z), profiles], axis=0)
+    # [N, P] steering vectors a_R(ξ, ζ) of eq. RIS_equivalent_gain_xi_zeta
+    a = np.exp(1j * k * (np.outer(y, xi) + np.outer(z, zeta)))
+    g = profiles.shape[0]
+    # [3, G̃, P] -> [P, G̃, 3]
+    return np.asarray((w3 @ a).reshape(3, g, -1).transpose(2, 1, 0))
 
 
 def transmission_gram(t: ComplexArray, weights: FloatArray) -> ComplexArray:

@@ -1,0 +1,188 @@
+"""Bounds semantics: known parts, LOS blockage, blind spots, bad input, batching."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from ris_planner import compute_bounds, load_scenario, preset_document
+from ris_planner.bounds import (
+    REASON_DEGENERATE,
+    REASON_UNDERDETERMINED,
+    fim_inverse_diagonal,
+    invert_fim,
+)
+from ris_planner.scenario import Scenario
+
+
+def table1(**changes: object) -> dict:  # type: ignore[type-arg]
+    doc = preset_document("paper-table1")
+    doc.update(changes)
+    return doc
+
+
+def test_known_parts_only_help_and_remove_their_bounds() -> None:
+    base = compute_bounds(load_scenario(table1()))
+    assert base.peb_tx is not None and base.ceb is not None
+    clock = compute_bounds(load_scenario(table1(known=["clock"])))
+    assert clock.ceb is None and clock.peb_rx[0] <= base.peb_rx[0]
+    height = compute_bounds(load_scenario(table1(known=["height"])))
+    assert height.peb_rx[0] <= base.peb_rx[0]
+    tx = compute_bounds(load_scenario(table1(known=["tx"])))
+    assert tx.peb_tx is None and tx.peb_rx[0] <= base.peb_rx[0]
+    out = tx.to_json(batch=False)
+    assert out["peb_tx_m"] is None and "known" in out["peb_tx_reason"]
+
+
+def test_los_blocked_two_ris_is_underdetermined_with_reason() -> None:
+    doc = table1()
+    doc["system"] = doc["system"] | {"los": False}
+    r = compute_bounds(load_scenario(doc))
+    assert np.isinf(r.peb_rx[0]) and REASON_UNDERDETERMINED in r.reason[0]
+    js = r.to_json(batch=False)
+    assert js["peb_rx_m"] is None and REASON_UNDERDETERMINED in js["reason"]
+    json.dumps(js, allow_nan=False)  # never NaN/inf in JSON
+    # with a known clock, 6 observations for 6 unknowns: localisable
+    ok = compute_bounds(load_scenario(doc | {"known": ["clock"]}))
+    assert np.isfinite(ok.peb_rx[0])
+    # three RISs without LOS: 9 observations for 7 unknowns
+    doc3 = preset_document("3-ris")
+    doc3["system"] = doc3["system"] | {"los": False}
+    assert np.isfinite(compute_bounds(load_scenario(doc3)).peb_rx[0])
+
+
+def test_single_ris_underdetermined() -> None:
+    doc = table1()
+    doc["ris"] = doc["ris"][:1]
+    r = compute_bounds(load_scenario(doc))
+    assert np.isinf(r.peb_rx[0]) and "4 geometric channel parameters for 7" in r.reason[0]
+
+
+def test_singular_matrix_detected_never_nan() -> None:
+    f = np.zeros((3, 4, 4))
+    f[0] = np.diag([1.0, 2.0, 3.0, 4.0])
+    v = np.array([1.0, 1.0, 0.0, 0.0])
+    f[1] = np.outer(v, v) + np.diag([0, 0, 1.0, 1.0])  # rank 3
+    f[2] = np.diag([1.0, 0.0, 1.0, 1.0])  # zero information on one state
+    diag, singular = fim_inverse_diagonal(f)
+    assert list(singular) == [False, True, True]
+    np.testing.assert_allclose(diag[0], [1, 0.5, 1 / 3, 0.25])
+    assert np.all(np.isinf(diag[1:])) and not np.any(np.isnan(diag))
+    crb, _ = invert_fim(f[:1])
+    np.testing.assert_allclose(crb[0], np.linalg.inv(f[0]))
+
+
+def test_degenerate_pairs_in_a_batch_get_inf_with_reason() -> None:
+    sc = load_scenario("paper-table1")
+    tx = np.array([[-2.0, -4, 0], [-4, 0, 2], [1, 1, 0]])
+    rx = np.array([[2.0, 3, 0], [2, 3, 0], [1, 1, 0]])
+    r = compute_bounds(sc, tx=tx, rx=rx)
+    assert np.isfinite(r.peb_rx[0])
+    assert np.all(np.isinf(r.peb_rx[1:])) and list(r.reason[1:]) == [REASON_DEGENERATE] * 2
+    assert not np.any(np.isnan(r.peb_rx))
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"tx": [float("nan"), 0, 0]}, "tx"),
+        ({"rx": [0, float("inf"), 0]}, "rx"),
+        ({"tx": [[0, 0, 0], [1, 1, 1]], "rx": [1, 2, 3]}, "tx and rx must hold the same number"),
+        ({"tx": [-4, 0, 2]}, "lies on RIS 0"),
+        ({"tx": [2, 3, 0]}, "tx equals rx"),
+        ({"ris": []}, "ris"),
+        ({"known": ["clock", "clock"]}, "twice"),
+        ({"known": ["speed"]}, "known"),
+        (
+            {"codebook": {"kind": "explicit", "phases": [[[0.0] * 100] * 3]}},
+            "one phase block per RIS",
+        ),
+        ({"codebook": {"kind": "explicit", "phases": [[[0.0] * 100] * 3] * 2}}, "64 × 100"),
+        ({"codebook": {"kind": "magic"}}, "codebook"),
+        ({"colour": "red"}, "colour"),
+    ],
+)
+def test_bad_documents_rejected_with_field(change: dict, field: str) -> None:  # type: ignore[type-arg]
+    with pytest.raises(ValidationError) as exc:
+        Scenario.model_validate(table1(**change))
+    assert field in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("system", "field"),
+    [
+        ({"subcarriers": 0}, "subcarriers"),
+        ({"transmissions": -1}, "transmissions"),
+        ({"bandwidth_hz": 0}, "bandwidth_hz"),
+        ({"carrier_hz": -3e9}, "carrier_hz"),
+        ({"tx_power_dbm": float("nan")}, "tx_power_dbm"),
+        ({"noise_figure_db": -1}, "noise_figure_db"),
+    ],
+)
+def test_bad_system_rejected(system: dict, field: str) -> None:  # type: ignore[type-arg]
+    doc = table1()
+    doc["system"] = doc["system"] | system
+    with pytest.raises(ValidationError) as exc:
+        Scenario.model_validate(doc)
+    assert field in str(exc.value)
+
+
+def test_bad_ris_rejected() -> None:
+    doc = table1()
+    doc["ris"][0] = doc["ris"][0] | {"rows": 0}
+    with pytest.raises(ValidationError, match="rows"):
+        Scenario.model_validate(doc)
+    doc = table1()
+    doc["ris"][0] = doc["ris"][0] | {"spacing_m": -0.01}
+    with pytest.raises(ValidationError, match="spacing_m"):
+        Scenario.model_validate(doc)
+
+
+def test_too_few_transmissions_for_the_blocks() -> None:
+    doc = table1()
+    doc["system"] = doc["system"] | {"transmissions": 2}
+    with pytest.raises(ValueError, match="L\\+1 = 3"):
+        compute_bounds(load_scenario(doc))
+
+
+def test_array_api_rejects_bad_shapes() -> None:
+    sc = load_scenario("paper-table1")
+    with pytest.raises(ValueError, match="\\[P, 3\\]"):
+        compute_bounds(sc, tx=np.zeros((2, 3)), rx=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="finite"):
+        compute_bounds(sc, tx=[np.nan, 0, 0], rx=[1, 1, 1])
+
+
+def test_far_field_flags() -> None:
+    sc = load_scenario("paper-table1")
+    r = compute_bounds(sc, tx=[[-3.5, 0, 1.8], [-2, -4, 0]], rx=[[2, 3, 0], [2, 3, 0]])
+    assert list(r.far_field[:, 0]) == [False, True]  # 0.54 m from RIS 1: inside 2D²/λ = 1 m rule
+    assert r.to_json()["far_field"] == [False, True]
+
+
+def test_batch_json_lists_in_pair_order() -> None:
+    doc = table1(tx=[[-2, -4, 0], [-1, -1, 0]], rx=[[2, 3, 0], [1, 2, 0.5]])
+    sc = load_scenario(doc)
+    assert sc.is_batch
+    js = compute_bounds(sc).to_json(batch=True)
+    assert len(js["peb_rx_m"]) == 2 and len(js["channel"][1]["seb_xi"]) == 2
+    one = compute_bounds(load_scenario(table1(tx=[-1, -1, 0], rx=[1, 2, 0.5]))).to_json(batch=False)
+    assert one["peb_rx_m"] == pytest.approx(js["peb_rx_m"][1], rel=1e-12)
+
+
+def test_random_codebook_is_reproducible_and_seeded() -> None:
+    a = compute_bounds(load_scenario(table1(codebook={"kind": "random", "seed": 3})))
+    b = compute_bounds(load_scenario(table1(codebook={"kind": "random", "seed": 3})))
+    c = compute_bounds(load_scenario(table1(codebook={"kind": "random", "seed": 4})))
+    assert a.peb_rx[0] == b.peb_rx[0] != c.peb_rx[0]
+
+
+def test_explicit_codebook_equals_random_with_same_phases() -> None:
+    rng = np.random.default_rng(0)
+    phases = [rng.uniform(0, 2 * np.pi, (64, 100)).tolist() for _ in range(2)]
+    e = compute_bounds(load_scenario(table1(codebook={"kind": "explicit", "phases": phases})))
+    r = compute_bounds(load_scenario(table1(codebook={"kind": "random", "seed": 0})))
+    assert e.peb_rx[0] == pytest.approx(r.peb_rx[0], rel=1e-12)

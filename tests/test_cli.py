@@ -1,0 +1,76 @@
+"""The ``ris-planner`` command line: bounds, schema, input errors without tracebacks."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from ris_planner import compute_bounds, load_scenario, preset_document
+from ris_planner.cli import main
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_bounds_preset_matches_python_api(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "bounds", "--preset", "paper-table1")
+    assert code == 0
+    got = json.loads(out)
+    ref = compute_bounds(load_scenario("paper-table1"))
+    assert got["peb_rx_m"] == ref.peb_rx[0]
+    assert {"peb_tx_m", "peb_rx_m", "ceb_m", "channel", "far_field"} <= set(got)
+    assert [c["path"] for c in got["channel"]] == ["los", "ris1", "ris2"]
+
+
+def test_bounds_file_batch(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    doc = preset_document("2-ris-L") | {
+        "tx": [[-2, -4, 0], [0, 0, 0]],
+        "rx": [[2, 3, 0], [1, 1, 0.5]],
+    }
+    f = tmp_path / "s.json"
+    f.write_text(json.dumps(doc))
+    code, out, _ = run(capsys, "bounds", str(f))
+    assert code == 0
+    got = json.loads(out)
+    assert len(got["peb_rx_m"]) == 2 and len(got["far_field"]) == 2
+
+
+def test_invalid_document_names_field(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    doc = preset_document("paper-table1")
+    doc["ris"][1]["position"] = [4, 0, "up"]
+    f = tmp_path / "bad.json"
+    f.write_text(json.dumps(doc))
+    code, out, err = run(capsys, "bounds", str(f))
+    assert code == 2 and out == ""
+    assert "ris.1.position.2" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [("{not json", "not valid JSON"), ("[1, 2]", "JSON object")],
+)
+def test_unreadable_documents(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str, message: str
+) -> None:
+    f = tmp_path / "x.json"
+    f.write_text(content)
+    code, _, err = run(capsys, "bounds", str(f))
+    assert code == 2 and message in err
+
+
+def test_missing_file_and_no_source(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys, "bounds", "/nonexistent/file.json")
+    assert code == 2 and "No such file" in err
+    code, _, err = run(capsys, "bounds")
+    assert code == 2 and "exactly one of FILE or --preset" in err
+
+
+def test_schema(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "schema")
+    schema = json.loads(out)
+    assert code == 0 and "ris" in schema["properties"] and "system" in schema["properties"]
