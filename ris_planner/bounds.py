@@ -58,32 +58,43 @@ def _scaled_ldl(
 ) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
     """Batched LDLᵀ of unit-diagonal-scaled symmetric matrices, vectorised over the batch.
 
-    f : [P, n, n]. Returns (M = L⁻¹ [P, n, n], pivots D [P, n], scale d [P, n], singular [P])
-    with f = diag(d) L diag(D) Lᵀ diag(d). Singular pairs get pivots 1 (results overwritten).
+    f : [P, n, n]. Returns, batch last, (M = L⁻¹ [n, n, P], pivots D [n, P], scale d [n, P],
+    singular [P]) with f = diag(d) L diag(D) Lᵀ diag(d). Singular pairs get pivots 1 (their
+    results are overwritten by the callers).
     """
     n = f.shape[-1]
-    d = np.sqrt(np.clip(np.diagonal(f, axis1=1, axis2=2), 0.0, None))
-    singular = np.any(d <= 0.0, axis=1)
+    # [n, n, P]: batch last, contiguous, so every step is one vector operation over the pairs
+    fb = np.ascontiguousarray(np.moveaxis(f, 0, -1))
+    d = np.sqrt(np.clip(np.diagonal(fb, axis1=0, axis2=1).T, 0.0, None))
+    singular = np.any(d <= 0.0, axis=0)
     d_safe = np.where(d > 0.0, d, 1.0)
-    # [n, n, P]: batch last so every step is one vector operation over the pairs
-    a = np.moveaxis(f / (d_safe[:, :, None] * d_safe[:, None, :]), 0, -1)
+    a = fb / (d_safe[:, None, :] * d_safe[None, :, :])
     low = np.zeros_like(a)
     piv = np.ones((n, a.shape[-1]))
     for j in range(n):
-        pj = a[j, j] - np.sum(low[j, :j] ** 2 * piv[:j], axis=0)
+        # [j, P]: L_jk D_k for k < j
+        ld = low[j, :j] * piv[:j]
+        pj = a[j, j].copy()
+        for k in range(j):
+            pj -= low[j, k] * ld[k]
         bad = ~(pj > SINGULAR_RCOND)
         singular |= bad
         piv[j] = np.where(bad, 1.0, pj)
-        if j + 1 < n:
-            coupling = np.sum(low[j + 1 :, :j] * (low[j, :j] * piv[:j])[None], axis=1)
-            low[j + 1 :, j] = (a[j + 1 :, j] - coupling) / piv[j]
+        for i in range(j + 1, n):
+            lij = a[i, j].copy()
+            for k in range(j):
+                lij -= low[i, k] * ld[k]
+            low[i, j] = lij / piv[j]
     # [n, n, P] M = L⁻¹ by forward substitution (L unit lower triangular)
     inv_low = np.zeros_like(a)
     for i in range(n):
         inv_low[i, i] = 1.0
-        if i:
-            inv_low[i, :i] = -np.sum(low[i, :i, None] * inv_low[:i, :i], axis=0)
-    return np.moveaxis(inv_low, -1, 0), piv.T, d_safe, singular
+        for j in range(i):
+            acc = -low[i, j].copy()
+            for k in range(j + 1, i):
+                acc -= low[i, k] * inv_low[k, j]
+            inv_low[i, j] = acc
+    return inv_low, piv, d_safe, singular
 
 
 def fim_inverse_diagonal(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -92,7 +103,10 @@ def fim_inverse_diagonal(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
     f : [P, n, n]. Returns (diag [P, n], singular [P]); diag(F⁻¹)_i = Σ_k M_ki² / (D_k d_i²).
     """
     m, piv, d, singular = _scaled_ldl(f)
-    diag = np.einsum("pki,pk->pi", m**2, 1.0 / piv) / d**2
+    inv_piv = 1.0 / piv
+    # [n, P]
+    diag = np.stack([np.sum(m[i:, i] ** 2 * inv_piv[i:], axis=0) for i in range(f.shape[-1])])
+    diag = (diag / d**2).T
     diag[singular] = np.inf
     return diag, singular
 
@@ -102,7 +116,8 @@ def invert_fim(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
 
     f : [P, n, n]. Returns (crb [P, n, n] with ``inf`` on singular pairs, singular [P]).
     """
-    m, piv, d, singular = _scaled_ldl(f)
+    mb, pivb, db, singular = _scaled_ldl(f)
+    m, piv, d = np.moveaxis(mb, -1, 0), pivb.T, db.T
     crb = (m.transpose(0, 2, 1) / piv[:, None, :]) @ m
     crb = crb / (d[:, :, None] * d[:, None, :])
     crb[singular] = np.inf
@@ -123,17 +138,8 @@ class PathInfo:
 
     def state_information(self) -> FloatArray:
         """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]."""
-        jac, efim = self.jacobian, self.efim
-        m = jac.shape[1]
-        # [P, m, 7]: Ĩ J as m broadcast products (small batched matmuls are slow in numpy)
-        ej = efim[:, :, 0, None] * jac[:, None, 0, :]
-        for b in range(1, m):
-            ej = ej + efim[:, :, b, None] * jac[:, None, b, :]
         # [P, 7, 7]
-        out = jac[:, 0, :, None] * ej[:, 0, None, :]
-        for a in range(1, m):
-            out = out + jac[:, a, :, None] * ej[:, a, None, :]
-        return np.asarray(out)
+        return np.asarray(self.jacobian.transpose(0, 2, 1) @ self.efim @ self.jacobian)
 
 
 @dataclass(frozen=True)

@@ -102,17 +102,15 @@ class RisPathGeometry:
         """
         n = self.d_tx.shape[0]
         jac = np.zeros((n, 3, 7))
-        for t_slice, u, d in (
-            (slice(0, 3), self.u_tx, self.d_tx),
-            (slice(3, 6), self.u_rx, self.d_rx),
+        rt = self.rotation.T
+        for cols, t, u, d in (
+            (slice(0, 3), self.t_tx, self.u_tx, self.d_tx),
+            (slice(3, 6), self.t_rx, self.u_rx, self.d_rx),
         ):
-            # [P, 3, 3]: projector orthogonal to u, divided by the distance
-            proj = (np.eye(3)[None] - u[:, :, None] * u[:, None, :]) / d[:, None, None]
-            # [P, 3, 3]: d t_local / d p (rows: local components)
-            dt = np.einsum("ji,pjk->pik", self.rotation, proj)
-            jac[:, 0, t_slice] = dt[:, 1, :]
-            jac[:, 1, t_slice] = dt[:, 2, :]
-            jac[:, 2, t_slice] = u
+            # rows 1, 2 of R^T (I − u u^T)/d = (R^T − t u^T)/d, with t = R^T u: [P, 3] each
+            jac[:, 0, cols] = (rt[1][None, :] - t[:, 1, None] * u) / d[:, None]
+            jac[:, 1, cols] = (rt[2][None, :] - t[:, 2, None] * u) / d[:, None]
+            jac[:, 2, cols] = u
         jac[:, 2, 6] = 1.0
         return jac
 

@@ -1,0 +1,76 @@
+"""Benchmark: the Fig. 10 workload (4753 pairs, N = 100, G = 192) per layout.
+
+For each layout and for the ``random`` and ``expected_random`` codebooks, the median wall time of
+:func:`ris_planner.compute_bounds` over all 4753 pairs, next to the naive evaluation of eq.
+FIM_measurement (tests/naive.py: the full K×G sum for one pair, then the inversion) measured in
+the same run on a few pairs and extrapolated to 4753. Targets on the 2-core machine: ≤ 0.3 s per
+layout for ``random``, ≤ 0.02 s for ``expected_random``.
+
+    python benchmarks/bench_bounds.py [--naive-pairs 3] [--repeats 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from naive import naive_bounds, naive_state_fim
+
+from ris_planner import codebooks, compute_bounds, load_scenario, preset_document
+from ris_planner.bounds import first_block_profiles
+from ris_planner.paper import fig10_pairs
+
+LAYOUTS = ("2-ris-L", "2-ris-P", "3-ris", "4-ris")
+
+
+def median_time(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
+    fn()  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def naive_seconds_per_pair(layout: str, n_pairs: int) -> float:
+    sc = load_scenario(preset_document(layout))
+    tx, rx = fig10_pairs()
+    prof = first_block_profiles(sc)
+    assert prof is not None
+    b = codebooks.orthogonal_code_matrix(sc.system.transmissions, len(sc.ris))
+    full = [codebooks.expand_profiles(prof[i], b[:, i + 1]) for i in range(len(sc.ris))]
+    t0 = time.perf_counter()
+    for i in range(n_pairs):
+        f = naive_state_fim(sc, tx[i], rx[i], full, np.ones(sc.system.transmissions))
+        naive_bounds(f, list(range(7)))
+    return (time.perf_counter() - t0) / n_pairs
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--naive-pairs", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args()
+    tx, rx = fig10_pairs()
+    print(
+        f"{'layout':8s} {'codebook':16s} {'time [s]':>9s} {'naive (extrap.) [s]':>20s} {'speed-up':>9s}"
+    )
+    for layout in LAYOUTS:
+        naive_total = naive_seconds_per_pair(layout, args.naive_pairs) * len(tx)
+        for kind in ("random", "expected_random"):
+            cb = {"kind": kind, "seed": 0} if kind == "random" else {"kind": kind}
+            sc = load_scenario(preset_document(layout) | {"codebook": cb})
+            t = median_time(lambda sc=sc: compute_bounds(sc, tx=tx, rx=rx), args.repeats)
+            print(f"{layout:8s} {kind:16s} {t:9.4f} {naive_total:20.1f} {naive_total / t:9.0f}x")
+
+
+if __name__ == "__main__":
+    main()
