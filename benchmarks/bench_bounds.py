@@ -60,9 +60,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=7)
     args = parser.parse_args()
     tx, rx = fig10_pairs()
-    print(
-        f"{'layout':8s} {'codebook':16s} {'time [s]':>9s} {'naive (extrap.) [s]':>20s} {'speed-up':>9s}"
-    )
+    header = ("layout", "codebook", "time [s]", "naive (extrap.) [s]", "speed-up")
+    print(f"{header[0]:8s} {header[1]:16s} {header[2]:>9s} {header[3]:>20s} {header[4]:>9s}")
     for layout in LAYOUTS:
         naive_total = naive_seconds_per_pair(layout, args.naive_pairs) * len(tx)
         for kind in ("random", "expected_random"):
