@@ -12,6 +12,18 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 
 
+INVERSION_EPS = 1e-14
+"""The bounds agree to max(floor, cond·INVERSION_EPS): a backward-stable inversion of a
+matrix with (unit-diagonal) condition number cond loses about cond·ε of relative accuracy, and
+random small scenarios include near-blind geometries."""
+
+
+def bounds_rtol(f: np.ndarray, floor: float) -> float:
+    """Relative tolerance for bounds computed from the FIM f by two rounding-different routes."""
+    d = np.sqrt(np.diag(f))
+    return max(floor, float(np.linalg.cond(f / np.outer(d, d))) * INVERSION_EPS)
+
+
 def small_scenario_doc(
     rng: np.random.Generator, n_ris: int = 2, los: bool = True
 ) -> dict[str, Any]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import small_scenario_doc
+from conftest import bounds_rtol, small_scenario_doc
 from naive import channel_parameters, naive_bounds, naive_fim_eta, naive_state_fim
 
 from ris_planner import codebooks
@@ -15,17 +15,6 @@ from ris_planner.units import SPEED_OF_LIGHT
 NAIVE_RTOL = 1e-9
 """Both routes sum the same O(K·G) float64 terms in different orders (relative rounding
 ~1e-14); the Fisher matrices themselves must agree to this."""
-
-INVERSION_EPS = 1e-14
-"""The bounds agree to max(NAIVE_RTOL, cond·INVERSION_EPS): a backward-stable inversion of a
-matrix with (unit-diagonal) condition number cond loses about cond·ε of relative accuracy, and
-random small scenarios include near-blind geometries."""
-
-
-def bounds_rtol(f: np.ndarray) -> float:
-    d = np.sqrt(np.diag(f))
-    return max(NAIVE_RTOL, float(np.linalg.cond(f / np.outer(d, d))) * INVERSION_EPS)
-
 
 CROSS_PATH_RTOL = 1e-12
 """Cross-path blocks vanish exactly in exact arithmetic (Σ_i b_ℓ,i conj(b_ℓ',i) = 0); in float64
@@ -70,7 +59,8 @@ def test_state_fim_and_bounds_equal_naive(rng: np.random.Generator, n_ris: int, 
                         np.ix_(keep + list(range(7, len(full))), keep + list(range(7, len(full))))
                     ],
                     len(keep),
-                )
+                ),
+                NAIVE_RTOL,
             )
             if not np.isfinite(r.peb_rx[0]):
                 pytest.fail(f"unexpected singular FIM: {r.reason[0]}")
