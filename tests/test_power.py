@@ -3,6 +3,7 @@ the must-show behaviour of Figs. 5 and 6 at small size, and the ``power`` CLI.""
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 from typing import Any
@@ -204,3 +205,37 @@ def test_power_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     f.write_text(json.dumps(paper_doc(sigma_m=-1)))
     assert main(["power", str(f)]) == 2
     assert "sigma_m" in capsys.readouterr().err
+
+
+def test_known_height_restricts_the_objective_to_xy() -> None:
+    """With heights known the SDP minimises PEB_R² over x, y only, and its value equals
+    compute_bounds' (which drops z of both UEs) at the returned powers."""
+    doc = paper_doc(samples=6, seed=4) | {"known": ["height"]}
+    sc = load_scenario(doc)
+    block = codebook_block(sc)
+    info = beam_information(sc, block.tx, block.rx, block.profiles)
+    assert info.stack.shape[-1] == 5 + 6 and info.rx_index.size == 2
+    out = check_orderings(doc)
+    powers = np.array(out["sdp"]["powers"])
+    ref = compute_bounds(sc, block.tx, block.rx, profiles=block.profiles, beam_powers=powers)
+    assert np.mean(ref.peb_rx**2) == pytest.approx(out["sdp"]["objective"], rel=1e-12)
+
+
+def test_solver_exception_becomes_a_failed_status(monkeypatch: pytest.MonkeyPatch) -> None:
+    import cvxpy as cp
+
+    def broken(self: cp.Problem, *args: Any, **kwargs: Any) -> None:
+        raise cp.SolverError("solver crashed")
+
+    monkeypatch.setattr(cp.Problem, "solve", broken)
+    sc = load_scenario(paper_doc(samples=2))
+    block = codebook_block(sc)
+    res = solve_power_sdp(beam_information(sc, block.tx, block.rx, block.profiles))
+    assert res.status == "failed" and res.powers is None and "crashed" in (res.message or "")
+
+
+def test_progress_is_reported_in_order() -> None:
+    seen: list[float] = []
+    run_power(paper_doc(samples=2), progress=lambda f, m: seen.append(f))
+    assert seen[0] == 0.0 and seen[-1] == 1.0
+    assert all(0 <= a <= b <= 1 for a, b in itertools.pairwise(seen))
