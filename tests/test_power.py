@@ -49,8 +49,9 @@ def test_stacked_beam_information_reproduces_the_core_fim(
     rng: np.random.Generator, los: bool
 ) -> None:
     """Σ_g γ_g S_g, gains eliminated, equals compute_bounds' 7×7 FIM at γ = 1 and at random
-    powers (1e-9 relative: two summation orders of the same terms, cond of the 13×13
-    nuisance block ≲ 1e6 loses ≤ 1e-10)."""
+    powers. Both sum the same per-path terms in different orders (per beam then per path vs
+    Gram then Schur per path); over 400 random cases the worst difference was 4e-15 of
+    max|F|, so 1e-12 leaves a margin for other BLAS builds only."""
     doc = small_scenario_doc(rng, n_ris=3, los=los)
     sc = load_scenario(doc)
     tx = rng.uniform(-3, 3, (5, 3))
@@ -62,7 +63,7 @@ def test_stacked_beam_information_reproduces_the_core_fim(
     for powers in (np.ones(g), rng.uniform(0.1, 2.0, g)):
         ref = compute_bounds(sc, tx, rx, profiles=prof, beam_powers=powers).fim
         got = schur(info.fim(powers))
-        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
 
 
 def check_orderings(doc: dict[str, Any], objective: str = "rx") -> dict[str, Any]:
@@ -100,7 +101,8 @@ def test_sdp_ordering_random_codebook_sum_objective() -> None:
 
 def test_sdp_recomputed_objective_from_powers_directly() -> None:
     """Independent of run_power: the SDP optimum equals the mean PEB_R² that compute_bounds
-    gives at the returned powers (1e-4), and SCS finds the same optimum to its tolerance."""
+    gives at the returned powers (1e-4), and SCS finds the same optimum within 1e-3 (a
+    first-order method with cvxpy's default eps ≈ 1e-4–1e-5; measured 3e-6 here)."""
     sc = load_scenario(paper_doc(kind="directional", samples=16, seed=2, sigma_m=0.3))
     block = codebook_block(sc)
     info = beam_information(sc, block.tx, block.rx, block.profiles)
@@ -110,7 +112,7 @@ def test_sdp_recomputed_objective_from_powers_directly() -> None:
     assert np.mean(peb.peb_rx**2) == pytest.approx(res.objective, rel=RECOMPUTE_RTOL)
     scs = solve_power_sdp(info, solver="SCS")
     assert scs.status in ("optimal", "inaccurate") and scs.objective is not None
-    assert scs.objective == pytest.approx(res.objective, rel=1e-2)
+    assert scs.objective == pytest.approx(res.objective, rel=1e-3)
 
 
 def test_solver_trouble_is_data_not_an_exception() -> None:

@@ -160,7 +160,7 @@ def solve_power_sdp(
             warnings.simplefilter("always")
             prob.solve(solver=solver)
         if caught:
-            message = "; ".join(str(w.message) for w in caught)
+            message = "; ".join(str(warn.message) for warn in caught)
     except (cp.SolverError, ArithmeticError, ValueError) as exc:
         return SdpResult("failed", None, None, time.perf_counter() - start, solver, str(exc))
     elapsed = time.perf_counter() - start
