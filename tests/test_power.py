@@ -20,7 +20,7 @@ from ris_planner.power import run_power
 from ris_planner.power.gamma import search_gamma_p
 from ris_planner.power.information import beam_information
 from ris_planner.power.report import design_objective
-from ris_planner.power.sdp import solve_power_sdp
+from ris_planner.power.sdp import mean_trace_bound, solve_power_sdp
 from ris_planner.scenario import load_scenario, preset_document
 
 SOLVER_RTOL = 1e-6
@@ -241,3 +241,33 @@ def test_progress_is_reported_in_order() -> None:
     run_power(paper_doc(samples=2), progress=lambda f, m: seen.append(f))
     assert seen[0] == 0.0 and seen[-1] == 1.0
     assert all(0 <= a <= b <= 1 for a, b in itertools.pairwise(seen))
+
+
+def test_gamma_search_matches_a_dense_grid() -> None:
+    """Brute force: 601 γ_P values (1/100 decade) over [1e-3, 1e3]; the bounded search's
+    objective is no worse than the grid's best (up to the grid's own resolution it can only
+    be better) and its γ_P lies within one grid step of the grid's argmin."""
+    sc = load_scenario(paper_doc(samples=10, seed=5, sigma_m=0.05))
+    block = codebook_block(sc)
+    info = beam_information(sc, block.tx, block.rx, block.profiles)
+
+    def objective(powers: np.ndarray) -> float:
+        return mean_trace_bound(info, powers, info.rx_index)
+
+    found = search_gamma_p(objective, block.beam_types)
+    grid = 10 ** np.linspace(-3, 3, 601)
+    values = np.array([objective(gamma_p_powers(block.beam_types, g)) for g in grid])
+    assert found.objective <= values.min() * (1 + 1e-9)
+    assert abs(np.log10(found.value) - np.log10(grid[np.argmin(values)])) <= 0.01 + 1e-9
+
+
+def test_bounds_cli_with_a_directional_codebook(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = tmp_path / "doc.json"
+    doc = paper_doc()
+    doc["codebook"]["gamma_p"] = 2.0
+    f.write_text(json.dumps(doc))
+    assert main(["bounds", str(f)]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["peb_rx_m"] == compute_bounds(load_scenario(doc)).peb_rx[0]
