@@ -12,7 +12,9 @@ PEB_R evaluated at the true positions and averaged over ``--draws`` prior draws 
 cycles, so slot 64 repeats the first DIR beam); the optimal γ_P is searched over each draw's
 own samples; the random codebook averages the same number of seeds. ``--prior-offset``
 centres the prior on a draw around the truth instead (closer to the paper at σ ≈ 1–2.5 m, but
-neither reading reproduces the paper's σ ≥ 5 m values).
+neither reading reproduces the paper's σ ≥ 5 m values). ``--der-samples`` sets the DIR+DER
+sample count: the γ_P → 0 end of Fig. 6 depends strongly on it (3–5 samples reach the
+paper's level there, 21 give a lower, flatter end).
 
 Writes ``fig5_fig6.png`` and ``fig5_fig6.csv`` (figure, curve, x, ours, paper) to ``--out``.
 
@@ -49,6 +51,9 @@ FIG6_CURVES = {  # curve -> (σ_pri [m], RIS side)
 }
 
 
+DER_SAMPLES: int | None = None
+"""``--der-samples``: prior samples of the DIR+DER codebook (default ⌊G̃/3⌋ = 21)."""
+
 PRIOR_OFFSET = False
 """``--prior-offset``: centre the prior on truth + σ·z (a seeded draw per prior draw) instead
 of on the truth — the other reading of "prior error level"."""
@@ -65,6 +70,8 @@ def document(kind: str, sigma: float, seed: int, size: int = 10) -> dict[str, An
         z = np.random.default_rng(10_000 + seed).standard_normal(6)
         prior["tx_mean"] = (np.asarray(doc["tx"], float) + sigma * z[:3]).tolist()
         prior["rx_mean"] = (np.asarray(doc["rx"], float) + sigma * z[3:]).tolist()
+    if kind == "directional_derivative" and DER_SAMPLES is not None:
+        prior["samples"] = DER_SAMPLES
     doc["codebook"] = {"kind": kind, "prior": prior}
     return doc
 
@@ -107,9 +114,10 @@ def main() -> None:
     parser.add_argument(
         "--prior-offset", action="store_true", help="prior mean = truth + σ·z, not the truth"
     )
+    parser.add_argument("--der-samples", type=int, default=None, help="DIR+DER prior samples")
     args = parser.parse_args()
-    global PRIOR_OFFSET
-    PRIOR_OFFSET = args.prior_offset
+    global PRIOR_OFFSET, DER_SAMPLES
+    PRIOR_OFFSET, DER_SAMPLES = args.prior_offset, args.der_samples
     args.out.mkdir(parents=True, exist_ok=True)
     rows: list[list[Any]] = []
     fig, (ax5, ax6) = plt.subplots(1, 2, figsize=(12, 4.8))
