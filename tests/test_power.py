@@ -271,3 +271,22 @@ def test_bounds_cli_with_a_directional_codebook(
     assert main(["bounds", str(f)]) == 0
     got = json.loads(capsys.readouterr().out)
     assert got["peb_rx_m"] == compute_bounds(load_scenario(doc)).peb_rx[0]
+
+
+def test_degenerate_design_position_is_a_failed_status() -> None:
+    """A design pair with TX = RX (LOS gain λ/(4π·0)) gives non-finite information: the SDP
+    reports ``failed`` with the reason instead of raising; the bounds say the pair is blind."""
+    doc = preset_document("paper-table1") | {
+        "tx": [[-2, -4, 0], [1, 1, 0]],
+        "rx": [[2, 3, 0], [1, 1, 0.5]],
+    }
+    doc["system"] = {"transmissions": 24}
+    sc = load_scenario(doc)
+    prof = first_block_profiles(sc)
+    assert prof is not None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        info = beam_information(
+            sc, np.array([[-2, -4, 0], [1, 1, 0.0]]), np.array([[2, 3, 0], [1, 1, 0.0]]), prof
+        )
+    res = solve_power_sdp(info)
+    assert res.status == "failed" and "non-finite" in (res.message or "")

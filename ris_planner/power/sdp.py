@@ -133,6 +133,15 @@ def solve_power_sdp(
     if not np.isfinite(total) or total <= 0:
         raise RisPlannerError(f"total power must be a positive finite number, got {total}")
     index = objective_index(info, objective)
+    if not np.all(np.isfinite(info.stack)):
+        return SdpResult(
+            "failed",
+            None,
+            None,
+            0.0,
+            solver,
+            "non-finite Fisher information: a design position lies on a RIS or on the other UE",
+        )
     uniform = np.full(g_tilde, total / g_tilde)
     scale_obj = mean_trace_bound(info, uniform, index)
     if not np.isfinite(scale_obj):
