@@ -88,6 +88,9 @@ def _add_core(sub: argparse._SubParsersAction) -> None:
 
 def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
     regs: list[Callable[[argparse._SubParsersAction], None]] = [_add_core]
+    from ris_planner.planning.cli import add_cli as plan_cli
+
+    regs.append(plan_cli)
     return regs
 
 
