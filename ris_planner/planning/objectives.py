@@ -10,6 +10,7 @@ before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,6 +51,19 @@ class Scorer:
         rx = [i for i, k in enumerate(keep) if k in RX_STATES] if metric != "tx" else []
         return keep, tx, rx
 
+    @cached_property
+    def _selected(self) -> tuple[FloatArray, FloatArray | None]:
+        """The cache's packed entries of the kept states (all of them when nothing is known)."""
+        keep, _, _ = self.states
+        n = len(keep)
+        src_idx = packed_index(N_STATES)
+        # the packing order of kernel.packed_index(n): (0,0), (1,0), (1,1), (2,0), …
+        src = [src_idx[keep[i], keep[j]] for i in range(n) for j in range(i + 1)]
+        if n == N_STATES:  # src is 0, 1, …, 27: no copy
+            return self.cache.packed, self.cache.los
+        los = None if self.cache.los is None else self.cache.los[src]
+        return self.cache.packed[src], los
+
     @property
     def underdetermined_at(self) -> int:
         """Layouts with fewer RISs than this have fewer channel parameters than unknowns."""
@@ -72,29 +86,20 @@ class Scorer:
         keep, tx, rx = self.states
         n = len(keep)
         first = min(tx + rx)
-        src_idx = packed_index(N_STATES)
-        dst_idx = packed_index(n)
-        src = [0] * (n * (n + 1) // 2)
-        for i in range(n):
-            for j in range(i + 1):
-                src[dst_idx[i, j]] = src_idx[keep[i], keep[j]]
+        packed, los = self._selected
         step = max(1, BATCH_MATRICES // p)
-        packed, los = self.cache.packed, self.cache.los
         deg = self.cache.degenerate
         any_deg = bool(np.any(deg))
         for b0 in range(0, b_all, step):
             lay = layouts[b0 : b0 + step]
             nb = lay.shape[0]
-            a = np.empty((len(src), nb, p))
-            for e, s in enumerate(src):
-                # the core's order: ((LOS + RIS 1) + RIS 2) + …
-                if los is not None:
-                    np.add(los[s], packed[s][lay[:, 0]], out=a[e])
-                else:
-                    np.take(packed[s], lay[:, 0], axis=0, out=a[e])
-                for col in range(1, n_ris):
-                    a[e] += packed[s][lay[:, col]]
-            diag, _ = inverse_diagonal_from(a.reshape(len(src), nb * p), n, first)
+            # [E, nb, P], in the core's order: ((LOS + RIS 1) + RIS 2) + …
+            a = packed[:, lay[:, 0]]
+            if los is not None:
+                np.add(los[:, None, :], a, out=a)
+            for col in range(1, n_ris):
+                a += packed[:, lay[:, col]]
+            diag, _ = inverse_diagonal_from(a.reshape(len(packed), nb * p), n, first)
             val = self._bound(diag, [i - first for i in tx], [i - first for i in rx])
             block = val.reshape(nb, p)
             if any_deg:

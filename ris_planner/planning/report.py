@@ -48,9 +48,20 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
         w = pm.weights / pm.weights.max()
         ax.scatter(pm.points[:, 0], pm.points[:, 1], s=4 + 16 * w, c=colour, alpha=0.3, label=name)
     pos = np.array([s.ris.position for s in result.sites])
-    ax.scatter(
-        pos[:, 0], pos[:, 1], marker="s", facecolors="none", edgecolors="grey", label="candidates"
-    )
+    flagged = ~np.all(result.cache.far_field, axis=1)
+    for mask, colour, name in (
+        (~flagged, "grey", "candidates"),
+        (flagged, "tab:orange", "candidates (near field for part of the map)"),
+    ):
+        if np.any(mask):
+            ax.scatter(
+                pos[mask, 0],
+                pos[mask, 1],
+                marker="s",
+                facecolors="none",
+                edgecolors=colour,
+                label=name,
+            )
     span = float(np.ptp(np.vstack([pos[:, :2], result.rx_map.points[:, :2]]), axis=0).max() or 1.0)
     markers = ["o", "^", "D", "v", "P", "X", "*", "h"]
     for k, cr in enumerate(result.counts):
@@ -107,8 +118,8 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     for s in lay:
         p = result.sites[s].ris.position
         ax.scatter(p[0], p[1], marker="s", c="k", s=50)
-    tx_txt = "fixed TX" if result.document.heatmap_tx is not None else "median over the TX map"
-    ax.set_title(f"{label} over the RX map, best {len(lay)}-RIS layout ({tx_txt})")
+    tx_txt = "fixed TX" if result.document.heatmap_tx is not None else "weighted median over TX map"
+    ax.set_title(f"{label} over the RX map\nbest {len(lay)}-RIS layout, {tx_txt}", fontsize=10)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -130,6 +141,9 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
             where="post",
             label=f"{cr.ris_count} RIS {list(cr.ranked[0][0])}",
         )
+    obj = result.document.objective
+    if obj.kind == "coverage" and obj.threshold_m is not None:
+        ax.axvline(obj.threshold_m, color="k", ls="--", lw=0.8, label="coverage threshold")
     ax.set_xscale("log")
     ax.set_xlabel(f"{label} ε [m]")
     ax.set_ylabel(f"Pr({label} ≤ ε) (weighted)")

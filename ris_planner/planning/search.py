@@ -53,9 +53,8 @@ def evaluate(
         return np.empty(0)
     per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
     n_chunks = math.ceil(b / per)
-    if n_chunks > 1 or not executor.inline_single_chunk:
-        n_chunks = max(n_chunks, min(b, executor.workers))
-        n_chunks = math.ceil(n_chunks / executor.workers) * executor.workers
+    if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk
+        n_chunks = min(b, math.ceil(n_chunks / executor.workers) * executor.workers)
     chunks = [c for c in np.array_split(layouts, n_chunks) if len(c)]
 
     def done(n: int) -> None:

@@ -47,7 +47,8 @@ def wall_poses(wall: Wall) -> list[tuple[list[float], list[float], str]]:
             xy = pa + (k + 0.5) / n * d
             for h in wall.heights_m:
                 for tilt in wall.tilts_rad:
-                    label = f"wall{w_idx}@{xy[0]:.1f},{xy[1]:.1f},{h:g} tilt {tilt:.2f}"
+                    side_txt = f"side {w_idx} " if wall.rectangle is not None else ""
+                    label = f"{side_txt}at ({xy[0]:.1f}, {xy[1]:.1f}, {h:g}) tilt {tilt:.2f}"
                     out.append(([float(xy[0]), float(xy[1]), float(h)], [yaw, tilt, 0.0], label))
     return out
 
@@ -70,7 +71,7 @@ def expand_sites(doc: PlanDocument) -> list[Site]:
     ]
     for w_i, wall in enumerate(doc.walls):
         for pos, ori, label in wall_poses(wall):
-            sites.append(Site(_ris(pos, ori, doc.ris), f"wall {w_i}: {label}"))
+            sites.append(Site(_ris(pos, ori, doc.ris), f"wall {w_i} {label}"))
     return sites
 
 
