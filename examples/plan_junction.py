@@ -75,7 +75,7 @@ def main() -> None:
                        SerialExecutor())  # fmt: skip
             same = g.ranked(1)[0][0] == cr.ranked[0][0]
             print(f"greedy for {cr.ris_count} RIS: {list(g.ranked(1)[0][0])}"
-                  f" ({len(g.losses)} layouts) – same best as exhaustive: {same}")  # fmt: skip
+                  f" ({g.evaluated} layouts) – same best as exhaustive: {same}")  # fmt: skip
     for p in figures.values():
         print(f"wrote {p}")
 

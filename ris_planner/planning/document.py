@@ -298,7 +298,7 @@ class SearchSpec(_Model):
         "auto", description="auto: exhaustive when the layout count ≤ max_exhaustive, else greedy"
     )
     max_exhaustive: int = Field(
-        100_000, ge=1, le=50_000_000, description="Largest layout count searched exhaustively"
+        100_000, ge=1, le=5_000_000, description="Largest layout count searched exhaustively"
     )
     top_k: int = Field(10, ge=1, le=1000, description="Number of ranked layouts reported per count")
     seed: int = Field(0, ge=0, description="Seed of the greedy search's random restarts")

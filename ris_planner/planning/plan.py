@@ -164,7 +164,7 @@ class PlanResult:
                     "marginal_gain": gain,
                     "method": cr.outcome.method,
                     "layouts_total": cr.outcome.total_layouts,
-                    "layouts_evaluated": len(cr.outcome.losses),
+                    "layouts_evaluated": cr.outcome.evaluated,
                     "top_layouts": [
                         {"sites": [int(s) for s in lay], "objective": _num(self._obj(loss))}
                         for lay, loss in cr.ranked

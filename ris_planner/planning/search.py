@@ -6,7 +6,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,16 +29,34 @@ Layout = tuple[int, ...]
 
 @dataclass
 class SearchOutcome:
-    """Every evaluated layout's loss (lower is better) and how the search ran."""
+    """Every evaluated layout [N, L] (sorted site indices) with its loss [N] (lower is better),
+    and how the search ran."""
 
-    losses: dict[Layout, float] = field(default_factory=dict)
+    layouts: IntArray
+    losses: FloatArray
     method: str = "exhaustive"
     total_layouts: int = 0
 
+    @property
+    def evaluated(self) -> int:
+        return int(self.losses.shape[0])
+
     def ranked(self, k: int) -> list[tuple[Layout, float]]:
         """The best k layouts, ties broken by the sites' indices (deterministic)."""
-        items = sorted(self.losses.items(), key=lambda kv: (kv[1], kv[0]))
-        return items[:k]
+        # np.lexsort sorts by the last key first: loss, then site 0, site 1, …
+        keys = (
+            *(self.layouts[:, c] for c in range(self.layouts.shape[1] - 1, -1, -1)),
+            self.losses,
+        )
+        order = np.lexsort(keys)[:k]
+        return [(tuple(int(s) for s in self.layouts[i]), float(self.losses[i])) for i in order]
+
+    def as_dict(self) -> dict[Layout, float]:
+        """layout → loss (for small outcomes)."""
+        return {
+            tuple(int(s) for s in lay): float(v)
+            for lay, v in zip(self.layouts, self.losses, strict=True)
+        }
 
 
 def evaluate(
@@ -71,13 +89,15 @@ def exhaustive(
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
 ) -> SearchOutcome:
-    layouts = np.array(list(itertools.combinations(range(n_sites), n_ris)), dtype=int)
+    total = math.comb(n_sites, n_ris)
+    flat = np.fromiter(
+        itertools.chain.from_iterable(itertools.combinations(range(n_sites), n_ris)),
+        dtype=int,
+        count=total * n_ris,
+    )
+    layouts = flat.reshape(total, n_ris)
     losses = evaluate(scorer, layouts, executor, on_fraction)
-    out = SearchOutcome(method="exhaustive", total_layouts=len(layouts))
-    out.losses = {
-        tuple(int(s) for s in lay): float(v) for lay, v in zip(layouts, losses, strict=True)
-    }
-    return out
+    return SearchOutcome(layouts, losses, method="exhaustive", total_layouts=total)
 
 
 def site_strength(scorer: Scorer) -> FloatArray:
@@ -100,15 +120,15 @@ def greedy(
 ) -> SearchOutcome:
     """Greedy forward selection (ties → the stronger site), then best-improvement swaps until
     no swap improves or ``max_rounds``; repeated from ``restarts`` seeded random layouts."""
-    out = SearchOutcome(method="greedy", total_layouts=math.comb(n_sites, n_ris))
+    memo: dict[Layout, float] = {}
     strength = site_strength(scorer)
 
     def score(cands: list[Layout]) -> list[float]:
-        new = [c for c in dict.fromkeys(cands) if c not in out.losses]
+        new = [c for c in dict.fromkeys(cands) if c not in memo]
         if new:
             vals = evaluate(scorer, np.array(new, dtype=int), executor)
-            out.losses.update(zip(new, (float(v) for v in vals), strict=True))
-        return [out.losses[c] for c in cands]
+            memo.update(zip(new, (float(v) for v in vals), strict=True))
+        return [memo[c] for c in cands]
 
     # greedy start: partial layouts are scored on their own (no layout cache entry kept)
     cur: list[int] = []
@@ -144,7 +164,12 @@ def greedy(
             layout, best = neigh[j], nvals[j]
         if on_fraction is not None:
             on_fraction((i + 1) / len(starts))
-    return out
+    return SearchOutcome(
+        np.array(list(memo), dtype=int).reshape(len(memo), n_ris),
+        np.array(list(memo.values())),
+        method="greedy",
+        total_layouts=math.comb(n_sites, n_ris),
+    )
 
 
 def search(
