@@ -22,6 +22,7 @@ from ris_planner.planning import (
     PLAN_PRESET_NAMES,
     PlanDocument,
     SerialExecutor,
+    load_plan_file,
     plan_preset,
     run_plan,
 )
@@ -346,3 +347,22 @@ def test_heatmap_with_fixed_tx_is_compute_bounds() -> None:
         codebook={"kind": "expected_random"},
     )
     assert vals[ok][7] == pytest.approx(compute_bounds(scen).peb_rx[0], rel=RTOL)
+
+
+def test_plan_file_with_csv_map_and_progress(tmp_path: Path) -> None:
+    pts = [[x, y, 0.0] for x in range(-3, 4) for y in range(-3, 4)]
+    (tmp_path / "ues.csv").write_text(
+        "x,y,z,weight\n" + "".join(f"{x},{y},{z},{1 + (x > 0)}\n" for x, y, z in pts)
+    )
+    doc = plan_doc(tx_map={"csv": "ues.csv"}, rx_map={"csv": "ues.csv"}, ris_count=[2, 3])
+    (tmp_path / "plan.json").write_text(json.dumps(doc))
+    loaded = load_plan_file(tmp_path / "plan.json")
+    assert "csv_text" in loaded["tx_map"]
+    seen: list[float] = []
+    res = run_plan(loaded, progress=lambda f, m: seen.append(f), executor=SerialExecutor())
+    assert seen == sorted(seen) and seen[-1] == 1.0
+    np.testing.assert_array_equal(res.tx_map.points, np.array(pts))
+    assert res.tx_map.weights.max() == 2
+    (tmp_path / "bad.json").write_text(json.dumps(plan_doc(tx_map={"csv": "missing.csv"})))
+    with pytest.raises(RisPlannerError, match=r"missing\.csv"):
+        load_plan_file(tmp_path / "bad.json")
