@@ -354,6 +354,11 @@ class PlanDocument(_Model):
         description="Fixed TX position [m] for the heatmap; default: TX averaged over its map",
     )
 
+    @field_validator("heatmap_tx")
+    @classmethod
+    def _check_heatmap_tx(cls, v: list[float] | None) -> list[float] | None:
+        return None if v is None else _finite(v, "heatmap_tx")
+
     @field_validator("ris_count")
     @classmethod
     def _check_counts(cls, v: list[int]) -> list[int]:

@@ -240,7 +240,9 @@ def run_plan(
             def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
                 progress(0.2 + 0.75 * (base + f * e) / sum(effort), f"search L={c}")
 
-            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction)
+            # the best layouts of the smaller counts seed the greedy search
+            seeds = tuple(cr.ranked[0][0] for cr in counts)
+            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds)
             ranked = outcome.ranked(doc.search.top_k)
             best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
             counts.append(CountResult(c, outcome, ranked, best_metric))
