@@ -366,3 +366,26 @@ def test_plan_file_with_csv_map_and_progress(tmp_path: Path) -> None:
     (tmp_path / "bad.json").write_text(json.dumps(plan_doc(tx_map={"csv": "missing.csv"})))
     with pytest.raises(RisPlannerError, match=r"missing\.csv"):
         load_plan_file(tmp_path / "bad.json")
+
+
+def test_issue_document_form_is_accepted() -> None:
+    issue_doc = {
+        "system": {"tx_power_dbm": 30},
+        "ris": {"rows": 10, "cols": 10},
+        "candidates": [{"position": [-4, 0, 2], "orientation": [0, 0.52, 0]}],
+        "tx_map": {"points": [[0, 0, 0], [1, 0, 0]], "weights": [1, 1]},
+        "rx_map": {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0, 1]}},
+        "pairs": "all",
+        "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 10},
+        "ris_count": [2, 3],
+        "codebook": {"kind": "expected_random"},
+        "known": [],
+        "search": {"method": "auto"},
+    }
+    PlanDocument.model_validate(issue_doc)
+    more = [{"position": c["position"], "orientation": c["orientation"]} for c in ring(4)]
+    res = run_plan(issue_doc | {"candidates": issue_doc["candidates"] + more})
+    out = res.to_json()
+    assert out["pairs"] == 2 * 49 - 2
+    assert [b["ris_count"] for b in out["by_count"]] == [2, 3]
+    assert all(0 < lay["objective"] <= 10 for lay in out["layouts"])
