@@ -21,6 +21,7 @@ from ris_planner.scenario import (
     RIS,
     KnownPart,
     Point3,
+    Scenario,
     SystemParams,
 )
 
@@ -371,9 +372,7 @@ class PlanDocument(_Model):
     @field_validator("known")
     @classmethod
     def _unique_known(cls, v: list[str]) -> list[str]:
-        if len(set(v)) != len(v):
-            raise ValueError(f"known lists a part twice: {v}")
-        return v
+        return Scenario._unique_known(v)  # the scenario document's rule
 
     @model_validator(mode="before")
     @classmethod
