@@ -389,3 +389,9 @@ def test_issue_document_form_is_accepted() -> None:
     assert out["pairs"] == 2 * 49 - 2
     assert [b["ris_count"] for b in out["by_count"]] == [2, 3]
     assert all(0 < lay["objective"] <= 10 for lay in out["layouts"])
+
+
+def test_site_cache_limit_is_named() -> None:
+    doc = plan_doc(candidates=ring(450), pairs="all")  # 450 × 9506 pairs > 4 M
+    with pytest.raises(LimitExceededError, match="site-cache limit"):
+        run_plan(doc, executor=SerialExecutor())

@@ -35,8 +35,9 @@ MAX_PAIRS_LIMIT = 500_000
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
 
-MAX_CACHE_ENTRIES = 20_000_000
-"""Candidate sites × pairs limit: the site cache holds 28 float64 per entry (≈ 4.5 GB here)."""
+MAX_CACHE_ENTRIES = 4_000_000
+"""Candidate sites × pairs limit: the site cache holds 28 float64 per entry (≈ 0.9 GB here, and
+each local worker process holds a copy)."""
 
 
 class _Model(BaseModel):
