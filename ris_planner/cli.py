@@ -87,11 +87,11 @@ def _add_core(sub: argparse._SubParsersAction) -> None:
 
 
 def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
-    regs: list[Callable[[argparse._SubParsersAction], None]] = [_add_core]
+    """Every feature's ``add_cli``: one line per feature (imported here, not at module load)."""
+    from ris_planner.planning.cli import add_cli as plan_cli
     from ris_planner.power.cli import add_cli as power_cli
 
-    regs.append(power_cli)
-    return regs
+    return [_add_core, power_cli, plan_cli]
 
 
 def build_parser() -> argparse.ArgumentParser:
