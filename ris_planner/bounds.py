@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import beams, codebooks, fim, geometry
+from ris_planner import beams, codebooks, fim, geometry, ldl
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
@@ -30,12 +30,6 @@ from ris_planner.scenario import (
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
-
-SINGULAR_RCOND = 1e-12
-"""A Fisher matrix is singular when, after symmetric scaling to unit diagonal, a pivot of its
-LDLᵀ factorisation falls below this value. Every pivot is ≥ λ_min of the scaled matrix, so a
-pivot this small means cond ≥ 1e12: the inverse would be dominated by rounding (float64
-ε ≈ 2.2e-16 times a 7×7 accumulation leaves ≥ 3 orders of margin)."""
 
 STATE_NAMES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "clock")
 REASON_UNDERDETERMINED = "underdetermined"
@@ -55,62 +49,14 @@ def kept_states(known: list[KnownPart] | tuple[KnownPart, ...]) -> NDArray[np.in
     return np.array([i for i in range(7) if i not in drop], dtype=int)
 
 
-def _scaled_ldl(
-    f: FloatArray,
-) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
-    """Batched LDLᵀ of unit-diagonal-scaled symmetric matrices, vectorised over the batch.
+def fim_inverse_diagonal(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """diag(F⁻¹) for a batch of symmetric FIMs, ``inf`` where singular (:mod:`ris_planner.ldl`).
 
-    f : [P, n, n]. Returns, batch last, (M = L⁻¹ [n, n, P], pivots D [n, P], scale d [n, P],
-    singular [P]) with f = diag(d) L diag(D) Lᵀ diag(d). Singular pairs get pivots 1 (their
-    results are overwritten by the callers).
+    f : [P, n, n]. Returns (diag [P, n], singular [P]).
     """
     n = f.shape[-1]
-    # [n, n, P]: batch last, contiguous, so every step is one vector operation over the pairs
-    fb = np.ascontiguousarray(np.moveaxis(f, 0, -1))
-    d = np.sqrt(np.clip(np.diagonal(fb, axis1=0, axis2=1).T, 0.0, None))
-    singular = np.any(d <= 0.0, axis=0)
-    d_safe = np.where(d > 0.0, d, 1.0)
-    a = fb / (d_safe[:, None, :] * d_safe[None, :, :])
-    low = np.zeros_like(a)
-    piv = np.ones((n, a.shape[-1]))
-    for j in range(n):
-        # [j, P]: L_jk D_k for k < j
-        ld = low[j, :j] * piv[:j]
-        pj = a[j, j].copy()
-        for k in range(j):
-            pj -= low[j, k] * ld[k]
-        bad = ~(pj > SINGULAR_RCOND)
-        singular |= bad
-        piv[j] = np.where(bad, 1.0, pj)
-        for i in range(j + 1, n):
-            lij = a[i, j].copy()
-            for k in range(j):
-                lij -= low[i, k] * ld[k]
-            low[i, j] = lij / piv[j]
-    # [n, n, P] M = L⁻¹ by forward substitution (L unit lower triangular)
-    inv_low = np.zeros_like(a)
-    for i in range(n):
-        inv_low[i, i] = 1.0
-        for j in range(i):
-            acc = -low[i, j].copy()
-            for k in range(j + 1, i):
-                acc -= low[i, k] * inv_low[k, j]
-            inv_low[i, j] = acc
-    return inv_low, piv, d_safe, singular
-
-
-def fim_inverse_diagonal(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """diag(F⁻¹) for a batch of symmetric FIMs, ``inf`` where singular.
-
-    f : [P, n, n]. Returns (diag [P, n], singular [P]); diag(F⁻¹)_i = Σ_k M_ki² / (D_k d_i²).
-    """
-    m, piv, d, singular = _scaled_ldl(f)
-    inv_piv = 1.0 / piv
-    # [n, P]
-    diag = np.stack([np.sum(m[i:, i] ** 2 * inv_piv[i:], axis=0) for i in range(f.shape[-1])])
-    diag = (diag / d**2).T
-    diag[singular] = np.inf
-    return diag, singular
+    diag, singular = ldl.inverse_diagonal_from(ldl.pack(f), n)
+    return diag.T, singular
 
 
 def invert_fim(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -118,12 +64,9 @@ def invert_fim(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
 
     f : [P, n, n]. Returns (crb [P, n, n] with ``inf`` on singular pairs, singular [P]).
     """
-    mb, pivb, db, singular = _scaled_ldl(f)
-    m, piv, d = np.moveaxis(mb, -1, 0), pivb.T, db.T
-    crb = (m.transpose(0, 2, 1) / piv[:, None, :]) @ m
-    crb = crb / (d[:, :, None] * d[:, None, :])
-    crb[singular] = np.inf
-    return crb, singular
+    n = f.shape[-1]
+    crb, singular = ldl.inverse_from(ldl.pack(f), n)
+    return ldl.unpack(crb, n), singular
 
 
 @dataclass(frozen=True)

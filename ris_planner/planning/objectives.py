@@ -2,7 +2,7 @@
 
 Scoring a batch of layouts: LOS + Σ cached site matrices on the packed entries of the unknown
 states (one gather-and-add per RIS over all entries × layouts × pairs), then one batched LDLᵀ
-(:func:`ris_planner.planning.kernel.inverse_diagonal_from`) giving the CRB diagonal of the
+(:func:`ris_planner.ldl.inverse_diagonal_from`) giving the CRB diagonal of the
 metric's states. Known parts (``clock``, ``height``, ``tx``) remove their rows
 before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
 """
@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.bounds import kept_states
+from ris_planner.ldl import inverse_diagonal_from, packed_index
 from ris_planner.planning.document import Objective
-from ris_planner.planning.kernel import inverse_diagonal_from, packed_index
 from ris_planner.planning.site_cache import N_STATES, SiteCache
 from ris_planner.scenario import KnownPart
 
@@ -57,7 +57,7 @@ class Scorer:
         keep, _, _ = self.states
         n = len(keep)
         src_idx = packed_index(N_STATES)
-        # the packing order of kernel.packed_index(n): (0,0), (1,0), (1,1), (2,0), …
+        # the packing order of ldl.packed_index(n): (0,0), (1,0), (1,1), (2,0), …
         src = [src_idx[keep[i], keep[j]] for i in range(n) for j in range(i + 1)]
         if n == N_STATES:  # src is 0, 1, …, 27: no copy
             return self.cache.packed, self.cache.los
@@ -75,7 +75,7 @@ class Scorer:
         """[B, P] metric bound (m) of each layout [B, L] and pair; ``inf`` for blind spots.
 
         Bit for bit what ``compute_bounds`` gives for the layout (same FIM sum, LOS first, and
-        the core's inversion arithmetic, see :mod:`ris_planner.planning.kernel`)."""
+        the core's inversion arithmetic, see :mod:`ris_planner.ldl`)."""
         layouts = np.atleast_2d(np.asarray(layouts, dtype=int))
         b_all, n_ris = layouts.shape
         p = self.cache.n_pairs

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.ldl import packed_index
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.executor import Executor
-from ris_planner.planning.kernel import packed_index
 from ris_planner.planning.objectives import Scorer, score_chunk
 from ris_planner.planning.site_cache import N_STATES
 

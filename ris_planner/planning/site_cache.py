@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ris_planner import fim
 from ris_planner.bounds import los_path_information, ris_path_information
-from ris_planner.planning.kernel import pack, unpack
+from ris_planner.ldl import pack, unpack
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.progress import ProgressCallback, no_progress

@@ -1,0 +1,179 @@
+"""Batched LDLᵀ of many small symmetric Fisher matrices: the single inversion routine of the
+engine (bounds, power allocation and layout scoring all go through it).
+
+Matrices are stored packed and batch-last: one contiguous vector over the batch per
+lower-triangle entry (row-major, i ≥ j), so every step of the factorisation is one vector
+operation over all pairs (or all layout-pair combinations), and buffers are reused. Each matrix
+is first scaled symmetrically to unit diagonal, F = diag(d) L diag(D) Lᵀ diag(d), and declared
+singular (a blind spot) when a pivot D_j ≤ :data:`SINGULAR_RCOND`.
+
+diag(F⁻¹)_i = Σ_{k≥i} (L⁻¹)_{ki}² / (D_k d_i²) needs only the columns ≥ i of L⁻¹, so
+:func:`inverse_diagonal_from` forms just the columns the wanted entries need; layout scoring
+asks for the p_R (or p_T) block only. Because the core and the planner call the same code, a
+cached layout score equals ``compute_bounds`` bit for bit even for near-blind pairs (scaled
+condition numbers up to ~1e11, where another rounding order moves a bound by ~1e-6).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+SINGULAR_RCOND = 1e-12
+"""A Fisher matrix is singular when, after symmetric scaling to unit diagonal, a pivot of its
+LDLᵀ factorisation falls below this value. Every pivot is ≥ λ_min of the scaled matrix, so a
+pivot this small means cond ≥ 1e12: the inverse would be dominated by rounding (float64
+ε ≈ 2.2e-16 times a 7×7 accumulation leaves ≥ 3 orders of margin)."""
+
+
+def packed_index(n: int) -> dict[tuple[int, int], int]:
+    """Position of entry (i, j) in the row-major lower-triangle packing (i ≥ j) of an n×n
+    symmetric matrix; (j, i) maps to the same slot."""
+    out: dict[tuple[int, int], int] = {}
+    e = 0
+    for i in range(n):
+        for j in range(i + 1):
+            out[(i, j)] = out[(j, i)] = e
+            e += 1
+    return out
+
+
+def pack(f: FloatArray) -> FloatArray:
+    """[..., n, n] → [n(n+1)/2, ...] lower triangle (i ≥ j), entry axis first."""
+    n = f.shape[-1]
+    il = np.tril_indices(n)
+    return np.ascontiguousarray(np.moveaxis(f[..., il[0], il[1]], -1, 0))
+
+
+def unpack(p: FloatArray, n: int) -> FloatArray:
+    """[n(n+1)/2, ...] packed → [..., n, n] symmetric (lower triangle mirrored)."""
+    il = np.tril_indices(n)
+    out = np.empty((*p.shape[1:], n, n))
+    vals = np.moveaxis(p, 0, -1)
+    out[..., il[0], il[1]] = vals
+    out[..., il[1], il[0]] = vals
+    return out
+
+
+class _Factor(NamedTuple):
+    """The factorisation of packed matrices, batch last (see module docstring)."""
+
+    low: FloatArray  # [n(n+1)/2, N]: L_ij in the packed slot of (i, j), i > j
+    inv_piv: FloatArray  # [n, N]: 1 / D_j (pivots of singular matrices replaced by 1)
+    scale: FloatArray  # [n, N]: d_i (zeros replaced by 1)
+    singular: NDArray[np.bool_]  # [N]
+    m: FloatArray  # [n(n+1)/2, N] workspace for the columns of L⁻¹
+    tmp: FloatArray  # [N] scratch
+
+
+def _factor(f: FloatArray, n: int) -> _Factor:
+    """Scaled LDLᵀ of packed symmetric matrices f [n(n+1)/2, N] (left-looking)."""
+    idx = packed_index(n)
+    size = f.shape[1]
+    n_tri = n * (n + 1) // 2
+    # one workspace: scaled entries (later L⁻¹), L, pivots, L·D products, scale, scratch
+    work = np.empty((2 * n_tri + 3 * n + 2, size))
+    a, low = work[:n_tri], work[n_tri : 2 * n_tri]
+    piv, ld, d_safe = (work[2 * n_tri + k * n : 2 * n_tri + (k + 1) * n] for k in range(3))
+    tmp, pj = work[-2], work[-1]
+    d = np.stack([f[idx[j, j]] for j in range(n)])
+    np.clip(d, 0.0, None, out=d)
+    np.sqrt(d, out=d)
+    singular = np.any(d <= 0.0, axis=0)
+    np.copyto(d_safe, d)
+    d_safe[d <= 0.0] = 1.0
+    for i in range(n):
+        for j in range(i + 1):
+            np.multiply(d_safe[i], d_safe[j], out=tmp)
+            np.divide(f[idx[i, j]], tmp, out=a[idx[i, j]])
+    for j in range(n):
+        for k in range(j):
+            np.multiply(low[idx[j, k]], piv[k], out=ld[k])
+        np.copyto(pj, a[idx[j, j]])
+        for k in range(j):
+            np.multiply(low[idx[j, k]], ld[k], out=tmp)
+            pj -= tmp
+        bad = ~(pj > SINGULAR_RCOND)
+        singular |= bad
+        np.copyto(piv[j], pj)
+        piv[j][bad] = 1.0
+        for i in range(j + 1, n):
+            lij = low[idx[i, j]]
+            np.copyto(lij, a[idx[i, j]])
+            for k in range(j):
+                np.multiply(low[idx[i, k]], ld[k], out=tmp)
+                lij -= tmp
+            lij /= piv[j]
+    inv_piv = np.divide(1.0, piv, out=piv)
+    return _Factor(low, inv_piv, d_safe, singular, a, tmp)
+
+
+def _inverse_low_columns(fac: _Factor, n: int, first: int) -> None:
+    """Columns j ≥ first of M = L⁻¹ (unit lower triangular, M_ii = 1 implicit) into fac.m by
+    forward substitution."""
+    idx = packed_index(n)
+    m, low, tmp = fac.m, fac.low, fac.tmp
+    for i in range(first, n):
+        for j in range(first, i):
+            acc = m[idx[i, j]]
+            np.negative(low[idx[i, j]], out=acc)
+            for k in range(j + 1, i):
+                np.multiply(low[idx[i, k]], m[idx[k, j]], out=tmp)
+                acc -= tmp
+
+
+def inverse_diagonal_from(
+    f: FloatArray, n: int, first: int = 0
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """diag(F⁻¹) of states first … n−1 of packed symmetric matrices, ``inf`` where singular.
+
+    f : [n(n+1)/2, N] packed (lower triangle). Returns (diag [n − first, N], singular [N]).
+    """
+    idx = packed_index(n)
+    fac = _factor(f, n)
+    _inverse_low_columns(fac, n, first)
+    m, inv_piv, tmp = fac.m, fac.inv_piv, fac.tmp
+    out = np.empty((n - first, f.shape[1]))
+    for i in range(first, n):
+        acc = out[i - first]
+        np.copyto(acc, inv_piv[i])  # M_ii² / D_i with M_ii = 1
+        for k in range(i + 1, n):
+            np.square(m[idx[k, i]], out=tmp)
+            tmp *= inv_piv[k]
+            acc += tmp
+        np.square(fac.scale[i], out=tmp)
+        acc /= tmp
+    out[:, fac.singular] = np.inf
+    return out, fac.singular
+
+
+def inverse_from(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """F⁻¹ of packed symmetric matrices, packed the same way; ``inf`` where singular.
+
+    f : [n(n+1)/2, N]. (F⁻¹)_ij = Σ_{k ≥ max(i,j)} M_ki M_kj / (D_k d_i d_j) with M = L⁻¹.
+    """
+    idx = packed_index(n)
+    fac = _factor(f, n)
+    _inverse_low_columns(fac, n, 0)
+    m, inv_piv, tmp = fac.m, fac.inv_piv, fac.tmp
+
+    def m_entry(k: int, i: int) -> FloatArray | float:
+        return 1.0 if k == i else m[idx[k, i]]
+
+    out = np.empty_like(f)
+    for i in range(n):
+        for j in range(i + 1):
+            acc = out[idx[i, j]]
+            acc[:] = 0.0
+            for k in range(i, n):
+                np.multiply(m_entry(k, i), m_entry(k, j), out=tmp)
+                tmp *= inv_piv[k]
+                acc += tmp
+            np.multiply(fac.scale[i], fac.scale[j], out=tmp)
+            acc /= tmp
+    out[:, fac.singular] = np.inf
+    return out, fac.singular
