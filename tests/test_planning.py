@@ -336,6 +336,20 @@ def test_heatmap_with_fixed_tx_is_compute_bounds() -> None:
     assert vals[ok][7] == pytest.approx(compute_bounds(scen).peb_rx[0], rel=RTOL)
 
 
+def test_heatmap_of_symmetric_layout_is_symmetric() -> None:
+    """Four anchors facing the centre and a centred grid: mirroring x or y maps the layout, the
+    TX map and the RX map onto themselves, so the median-over-TX map must be mirror-symmetric
+    (whatever subset of pairs the plan scored). Values are medians of bounds whose FIMs have
+    scaled cond ≤ ~1e8, hence agreement to 1e-6 relative, not bit for bit."""
+    res = run_plan(plan_preset("fig10-anchors"), executor=SerialExecutor())
+    pts, vals, lay = res.heatmap()
+    assert lay == (0, 1, 2, 3) and np.all(np.isfinite(vals))
+    key = {tuple(np.round(p, 6)): v for p, v in zip(pts, vals, strict=True)}
+    for p, v in zip(pts, vals, strict=True):
+        for mirror in ((-1, 1, 1), (1, -1, 1)):
+            assert key[tuple(np.round(p * mirror, 6) + 0.0)] == pytest.approx(v, rel=1e-6)
+
+
 def test_plan_file_with_csv_map_and_progress(tmp_path: Path) -> None:
     pts = [[x, y, 0.0] for x in range(-3, 4) for y in range(-3, 4)]
     (tmp_path / "ues.csv").write_text(

@@ -138,9 +138,11 @@ def select_metric(metric: str, peb_tx: FloatArray | None, peb_rx: FloatArray) ->
 def weighted_quantile(values: FloatArray, weights: FloatArray, q: float | FloatArray) -> FloatArray:
     """Smallest v with Σ_{values ≤ v} w ≥ q·Σw per row of values [B, P] (``inf`` ranks last).
 
+    weights : [P] shared by the rows, or [B, P] (each row's sum > 0);
     q : scalar or [Q]; returns [B] or [B, Q]."""
     idx = np.argsort(values, axis=1, kind="stable")
-    cw = np.cumsum(weights[idx], axis=1)
+    w = np.broadcast_to(weights, values.shape)
+    cw = np.cumsum(np.take_along_axis(w, idx, axis=1), axis=1)
     cw /= cw[:, -1:]
     qs = np.atleast_1d(np.asarray(q, dtype=float))
     # tolerance: the cumulative sums carry ~P·ε rounding; a quantile exactly on a step is kept

@@ -25,12 +25,15 @@ from ris_planner.planning.search import Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M, Scenario
+from ris_planner.scenario import ExpectedRandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
 
 REPORT_QUANTILES = (0.5, 0.9, 0.95)
 CDF_POINTS = 101
+HEATMAP_MAX_PAIRS = 200_000
+"""TX–RX pairs the heatmap evaluates (about a second with expected_random): beyond it each RX
+point is evaluated against a seeded weighted sample of the TX map."""
 
 
 def _fraction(weights: FloatArray, mask: NDArray[np.bool_]) -> float:
@@ -108,44 +111,45 @@ class PlanResult:
         return {"probability": [float(p) for p in probs], "bound_m": [_num(v) for v in vals]}
 
     def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
-        """(RX points [M, 3], bound [M], layout) for the best layout of the largest count: the
-        weighted median over TX of the metric (TX averaged over its map), or the bound with the
-        document's fixed ``heatmap_tx``; NaN where an RX point has no pair."""
-        best = self.counts[-1]
-        layout = best.ranked[0][0]
+        """(RX points [M, 3], bound [M], layout) for the best layout of the largest count.
+
+        Each RX map point is evaluated against the whole TX map (a seeded weighted sample of it
+        when the product exceeds :data:`HEATMAP_MAX_PAIRS`) or against the document's fixed
+        ``heatmap_tx``, whatever pairs the plan itself used, so every point of the map gets a
+        value from the same TX population; the value is the weighted median over TX (a mean is
+        undefined where some bounds are infinite). NaN where no TX point differs from the RX
+        point."""
+        layout = self.counts[-1].ranked[0][0]
         doc = self.document
         pts = self.rx_map.points
         if doc.heatmap_tx is not None:
-            tx = np.asarray(doc.heatmap_tx)
-            ris_pos = np.array([self.sites[s].ris.position for s in layout])
-            ok = np.linalg.norm(pts - tx, axis=1) >= MIN_UE_RIS_DISTANCE_M
-            for p in ris_pos:
-                ok &= np.linalg.norm(pts - p, axis=1) >= MIN_UE_RIS_DISTANCE_M
-            vals = np.full(len(pts), np.nan)
-            if np.any(ok):
-                scen = Scenario(
-                    system=doc.system,
-                    ris=[self.sites[s].ris for s in layout],
-                    tx=np.repeat(tx[None], int(ok.sum()), axis=0).tolist(),
-                    rx=pts[ok].tolist(),
-                    codebook={"kind": "expected_random"},
-                    known=doc.known,
-                )
-                res = compute_bounds(scen)
-                vals[ok] = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx)
-            return pts, vals, layout
-        metric = best.best_metric
-        w = self.pairs.weights
-        vals = np.full(len(pts), np.nan)
-        order = np.lexsort((metric, self.pairs.rx_index))
-        rx_sorted = self.pairs.rx_index[order]
-        starts = np.flatnonzero(np.r_[True, rx_sorted[1:] != rx_sorted[:-1]])
-        ends = np.r_[starts[1:], len(order)]
-        for a, b in zip(starts, ends, strict=True):
-            idx = order[a:b]
-            cw = np.cumsum(w[idx])
-            k = int(np.argmax(cw >= 0.5 * cw[-1] - 1e-15))
-            vals[rx_sorted[a]] = metric[idx[k]]
+            tx_pts, tx_w = np.asarray(doc.heatmap_tx, dtype=float)[None], np.ones(1)
+        else:
+            tx_pts, tx_w = self.tx_map.points, self.tx_map.weights
+            max_tx = max(1, HEATMAP_MAX_PAIRS // len(pts))
+            if len(tx_pts) > max_tx:
+                rng = np.random.default_rng(0)
+                pick = rng.choice(len(tx_pts), max_tx, replace=False, p=tx_w / tx_w.sum())
+                tx_pts, tx_w = tx_pts[pick], tx_w[pick]
+        n_tx, n_rx = len(tx_pts), len(pts)
+        tx = np.repeat(tx_pts, n_rx, axis=0)
+        rx = np.tile(pts, (n_tx, 1))
+        scenario = Scenario.model_construct(  # parts already validated; pairs checked below
+            system=doc.system,
+            ris=[self.sites[s].ris for s in layout],
+            tx=tx_pts[0].tolist(),
+            rx=pts[0].tolist(),
+            codebook=ExpectedRandomCodebook(),
+            known=list(doc.known),
+        )
+        res = compute_bounds(scenario, tx=tx, rx=rx)  # degenerate pairs: inf with a reason
+        metric = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx).reshape(n_tx, n_rx)
+        w = np.where(np.linalg.norm(tx - rx, axis=1) > 0, np.repeat(tx_w, n_rx), 0.0)
+        w = w.reshape(n_tx, n_rx).T
+        empty = w.sum(axis=1) <= 0
+        w[empty] = 1.0
+        vals = weighted_quantile(metric.T, w, 0.5)
+        vals[empty] = np.nan
         return pts, vals, layout
 
     def to_json(self) -> dict[str, Any]:
