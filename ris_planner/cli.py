@@ -88,6 +88,9 @@ def _add_core(sub: argparse._SubParsersAction) -> None:
 
 def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
     regs: list[Callable[[argparse._SubParsersAction], None]] = [_add_core]
+    from ris_planner.estimation.cli import add_cli as estimation_cli
+
+    regs.append(estimation_cli)
     return regs
 
 
