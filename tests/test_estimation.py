@@ -297,3 +297,16 @@ def test_single_scatterer_biases_noise_free_estimate() -> None:
     fe = est.estimate(separate_paths(setup, noise_free_signal(setup, paths)))
     err = np.linalg.norm(fe.position_refined.rx - doc.scenario.rx_array[0])
     assert 1e-4 < err < 1.0
+
+
+def test_los_blocked_three_ris_reaches_the_crb_with_sigma_crb() -> None:
+    """LOS blocked, 3 RISs (Remark: B from the shortest RIS path): 9 observations for 7
+    unknowns, so Σ matters; with Σ = CRB the weighted LS is efficient."""
+    doc = preset_document("3-ris")
+    doc["system"] |= {"los": False, "noise_figure_db": 0.0}
+    doc["tx"], doc["rx"] = [-1.0, -1.5, 0.0], [1.5, 1.0, 0.3]
+    sim = load_simulation({"scenario": doc, "estimator": {"sigma": "crb"}})
+    p = run_monte_carlo(sim, [30.0], RUNS, seed=14).powers[0]
+    assert p.failures == 0
+    ratios = np.array(p.rmse("refined")) / np.array([p.peb_tx, p.peb_rx, p.ceb])
+    assert np.all((ratios > RATIO_LO) & (ratios < RATIO_HI)), ratios
