@@ -23,7 +23,7 @@ import numpy as np
 from ris_planner import preset_document
 from ris_planner.estimation.models import load_simulation
 from ris_planner.estimation.montecarlo import run_monte_carlo
-from ris_planner.estimation.plots import plot_rmse_vs_power
+from ris_planner.estimation.plots import plot_channel_rmse, plot_rmse_vs_power
 from ris_planner.paper import paper_curve
 from ris_planner.progress import ProgressBar
 
@@ -112,6 +112,7 @@ def main() -> int:
         w.writerow(header)
         w.writerows(rows)
     plot_rmse_vs_power(res, args.out / "estimator_vs_crb.png")
+    plot_channel_rmse(res, args.out / "estimator_vs_crb_channel.png")
     (args.out / "estimator_vs_crb.json").write_text(json.dumps(res.to_json(), indent=1))
     print(
         f"{args.runs} runs × {len(powers)} powers in {elapsed:.1f} s; "

@@ -114,7 +114,7 @@ def test_cli_simulate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert "simulate [" in err  # progress bar on stderr
     rows = (tmp_path / "o" / "errors.csv").read_text().splitlines()
     assert len(rows) == 1 + 2 * 2 * 2  # header + powers × runs × (refined, coarse)
-    for name in ("rmse_vs_power.png", "rx_error_cdf.png"):
+    for name in ("rmse_vs_power.png", "channel_rmse_vs_power.png", "rx_error_cdf.png"):
         assert (tmp_path / "o" / name).read_bytes()[:4] == b"\x89PNG"
 
 

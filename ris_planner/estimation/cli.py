@@ -57,7 +57,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def write_outputs(result: object, out_dir: Path) -> list[str]:
     """Per-run errors (CSV), the RMSE-vs-power figure and the RX-error CDF (PNG)."""
     from ris_planner.estimation.montecarlo import MonteCarloResult
-    from ris_planner.estimation.plots import plot_error_cdf, plot_rmse_vs_power
+    from ris_planner.estimation.plots import (
+        plot_channel_rmse,
+        plot_error_cdf,
+        plot_rmse_vs_power,
+    )
 
     assert isinstance(result, MonteCarloResult)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -73,13 +77,15 @@ def write_outputs(result: object, out_dir: Path) -> list[str]:
                     w.writerow([p.power_dbm, run, stage, *[f"{v:.6g}" for v in row]])
     rmse_png = out_dir / "rmse_vs_power.png"
     plot_rmse_vs_power(result, rmse_png)
+    chan_png = out_dir / "channel_rmse_vs_power.png"
+    plot_channel_rmse(result, chan_png)
     cdf_png = out_dir / "rx_error_cdf.png"
     plot_error_cdf(
         {f"{p.power_dbm:g} dBm": p.rx_errors() for p in result.powers},
         {f"PEB_R {p.power_dbm:g} dBm": p.peb_rx for p in result.powers},
         cdf_png,
     )
-    return [str(csv_path), str(rmse_png), str(cdf_png)]
+    return [str(csv_path), str(rmse_png), str(chan_png), str(cdf_png)]
 
 
 def _cmd_blind_area(args: argparse.Namespace) -> int:

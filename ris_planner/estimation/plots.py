@@ -50,6 +50,33 @@ def plot_rmse_vs_power(result: MonteCarloResult, path: Path | str) -> None:
     plt.close(fig)
 
 
+def plot_channel_rmse(result: MonteCarloResult, path: Path | str) -> None:
+    """Fig. 1 (a): RMSE of the channel parameters (delays in metres, ξ/ζ unitless) against
+    DEB/SEB over power; coarse markers, refined lines, bounds dashed."""
+    powers = [p.power_dbm for p in result.powers]
+    names = result.powers[0].channel_names
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for j, name in enumerate(names):
+        c = colours[j % len(colours)]
+        fine = [float(np.sqrt(np.nanmean(p.channel_refined[:, j] ** 2))) for p in result.powers]
+        coarse = [float(np.sqrt(np.nanmean(p.channel_coarse[:, j] ** 2))) for p in result.powers]
+        bound = [p.channel_bounds[name] for p in result.powers]
+        ax.semilogy(powers, coarse, "o", color=c, mfc="none", ms=4)
+        ax.semilogy(powers, fine, "-", color=c, label=name)
+        ax.semilogy(powers, bound, "--", color=c)
+    top = 30 * max(max(p.channel_bounds.values()) for p in result.powers)
+    ax.set_ylim(top=top)
+    ax.set_xlabel("Transmit power [dBm]")
+    ax.set_ylabel("RMSE (markers coarse, lines refined) / bound (dashed)")
+    ax.set_title("Channel parameters: delay [m], ξ, ζ [-]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def plot_error_cdf(
     curves: dict[str, NDArray[np.float64]],
     bounds: dict[str, float],
