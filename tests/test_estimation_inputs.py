@@ -156,3 +156,37 @@ def test_blind_area_map(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     got = json.loads(out)
     assert got["minima"][0]["cost_m"] < 1e-9
     assert (tmp_path / "m.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_search_box_through_a_ris_is_harmless() -> None:
+    """A user box whose grid contains a RIS position: that candidate is inconsistent (inf
+    cost, never NaN or a warning) and the estimate still explains the noise-free η exactly.
+    (In this larger box the coarse stage lands near a ghost: TX ≈ [−2.32, −1.25, 0.76],
+    RX ≈ [2.42, 0.83, 0.78] gives the same η as the truth – 7 equations, 7 unknowns – which is
+    why the paper limits the search area with prior information.)"""
+    from ris_planner.estimation.blind_area import noise_free_channel
+    from ris_planner.estimation.pipeline import Estimator
+    from ris_planner.estimation.position_estimation import candidate_costs
+    from ris_planner.estimation.signal import (
+        noise_free_signal,
+        realisation_paths,
+        separate_paths,
+        signal_setup,
+    )
+
+    sim = load_simulation(
+        sim_doc(estimator={"search_area": {"min_m": [-4, -5, 0], "max_m": [-1, 0, 2]}})
+    )
+    setup = signal_setup(sim.scenario)
+    cand = sim.estimator.search_area.candidates(sim.scenario.tx_array[0])
+    assert np.any(np.all(np.isclose(cand, [-4, 0, 2]), axis=1))  # RIS 1 is on the grid
+    on_ris = np.all(np.isclose(cand, [-4, 0, 2]), axis=1)
+    channel = noise_free_channel(sim.scenario, sim.scenario.tx_array[0], sim.scenario.rx_array[0])
+    costs = candidate_costs(setup.ris, setup.wavelength, channel, cand).cost
+    assert np.all(np.isinf(costs[on_ris])) and not np.any(np.isnan(costs))
+    paths = realisation_paths(setup, sim.multipath, np.random.default_rng(0))
+    fe = Estimator(setup, sim.estimator, cand).estimate(
+        separate_paths(setup, noise_free_signal(setup, paths))
+    )
+    assert np.all(np.isfinite(fe.position_refined.state))
+    assert fe.position_refined.cost < 1e-20  # ½‖η̂ − η(ŝ)‖²: an exact fit

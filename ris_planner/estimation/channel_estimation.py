@@ -217,7 +217,10 @@ class ChannelEstimator:
         val, grad, rho = terms(eta)
         info = efim(eta, rho)
         for _ in range(max_iter):
-            step = np.linalg.solve(info, grad / noise)
+            try:
+                step = np.linalg.solve(info, grad / noise)
+            except np.linalg.LinAlgError:  # no information left (gain estimate ~0): stop
+                break
             lam = 1.0
             for _ in range(40):
                 cand = eta + lam * step

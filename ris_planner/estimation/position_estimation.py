@@ -31,6 +31,7 @@ from ris_planner import geometry
 from ris_planner.errors import RisPlannerError
 from ris_planner.estimation.channel_estimation import ChannelEstimate, wrap
 from ris_planner.estimation.signal import RisArray
+from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M
 
 FloatArray = NDArray[np.float64]
 
@@ -86,7 +87,10 @@ def candidate_costs(
     dirs = []
     for i, arr in enumerate(ris):
         v = candidates - arr.position
-        t_tx = (v / np.linalg.norm(v, axis=-1, keepdims=True)) @ arr.rotation
+        dist = np.linalg.norm(v, axis=-1, keepdims=True)
+        on_ris = dist[:, 0] < MIN_UE_RIS_DISTANCE_M  # no direction: inconsistent candidate
+        valid &= ~on_ris
+        t_tx = (v / np.where(on_ris[:, None], 1.0, dist)) @ arr.rotation
         period = arr.period(wavelength)
         t2 = wrap(channel.xi[i] - t_tx[:, 1], period)
         t3 = wrap(channel.zeta[i] - t_tx[:, 2], period)
@@ -124,7 +128,7 @@ def candidate_costs(
         keep = np.arange(n_ris) != ref
     resid = np.abs(clock[:, None] + d_t + d_r - ris_len[None, :])
     cost = resid[:, keep] @ w_l[keep]
-    cost = np.where(valid, cost, np.inf)
+    cost = np.where(valid & np.isfinite(cost), cost, np.inf)
     return CandidateCosts(cost=cost, rx=rx, clock_offset_m=clock)
 
 
@@ -227,6 +231,8 @@ def refine_position(
         _, jac = channel_model(ris, los, s)
         return np.asarray(-wmat @ jac)
 
+    if not np.all(np.isfinite(residual(start.state))):
+        raise EstimationError("the coarse estimate puts a UE on a RIS; cannot refine from it")
     sol = least_squares(
         residual,
         start.state,
@@ -239,4 +245,6 @@ def refine_position(
         max_nfev=200,
     )
     s = sol.x
+    if not np.all(np.isfinite(s)):  # pragma: no cover - trf keeps iterates finite
+        raise EstimationError("the position MLE did not return a finite estimate")
     return PositionEstimate(tx=s[0:3], rx=s[3:6], clock_offset_m=float(s[6]), cost=float(sol.cost))
