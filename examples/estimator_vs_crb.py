@@ -29,6 +29,17 @@ from ris_planner.progress import ProgressBar
 
 CHECK_POWERS = (20.0, 25.0, 30.0)
 RATIO_LIMIT = 1.3
+PAPER_KEYS = (
+    "rmse_tx_fine",
+    "rmse_rx_fine",
+    "rmse_clock_fine",
+    "rmse_tx_coarse",
+    "rmse_rx_coarse",
+    "rmse_clock_coarse",
+    "peb_tx",
+    "peb_rx",
+    "ceb",
+)
 
 
 def main() -> int:
@@ -49,20 +60,7 @@ def main() -> int:
     t0 = time.perf_counter()
     res = run_monte_carlo(sim, powers, args.runs, args.seed, ProgressBar("Fig. 1"))
     elapsed = time.perf_counter() - t0
-    paper = {
-        key: dict(zip(*paper_curve("fig1", key), strict=True))
-        for key in (
-            "rmse_tx_fine",
-            "rmse_rx_fine",
-            "rmse_clock_fine",
-            "rmse_tx_coarse",
-            "rmse_rx_coarse",
-            "rmse_clock_coarse",
-            "peb_tx",
-            "peb_rx",
-            "ceb",
-        )
-    }
+    paper = {key: dict(zip(*paper_curve("fig1", key), strict=True)) for key in PAPER_KEYS}
     header = [
         "power_dbm",
         "rmse_tx_m",
@@ -105,7 +103,7 @@ def main() -> int:
             f" {fine[2]:8.4f} {bounds[2]:8.4f} | {coarse[0]:.3f} {coarse[1]:.3f} {coarse[2]:.3f}"
             f" | {ratios[0]:.2f} {ratios[1]:.2f} {ratios[2]:.2f}{flag}"
         )
-        pv = [paper[k].get(p.power_dbm, float("nan")) for k in header_paper_keys()]
+        pv = [paper[k].get(p.power_dbm, float("nan")) for k in PAPER_KEYS]
         rows.append([p.power_dbm, *fine, *bounds, *coarse, p.failures, *pv])
     with open(args.out / "estimator_vs_crb.csv", "w", newline="") as fh:
         w = csv.writer(fh)
@@ -120,20 +118,6 @@ def main() -> int:
         f"{'PASS' if ok else 'FAIL'}"
     )
     return 0 if ok else 1
-
-
-def header_paper_keys() -> list[str]:
-    return [
-        "rmse_tx_fine",
-        "rmse_rx_fine",
-        "rmse_clock_fine",
-        "rmse_tx_coarse",
-        "rmse_rx_coarse",
-        "rmse_clock_coarse",
-        "peb_tx",
-        "peb_rx",
-        "ceb",
-    ]
 
 
 if __name__ == "__main__":
