@@ -1,0 +1,260 @@
+"""The simulation document: a scenario plus multipath and estimator settings (JSON contract).
+
+``{"scenario": {...}, "multipath": {...}, "estimator": {...}}``; a plain scenario document is
+accepted too (no multipath, default estimator). Defaults follow the paper's Simulation
+Parameters: N_F = 2^10 delay bins, a 0.02 step for the (ξ, ζ) grid, a 2×2×2 m search box with a
+0.2 m step around the TX, equal weights w_ij and w_ℓ, Σ = I.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from ris_planner.errors import LimitExceededError
+from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M, Point3, Scenario, load_scenario
+
+MAX_SEARCH_CANDIDATES = 2_000_000
+"""More TX candidates than this in the coarse search box is refused (memory ~ 1 KB each)."""
+
+ScatterSide = Literal["tx", "rx"]
+"""Which RIS channel hop a scattering point (SP) sits on: ``tx`` makes TX–SP–RIS–RX paths
+(the SP near the TX), ``rx`` makes TX–RIS–SP–RX paths (near the RX). Every SP also makes one
+uncontrolled TX–SP–RX path (eq. channel_LOS_MP)."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _finite3(v: list[float], what: str) -> list[float]:
+    arr = np.asarray(v, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what} must be finite numbers, got {v}")
+    return [float(x) for x in arr]
+
+
+class Scatterer(_Model):
+    """One scattering point with radar cross section c [m²] (Simulation Parameters)."""
+
+    position: Point3
+    rcs_m2: float = Field(0.5, gt=0, le=1e4, allow_inf_nan=False, description="RCS c [m²]")
+    side: ScatterSide = "tx"
+
+    @field_validator("position")
+    @classmethod
+    def _check(cls, v: list[float]) -> list[float]:
+        return _finite3(v, "scatterer position")
+
+
+class ScattererCluster(_Model):
+    """``count`` SPs drawn uniformly in a horizontal disk (redrawn every realisation)."""
+
+    center: Point3
+    radius_m: float = Field(1.0, ge=0, le=1e3, allow_inf_nan=False)
+    count: int = Field(5, ge=1, le=1000)
+    rcs_m2: float = Field(0.5, gt=0, le=1e4, allow_inf_nan=False, description="RCS c [m²]")
+    side: ScatterSide = "tx"
+
+    @field_validator("center")
+    @classmethod
+    def _check(cls, v: list[float]) -> list[float]:
+        return _finite3(v, "cluster center")
+
+
+class Multipath(_Model):
+    """Fixed scattering points and random clusters; empty means no multipath."""
+
+    scatterers: list[Scatterer] = Field(default_factory=list, max_length=1000)
+    clusters: list[ScattererCluster] = Field(default_factory=list, max_length=100)
+
+    @property
+    def empty(self) -> bool:
+        return not self.scatterers and not self.clusters
+
+
+class SearchArea(_Model):
+    """The TX candidates of Algorithm 2's coarse search: a box sampled with ``step_m``.
+
+    Either an explicit box (``min_m``, ``max_m``) or ``half_width_m`` around ``center``
+    (``"true_tx"``: the paper's simulation convention, a 2×2×2 m box around the true TX).
+    """
+
+    center: Literal["true_tx"] | Point3 = "true_tx"
+    half_width_m: Annotated[list[float], Field(min_length=3, max_length=3)] = Field(
+        default_factory=lambda: [1.0, 1.0, 1.0]
+    )
+    min_m: Point3 | None = None
+    max_m: Point3 | None = None
+    step_m: float = Field(0.2, gt=0, le=1e3, allow_inf_nan=False, description="Grid step [m]")
+
+    @field_validator("half_width_m")
+    @classmethod
+    def _check_half(cls, v: list[float]) -> list[float]:
+        arr = np.asarray(v, dtype=float)
+        if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+            raise ValueError(f"half_width_m must be finite and ≥ 0, got {v} (the box is empty)")
+        return [float(x) for x in arr]
+
+    @model_validator(mode="after")
+    def _check_box(self) -> SearchArea:
+        if (self.min_m is None) != (self.max_m is None):
+            raise ValueError("give both min_m and max_m (or neither)")
+        if self.min_m is not None and self.max_m is not None:
+            lo, hi = np.asarray(self.min_m), np.asarray(self.max_m)
+            if np.any(hi < lo):
+                axis = int(np.argmax(hi < lo))
+                raise ValueError(
+                    f"the search area is empty: max_m[{axis}] = {hi[axis]} < min_m[{axis}]"
+                    f" = {lo[axis]}"
+                )
+        return self
+
+    def bounds(self, true_tx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) corners [3] of the box."""
+        if self.min_m is not None and self.max_m is not None:
+            return np.asarray(self.min_m, float), np.asarray(self.max_m, float)
+        c = np.asarray(true_tx if self.center == "true_tx" else self.center, dtype=float)
+        h = np.asarray(self.half_width_m, dtype=float)
+        return c - h, c + h
+
+    def candidates(self, true_tx: np.ndarray) -> np.ndarray:
+        """The grid of TX candidates, [Q, 3] (the box corners included when on the grid)."""
+        lo, hi = self.bounds(true_tx)
+        counts = np.floor((hi - lo) / self.step_m + 1e-9).astype(int) + 1
+        total = int(np.prod(counts.astype(float)))
+        if total > MAX_SEARCH_CANDIDATES:
+            raise LimitExceededError(
+                f"search_area: {total} TX candidates (step_m = {self.step_m}) exceed the limit"
+                f" {MAX_SEARCH_CANDIDATES}; use a larger step_m or a smaller box"
+            )
+        axes = [lo[i] + self.step_m * np.arange(counts[i]) for i in range(3)]
+        grid = np.meshgrid(*axes, indexing="ij")
+        return np.stack([g.ravel() for g in grid], axis=-1)
+
+
+class EstimatorSettings(_Model):
+    """Settings of Algorithms 1 and 2."""
+
+    delay_fft_size: int = Field(
+        1024, ge=8, le=2**22, description="N_F: FFT points of the coarse delay search"
+    )
+    angle_fft_size: int = Field(
+        100,
+        ge=4,
+        le=4096,
+        description="2-D FFT points per axis of the coarse (ξ, ζ) search (step (λ/d)/M)",
+    )
+    search_area: SearchArea = Field(default_factory=SearchArea)
+    pair_weights: list[float] | None = Field(
+        None, description="w_ij for the RIS pairs i<j in lexicographic order; default equal"
+    )
+    path_weights: list[float] | None = Field(
+        None, description="w_ℓ of the delay cost per RIS; default 1"
+    )
+    sigma: Literal["identity", "crb"] = Field(
+        "identity", description="Σ of the position MLE: I, or the channel CRB (inverse EFIM)"
+    )
+    max_channel_iterations: int = Field(50, ge=1, le=1000)
+
+    @field_validator("pair_weights", "path_weights")
+    @classmethod
+    def _check_weights(cls, v: list[float] | None) -> list[float] | None:
+        if v is not None:
+            arr = np.asarray(v, dtype=float)
+            if not np.all(np.isfinite(arr)) or np.any(arr < 0) or arr.sum() <= 0:
+                raise ValueError(f"weights must be finite, ≥ 0 and not all zero, got {v}")
+        return v
+
+
+class SimulationDocument(_Model):
+    """What ``ris-planner simulate`` reads: scenario, multipath and estimator settings."""
+
+    scenario: Scenario
+    multipath: Multipath = Field(default_factory=Multipath)
+    estimator: EstimatorSettings = Field(default_factory=EstimatorSettings)
+
+    @model_validator(mode="after")
+    def _check(self) -> SimulationDocument:
+        sc = self.scenario
+        if sc.is_batch and len(sc.tx_array) > 1:
+            raise ValueError("scenario: the simulator takes one TX–RX pair, not a batch")
+        if sc.known:
+            raise ValueError(
+                f"scenario.known = {sc.known}: the estimator estimates all of p_T, p_R, B;"
+                " leave 'known' empty"
+            )
+        n_ris = len(sc.ris)
+        if not sc.system.los and n_ris < 3:
+            raise ValueError("without LOS the estimator needs at least 3 RISs (Remark, Alg. 2)")
+        if n_ris < 2:
+            raise ValueError("the estimator needs at least 2 RISs (bearing-line intersection)")
+        for i, r in enumerate(sc.ris):
+            if r.spacing_m is not None and r.spacing_m > sc.system.wavelength / 2 * (1 + 1e-9):
+                raise ValueError(
+                    f"ris.{i}.spacing_m = {r.spacing_m} > λ/2: grating lobes make ξ, ζ"
+                    " ambiguous for the estimator"
+                )
+        est = self.estimator
+        if est.pair_weights is not None and len(est.pair_weights) != n_ris * (n_ris - 1) // 2:
+            raise ValueError(
+                f"estimator.pair_weights needs L(L−1)/2 = {n_ris * (n_ris - 1) // 2} values"
+            )
+        if est.path_weights is not None and len(est.path_weights) != n_ris:
+            raise ValueError(f"estimator.path_weights needs L = {n_ris} values")
+        if est.delay_fft_size < sc.system.subcarriers:
+            raise ValueError(
+                f"estimator.delay_fft_size = {est.delay_fft_size} must be ≥ K ="
+                f" {sc.system.subcarriers}"
+            )
+        self._check_scatterers()
+        return self
+
+    def _check_scatterers(self) -> None:
+        sc = self.scenario
+        ues = {"tx": sc.tx_array[0], "rx": sc.rx_array[0]}
+        fixed = {
+            f"ris {i}": np.asarray(r.position, dtype=float) for i, r in enumerate(sc.ris)
+        } | ues
+        for j, s in enumerate(self.multipath.scatterers):
+            for name, p in fixed.items():
+                if np.linalg.norm(np.asarray(s.position) - p) < MIN_UE_RIS_DISTANCE_M:
+                    raise ValueError(
+                        f"multipath.scatterers.{j}: the SP at {s.position} lies on the {name}"
+                        " (its path gain diverges)"
+                    )
+        for j, c in enumerate(self.multipath.clusters):
+            centre = np.asarray(c.center)
+            for name, p in fixed.items():
+                horiz = float(np.hypot(*(p[:2] - centre[:2])))
+                if abs(p[2] - centre[2]) < MIN_UE_RIS_DISTANCE_M and horiz <= c.radius_m:
+                    raise ValueError(
+                        f"multipath.clusters.{j}: the disk of SPs (centre {c.center}, radius"
+                        f" {c.radius_m} m) contains the {name}; an SP could land on it"
+                    )
+
+
+def load_simulation(source: dict[str, Any] | SimulationDocument | str) -> SimulationDocument:
+    """A :class:`SimulationDocument` from a dict (simulation or plain scenario) or a preset."""
+    if isinstance(source, SimulationDocument):
+        return source
+    if isinstance(source, str):
+        return SimulationDocument(scenario=load_scenario(source))
+    if "scenario" in source:
+        return SimulationDocument.model_validate(source)
+    return SimulationDocument.model_validate({"scenario": source})
+
+
+def paper_clusters(height_m: float = 3.0, rcs_m2: float = 0.5) -> Multipath:
+    """The two SP clusters of the paper's multipath figure (section 'The Effect of Multipath').
+
+    Five SPs each, uniform in 1 m disks centred at [0, −3, h] (TX side) and [0, 2, h] (RX side).
+    """
+    return Multipath(
+        clusters=[
+            ScattererCluster(center=[0.0, -3.0, height_m], rcs_m2=rcs_m2, side="tx"),
+            ScattererCluster(center=[0.0, 2.0, height_m], rcs_m2=rcs_m2, side="rx"),
+        ]
+    )
