@@ -140,20 +140,22 @@ class RIS(_Model):
 class RandomCodebook(_Model):
     """Uniform random phases for the first block (section IV-A, Random Codebook), seeded."""
 
-    kind: Literal["random"] = "random"
+    kind: Literal["random"] = Field("random", description="Codebook kind (discriminator)")
     seed: int = Field(0, ge=0, description="Seed of the phase draw (numpy default_rng)")
 
 
 class ExpectedRandomCodebook(_Model):
     """Closed-form expectation of the FIM over uniform random phases (deterministic)."""
 
-    kind: Literal["expected_random"] = "expected_random"
+    kind: Literal["expected_random"] = Field(
+        "expected_random", description="Codebook kind (discriminator)"
+    )
 
 
 class ExplicitCodebook(_Model):
     """Phases of the first block: one entry per RIS, G/Γ rows × N phases [rad]."""
 
-    kind: Literal["explicit"] = "explicit"
+    kind: Literal["explicit"] = Field("explicit", description="Codebook kind (discriminator)")
     phases: list[list[list[float]]] = Field(
         description="Per RIS: G/Γ rows (beams) × N element phases in radians"
     )
@@ -182,11 +184,16 @@ class Scenario(_Model):
     """
 
     description: str | None = Field(None, max_length=2000, description="Free text")
-    system: SystemParams = Field(default_factory=SystemParams)
+    system: SystemParams = Field(
+        default_factory=SystemParams, description="Radio parameters; defaults: Table I"
+    )
     ris: list[RIS] = Field(min_length=1, max_length=64, description="The RISs, in path order")
     tx: list[float] | list[list[float]] = Field(description="TX position(s) [m]")
     rx: list[float] | list[list[float]] = Field(description="RX position(s) [m]")
-    codebook: Codebook = Field(default_factory=RandomCodebook)
+    codebook: Codebook = Field(
+        default_factory=RandomCodebook,
+        description="First-block RIS phase profiles: random (seeded), expected_random or explicit",
+    )
     known: list[KnownPart] = Field(
         default_factory=list, description="Known state parts: clock, height, tx"
     )

@@ -1,0 +1,35 @@
+"""``POST /v1/bounds``: PEB_T, PEB_R, CEB and channel bounds of a scenario, synchronously."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Depends
+from fastapi.responses import JSONResponse
+
+from api.deps import get_settings
+from api.errors import TOO_LARGE_RESPONSE
+from api.limits import check_scenario_size
+from api.models import BoundsResponse
+from api.settings import Settings
+from ris_planner.bounds import compute_bounds
+from ris_planner.scenario import Scenario
+
+router = APIRouter(tags=["bounds"])
+
+
+@router.post(
+    "/bounds",
+    response_model=BoundsResponse,
+    responses=TOO_LARGE_RESPONSE,
+    summary="Bounds of one TX–RX pair or a batch of pairs",
+)
+def post_bounds(
+    scenario: Annotated[Scenario, Body(description="The scenario document (DESIGN.md)")],
+    settings: Annotated[Settings, Depends(get_settings)],
+) -> JSONResponse:
+    """The same computation and document as ``ris-planner bounds``; 413 when the batch exceeds
+    the configured pair or work limits. Runs in the server's thread pool, not the event loop."""
+    check_scenario_size(scenario, settings)
+    result = compute_bounds(scenario)
+    return JSONResponse(result.to_json(batch=scenario.is_batch))
