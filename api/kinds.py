@@ -4,6 +4,24 @@ document first, so a job starts from a valid document."""
 
 from __future__ import annotations
 
-from api.worker import JobFunction
+from pathlib import Path
+from typing import Any
 
-JOB_KINDS: dict[str, JobFunction] = {}
+from api.worker import JobFunction, JobOutput
+from ris_planner.progress import ProgressCallback
+
+
+def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
+    """``ris-planner power``: {"scenario": …, "objective": …, "solver": …} → PowerResult JSON."""
+    from ris_planner.power import run_power
+
+    result = run_power(
+        document["scenario"],
+        progress,
+        objective=document["objective"],
+        solver=document["solver"],
+    )
+    return JobOutput(result.to_json())
+
+
+JOB_KINDS: dict[str, JobFunction] = {"power": power_job}

@@ -15,10 +15,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import codebooks, fim, geometry
+from ris_planner import beams, codebooks, fim, geometry
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
+    DirectionalCodebook,
+    DirectionalDerivativeCodebook,
     ExpectedRandomCodebook,
     ExplicitCodebook,
     KnownPart,
@@ -215,6 +217,8 @@ def first_block_profiles(scenario: Scenario) -> list[ComplexArray] | None:
         return codebooks.random_phases(n_ris, g_tilde, [r.elements for r in scenario.ris], rng)
     if isinstance(cb, ExplicitCodebook):
         return codebooks.phases_to_profiles(cb.phases)
+    if isinstance(cb, DirectionalCodebook | DirectionalDerivativeCodebook):
+        return beams.codebook_block(scenario).profiles
     raise TypeError(f"unsupported codebook kind {cb.kind!r}")  # pragma: no cover
 
 
@@ -365,7 +369,8 @@ def compute_bounds(
     scenario : the layout, system and codebook; tx, rx : [P, 3] or [3] positions overriding the
     document's; profiles : first-block profiles per RIS, ``None`` for the expected-random FIM,
     or ``"codebook"`` (default) to draw them from the document's codebook; beam_powers : [G̃]
-    powers of the first-block beams; known : overrides the document's ``known``.
+    powers of the first-block beams (default: the codebook's γ_P powers for a DIR+DER
+    codebook with ``gamma_p``, else uniform); known : overrides the document's ``known``.
 
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
     """
@@ -382,7 +387,10 @@ def compute_bounds(
         tx_a[bad] += np.array([0.31, 0.17, 0.13])
         rx_a[bad] += np.array([-0.23, 0.29, -0.11])
     prof = first_block_profiles(scenario) if isinstance(profiles, str) else profiles
-    powers = None if beam_powers is None else np.asarray(beam_powers, dtype=float)
+    if beam_powers is None:  # a DIR+DER codebook's γ_P prescribes the powers of its beams
+        powers = beams.codebook_beam_powers(scenario) if isinstance(profiles, str) else None
+    else:
+        powers = np.asarray(beam_powers, dtype=float)
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     f = np.sum([p.state_information() for p in paths], axis=0)
     n_obs = 3 * len(scenario.ris) + (1 if scenario.system.los else 0)

@@ -88,6 +88,9 @@ def _add_core(sub: argparse._SubParsersAction) -> None:
 
 def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
     regs: list[Callable[[argparse._SubParsersAction], None]] = [_add_core]
+    from ris_planner.power.cli import add_cli as power_cli
+
+    regs.append(power_cli)
     from api.cli import add_cli as api_cli
 
     regs.append(api_cli)

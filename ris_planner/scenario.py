@@ -161,11 +161,105 @@ class ExplicitCodebook(_Model):
     )
 
 
+PRIOR_MAX_SAMPLES = 4096
+"""Upper limit on prior samples (each sample becomes beams of the first block)."""
+
+PSD_TOLERANCE = 1e-12
+"""A covariance is accepted as PSD when its smallest eigenvalue is ≥ −tol·max(1, λ_max):
+rounding of a symmetric matrix entered with ~16 digits cannot push a PSD eigenvalue lower."""
+
+
+class PositionPrior(_Model):
+    """Gaussian prior on the nuisance-free state's positions [p_T, p_R] (section IV-A,
+    DIR codebook): s_N ~ N(s̄_N, Σ̄). Means default to the document's ``tx`` and ``rx``.
+
+    Give exactly one of ``sigma_m`` (Σ̄ = σ²·I, the paper's σ_pri) or ``covariance``
+    (3×3, applied to each UE independently, or 6×6 joint on [p_T, p_R]).
+    """
+
+    tx_mean: Point3 | None = Field(None, description="Prior mean of p_T [m]; default: tx")
+    rx_mean: Point3 | None = Field(None, description="Prior mean of p_R [m]; default: rx")
+    sigma_m: float | None = Field(
+        None, ge=0, le=1e4, allow_inf_nan=False, description="Isotropic prior std σ_pri [m]"
+    )
+    covariance: list[list[float]] | None = Field(
+        None, description="Prior covariance [m²]: 3×3 per UE or 6×6 on [p_T, p_R]"
+    )
+    samples: int | None = Field(
+        None,
+        ge=1,
+        le=PRIOR_MAX_SAMPLES,
+        description="Sampled TX–RX pairs; default fills the first block (G̃ or ⌊G̃/3⌋)",
+    )
+    seed: int = Field(0, ge=0, description="Seed of the prior draw (numpy default_rng)")
+
+    @field_validator("tx_mean", "rx_mean")
+    @classmethod
+    def _check_mean(cls, v: list[float] | None) -> list[float] | None:
+        return None if v is None else _finite_point(v, "prior mean")
+
+    @field_validator("covariance")
+    @classmethod
+    def _check_covariance(cls, v: list[list[float]] | None) -> list[list[float]] | None:
+        if v is None:
+            return None
+        try:
+            arr = np.asarray(v, dtype=float)
+        except ValueError:
+            raise ValueError("covariance must be a square list of lists of numbers") from None
+        if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] not in (3, 6):
+            raise ValueError(f"covariance must be 3×3 or 6×6, got shape {list(arr.shape)}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError("covariance must hold finite numbers")
+        if not np.allclose(arr, arr.T, rtol=1e-12, atol=0.0):
+            raise ValueError("covariance must be symmetric")
+        eig = np.linalg.eigvalsh(arr)
+        if eig[0] < -PSD_TOLERANCE * max(1.0, float(eig[-1])):
+            raise ValueError(
+                f"covariance must be positive semidefinite; smallest eigenvalue {eig[0]:.3g}"
+            )
+        return [[float(x) for x in row] for row in arr]
+
+    @model_validator(mode="after")
+    def _one_spread(self) -> PositionPrior:
+        if (self.sigma_m is None) == (self.covariance is None):
+            raise ValueError("prior needs exactly one of sigma_m or covariance")
+        return self
+
+
+class DirectionalCodebook(_Model):
+    """DIR codebook (eqs. RIS_profile_sum_beam, DIR_codebook): one beam a_R*(ξ, ζ) per sampled
+    TX–RX pair; the first block cycles through the beams when fewer than G̃."""
+
+    kind: Literal["directional"] = Field("directional", description="Codebook kind (discriminator)")
+    prior: PositionPrior = Field(description="Gaussian prior on the UE positions")
+
+
+class DirectionalDerivativeCodebook(_Model):
+    """DIR+DER codebook (eqs. sum_diff_beam_1–3, DER_codebook): per sampled pair the DIR beam
+    and the two DER beams (projected to unit modulus); ``gamma_p`` is the DER/DIR amplitude
+    ratio of eq. opt_formulation_3 (``None``: uniform power, i.e. γ_P = 1)."""
+
+    kind: Literal["directional_derivative"] = Field(
+        "directional_derivative", description="Codebook kind (discriminator)"
+    )
+    prior: PositionPrior = Field(description="Gaussian prior on the UE positions")
+    gamma_p: float | None = Field(
+        None, ge=0, le=1e6, allow_inf_nan=False, description="DER/DIR amplitude ratio γ_P"
+    )
+
+
 Codebook = Annotated[
-    RandomCodebook | ExpectedRandomCodebook | ExplicitCodebook,
+    RandomCodebook
+    | ExpectedRandomCodebook
+    | ExplicitCodebook
+    | DirectionalCodebook
+    | DirectionalDerivativeCodebook,
     Field(discriminator="kind"),
 ]
-CodebookKind = Literal["random", "expected_random", "explicit"]
+CodebookKind = Literal[
+    "random", "expected_random", "explicit", "directional", "directional_derivative"
+]
 
 
 def _points(value: Any, what: str) -> list[list[float]]:
@@ -234,7 +328,31 @@ class Scenario(_Model):
                     )
         if isinstance(self.codebook, ExplicitCodebook):
             self._check_explicit(self.codebook)
+        if isinstance(self.codebook, DirectionalCodebook | DirectionalDerivativeCodebook):
+            self._check_prior(self.codebook)
         return self
+
+    def _check_prior(self, cb: DirectionalCodebook | DirectionalDerivativeCodebook) -> None:
+        from ris_planner.codebooks import block_length
+
+        g_tilde = block_length(self.system.transmissions, len(self.ris))
+        per_sample = 1 if isinstance(cb, DirectionalCodebook) else 3
+        if g_tilde < per_sample:
+            raise ValueError(
+                f"codebook {cb.kind!r} needs {per_sample} beams per sample but the first block"
+                f" holds only G/Γ = {g_tilde}; raise system.transmissions"
+            )
+        if cb.prior.samples is not None and cb.prior.samples * per_sample > g_tilde:
+            raise ValueError(
+                f"codebook.prior.samples = {cb.prior.samples} needs"
+                f" {cb.prior.samples * per_sample} beams but the first block holds"
+                f" G/Γ = {g_tilde}; use at most {g_tilde // per_sample} samples"
+            )
+        for name, mean in (("tx_mean", cb.prior.tx_mean), ("rx_mean", cb.prior.rx_mean)):
+            if mean is None and self.is_batch and len(self.tx_array) > 1:
+                raise ValueError(
+                    f"codebook.prior.{name} is required when the document lists several pairs"
+                )
 
     def _check_explicit(self, cb: ExplicitCodebook) -> None:
         from ris_planner.codebooks import block_length

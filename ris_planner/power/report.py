@@ -1,0 +1,175 @@
+"""``run_power``: uniform power, the best γ_P and the SDP allocation for one scenario, every
+objective re-evaluated by the bounds code (``compute_bounds``) from the returned powers.
+
+Design positions (eq. opt_formulation_2): the sampled prior pairs of a ``directional`` /
+``directional_derivative`` codebook, otherwise the document's TX–RX pairs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.beams import codebook_block
+from ris_planner.bounds import ComplexArray, compute_bounds, first_block_profiles
+from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.power.gamma import GammaSearch, search_gamma_p
+from ris_planner.power.information import beam_information
+from ris_planner.power.sdp import Objective, SdpResult, solve_power_sdp
+from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.scenario import (
+    DirectionalCodebook,
+    DirectionalDerivativeCodebook,
+    ExpectedRandomCodebook,
+    Scenario,
+    load_scenario,
+)
+
+FloatArray = NDArray[np.float64]
+
+MAX_DESIGN_POSITIONS = 256
+"""Positions (LMIs) of one SDP; the solve time grows about linearly with them."""
+MAX_DESIGN_BEAMS = 4096
+"""First-block beams (SDP variables)."""
+
+OBJECTIVES: tuple[Objective, ...] = ("rx", "tx", "sum")
+
+
+def design_objective(
+    scenario: Scenario,
+    tx: FloatArray,
+    rx: FloatArray,
+    profiles: list[ComplexArray],
+    objective: Objective,
+) -> Callable[[FloatArray], float]:
+    """Mean PEB² [m²] over the design positions as a function of the first-block powers,
+    computed by ``compute_bounds`` (``inf`` when a position is a blind spot)."""
+
+    def evaluate(powers: FloatArray) -> float:
+        res = compute_bounds(scenario, tx, rx, profiles=profiles, beam_powers=powers)
+        parts: dict[str, list[FloatArray | None]] = {
+            "rx": [res.peb_rx],
+            "tx": [res.peb_tx],
+            "sum": [res.peb_tx, res.peb_rx],
+        }
+        total = np.zeros(tx.shape[0])
+        for arr in parts[objective]:
+            if arr is None:
+                raise RisPlannerError(f"objective {objective!r} needs PEB_T but 'tx' is known")
+            total = total + arr**2
+        return float(np.mean(total))
+
+    return evaluate
+
+
+def _num(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _entry(objective: float | None) -> dict[str, Any]:
+    out: dict[str, Any] = {"objective": _num(objective)}
+    out["rms_peb_m"] = None if out["objective"] is None else math.sqrt(out["objective"])
+    if objective is not None and not math.isfinite(objective):
+        out["reason"] = "a design position is a blind spot (singular Fisher information)"
+    return out
+
+
+@dataclass(frozen=True)
+class PowerResult:
+    """Uniform, γ_P and SDP power allocations with objectives re-evaluated by the bounds code.
+
+    Objectives are the mean over the design positions of PEB_R² (``rx``), PEB_T² (``tx``) or
+    their sum (``sum``) [m²]; powers are per first-block beam (sum G̃, repeated over Γ blocks).
+    """
+
+    objective_kind: Objective
+    tx: FloatArray
+    rx: FloatArray
+    uniform_objective: float
+    gamma_p: GammaSearch | None
+    sdp: SdpResult
+    sdp_objective: float | None
+    beams: int
+
+    def to_json(self) -> dict[str, Any]:
+        """What ``ris-planner power FILE.json`` prints."""
+        gamma: dict[str, Any]
+        if self.gamma_p is None:
+            gamma = {
+                "value": None,
+                "objective": None,
+                "rms_peb_m": None,
+                "reason": "γ_P applies to the directional_derivative codebook only",
+            }
+        else:
+            gamma = {"value": self.gamma_p.value, **_entry(self.gamma_p.objective)}
+        sdp = {
+            **_entry(self.sdp_objective),
+            "status": self.sdp.status,
+            "solve_time_s": self.sdp.solve_time_s,
+            "solver": self.sdp.solver,
+            "solver_objective": _num(self.sdp.objective),
+            "powers": None if self.sdp.powers is None else [float(x) for x in self.sdp.powers],
+            "message": self.sdp.message,
+        }
+        return {
+            "objective": self.objective_kind,
+            "unit": "m^2 (mean squared PEB over the design positions)",
+            "positions": int(self.tx.shape[0]),
+            "beams": self.beams,
+            "uniform": _entry(self.uniform_objective),
+            "gamma_p": gamma,
+            "sdp": sdp,
+        }
+
+
+def run_power(
+    scenario: Scenario | dict[str, Any],
+    progress: ProgressCallback = no_progress,
+    objective: Objective = "rx",
+    *,
+    solver: str = "CLARABEL",
+) -> PowerResult:
+    """Uniform power, the best γ_P (DIR+DER only) and the SDP allocation for a scenario."""
+    sc = load_scenario(scenario)
+    if objective not in OBJECTIVES:
+        raise RisPlannerError(f"objective must be one of {', '.join(OBJECTIVES)}")
+    if isinstance(sc.codebook, ExpectedRandomCodebook):
+        raise RisPlannerError(
+            "power allocation needs concrete beams; codebook 'expected_random' has none"
+            " (use 'random', 'explicit', 'directional' or 'directional_derivative')"
+        )
+    progress(0.0, "beams")
+    beam_types = None
+    if isinstance(sc.codebook, DirectionalCodebook | DirectionalDerivativeCodebook):
+        block = codebook_block(sc)
+        profiles, tx, rx = block.profiles, block.tx, block.rx
+        if isinstance(sc.codebook, DirectionalDerivativeCodebook):
+            beam_types = block.beam_types
+    else:
+        prof = first_block_profiles(sc)
+        assert prof is not None
+        profiles, tx, rx = prof, sc.tx_array, sc.rx_array
+    g_tilde = profiles[0].shape[0]
+    if tx.shape[0] > MAX_DESIGN_POSITIONS:
+        raise LimitExceededError(
+            f"{tx.shape[0]} design positions exceed the limit of {MAX_DESIGN_POSITIONS}"
+        )
+    if g_tilde > MAX_DESIGN_BEAMS:
+        raise LimitExceededError(f"{g_tilde} beams exceed the limit of {MAX_DESIGN_BEAMS}")
+    evaluate = design_objective(sc, tx, rx, profiles, objective)
+    uniform = evaluate(np.ones(g_tilde))
+    gamma = None
+    if beam_types is not None:
+        gamma = search_gamma_p(evaluate, beam_types, lambda f, m: progress(0.05 + 0.45 * f, m))
+    progress(0.5, "SDP")
+    info = beam_information(sc, tx, rx, profiles)
+    sdp = solve_power_sdp(info, objective, solver=solver)
+    sdp_obj = None if sdp.powers is None else evaluate(sdp.powers)
+    progress(1.0, f"SDP {sdp.status}")
+    return PowerResult(objective, tx, rx, uniform, gamma, sdp, sdp_obj, g_tilde)
