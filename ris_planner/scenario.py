@@ -77,6 +77,32 @@ class SystemParams(_Model):
     )
     los: bool = Field(True, description="Whether the TX–RX line-of-sight path exists")
 
+    @model_validator(mode="after")
+    def _check_derived(self) -> SystemParams:
+        """Individually valid extremes can underflow or overflow a derived quantity (e.g.
+        ``bandwidth_hz`` = 5e-324 gives σ² = 0 and a division by zero): reject them, naming it."""
+        with np.errstate(all="ignore"):  # overflow to inf is what is checked below
+            sigma2 = self.noise_variance_w
+            power = self.tx_power_w
+        omega = 2 * math.pi * self.bandwidth_hz
+        derived = {
+            "wavelength c/carrier_hz": self.wavelength,
+            "subcarrier spacing bandwidth_hz/subcarriers": self.subcarrier_spacing,
+            "noise variance bandwidth_hz·N0·NF": sigma2,
+            "transmit power": power,
+            "SNR P/σ²": power / sigma2 if sigma2 > 0 else math.inf,
+            "delay information scale (2π·bandwidth_hz)²·subcarriers": (
+                omega * omega * self.subcarriers
+            ),
+        }
+        for name, value in derived.items():
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(
+                    f"system parameters give {name} = {value:g}, out of floating-point range;"
+                    " use physical values"
+                )
+        return self
+
     @property
     def wavelength(self) -> float:
         """λ = c / f_c [m]."""

@@ -120,6 +120,9 @@ def test_bad_documents_rejected_with_field(change: dict, field: str) -> None:  #
         ({"carrier_hz": -3e9}, "carrier_hz"),
         ({"tx_power_dbm": float("nan")}, "tx_power_dbm"),
         ({"noise_figure_db": -1}, "noise_figure_db"),
+        ({"bandwidth_hz": 5e-324}, "bandwidth_hz"),  # Δf, σ² underflow to 0 (found by API fuzz)
+        ({"carrier_hz": 1e-310}, "carrier_hz"),  # λ overflows to inf
+        ({"bandwidth_hz": 1e300}, "bandwidth_hz"),  # Σω_k² overflows
     ],
 )
 def test_bad_system_rejected(system: dict, field: str) -> None:  # type: ignore[type-arg]
