@@ -7,7 +7,8 @@ a readable ``message``, the offending ``fields`` (validation) and the ``limit`` 
 * request validation (body, query, path) and pydantic errors raised by the engine → 422 with the
   field path of each problem;
 * body larger than ``max_body_bytes`` → 413 with the limit; :class:`LimitExceededError` (too
-  many pairs, layouts, …) → 413; other :class:`RisPlannerError` → 422;
+  many pairs, layouts, …) → 413; other :class:`RisPlannerError` and plain ``ValueError`` from
+  the engine (input it cannot work with, as the CLI treats it) → 422;
 * unknown job or figure → 404; cancelling a finished job → 409; missing/wrong API key → 401;
   unknown route 404, wrong method 405;
 * anything else → 500 with an error id and no traceback (the traceback goes to the log).
@@ -27,7 +28,7 @@ from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.errors import LimitExceededError
 
 log = logging.getLogger("api")
 
@@ -185,7 +186,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _on_request_validation)
     app.add_exception_handler(ValidationError, _on_pydantic_validation)
     app.add_exception_handler(LimitExceededError, _on_limit)
-    app.add_exception_handler(RisPlannerError, _on_engine_error)
+    app.add_exception_handler(ValueError, _on_engine_error)  # RisPlannerError and the engine's
     app.add_exception_handler(JobNotFoundError, _on_not_found)
     app.add_exception_handler(JobConflictError, _on_conflict)
     app.add_exception_handler(StarletteHTTPException, _on_http)

@@ -41,8 +41,9 @@ def create_app(
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        store = JobStore(settings.db)
-        runner = JobRunner(store, settings.figures_dir, job_kinds, settings.workers)
+        current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
+        store = JobStore(current.db)
+        runner = JobRunner(store, current.figures_dir, job_kinds, current.workers)
         app.state.store = store
         app.state.runner = runner
         runner.start()

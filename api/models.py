@@ -8,9 +8,31 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from api.store import Job, JobStatus
-from ris_planner.scenario import KnownPart
+from ris_planner.scenario import KnownPart, preset_document
 
 Bound = float | None
+
+
+def scenario_examples() -> dict[str, Any]:
+    """OpenAPI examples of a scenario body: Table I (one pair) and a two-pair batch."""
+    batch = preset_document("2-ris-L") | {
+        "tx": [[-2.0, -4.0, 0.0], [0.0, 0.0, 0.0]],
+        "rx": [[2.0, 3.0, 0.0], [1.0, 1.0, 0.5]],
+    }
+    return {
+        "table1": {"summary": "Table I (one TX–RX pair)", "value": preset_document("paper-table1")},
+        "batch": {"summary": "Two pairs, RISs tilted 30° down", "value": batch},
+    }
+
+
+def power_examples() -> dict[str, Any]:
+    """OpenAPI example of a power-allocation body: Table I with a small DIR+DER codebook."""
+    doc = preset_document("paper-table1")
+    doc["codebook"] = {
+        "kind": "directional_derivative",
+        "prior": {"sigma_m": 0.1, "samples": 4, "seed": 0},
+    }
+    return {"dir_der": {"summary": "Table I, DIR+DER codebook from a 0.1 m prior", "value": doc}}
 
 
 class ChannelBounds(BaseModel):

@@ -23,6 +23,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic.json_schema import JsonDict
 
 from ris_planner.units import SPEED_OF_LIGHT, db_to_linear, dbm_to_watt
 
@@ -36,9 +37,30 @@ the Simulation Parameters section diverge there (|ρ| ∝ 1/d)."""
 MAX_COORDINATE_M = 1e6
 """Coordinates beyond ±1000 km are rejected as unit mistakes (mm or degrees passed as metres)."""
 
+_COORDINATE_SCHEMA: JsonDict = {
+    "type": "number",
+    "minimum": -MAX_COORDINATE_M,
+    "maximum": MAX_COORDINATE_M,
+}
+_POINT_SCHEMA: JsonDict = {
+    "type": "array",
+    "items": _COORDINATE_SCHEMA,
+    "minItems": 3,
+    "maxItems": 3,
+}
+_POINTS_SCHEMA: JsonDict = {
+    "anyOf": [_POINT_SCHEMA, {"type": "array", "items": _POINT_SCHEMA, "minItems": 1}]
+}
+"""JSON-schema form of the bounds the validators enforce (documentation for OpenAPI clients)."""
+
 Point3 = Annotated[
     list[float],
-    Field(min_length=3, max_length=3, description="[x, y, z] in metres (global frame)"),
+    Field(
+        min_length=3,
+        max_length=3,
+        description="[x, y, z] in metres (global frame), each within ±1e6 m",
+        json_schema_extra={"items": _COORDINATE_SCHEMA},
+    ),
 ]
 
 
@@ -137,7 +159,14 @@ class RIS(_Model):
     position: Point3
     orientation: Annotated[
         list[float],
-        Field(min_length=3, max_length=3, description="Euler [yaw, pitch, roll] in radians"),
+        Field(
+            min_length=3,
+            max_length=3,
+            description="Euler [yaw, pitch, roll] in radians, each within ±4π",
+            json_schema_extra={
+                "items": {"type": "number", "minimum": -4 * math.pi, "maximum": 4 * math.pi}
+            },
+        ),
     ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
     cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
@@ -308,14 +337,22 @@ class Scenario(_Model):
         default_factory=SystemParams, description="Radio parameters; defaults: Table I"
     )
     ris: list[RIS] = Field(min_length=1, max_length=64, description="The RISs, in path order")
-    tx: list[float] | list[list[float]] = Field(description="TX position(s) [m]")
-    rx: list[float] | list[list[float]] = Field(description="RX position(s) [m]")
+    tx: list[float] | list[list[float]] = Field(
+        description="TX position(s) [m]: one [x, y, z] or a non-empty list of them",
+        json_schema_extra=_POINTS_SCHEMA,
+    )
+    rx: list[float] | list[list[float]] = Field(
+        description="RX position(s) [m]: as tx, with the same number of points",
+        json_schema_extra=_POINTS_SCHEMA,
+    )
     codebook: Codebook = Field(
         default_factory=RandomCodebook,
         description="First-block RIS phase profiles: random (seeded), expected_random or explicit",
     )
     known: list[KnownPart] = Field(
-        default_factory=list, description="Known state parts: clock, height, tx"
+        default_factory=list,
+        description="Known state parts: clock, height, tx (each at most once)",
+        json_schema_extra={"uniqueItems": True},
     )
 
     @field_validator("tx", "rx", mode="before")

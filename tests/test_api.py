@@ -214,3 +214,17 @@ def test_openapi_documents_every_field(tmp_path: Path) -> None:
         for op in ops.values():
             for param in op.get("parameters", []):
                 assert param.get("description"), (path, param["name"])
+
+
+def test_engine_value_error_is_422(tmp_path: Path) -> None:
+    """G = 1 transmission cannot hold L + 1 = 2 orthogonal blocks: the engine's ValueError is a
+    422 naming the rule (found by the schemathesis run, formerly a 500)."""
+    doc = {
+        "ris": [{"position": [0.0, 0.0, 1.0]}],
+        "tx": [0.0, 0.0, 0.0],
+        "rx": [1.0, 0.0, 0.0],
+        "system": {"transmissions": 1, "los": False},
+    }
+    with api_client(tmp_path) as client:
+        r = client.post("/v1/bounds", json=doc)
+    assert r.status_code == 422 and "G ≥ L+1" in r.json()["message"]

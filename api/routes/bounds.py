@@ -10,7 +10,7 @@ from fastapi.responses import JSONResponse
 from api.deps import get_settings
 from api.errors import TOO_LARGE_RESPONSE
 from api.limits import check_scenario_size
-from api.models import BoundsResponse
+from api.models import BoundsResponse, scenario_examples
 from api.settings import Settings
 from ris_planner.bounds import compute_bounds
 from ris_planner.scenario import Scenario
@@ -25,7 +25,13 @@ router = APIRouter(tags=["bounds"])
     summary="Bounds of one TX–RX pair or a batch of pairs",
 )
 def post_bounds(
-    scenario: Annotated[Scenario, Body(description="The scenario document (DESIGN.md)")],
+    scenario: Annotated[
+        Scenario,
+        Body(
+            description="The scenario document (DESIGN.md)",
+            openapi_examples=scenario_examples(),
+        ),
+    ],
     settings: Annotated[Settings, Depends(get_settings)],
 ) -> JSONResponse:
     """The same computation and document as ``ris-planner bounds``; 413 when the batch exceeds

@@ -10,7 +10,7 @@ from fastapi.responses import JSONResponse
 from api.deps import get_runner, get_settings, get_store
 from api.errors import TOO_LARGE_RESPONSE
 from api.limits import check_scenario_size
-from api.models import JobView
+from api.models import JobView, power_examples
 from api.routes.jobs import submit_job
 from api.settings import Settings
 from api.store import JobStore
@@ -35,7 +35,8 @@ def post_power(
     scenario: Annotated[
         Scenario,
         Body(
-            description="The scenario document; its codebook gives the beams (not expected_random)"
+            description="The scenario document; its codebook gives the beams (not expected_random)",
+            openapi_examples=power_examples(),
         ),
     ],
     store: Annotated[JobStore, Depends(get_store)],
