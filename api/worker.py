@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import multiprocessing.connection
+import os
 import threading
 import time
 import traceback
@@ -89,8 +90,23 @@ def describe_error(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
+ORPHAN_CHECK_S = 1.0
+"""A worker checks this often whether its parent (the forkserver) is gone, and exits if so."""
+
+
+def _exit_when_orphaned() -> None:
+    """Daemon thread: a worker whose server was killed (so the forkserver exited too) stops
+    instead of computing on; the restarted server has marked its job failed."""
+    parent = os.getppid()
+    while True:
+        time.sleep(ORPHAN_CHECK_S)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
 def execute_job(db_path: Path, figures_dir: Path, job_id: str, func: JobFunction) -> None:
-    """Run one job to its end state (the body of a worker process; also callable inline)."""
+    """Run one job to its end state (the body of a worker process)."""
+    threading.Thread(target=_exit_when_orphaned, name="orphan-watch", daemon=True).start()
     store = JobStore(db_path)
     job = store.get(job_id)
     if job is None or not store.start(job_id):
