@@ -17,6 +17,7 @@ setup: $(BIN)/ris-planner
 demo: setup
 	mkdir -p $(OUT)
 	$(BIN)/ris-planner bounds --preset paper-table1 | tee $(OUT)/bounds.json
+	$(BIN)/ris-planner plan --preset fig10-anchors --out $(OUT)/plan
 
 lint: setup
 	$(BIN)/ruff check .
@@ -32,6 +33,7 @@ test: lint typecheck unit
 
 bench: setup
 	$(BIN)/python benchmarks/bench_bounds.py
+	$(BIN)/python benchmarks/bench_planning.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .mypy_cache .ruff_cache

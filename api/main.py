@@ -15,7 +15,7 @@ from fastapi import Depends, FastAPI
 from api.deps import require_api_key
 from api.errors import V1_ERROR_RESPONSES, BodyLimitMiddleware, install_error_handlers
 from api.kinds import JOB_KINDS
-from api.routes import bounds, jobs, meta, power
+from api.routes import bounds, jobs, meta, plans, power
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobFunction, JobRunner
@@ -63,7 +63,7 @@ def create_app(
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.include_router(meta.health_router)
     v1 = [Depends(require_api_key)]
-    for router in (bounds.router, power.router, jobs.router, meta.router):
+    for router in (bounds.router, plans.router, power.router, jobs.router, meta.router):
         app.include_router(router, prefix="/v1", dependencies=v1, responses=V1_ERROR_RESPONSES)
     return app
 

@@ -35,6 +35,13 @@ def power_examples() -> dict[str, Any]:
     return {"dir_der": {"summary": "Table I, DIR+DER codebook from a 0.1 m prior", "value": doc}}
 
 
+def plan_examples() -> dict[str, Any]:
+    """OpenAPI example of a plan body: the Fig. 10 anchor sites (2–4 RISs)."""
+    from ris_planner.planning import plan_preset
+
+    return {"fig10": {"summary": "Fig. 10 anchor sites", "value": plan_preset("fig10-anchors")}}
+
+
 class ChannelBounds(BaseModel):
     """Channel-parameter bounds of one path (eqs. DEB, SEB1, SEB2)."""
 
@@ -162,6 +169,7 @@ class PresetList(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     scenarios: list[Preset] = Field(description="Scenario documents (POST /v1/bounds)")
+    plans: list[Preset] = Field(description="Plan documents (POST /v1/plans)")
 
 
 class Health(BaseModel):

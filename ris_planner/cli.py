@@ -91,6 +91,9 @@ def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
     from ris_planner.power.cli import add_cli as power_cli
 
     regs.append(power_cli)
+    from ris_planner.planning.cli import add_cli as plan_cli
+
+    regs.append(plan_cli)
     from api.cli import add_cli as api_cli
 
     regs.append(api_cli)

@@ -14,6 +14,7 @@ from api.models import Health, Preset, PresetList
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
+from ris_planner.planning import PLAN_PRESET_NAMES, plan_preset
 from ris_planner.scenario import PRESET_NAMES, preset_document
 
 health_router = APIRouter(tags=["service"])
@@ -47,4 +48,7 @@ def healthz(
 
 @router.get("/presets", response_model=PresetList, summary="Shipped preset documents")
 def presets() -> PresetList:
-    return PresetList(scenarios=[Preset(name=n, document=preset_document(n)) for n in PRESET_NAMES])
+    return PresetList(
+        scenarios=[Preset(name=n, document=preset_document(n)) for n in PRESET_NAMES],
+        plans=[Preset(name=n, document=plan_preset(n)) for n in PLAN_PRESET_NAMES],
+    )

@@ -1,0 +1,125 @@
+"""Planning benchmark: 30 candidate sites, 3 RISs, exhaustive search (C(30, 3) = 4060 layouts)
+over the 4753 Fig. 10 pairs with ``expected_random``.
+
+Reports the site-cache time, the search time and layouts/s with the local process pool
+(2 workers) and in one process, and the speed-up of the cached score over recomputing
+``compute_bounds`` per layout (measured in the same run on a subset of layouts).
+
+    python benchmarks/bench_planning.py [--workers 2] [--naive-layouts 40]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from ris_planner.bounds import compute_bounds
+from ris_planner.paper import fig10_pairs
+from ris_planner.planning import LocalExecutor, PlanDocument, SerialExecutor
+from ris_planner.planning.maps import build_map, build_pairs
+from ris_planner.planning.objectives import Scorer, loss_from_metric
+from ris_planner.planning.search import exhaustive
+from ris_planner.planning.site_cache import build_site_cache
+from ris_planner.planning.sites import expand_sites
+from ris_planner.scenario import Scenario
+
+
+def square_candidates(n: int = 30, half: float = 4.0) -> list[dict[str, Any]]:
+    """n sites evenly spaced on the perimeter of the square |x|, |y| = half, facing inward,
+    tilted 30° down, heights alternating 2 m / 3 m."""
+    out = []
+    perim = 8 * half
+    for k in range(n):
+        s = (k + 0.5) * perim / n
+        side, t = int(s // (2 * half)), s % (2 * half) - half
+        pos, yaw = {
+            0: ([t, -half], math.pi / 2),
+            1: ([half, t], math.pi),
+            2: ([-t, half], -math.pi / 2),
+            3: ([-half, -t], 0.0),
+        }[side]
+        out.append({"position": [*pos, 2.0 + (k % 2)], "orientation": [yaw, math.pi / 6, 0]})
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--naive-layouts", type=int, default=40)
+    args = ap.parse_args()
+    grid = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
+    doc = PlanDocument.model_validate(
+        {
+            "candidates": square_candidates(),
+            "tx_map": grid,
+            "rx_map": grid,
+            "pairs": "unordered",
+            "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
+            "ris_count": [3],
+        }
+    )
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**5)
+    tx_ref, _ = fig10_pairs()
+    assert pairs.size == len(tx_ref) == 4753
+    t0 = time.perf_counter()
+    cache = build_site_cache(doc.system, sites, pairs)
+    t_cache = time.perf_counter() - t0
+    scorer = Scorer(cache, pairs.weights, doc.objective, ())
+    n_layouts = math.comb(len(sites), 3)
+    print(f"{len(sites)} sites, {pairs.size} pairs, {n_layouts} layouts of 3 RISs")
+    print(f"site cache: {t_cache:.2f} s")
+
+    with LocalExecutor(args.workers) as ex:
+        t0 = time.perf_counter()
+        outcome = exhaustive(scorer, len(sites), 3, ex)
+        t_pool = time.perf_counter() - t0
+    print(
+        f"exhaustive, local pool ({args.workers} workers, incl. worker start):"
+        f" {t_pool:.2f} s, {n_layouts / t_pool:.0f} layouts/s,"
+        f" {n_layouts * pairs.size / t_pool / 1e6:.1f} M pair-layouts/s"
+    )
+    t0 = time.perf_counter()
+    serial = exhaustive(scorer, len(sites), 3, SerialExecutor())
+    t_serial = time.perf_counter() - t0
+    print(f"exhaustive, one process: {t_serial:.2f} s, {n_layouts / t_serial:.0f} layouts/s")
+    assert serial.ranked(10) == outcome.ranked(10)
+    print(f"total with cache (pool): {t_cache + t_pool:.2f} s (target ≤ 30 s)")
+
+    # naive reference: compute_bounds per layout on a subset
+    rng = np.random.default_rng(0)
+    losses = outcome.as_dict()
+    layouts = list(losses)
+    subset = [layouts[i] for i in rng.choice(len(layouts), args.naive_layouts, replace=False)]
+    t0 = time.perf_counter()
+    worst = 0.0
+    for lay in subset:
+        scen = Scenario(
+            system=doc.system,
+            ris=[sites[s].ris for s in lay],
+            tx=[0.0, 0.0, 10.0],
+            rx=[1.0, 0.0, 10.0],
+            codebook={"kind": "expected_random"},
+        )
+        res = compute_bounds(scen, tx=pairs.tx, rx=pairs.rx)
+        ref = float(loss_from_metric(doc.objective, res.peb_rx[None], pairs.weights)[0])
+        worst = max(worst, abs(ref - losses[lay]) / abs(ref))
+    t_naive = (time.perf_counter() - t0) / len(subset)
+    print(
+        f"compute_bounds per layout: {t_naive * 1e3:.1f} ms/layout ({1 / t_naive:.0f} layouts/s),"
+        f" max rel. objective difference {worst:.1e}"
+    )
+    print(
+        f"speed-up of the cached score: {t_naive * n_layouts / t_serial:.0f}× (one process),"
+        f" {t_naive * n_layouts / t_pool:.0f}× (pool)"
+    )
+    best, loss = outcome.ranked(1)[0]
+    print(f"best layout {list(best)}: mean capped PEB_R {loss:.4f} m")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,402 @@
+"""The plan document: pydantic models that are the JSON contract of ``ris-planner plan`` and
+the REST planning endpoint.
+
+It extends the scenario document of DESIGN.md: ``system`` is the scenario's
+:class:`~ris_planner.scenario.SystemParams`, ``ris`` holds the element grid shared by every
+candidate (the scenario's per-RIS ``rows``/``cols``/``spacing_m``), ``codebook`` and ``known``
+mean what they mean there; instead of fixed RISs and UEs it names candidate sites, UE
+probability maps, the pairs to evaluate, an objective, the RIS counts and the search.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from ris_planner.scenario import (
+    MAX_COORDINATE_M,
+    RIS,
+    KnownPart,
+    Point3,
+    SystemParams,
+)
+
+MAX_MAP_POINTS = 1_000_000
+"""A UE map may expand to at most this many points (grids and roads are checked before they
+are built)."""
+
+MAX_PAIRS_LIMIT = 500_000
+"""The largest ``max_pairs`` a document may set (memory: a cached site holds 28 floats per pair)."""
+
+DEFAULT_MAX_PAIRS = 20_000
+"""Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
+
+MAX_CACHE_ENTRIES = 20_000_000
+"""Candidate sites × pairs limit: the site cache holds 28 float64 per entry (≈ 4.5 GB here)."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+Range = Annotated[
+    list[float],
+    Field(
+        min_length=3,
+        max_length=3,
+        description="[start, stop, step] in metres; stop included (up to rounding), step > 0",
+    ),
+]
+Point2 = Annotated[
+    list[float], Field(min_length=2, max_length=2, description="[x, y] in metres (global frame)")
+]
+
+
+def _finite(values: list[float], what: str) -> list[float]:
+    arr = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > MAX_COORDINATE_M):
+        raise ValueError(f"{what} must be finite and within ±{MAX_COORDINATE_M:g} m, got {values}")
+    return [float(v) for v in arr]
+
+
+def range_count(r: list[float], what: str) -> int:
+    """Number of values of a [start, stop, step] range (stop included)."""
+    start, stop, step = r
+    if not step > 0:
+        raise ValueError(f"{what}: step must be > 0, got {step}")
+    if stop < start:
+        raise ValueError(f"{what}: stop {stop} is below start {start}")
+    return math.floor((stop - start) / step + 1e-9) + 1
+
+
+class GridMap(_Model):
+    """A regular grid of UE positions, x-major order (x outer, then y, then z)."""
+
+    x: Range
+    y: Range
+    z: Range
+    weights: list[float] | None = Field(
+        None, description="Relative weight of each grid point in x-major order (default all 1)"
+    )
+
+    @field_validator("x", "y", "z")
+    @classmethod
+    def _check_range(cls, v: list[float], info: Any) -> list[float]:
+        v = _finite(v, f"grid.{info.field_name}")
+        n = range_count(v, f"grid.{info.field_name}")
+        if n > MAX_MAP_POINTS:
+            raise ValueError(f"grid.{info.field_name} has {n} values (limit {MAX_MAP_POINTS})")
+        return v
+
+    @model_validator(mode="after")
+    def _check_size(self) -> GridMap:
+        n = self.size
+        if n > MAX_MAP_POINTS:
+            raise ValueError(f"grid has {n} points, above the limit of {MAX_MAP_POINTS}")
+        if self.weights is not None and len(self.weights) != n:
+            raise ValueError(f"grid.weights must hold one weight per point ({n})")
+        return self
+
+    @property
+    def size(self) -> int:
+        return range_count(self.x, "x") * range_count(self.y, "y") * range_count(self.z, "z")
+
+
+class Road(_Model):
+    """A road: a polyline in the x–y plane with a width; UEs are sampled on a lattice along and
+    across it at ``step_m`` (lateral offsets symmetric about the centre line), at ``height_m``."""
+
+    points: list[Point2] = Field(min_length=2, description="Centre-line vertices [x, y] in metres")
+    width_m: float = Field(gt=0, le=1000, allow_inf_nan=False, description="Road width [m]")
+    height_m: float = Field(
+        1.5, ge=-1000, le=1000, allow_inf_nan=False, description="UE height z [m]"
+    )
+    step_m: float = Field(gt=0, le=1000, allow_inf_nan=False, description="Sampling step [m]")
+    weight: float = Field(
+        1.0, ge=0, allow_inf_nan=False, description="Relative weight of each sampled point"
+    )
+
+    @field_validator("points")
+    @classmethod
+    def _check_points(cls, v: list[list[float]]) -> list[list[float]]:
+        return [_finite(p, "road point") for p in v]
+
+
+class UEMap(_Model):
+    """Where UEs are: any combination of a grid, weighted points, roads and CSV rows (all
+    concatenated). Weights are relative (they need not sum to one)."""
+
+    grid: GridMap | None = Field(None, description="Regular grid of positions")
+    points: list[Point3] | None = Field(None, description="Explicit positions [m]")
+    weights: list[float] | None = Field(
+        None, description="Relative weights of ``points`` (default all 1)"
+    )
+    roads: list[Road] | None = Field(None, description="Roads sampled on a lattice")
+    csv_text: str | None = Field(
+        None,
+        max_length=50_000_000,
+        description="CSV text with columns x, y, z [m] and optionally weight (header row)",
+    )
+
+    @field_validator("points")
+    @classmethod
+    def _check_points(cls, v: list[list[float]] | None) -> list[list[float]] | None:
+        return None if v is None else [_finite(p, "map point") for p in v]
+
+    @field_validator("weights")
+    @classmethod
+    def _check_weights(cls, v: list[float] | None) -> list[float] | None:
+        if v is not None:
+            arr = np.asarray(v, dtype=float)
+            if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+                raise ValueError("weights must be finite and ≥ 0")
+        return v
+
+    @model_validator(mode="after")
+    def _check_sources(self) -> UEMap:
+        if all(s is None for s in (self.grid, self.points, self.roads, self.csv_text)):
+            raise ValueError("a UE map needs at least one of grid, points, roads, csv_text")
+        if self.weights is not None and (
+            self.points is None or len(self.weights) != len(self.points)
+        ):
+            raise ValueError("weights must hold one weight per entry of points")
+        if self.points is not None and len(self.points) == 0:
+            raise ValueError("points is empty")
+        return self
+
+
+class PairSample(_Model):
+    """A seeded weighted sample: TX and RX drawn independently with probabilities ∝ their map
+    weights (pairs with coinciding positions redrawn); every sampled pair weighs 1."""
+
+    sample: int = Field(ge=1, le=MAX_PAIRS_LIMIT, description="Number of pairs to draw")
+    seed: int = Field(0, ge=0, description="Seed of the draw (numpy default_rng)")
+
+
+PairsSpec = Literal["all", "unordered"] | PairSample
+
+
+class Candidate(_Model):
+    """An explicit candidate site: a RIS pose (DESIGN.md conventions; faces local +x)."""
+
+    position: Point3
+    orientation: Annotated[
+        list[float],
+        Field(min_length=3, max_length=3, description="Euler [yaw, pitch, roll] in radians"),
+    ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    name: str | None = Field(None, max_length=200, description="Label used in reports")
+
+    @model_validator(mode="after")
+    def _check_pose(self) -> Candidate:
+        # the scenario's RIS model owns the pose rules (finite, within range)
+        RIS(position=self.position, orientation=self.orientation)
+        return self
+
+
+class Wall(_Model):
+    """Mounting sites on a wall: a segment (``start``, ``end``) or a building footprint
+    (``rectangle``, four walls facing outwards), sampled every ``spacing_m`` along the wall at
+    every height and tilt. A RIS faces the wall's normal (yaw) and is tilted by ``tilt``
+    (pitch; positive tilts the face downwards)."""
+
+    start: Point2 | None = Field(None, description="Segment start [x, y] in metres")
+    end: Point2 | None = Field(None, description="Segment end [x, y] in metres")
+    side: Literal["left", "right"] = Field(
+        "left",
+        description="Segment only: the RIS faces the normal on this side of start→end",
+    )
+    rectangle: Annotated[list[float], Field(min_length=4, max_length=4)] | None = Field(
+        None, description="Footprint [x_min, y_min, x_max, y_max] in metres (faces outward)"
+    )
+    heights_m: list[float] = Field(
+        min_length=1, max_length=100, description="Mounting heights z of the RIS centre [m]"
+    )
+    spacing_m: float = Field(
+        gt=0, le=10000, allow_inf_nan=False, description="Distance between sites along a wall [m]"
+    )
+    tilts_rad: list[float] = Field(
+        default_factory=lambda: [0.0],
+        min_length=1,
+        max_length=100,
+        description="Downward tilts (pitch) to try at each site [rad]",
+    )
+
+    @model_validator(mode="after")
+    def _check_shape(self) -> Wall:
+        seg = self.start is not None and self.end is not None
+        if seg == (self.rectangle is not None) or (self.start is None) != (self.end is None):
+            raise ValueError("a wall is either start + end (a segment) or a rectangle")
+        pts = [*(self.rectangle or []), *(self.start or []), *(self.end or [])]
+        _finite(pts + list(self.heights_m), "wall coordinate")
+        if seg and np.allclose(self.start, self.end):  # type: ignore[arg-type]
+            raise ValueError("wall start and end coincide")
+        if self.rectangle is not None:
+            x0, y0, x1, y1 = self.rectangle
+            if not (x1 > x0 and y1 > y0):
+                raise ValueError("rectangle must be [x_min, y_min, x_max, y_max] with max > min")
+        if any(abs(t) > math.pi / 2 for t in self.tilts_rad):
+            raise ValueError("tilts_rad must lie within ±π/2")
+        return self
+
+
+class PlanCodebook(_Model):
+    """The codebook of the plan: the scenario document's ``expected_random`` (the closed-form
+    expectation of the FIM over uniformly random phases, deterministic)."""
+
+    kind: Literal["expected_random"] = Field(
+        "expected_random",
+        description="expected_random only: the site cache needs a layout-independent per-site"
+        " information (no draws, no per-layout profiles)",
+    )
+
+
+class RISDefaults(_Model):
+    """The element grid of every candidate RIS (the scenario document's per-RIS fields)."""
+
+    rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
+    cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
+    spacing_m: float | None = Field(
+        None, gt=0, allow_inf_nan=False, description="Element spacing [m]; default λ/2"
+    )
+
+
+class Objective(_Model):
+    """What a layout is scored on, over the weighted pairs. ``metric``: ``rx`` (PEB_R), ``tx``
+    (PEB_T) or ``max`` (max(PEB_T, PEB_R)), in metres. Blind spots (infinite bounds) fail:
+    outside the coverage, at the cap, and at the top of the quantile."""
+
+    kind: Literal["coverage", "mean_capped", "quantile"] = Field(
+        description="coverage: weighted fraction with bound ≤ threshold_m (higher is better);"
+        " mean_capped: weighted mean of min(bound, cap_m) [m]; quantile: weighted q-quantile [m]"
+    )
+    metric: Literal["rx", "tx", "max"] = Field("rx", description="Which bound [m]")
+    threshold_m: float | None = Field(
+        None, gt=0, allow_inf_nan=False, description="coverage: bound threshold [m]"
+    )
+    cap_m: float | None = Field(
+        None, gt=0, allow_inf_nan=False, description="mean_capped: cap on the bound [m]"
+    )
+    q: float | None = Field(
+        None, gt=0, lt=1, allow_inf_nan=False, description="quantile: probability in (0, 1)"
+    )
+
+    @model_validator(mode="after")
+    def _check_params(self) -> Objective:
+        need = {"coverage": "threshold_m", "mean_capped": "cap_m", "quantile": "q"}[self.kind]
+        if getattr(self, need) is None:
+            raise ValueError(f"objective kind {self.kind!r} needs {need}")
+        return self
+
+
+class SearchSpec(_Model):
+    """The placement search."""
+
+    method: Literal["auto", "exhaustive", "greedy"] = Field(
+        "auto", description="auto: exhaustive when the layout count ≤ max_exhaustive, else greedy"
+    )
+    max_exhaustive: int = Field(
+        100_000, ge=1, le=5_000_000, description="Largest layout count searched exhaustively"
+    )
+    top_k: int = Field(10, ge=1, le=1000, description="Number of ranked layouts reported per count")
+    seed: int = Field(0, ge=0, description="Seed of the greedy search's random restarts")
+    restarts: int = Field(
+        3, ge=0, le=1000, description="Greedy: random starting layouts besides the greedy one"
+    )
+    max_rounds: int = Field(50, ge=1, le=10000, description="Greedy: maximum swap rounds per start")
+
+
+class PlanDocument(_Model):
+    """A planning request: where UEs are, where RISs may go, what to optimise."""
+
+    description: str | None = Field(None, max_length=2000, description="Free text")
+    system: SystemParams = Field(
+        default_factory=SystemParams, description="Radio parameters (Table I defaults)"
+    )
+    ris: RISDefaults = Field(
+        default_factory=RISDefaults, description="Element grid of every candidate RIS"
+    )
+    candidates: list[Candidate] = Field(
+        default_factory=list, max_length=10_000, description="Explicit candidate sites"
+    )
+    walls: list[Wall] = Field(
+        default_factory=list, max_length=1000, description="Walls expanded to candidate sites"
+    )
+    tx_map: UEMap = Field(description="TX probability map (positions [m], relative weights)")
+    rx_map: UEMap = Field(description="RX probability map (positions [m], relative weights)")
+    pairs: PairsSpec = Field(
+        "all",
+        description="all: every TX×RX combination of distinct positions, weight w_T·w_R;"
+        " unordered: every unordered pair of distinct points of one map (tx_map = rx_map, the"
+        " first point of the map order is the TX, weight w_i·w_j); or a seeded sample",
+    )
+    max_pairs: int = Field(
+        DEFAULT_MAX_PAIRS,
+        ge=1,
+        le=MAX_PAIRS_LIMIT,
+        description="Limit on the number of evaluated pairs (use pairs.sample beyond it)",
+    )
+    objective: Objective = Field(description="The objective scored over the weighted pairs")
+    ris_count: list[int] = Field(
+        min_length=1, max_length=16, description="RIS counts L to compare (e.g. [2, 3, 4])"
+    )
+    codebook: PlanCodebook = Field(
+        default_factory=PlanCodebook, description="Codebook (expected_random, unitless)"
+    )
+    known: list[KnownPart] = Field(
+        default_factory=list, description="Known state parts: clock, height, tx"
+    )
+    search: SearchSpec = Field(default_factory=SearchSpec, description="Placement search")
+    heatmap_tx: Point3 | None = Field(
+        None,
+        description="Fixed TX position [m] for the heatmap; default: TX averaged over its map",
+    )
+
+    @field_validator("ris_count")
+    @classmethod
+    def _check_counts(cls, v: list[int]) -> list[int]:
+        if any(c < 1 for c in v):
+            raise ValueError(f"ris_count entries must be ≥ 1, got {v}")
+        if len(set(v)) != len(v):
+            raise ValueError(f"ris_count lists a count twice: {v}")
+        return sorted(v)
+
+    @field_validator("known")
+    @classmethod
+    def _unique_known(cls, v: list[str]) -> list[str]:
+        if len(set(v)) != len(v):
+            raise ValueError(f"known lists a part twice: {v}")
+        return v
+
+    @model_validator(mode="before")
+    @classmethod
+    def _clear_codebook_error(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            cb = data.get("codebook")
+            if isinstance(cb, dict) and cb.get("kind", "expected_random") != "expected_random":
+                raise ValueError(
+                    f"codebook kind {cb.get('kind')!r} is not supported for planning; use"
+                    " {'kind': 'expected_random'} (the site cache needs a layout-independent"
+                    " per-site information)"
+                )
+        return data
+
+    @model_validator(mode="after")
+    def _check_plan(self) -> PlanDocument:
+        if not self.candidates and not self.walls:
+            raise ValueError("no candidate sites: give candidates and/or walls")
+        if "tx" in self.known and self.objective.metric != "rx":
+            raise ValueError(
+                f"objective metric {self.objective.metric!r} needs PEB_T, but 'tx' is known"
+            )
+        if self.pairs == "unordered" and self.tx_map != self.rx_map:
+            raise ValueError("pairs 'unordered' needs tx_map and rx_map to be the same map")
+        for c in self.ris_count:
+            if c + 1 > self.system.transmissions:
+                raise ValueError(
+                    f"ris_count {c} needs at least L+1 = {c + 1} transmissions (G ="
+                    f" {self.system.transmissions})"
+                )
+        return self

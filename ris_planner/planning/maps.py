@@ -1,0 +1,200 @@
+"""UE probability maps (grids, weighted points, roads, CSV) and the weighted TX–RX pairs."""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.planning.document import (
+    MAX_MAP_POINTS,
+    GridMap,
+    PairSample,
+    PairsSpec,
+    Road,
+    UEMap,
+    range_count,
+)
+from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int_]
+
+
+@dataclass(frozen=True)
+class PointMap:
+    """Positions [M, 3] and relative weights [M] (all ≥ 0, not all zero)."""
+
+    points: FloatArray
+    weights: FloatArray
+
+
+def range_values(r: list[float], what: str) -> FloatArray:
+    """The values of a [start, stop, step] range, stop included."""
+    n = range_count(r, what)
+    return np.asarray(r[0] + r[2] * np.arange(n), dtype=float)
+
+
+def grid_points(grid: GridMap) -> PointMap:
+    """Grid positions in x-major order (x outer, then y, then z), as ``paper.fig10_grid``."""
+    xs, ys, zs = (range_values(getattr(grid, a), f"grid.{a}") for a in "xyz")
+    mesh = np.stack(np.meshgrid(xs, ys, zs, indexing="ij"), axis=-1).reshape(-1, 3)
+    w = np.ones(len(mesh)) if grid.weights is None else np.asarray(grid.weights, dtype=float)
+    return PointMap(mesh, w)
+
+
+def road_points(road: Road) -> PointMap:
+    """Lattice samples of a road: every ``step_m`` along each segment of the centre line
+    (segment starts included, the last vertex too) at lateral offsets k·step within
+    ±width/2 (symmetric about the centre line), all at ``height_m``."""
+    verts = np.asarray(road.points, dtype=float)
+    n_lat = int(np.floor(road.width_m / 2 / road.step_m + 1e-9))
+    lateral = road.step_m * np.arange(-n_lat, n_lat + 1)
+    pts: list[FloatArray] = []
+    for a, b in itertools.pairwise(verts):
+        seg = b - a
+        length = float(np.hypot(*seg))
+        if length == 0:
+            continue
+        n_along = int(np.ceil(length / road.step_m - 1e-9))
+        if n_along * len(lateral) > MAX_MAP_POINTS:
+            raise LimitExceededError(
+                f"road samples exceed the limit of {MAX_MAP_POINTS} map points; raise step_m"
+            )
+        s = np.arange(n_along) * road.step_m / length
+        direction = seg / length
+        normal = np.array([-direction[1], direction[0]])
+        centre = a + s[:, None] * seg
+        xy = centre[:, None, :] + lateral[None, :, None] * normal
+        pts.append(xy.reshape(-1, 2))
+    tail = verts[-1] + lateral[:, None] * _last_normal(verts)
+    xy_all = np.concatenate([*pts, tail])
+    xyz = np.column_stack([xy_all, np.full(len(xy_all), road.height_m)])
+    return PointMap(xyz, np.full(len(xyz), road.weight))
+
+
+def _last_normal(verts: FloatArray) -> FloatArray:
+    seg = verts[-1] - verts[-2]
+    d = seg / max(float(np.hypot(*seg)), 1e-300)
+    return np.array([-d[1], d[0]])
+
+
+def csv_points(text: str) -> PointMap:
+    """Rows ``x, y, z[, weight]`` with a header row naming the columns."""
+    reader = csv.DictReader(io.StringIO(text))
+    fields = [f.strip().lower() for f in (reader.fieldnames or [])]
+    if not {"x", "y", "z"} <= set(fields):
+        raise RisPlannerError(f"CSV map needs a header with x, y, z (and weight), got {fields}")
+    rows = []
+    for n, row in enumerate(reader, start=2):
+        vals = {k.strip().lower(): v for k, v in row.items() if k is not None}
+        try:
+            rows.append(
+                [
+                    float(vals["x"]),
+                    float(vals["y"]),
+                    float(vals["z"]),
+                    float(vals.get("weight") or 1),
+                ]
+            )
+        except (TypeError, ValueError):
+            raise RisPlannerError(f"CSV map line {n}: x, y, z, weight must be numbers") from None
+        if len(rows) > MAX_MAP_POINTS:
+            raise LimitExceededError(f"CSV map has more than {MAX_MAP_POINTS} rows")
+    if not rows:
+        raise RisPlannerError("CSV map has no rows")
+    arr = np.asarray(rows, dtype=float)
+    if not np.all(np.isfinite(arr)) or np.any(arr[:, 3] < 0):
+        raise RisPlannerError("CSV map: coordinates must be finite and weights ≥ 0")
+    return PointMap(arr[:, :3], arr[:, 3])
+
+
+def build_map(spec: UEMap, what: str) -> PointMap:
+    """All sources of a map concatenated (grid, points, roads, CSV); zero-weight points are
+    dropped. Raises when nothing with a positive weight remains."""
+    parts: list[PointMap] = []
+    if spec.grid is not None:
+        parts.append(grid_points(spec.grid))
+    if spec.points is not None:
+        w = np.ones(len(spec.points)) if spec.weights is None else np.asarray(spec.weights)
+        parts.append(PointMap(np.asarray(spec.points, dtype=float), w.astype(float)))
+    for road in spec.roads or []:
+        parts.append(road_points(road))
+    if spec.csv_text is not None:
+        parts.append(csv_points(spec.csv_text))
+    pts = np.concatenate([p.points for p in parts])
+    w = np.concatenate([p.weights for p in parts])
+    if len(pts) > MAX_MAP_POINTS:
+        raise LimitExceededError(f"{what} has {len(pts)} points, above the limit {MAX_MAP_POINTS}")
+    keep = w > 0
+    if not np.any(keep):
+        raise RisPlannerError(f"{what} is empty: no point has a positive weight")
+    return PointMap(pts[keep], w[keep])
+
+
+@dataclass(frozen=True)
+class PairSet:
+    """The evaluated TX–RX pairs: positions [P, 3], normalised weights [P] (sum 1) and the
+    map indices of each pair's TX and RX."""
+
+    tx: FloatArray
+    rx: FloatArray
+    weights: FloatArray
+    tx_index: IntArray
+    rx_index: IntArray
+
+    @property
+    def size(self) -> int:
+        return int(self.weights.shape[0])
+
+
+def build_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairsSpec, max_pairs: int) -> PairSet:
+    """Pairs per the document's ``pairs`` (see :class:`PlanDocument`); raises
+    :class:`LimitExceededError` naming ``max_pairs`` when there are too many."""
+    n_t, n_r = len(tx_map.points), len(rx_map.points)
+    if isinstance(spec, PairSample):
+        if spec.sample > max_pairs:
+            raise LimitExceededError(
+                f"pairs.sample = {spec.sample} exceeds max_pairs = {max_pairs}"
+            )
+        return _sample_pairs(tx_map, rx_map, spec)
+    count = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
+    if count > max_pairs:
+        raise LimitExceededError(
+            f"pairs {spec!r} gives {count} TX–RX pairs, above max_pairs = {max_pairs}; use"
+            ' "pairs": {"sample": N, "seed": S} or coarser maps'
+        )
+    if spec == "unordered":
+        it, ir = np.triu_indices(n_t, k=1)
+    else:
+        it, ir = (a.ravel() for a in np.meshgrid(np.arange(n_t), np.arange(n_r), indexing="ij"))
+    tx, rx = tx_map.points[it], rx_map.points[ir]
+    keep = np.linalg.norm(tx - rx, axis=-1) >= MIN_UE_RIS_DISTANCE_M
+    if not np.any(keep):
+        raise RisPlannerError("no TX–RX pair with distinct positions")
+    w = tx_map.weights[it[keep]] * rx_map.weights[ir[keep]]
+    return PairSet(tx[keep], rx[keep], w / w.sum(), it[keep], ir[keep])
+
+
+def _sample_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairSample) -> PairSet:
+    rng = np.random.default_rng(spec.seed)
+    pt, pr = tx_map.weights / tx_map.weights.sum(), rx_map.weights / rx_map.weights.sum()
+    it = np.empty(0, dtype=int)
+    ir = np.empty(0, dtype=int)
+    for _ in range(100):  # redraw pairs whose positions coincide
+        need = spec.sample - len(it)
+        if need == 0:
+            break
+        a = rng.choice(len(pt), size=need, p=pt)
+        b = rng.choice(len(pr), size=need, p=pr)
+        ok = np.linalg.norm(tx_map.points[a] - rx_map.points[b], axis=-1) >= MIN_UE_RIS_DISTANCE_M
+        it, ir = np.concatenate([it, a[ok]]), np.concatenate([ir, b[ok]])
+    if len(it) < spec.sample:
+        raise RisPlannerError("cannot sample pairs with distinct TX and RX positions")
+    n = len(it)
+    return PairSet(tx_map.points[it], rx_map.points[ir], np.full(n, 1.0 / n), it, ir)

@@ -1,0 +1,254 @@
+"""``run_plan``: maps → pairs → site cache → search per RIS count → ranked result."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.bounds import bounds_from_state_fim, compute_bounds
+from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
+from ris_planner.planning.executor import Executor, LocalExecutor
+from ris_planner.planning.maps import PairSet, PointMap, build_map, build_pairs
+from ris_planner.planning.objectives import (
+    Scorer,
+    objective_value,
+    select_metric,
+    weighted_quantile,
+)
+from ris_planner.planning.search import Layout, SearchOutcome, search
+from ris_planner.planning.site_cache import SiteCache, build_site_cache
+from ris_planner.planning.sites import Site, candidate_json, expand_sites
+from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M, Scenario
+
+FloatArray = NDArray[np.float64]
+
+REPORT_QUANTILES = (0.5, 0.9, 0.95)
+CDF_POINTS = 101
+
+
+def _num(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+@dataclass
+class CountResult:
+    """The search for one RIS count and the metric of its best layout per pair."""
+
+    ris_count: int
+    outcome: SearchOutcome
+    ranked: list[tuple[Layout, float]]
+    best_metric: FloatArray
+
+
+@dataclass
+class PlanResult:
+    """Everything a plan produced; :meth:`to_json` is the content of ``plan.json``."""
+
+    document: PlanDocument
+    sites: list[Site]
+    tx_map: PointMap
+    rx_map: PointMap
+    pairs: PairSet
+    cache: SiteCache
+    counts: list[CountResult]
+    timing: dict[str, float]
+
+    def layout_metric(self, layout: Layout) -> FloatArray:
+        """[P] metric bound (m) of a layout via the core's ``bounds_from_state_fim``."""
+        peb_t, peb_r, _, _ = self.layout_bounds(layout)
+        return select_metric(self.document.objective.metric, peb_t, peb_r)
+
+    def layout_bounds(
+        self, layout: Layout
+    ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
+        """PEB_T, PEB_R, CEB, reasons [P] of a layout from the cached matrices (core inversion)."""
+        f = self.cache.layout_fim(layout)
+        n_obs = 3 * len(layout) + (0 if self.cache.los is None else 1)
+        peb_t, peb_r, ceb, reason = bounds_from_state_fim(f, tuple(self.document.known), n_obs)
+        bad = np.any(self.cache.degenerate[list(layout)], axis=0)
+        for arr in (peb_t, peb_r, ceb):
+            if arr is not None:
+                arr[bad] = np.inf
+        return peb_t, peb_r, ceb, reason
+
+    def layout_stats(self, layout: Layout, loss: float | None = None) -> dict[str, Any]:
+        metric = self.layout_metric(layout)[None, :]
+        w = self.pairs.weights
+        obj = float(objective_value(self.document.objective, metric, w)[0])
+        quant = weighted_quantile(metric, w, np.array(REPORT_QUANTILES))[0]
+        far = np.all(self.cache.far_field[list(layout)], axis=0)
+        return {
+            "ris_count": len(layout),
+            "sites": [int(s) for s in layout],
+            "objective": _num(obj),
+            "quantiles_m": {
+                f"{q:g}": _num(v) for q, v in zip(REPORT_QUANTILES, quant, strict=True)
+            },
+            "mean_m": _num(float((metric[0] * w).sum())),
+            "blind_fraction": float(w[~np.isfinite(metric[0])].sum()),
+            "near_field_fraction": float(w[~far].sum()),
+        }
+
+    def cdf(self, metric: FloatArray) -> dict[str, list[float | None]]:
+        """The weighted CDF as bound values at probabilities 0.01 … 1 (``null`` = blind)."""
+        probs = np.linspace(0.0, 1.0, CDF_POINTS)[1:]
+        vals = weighted_quantile(metric[None, :], self.pairs.weights, probs)[0]
+        return {"probability": [float(p) for p in probs], "bound_m": [_num(v) for v in vals]}
+
+    def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
+        """(RX points [M, 3], bound [M], layout) for the best layout of the largest count: the
+        weighted median over TX of the metric (TX averaged over its map), or the bound with the
+        document's fixed ``heatmap_tx``; NaN where an RX point has no pair."""
+        best = self.counts[-1]
+        layout = best.ranked[0][0]
+        doc = self.document
+        pts = self.rx_map.points
+        if doc.heatmap_tx is not None:
+            tx = np.asarray(doc.heatmap_tx)
+            ris_pos = np.array([self.sites[s].ris.position for s in layout])
+            ok = np.linalg.norm(pts - tx, axis=1) >= MIN_UE_RIS_DISTANCE_M
+            for p in ris_pos:
+                ok &= np.linalg.norm(pts - p, axis=1) >= MIN_UE_RIS_DISTANCE_M
+            vals = np.full(len(pts), np.nan)
+            if np.any(ok):
+                scen = Scenario(
+                    system=doc.system,
+                    ris=[self.sites[s].ris for s in layout],
+                    tx=np.repeat(tx[None], int(ok.sum()), axis=0).tolist(),
+                    rx=pts[ok].tolist(),
+                    codebook={"kind": "expected_random"},
+                    known=doc.known,
+                )
+                res = compute_bounds(scen)
+                vals[ok] = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx)
+            return pts, vals, layout
+        metric = best.best_metric
+        w = self.pairs.weights
+        vals = np.full(len(pts), np.nan)
+        order = np.lexsort((metric, self.pairs.rx_index))
+        rx_sorted = self.pairs.rx_index[order]
+        starts = np.flatnonzero(np.r_[True, rx_sorted[1:] != rx_sorted[:-1]])
+        ends = np.r_[starts[1:], len(order)]
+        for a, b in zip(starts, ends, strict=True):
+            idx = order[a:b]
+            cw = np.cumsum(w[idx])
+            k = int(np.argmax(cw >= 0.5 * cw[-1] - 1e-15))
+            vals[rx_sorted[a]] = metric[idx[k]]
+        return pts, vals, layout
+
+    def to_json(self) -> dict[str, Any]:
+        """The plan.json content (``inf`` → ``null``)."""
+        doc = self.document
+        top: list[tuple[float, int, Layout]] = []
+        by_count = []
+        prev: float | None = None
+        for cr in self.counts:
+            for lay, loss in cr.ranked:
+                top.append((loss, len(lay), lay))
+            best_lay, best_loss = cr.ranked[0]
+            stats = self.layout_stats(best_lay)
+            gain = None
+            if prev is not None and np.isfinite(prev) and np.isfinite(best_loss):
+                gain = float(prev - best_loss)
+            prev = best_loss
+            by_count.append(
+                {
+                    **stats,
+                    "marginal_gain": gain,
+                    "method": cr.outcome.method,
+                    "layouts_total": cr.outcome.total_layouts,
+                    "layouts_evaluated": cr.outcome.evaluated,
+                    "top_layouts": [
+                        {"sites": [int(s) for s in lay], "objective": _num(self._obj(loss))}
+                        for lay, loss in cr.ranked
+                    ],
+                    "cdf": self.cdf(cr.best_metric),
+                }
+            )
+        top.sort(key=lambda t: (t[0], t[1], t[2]))
+        far_viol = 1.0 - np.asarray(self.cache.far_field @ self.pairs.weights)
+        return {
+            "objective": doc.objective.model_dump(),
+            "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
+            "layouts": [self.layout_stats(lay) for _, _, lay in top],
+            "by_count": by_count,
+            "candidates": [
+                {
+                    "index": i,
+                    **candidate_json(s),
+                    "near_field_fraction": float(far_viol[i]),
+                    "far_field_flag": bool(far_viol[i] > 0),
+                }
+                for i, s in enumerate(self.sites)
+            ],
+            "pairs": self.pairs.size,
+            "tx_points": len(self.tx_map.points),
+            "rx_points": len(self.rx_map.points),
+            "known": list(doc.known),
+            "timing_s": self.timing,
+        }
+
+    def _obj(self, loss: float) -> float:
+        return -loss if self.document.objective.kind == "coverage" else loss
+
+
+def run_plan(
+    document: PlanDocument | dict[str, Any],
+    progress: ProgressCallback = no_progress,
+    executor: Executor | None = None,
+) -> PlanResult:
+    """Run a plan document: build maps and pairs, cache every site's information, search each
+    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+    doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
+    t0 = time.perf_counter()
+    sites = expand_sites(doc)
+    if max(doc.ris_count) > len(sites):
+        raise RisPlannerError(
+            f"ris_count {max(doc.ris_count)} exceeds the {len(sites)} candidate sites"
+        )
+    tx_map = build_map(doc.tx_map, "tx_map")
+    rx_map = build_map(doc.rx_map, "rx_map")
+    pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs)
+    if len(sites) * pairs.size > MAX_CACHE_ENTRIES:
+        raise LimitExceededError(
+            f"{len(sites)} sites × {pairs.size} pairs exceed the site-cache limit of"
+            f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
+        )
+    progress(0.0, "caching site information")
+    cache = build_site_cache(
+        doc.system, sites, pairs, lambda f, m: progress(0.2 * f, f"cache: {m}")
+    )
+    t_cache = time.perf_counter() - t0
+    scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+    own = executor is None
+    ex = LocalExecutor() if executor is None else executor
+    counts: list[CountResult] = []
+    # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
+    effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in doc.ris_count]
+    done = 0.0
+    try:
+        for c, e in zip(doc.ris_count, effort, strict=True):
+            base = done
+
+            def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
+                progress(0.2 + 0.75 * (base + f * e) / sum(effort), f"search L={c}")
+
+            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction)
+            ranked = outcome.ranked(doc.search.top_k)
+            best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
+            counts.append(CountResult(c, outcome, ranked, best_metric))
+            done += e
+    finally:
+        if own:
+            ex.close()
+    t_search = time.perf_counter() - t0 - t_cache
+    progress(1.0, "done")
+    timing = {"cache": t_cache, "search": t_search}
+    return PlanResult(doc, sites, tx_map, rx_map, pairs, cache, counts, timing)

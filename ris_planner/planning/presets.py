@@ -1,0 +1,54 @@
+"""Shipped plan documents (``ris_planner/presets/plans/NAME.json``) and reading plan files."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from ris_planner.errors import RisPlannerError
+
+PLAN_PRESET_NAMES = ("fig10-anchors", "junction")
+"""``fig10-anchors``: the four Fig. 10 anchor sites over the Fig. 10 pairs, 2–4 RISs;
+``junction``: a road junction with UEs on the roads and building walls as candidates."""
+
+
+def plan_preset(name: str) -> dict[str, Any]:
+    """The raw JSON document of a shipped plan."""
+    if name not in PLAN_PRESET_NAMES:
+        raise RisPlannerError(
+            f"unknown plan preset {name!r}; choose one of {', '.join(PLAN_PRESET_NAMES)}"
+        )
+    text = resources.files("ris_planner.presets").joinpath(f"plans/{name}.json").read_text()
+    doc: dict[str, Any] = json.loads(text)
+    return doc
+
+
+def inline_csv(doc: dict[str, Any], base_dir: Path) -> dict[str, Any]:
+    """Replace ``"csv": "file.csv"`` in ``tx_map``/``rx_map`` (paths relative to base_dir) by
+    the file's text as ``csv_text`` – the document model itself never reads files."""
+    out = dict(doc)
+    for key in ("tx_map", "rx_map"):
+        m = out.get(key)
+        if isinstance(m, dict) and "csv" in m:
+            m = dict(m)
+            path = base_dir / str(m.pop("csv"))
+            try:
+                m["csv_text"] = path.read_text()
+            except OSError as exc:
+                raise RisPlannerError(f"{key}.csv: cannot read {path} ({exc.strerror})") from None
+            out[key] = m
+    return out
+
+
+def load_plan_file(path: str | Path) -> dict[str, Any]:
+    """A plan document from a JSON file, CSV maps inlined (relative to the file)."""
+    p = Path(path)
+    try:
+        doc = json.loads(p.read_text())
+    except json.JSONDecodeError as exc:
+        raise RisPlannerError(f"{p}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise RisPlannerError(f"{p}: the document must be a JSON object")
+    return inline_csv(doc, p.parent)
