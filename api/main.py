@@ -11,6 +11,7 @@ from contextlib import asynccontextmanager
 from importlib.metadata import version
 
 from fastapi import Depends, FastAPI
+from threadpoolctl import threadpool_limits
 
 from api.deps import require_api_key
 from api.errors import V1_ERROR_RESPONSES, BodyLimitMiddleware, install_error_handlers
@@ -43,14 +44,18 @@ def create_app(
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
         store = JobStore(current.db)
-        runner = JobRunner(store, current.figures_dir, job_kinds, current.workers)
+        runner = JobRunner(
+            store, current.figures_dir, job_kinds, current.workers, current.blas_threads
+        )
         app.state.store = store
         app.state.runner = runner
+        blas = threadpool_limits(limits=current.blas_threads)  # this process's request threads
         runner.start()
         try:
             yield
         finally:
             runner.stop()
+            blas.restore_original_limits()
 
     app = FastAPI(
         title="ris_planner",

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
+from threadpoolctl import threadpool_limits
 
 from api.store import JobStore
 from ris_planner.errors import RisPlannerError
@@ -104,9 +105,12 @@ def _exit_when_orphaned() -> None:
             os._exit(1)
 
 
-def execute_job(db_path: Path, figures_dir: Path, job_id: str, func: JobFunction) -> None:
+def execute_job(
+    db_path: Path, figures_dir: Path, job_id: str, func: JobFunction, blas_threads: int = 1
+) -> None:
     """Run one job to its end state (the body of a worker process)."""
     threading.Thread(target=_exit_when_orphaned, name="orphan-watch", daemon=True).start()
+    threadpool_limits(limits=blas_threads)
     store = JobStore(db_path)
     job = store.get(job_id)
     if job is None or not store.start(job_id):
@@ -135,12 +139,14 @@ class JobRunner:
         figures_dir: Path,
         kinds: Mapping[str, JobFunction],
         workers: int,
+        blas_threads: int = 1,
         poll_s: float = 0.05,
     ) -> None:
         self.store = store
         self.figures_dir = figures_dir
         self.kinds = dict(kinds)
         self.workers = workers
+        self.blas_threads = blas_threads
         self.poll_s = poll_s
         self._queue: deque[str] = deque()
         self._procs: dict[str, BaseProcess] = {}
@@ -206,7 +212,7 @@ class JobRunner:
             return
         proc = self._ctx.Process(
             target=execute_job,
-            args=(self.store.path, self.figures_dir, job_id, func),
+            args=(self.store.path, self.figures_dir, job_id, func, self.blas_threads),
             name=f"job-{job_id}",
             daemon=True,
         )
