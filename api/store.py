@@ -124,12 +124,11 @@ class JobStore:
     def create(self, kind: str, request: dict[str, Any]) -> Job:
         """A new ``queued`` job holding the (validated) request document."""
         job_id = uuid.uuid4().hex
-        with self._connect() as con:
-            seq = con.execute("SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs").fetchone()[0]
+        with self._connect() as con:  # one statement: seq is unique under concurrent inserts
             con.execute(
                 "INSERT INTO jobs (id, kind, status, request, seq, created_at)"
-                " VALUES (?, ?, 'queued', ?, ?, ?)",
-                (job_id, kind, json.dumps(request, allow_nan=False), seq, utc_now()),
+                " SELECT ?, ?, 'queued', ?, COALESCE(MAX(seq), 0) + 1, ? FROM jobs",
+                (job_id, kind, json.dumps(request, allow_nan=False), utc_now()),
             )
         job = self.get(job_id)
         assert job is not None

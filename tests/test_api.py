@@ -228,3 +228,25 @@ def test_engine_value_error_is_422(tmp_path: Path) -> None:
     with api_client(tmp_path) as client:
         r = client.post("/v1/bounds", json=doc)
     assert r.status_code == 422 and "G ≥ L+1" in r.json()["message"]
+
+
+def test_health_reports_database_failure_as_503(tmp_path: Path) -> None:
+    with api_client(tmp_path) as client:
+        client.app.state.store.path = tmp_path  # a folder: SQLite cannot open it
+        r = client.get("/healthz")
+    assert r.status_code == 503 and r.json()["status"].startswith("database error")
+
+
+def test_settings_from_environment_and_bad_values(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("RIS_PLANNER_DB", "/tmp/x/jobs.db")
+    monkeypatch.setenv("RIS_PLANNER_MAX_PAIRS", "7")
+    monkeypatch.setenv("RIS_PLANNER_API_KEY", "zebra-secret")
+    s = Settings()
+    assert (str(s.db), s.max_pairs, s.workers) == ("/tmp/x/jobs.db", 7, 2)
+    assert s.figures_dir == Path("/tmp/x/jobs.db.data") and s.api_key is not None
+    assert "zebra" not in repr(s)  # the key is a secret
+    monkeypatch.setenv("RIS_PLANNER_WORKERS", "0")
+    assert cli_main(["serve"]) == 2  # refused before any server starts
+    assert "workers" in capsys.readouterr().err

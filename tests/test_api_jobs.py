@@ -187,3 +187,14 @@ def test_job_request_is_stored_as_json(tmp_path: Path) -> None:
     with sqlite3.connect(store.path) as con:
         raw = con.execute("SELECT request FROM jobs WHERE id = ?", (job.id,)).fetchone()[0]
     assert json.loads(raw) == {"steps": 2, "nested": {"a": [1.5, None]}}
+
+
+def test_concurrent_submissions_get_distinct_order(tmp_path: Path) -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    store = JobStore(tmp_path / "j.db")
+    with ThreadPoolExecutor(8) as pool:
+        ids = list(pool.map(lambda i: store.create("count", {"i": i}).id, range(40)))
+    with sqlite3.connect(store.path) as con:
+        seqs = [r[0] for r in con.execute("SELECT seq FROM jobs")]
+    assert sorted(seqs) == list(range(1, 41)) and len(set(ids)) == 40
