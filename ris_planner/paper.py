@@ -3,7 +3,8 @@
 * :func:`fig10_pairs` – the 4753 TX–RX pairs of Fig. 10 (fig_multiple_RIS_cdf): UEs on the grid
   x, y ∈ {−3, …, 3} m, z ∈ {0, 0.5} m, every unordered pair of distinct points, the first point of
   a pair being the TX.
-* :func:`paper_curve` – curves digitised from the paper source (its pgfplots tables).
+* :func:`paper_curve` – curves digitised from the paper source (its pgfplots tables), incl.
+  Figs. 5 and 6 (fig_RIS_profiles_prior, fig_RIS_profiles_power_allocation).
 """
 
 from __future__ import annotations
@@ -51,7 +52,23 @@ def paper_curve(figure: str, curve: str) -> tuple[NDArray[np.float64], NDArray[n
     figure ``"fig10"``: curve in :data:`FIG10_CURVES`, x = ε [m], y = Pr(PEB_R < ε).
     figure ``"fig1"``: ``peb_tx``, ``peb_rx``, ``ceb`` or ``rmse_{tx,rx,clock}_{coarse,fine}``,
     x = transmit power [dBm], y = metres.
+    figure ``"fig5"`` (PEB_R vs prior error): ``dir``, ``der_gamma_{0.1,0.5,5,opt}``,
+    ``random``, x = σ_pri [m]; ``"fig6"`` (PEB_R vs γ_P): ``sigma_{0.01,0.1,1}_n{5,10,20}``
+    (``sigma_0.01_n10``, ``sigma_0.1_n5``, ``sigma_0.1_n10``, ``sigma_0.1_n20``,
+    ``sigma_1_n10``), x = γ_P; y = PEB_R [m].
     """
+    if figure in ("fig5", "fig6"):
+        rows = [
+            r
+            for r in _read("paper_fig5_fig6_power.csv")
+            if r["figure"] == figure and r["curve"] == curve
+        ]
+        if not rows:
+            raise ValueError(f"figure {figure} has no curve {curve!r}")
+        return (
+            np.array([float(r["x"]) for r in rows]),
+            np.array([float(r["peb_rx_m"]) for r in rows]),
+        )
     files = {"fig10": "paper_fig10_cdf_peb_rx.csv", "fig1": "paper_fig1_position.csv"}
     if figure not in files:
         raise ValueError(f"unknown figure {figure!r}; choose one of {sorted(files)}")

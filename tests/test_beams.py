@@ -173,3 +173,17 @@ def test_bad_codebook_documents() -> None:
         }
     }
     assert compute_bounds(load_scenario(ok)).peb_rx.shape == (2,)
+
+
+def test_odd_array_der_beams_keep_the_dir_phase_on_the_centre_line() -> None:
+    """5×5: the centre column (y = 0) has no DER phase; it keeps ω⁽¹⁾, the rest is ω⁽¹⁾·(∓j)."""
+    pos = geometry.element_positions(5, 5, WAVELENGTH / 2)
+    xi, zeta = np.array([0.3]), np.array([-0.2])
+    w1 = beams.directional_beams(pos, xi, zeta, WAVELENGTH)
+    d_xi, _ = beams.derivative_beams(pos, xi, zeta, WAVELENGTH)
+    w2 = beams.project_unit_modulus(d_xi, w1)[0]
+    centre = np.isclose(pos[:, 1], 0.0, atol=1e-15)
+    assert centre.sum() == 5
+    np.testing.assert_allclose(w2[centre], w1[0, centre], rtol=1e-15)
+    side = np.sign(pos[~centre, 1])
+    np.testing.assert_allclose(w2[~centre], w1[0, ~centre] * (-1j * side), rtol=1e-14)

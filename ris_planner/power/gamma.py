@@ -1,7 +1,8 @@
 """Power control of the DIR+DER codebook by one ratio γ_P (eq. opt_formulation_3).
 
-The objective is the mean PEB² over the sampled prior positions, evaluated by the bounds code
-(``compute_bounds`` with the γ_P beam powers). The search is bounded in log10 γ_P: a coarse
+The objective is the mean PEB² over the sampled prior positions as a function of the beam
+powers (``run_power`` passes the stacked-information evaluator and re-evaluates the answer with
+``compute_bounds``). The search is bounded in log10 γ_P: a coarse
 grid with step 1/4 decade that contains γ_P = 1 (uniform power, so the result is never worse
 than uniform), then Brent's bounded method between the best grid point's neighbours.
 """

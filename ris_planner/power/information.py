@@ -85,7 +85,22 @@ def beam_information(
     profiles: list[ComplexArray],
     known: list[KnownPart] | tuple[KnownPart, ...] | None = None,
 ) -> BeamInformation:
-    """S_j for every distinct first-block beam and every TX–RX pair (tx, rx : [P, 3])."""
+    """S_j for every distinct first-block beam and every TX–RX pair (tx, rx : [P, 3]).
+
+    A pair on a RIS or with TX = RX gives non-finite entries (no warning); the SDP reports
+    that as a ``failed`` status.
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return _beam_information(scenario, tx, rx, profiles, known)
+
+
+def _beam_information(
+    scenario: Scenario,
+    tx: FloatArray,
+    rx: FloatArray,
+    profiles: list[ComplexArray],
+    known: list[KnownPart] | tuple[KnownPart, ...] | None,
+) -> BeamInformation:
     system = scenario.system
     radio = fim.Radio.from_system(system)
     n_ris = len(scenario.ris)

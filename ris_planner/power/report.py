@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -20,7 +20,13 @@ from ris_planner.bounds import ComplexArray, compute_bounds, first_block_profile
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.power.gamma import GammaSearch, search_gamma_p
 from ris_planner.power.information import beam_information
-from ris_planner.power.sdp import Objective, SdpResult, solve_power_sdp
+from ris_planner.power.sdp import (
+    Objective,
+    SdpResult,
+    mean_trace_bound,
+    objective_index,
+    solve_power_sdp,
+)
 from ris_planner.progress import ProgressCallback, no_progress
 from ris_planner.scenario import (
     DirectionalCodebook,
@@ -112,6 +118,7 @@ class PowerResult:
             **_entry(self.sdp_objective),
             "status": self.sdp.status,
             "solve_time_s": self.sdp.solve_time_s,
+            "solver_time_s": self.sdp.solver_time_s,
             "solver": self.sdp.solver,
             "solver_objective": _num(self.sdp.objective),
             "powers": None if self.sdp.powers is None else [float(x) for x in self.sdp.powers],
@@ -164,11 +171,19 @@ def run_power(
         raise LimitExceededError(f"{g_tilde} beams exceed the limit of {MAX_DESIGN_BEAMS}")
     evaluate = design_objective(sc, tx, rx, profiles, objective)
     uniform = evaluate(np.ones(g_tilde))
+    info = beam_information(sc, tx, rx, profiles)
     gamma = None
     if beam_types is not None:
-        gamma = search_gamma_p(evaluate, beam_types, lambda f, m: progress(0.05 + 0.45 * f, m))
+        # search on the stacked information (one [J]×[J, P·n²] product and P small inverses
+        # per γ_P; equal to compute_bounds to ~1e-10, tests/test_power.py), then re-evaluate
+        index = objective_index(info, objective)
+        gamma = search_gamma_p(
+            lambda p: mean_trace_bound(info, p, index),
+            beam_types,
+            lambda f, m: progress(0.05 + 0.45 * f, m),
+        )
+        gamma = replace(gamma, objective=evaluate(gamma.powers))
     progress(0.5, "SDP")
-    info = beam_information(sc, tx, rx, profiles)
     sdp = solve_power_sdp(info, objective, solver=solver)
     sdp_obj = None if sdp.powers is None else evaluate(sdp.powers)
     progress(1.0, f"SDP {sdp.status}")

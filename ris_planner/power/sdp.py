@@ -53,8 +53,9 @@ class SdpResult:
 
     objective : the solver's mean PEB² [m²] (``None`` unless optimal/inaccurate);
     powers : [G̃] first-block beam powers, clipped to ≥ 0 and rescaled to sum G̃ (``None``
-    without a solution); solve_time_s : wall time of the solver call incl. cvxpy
-    canonicalisation; message : the solver's complaint, if any.
+    without a solution); solve_time_s : wall time of the solve call incl. cvxpy
+    canonicalisation; message : the solver's complaint, if any; solver_time_s : the solver's
+    own time as it reports it (``None`` if it did not).
     """
 
     status: SolverStatus
@@ -63,6 +64,7 @@ class SdpResult:
     solve_time_s: float
     solver: str
     message: str | None = None
+    solver_time_s: float | None = None
 
 
 def objective_index(info: BeamInformation, objective: Objective) -> NDArray[np.int_]:
@@ -131,6 +133,15 @@ def solve_power_sdp(
     if not np.isfinite(total) or total <= 0:
         raise RisPlannerError(f"total power must be a positive finite number, got {total}")
     index = objective_index(info, objective)
+    if not np.all(np.isfinite(info.stack)):
+        return SdpResult(
+            "failed",
+            None,
+            None,
+            0.0,
+            solver,
+            "non-finite Fisher information: a design position lies on a RIS or on the other UE",
+        )
     uniform = np.full(g_tilde, total / g_tilde)
     scale_obj = mean_trace_bound(info, uniform, index)
     if not np.isfinite(scale_obj):
@@ -158,7 +169,7 @@ def solve_power_sdp(
             warnings.simplefilter("always")
             prob.solve(solver=solver)
         if caught:
-            message = "; ".join(str(w.message) for w in caught)
+            message = "; ".join(str(warn.message) for warn in caught)
     except (cp.SolverError, ArithmeticError, ValueError) as exc:
         return SdpResult("failed", None, None, time.perf_counter() - start, solver, str(exc))
     elapsed = time.perf_counter() - start
@@ -170,4 +181,6 @@ def solve_power_sdp(
     if powers is None and status in ("optimal", "inaccurate"):
         status, message = "failed", message or "solver returned no usable powers"
     value = None if powers is None or prob.value is None else float(prob.value) * scale_obj
-    return SdpResult(status, value, powers, elapsed, solver, message)
+    stats = prob.solver_stats
+    own = None if stats is None or stats.solve_time is None else float(stats.solve_time)
+    return SdpResult(status, value, powers, elapsed, solver, message, own)
