@@ -22,6 +22,7 @@ from ris_planner.planning import (
     PLAN_PRESET_NAMES,
     PlanDocument,
     SerialExecutor,
+    load_plan_file,
     plan_preset,
     run_plan,
 )
@@ -346,3 +347,51 @@ def test_heatmap_with_fixed_tx_is_compute_bounds() -> None:
         codebook={"kind": "expected_random"},
     )
     assert vals[ok][7] == pytest.approx(compute_bounds(scen).peb_rx[0], rel=RTOL)
+
+
+def test_plan_file_with_csv_map_and_progress(tmp_path: Path) -> None:
+    pts = [[x, y, 0.0] for x in range(-3, 4) for y in range(-3, 4)]
+    (tmp_path / "ues.csv").write_text(
+        "x,y,z,weight\n" + "".join(f"{x},{y},{z},{1 + (x > 0)}\n" for x, y, z in pts)
+    )
+    doc = plan_doc(tx_map={"csv": "ues.csv"}, rx_map={"csv": "ues.csv"}, ris_count=[2, 3])
+    (tmp_path / "plan.json").write_text(json.dumps(doc))
+    loaded = load_plan_file(tmp_path / "plan.json")
+    assert "csv_text" in loaded["tx_map"]
+    seen: list[float] = []
+    res = run_plan(loaded, progress=lambda f, m: seen.append(f), executor=SerialExecutor())
+    assert seen == sorted(seen) and seen[-1] == 1.0
+    np.testing.assert_array_equal(res.tx_map.points, np.array(pts))
+    assert res.tx_map.weights.max() == 2
+    (tmp_path / "bad.json").write_text(json.dumps(plan_doc(tx_map={"csv": "missing.csv"})))
+    with pytest.raises(RisPlannerError, match=r"missing\.csv"):
+        load_plan_file(tmp_path / "bad.json")
+
+
+def test_issue_document_form_is_accepted() -> None:
+    issue_doc = {
+        "system": {"tx_power_dbm": 30},
+        "ris": {"rows": 10, "cols": 10},
+        "candidates": [{"position": [-4, 0, 2], "orientation": [0, 0.52, 0]}],
+        "tx_map": {"points": [[0, 0, 0], [1, 0, 0]], "weights": [1, 1]},
+        "rx_map": {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0, 1]}},
+        "pairs": "all",
+        "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 10},
+        "ris_count": [2, 3],
+        "codebook": {"kind": "expected_random"},
+        "known": [],
+        "search": {"method": "auto"},
+    }
+    PlanDocument.model_validate(issue_doc)
+    more = [{"position": c["position"], "orientation": c["orientation"]} for c in ring(4)]
+    res = run_plan(issue_doc | {"candidates": issue_doc["candidates"] + more})
+    out = res.to_json()
+    assert out["pairs"] == 2 * 49 - 2
+    assert [b["ris_count"] for b in out["by_count"]] == [2, 3]
+    assert all(0 < lay["objective"] <= 10 for lay in out["layouts"])
+
+
+def test_site_cache_limit_is_named() -> None:
+    doc = plan_doc(candidates=ring(450), pairs="all")  # 450 × 9506 pairs > 4 M
+    with pytest.raises(LimitExceededError, match="site-cache limit"):
+        run_plan(doc, executor=SerialExecutor())

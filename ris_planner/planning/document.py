@@ -21,6 +21,7 @@ from ris_planner.scenario import (
     RIS,
     KnownPart,
     Point3,
+    Scenario,
     SystemParams,
 )
 
@@ -34,8 +35,9 @@ MAX_PAIRS_LIMIT = 500_000
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
 
-MAX_CACHE_ENTRIES = 20_000_000
-"""Candidate sites × pairs limit: the site cache holds 28 float64 per entry (≈ 4.5 GB here)."""
+MAX_CACHE_ENTRIES = 4_000_000
+"""Candidate sites × pairs limit: the site cache holds 28 float64 per entry (≈ 0.9 GB here, and
+each local worker process holds a copy)."""
 
 
 class _Model(BaseModel):
@@ -354,6 +356,11 @@ class PlanDocument(_Model):
         description="Fixed TX position [m] for the heatmap; default: TX averaged over its map",
     )
 
+    @field_validator("heatmap_tx")
+    @classmethod
+    def _check_heatmap_tx(cls, v: list[float] | None) -> list[float] | None:
+        return None if v is None else _finite(v, "heatmap_tx")
+
     @field_validator("ris_count")
     @classmethod
     def _check_counts(cls, v: list[int]) -> list[int]:
@@ -366,9 +373,7 @@ class PlanDocument(_Model):
     @field_validator("known")
     @classmethod
     def _unique_known(cls, v: list[str]) -> list[str]:
-        if len(set(v)) != len(v):
-            raise ValueError(f"known lists a part twice: {v}")
-        return v
+        return Scenario._unique_known(v)  # the scenario document's rule
 
     @model_validator(mode="before")
     @classmethod

@@ -1,9 +1,9 @@
 """Objectives over weighted pairs and the batched layout score.
 
-Scoring a batch of layouts: for each needed entry of the packed information, LOS + Σ cached
-site matrices (one vector operation per entry and RIS over all layouts × pairs), then one
-batched LDLᵀ (:func:`ris_planner.planning.kernel.inverse_diagonal_tail`) giving the CRB
-diagonal of the metric's states. Known parts (``clock``, ``height``, ``tx``) remove their rows
+Scoring a batch of layouts: LOS + Σ cached site matrices on the packed entries of the unknown
+states (one gather-and-add per RIS over all entries × layouts × pairs), then one batched LDLᵀ
+(:func:`ris_planner.planning.kernel.inverse_diagonal_from`) giving the CRB diagonal of the
+metric's states. Known parts (``clock``, ``height``, ``tx``) remove their rows
 before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
 """
 

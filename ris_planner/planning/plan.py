@@ -33,6 +33,11 @@ REPORT_QUANTILES = (0.5, 0.9, 0.95)
 CDF_POINTS = 101
 
 
+def _fraction(weights: FloatArray, mask: NDArray[np.bool_]) -> float:
+    """Weighted fraction of the pairs in mask (weights sum to 1; rounding clipped to [0, 1])."""
+    return float(min(1.0, weights[mask].sum()))
+
+
 def _num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
@@ -92,8 +97,8 @@ class PlanResult:
                 f"{q:g}": _num(v) for q, v in zip(REPORT_QUANTILES, quant, strict=True)
             },
             "mean_m": _num(float((metric[0] * w).sum())),
-            "blind_fraction": float(w[~np.isfinite(metric[0])].sum()),
-            "near_field_fraction": float(w[~far].sum()),
+            "blind_fraction": _fraction(w, ~np.isfinite(metric[0])),
+            "near_field_fraction": _fraction(w, ~far),
         }
 
     def cdf(self, metric: FloatArray) -> dict[str, list[float | None]]:
@@ -173,7 +178,7 @@ class PlanResult:
                 }
             )
         top.sort(key=lambda t: (t[0], t[1], t[2]))
-        far_viol = 1.0 - np.asarray(self.cache.far_field @ self.pairs.weights)
+        near = ~self.cache.far_field
         return {
             "objective": doc.objective.model_dump(),
             "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
@@ -183,8 +188,8 @@ class PlanResult:
                 {
                     "index": i,
                     **candidate_json(s),
-                    "near_field_fraction": float(far_viol[i]),
-                    "far_field_flag": bool(far_viol[i] > 0),
+                    "near_field_fraction": _fraction(self.pairs.weights, near[i]),
+                    "far_field_flag": bool(np.any(near[i])),
                 }
                 for i, s in enumerate(self.sites)
             ],
@@ -240,7 +245,9 @@ def run_plan(
             def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
                 progress(0.2 + 0.75 * (base + f * e) / sum(effort), f"search L={c}")
 
-            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction)
+            # the best layouts of the smaller counts seed the greedy search
+            seeds = tuple(cr.ranked[0][0] for cr in counts)
+            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds)
             ranked = outcome.ranked(doc.search.top_k)
             best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
             counts.append(CountResult(c, outcome, ranked, best_metric))

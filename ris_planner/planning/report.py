@@ -40,7 +40,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     label = _metric_label(result)
 
     # top view: UE maps (marker size ∝ weight), candidates, chosen RISs with facing arrows
-    fig, ax = plt.subplots(figsize=(7, 6))
+    fig, ax = plt.subplots(figsize=(9, 6))
     for pm, colour, name in (
         (result.tx_map, "tab:blue", "TX map"),
         (result.rx_map, "tab:green", "RX map"),
@@ -74,8 +74,10 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
                 p[0],
                 p[1],
                 marker=markers[k % len(markers)],
-                s=80 - 12 * k,
-                zorder=3,
+                s=220 / (1 + 0.9 * k) ** 2,  # shrinking: a site chosen for several counts
+                zorder=3 + k,  # shows every count's marker nested inside the previous ones
+                edgecolors="k",
+                linewidths=0.5,
                 color=f"C{k + 3}",
                 label=f"best {cr.ris_count} RIS" if j == 0 else None,
             )
@@ -89,7 +91,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title("UE maps, candidate sites and chosen RISs (arrows: facing)")
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.tight_layout()
     fig.savefig(paths["topview"], dpi=110)
     plt.close(fig)

@@ -117,9 +117,12 @@ def greedy(
     spec: SearchSpec,
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
+    seeds: tuple[Layout, ...] = (),
 ) -> SearchOutcome:
     """Greedy forward selection (ties → the stronger site), then best-improvement swaps until
-    no swap improves or ``max_rounds``; repeated from ``restarts`` seeded random layouts."""
+    no swap improves or ``max_rounds``; also from each smaller ``seeds`` layout (e.g. the best
+    layout of the previous RIS count) completed greedily, and from ``restarts`` seeded random
+    layouts."""
     memo: dict[Layout, float] = {}
     strength = site_strength(scorer)
 
@@ -130,19 +133,26 @@ def greedy(
             memo.update(zip(new, (float(v) for v in vals), strict=True))
         return [memo[c] for c in cands]
 
-    # greedy start: partial layouts are scored on their own (no layout cache entry kept)
-    cur: list[int] = []
-    for _ in range(n_ris):
-        rest = [s for s in range(n_sites) if s not in cur]
-        cand = np.array([sorted([*cur, s]) for s in rest], dtype=int)
-        if len(cur) + 1 == n_ris:
-            vals = np.array(score([tuple(int(x) for x in c) for c in cand]))
-        else:
-            vals = evaluate(scorer, cand, executor)
-        key = np.lexsort((-strength[rest], vals))
-        cur.append(rest[int(key[0])])
+    def complete(partial: Layout) -> Layout:
+        """Greedy forward selection from a partial layout; intermediate (smaller) layouts are
+        scored on their own, ties (e.g. all underdetermined) go to the stronger site."""
+        cur = list(partial)
+        while len(cur) < n_ris:
+            rest = [s for s in range(n_sites) if s not in cur]
+            cand = np.array([sorted([*cur, s]) for s in rest], dtype=int)
+            if len(cur) + 1 == n_ris:
+                vals = np.array(score([tuple(int(x) for x in c) for c in cand]))
+            else:
+                vals = evaluate(scorer, cand, executor)
+            key = np.lexsort((-strength[rest], vals))
+            cur.append(rest[int(key[0])])
+        return tuple(sorted(cur))
+
+    starts: list[Layout] = [complete(())]
+    for partial in seeds:
+        if len(partial) < n_ris:
+            starts.append(complete(tuple(partial)))
     rng = np.random.default_rng(spec.seed)
-    starts: list[Layout] = [tuple(sorted(cur))]
     for _ in range(spec.restarts):
         starts.append(tuple(sorted(int(x) for x in rng.choice(n_sites, n_ris, replace=False))))
     for i, start in enumerate(starts):
@@ -179,8 +189,10 @@ def search(
     spec: SearchSpec,
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
+    seeds: tuple[Layout, ...] = (),
 ) -> SearchOutcome:
-    """The search the spec asks for (``auto``: exhaustive within ``max_exhaustive``)."""
+    """The search the spec asks for (``auto``: exhaustive within ``max_exhaustive``); greedy
+    also starts from the ``seeds`` (smaller layouts, completed greedily)."""
     total = math.comb(n_sites, n_ris)
     method = spec.method
     if method == "auto":
@@ -194,4 +206,4 @@ def search(
                 f" search.max_exhaustive = {spec.max_exhaustive}; use method 'greedy' or 'auto'"
             )
         return exhaustive(scorer, n_sites, n_ris, executor, on_fraction)
-    return greedy(scorer, n_sites, n_ris, spec, executor, on_fraction)
+    return greedy(scorer, n_sites, n_ris, spec, executor, on_fraction, seeds)

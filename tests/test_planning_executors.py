@@ -1,18 +1,20 @@
-"""The same plan on a Dask LocalCluster (2 worker processes on 127.0.0.1) ranks the layouts
-identically to the in-process run (the scoring arithmetic does not depend on the chunking)."""
+"""Executors: the same plan on a Dask LocalCluster (2 worker processes on 127.0.0.1) and on the
+local process pool ranks the layouts identically to the in-process run (the scoring arithmetic
+does not depend on the chunking)."""
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
-from ris_planner.planning import DaskExecutor, SerialExecutor, run_plan
+from ris_planner.planning import DaskExecutor, LocalExecutor, SerialExecutor, run_plan
+from ris_planner.planning import search as search_module
 
 
-def test_dask_local_cluster_gives_identical_ranking() -> None:
-    distributed = pytest.importorskip("distributed")
-    doc = {
+def small_plan() -> dict[str, object]:
+    return {
         "candidates": [
             {
                 "position": [4.5 * math.cos(a), 4.5 * math.sin(a), 2.0 + k % 2],
@@ -27,6 +29,11 @@ def test_dask_local_cluster_gives_identical_ranking() -> None:
         "ris_count": [2, 3],
         "search": {"top_k": 40},
     }
+
+
+def test_dask_local_cluster_gives_identical_ranking() -> None:
+    distributed = pytest.importorskip("distributed")
+    doc = small_plan()
     local = run_plan(doc, executor=SerialExecutor())
     with (
         distributed.LocalCluster(
@@ -43,3 +50,15 @@ def test_dask_local_cluster_gives_identical_ranking() -> None:
     for a, b in zip(local.counts, remote.counts, strict=True):
         assert a.ranked == b.ranked
     assert local.to_json()["layouts"] == remote.to_json()["layouts"]
+
+
+def test_local_process_pool_gives_identical_losses(monkeypatch: pytest.MonkeyPatch) -> None:
+    # small chunks so the 35 layouts of 3 RISs go to the two workers in several tasks
+    monkeypatch.setattr(search_module, "CHUNK_MATRICES", 2000)
+    doc = small_plan()
+    serial = run_plan(doc, executor=SerialExecutor())
+    with LocalExecutor(2) as ex:
+        pooled = run_plan(doc, executor=ex)
+    for a, b in zip(serial.counts, pooled.counts, strict=True):
+        np.testing.assert_array_equal(a.outcome.layouts, b.outcome.layouts)
+        np.testing.assert_array_equal(a.outcome.losses, b.outcome.losses)
