@@ -81,8 +81,14 @@ class SystemParams(_Model):
     """Radio parameters (Table I). ``P`` is the per-transmission power of eq.
     transmission_matrix; the noise variance is σ² = W·N0·NF (linear)."""
 
-    carrier_hz: float = Field(30e9, gt=0, allow_inf_nan=False, description="Carrier f_c [Hz]")
-    bandwidth_hz: float = Field(400e6, gt=0, allow_inf_nan=False, description="Bandwidth W [Hz]")
+    # physical ranges (not only > 0): with them every FIM entry stays far inside float range,
+    # e.g. (k·aperture)² ≤ 1e26 and |ρ|² ≤ 1e18 (a 3e150 m spacing overflowed in the products)
+    carrier_hz: float = Field(
+        30e9, ge=1e6, le=1e15, allow_inf_nan=False, description="Carrier f_c [Hz], 1 MHz–1 PHz"
+    )
+    bandwidth_hz: float = Field(
+        400e6, ge=1, le=1e13, allow_inf_nan=False, description="Bandwidth W [Hz], 1 Hz–10 THz"
+    )
     subcarriers: int = Field(512, ge=1, le=65536, description="Pilot subcarriers K")
     transmissions: int = Field(192, ge=1, le=100000, description="OFDM transmissions G")
     tx_power_dbm: float = Field(
@@ -171,7 +177,11 @@ class RIS(_Model):
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
     cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
     spacing_m: float | None = Field(
-        None, gt=0, allow_inf_nan=False, description="Element spacing [m]; default λ/2"
+        None,
+        gt=0,
+        le=1e3,
+        allow_inf_nan=False,
+        description="Element spacing [m], at most 1 km; default λ/2",
     )
 
     @field_validator("position")

@@ -123,6 +123,7 @@ def test_bad_documents_rejected_with_field(change: dict, field: str) -> None:  #
         ({"bandwidth_hz": 5e-324}, "bandwidth_hz"),  # Δf, σ² underflow to 0 (found by API fuzz)
         ({"carrier_hz": 1e-310}, "carrier_hz"),  # λ overflows to inf
         ({"bandwidth_hz": 1e300}, "bandwidth_hz"),  # Σω_k² overflows
+        ({"carrier_hz": 1e300}, "carrier_hz"),  # k·aperture overflows
     ],
 )
 def test_bad_system_rejected(system: dict, field: str) -> None:  # type: ignore[type-arg]
@@ -140,6 +141,9 @@ def test_bad_ris_rejected() -> None:
         Scenario.model_validate(doc)
     doc = table1()
     doc["ris"][0] = doc["ris"][0] | {"spacing_m": -0.01}
+    with pytest.raises(ValidationError, match="spacing_m"):
+        Scenario.model_validate(doc)
+    doc["ris"][0] = doc["ris"][0] | {"spacing_m": 3e150}  # overflowed the FIM products (API fuzz)
     with pytest.raises(ValidationError, match="spacing_m"):
         Scenario.model_validate(doc)
 
