@@ -47,8 +47,8 @@ def test_plan_job_survives_a_restart(tmp_path: Path) -> None:
 
 
 def test_killed_server_running_job_is_failed_on_restart(tmp_path: Path) -> None:
-    """SIGKILL while a (large) plan job runs: nothing can update the job, so the next start-up
-    marks it failed rather than leaving it 'running' forever."""
+    """SIGKILL while a (large) plan job runs and reports progress: nothing can update the job,
+    so the next start-up marks it failed rather than leaving it 'running' forever."""
     db = tmp_path / "jobs.db"
     big = small_plan_doc(  # about 7 s of work
         pairs={"sample": 200000, "seed": 1}, max_pairs=200000, ris_count=[2, 3, 4, 5]
@@ -57,8 +57,11 @@ def test_killed_server_running_job_is_failed_on_restart(tmp_path: Path) -> None:
     with served(db, log=tmp_path / "server.log") as server:
         job_id = httpx.post(f"{server.url}/v1/plans", json=big).json()["id"]
         deadline = time.monotonic() + 60
-        while httpx.get(f"{server.url}/v1/jobs/{job_id}").json()["status"] != "running":
-            assert time.monotonic() < deadline
+        while True:  # the plan's own progress reaches SQLite while it runs
+            view = httpx.get(f"{server.url}/v1/jobs/{job_id}").json()
+            if view["status"] == "running" and 0 < view["progress"] < 1:
+                break
+            assert view["status"] in ("queued", "running") and time.monotonic() < deadline
             time.sleep(0.05)
         server.process.send_signal(signal.SIGKILL)
         server.process.wait()
