@@ -10,6 +10,7 @@ from collections.abc import AsyncIterator, Mapping
 from contextlib import asynccontextmanager
 from importlib.metadata import version
 
+import anyio
 from fastapi import Depends, FastAPI
 from threadpoolctl import threadpool_limits
 
@@ -49,6 +50,7 @@ def create_app(
         )
         app.state.store = store
         app.state.runner = runner
+        app.state.bounds_limiter = anyio.CapacityLimiter(current.bounds_concurrency)
         blas = threadpool_limits(limits=current.blas_threads)  # this process's request threads
         runner.start()
         try:

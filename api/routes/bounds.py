@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Depends
+import anyio
+from fastapi import APIRouter, Body, Depends, Request
 from fastapi.responses import JSONResponse
 
 from api.deps import get_settings
@@ -24,7 +25,8 @@ router = APIRouter(tags=["bounds"])
     responses=TOO_LARGE_RESPONSE,
     summary="Bounds of one TX–RX pair or a batch of pairs",
 )
-def post_bounds(
+async def post_bounds(
+    request: Request,
     scenario: Annotated[
         Scenario,
         Body(
@@ -35,7 +37,13 @@ def post_bounds(
     settings: Annotated[Settings, Depends(get_settings)],
 ) -> JSONResponse:
     """The same computation and document as ``ris-planner bounds``; 413 when the batch exceeds
-    the configured pair or work limits. Runs in the server's thread pool, not the event loop."""
+    the configured pair or work limits. Runs in a worker thread (at most
+    ``bounds_concurrency`` at once), never in the event loop."""
     check_scenario_size(scenario, settings)
-    result = compute_bounds(scenario)
-    return JSONResponse(result.to_json(batch=scenario.is_batch))
+    limiter: anyio.CapacityLimiter = request.app.state.bounds_limiter
+    answer = await anyio.to_thread.run_sync(_bounds_json, scenario, limiter=limiter)
+    return JSONResponse(answer)
+
+
+def _bounds_json(scenario: Scenario) -> dict[str, Any]:
+    return compute_bounds(scenario).to_json(batch=scenario.is_batch)
