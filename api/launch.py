@@ -13,12 +13,12 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.error
+import urllib.request
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-
-import httpx
 
 HOST = "127.0.0.1"
 
@@ -71,9 +71,10 @@ def served(
             if proc.poll() is not None:
                 raise RuntimeError(f"server exited with code {proc.returncode} at start-up")
             try:
-                if httpx.get(f"{url}/healthz", timeout=1.0).status_code == 200:
-                    break
-            except httpx.TransportError:
+                with urllib.request.urlopen(f"{url}/healthz", timeout=1.0) as answer:
+                    if answer.status == 200:
+                        break
+            except (urllib.error.URLError, ConnectionError, TimeoutError):
                 pass
             if time.monotonic() > deadline:
                 raise RuntimeError(f"server not ready after {startup_timeout_s} s")
