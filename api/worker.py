@@ -32,6 +32,7 @@ from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
 from api.store import JobStore
+from ris_planner.cli import format_validation_error
 from ris_planner.errors import RisPlannerError
 from ris_planner.progress import ProgressCallback
 
@@ -80,12 +81,8 @@ class StoreProgress:
 
 def describe_error(exc: BaseException) -> str:
     """A one-line message for a failed job (the field paths for validation errors)."""
-    if isinstance(exc, ValidationError):
-        parts = [
-            f"{'.'.join(str(p) for p in e['loc']) or '(document)'}: {e['msg']}"
-            for e in exc.errors()
-        ]
-        return "invalid document: " + "; ".join(parts)
+    if isinstance(exc, ValidationError):  # the CLI's message, on one line
+        return format_validation_error(exc).replace(":\n  ", ": ").replace("\n  ", "; ")
     if isinstance(exc, RisPlannerError):
         return str(exc)
     return f"{type(exc).__name__}: {exc}"

@@ -198,3 +198,20 @@ def test_concurrent_submissions_get_distinct_order(tmp_path: Path) -> None:
     with sqlite3.connect(store.path) as con:
         seqs = [r[0] for r in con.execute("SELECT seq FROM jobs")]
     assert sorted(seqs) == list(range(1, 41)) and len(set(ids)) == 40
+
+
+def test_describe_error_is_one_line() -> None:
+    from pydantic import ValidationError
+
+    from api.worker import describe_error
+    from ris_planner.errors import RisPlannerError
+    from ris_planner.scenario import Scenario
+
+    try:
+        Scenario.model_validate({"ris": [], "tx": [0, 0, 0]})
+    except ValidationError as exc:
+        text = describe_error(exc)
+    assert "\n" not in text and text.startswith("invalid document: ris: ")
+    assert "; rx: Field required" in text
+    assert describe_error(RisPlannerError("too many sites")) == "too many sites"
+    assert describe_error(KeyError("x")) == "KeyError: 'x'"
