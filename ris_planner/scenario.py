@@ -333,7 +333,13 @@ def _points(value: Any, what: str) -> list[list[float]]:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
         raise ValueError(f"{what} must be one [x, y, z] point or a non-empty list of them")
-    return [_finite_point(list(p), what) for p in arr]
+    # vectorised check (a batch of 10k pairs validated in ms, not a Python loop per point);
+    # the first bad point goes through _finite_point for the same message as a single point
+    bad = ~np.all(np.isfinite(arr), axis=1) | np.any(np.abs(arr) > MAX_COORDINATE_M, axis=1)
+    if np.any(bad):
+        _finite_point(arr[int(np.argmax(bad))].tolist(), what)
+    points: list[list[float]] = arr.tolist()
+    return points
 
 
 class Scenario(_Model):

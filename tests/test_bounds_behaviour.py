@@ -193,3 +193,16 @@ def test_explicit_codebook_equals_random_with_same_phases() -> None:
     e = compute_bounds(load_scenario(table1(codebook={"kind": "explicit", "phases": phases})))
     r = compute_bounds(load_scenario(table1(codebook={"kind": "random", "seed": 0})))
     assert e.peb_rx[0] == pytest.approx(r.peb_rx[0], rel=1e-12)
+
+
+def test_batch_points_checked_at_once_naming_the_bad_point() -> None:
+    """The vectorised point check keeps the single-point messages (the first bad point)."""
+    doc = table1()
+    doc["tx"], doc["rx"] = [[-2.0, -4.0, 0.0]] * 50, [[2.0, 3.0, 0.0]] * 50
+    doc["tx"][37] = [1.0, 2e6, 0.0]
+    doc["tx"][40] = [float("nan"), 0.0, 0.0]
+    with pytest.raises(ValidationError, match=r"within ±1e\+06 m, got \[1.0, 2000000.0, 0.0\]"):
+        Scenario.model_validate(doc)
+    doc["tx"][37] = [1.0, 2.0, 0.0]
+    with pytest.raises(ValidationError, match=r"finite numbers, got \[nan, 0.0, 0.0\]"):
+        Scenario.model_validate(doc)
