@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import signal
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +15,8 @@ from test_api_plans import small_plan_doc
 
 from api.launch import served
 from api.store import INTERRUPTED_MESSAGE
+from ris_planner import preset_document
+from ris_planner.paper import fig10_pairs
 
 
 def poll(url: str, job_id: str, timeout_s: float = 120.0) -> dict[str, Any]:
@@ -26,6 +29,24 @@ def poll(url: str, job_id: str, timeout_s: float = 120.0) -> dict[str, Any]:
         time.sleep(0.1)
 
 
+def healthz_answers_during_bounds(url: str) -> int:
+    """Send 8 bounds requests of 9000 pairs each (seconds of work in total) from threads and
+    count the /healthz answers that arrive while they are in flight."""
+    tx, rx = fig10_pairs()
+    doc = preset_document("2-ris-L") | {"tx": tx[:4500].tolist() * 2, "rx": rx[:4500].tolist() * 2}
+    with ThreadPoolExecutor(8) as pool:
+        futures = [
+            pool.submit(httpx.post, f"{url}/v1/bounds", json=doc, timeout=120) for _ in range(8)
+        ]
+        answered = 0
+        while not all(f.done() for f in futures):
+            if httpx.get(f"{url}/healthz", timeout=120).status_code == 200:
+                answered += 1
+            time.sleep(0.02)
+        assert all(f.result().status_code == 200 for f in futures)
+    return answered
+
+
 def test_plan_job_survives_a_restart(tmp_path: Path) -> None:
     db = tmp_path / "jobs.db"
     with served(db, via="uvicorn", log=tmp_path / "server.log") as server:
@@ -36,6 +57,8 @@ def test_plan_job_survives_a_restart(tmp_path: Path) -> None:
         assert first["status"] == "succeeded", first["error"]
         png = httpx.get(f"{server.url}{first['figures']['cdf']}")
         assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+        # the bounds computations run beside the event loop, which keeps answering
+        assert healthz_answers_during_bounds(server.url) >= 3
     assert server.process.returncode == 0  # graceful stop on SIGINT
     with served(db, via="serve", log=tmp_path / "server.log") as server:
         again = httpx.get(f"{server.url}/v1/jobs/{job_id}").json()
