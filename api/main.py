@@ -19,7 +19,7 @@ from api.errors import V1_ERROR_RESPONSES, BodyLimitMiddleware, install_error_ha
 from api.kinds import JOB_KINDS
 from api.routes import bounds, jobs, meta, plans, power
 from api.settings import Settings
-from api.store import JobStore
+from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
 
 DESCRIPTION = """\
@@ -44,20 +44,21 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
-        store = JobStore(current.db)
-        runner = JobRunner(
-            store, current.figures_dir, job_kinds, current.workers, current.blas_threads
-        )
-        app.state.store = store
-        app.state.runner = runner
-        app.state.bounds_limiter = anyio.CapacityLimiter(current.bounds_concurrency)
-        blas = threadpool_limits(limits=current.blas_threads)  # this process's request threads
-        runner.start()
-        try:
-            yield
-        finally:
-            runner.stop()
-            blas.restore_original_limits()
+        with server_lock(current.db):  # refuses a second server on this database
+            store = JobStore(current.db)
+            runner = JobRunner(
+                store, current.figures_dir, job_kinds, current.workers, current.blas_threads
+            )
+            app.state.store = store
+            app.state.runner = runner
+            app.state.bounds_limiter = anyio.CapacityLimiter(current.bounds_concurrency)
+            blas = threadpool_limits(limits=current.blas_threads)  # this process's threads
+            runner.start()
+            try:
+                yield
+            finally:
+                runner.stop()
+                blas.restore_original_limits()
 
     app = FastAPI(
         title="ris_planner",

@@ -16,6 +16,7 @@ run again on the next start.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import sqlite3
 import uuid
@@ -52,6 +53,31 @@ CREATE TABLE IF NOT EXISTS jobs (
 CREATE INDEX IF NOT EXISTS jobs_seq ON jobs (seq);
 CREATE INDEX IF NOT EXISTS jobs_status ON jobs (status);
 """
+
+
+class DatabaseInUseError(RuntimeError):
+    """Another server process holds the database's lock."""
+
+
+@contextmanager
+def server_lock(db_path: Path | str) -> Iterator[None]:
+    """Hold ``<db>.lock`` exclusively while a server runs: a second server (e.g. ``uvicorn
+    --workers 2``) on the same database would re-queue and fail the first one's jobs at its
+    start-up, so it is refused. The kernel releases the lock when the process dies."""
+    path = Path(f"{db_path}.lock")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise DatabaseInUseError(
+                f"another server process uses the job database {db_path}; run one server per"
+                " database (one uvicorn process)"
+            ) from None
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def utc_now() -> str:

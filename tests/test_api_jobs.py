@@ -215,3 +215,14 @@ def test_describe_error_is_one_line() -> None:
     assert "; rx: Field required" in text
     assert describe_error(RisPlannerError("too many sites")) == "too many sites"
     assert describe_error(KeyError("x")) == "KeyError: 'x'"
+
+
+def test_second_server_on_the_same_database_is_refused(tmp_path: Path) -> None:
+    from api.store import DatabaseInUseError
+
+    with api_client(tmp_path) as client:
+        assert client.get("/healthz").status_code == 200
+        with pytest.raises(DatabaseInUseError, match="one server per"), api_client(tmp_path):
+            pass
+    with api_client(tmp_path) as client:  # released at shutdown
+        assert client.get("/healthz").status_code == 200
