@@ -68,3 +68,11 @@ def test_plan_errors(tmp_path: Path) -> None:
         assert view["status"] == "failed" and "exceeds the 5 candidate sites" in view["error"]
         presets = client.get("/v1/presets").json()
         assert [p["name"] for p in presets["plans"]] == ["fig10-anchors", "junction"]
+
+
+def test_plan_body_limit_is_413(tmp_path: Path) -> None:
+    doc = small_plan_doc(description="x" * 5000)
+    with api_client(tmp_path, max_body_bytes=4096) as client:
+        r = client.post("/v1/plans", json=doc)
+        assert r.status_code == 413 and r.json()["limit"] == 4096
+        assert client.get("/v1/jobs").json()["total"] == 0

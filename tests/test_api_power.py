@@ -62,3 +62,12 @@ def test_power_bad_documents(tmp_path: Path) -> None:
 
 def test_solver_type_matches_engine() -> None:
     assert typing.get_args(Solver) == SOLVERS
+
+
+def test_power_size_limits_are_413(tmp_path: Path) -> None:
+    doc = preset_document("paper-table1")
+    doc["tx"], doc["rx"] = [[-2.0, -4.0, 0.0]] * 6, [[2.0, 3.0, 0.0]] * 6
+    with api_client(tmp_path, max_pairs=5) as client:
+        r = client.post("/v1/power-allocations", json=doc)
+        assert r.status_code == 413 and r.json()["limit"] == 5
+        assert client.get("/v1/jobs").json()["total"] == 0  # nothing was queued
