@@ -88,11 +88,12 @@ def _add_core(sub: argparse._SubParsersAction) -> None:
 
 def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
     """Every feature's ``add_cli``: one line per feature (imported here, not at module load)."""
+    from api.cli import add_cli as api_cli
     from ris_planner.estimation.cli import add_cli as estimation_cli
     from ris_planner.planning.cli import add_cli as plan_cli
     from ris_planner.power.cli import add_cli as power_cli
 
-    return [_add_core, power_cli, plan_cli, estimation_cli]
+    return [_add_core, power_cli, plan_cli, estimation_cli, api_cli]
 
 
 def build_parser() -> argparse.ArgumentParser:

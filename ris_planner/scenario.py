@@ -23,6 +23,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic.json_schema import JsonDict
 
 from ris_planner.units import SPEED_OF_LIGHT, db_to_linear, dbm_to_watt
 
@@ -36,9 +37,30 @@ the Simulation Parameters section diverge there (|ρ| ∝ 1/d)."""
 MAX_COORDINATE_M = 1e6
 """Coordinates beyond ±1000 km are rejected as unit mistakes (mm or degrees passed as metres)."""
 
+_COORDINATE_SCHEMA: JsonDict = {
+    "type": "number",
+    "minimum": -MAX_COORDINATE_M,
+    "maximum": MAX_COORDINATE_M,
+}
+_POINT_SCHEMA: JsonDict = {
+    "type": "array",
+    "items": _COORDINATE_SCHEMA,
+    "minItems": 3,
+    "maxItems": 3,
+}
+_POINTS_SCHEMA: JsonDict = {
+    "anyOf": [_POINT_SCHEMA, {"type": "array", "items": _POINT_SCHEMA, "minItems": 1}]
+}
+"""JSON-schema form of the bounds the validators enforce (documentation for OpenAPI clients)."""
+
 Point3 = Annotated[
     list[float],
-    Field(min_length=3, max_length=3, description="[x, y, z] in metres (global frame)"),
+    Field(
+        min_length=3,
+        max_length=3,
+        description="[x, y, z] in metres (global frame), each within ±1e6 m",
+        json_schema_extra={"items": _COORDINATE_SCHEMA},
+    ),
 ]
 
 
@@ -59,8 +81,14 @@ class SystemParams(_Model):
     """Radio parameters (Table I). ``P`` is the per-transmission power of eq.
     transmission_matrix; the noise variance is σ² = W·N0·NF (linear)."""
 
-    carrier_hz: float = Field(30e9, gt=0, allow_inf_nan=False, description="Carrier f_c [Hz]")
-    bandwidth_hz: float = Field(400e6, gt=0, allow_inf_nan=False, description="Bandwidth W [Hz]")
+    # physical ranges (not only > 0): with them every FIM entry stays far inside float range,
+    # e.g. (k·aperture)² ≤ 1e26 and |ρ|² ≤ 1e18 (a 3e150 m spacing overflowed in the products)
+    carrier_hz: float = Field(
+        30e9, ge=1e6, le=1e15, allow_inf_nan=False, description="Carrier f_c [Hz], 1 MHz–1 PHz"
+    )
+    bandwidth_hz: float = Field(
+        400e6, ge=1, le=1e13, allow_inf_nan=False, description="Bandwidth W [Hz], 1 Hz–10 THz"
+    )
     subcarriers: int = Field(512, ge=1, le=65536, description="Pilot subcarriers K")
     transmissions: int = Field(192, ge=1, le=100000, description="OFDM transmissions G")
     tx_power_dbm: float = Field(
@@ -76,6 +104,32 @@ class SystemParams(_Model):
         5.0, ge=-1e6, le=1e6, allow_inf_nan=False, description="Clock offset B [m]"
     )
     los: bool = Field(True, description="Whether the TX–RX line-of-sight path exists")
+
+    @model_validator(mode="after")
+    def _check_derived(self) -> SystemParams:
+        """Individually valid extremes can underflow or overflow a derived quantity (e.g.
+        ``bandwidth_hz`` = 5e-324 gives σ² = 0 and a division by zero): reject them, naming it."""
+        with np.errstate(all="ignore"):  # overflow to inf is what is checked below
+            sigma2 = self.noise_variance_w
+            power = self.tx_power_w
+        omega = 2 * math.pi * self.bandwidth_hz
+        derived = {
+            "wavelength c/carrier_hz": self.wavelength,
+            "subcarrier spacing bandwidth_hz/subcarriers": self.subcarrier_spacing,
+            "noise variance bandwidth_hz·N0·NF": sigma2,
+            "transmit power": power,
+            "SNR P/σ²": power / sigma2 if sigma2 > 0 else math.inf,
+            "delay information scale (2π·bandwidth_hz)²·subcarriers": (
+                omega * omega * self.subcarriers
+            ),
+        }
+        for name, value in derived.items():
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(
+                    f"system parameters give {name} = {value:g}, out of floating-point range;"
+                    " use physical values"
+                )
+        return self
 
     @property
     def wavelength(self) -> float:
@@ -111,12 +165,23 @@ class RIS(_Model):
     position: Point3
     orientation: Annotated[
         list[float],
-        Field(min_length=3, max_length=3, description="Euler [yaw, pitch, roll] in radians"),
+        Field(
+            min_length=3,
+            max_length=3,
+            description="Euler [yaw, pitch, roll] in radians, each within ±4π",
+            json_schema_extra={
+                "items": {"type": "number", "minimum": -4 * math.pi, "maximum": 4 * math.pi}
+            },
+        ),
     ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
     cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
     spacing_m: float | None = Field(
-        None, gt=0, allow_inf_nan=False, description="Element spacing [m]; default λ/2"
+        None,
+        gt=0,
+        le=1e3,
+        allow_inf_nan=False,
+        description="Element spacing [m], at most 1 km; default λ/2",
     )
 
     @field_validator("position")
@@ -140,20 +205,22 @@ class RIS(_Model):
 class RandomCodebook(_Model):
     """Uniform random phases for the first block (section IV-A, Random Codebook), seeded."""
 
-    kind: Literal["random"] = "random"
+    kind: Literal["random"] = Field("random", description="Codebook kind (discriminator)")
     seed: int = Field(0, ge=0, description="Seed of the phase draw (numpy default_rng)")
 
 
 class ExpectedRandomCodebook(_Model):
     """Closed-form expectation of the FIM over uniform random phases (deterministic)."""
 
-    kind: Literal["expected_random"] = "expected_random"
+    kind: Literal["expected_random"] = Field(
+        "expected_random", description="Codebook kind (discriminator)"
+    )
 
 
 class ExplicitCodebook(_Model):
     """Phases of the first block: one entry per RIS, G/Γ rows × N phases [rad]."""
 
-    kind: Literal["explicit"] = "explicit"
+    kind: Literal["explicit"] = Field("explicit", description="Codebook kind (discriminator)")
     phases: list[list[list[float]]] = Field(
         description="Per RIS: G/Γ rows (beams) × N element phases in radians"
     )
@@ -229,8 +296,8 @@ class DirectionalCodebook(_Model):
     """DIR codebook (eqs. RIS_profile_sum_beam, DIR_codebook): one beam a_R*(ξ, ζ) per sampled
     TX–RX pair; the first block cycles through the beams when fewer than G̃."""
 
-    kind: Literal["directional"] = "directional"
-    prior: PositionPrior
+    kind: Literal["directional"] = Field("directional", description="Codebook kind (discriminator)")
+    prior: PositionPrior = Field(description="Gaussian prior on the UE positions")
 
 
 class DirectionalDerivativeCodebook(_Model):
@@ -238,8 +305,10 @@ class DirectionalDerivativeCodebook(_Model):
     and the two DER beams (projected to unit modulus); ``gamma_p`` is the DER/DIR amplitude
     ratio of eq. opt_formulation_3 (``None``: uniform power, i.e. γ_P = 1)."""
 
-    kind: Literal["directional_derivative"] = "directional_derivative"
-    prior: PositionPrior
+    kind: Literal["directional_derivative"] = Field(
+        "directional_derivative", description="Codebook kind (discriminator)"
+    )
+    prior: PositionPrior = Field(description="Gaussian prior on the UE positions")
     gamma_p: float | None = Field(
         None, ge=0, le=1e6, allow_inf_nan=False, description="DER/DIR amplitude ratio γ_P"
     )
@@ -264,7 +333,13 @@ def _points(value: Any, what: str) -> list[list[float]]:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
         raise ValueError(f"{what} must be one [x, y, z] point or a non-empty list of them")
-    return [_finite_point(list(p), what) for p in arr]
+    # vectorised check (a batch of 10k pairs validated in ms, not a Python loop per point);
+    # the first bad point goes through _finite_point for the same message as a single point
+    bad = ~np.all(np.isfinite(arr), axis=1) | np.any(np.abs(arr) > MAX_COORDINATE_M, axis=1)
+    if np.any(bad):
+        _finite_point(arr[int(np.argmax(bad))].tolist(), what)
+    points: list[list[float]] = arr.tolist()
+    return points
 
 
 class Scenario(_Model):
@@ -274,13 +349,26 @@ class Scenario(_Model):
     """
 
     description: str | None = Field(None, max_length=2000, description="Free text")
-    system: SystemParams = Field(default_factory=SystemParams)
+    system: SystemParams = Field(
+        default_factory=SystemParams, description="Radio parameters; defaults: Table I"
+    )
     ris: list[RIS] = Field(min_length=1, max_length=64, description="The RISs, in path order")
-    tx: list[float] | list[list[float]] = Field(description="TX position(s) [m]")
-    rx: list[float] | list[list[float]] = Field(description="RX position(s) [m]")
-    codebook: Codebook = Field(default_factory=RandomCodebook)
+    tx: list[float] | list[list[float]] = Field(
+        description="TX position(s) [m]: one [x, y, z] or a non-empty list of them",
+        json_schema_extra=_POINTS_SCHEMA,
+    )
+    rx: list[float] | list[list[float]] = Field(
+        description="RX position(s) [m]: as tx, with the same number of points",
+        json_schema_extra=_POINTS_SCHEMA,
+    )
+    codebook: Codebook = Field(
+        default_factory=RandomCodebook,
+        description="First-block RIS phase profiles: random (seeded), expected_random or explicit",
+    )
     known: list[KnownPart] = Field(
-        default_factory=list, description="Known state parts: clock, height, tx"
+        default_factory=list,
+        description="Known state parts: clock, height, tx (each at most once)",
+        json_schema_extra={"uniqueItems": True},
     )
 
     @field_validator("tx", "rx", mode="before")

@@ -120,6 +120,10 @@ def test_bad_documents_rejected_with_field(change: dict, field: str) -> None:  #
         ({"carrier_hz": -3e9}, "carrier_hz"),
         ({"tx_power_dbm": float("nan")}, "tx_power_dbm"),
         ({"noise_figure_db": -1}, "noise_figure_db"),
+        ({"bandwidth_hz": 5e-324}, "bandwidth_hz"),  # Δf, σ² underflow to 0 (found by API fuzz)
+        ({"carrier_hz": 1e-310}, "carrier_hz"),  # λ overflows to inf
+        ({"bandwidth_hz": 1e300}, "bandwidth_hz"),  # Σω_k² overflows
+        ({"carrier_hz": 1e300}, "carrier_hz"),  # k·aperture overflows
     ],
 )
 def test_bad_system_rejected(system: dict, field: str) -> None:  # type: ignore[type-arg]
@@ -137,6 +141,9 @@ def test_bad_ris_rejected() -> None:
         Scenario.model_validate(doc)
     doc = table1()
     doc["ris"][0] = doc["ris"][0] | {"spacing_m": -0.01}
+    with pytest.raises(ValidationError, match="spacing_m"):
+        Scenario.model_validate(doc)
+    doc["ris"][0] = doc["ris"][0] | {"spacing_m": 3e150}  # overflowed the FIM products (API fuzz)
     with pytest.raises(ValidationError, match="spacing_m"):
         Scenario.model_validate(doc)
 
@@ -186,3 +193,16 @@ def test_explicit_codebook_equals_random_with_same_phases() -> None:
     e = compute_bounds(load_scenario(table1(codebook={"kind": "explicit", "phases": phases})))
     r = compute_bounds(load_scenario(table1(codebook={"kind": "random", "seed": 0})))
     assert e.peb_rx[0] == pytest.approx(r.peb_rx[0], rel=1e-12)
+
+
+def test_batch_points_checked_at_once_naming_the_bad_point() -> None:
+    """The vectorised point check keeps the single-point messages (the first bad point)."""
+    doc = table1()
+    doc["tx"], doc["rx"] = [[-2.0, -4.0, 0.0]] * 50, [[2.0, 3.0, 0.0]] * 50
+    doc["tx"][37] = [1.0, 2e6, 0.0]
+    doc["tx"][40] = [float("nan"), 0.0, 0.0]
+    with pytest.raises(ValidationError, match=r"within ±1e\+06 m, got \[1.0, 2000000.0, 0.0\]"):
+        Scenario.model_validate(doc)
+    doc["tx"][37] = [1.0, 2.0, 0.0]
+    with pytest.raises(ValidationError, match=r"finite numbers, got \[nan, 0.0, 0.0\]"):
+        Scenario.model_validate(doc)

@@ -1,0 +1,239 @@
+"""The service's one error module: error types, the JSON error body, the exception handlers and
+the request-body size limit.
+
+Every error answer has the same shape (:class:`ErrorBody`): ``status``, a short ``error`` code,
+a readable ``message``, the offending ``fields`` (validation) and the ``limit`` (413). Mapping:
+
+* request validation (body, query, path) and pydantic errors raised by the engine → 422 with the
+  field path of each problem;
+* body larger than ``max_body_bytes`` → 413 with the limit; :class:`LimitExceededError` (too
+  many pairs, layouts, …) → 413; other :class:`RisPlannerError` and plain ``ValueError`` from
+  the engine (input it cannot work with, as the CLI treats it) → 422;
+* unknown job or figure → 404; cancelling a finished job → 409; missing/wrong API key → 401;
+  unknown route 404, wrong method 405;
+* anything else → 500 with an error id and no traceback (the traceback goes to the log).
+"""
+
+from __future__ import annotations
+
+import logging
+import uuid
+from collections.abc import Sequence
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, Field, ValidationError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from ris_planner.errors import LimitExceededError
+
+log = logging.getLogger("api")
+
+
+class FieldError(BaseModel):
+    """One validation problem."""
+
+    location: str = Field(description="Where the field is: body, query, path or header")
+    field: str = Field(description="Dotted path of the field, e.g. 'ris.1.position.2'")
+    message: str = Field(description="What is wrong with the value")
+    type: str = Field(description="Machine-readable error type (pydantic's)")
+
+
+class ErrorBody(BaseModel):
+    """The body of every error response."""
+
+    status: int = Field(description="HTTP status code (repeated for convenience)")
+    error: str = Field(description="Short error code, e.g. 'validation_error', 'not_found'")
+    message: str = Field(description="Readable explanation: the rule, the value, how to fix it")
+    fields: list[FieldError] = Field(
+        default_factory=list, description="Validation problems, one per field (422 only)"
+    )
+    limit: int | None = Field(None, description="The limit that was exceeded (413 only)")
+
+
+class JobNotFoundError(Exception):
+    """No job (or no figure of a job) with this id/name."""
+
+
+class JobConflictError(Exception):
+    """The job is in a state that forbids the operation (e.g. cancelling a finished job)."""
+
+
+class BodyTooLargeError(StarletteHTTPException):
+    """The request body is larger than the configured limit (an HTTP exception, so that it
+    passes FastAPI's body reading unchanged)."""
+
+    def __init__(self, limit: int) -> None:
+        super().__init__(413, f"request body larger than the limit of {limit} bytes")
+        self.limit = limit
+
+
+V1_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    401: {"model": ErrorBody, "description": "Missing or wrong API key (when one is configured)"},
+    422: {"model": ErrorBody, "description": "Invalid request; `fields` names each problem"},
+}
+"""``responses=`` entries of every /v1 route (OpenAPI)."""
+
+TOO_LARGE_RESPONSE: dict[int | str, dict[str, Any]] = {
+    413: {"model": ErrorBody, "description": "Request too large (body bytes, pairs or work)"},
+}
+"""``responses=`` entry of the routes that take a document."""
+
+
+def error_response(
+    status: int,
+    error: str,
+    message: str,
+    fields: Sequence[FieldError] = (),
+    limit: int | None = None,
+    headers: dict[str, str] | None = None,
+) -> JSONResponse:
+    body = ErrorBody(status=status, error=error, message=message, fields=list(fields), limit=limit)
+    return JSONResponse(body.model_dump(mode="json"), status_code=status, headers=headers)
+
+
+def _field_errors(errors: Sequence[Any], default_location: str = "body") -> list[FieldError]:
+    out = []
+    for err in errors:
+        loc = [str(p) for p in err.get("loc", ())]
+        location = default_location
+        if loc and loc[0] in ("body", "query", "path", "header", "cookie"):
+            location, loc = loc[0], loc[1:]
+        out.append(
+            FieldError(
+                location=location,
+                field=".".join(loc) or "(document)",
+                message=str(err.get("msg", "invalid value")),
+                type=str(err.get("type", "value_error")),
+            )
+        )
+    return out
+
+
+def _validation_response(fields: list[FieldError]) -> JSONResponse:
+    summary = "; ".join(f"{f.field}: {f.message}" for f in fields[:5])
+    more = f" (and {len(fields) - 5} more)" if len(fields) > 5 else ""
+    return error_response(422, "validation_error", f"invalid request: {summary}{more}", fields)
+
+
+_HTTP_CODES = {
+    400: "bad_request",
+    401: "unauthorized",
+    404: "not_found",
+    405: "method_not_allowed",
+    406: "not_acceptable",
+    409: "conflict",
+    413: "too_large",
+    415: "unsupported_media_type",
+}
+
+
+async def _on_request_validation(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    return _validation_response(_field_errors(exc.errors()))
+
+
+async def _on_pydantic_validation(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, ValidationError)
+    return _validation_response(_field_errors(exc.errors()))
+
+
+async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
+    limit = getattr(exc, "limit", None)
+    limit = limit if isinstance(limit, int) else None
+    return error_response(413, "too_large", str(exc), limit=limit)
+
+
+async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(422, "invalid_input", str(exc))
+
+
+async def _on_not_found(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(404, "not_found", str(exc))
+
+
+async def _on_conflict(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(409, "conflict", str(exc))
+
+
+async def _on_http(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, StarletteHTTPException)
+    limit = exc.limit if isinstance(exc, BodyTooLargeError) else None
+    return error_response(
+        exc.status_code,
+        _HTTP_CODES.get(exc.status_code, "http_error"),
+        str(exc.detail),
+        limit=limit,
+        headers=dict(exc.headers) if exc.headers else None,
+    )
+
+
+async def _on_unexpected(request: Request, exc: Exception) -> JSONResponse:
+    error_id = uuid.uuid4().hex[:12]
+    log.error(
+        "unexpected error %s on %s %s", error_id, request.method, request.url.path, exc_info=exc
+    )
+    return error_response(
+        500, "internal_error", f"unexpected server error (id {error_id}); the log has details"
+    )
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Register the handlers above on ``app`` (most specific classes first)."""
+    app.add_exception_handler(RequestValidationError, _on_request_validation)
+    app.add_exception_handler(ValidationError, _on_pydantic_validation)
+    app.add_exception_handler(LimitExceededError, _on_limit)
+    app.add_exception_handler(ValueError, _on_engine_error)  # RisPlannerError and the engine's
+    app.add_exception_handler(JobNotFoundError, _on_not_found)
+    app.add_exception_handler(JobConflictError, _on_conflict)
+    app.add_exception_handler(StarletteHTTPException, _on_http)
+    app.add_exception_handler(Exception, _on_unexpected)
+
+
+class BodyLimitMiddleware:
+    """Pure ASGI middleware: 413 before reading a body whose Content-Length exceeds the limit;
+    a streamed (chunked) body is counted as it arrives and stopped at the limit."""
+
+    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+        self.app = app
+        self.max_bytes = max_bytes
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        for name, value in scope.get("headers", []):
+            if name == b"content-length":
+                try:
+                    length = int(value)
+                except ValueError:
+                    length = -1
+                if length < 0:
+                    response = error_response(400, "bad_request", "invalid Content-Length header")
+                    await response(scope, receive, send)
+                    return
+                if length > self.max_bytes:
+                    response = error_response(
+                        413,
+                        "too_large",
+                        f"request body of {length} bytes exceeds the limit of"
+                        f" {self.max_bytes} bytes",
+                        limit=self.max_bytes,
+                    )
+                    await response(scope, receive, send)
+                    return
+        received = 0
+
+        async def limited_receive() -> Message:
+            nonlocal received
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > self.max_bytes:
+                    raise BodyTooLargeError(self.max_bytes)
+            return message
+
+        await self.app(scope, limited_receive, send)

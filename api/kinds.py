@@ -1,0 +1,39 @@
+"""The job kinds: kind name → module-level function ``(document, progress, out_dir) ->
+JobOutput`` run in a worker process (:mod:`api.worker`). Each kind's POST route validates the
+document first, so a job starts from a valid document."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from api.worker import JobFunction, JobOutput
+from ris_planner.progress import ProgressCallback
+
+
+def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
+    """``ris-planner plan``: a plan document → plan.json content and the figures ``topview``,
+    ``heatmap``, ``cdf``. The search runs serially inside this worker process (parallelism
+    comes from the service's job workers)."""
+    from ris_planner.planning import SerialExecutor, run_plan, write_figures
+
+    with SerialExecutor() as executor:
+        result = run_plan(document, progress, executor)
+    figures = write_figures(result, out_dir)
+    return JobOutput(result.to_json(), figures)
+
+
+def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
+    """``ris-planner power``: {"scenario": …, "objective": …, "solver": …} → PowerResult JSON."""
+    from ris_planner.power import run_power
+
+    result = run_power(
+        document["scenario"],
+        progress,
+        objective=document["objective"],
+        solver=document["solver"],
+    )
+    return JobOutput(result.to_json())
+
+
+JOB_KINDS: dict[str, JobFunction] = {"plan": plan_job, "power": power_job}

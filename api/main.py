@@ -1,0 +1,79 @@
+"""The application factory: ``create_app(settings)``; ``app`` for ``uvicorn api.main:app``.
+
+Nothing touches the disk at import: the job store (schema created if missing) and the job
+runner (start-up recovery, worker processes) are created in the application's lifespan.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator, Mapping
+from contextlib import asynccontextmanager
+from importlib.metadata import version
+
+import anyio
+from fastapi import Depends, FastAPI
+from threadpoolctl import threadpool_limits
+
+from api.deps import require_api_key
+from api.errors import V1_ERROR_RESPONSES, BodyLimitMiddleware, install_error_handlers
+from api.kinds import JOB_KINDS
+from api.routes import bounds, jobs, meta, plans, power
+from api.settings import Settings
+from api.store import JobStore, server_lock
+from api.worker import JobFunction, JobRunner
+
+DESCRIPTION = """\
+RIS deployment planning for base-station-free 3D sidelink positioning: CRB-based position error
+bounds (PEB_T, PEB_R, CEB) for a layout, and long-running work as persistent jobs.
+
+Documents are those of the `ris-planner` command line. Units are SI unless a field name says
+otherwise (`_m` metres, `_hz` hertz, `_dbm` dBm, angles in radians). Errors are JSON with the
+field path of each problem. When the server sets `RIS_PLANNER_API_KEY`, every `/v1` route needs
+it in the `X-API-Key` header.
+"""
+
+
+def create_app(
+    settings: Settings | None = None, kinds: Mapping[str, JobFunction] | None = None
+) -> FastAPI:
+    """A configured application; ``settings`` default to the environment's, ``kinds`` (job
+    kind → function run by the workers) to :data:`api.kinds.JOB_KINDS`."""
+    settings = settings if settings is not None else Settings()
+    job_kinds = dict(JOB_KINDS if kinds is None else kinds)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
+        with server_lock(current.db):  # refuses a second server on this database
+            store = JobStore(current.db)
+            runner = JobRunner(
+                store, current.figures_dir, job_kinds, current.workers, current.blas_threads
+            )
+            app.state.store = store
+            app.state.runner = runner
+            app.state.bounds_limiter = anyio.CapacityLimiter(current.bounds_concurrency)
+            blas = threadpool_limits(limits=current.blas_threads)  # this process's threads
+            runner.start()
+            try:
+                yield
+            finally:
+                runner.stop()
+                blas.restore_original_limits()
+
+    app = FastAPI(
+        title="ris_planner",
+        version=version("ris_planner"),
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    install_error_handlers(app)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.include_router(meta.health_router)
+    v1 = [Depends(require_api_key)]
+    for router in (bounds.router, plans.router, power.router, jobs.router, meta.router):
+        app.include_router(router, prefix="/v1", dependencies=v1, responses=V1_ERROR_RESPONSES)
+    return app
+
+
+app = create_app()

@@ -1,0 +1,182 @@
+"""Response models of the service (OpenAPI documentation; request bodies are the engine's own
+pydantic documents: :class:`ris_planner.scenario.Scenario` and friends)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from api.store import Job, JobStatus
+from ris_planner.scenario import KnownPart, preset_document
+
+Bound = float | None
+
+
+def scenario_examples() -> dict[str, Any]:
+    """OpenAPI examples of a scenario body: Table I (one pair) and a two-pair batch."""
+    batch = preset_document("2-ris-L") | {
+        "tx": [[-2.0, -4.0, 0.0], [0.0, 0.0, 0.0]],
+        "rx": [[2.0, 3.0, 0.0], [1.0, 1.0, 0.5]],
+    }
+    return {
+        "table1": {"summary": "Table I (one TX–RX pair)", "value": preset_document("paper-table1")},
+        "batch": {"summary": "Two pairs, RISs tilted 30° down", "value": batch},
+    }
+
+
+def power_examples() -> dict[str, Any]:
+    """OpenAPI example of a power-allocation body: Table I with a small DIR+DER codebook."""
+    doc = preset_document("paper-table1")
+    doc["codebook"] = {
+        "kind": "directional_derivative",
+        "prior": {"sigma_m": 0.1, "samples": 4, "seed": 0},
+    }
+    return {"dir_der": {"summary": "Table I, DIR+DER codebook from a 0.1 m prior", "value": doc}}
+
+
+def plan_examples() -> dict[str, Any]:
+    """OpenAPI example of a plan body: the Fig. 10 anchor sites (2–4 RISs)."""
+    from ris_planner.planning import plan_preset
+
+    return {"fig10": {"summary": "Fig. 10 anchor sites", "value": plan_preset("fig10-anchors")}}
+
+
+class ChannelBounds(BaseModel):
+    """Channel-parameter bounds of one path (eqs. DEB, SEB1, SEB2)."""
+
+    path: str = Field(description="'los' or 'ris1', 'ris2', … in the document's RIS order")
+    deb_m: Bound | list[Bound] = Field(
+        description="Delay error bound c·sqrt(CRB_τ) [m], ≥ 0; null = infinite"
+    )
+    seb_xi: Bound | list[Bound] | None = Field(
+        None, description="Spatial-frequency error bound on ξ (unitless, ≥ 0); RIS paths only"
+    )
+    seb_zeta: Bound | list[Bound] | None = Field(
+        None, description="Spatial-frequency error bound on ζ (unitless, ≥ 0); RIS paths only"
+    )
+
+
+class BoundsResponse(BaseModel):
+    """The answer of ``POST /v1/bounds`` (the same document as ``ris-planner bounds``).
+
+    For a single pair every per-pair value is a scalar; for a batch (``tx``/``rx`` given as lists
+    of points) it is a list in pair order.
+    """
+
+    peb_tx_m: Bound | list[Bound] = Field(
+        description="PEB_T = sqrt(tr CRB[p_T]) [m], ≥ 0 (over x, y with 'height' known); null ="
+        " infinite (blind spot, see reason) or TX known"
+    )
+    peb_rx_m: Bound | list[Bound] = Field(
+        description="PEB_R = sqrt(tr CRB[p_R]) [m], ≥ 0; null = infinite (see reason)"
+    )
+    ceb_m: Bound | list[Bound] = Field(
+        description="CEB = sqrt(CRB[B, B]) [m], ≥ 0; null = infinite or clock known"
+    )
+    reason: str | list[str | None] | None = Field(
+        description="Why the bounds of a pair are infinite (singular FIM), else null"
+    )
+    channel: list[ChannelBounds] = Field(description="Per-path DEB/SEB, LOS first")
+    far_field: bool | list[bool] = Field(
+        description="Whether every RIS is in the far field of the pair (footnote 3)"
+    )
+    far_field_ris: list[bool] | list[list[bool]] = Field(
+        description="Per RIS: d_T·d_R/(d_T + d_R) ≥ 2D²/λ (D = aperture diagonal)"
+    )
+    known: list[KnownPart] = Field(description="State parts treated as known")
+    peb_tx_reason: str | None = Field(None, description="Why peb_tx_m is null (TX known)")
+    ceb_reason: str | None = Field(None, description="Why ceb_m is null (clock known)")
+
+
+class JobSummary(BaseModel):
+    """A job without its result (listings)."""
+
+    id: str = Field(description="Job id (32 hex digits)")
+    kind: str = Field(description="Job kind: 'plan' or 'power'")
+    status: JobStatus = Field(
+        description="queued → running → succeeded | failed; queued/running → cancelled"
+    )
+    progress: float = Field(ge=0, le=1, description="Fraction done, 0–1 (1 when succeeded)")
+    message: str = Field(description="Last progress message")
+    error: str | None = Field(description="Why the job failed (failed jobs only)")
+    created_at: str = Field(description="Submission time, ISO 8601 UTC")
+    started_at: str | None = Field(description="Start time in a worker, ISO 8601 UTC")
+    finished_at: str | None = Field(description="End time (any end state), ISO 8601 UTC")
+    url: str = Field(description="Path of this job's resource")
+
+    @classmethod
+    def of(cls, job: Job) -> JobSummary:
+        return cls(**_summary_fields(job))
+
+
+class JobView(JobSummary):
+    """A job with its request, result and figure links."""
+
+    request: dict[str, Any] = Field(description="The validated request document")
+    result: dict[str, Any] | None = Field(
+        description="The result document (succeeded jobs only); same as the CLI's JSON output"
+    )
+    figures: dict[str, str] = Field(
+        description="Figure name → path of the PNG (GET it); succeeded jobs with figures only"
+    )
+
+    @classmethod
+    def of(cls, job: Job) -> JobView:
+        return cls(
+            **_summary_fields(job),
+            request=job.request,
+            result=job.result,
+            figures={name: f"/v1/jobs/{job.id}/figures/{name}" for name in job.figures},
+        )
+
+
+def _summary_fields(job: Job) -> dict[str, Any]:
+    return {
+        "id": job.id,
+        "kind": job.kind,
+        "status": job.status,
+        "progress": job.progress,
+        "message": job.message,
+        "error": job.error,
+        "created_at": job.created_at,
+        "started_at": job.started_at,
+        "finished_at": job.finished_at,
+        "url": f"/v1/jobs/{job.id}",
+    }
+
+
+class JobPage(BaseModel):
+    """One page of jobs, newest first."""
+
+    items: list[JobSummary] = Field(description="The jobs of this page")
+    total: int = Field(ge=0, description="Jobs matching the filters, all pages")
+    limit: int = Field(ge=1, description="Page size asked for")
+    offset: int = Field(ge=0, description="Index of the first item of this page")
+    next_offset: int | None = Field(description="Offset of the next page; null on the last page")
+
+
+class Preset(BaseModel):
+    """A shipped document."""
+
+    name: str = Field(description="Preset name (also accepted by the CLI's --preset)")
+    document: dict[str, Any] = Field(description="The full JSON document")
+
+
+class PresetList(BaseModel):
+    """Shipped presets by document type."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    scenarios: list[Preset] = Field(description="Scenario documents (POST /v1/bounds)")
+    plans: list[Preset] = Field(description="Plan documents (POST /v1/plans)")
+
+
+class Health(BaseModel):
+    """Liveness and queue state."""
+
+    status: str = Field(description="'ok' when the database answers")
+    version: str = Field(description="Package version")
+    workers: int = Field(ge=1, description="Configured job worker processes")
+    running: int = Field(ge=0, description="Worker processes running a job now")
+    jobs: dict[str, int] = Field(description="Number of jobs per status")

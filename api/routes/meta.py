@@ -1,0 +1,54 @@
+"""Service metadata: ``GET /healthz`` (no API key) and ``GET /v1/presets``."""
+
+from __future__ import annotations
+
+import sqlite3
+from importlib.metadata import version
+from typing import Annotated
+
+from fastapi import APIRouter, Depends
+from fastapi.responses import JSONResponse
+
+from api.deps import get_runner, get_settings, get_store
+from api.models import Health, Preset, PresetList
+from api.settings import Settings
+from api.store import JobStore
+from api.worker import JobRunner
+from ris_planner.planning import PLAN_PRESET_NAMES, plan_preset
+from ris_planner.scenario import PRESET_NAMES, preset_document
+
+health_router = APIRouter(tags=["service"])
+router = APIRouter(tags=["service"])
+
+
+@health_router.get(
+    "/healthz",
+    response_model=Health,
+    responses={503: {"model": Health, "description": "The job database does not answer"}},
+    summary="Liveness and queue state (no API key needed)",
+)
+def healthz(
+    store: Annotated[JobStore, Depends(get_store)],
+    runner: Annotated[JobRunner, Depends(get_runner)],
+    settings: Annotated[Settings, Depends(get_settings)],
+) -> JSONResponse:
+    try:
+        counts, status, code = store.counts(), "ok", 200
+    except sqlite3.Error as exc:
+        counts, status, code = {}, f"database error: {exc}", 503
+    body = Health(
+        status=status,
+        version=version("ris_planner"),
+        workers=settings.workers,
+        running=runner.running(),
+        jobs=counts,
+    )
+    return JSONResponse(body.model_dump(mode="json"), status_code=code)
+
+
+@router.get("/presets", response_model=PresetList, summary="Shipped preset documents")
+def presets() -> PresetList:
+    return PresetList(
+        scenarios=[Preset(name=n, document=preset_document(n)) for n in PRESET_NAMES],
+        plans=[Preset(name=n, document=plan_preset(n)) for n in PLAN_PRESET_NAMES],
+    )

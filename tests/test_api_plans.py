@@ -1,0 +1,78 @@
+"""``POST /v1/plans``: a job whose result is ``ris-planner plan``'s plan.json, with figures."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from api_helpers import api_client, wait_for
+
+from ris_planner.planning import SerialExecutor, run_plan
+
+GRID = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
+
+
+def small_plan_doc(**over: Any) -> dict[str, Any]:
+    """Five candidates on a ring facing the centre, 7×7×2 grids, 200 sampled pairs, 2–3 RISs:
+    a plan of a fraction of a second."""
+    candidates = []
+    for k in range(5):
+        phi = 2 * math.pi * k / 5 + 0.1
+        candidates.append(
+            {
+                "position": [4.5 * math.cos(phi), 4.5 * math.sin(phi), 2.0 + (k % 2)],
+                "orientation": [phi + math.pi, math.pi / 6, 0.0],
+            }
+        )
+    doc: dict[str, Any] = {
+        "candidates": candidates,
+        "tx_map": GRID,
+        "rx_map": GRID,
+        "pairs": {"sample": 200, "seed": 1},
+        "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
+        "ris_count": [2, 3],
+    }
+    return doc | over
+
+
+def without_timing(plan: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in plan.items() if k != "timing_s"}
+
+
+def test_plan_job_equals_run_plan_with_figures(tmp_path: Path) -> None:
+    doc = small_plan_doc()
+    with api_client(tmp_path, workers=1) as client:
+        r = client.post("/v1/plans", json=doc)
+        assert r.status_code == 202 and r.json()["kind"] == "plan"
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=120)
+        assert view["status"] == "succeeded", view["error"]
+        assert set(view["figures"]) == {"topview", "heatmap", "cdf"}
+        for url in view["figures"].values():
+            png = client.get(url)
+            assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+    with SerialExecutor() as executor:
+        expected = run_plan(doc, executor=executor).to_json()
+    assert without_timing(view["result"]) == without_timing(expected)
+    assert [b["ris_count"] for b in view["result"]["by_count"]] == [2, 3]
+
+
+def test_plan_errors(tmp_path: Path) -> None:
+    with api_client(tmp_path, workers=1) as client:
+        r = client.post("/v1/plans", json=small_plan_doc(ris_count=[0]))
+        assert r.status_code == 422 and r.json()["fields"][0]["field"].startswith("ris_count")
+        # more RISs than candidate sites: an engine refusal, the job fails with the rule
+        r = client.post("/v1/plans", json=small_plan_doc(ris_count=[9]))
+        assert r.status_code == 202
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=60)
+        assert view["status"] == "failed" and "exceeds the 5 candidate sites" in view["error"]
+        presets = client.get("/v1/presets").json()
+        assert [p["name"] for p in presets["plans"]] == ["fig10-anchors", "junction"]
+
+
+def test_plan_body_limit_is_413(tmp_path: Path) -> None:
+    doc = small_plan_doc(description="x" * 5000)
+    with api_client(tmp_path, max_body_bytes=4096) as client:
+        r = client.post("/v1/plans", json=doc)
+        assert r.status_code == 413 and r.json()["limit"] == 4096
+        assert client.get("/v1/jobs").json()["total"] == 0
