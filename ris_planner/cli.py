@@ -37,6 +37,18 @@ def add_document_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", choices=PRESET_NAMES, help="use a shipped preset instead")
 
 
+def read_json_object(path: str | Path) -> dict[str, Any]:
+    """A JSON object from a file (``-`` = stdin), with input errors as :class:`RisPlannerError`."""
+    text = sys.stdin.read() if str(path) == "-" else Path(path).read_text()
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise RisPlannerError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise RisPlannerError(f"{path}: the document must be a JSON object")
+    return doc
+
+
 def read_document(args: argparse.Namespace) -> dict[str, Any]:
     """The raw JSON document named by ``FILE`` / ``--preset`` (exactly one of them)."""
     from ris_planner.scenario import preset_document
@@ -45,14 +57,7 @@ def read_document(args: argparse.Namespace) -> dict[str, Any]:
         raise RisPlannerError("give exactly one of FILE or --preset NAME")
     if args.preset is not None:
         return preset_document(args.preset)
-    text = sys.stdin.read() if args.file == "-" else Path(args.file).read_text()
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise RisPlannerError(f"{args.file}: not valid JSON ({exc})") from None
-    if not isinstance(doc, dict):
-        raise RisPlannerError(f"{args.file}: the document must be a JSON object")
-    return doc
+    return read_json_object(args.file)
 
 
 def read_scenario(args: argparse.Namespace) -> Scenario:
@@ -115,11 +120,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValidationError as exc:
         print(format_validation_error(exc), file=sys.stderr)
         return EXIT_INPUT_ERROR
-    except (RisPlannerError, ValueError, FileNotFoundError, IsADirectoryError) as exc:
+    except BrokenPipeError:  # output piped into `head` and closed early (before OSError)
+        return 0
+    except (RisPlannerError, ValueError, OSError) as exc:  # bad input, unusable path
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INPUT_ERROR
-    except BrokenPipeError:  # output piped into `head` and closed early
-        return 0
     return status
 
 

@@ -74,3 +74,27 @@ def test_schema(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = run(capsys, "schema")
     schema = json.loads(out)
     assert code == 0 and "ris" in schema["properties"] and "system" in schema["properties"]
+
+
+def test_plan_from_stdin_and_unusable_output_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import io
+
+    from ris_planner.planning import plan_preset
+
+    doc = json.dumps(plan_preset("fig10-anchors") | {"ris_count": [4]})
+    blocker = tmp_path / "taken"
+    blocker.write_text("a file where the output folder should go")
+    monkeypatch.setattr("sys.stdin", io.StringIO(doc))
+    code, _, err = run(capsys, "plan", "-", "--out", str(blocker), "--workers", "1")
+    assert code == 2 and "File exists" in err and "Traceback" not in err
+    monkeypatch.setattr("sys.stdin", io.StringIO(doc))
+    code, out, _ = run(capsys, "plan", "-", "--out", str(tmp_path / "ok"), "--workers", "1")
+    assert code == 0 and "4 RIS: sites [0, 1, 2, 3]" in out
+    assert json.loads((tmp_path / "ok" / "plan.json").read_text())["layouts"][0]["sites"] == [
+        0,
+        1,
+        2,
+        3,
+    ]

@@ -43,7 +43,7 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     from ris_planner.planning.presets import PLAN_PRESET_NAMES
 
     p = sub.add_parser("plan", help="search RIS placements and compare RIS counts")
-    p.add_argument("file", nargs="?", help="plan JSON document")
+    p.add_argument("file", nargs="?", help="plan JSON document ('-' for stdin)")
     p.add_argument("--preset", choices=PLAN_PRESET_NAMES, help="use a shipped plan instead")
     p.add_argument("--out", default="plan-out", help="output folder (plan.json, PNGs)")
     p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786)")

@@ -43,12 +43,9 @@ def inline_csv(doc: dict[str, Any], base_dir: Path) -> dict[str, Any]:
 
 
 def load_plan_file(path: str | Path) -> dict[str, Any]:
-    """A plan document from a JSON file, CSV maps inlined (relative to the file)."""
-    p = Path(path)
-    try:
-        doc = json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
-        raise RisPlannerError(f"{p}: not valid JSON ({exc})") from None
-    if not isinstance(doc, dict):
-        raise RisPlannerError(f"{p}: the document must be a JSON object")
-    return inline_csv(doc, p.parent)
+    """A plan document from a JSON file (``-`` = stdin), CSV maps inlined (relative to the
+    file, or to the working directory for stdin)."""
+    from ris_planner.cli import read_json_object
+
+    doc = read_json_object(path)
+    return inline_csv(doc, Path.cwd() if str(path) == "-" else Path(path).parent)
