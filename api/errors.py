@@ -131,20 +131,15 @@ _HTTP_CODES = {
 }
 
 
-async def _on_request_validation(request: Request, exc: Exception) -> JSONResponse:
-    assert isinstance(exc, RequestValidationError)
-    return _validation_response(_field_errors(exc.errors()))
-
-
-async def _on_pydantic_validation(request: Request, exc: Exception) -> JSONResponse:
-    assert isinstance(exc, ValidationError)
+async def _on_validation(request: Request, exc: Exception) -> JSONResponse:
+    """Request bodies (FastAPI) and documents validated later (pydantic) alike."""
+    assert isinstance(exc, RequestValidationError | ValidationError)
     return _validation_response(_field_errors(exc.errors()))
 
 
 async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
-    limit = getattr(exc, "limit", None)
-    limit = limit if isinstance(limit, int) else None
-    return error_response(413, "too_large", str(exc), limit=limit)
+    assert isinstance(exc, LimitExceededError)
+    return error_response(413, "too_large", str(exc), limit=exc.limit)
 
 
 async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
@@ -183,8 +178,8 @@ async def _on_unexpected(request: Request, exc: Exception) -> JSONResponse:
 
 def install_error_handlers(app: FastAPI) -> None:
     """Register the handlers above on ``app`` (most specific classes first)."""
-    app.add_exception_handler(RequestValidationError, _on_request_validation)
-    app.add_exception_handler(ValidationError, _on_pydantic_validation)
+    app.add_exception_handler(RequestValidationError, _on_validation)
+    app.add_exception_handler(ValidationError, _on_validation)
     app.add_exception_handler(LimitExceededError, _on_limit)
     app.add_exception_handler(ValueError, _on_engine_error)  # RisPlannerError and the engine's
     app.add_exception_handler(JobNotFoundError, _on_not_found)

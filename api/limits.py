@@ -13,19 +13,11 @@ from ris_planner.errors import LimitExceededError
 from ris_planner.scenario import Scenario
 
 
-class RequestLimitError(LimitExceededError):
-    """A :class:`LimitExceededError` that carries the limit (the 413 body reports it)."""
-
-    def __init__(self, message: str, limit: int) -> None:
-        super().__init__(message)
-        self.limit = limit
-
-
 def check_scenario_size(scenario: Scenario, settings: Settings) -> None:
-    """Raise :class:`RequestLimitError` if the scenario exceeds a configured limit."""
+    """Raise :class:`LimitExceededError` if the scenario exceeds a configured limit."""
     pairs = int(scenario.tx_array.shape[0])
     if pairs > settings.max_pairs:
-        raise RequestLimitError(
+        raise LimitExceededError(
             f"{pairs} TX–RX pairs exceed the limit of {settings.max_pairs} pairs per request;"
             " split the batch",
             settings.max_pairs,
@@ -33,14 +25,14 @@ def check_scenario_size(scenario: Scenario, settings: Settings) -> None:
     g3 = 3 * block_length(scenario.system.transmissions, len(scenario.ris))
     largest = max(max(pairs * r.elements, g3 * r.elements, g3 * pairs) for r in scenario.ris)
     if largest > settings.max_array_elements:
-        raise RequestLimitError(
+        raise LimitExceededError(
             f"the request needs an engine array of {largest} elements (limit"
             f" {settings.max_array_elements}); use fewer pairs, elements or transmissions",
             settings.max_array_elements,
         )
     work = sum(g3 * r.elements * pairs for r in scenario.ris)
     if work > settings.max_work:
-        raise RequestLimitError(
+        raise LimitExceededError(
             f"the request needs {work} complex products Σ 3·G̃·N·pairs (limit"
             f" {settings.max_work}); use fewer pairs, elements or transmissions",
             settings.max_work,

@@ -7,7 +7,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from api.store import Job, JobStatus
+from api.store import Job, JobHead, JobStatus
 from ris_planner.scenario import KnownPart, preset_document
 
 Bound = float | None
@@ -106,7 +106,7 @@ class JobSummary(BaseModel):
     url: str = Field(description="Path of this job's resource")
 
     @classmethod
-    def of(cls, job: Job) -> JobSummary:
+    def of_head(cls, job: JobHead) -> JobSummary:
         return cls(**_summary_fields(job))
 
 
@@ -131,7 +131,7 @@ class JobView(JobSummary):
         )
 
 
-def _summary_fields(job: Job) -> dict[str, Any]:
+def _summary_fields(job: JobHead) -> dict[str, Any]:
     return {
         "id": job.id,
         "kind": job.kind,

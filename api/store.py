@@ -25,11 +25,10 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-JOB_STATUSES: tuple[JobStatus, ...] = ("queued", "running", "succeeded", "failed", "cancelled")
-ACTIVE_STATUSES: tuple[JobStatus, ...] = ("queued", "running")
+JOB_STATUSES: tuple[JobStatus, ...] = get_args(JobStatus)
 
 INTERRUPTED_MESSAGE = "interrupted: the server stopped while this job was running; submit it again"
 
@@ -86,37 +85,43 @@ def utc_now() -> str:
 
 
 @dataclass(frozen=True)
-class Job:
-    """One row of the job table, JSON columns decoded."""
+class JobHead:
+    """A job's state without its documents (listings, the dispatcher): no JSON to decode."""
 
     id: str
     kind: str
     status: JobStatus
     progress: float
     message: str
-    request: dict[str, Any]
-    result: dict[str, Any] | None
     error: str | None
-    figures: dict[str, str]
     created_at: str
     started_at: str | None
     finished_at: str | None
 
     @classmethod
+    def from_row(cls, row: sqlite3.Row) -> JobHead:
+        return cls(**{name: row[name] for name in HEAD_COLUMNS})
+
+
+HEAD_COLUMNS = tuple(JobHead.__dataclass_fields__)
+_HEAD_SELECT = ", ".join(HEAD_COLUMNS)
+
+
+@dataclass(frozen=True)
+class Job(JobHead):
+    """One row of the job table, JSON columns decoded."""
+
+    request: dict[str, Any]
+    result: dict[str, Any] | None
+    figures: dict[str, str]
+
+    @classmethod
     def from_row(cls, row: sqlite3.Row) -> Job:
         return cls(
-            id=row["id"],
-            kind=row["kind"],
-            status=row["status"],
-            progress=float(row["progress"]),
-            message=row["message"],
+            **{name: row[name] for name in HEAD_COLUMNS},
             request=json.loads(row["request"]),
             result=None if row["result"] is None else json.loads(row["result"]),
-            error=row["error"],
             figures=json.loads(row["figures"]),
-            created_at=row["created_at"],
-            started_at=row["started_at"],
-            finished_at=row["finished_at"],
         )
 
 
@@ -140,30 +145,43 @@ class JobStore:
         finally:
             con.close()
 
-    def ping(self) -> None:
-        """Raise if the database cannot be read."""
-        with self._connect() as con:
-            con.execute("SELECT 1 FROM jobs LIMIT 1").fetchall()
-
     # -- creation and reading -------------------------------------------------------------
 
     def create(self, kind: str, request: dict[str, Any]) -> Job:
         """A new ``queued`` job holding the (validated) request document."""
         job_id = uuid.uuid4().hex
+        created_at = utc_now()
         with self._connect() as con:  # one statement: seq is unique under concurrent inserts
             con.execute(
                 "INSERT INTO jobs (id, kind, status, request, seq, created_at)"
                 " SELECT ?, ?, 'queued', ?, COALESCE(MAX(seq), 0) + 1, ? FROM jobs",
-                (job_id, kind, json.dumps(request, allow_nan=False), utc_now()),
+                (job_id, kind, json.dumps(request, allow_nan=False), created_at),
             )
-        job = self.get(job_id)
-        assert job is not None
-        return job
+        return Job(
+            id=job_id,
+            kind=kind,
+            status="queued",
+            progress=0.0,
+            message="",
+            error=None,
+            created_at=created_at,
+            started_at=None,
+            finished_at=None,
+            request=request,
+            result=None,
+            figures={},
+        )
 
     def get(self, job_id: str) -> Job | None:
         with self._connect() as con:
             row = con.execute("SELECT * FROM jobs WHERE id = ?", (job_id,)).fetchone()
         return None if row is None else Job.from_row(row)
+
+    def head(self, job_id: str) -> JobHead | None:
+        """The job's state without decoding its request and result."""
+        with self._connect() as con:
+            row = con.execute(f"SELECT {_HEAD_SELECT} FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        return None if row is None else JobHead.from_row(row)
 
     def list_jobs(
         self,
@@ -172,8 +190,9 @@ class JobStore:
         offset: int = 0,
         status: JobStatus | None = None,
         kind: str | None = None,
-    ) -> tuple[list[Job], int]:
-        """A page of jobs, newest first, and the total count matching the filters."""
+    ) -> tuple[list[JobHead], int]:
+        """A page of jobs (without their documents), newest first, and the total count
+        matching the filters."""
         where: list[str] = []
         args: list[str] = []
         if status is not None:
@@ -186,10 +205,10 @@ class JobStore:
         with self._connect() as con:
             total = con.execute(f"SELECT COUNT(*) FROM jobs {clause}", args).fetchone()[0]
             rows = con.execute(
-                f"SELECT * FROM jobs {clause} ORDER BY seq DESC LIMIT ? OFFSET ?",
+                f"SELECT {_HEAD_SELECT} FROM jobs {clause} ORDER BY seq DESC LIMIT ? OFFSET ?",
                 [*args, limit, offset],
             ).fetchall()
-        return [Job.from_row(r) for r in rows], int(total)
+        return [JobHead.from_row(r) for r in rows], int(total)
 
     def ids_with_status(self, status: JobStatus) -> list[str]:
         """Ids of all jobs with this status, oldest first."""
@@ -230,11 +249,6 @@ class JobStore:
             "UPDATE jobs SET progress = ?, message = ? WHERE status = 'running' AND id = ?",
             (frac, str(message)[:500]),
         )
-
-    def status_of(self, job_id: str) -> JobStatus | None:
-        with self._connect() as con:
-            row = con.execute("SELECT status FROM jobs WHERE id = ?", (job_id,)).fetchone()
-        return None if row is None else row["status"]
 
     def succeed(self, job_id: str, result: dict[str, Any], figures: dict[str, str]) -> bool:
         """running → succeeded with the result document and its figures (name → file name in

@@ -32,7 +32,7 @@ from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
 from api.store import JobStore
-from ris_planner.cli import format_validation_error
+from ris_planner.cli import validation_problems
 from ris_planner.errors import RisPlannerError
 from ris_planner.progress import ProgressCallback
 
@@ -82,7 +82,7 @@ class StoreProgress:
 def describe_error(exc: BaseException) -> str:
     """A one-line message for a failed job (the field paths for validation errors)."""
     if isinstance(exc, ValidationError):  # the CLI's message, on one line
-        return format_validation_error(exc).replace(":\n  ", ": ").replace("\n  ", "; ")
+        return "invalid document: " + "; ".join(validation_problems(exc))
     if isinstance(exc, RisPlannerError):
         return str(exc)
     return f"{type(exc).__name__}: {exc}"
@@ -200,7 +200,7 @@ class JobRunner:
     # -- dispatcher thread ---------------------------------------------------------------------
 
     def _launch(self, job_id: str) -> None:
-        job = self.store.get(job_id)
+        job = self.store.head(job_id)
         if job is None or job.status != "queued":
             return
         func = self.kinds.get(job.kind)

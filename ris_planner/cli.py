@@ -22,13 +22,17 @@ from ris_planner.scenario import PRESET_NAMES, Scenario, load_scenario
 EXIT_INPUT_ERROR = 2
 
 
+def validation_problems(exc: ValidationError) -> list[str]:
+    """One ``field.path: message`` per problem (``ris.1.position: ...``)."""
+    return [
+        f"{'.'.join(str(p) for p in err['loc']) or '(document)'}: {err['msg']}"
+        for err in exc.errors()
+    ]
+
+
 def format_validation_error(exc: ValidationError) -> str:
-    """One line per problem, naming the field path (``ris.1.position: ...``)."""
-    lines = []
-    for err in exc.errors():
-        loc = ".".join(str(p) for p in err["loc"]) or "(document)"
-        lines.append(f"{loc}: {err['msg']}")
-    return "invalid document:\n  " + "\n  ".join(lines)
+    """One line per problem, naming the field path."""
+    return "invalid document:\n  " + "\n  ".join(validation_problems(exc))
 
 
 def add_document_arguments(parser: argparse.ArgumentParser) -> None:

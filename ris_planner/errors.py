@@ -9,4 +9,9 @@ class RisPlannerError(ValueError):
 
 
 class LimitExceededError(RisPlannerError):
-    """A request is larger than a configured limit (pairs, layouts, runs)."""
+    """A request is larger than a configured limit (pairs, layouts, runs); ``limit`` is the
+    limit's value where the raiser states it (the service reports it in its 413 body)."""
+
+    def __init__(self, message: str, limit: int | None = None) -> None:
+        super().__init__(message)
+        self.limit = limit

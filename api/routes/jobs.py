@@ -57,7 +57,7 @@ def list_jobs(
     jobs, total = store.list_jobs(limit=limit, offset=offset, status=status, kind=kind)
     nxt = offset + len(jobs)
     return JobPage(
-        items=[JobSummary.of(j) for j in jobs],
+        items=[JobSummary.of_head(j) for j in jobs],
         total=total,
         limit=limit,
         offset=offset,
@@ -85,11 +85,11 @@ def cancel_job(
     runner: Annotated[JobRunner, Depends(get_runner)],
 ) -> JobView:
     """A running job's worker process is terminated; the job ends as ``cancelled``."""
-    job = _job(store, job_id)
-    if not runner.cancel(job_id):
-        job = _job(store, job_id)
+    applied = runner.cancel(job_id)
+    job = _job(store, job_id)  # 404 for an unknown id (nothing was cancelled then)
+    if not applied:
         raise JobConflictError(f"job {job_id} has already ended ({job.status}); nothing to cancel")
-    return JobView.of(_job(store, job_id))
+    return JobView.of(job)
 
 
 @router.get(

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from fastapi import APIRouter, Body, Depends, Query
 from fastapi.responses import JSONResponse
@@ -15,13 +15,10 @@ from api.routes.jobs import submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
-from ris_planner.power.sdp import Objective
+from ris_planner.power.sdp import Objective, Solver
 from ris_planner.scenario import Scenario
 
 router = APIRouter(tags=["jobs"])
-
-Solver = Literal["CLARABEL", "SCS"]
-"""``ris_planner.power.sdp.SOLVERS`` as a type (a test checks that they agree)."""
 
 
 @router.post(

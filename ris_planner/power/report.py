@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,7 +43,7 @@ MAX_DESIGN_POSITIONS = 256
 MAX_DESIGN_BEAMS = 4096
 """First-block beams (SDP variables)."""
 
-OBJECTIVES: tuple[Objective, ...] = ("rx", "tx", "sum")
+OBJECTIVES: tuple[Objective, ...] = get_args(Objective)
 
 
 def design_objective(

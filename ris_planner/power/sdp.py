@@ -21,7 +21,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import cvxpy as cp
 import numpy as np
@@ -35,7 +35,8 @@ FloatArray = NDArray[np.float64]
 Objective = Literal["rx", "tx", "sum"]
 SolverStatus = Literal["optimal", "inaccurate", "infeasible", "failed"]
 
-SOLVERS = ("CLARABEL", "SCS")
+Solver = Literal["CLARABEL", "SCS"]
+SOLVERS: tuple[Solver, ...] = get_args(Solver)
 
 _STATUS: dict[str, SolverStatus] = {
     cp.OPTIMAL: "optimal",
