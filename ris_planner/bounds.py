@@ -208,6 +208,25 @@ def ris_path_information(
     return PathInfo(name, efim, geo.jacobian()), far
 
 
+def beam_weights(
+    scenario: Scenario, beam_powers: ArrayLike | None = None, *, codebook_default: bool = True
+) -> FloatArray:
+    """[G̃] powers δ² of the first-block beams, repeated over the Γ blocks so the
+    time-orthogonal separation holds (mean 1 keeps ‖δ‖² = G): ``beam_powers`` when given, else
+    what the document's codebook prescribes (γ_P of a DIR+DER codebook) when
+    ``codebook_default``, else uniform. The one rule for the bounds and the signal simulator.
+    """
+    g_tilde = codebooks.block_length(scenario.system.transmissions, len(scenario.ris))
+    if beam_powers is not None:
+        weights = np.asarray(beam_powers, dtype=float)
+    else:
+        prescribed = beams.codebook_beam_powers(scenario) if codebook_default else None
+        weights = np.ones(g_tilde) if prescribed is None else prescribed
+    if weights.shape != (g_tilde,):
+        raise ValueError(f"beam_powers must hold G/Γ = {g_tilde} values, got {weights.shape}")
+    return weights
+
+
 def path_information(
     scenario: Scenario,
     tx: FloatArray,
@@ -218,17 +237,14 @@ def path_information(
     """Every path's equivalent FIM and Jacobian, and the far-field flags [P, L].
 
     tx, rx : [P, 3]; profiles : first-block profiles per RIS or ``None`` (expected random);
-    beam_powers : [G̃] powers δ² of the first-block beams, repeated over the Γ blocks so the
-    time-orthogonal separation holds (mean 1 keeps ‖δ‖² = G); default all ones.
+    beam_powers : [G̃] powers δ² of the first-block beams (:func:`beam_weights`); default all
+    ones.
     """
     system = scenario.system
     radio = fim.Radio.from_system(system)
     n_ris = len(scenario.ris)
     gamma = codebooks.block_count(system.transmissions, n_ris)
-    g_tilde = system.transmissions // gamma
-    weights = np.ones(g_tilde) if beam_powers is None else np.asarray(beam_powers, dtype=float)
-    if weights.shape != (g_tilde,):
-        raise ValueError(f"beam_powers must hold G/Γ = {g_tilde} values, got {weights.shape}")
+    weights = beam_weights(scenario, beam_powers, codebook_default=False)
     paths: list[PathInfo] = []
     if system.los:
         paths.append(los_path_information(tx, rx, radio, float(gamma * weights.sum())))
@@ -330,10 +346,7 @@ def compute_bounds(
         tx_a[bad] += np.array([0.31, 0.17, 0.13])
         rx_a[bad] += np.array([-0.23, 0.29, -0.11])
     prof = first_block_profiles(scenario) if isinstance(profiles, str) else profiles
-    if beam_powers is None:  # a DIR+DER codebook's γ_P prescribes the powers of its beams
-        powers = beams.codebook_beam_powers(scenario) if isinstance(profiles, str) else None
-    else:
-        powers = np.asarray(beam_powers, dtype=float)
+    powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     f = np.sum([p.state_information() for p in paths], axis=0)
     n_obs = 3 * len(scenario.ris) + (1 if scenario.system.los else 0)

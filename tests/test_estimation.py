@@ -126,6 +126,23 @@ def test_simulated_signal_fisher_information_matches_core(
     np.testing.assert_allclose(fd / scale, core / scale, rtol=0, atol=1e-7)
 
 
+def test_power_controlled_codebook_simulated_as_bounded(rng: np.random.Generator) -> None:
+    """A DIR+DER codebook with γ_P prescribes unequal beam powers: the simulator must transmit
+    with the powers the bounds assume (same finite-difference check and tolerance as above)."""
+    doc = small_scenario_doc(rng) | {
+        "codebook": {
+            "kind": "directional_derivative",
+            "prior": {"sigma_m": 0.1, "samples": 1, "seed": 0},
+            "gamma_p": 0.3,
+        }
+    }
+    powers = signal_setup(load_scenario(doc)).beam_weights
+    assert np.ptp(powers) > 1  # really unequal powers
+    fd, core = _fd_state_fim(doc)
+    scale = np.sqrt(np.outer(np.diag(core), np.diag(core)))
+    np.testing.assert_allclose(fd / scale, core / scale, rtol=0, atol=1e-7)
+
+
 def test_table1_fisher_information_matches_core() -> None:
     """The same check on the full Table I signal (K = 512, G = 192, 10×10 RISs)."""
     fd, core = _fd_state_fim(table1())

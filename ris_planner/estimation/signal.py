@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import codebooks, geometry
-from ris_planner.bounds import first_block_profiles
+from ris_planner.bounds import beam_weights, first_block_profiles
 from ris_planner.estimation.models import Multipath
 from ris_planner.fim import Radio
 from ris_planner.scenario import Scenario
@@ -131,7 +131,9 @@ def signal_setup(
     """Profiles, codes, pilots and radio constants for a scenario.
 
     beam_powers : [G̃] powers δ² of the first-block beams (repeated over the Γ blocks, as the
-    bounds assume); default all ones. Pilots x_k are unit-modulus with seeded random phases.
+    bounds assume); default the codebook's (:func:`ris_planner.bounds.beam_weights`: γ_P powers
+    of a DIR+DER codebook, else uniform), so the simulated signal and its bounds agree.
+    Pilots x_k are unit-modulus with seeded random phases.
     """
     system = scenario.system
     n_ris = len(scenario.ris)
@@ -144,8 +146,8 @@ def signal_setup(
             "codebook.kind = 'expected_random' is an expectation, not profiles a RIS can apply;"
             " use 'random' (seeded) or 'explicit' for simulation"
         )
-    weights = np.ones(g_tilde) if beam_powers is None else np.asarray(beam_powers, dtype=float)
-    if weights.shape != (g_tilde,) or np.any(weights < 0):
+    weights = beam_weights(scenario, beam_powers)
+    if np.any(weights < 0):
         raise ValueError(f"beam_powers must hold G/Γ = {g_tilde} values ≥ 0")
     arrays = ris_arrays(scenario)
     full = tuple(codebooks.expand_profiles(profiles[i], code[:, i + 1]) for i in range(n_ris))
