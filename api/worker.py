@@ -38,7 +38,7 @@ from ris_planner.progress import ProgressCallback
 
 log = logging.getLogger("api.worker")
 
-PRELOAD_MODULES = ["api.worker", "api.kinds", "ris_planner.planning", "ris_planner.power"]
+PRELOAD_MODULES = ["api.worker", "api.kinds", "ris_planner.planning", "ris_planner.power.report"]
 """Imported once by the forkserver so each job's process starts without re-importing them."""
 
 PROGRESS_INTERVAL_S = 0.2

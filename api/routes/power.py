@@ -15,7 +15,7 @@ from api.routes.jobs import submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
-from ris_planner.power.sdp import Objective, Solver
+from ris_planner.power.options import Objective, Solver
 from ris_planner.scenario import Scenario
 
 router = APIRouter(tags=["jobs"])

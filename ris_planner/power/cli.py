@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 
 from ris_planner.cli import add_document_arguments, print_json, read_document
-from ris_planner.power.report import OBJECTIVES, run_power
-from ris_planner.power.sdp import SOLVERS
+from ris_planner.power.options import OBJECTIVES, SOLVERS
 from ris_planner.progress import ProgressBar
 
 
 def _cmd_power(args: argparse.Namespace) -> int:
+    from ris_planner.power.report import run_power  # loads cvxpy: only when the command runs
+
     result = run_power(
         read_document(args),
         progress=ProgressBar("power") if args.progress else lambda f, m: None,

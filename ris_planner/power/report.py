@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, get_args
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,8 +20,8 @@ from ris_planner.bounds import ComplexArray, compute_bounds, first_block_profile
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.power.gamma import GammaSearch, search_gamma_p
 from ris_planner.power.information import beam_information
+from ris_planner.power.options import OBJECTIVES, Objective
 from ris_planner.power.sdp import (
-    Objective,
     SdpResult,
     mean_trace_bound,
     objective_index,
@@ -42,8 +42,6 @@ MAX_DESIGN_POSITIONS = 256
 """Positions (LMIs) of one SDP; the solve time grows about linearly with them."""
 MAX_DESIGN_BEAMS = 4096
 """First-block beams (SDP variables)."""
-
-OBJECTIVES: tuple[Objective, ...] = get_args(Objective)
 
 
 def design_objective(

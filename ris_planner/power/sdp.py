@@ -21,7 +21,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Literal, get_args
+from typing import Literal
 
 import cvxpy as cp
 import numpy as np
@@ -30,13 +30,11 @@ from numpy.typing import NDArray
 from ris_planner.bounds import fim_inverse_diagonal
 from ris_planner.errors import RisPlannerError
 from ris_planner.power.information import BeamInformation
+from ris_planner.power.options import SOLVERS, Objective
 
 FloatArray = NDArray[np.float64]
-Objective = Literal["rx", "tx", "sum"]
 SolverStatus = Literal["optimal", "inaccurate", "infeasible", "failed"]
 
-Solver = Literal["CLARABEL", "SCS"]
-SOLVERS: tuple[Solver, ...] = get_args(Solver)
 
 _STATUS: dict[str, SolverStatus] = {
     cp.OPTIMAL: "optimal",
