@@ -48,8 +48,7 @@ ZERO_AMPLITUDE_RTOL = 1e-12
 
 def ris_element_positions(ris: RIS, wavelength: float) -> FloatArray:
     """Local element positions of a RIS, [N, 3] (spacing λ/2 unless given)."""
-    spacing = wavelength / 2 if ris.spacing_m is None else ris.spacing_m
-    return geometry.element_positions(ris.rows, ris.cols, spacing)
+    return geometry.element_positions(ris.rows, ris.cols, ris.element_spacing(wavelength))
 
 
 def directional_beams(

@@ -190,8 +190,7 @@ def ris_path_information(
     profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
     block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks.
     """
-    spacing = radio.wavelength / 2 if ris.spacing_m is None else ris.spacing_m
-    pos = geometry.element_positions(ris.rows, ris.cols, spacing)
+    pos = beams.ris_element_positions(ris, radio.wavelength)
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
     alpha = geo.gain(radio.wavelength)
     if profile is None:
@@ -203,7 +202,9 @@ def ris_path_information(
         t = fim.transmission_vectors(profile, pos, geo.xi, geo.zeta, radio.wavelength)
         q = block_count * fim.transmission_gram(t, weights)
         efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 3)
-    limit = geometry.fraunhofer_distance(ris.rows, ris.cols, spacing, radio.wavelength)
+    limit = geometry.fraunhofer_distance(
+        ris.rows, ris.cols, ris.element_spacing(radio.wavelength), radio.wavelength
+    )
     far = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
     return PathInfo(name, efim, geo.jacobian()), far
 

@@ -201,6 +201,10 @@ class RIS(_Model):
     def elements(self) -> int:
         return self.rows * self.cols
 
+    def element_spacing(self, wavelength: float) -> float:
+        """Element spacing d [m]: ``spacing_m``, default λ/2."""
+        return wavelength / 2 if self.spacing_m is None else self.spacing_m
+
 
 class RandomCodebook(_Model):
     """Uniform random phases for the first block (section IV-A, Random Codebook), seeded."""

@@ -18,7 +18,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import codebooks, geometry
+from ris_planner import beams, codebooks, geometry
 from ris_planner.bounds import beam_weights, first_block_profiles
 from ris_planner.estimation.models import Multipath
 from ris_planner.fim import Radio
@@ -50,21 +50,18 @@ class RisArray:
 def ris_arrays(scenario: Scenario) -> tuple[RisArray, ...]:
     """Pose and element grid of every RIS (element spacing λ/2 unless given)."""
     lam = scenario.system.wavelength
-    out = []
-    for r in scenario.ris:
-        spacing = lam / 2 if r.spacing_m is None else r.spacing_m
-        out.append(
-            RisArray(
-                position=np.asarray(r.position, dtype=float),
-                rotation=geometry.rotation_matrix(r.orientation),
-                orientation=np.asarray(r.orientation, dtype=float),
-                elements=geometry.element_positions(r.rows, r.cols, spacing),
-                rows=r.rows,
-                cols=r.cols,
-                spacing=spacing,
-            )
+    return tuple(
+        RisArray(
+            position=np.asarray(r.position, dtype=float),
+            rotation=geometry.rotation_matrix(r.orientation),
+            orientation=np.asarray(r.orientation, dtype=float),
+            elements=beams.ris_element_positions(r, lam),
+            rows=r.rows,
+            cols=r.cols,
+            spacing=r.element_spacing(lam),
         )
-    return tuple(out)
+        for r in scenario.ris
+    )
 
 
 @dataclass(frozen=True)
