@@ -125,8 +125,8 @@ def cost_map(
     channel = noise_free_channel(scenario, tx_a, rx_a)
     cc = candidate_costs(ris, scenario.system.wavelength, channel, cand, pair_weights, path_weights)
     cost = cc.cost.reshape(gx.shape)
-    big = np.where(np.isfinite(cost), cost, np.inf)
-    local = (minimum_filter(big, size=3, mode="nearest") == big) & np.isfinite(big)
+    # candidate_costs maps every non-finite cost to inf
+    local = (minimum_filter(cost, size=3, mode="nearest") == cost) & np.isfinite(cost)
     idx = np.flatnonzero(local.ravel())
     idx = idx[np.argsort(cc.cost[idx])][:n_minima]
     minima = [

@@ -153,13 +153,10 @@ class ChannelEstimator:
     ) -> tuple[float, FloatArray, complex]:
         """Concentrated likelihood, gradient on (ξ, ζ, r) [3] and ρ̂ for RIS path ``index``."""
         s = self.setup
-        arr = s.ris[index]
-        kw = 2 * np.pi / s.wavelength
-        y, z = arr.elements[:, 1], arr.elements[:, 2]
-        a = np.exp(1j * kw * (y * eta[0] + z * eta[1]))
-        prof = s.profiles[index]
-        # [3, G̃]: ω_g^T ∂a/∂ξ, ω_g^T ∂a/∂ζ, ω_g^T a
-        t = prof @ np.stack([1j * kw * y * a, 1j * kw * z * a, a], axis=-1)
+        # [G̃, 3]: ω_g^T ∂a/∂ξ, ω_g^T ∂a/∂ζ, ω_g^T a
+        t = fim.transmission_vectors(
+            s.profiles[index], s.ris[index].elements, eta[:1], eta[1:2], s.wavelength
+        )[0]
         dl = np.sqrt(s.beam_weights)
         cd = np.exp(1j * s.kappa * eta[2])
         sv = cd @ h
@@ -278,13 +275,6 @@ class ChannelEstimator:
             )
             xi[i], zeta[i], length[i + 1] = eta
         return ChannelEstimate(length=length, xi=xi, zeta=zeta, gain=gain, efim=tuple(efims))
-
-    def estimate(
-        self, ytilde: ComplexArray, max_iter: int = 50
-    ) -> tuple[ChannelEstimate, ChannelEstimate]:
-        """(coarse, refined) channel estimates: Algorithm 1 in full."""
-        coarse = self.coarse(ytilde)
-        return coarse, self.refine(ytilde, coarse, max_iter)
 
 
 def unwrap_lengths(length: FloatArray, period: float) -> FloatArray:

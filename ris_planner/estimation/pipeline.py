@@ -49,7 +49,6 @@ class Estimator:
     def estimate(self, ytilde: ComplexArray) -> FullEstimate:
         """Run both algorithms on the separated observations Ỹ [L+1, K, G̃]."""
         s, st = self.setup, self.settings
-        times: dict[str, float] = {}
         t0 = time.perf_counter()
         ch_coarse = self.channel.coarse(ytilde)
         t1 = time.perf_counter()
