@@ -64,7 +64,8 @@ Point3 = Annotated[
 ]
 
 
-def _finite_point(value: list[float], what: str) -> list[float]:
+def finite_point(value: list[float], what: str) -> list[float]:
+    """Finite coordinates within ±MAX_COORDINATE_M, as floats; a ValueError naming ``what``."""
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{what} must be finite numbers, got {value}")
@@ -73,11 +74,13 @@ def _finite_point(value: list[float], what: str) -> list[float]:
     return [float(v) for v in arr]
 
 
-class _Model(BaseModel):
+class DocumentModel(BaseModel):
+    """Base of every JSON document model: unknown fields are errors, instances are frozen."""
+
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-class SystemParams(_Model):
+class SystemParams(DocumentModel):
     """Radio parameters (Table I). ``P`` is the per-transmission power of eq.
     transmission_matrix; the noise variance is σ² = W·N0·NF (linear)."""
 
@@ -155,7 +158,7 @@ class SystemParams(_Model):
         )
 
 
-class RIS(_Model):
+class RIS(DocumentModel):
     """One RIS: pose and element grid (DESIGN.md conventions).
 
     R = Rz(yaw)·Ry(pitch)·Rx(roll); the RIS faces its local +x axis; elements on the local
@@ -187,7 +190,7 @@ class RIS(_Model):
     @field_validator("position")
     @classmethod
     def _check_position(cls, v: list[float]) -> list[float]:
-        return _finite_point(v, "RIS position")
+        return finite_point(v, "RIS position")
 
     @field_validator("orientation")
     @classmethod
@@ -206,14 +209,14 @@ class RIS(_Model):
         return wavelength / 2 if self.spacing_m is None else self.spacing_m
 
 
-class RandomCodebook(_Model):
+class RandomCodebook(DocumentModel):
     """Uniform random phases for the first block (section IV-A, Random Codebook), seeded."""
 
     kind: Literal["random"] = Field("random", description="Codebook kind (discriminator)")
     seed: int = Field(0, ge=0, description="Seed of the phase draw (numpy default_rng)")
 
 
-class ExpectedRandomCodebook(_Model):
+class ExpectedRandomCodebook(DocumentModel):
     """Closed-form expectation of the FIM over uniform random phases (deterministic)."""
 
     kind: Literal["expected_random"] = Field(
@@ -221,7 +224,7 @@ class ExpectedRandomCodebook(_Model):
     )
 
 
-class ExplicitCodebook(_Model):
+class ExplicitCodebook(DocumentModel):
     """Phases of the first block: one entry per RIS, G/Γ rows × N phases [rad]."""
 
     kind: Literal["explicit"] = Field("explicit", description="Codebook kind (discriminator)")
@@ -238,7 +241,7 @@ PSD_TOLERANCE = 1e-12
 rounding of a symmetric matrix entered with ~16 digits cannot push a PSD eigenvalue lower."""
 
 
-class PositionPrior(_Model):
+class PositionPrior(DocumentModel):
     """Gaussian prior on the nuisance-free state's positions [p_T, p_R] (section IV-A,
     DIR codebook): s_N ~ N(s̄_N, Σ̄). Means default to the document's ``tx`` and ``rx``.
 
@@ -265,7 +268,7 @@ class PositionPrior(_Model):
     @field_validator("tx_mean", "rx_mean")
     @classmethod
     def _check_mean(cls, v: list[float] | None) -> list[float] | None:
-        return None if v is None else _finite_point(v, "prior mean")
+        return None if v is None else finite_point(v, "prior mean")
 
     @field_validator("covariance")
     @classmethod
@@ -296,7 +299,7 @@ class PositionPrior(_Model):
         return self
 
 
-class DirectionalCodebook(_Model):
+class DirectionalCodebook(DocumentModel):
     """DIR codebook (eqs. RIS_profile_sum_beam, DIR_codebook): one beam a_R*(ξ, ζ) per sampled
     TX–RX pair; the first block cycles through the beams when fewer than G̃."""
 
@@ -304,7 +307,7 @@ class DirectionalCodebook(_Model):
     prior: PositionPrior = Field(description="Gaussian prior on the UE positions")
 
 
-class DirectionalDerivativeCodebook(_Model):
+class DirectionalDerivativeCodebook(DocumentModel):
     """DIR+DER codebook (eqs. sum_diff_beam_1–3, DER_codebook): per sampled pair the DIR beam
     and the two DER beams (projected to unit modulus); ``gamma_p`` is the DER/DIR amplitude
     ratio of eq. opt_formulation_3 (``None``: uniform power, i.e. γ_P = 1)."""
@@ -338,15 +341,15 @@ def _points(value: Any, what: str) -> list[list[float]]:
     if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
         raise ValueError(f"{what} must be one [x, y, z] point or a non-empty list of them")
     # vectorised check (a batch of 10k pairs validated in ms, not a Python loop per point);
-    # the first bad point goes through _finite_point for the same message as a single point
+    # the first bad point goes through finite_point for the same message as a single point
     bad = ~np.all(np.isfinite(arr), axis=1) | np.any(np.abs(arr) > MAX_COORDINATE_M, axis=1)
     if np.any(bad):
-        _finite_point(arr[int(np.argmax(bad))].tolist(), what)
+        finite_point(arr[int(np.argmax(bad))].tolist(), what)
     points: list[list[float]] = arr.tolist()
     return points
 
 
-class Scenario(_Model):
+class Scenario(DocumentModel):
     """The scenario document of DESIGN.md.
 
     ``tx`` and ``rx`` are one point each or equal-length lists of points (a batch of pairs).

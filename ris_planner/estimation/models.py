@@ -11,10 +11,17 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ris_planner.errors import LimitExceededError
-from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M, Point3, Scenario, load_scenario
+from ris_planner.scenario import (
+    MIN_UE_RIS_DISTANCE_M,
+    DocumentModel,
+    Point3,
+    Scenario,
+    finite_point,
+    load_scenario,
+)
 
 MAX_SEARCH_CANDIDATES = 2_000_000
 """More TX candidates than this in the coarse search box is refused (memory ~ 1 KB each)."""
@@ -25,18 +32,7 @@ ScatterSide = Literal["tx", "rx"]
 uncontrolled TX–SP–RX path (eq. channel_LOS_MP)."""
 
 
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-def _finite3(v: list[float], what: str) -> list[float]:
-    arr = np.asarray(v, dtype=float)
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what} must be finite numbers, got {v}")
-    return [float(x) for x in arr]
-
-
-class Scatterer(_Model):
+class Scatterer(DocumentModel):
     """One scattering point with radar cross section c [m²] (Simulation Parameters)."""
 
     position: Point3
@@ -46,10 +42,10 @@ class Scatterer(_Model):
     @field_validator("position")
     @classmethod
     def _check(cls, v: list[float]) -> list[float]:
-        return _finite3(v, "scatterer position")
+        return finite_point(v, "scatterer position")
 
 
-class ScattererCluster(_Model):
+class ScattererCluster(DocumentModel):
     """``count`` SPs drawn uniformly in a horizontal disk (redrawn every realisation)."""
 
     center: Point3
@@ -61,10 +57,10 @@ class ScattererCluster(_Model):
     @field_validator("center")
     @classmethod
     def _check(cls, v: list[float]) -> list[float]:
-        return _finite3(v, "cluster center")
+        return finite_point(v, "cluster center")
 
 
-class Multipath(_Model):
+class Multipath(DocumentModel):
     """Fixed scattering points and random clusters; empty means no multipath."""
 
     scatterers: list[Scatterer] = Field(default_factory=list, max_length=1000)
@@ -75,7 +71,7 @@ class Multipath(_Model):
         return not self.scatterers and not self.clusters
 
 
-class SearchArea(_Model):
+class SearchArea(DocumentModel):
     """The TX candidates of Algorithm 2's coarse search: a box sampled with ``step_m``.
 
     Either an explicit box (``min_m``, ``max_m``) or ``half_width_m`` around ``center``
@@ -135,7 +131,7 @@ class SearchArea(_Model):
         return np.stack([g.ravel() for g in grid], axis=-1)
 
 
-class EstimatorSettings(_Model):
+class EstimatorSettings(DocumentModel):
     """Settings of Algorithms 1 and 2."""
 
     delay_fft_size: int = Field(
@@ -169,7 +165,7 @@ class EstimatorSettings(_Model):
         return v
 
 
-class SimulationDocument(_Model):
+class SimulationDocument(DocumentModel):
     """What ``ris-planner simulate`` reads: scenario, multipath and estimator settings."""
 
     scenario: Scenario

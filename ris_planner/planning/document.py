@@ -14,15 +14,16 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ris_planner.scenario import (
-    MAX_COORDINATE_M,
     RIS,
+    DocumentModel,
     KnownPart,
     Point3,
     Scenario,
     SystemParams,
+    finite_point,
 )
 
 MAX_MAP_POINTS = 1_000_000
@@ -40,10 +41,6 @@ MAX_CACHE_ENTRIES = 4_000_000
 each local worker process holds a copy)."""
 
 
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
 Range = Annotated[
     list[float],
     Field(
@@ -57,13 +54,6 @@ Point2 = Annotated[
 ]
 
 
-def _finite(values: list[float], what: str) -> list[float]:
-    arr = np.asarray(values, dtype=float)
-    if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > MAX_COORDINATE_M):
-        raise ValueError(f"{what} must be finite and within ±{MAX_COORDINATE_M:g} m, got {values}")
-    return [float(v) for v in arr]
-
-
 def range_count(r: list[float], what: str) -> int:
     """Number of values of a [start, stop, step] range (stop included)."""
     start, stop, step = r
@@ -74,7 +64,7 @@ def range_count(r: list[float], what: str) -> int:
     return math.floor((stop - start) / step + 1e-9) + 1
 
 
-class GridMap(_Model):
+class GridMap(DocumentModel):
     """A regular grid of UE positions, x-major order (x outer, then y, then z)."""
 
     x: Range
@@ -87,7 +77,7 @@ class GridMap(_Model):
     @field_validator("x", "y", "z")
     @classmethod
     def _check_range(cls, v: list[float], info: Any) -> list[float]:
-        v = _finite(v, f"grid.{info.field_name}")
+        v = finite_point(v, f"grid.{info.field_name}")
         n = range_count(v, f"grid.{info.field_name}")
         if n > MAX_MAP_POINTS:
             raise ValueError(f"grid.{info.field_name} has {n} values (limit {MAX_MAP_POINTS})")
@@ -107,7 +97,7 @@ class GridMap(_Model):
         return range_count(self.x, "x") * range_count(self.y, "y") * range_count(self.z, "z")
 
 
-class Road(_Model):
+class Road(DocumentModel):
     """A road: a polyline in the x–y plane with a width; UEs are sampled on a lattice along and
     across it at ``step_m`` (lateral offsets symmetric about the centre line), at ``height_m``."""
 
@@ -124,10 +114,10 @@ class Road(_Model):
     @field_validator("points")
     @classmethod
     def _check_points(cls, v: list[list[float]]) -> list[list[float]]:
-        return [_finite(p, "road point") for p in v]
+        return [finite_point(p, "road point") for p in v]
 
 
-class UEMap(_Model):
+class UEMap(DocumentModel):
     """Where UEs are: any combination of a grid, weighted points, roads and CSV rows (all
     concatenated). Weights are relative (they need not sum to one)."""
 
@@ -146,7 +136,7 @@ class UEMap(_Model):
     @field_validator("points")
     @classmethod
     def _check_points(cls, v: list[list[float]] | None) -> list[list[float]] | None:
-        return None if v is None else [_finite(p, "map point") for p in v]
+        return None if v is None else [finite_point(p, "map point") for p in v]
 
     @field_validator("weights")
     @classmethod
@@ -170,7 +160,7 @@ class UEMap(_Model):
         return self
 
 
-class PairSample(_Model):
+class PairSample(DocumentModel):
     """A seeded weighted sample: TX and RX drawn independently with probabilities ∝ their map
     weights (pairs with coinciding positions redrawn); every sampled pair weighs 1."""
 
@@ -181,7 +171,7 @@ class PairSample(_Model):
 PairsSpec = Literal["all", "unordered"] | PairSample
 
 
-class Candidate(_Model):
+class Candidate(DocumentModel):
     """An explicit candidate site: a RIS pose (DESIGN.md conventions; faces local +x)."""
 
     position: Point3
@@ -198,7 +188,7 @@ class Candidate(_Model):
         return self
 
 
-class Wall(_Model):
+class Wall(DocumentModel):
     """Mounting sites on a wall: a segment (``start``, ``end``) or a building footprint
     (``rectangle``, four walls facing outwards), sampled every ``spacing_m`` along the wall at
     every height and tilt. A RIS faces the wall's normal (yaw) and is tilted by ``tilt``
@@ -232,7 +222,7 @@ class Wall(_Model):
         if seg == (self.rectangle is not None) or (self.start is None) != (self.end is None):
             raise ValueError("a wall is either start + end (a segment) or a rectangle")
         pts = [*(self.rectangle or []), *(self.start or []), *(self.end or [])]
-        _finite(pts + list(self.heights_m), "wall coordinate")
+        finite_point(pts + list(self.heights_m), "wall coordinate")
         if seg and np.allclose(self.start, self.end):  # type: ignore[arg-type]
             raise ValueError("wall start and end coincide")
         if self.rectangle is not None:
@@ -244,7 +234,7 @@ class Wall(_Model):
         return self
 
 
-class PlanCodebook(_Model):
+class PlanCodebook(DocumentModel):
     """The codebook of the plan: the scenario document's ``expected_random`` (the closed-form
     expectation of the FIM over uniformly random phases, deterministic)."""
 
@@ -255,7 +245,7 @@ class PlanCodebook(_Model):
     )
 
 
-class RISDefaults(_Model):
+class RISDefaults(DocumentModel):
     """The element grid of every candidate RIS (the scenario document's per-RIS fields)."""
 
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
@@ -265,7 +255,7 @@ class RISDefaults(_Model):
     )
 
 
-class Objective(_Model):
+class Objective(DocumentModel):
     """What a layout is scored on, over the weighted pairs. ``metric``: ``rx`` (PEB_R), ``tx``
     (PEB_T) or ``max`` (max(PEB_T, PEB_R)), in metres. Blind spots (infinite bounds) fail:
     outside the coverage, at the cap, and at the top of the quantile."""
@@ -293,7 +283,7 @@ class Objective(_Model):
         return self
 
 
-class SearchSpec(_Model):
+class SearchSpec(DocumentModel):
     """The placement search."""
 
     method: Literal["auto", "exhaustive", "greedy"] = Field(
@@ -310,7 +300,7 @@ class SearchSpec(_Model):
     max_rounds: int = Field(50, ge=1, le=10000, description="Greedy: maximum swap rounds per start")
 
 
-class PlanDocument(_Model):
+class PlanDocument(DocumentModel):
     """A planning request: where UEs are, where RISs may go, what to optimise."""
 
     description: str | None = Field(None, max_length=2000, description="Free text")
@@ -359,7 +349,7 @@ class PlanDocument(_Model):
     @field_validator("heatmap_tx")
     @classmethod
     def _check_heatmap_tx(cls, v: list[float] | None) -> list[float] | None:
-        return None if v is None else _finite(v, "heatmap_tx")
+        return None if v is None else finite_point(v, "heatmap_tx")
 
     @field_validator("ris_count")
     @classmethod
