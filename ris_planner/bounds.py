@@ -304,14 +304,32 @@ def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
     return out
 
 
+def ue_on_ris(tx: FloatArray, rx: FloatArray, position: ArrayLike) -> NDArray[np.bool_]:
+    """[P] pairs with a UE within MIN_UE_RIS_DISTANCE_M of the RIS at ``position``."""
+    p = np.asarray(position, dtype=float)
+    near_tx = np.linalg.norm(tx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M
+    return np.asarray(near_tx | (np.linalg.norm(rx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M))
+
+
+def stand_ins(
+    tx: FloatArray, rx: FloatArray, bad: NDArray[np.bool_]
+) -> tuple[FloatArray, FloatArray]:
+    """The pairs with harmless stand-in positions where ``bad`` (degenerate pairs are evaluated
+    there so the batch stays finite, and their bounds are then reported inf)."""
+    if not np.any(bad):
+        return tx, rx
+    tx, rx = tx.copy(), rx.copy()
+    tx[bad] += np.array([0.31, 0.17, 0.13])
+    rx[bad] += np.array([-0.23, 0.29, -0.11])
+    return tx, rx
+
+
 def _degenerate_pairs(scenario: Scenario, tx: FloatArray, rx: FloatArray) -> NDArray[np.bool_]:
     bad = np.zeros(tx.shape[0], dtype=bool)
     if scenario.system.los:
         bad |= geometry.los_distance(tx, rx) < MIN_UE_RIS_DISTANCE_M
     for r in scenario.ris:
-        p = np.asarray(r.position)
-        bad |= np.linalg.norm(tx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M
-        bad |= np.linalg.norm(rx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M
+        bad |= ue_on_ris(tx, rx, r.position)
     return bad
 
 
@@ -342,10 +360,7 @@ def compute_bounds(
         raise ValueError("tx and rx must be finite coordinates")
     known_t: tuple[KnownPart, ...] = tuple(scenario.known if known is None else known)
     bad = _degenerate_pairs(scenario, tx_a, rx_a)
-    if np.any(bad):  # evaluate harmless stand-ins, report inf for the real ones
-        tx_a, rx_a = tx_a.copy(), rx_a.copy()
-        tx_a[bad] += np.array([0.31, 0.17, 0.13])
-        rx_a[bad] += np.array([-0.23, 0.29, -0.11])
+    tx_a, rx_a = stand_ins(tx_a, rx_a, bad)  # evaluated there, reported inf below
     prof = first_block_profiles(scenario) if isinstance(profiles, str) else profiles
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)

@@ -17,21 +17,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import fim
-from ris_planner.bounds import los_path_information, ris_path_information
+from ris_planner.bounds import los_path_information, ris_path_information, stand_ins, ue_on_ris
 from ris_planner.ldl import pack, unpack
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M, SystemParams
+from ris_planner.scenario import SystemParams
 
 FloatArray = NDArray[np.float64]
 
 N_STATES = 7
 N_PACKED = N_STATES * (N_STATES + 1) // 2
-
-# stand-in offsets for pairs with a UE on a site (their bounds are reported inf), as the core
-_TX_SHIFT = np.array([0.31, 0.17, 0.13])
-_RX_SHIFT = np.array([-0.23, 0.29, -0.11])
 
 
 @dataclass(frozen=True)
@@ -80,15 +76,8 @@ def build_site_cache(
     degenerate = np.zeros((len(sites), pairs.size), dtype=bool)
     far = np.zeros((len(sites), pairs.size), dtype=bool)
     for s, site in enumerate(sites):
-        p = np.asarray(site.ris.position)
-        bad = (np.linalg.norm(tx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M) | (
-            np.linalg.norm(rx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M
-        )
-        t, r = tx, rx
-        if np.any(bad):
-            t, r = tx.copy(), rx.copy()
-            t[bad] += _TX_SHIFT
-            r[bad] += _RX_SHIFT
+        bad = ue_on_ris(tx, rx, site.ris.position)
+        t, r = stand_ins(tx, rx, bad)  # as compute_bounds: bounds of these pairs become inf
         info, far[s] = ris_path_information(site.ris, t, r, radio, None, 1, ones)
         packed[:, s] = pack(info.state_information())
         degenerate[s] = bad
