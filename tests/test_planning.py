@@ -227,6 +227,11 @@ def test_maps_pairs_and_walls() -> None:
     pts = road_points(road).points
     assert len(pts) == 11 * 5 and np.all(pts[:, 2] == 1.2)
     assert pts[:, 1].min() == -2 and pts[:, 1].max() == 2
+    # a repeated end vertex adds no samples (it once stacked 5 copies of the end point)
+    repeated = d.tx_map.model_validate(
+        {"roads": [{"points": [[0, 0], [10, 0], [10, 0]], "width_m": 4, "step_m": 1}]}
+    ).roads[0]  # type: ignore[index]
+    np.testing.assert_array_equal(road_points(repeated).points[:, :2], pts[:, :2])
     # csv
     csv_map = d.tx_map.model_validate({"csv_text": "x,y,z,weight\n0,0,0,2\n1,1,0,0\n"})
     pm = build_map(csv_map, "tx")

@@ -56,6 +56,7 @@ def road_points(road: Road) -> PointMap:
     n_lat = int(np.floor(road.width_m / 2 / road.step_m + 1e-9))
     lateral = road.step_m * np.arange(-n_lat, n_lat + 1)
     pts: list[FloatArray] = []
+    normal = None  # of the last segment with a length: the end vertex's lateral direction
     for a, b in itertools.pairwise(verts):
         seg = b - a
         length = float(np.hypot(*seg))
@@ -72,16 +73,10 @@ def road_points(road: Road) -> PointMap:
         centre = a + s[:, None] * seg
         xy = centre[:, None, :] + lateral[None, :, None] * normal
         pts.append(xy.reshape(-1, 2))
-    tail = verts[-1] + lateral[:, None] * _last_normal(verts)
+    tail = verts[-1:] if normal is None else verts[-1] + lateral[:, None] * normal
     xy_all = np.concatenate([*pts, tail])
     xyz = np.column_stack([xy_all, np.full(len(xy_all), road.height_m)])
     return PointMap(xyz, np.full(len(xyz), road.weight))
-
-
-def _last_normal(verts: FloatArray) -> FloatArray:
-    seg = verts[-1] - verts[-2]
-    d = seg / max(float(np.hypot(*seg)), 1e-300)
-    return np.array([-d[1], d[0]])
 
 
 def csv_points(text: str) -> PointMap:
