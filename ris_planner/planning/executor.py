@@ -48,8 +48,6 @@ class Executor(ABC):
     """Runs ``fn(shared, chunk)`` for every chunk and returns the results in chunk order."""
 
     workers: int = 1
-    inline_single_chunk: bool = True
-    """Whether a job of one chunk may run in the calling process (no transfer)."""
 
     @abstractmethod
     def map(
@@ -154,8 +152,6 @@ class LocalExecutor(Executor):
 class DaskExecutor(Executor):
     """Dask distributed: ``address`` of a running scheduler (``tcp://host:8786``) or an
     existing ``distributed.Client``. ``shared`` is scattered to every worker once."""
-
-    inline_single_chunk = False
 
     def __init__(self, address: Any) -> None:
         from distributed import Client

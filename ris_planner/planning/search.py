@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.errors import LimitExceededError
 from ris_planner.ldl import packed_index
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.executor import Executor
@@ -73,7 +74,7 @@ def evaluate(
     n_chunks = math.ceil(b / per)
     if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk
         n_chunks = min(b, math.ceil(n_chunks / executor.workers) * executor.workers)
-    chunks = [c for c in np.array_split(layouts, n_chunks) if len(c)]
+    chunks = np.array_split(layouts, n_chunks)  # n_chunks ≤ b: none is empty
 
     def done(n: int) -> None:
         if on_fraction is not None:
@@ -199,8 +200,6 @@ def search(
         method = "exhaustive" if total <= spec.max_exhaustive else "greedy"
     if method == "exhaustive":
         if total > spec.max_exhaustive:
-            from ris_planner.errors import LimitExceededError
-
             raise LimitExceededError(
                 f"{total} layouts of {n_ris} among {n_sites} sites exceed"
                 f" search.max_exhaustive = {spec.max_exhaustive}; use method 'greedy' or 'auto'"
