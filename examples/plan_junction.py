@@ -24,7 +24,6 @@ import time
 from pathlib import Path
 
 from ris_planner.planning import LocalExecutor, SerialExecutor, plan_preset, run_plan, write_figures
-from ris_planner.planning.objectives import Scorer
 from ris_planner.planning.report import write_plan_json
 from ris_planner.planning.search import greedy
 from ris_planner.progress import ProgressBar
@@ -43,9 +42,9 @@ def main() -> None:
     with LocalExecutor(args.workers) as ex:
         result = run_plan(doc, ProgressBar("junction"), ex)
     elapsed = time.perf_counter() - t0
-    write_plan_json(result, args.out)
-    figures = write_figures(result, args.out)
     plan = result.to_json()
+    write_plan_json(plan, args.out)
+    figures = write_figures(result, args.out)
     with (args.out / "by_count.csv").open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["ris_count", "sites", "coverage", "median_m", "p90_m", "marginal_gain",
@@ -67,11 +66,10 @@ def main() -> None:
         for n in names:
             print(f"    {n}")
     if args.check_greedy:
-        scorer = Scorer(result.cache, result.pairs.weights, result.document.objective, ())
         for cr in result.counts:
             if cr.outcome.method != "exhaustive":
                 continue
-            g = greedy(scorer, len(result.sites), cr.ris_count, result.document.search,
+            g = greedy(result.scorer, len(result.sites), cr.ris_count, result.document.search,
                        SerialExecutor())  # fmt: skip
             (g_lay, g_loss), (e_lay, e_loss) = g.ranked(1)[0], cr.ranked[0]
             print(f"greedy for {cr.ris_count} RIS: {list(g_lay)} coverage {-g_loss:.3f}"

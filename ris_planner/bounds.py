@@ -259,6 +259,11 @@ def path_information(
     return paths, far
 
 
+def n_observations(n_ris: int, los: bool) -> int:
+    """Geometric channel parameters of a layout: (ξ, ζ, τ) per RIS, τ0 with LOS."""
+    return 3 * n_ris + (1 if los else 0)
+
+
 def bounds_from_state_fim(
     f: FloatArray, known: list[KnownPart] | tuple[KnownPart, ...], n_observations: int
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
@@ -365,7 +370,7 @@ def compute_bounds(
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     f = np.sum([p.state_information() for p in paths], axis=0)
-    n_obs = 3 * len(scenario.ris) + (1 if scenario.system.los else 0)
+    n_obs = n_observations(len(scenario.ris), scenario.system.los)
     peb_tx, peb_rx, ceb, reason = bounds_from_state_fim(f, known_t, n_obs)
     chan = channel_bounds(paths)
     if np.any(bad):

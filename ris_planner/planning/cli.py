@@ -25,12 +25,13 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     with executor:
         result = run_plan(doc, ProgressBar("plan"), executor)
     out = Path(args.out)
-    plan_path = write_plan_json(result, out)
+    plan = result.to_json()
+    plan_path = write_plan_json(plan, out)
     figures = write_figures(result, out)
     print(f"wrote {plan_path}", file=sys.stderr)
     for p in figures.values():
         print(f"wrote {p}", file=sys.stderr)
-    for entry in result.to_json()["by_count"]:
+    for entry in plan["by_count"]:
         print(
             f"{entry['ris_count']} RIS: sites {entry['sites']} objective {entry['objective']}"
             f" ({entry['method']}, {entry['layouts_evaluated']}/{entry['layouts_total']} layouts)"

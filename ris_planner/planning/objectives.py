@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import kept_states
+from ris_planner.bounds import kept_states, n_observations
 from ris_planner.ldl import inverse_diagonal_from, packed_index
 from ris_planner.planning.document import Objective
 from ris_planner.planning.site_cache import N_STATES, SiteCache
@@ -64,13 +64,6 @@ class Scorer:
         los = None if self.cache.los is None else self.cache.los[src]
         return self.cache.packed[src], los
 
-    @property
-    def underdetermined_at(self) -> int:
-        """Layouts with fewer RISs than this have fewer channel parameters than unknowns."""
-        n_keep = len(kept_states(self.known))
-        los = 0 if self.cache.los is None else 1
-        return max(0, -(-(n_keep - los) // 3))
-
     def metric(self, layouts: IntArray) -> FloatArray:
         """[B, P] metric bound (m) of each layout [B, L] and pair; ``inf`` for blind spots.
 
@@ -80,10 +73,10 @@ class Scorer:
         b_all, n_ris = layouts.shape
         p = self.cache.n_pairs
         out = np.empty((b_all, p))
-        if n_ris < self.underdetermined_at:
+        keep, tx, rx = self.states
+        if n_observations(n_ris, self.cache.los is not None) < len(keep):  # as compute_bounds
             out[:] = np.inf
             return out
-        keep, tx, rx = self.states
         n = len(keep)
         first = min(tx + rx)
         packed, los = self._selected
@@ -170,6 +163,11 @@ def loss_from_metric(obj: Objective, metric: FloatArray, weights: FloatArray) ->
     """Lower-is-better form of :func:`objective_value` (coverage negated)."""
     val = objective_value(obj, metric, weights)
     return -val if obj.kind == "coverage" else val
+
+
+def objective_from_loss(obj: Objective, loss: float) -> float:
+    """The objective's value from a loss of :func:`loss_from_metric` (the inverse map)."""
+    return -loss if obj.kind == "coverage" else loss
 
 
 def score_chunk(scorer: Scorer, layouts: IntArray) -> FloatArray:

@@ -10,13 +10,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import bounds_from_state_fim, compute_bounds
+from ris_planner.bounds import compute_bounds
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import PairSet, PointMap, build_map, build_pairs
 from ris_planner.planning.objectives import (
     Scorer,
+    objective_from_loss,
     objective_value,
     select_metric,
     weighted_quantile,
@@ -64,29 +65,19 @@ class PlanResult:
     tx_map: PointMap
     rx_map: PointMap
     pairs: PairSet
-    cache: SiteCache
+    scorer: Scorer
     counts: list[CountResult]
     timing: dict[str, float]
 
+    @property
+    def cache(self) -> SiteCache:
+        return self.scorer.cache
+
     def layout_metric(self, layout: Layout) -> FloatArray:
-        """[P] metric bound (m) of a layout via the core's ``bounds_from_state_fim``."""
-        peb_t, peb_r, _, _ = self.layout_bounds(layout)
-        return select_metric(self.document.objective.metric, peb_t, peb_r)
+        """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``)."""
+        return self.scorer.metric(np.array([layout], dtype=int))[0]
 
-    def layout_bounds(
-        self, layout: Layout
-    ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
-        """PEB_T, PEB_R, CEB, reasons [P] of a layout from the cached matrices (core inversion)."""
-        f = self.cache.layout_fim(layout)
-        n_obs = 3 * len(layout) + (0 if self.cache.los is None else 1)
-        peb_t, peb_r, ceb, reason = bounds_from_state_fim(f, tuple(self.document.known), n_obs)
-        bad = np.any(self.cache.degenerate[list(layout)], axis=0)
-        for arr in (peb_t, peb_r, ceb):
-            if arr is not None:
-                arr[bad] = np.inf
-        return peb_t, peb_r, ceb, reason
-
-    def layout_stats(self, layout: Layout, loss: float | None = None) -> dict[str, Any]:
+    def layout_stats(self, layout: Layout) -> dict[str, Any]:
         metric = self.layout_metric(layout)[None, :]
         w = self.pairs.weights
         obj = float(objective_value(self.document.objective, metric, w)[0])
@@ -158,11 +149,12 @@ class PlanResult:
         top: list[tuple[float, int, Layout]] = []
         by_count = []
         prev: float | None = None
+        stats_of = {lay: self.layout_stats(lay) for cr in self.counts for lay, _ in cr.ranked}
         for cr in self.counts:
             for lay, loss in cr.ranked:
                 top.append((loss, len(lay), lay))
             best_lay, best_loss = cr.ranked[0]
-            stats = self.layout_stats(best_lay)
+            stats = stats_of[best_lay]
             gain = None
             if prev is not None and np.isfinite(prev) and np.isfinite(best_loss):
                 gain = float(prev - best_loss)
@@ -175,7 +167,10 @@ class PlanResult:
                     "layouts_total": cr.outcome.total_layouts,
                     "layouts_evaluated": cr.outcome.evaluated,
                     "top_layouts": [
-                        {"sites": [int(s) for s in lay], "objective": _num(self._obj(loss))}
+                        {
+                            "sites": [int(s) for s in lay],
+                            "objective": _num(objective_from_loss(doc.objective, loss)),
+                        }
                         for lay, loss in cr.ranked
                     ],
                     "cdf": self.cdf(cr.best_metric),
@@ -186,7 +181,7 @@ class PlanResult:
         return {
             "objective": doc.objective.model_dump(),
             "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
-            "layouts": [self.layout_stats(lay) for _, _, lay in top],
+            "layouts": [stats_of[lay] for _, _, lay in top],
             "by_count": by_count,
             "candidates": [
                 {
@@ -203,9 +198,6 @@ class PlanResult:
             "known": list(doc.known),
             "timing_s": self.timing,
         }
-
-    def _obj(self, loss: float) -> float:
-        return -loss if self.document.objective.kind == "coverage" else loss
 
 
 def run_plan(
@@ -262,4 +254,4 @@ def run_plan(
     t_search = time.perf_counter() - t0 - t_cache
     progress(1.0, "done")
     timing = {"cache": t_cache, "search": t_search}
-    return PlanResult(doc, sites, tx_map, rx_map, pairs, cache, counts, timing)
+    return PlanResult(doc, sites, tx_map, rx_map, pairs, scorer, counts, timing)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -19,11 +20,11 @@ def _metric_label(result: PlanResult) -> str:
     ]
 
 
-def write_plan_json(result: PlanResult, out_dir: Path) -> Path:
-    """``out_dir/plan.json`` (strict JSON: no NaN/inf)."""
+def write_plan_json(plan: dict[str, Any], out_dir: Path) -> Path:
+    """``out_dir/plan.json`` from :meth:`PlanResult.to_json` (strict JSON: no NaN/inf)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "plan.json"
-    path.write_text(json.dumps(result.to_json(), indent=1, allow_nan=False))
+    path.write_text(json.dumps(plan, indent=1, allow_nan=False))
     return path
 
 

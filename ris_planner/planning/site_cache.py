@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ris_planner import fim
 from ris_planner.bounds import los_path_information, ris_path_information, stand_ins, ue_on_ris
-from ris_planner.ldl import pack, unpack
+from ris_planner.ldl import pack
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.progress import ProgressCallback, no_progress
@@ -49,13 +49,6 @@ class SiteCache:
     @property
     def n_pairs(self) -> int:
         return int(self.packed.shape[2])
-
-    def layout_fim(self, sites: tuple[int, ...] | list[int]) -> FloatArray:
-        """[P, 7, 7] state information of a layout (LOS first, then the sites in order)."""
-        total = np.zeros((N_PACKED, self.n_pairs)) if self.los is None else self.los.copy()
-        for s in sites:
-            total += self.packed[:, s]
-        return unpack(total, N_STATES)
 
 
 def build_site_cache(
