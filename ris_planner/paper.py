@@ -57,25 +57,21 @@ def paper_curve(figure: str, curve: str) -> tuple[NDArray[np.float64], NDArray[n
     (``sigma_0.01_n10``, ``sigma_0.1_n5``, ``sigma_0.1_n10``, ``sigma_0.1_n20``,
     ``sigma_1_n10``), x = γ_P; y = PEB_R [m].
     """
-    if figure in ("fig5", "fig6"):
-        rows = [
-            r
-            for r in _read("paper_fig5_fig6_power.csv")
-            if r["figure"] == figure and r["curve"] == curve
-        ]
-        if not rows:
-            raise ValueError(f"figure {figure} has no curve {curve!r}")
-        return (
-            np.array([float(r["x"]) for r in rows]),
-            np.array([float(r["peb_rx_m"]) for r in rows]),
-        )
-    files = {"fig10": "paper_fig10_cdf_peb_rx.csv", "fig1": "paper_fig1_position.csv"}
+    files = {
+        "fig10": "paper_fig10_cdf_peb_rx.csv",
+        "fig1": "paper_fig1_position.csv",
+        "fig5": "paper_fig5_fig6_power.csv",
+        "fig6": "paper_fig5_fig6_power.csv",
+    }
     if figure not in files:
         raise ValueError(f"unknown figure {figure!r}; choose one of {sorted(files)}")
-    rows = [r for r in _read(files[figure]) if r["curve"] == curve]
+    # every file: [figure,] curve, x, y (a shared file names the figure in its first column)
+    rows = [
+        r for r in _read(files[figure]) if r.get("figure", figure) == figure and r["curve"] == curve
+    ]
     if not rows:
         raise ValueError(f"figure {figure} has no curve {curve!r}")
     keys = list(rows[0])
-    x = np.array([float(r[keys[1]]) for r in rows])
-    y = np.array([float(r[keys[2]]) for r in rows])
+    x = np.array([float(r[keys[-2]]) for r in rows])
+    y = np.array([float(r[keys[-1]]) for r in rows])
     return x, y
