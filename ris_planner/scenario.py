@@ -370,7 +370,10 @@ class Scenario(DocumentModel):
     )
     codebook: Codebook = Field(
         default_factory=RandomCodebook,
-        description="First-block RIS phase profiles: random (seeded), expected_random or explicit",
+        description=(
+            "First-block RIS phase profiles: random (seeded), expected_random, explicit,"
+            " directional or directional_derivative (prior-based, optional gamma_p)"
+        ),
     )
     known: list[KnownPart] = Field(
         default_factory=list,

@@ -80,7 +80,12 @@ def objective_index(info: BeamInformation, objective: Objective) -> NDArray[np.i
 
 def mean_trace_bound(info: BeamInformation, powers: FloatArray, index: NDArray[np.int_]) -> float:
     """(1/P) Σ_p tr([I(s_p)⁻¹]_index) at the given powers (``inf`` if any position is blind)."""
-    diag, singular = fim_inverse_diagonal(info.fim(powers))
+    return _mean_trace(info.fim(powers), index)
+
+
+def _mean_trace(f: FloatArray, index: NDArray[np.int_]) -> float:
+    """(1/P) Σ_p tr([F_p⁻¹]_index) of FIMs [P, n, n] (``inf`` if any is singular)."""
+    diag, singular = fim_inverse_diagonal(f)
     if np.any(singular):
         return float("inf")
     return float(np.mean(diag[:, index].sum(axis=1)))
@@ -141,11 +146,11 @@ def solve_power_sdp(
             solver,
             "non-finite Fisher information: a design position lies on a RIS or on the other UE",
         )
-    uniform = np.full(g_tilde, total / g_tilde)
-    scale_obj = mean_trace_bound(info, uniform, index)
+    f_uniform = info.fim(np.full(g_tilde, total / g_tilde))
+    scale_obj = _mean_trace(f_uniform, index)
     if not np.isfinite(scale_obj):
         scale_obj = 1.0
-    w = whitening(info.fim(uniform))
+    w = whitening(f_uniform)
     # [P, J, n, n] whitened stack W S Wᵀ, flattened to [P·n·n, J]
     scaled = w[:, None] @ info.stack @ w[:, None].transpose(0, 1, 3, 2)
     scaled = 0.5 * (scaled + scaled.transpose(0, 1, 3, 2))
