@@ -33,6 +33,12 @@ is treated as carrying no information (a beam pattern with a null on the path): 
 complement then uses the pseudo-inverse, which for that block is zero."""
 
 
+def subcarrier_wavenumbers(system: SystemParams) -> FloatArray:
+    """κ_k = 2πkΔf/c [rad/m], k = 1..K: d_k(τ) = exp(−jκ_k·cτ) for a path length cτ."""
+    k = np.arange(1, system.subcarriers + 1, dtype=float)
+    return np.asarray(2 * np.pi * k * system.subcarrier_spacing / SPEED_OF_LIGHT)
+
+
 @dataclass(frozen=True)
 class Radio:
     """The radio constants every FIM block needs (SI)."""
@@ -46,8 +52,7 @@ class Radio:
 
     @classmethod
     def from_system(cls, system: SystemParams) -> Radio:
-        k = np.arange(1, system.subcarriers + 1, dtype=float)
-        kappa = 2 * np.pi * k * system.subcarrier_spacing / SPEED_OF_LIGHT
+        kappa = subcarrier_wavenumbers(system)
         return cls(
             wavelength=system.wavelength,
             snr_scale=2 * system.tx_power_w / system.noise_variance_w,

@@ -99,13 +99,13 @@ class MonteCarloResult:
             if entry is None:
                 entry = {"path": path}
                 channel.append(entry)
-            bound_key = {"delay": "deb_m", "xi": "seb_xi", "zeta": "seb_zeta"}[param]
+            bound_key = BOUND_KEYS[param]
             unit = "_m" if param == "delay" else ""
             entry[f"rmse_{param}{unit}"] = [
-                _finite(_rmse(p.channel_refined[:, j])) for p in self.powers
+                _finite(rmse(p.channel_refined[:, j])) for p in self.powers
             ]
             entry[f"coarse_rmse_{param}{unit}"] = [
-                _finite(_rmse(p.channel_coarse[:, j])) for p in self.powers
+                _finite(rmse(p.channel_coarse[:, j])) for p in self.powers
             ]
             entry[bound_key] = [_finite(p.channel_bounds[name]) for p in self.powers]
         return {
@@ -132,7 +132,12 @@ class MonteCarloResult:
         }
 
 
-def _rmse(e: FloatArray) -> float:
+BOUND_KEYS = {"delay": "deb_m", "xi": "seb_xi", "zeta": "seb_zeta"}
+"""The core's channel-bound key (``BoundsResult.channel``) of each channel parameter."""
+
+
+def rmse(e: FloatArray) -> float:
+    """Root mean square over the finite entries (failed runs are NaN); NaN if none."""
     ok = np.isfinite(e)
     return float(np.sqrt(np.mean(e[ok] ** 2))) if np.any(ok) else float("nan")
 
@@ -190,7 +195,7 @@ def run_power(
     chan_bounds: dict[str, float] = {}
     for name in names:
         path, param = name.split(":")
-        key = {"delay": "deb_m", "xi": "seb_xi", "zeta": "seb_zeta"}[param]
+        key = BOUND_KEYS[param]
         chan_bounds[name] = float(bounds.channel[path][key][0])
     refined = np.full((runs, 7), np.nan)
     coarse = np.full((runs, 7), np.nan)

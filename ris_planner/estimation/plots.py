@@ -14,6 +14,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.estimation.montecarlo import rmse
+
 if TYPE_CHECKING:
     from ris_planner.estimation.blind_area import CostMap
     from ris_planner.estimation.montecarlo import MonteCarloResult
@@ -59,8 +61,8 @@ def plot_channel_rmse(result: MonteCarloResult, path: Path | str) -> None:
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for j, name in enumerate(names):
         c = colours[j % len(colours)]
-        fine = [float(np.sqrt(np.nanmean(p.channel_refined[:, j] ** 2))) for p in result.powers]
-        coarse = [float(np.sqrt(np.nanmean(p.channel_coarse[:, j] ** 2))) for p in result.powers]
+        fine = [rmse(p.channel_refined[:, j]) for p in result.powers]
+        coarse = [rmse(p.channel_coarse[:, j]) for p in result.powers]
         bound = [p.channel_bounds[name] for p in result.powers]
         ax.semilogy(powers, coarse, "o", color=c, mfc="none", ms=4)
         ax.semilogy(powers, fine, "-", color=c, label=name)

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from ris_planner import beams, codebooks, geometry
 from ris_planner.bounds import beam_weights, first_block_profiles
 from ris_planner.estimation.models import Multipath
-from ris_planner.fim import Radio
+from ris_planner.fim import Radio, subcarrier_wavenumbers
 from ris_planner.scenario import Scenario
 from ris_planner.units import SPEED_OF_LIGHT
 
@@ -148,7 +148,6 @@ def signal_setup(
         raise ValueError(f"beam_powers must hold G/Γ = {g_tilde} values ≥ 0")
     arrays = ris_arrays(scenario)
     full = tuple(codebooks.expand_profiles(profiles[i], code[:, i + 1]) for i in range(n_ris))
-    k = np.arange(1, system.subcarriers + 1, dtype=float)
     rng = np.random.default_rng(pilot_seed)
     return SignalSetup(
         scenario=scenario,
@@ -159,7 +158,7 @@ def signal_setup(
         code=code,
         delta=np.tile(np.sqrt(weights), gamma),
         pilots=np.exp(1j * rng.uniform(0, 2 * np.pi, system.subcarriers)),
-        kappa=2 * np.pi * k * system.subcarrier_spacing / SPEED_OF_LIGHT,
+        kappa=subcarrier_wavenumbers(system),
         tx_power_w=system.tx_power_w,
         noise_variance_w=system.noise_variance_w,
     )
