@@ -109,7 +109,7 @@ def _layout(scenario: Scenario) -> tuple[int, NDArray[np.int_], NDArray[np.int_]
     cb = scenario.codebook
     if not isinstance(cb, DirectionalCodebook | DirectionalDerivativeCodebook):
         raise RisPlannerError(f"codebook {cb.kind!r} is not built from a prior")
-    per_sample = 3 if isinstance(cb, DirectionalDerivativeCodebook) else 1
+    per_sample = cb.beams_per_sample
     g_tilde = codebooks.block_length(scenario.system.transmissions, len(scenario.ris))
     samples = cb.prior.samples or g_tilde // per_sample
     return (samples, *beam_layout(g_tilde, samples, per_sample))

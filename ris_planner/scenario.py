@@ -12,7 +12,7 @@ import math
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -304,6 +304,7 @@ class DirectionalCodebook(DocumentModel):
     TX–RX pair; the first block cycles through the beams when fewer than G̃."""
 
     kind: Literal["directional"] = Field("directional", description="Codebook kind (discriminator)")
+    beams_per_sample: ClassVar[int] = 1
     prior: PositionPrior = Field(description="Gaussian prior on the UE positions")
 
 
@@ -315,6 +316,7 @@ class DirectionalDerivativeCodebook(DocumentModel):
     kind: Literal["directional_derivative"] = Field(
         "directional_derivative", description="Codebook kind (discriminator)"
     )
+    beams_per_sample: ClassVar[int] = 3
     prior: PositionPrior = Field(description="Gaussian prior on the UE positions")
     gamma_p: float | None = Field(
         None, ge=0, le=1e6, allow_inf_nan=False, description="DER/DIR amplitude ratio γ_P"
@@ -425,7 +427,7 @@ class Scenario(DocumentModel):
         from ris_planner.codebooks import block_length
 
         g_tilde = block_length(self.system.transmissions, len(self.ris))
-        per_sample = 1 if isinstance(cb, DirectionalCodebook) else 3
+        per_sample = cb.beams_per_sample
         if g_tilde < per_sample:
             raise ValueError(
                 f"codebook {cb.kind!r} needs {per_sample} beams per sample but the first block"
