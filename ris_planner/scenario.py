@@ -16,68 +16,21 @@ from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Field,
-    field_validator,
-    model_validator,
-)
-from pydantic.json_schema import JsonDict
+from pydantic import Field, field_validator, model_validator
 
+from ris_planner.document import (
+    _POINTS_SCHEMA,
+    MAX_COORDINATE_M,
+    MIN_UE_RIS_DISTANCE_M,
+    DocumentModel,
+    Point3,
+    finite_point,
+)
+from ris_planner.obstacles import Environment
 from ris_planner.units import SPEED_OF_LIGHT, db_to_linear, dbm_to_watt
 
 KnownPart = Literal["clock", "height", "tx"]
 """State parts that may be known: ``clock`` (B, round trip), ``height`` (z of both UEs), ``tx``."""
-
-MIN_UE_RIS_DISTANCE_M = 1e-3
-"""A UE closer than this to a RIS centre (or to the other UE) is rejected: the path gains of
-the Simulation Parameters section diverge there (|ρ| ∝ 1/d)."""
-
-MAX_COORDINATE_M = 1e6
-"""Coordinates beyond ±1000 km are rejected as unit mistakes (mm or degrees passed as metres)."""
-
-_COORDINATE_SCHEMA: JsonDict = {
-    "type": "number",
-    "minimum": -MAX_COORDINATE_M,
-    "maximum": MAX_COORDINATE_M,
-}
-_POINT_SCHEMA: JsonDict = {
-    "type": "array",
-    "items": _COORDINATE_SCHEMA,
-    "minItems": 3,
-    "maxItems": 3,
-}
-_POINTS_SCHEMA: JsonDict = {
-    "anyOf": [_POINT_SCHEMA, {"type": "array", "items": _POINT_SCHEMA, "minItems": 1}]
-}
-"""JSON-schema form of the bounds the validators enforce (documentation for OpenAPI clients)."""
-
-Point3 = Annotated[
-    list[float],
-    Field(
-        min_length=3,
-        max_length=3,
-        description="[x, y, z] in metres (global frame), each within ±1e6 m",
-        json_schema_extra={"items": _COORDINATE_SCHEMA},
-    ),
-]
-
-
-def finite_point(value: list[float], what: str) -> list[float]:
-    """Finite coordinates within ±MAX_COORDINATE_M, as floats; a ValueError naming ``what``."""
-    arr = np.asarray(value, dtype=float)
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what} must be finite numbers, got {value}")
-    if np.any(np.abs(arr) > MAX_COORDINATE_M):
-        raise ValueError(f"{what} must lie within ±{MAX_COORDINATE_M:g} m, got {value}")
-    return [float(v) for v in arr]
-
-
-class DocumentModel(BaseModel):
-    """Base of every JSON document model: unknown fields are errors, instances are frozen."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 class SystemParams(DocumentModel):
@@ -185,6 +138,23 @@ class RIS(DocumentModel):
         le=1e3,
         allow_inf_nan=False,
         description="Element spacing [m], at most 1 km; default λ/2",
+    )
+    max_angle_deg: float = Field(
+        90.0,
+        gt=0,
+        le=180,
+        allow_inf_nan=False,
+        description="Field of view: a UE is served only when the angle between the RIS normal"
+        " and the direction to the UE is strictly below this [deg]; 90 = the open front"
+        " half-space",
+    )
+    pattern_exponent: float = Field(
+        0.0,
+        ge=0,
+        le=100,
+        allow_inf_nan=False,
+        description="q of the element pattern: the path gain is multiplied by"
+        " (cos θ_T · cos θ_R)^q, θ the angles to the normal (0 = isotropic, the paper's model)",
     )
 
     @field_validator("position")
@@ -381,6 +351,10 @@ class Scenario(DocumentModel):
         default_factory=list,
         description="Known state parts: clock, height, tx (each at most once)",
         json_schema_extra={"uniqueItems": True},
+    )
+    environment: Environment | None = Field(
+        None,
+        description="Obstacles (prisms, walls) that block legs; absent = free space",
     )
 
     @field_validator("tx", "rx", mode="before")
