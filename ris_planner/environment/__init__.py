@@ -6,10 +6,26 @@ and answers batched questions: which legs (segments) are blocked, which points l
 prism. The rules and their tolerance are documented in :mod:`ris_planner.environment.scene`.
 """
 
+from ris_planner.environment.paths import (
+    in_field_of_view,
+    los_clear,
+    path_presence,
+    pattern_factor,
+    ris_serves,
+)
 from ris_planner.environment.scene import (
     INSIDE_MARGIN_M,
     VISIBILITY_TOLERANCE_M,
     Scene,
 )
 
-__all__ = ["INSIDE_MARGIN_M", "VISIBILITY_TOLERANCE_M", "Scene"]
+__all__ = [
+    "INSIDE_MARGIN_M",
+    "VISIBILITY_TOLERANCE_M",
+    "Scene",
+    "in_field_of_view",
+    "los_clear",
+    "path_presence",
+    "pattern_factor",
+    "ris_serves",
+]
