@@ -5,10 +5,17 @@ Each path contributes J_ℓ^T Ĩ_ℓ J_ℓ to the information on s_N = [p_T, p_R
 is its equivalent FIM on (ξ, ζ, cτ) or cτ0 after eliminating its own gain (α, β) and J_ℓ is
 the Jacobian of eq. crb_sidelink. Summing those is the Schur complement of J_S I(η) J_S^T
 with respect to all gains, because every gain belongs to one path only.
+
+With an ``environment`` (DESIGN.md, "Environment: obstacles, visibility, field of view") only
+the paths that exist for a pair contribute: its other paths' 7×7 contributions are masked to
+exactly zero, their channel bounds are ``inf``, and a pair left with fewer geometric channel
+parameters than unknown states is ``inf`` with a reason naming the missing paths. The
+time-orthogonal profiles (Γ from the layout's RIS count) do not change.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ris_planner import beams, codebooks, fim, geometry, ldl
+from ris_planner.environment import Scene, path_presence, pattern_factor
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
@@ -30,6 +38,7 @@ from ris_planner.scenario import (
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
+BoolArray = NDArray[np.bool_]
 
 STATE_NAMES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "clock")
 REASON_UNDERDETERMINED = "underdetermined"
@@ -101,6 +110,8 @@ class BoundsResult:
     far_field : [P, L] whether d_T d_R/(d_T + d_R) ≥ 2D²/λ for each RIS (footnote 3).
     fim : [P, 7, 7] information on [p_T, p_R, B] (gains eliminated, nothing known removed).
     known : the state parts treated as known.
+    paths_present : per path (``"los"``, ``"ris1"``, …) [P] whether it exists for the pair
+        (:func:`scenario_path_presence`); ``"los"`` is False throughout without ``system.los``.
     """
 
     peb_tx: FloatArray | None
@@ -111,6 +122,7 @@ class BoundsResult:
     far_field: NDArray[np.bool_]
     fim: FloatArray
     known: tuple[KnownPart, ...] = field(default=())
+    paths_present: dict[str, BoolArray] = field(default_factory=dict)
 
     @property
     def n_pairs(self) -> int:
@@ -137,6 +149,10 @@ class BoundsResult:
                 {"path": name, **{k: num(v) for k, v in bounds.items()}}
                 for name, bounds in self.channel.items()
             ],
+            "paths_present": {
+                name: per_pair([bool(x) for x in present])
+                for name, present in self.paths_present.items()
+            },
             "far_field": per_pair([bool(x) for x in np.all(self.far_field, axis=1)]),
             "far_field_ris": per_pair([[bool(x) for x in row] for row in self.far_field]),
             "known": list(self.known),
@@ -175,6 +191,18 @@ def los_path_information(
     return PathInfo("los", alpha0[:, None, None] ** 2 * unit, geometry.los_jacobian(tx, rx))
 
 
+def ris_path_gain(
+    ris: RIS, geo: geometry.RisPathGeometry, tx: FloatArray, rx: FloatArray, wavelength: float
+) -> FloatArray:
+    """|ρ_ℓ| = λ²/(16π² d_T d_R) · (cos θ_T cos θ_R)^q, [P] (Simulation Parameters and the
+    element pattern of DESIGN.md; q = ``pattern_exponent``, q = 0 the paper's isotropic gain
+    exactly). The one gain rule for the bounds and the signal simulator."""
+    alpha = geo.gain(wavelength)
+    if ris.pattern_exponent == 0.0:
+        return alpha
+    return np.asarray(alpha * pattern_factor(ris, tx, rx))
+
+
 def ris_path_information(
     ris: RIS,
     tx: FloatArray,
@@ -188,11 +216,12 @@ def ris_path_information(
     """One RIS path's equivalent FIM on (ξ, ζ, cτ), its Jacobian, and far-field flags [P].
 
     profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
-    block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks.
+    block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks. The gain is
+    |ρ_ℓ| = λ²/(16π² d_T d_R) · (cos θ_T cos θ_R)^q (:func:`ris_path_gain`).
     """
     pos = beams.ris_element_positions(ris, radio.wavelength)
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
-    alpha = geo.gain(radio.wavelength)
+    alpha = ris_path_gain(ris, geo, tx, rx, radio.wavelength)
     if profile is None:
         # E[Q] does not depend on ξ, ζ: one 3×3 EFIM at unit gain, scaled by α² per pair
         q = fim.transmission_gram_expected(pos, radio.wavelength, block_count * weights.sum())
@@ -264,6 +293,101 @@ def n_observations(n_ris: int, los: bool) -> int:
     return 3 * n_ris + (1 if los else 0)
 
 
+PATH_OBSERVATIONS = {"los": 1, "ris": 3}
+"""Geometric channel parameters per path: τ0 for the LOS path, (ξ, ζ, τ) for a RIS path."""
+
+
+def underdetermined_reason(n_observations: int, n_unknown: int, missing: Sequence[str] = ()) -> str:
+    """Why a pair is ``inf`` when it has fewer geometric channel parameters than unknown
+    states; ``missing`` names the layout's paths that do not exist for it (blocked or out of
+    view). Starts with :data:`REASON_UNDERDETERMINED` (DESIGN.md)."""
+    head = (
+        f"{REASON_UNDERDETERMINED}: {n_observations} geometric channel parameters for"
+        f" {n_unknown} unknown states"
+    )
+    if not missing:
+        return f"{head}; add RISs, the LOS path, or known parts"
+    return f"{head} (missing paths: {', '.join(missing)} – blocked or out of view)"
+
+
+def scenario_path_presence(
+    scenario: Scenario, tx: FloatArray, rx: FloatArray
+) -> dict[str, BoolArray]:
+    """``{"los": [P], "ris1": [P], …}``: which paths exist for each pair (DESIGN.md rules,
+    :func:`ris_planner.environment.path_presence`); ``"los"`` is False without ``system.los``.
+
+    Without ``environment`` the document is the paper's free space: every RIS path exists
+    (no field-of-view test), so its results are exactly those of the paper's model. With an
+    environment (even one without obstacles) the legs and the fields of view decide.
+    """
+    n = tx.shape[0]
+    los = scenario.system.los
+    if scenario.environment is None:
+        free = {"los": np.full(n, los)}
+        return free | {f"ris{i + 1}": np.ones(n, dtype=bool) for i in range(len(scenario.ris))}
+    scene = Scene.from_environment(scenario.environment)
+    found = path_presence(scene, scenario.ris, tx, rx, los)
+    return {"los": found.pop("los", np.zeros(n, dtype=bool))} | found
+
+
+def present_path_mask(paths: Sequence[PathInfo], presence: dict[str, BoolArray]) -> BoolArray:
+    """[P, len(paths)] whether each of ``paths`` exists for each pair."""
+    return np.stack([presence[p.name] for p in paths], axis=1)
+
+
+def masked_state_information(paths: Sequence[PathInfo], mask: BoolArray) -> FloatArray:
+    """Σ over present paths of J^T Ĩ J, [P, 7, 7]: a missing path's contribution is exactly
+    zero (mask : [P, len(paths)] from :func:`present_path_mask`)."""
+    return np.asarray(
+        np.sum(
+            [
+                np.where(mask[:, k, None, None], p.state_information(), 0.0)
+                for k, p in enumerate(paths)
+            ],
+            axis=0,
+        )
+    )
+
+
+def underdetermined_pairs(
+    paths: Sequence[PathInfo], mask: BoolArray, n_unknown: int
+) -> tuple[BoolArray, NDArray[np.object_]]:
+    """Pairs left with fewer geometric channel parameters than ``n_unknown`` states because
+    some of the layout's ``paths`` are missing ([P] flags) and their reasons ([P] objects,
+    ``None`` elsewhere). A layout that is underdetermined with all its paths keeps the reason
+    of :func:`bounds_from_state_fim` (nothing is missing for it)."""
+    per_path = np.array([PATH_OBSERVATIONS["los" if p.name == "los" else "ris"] for p in paths])
+    # [P] geometric channel parameters of the paths present
+    n_obs = mask.astype(int) @ per_path
+    flagged = (n_obs < n_unknown) & ~np.all(mask, axis=1)
+    reason = np.full(mask.shape[0], None, dtype=object)
+    if np.any(flagged):
+        # one message per distinct presence pattern (few), not per pair
+        patterns, inverse = np.unique(mask[flagged], axis=0, return_inverse=True)
+        texts = np.array(
+            [
+                underdetermined_reason(
+                    int(row.astype(int) @ per_path),
+                    n_unknown,
+                    [p.name for p, ok in zip(paths, row, strict=True) if not ok],
+                )
+                for row in patterns
+            ],
+            dtype=object,
+        )
+        reason[flagged] = texts[inverse.ravel()]
+    return flagged, reason
+
+
+def mask_channel_bounds(
+    chan: dict[str, dict[str, FloatArray]], presence: dict[str, BoolArray]
+) -> None:
+    """A missing path's DEB/SEBs become ``inf`` (``null`` in JSON), in place."""
+    for name, bounds in chan.items():
+        for values in bounds.values():
+            values[~presence[name]] = np.inf
+
+
 def bounds_from_state_fim(
     f: FloatArray, known: list[KnownPart] | tuple[KnownPart, ...], n_observations: int
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
@@ -277,10 +401,7 @@ def bounds_from_state_fim(
     reason = np.full(f.shape[0], None, dtype=object)
     if n_observations < keep.size:
         singular = np.ones(f.shape[0], dtype=bool)
-        reason[:] = (
-            f"{REASON_UNDERDETERMINED}: {n_observations} geometric channel parameters for"
-            f" {keep.size} unknown states; add RISs, the LOS path, or known parts"
-        )
+        reason[:] = underdetermined_reason(n_observations, keep.size)
         diag = np.full_like(diag, np.inf)
     else:
         reason[singular] = REASON_SINGULAR
@@ -356,6 +477,8 @@ def compute_bounds(
     codebook with ``gamma_p``, else uniform); known : overrides the document's ``known``.
 
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
+    With ``scenario.environment`` only the paths present for a pair contribute
+    (:func:`scenario_path_presence`, :func:`masked_state_information`).
     """
     tx_a = scenario.tx_array if tx is None else np.atleast_2d(np.asarray(tx, dtype=float))
     rx_a = scenario.rx_array if rx is None else np.atleast_2d(np.asarray(rx, dtype=float))
@@ -364,20 +487,28 @@ def compute_bounds(
     if not (np.all(np.isfinite(tx_a)) and np.all(np.isfinite(rx_a))):
         raise ValueError("tx and rx must be finite coordinates")
     known_t: tuple[KnownPart, ...] = tuple(scenario.known if known is None else known)
+    presence = scenario_path_presence(scenario, tx_a, rx_a)
     bad = _degenerate_pairs(scenario, tx_a, rx_a)
     tx_a, rx_a = stand_ins(tx_a, rx_a, bad)  # evaluated there, reported inf below
     prof = first_block_profiles(scenario) if isinstance(profiles, str) else profiles
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
-    f = np.sum([p.state_information() for p in paths], axis=0)
+    mask = present_path_mask(paths, presence)
+    f = masked_state_information(paths, mask)
     n_obs = n_observations(len(scenario.ris), scenario.system.los)
     peb_tx, peb_rx, ceb, reason = bounds_from_state_fim(f, known_t, n_obs)
     chan = channel_bounds(paths)
+    mask_channel_bounds(chan, presence)
+    under, under_reason = underdetermined_pairs(paths, mask, int(kept_states(known_t).size))
+    for flags, why in ((under, under_reason), (bad, REASON_DEGENERATE)):
+        if np.any(flags):
+            for arr in (peb_tx, peb_rx, ceb):
+                if arr is not None:
+                    arr[flags] = np.inf
+            reason[flags] = why if isinstance(why, str) else why[flags]
     if np.any(bad):
-        for arr in (peb_tx, peb_rx, ceb, *[v for c in chan.values() for v in c.values()]):
-            if arr is not None:
-                arr[bad] = np.inf
-        reason[bad] = REASON_DEGENERATE
+        for arr in (v for c in chan.values() for v in c.values()):
+            arr[bad] = np.inf
         far[bad] = False
     return BoundsResult(
         peb_tx=peb_tx,
@@ -388,4 +519,5 @@ def compute_bounds(
         far_field=far,
         fim=f,
         known=known_t,
+        paths_present=presence,
     )

@@ -4,11 +4,12 @@ the plan and simulation documents."""
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic.json_schema import JsonDict
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 MIN_UE_RIS_DISTANCE_M = 1e-3
 """A UE closer than this to a RIS centre (or to the other UE) is rejected: the path gains of
@@ -58,3 +59,15 @@ class DocumentModel(BaseModel):
     """Base of every JSON document model: unknown fields are errors, instances are frozen."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def field_error(
+    title: str, loc: tuple[str | int, ...], message: str, value: Any
+) -> ValidationError:
+    """A validation error at the field path ``loc`` (e.g. ``("tx", 3)``) for checks that need
+    the whole document (a model validator's own errors carry no field path). Raised inside a
+    validator, pydantic keeps the path and prefixes the enclosing fields' (CLI ``tx.3: …``,
+    REST 422 ``fields[].field``)."""
+    error = PydanticCustomError("value_error", "{message}", {"message": message})
+    details = InitErrorDetails(type=error, loc=loc, input=value)
+    return ValidationError.from_exception_data(title, [details])

@@ -24,6 +24,7 @@ from ris_planner.document import (
     MIN_UE_RIS_DISTANCE_M,
     DocumentModel,
     Point3,
+    field_error,
     finite_point,
 )
 from ris_planner.obstacles import Environment
@@ -391,11 +392,47 @@ class Scenario(DocumentModel):
                     raise ValueError(
                         f"{name} point {int(np.argmax(close))} lies on RIS {i} at {r.position}"
                     )
+        if self.environment is not None:
+            self._check_outside_obstacles(self.environment, tx, rx)
         if isinstance(self.codebook, ExplicitCodebook):
             self._check_explicit(self.codebook)
         if isinstance(self.codebook, DirectionalCodebook | DirectionalDerivativeCodebook):
             self._check_prior(self.codebook)
         return self
+
+    def _check_outside_obstacles(
+        self, env: Environment, tx: NDArray[np.float64], rx: NDArray[np.float64]
+    ) -> None:
+        """No RIS centre and no UE more than 1 cm (``INSIDE_MARGIN_M``) inside a prism
+        (DESIGN.md); a RIS on a facade is the normal case. Errors carry the field path."""
+        from ris_planner.environment.scene import INSIDE_MARGIN_M, Scene
+
+        scene = Scene.from_environment(env)
+        margin = f"more than {INSIDE_MARGIN_M * 100:g} cm"
+        centres = np.array([r.position for r in self.ris], dtype=float)
+        inside = scene.inside(centres)
+        if np.any(inside >= 0):
+            i = int(np.argmax(inside >= 0))
+            raise field_error(
+                "Scenario",
+                ("ris", i, "position"),
+                f"the centre of RIS {i} (path ris{i + 1}) at {self.ris[i].position} lies"
+                f" {margin} inside {env.label(int(inside[i]))}; mount the RIS on its surface"
+                " or outside it",
+                self.ris[i].position,
+            )
+        for name, pts in (("tx", tx), ("rx", rx)):
+            inside = scene.inside(pts)
+            if np.any(inside >= 0):
+                k = int(np.argmax(inside >= 0))
+                loc: tuple[str | int, ...] = (name, k) if self.is_batch else (name,)
+                raise field_error(
+                    "Scenario",
+                    loc,
+                    f"the {name.upper()} of pair {k} at {pts[k].tolist()} lies {margin} inside"
+                    f" {env.label(int(inside[k]))}; UEs must be outside obstacles",
+                    pts[k].tolist(),
+                )
 
     def _check_prior(self, cb: DirectionalCodebook | DirectionalDerivativeCodebook) -> None:
         from ris_planner.codebooks import block_length
