@@ -3,6 +3,9 @@
 The bounds engine's big arrays per RIS ℓ are the steering vectors [N_ℓ, P], the weighted
 profiles [3G̃, N_ℓ] and their product [3G̃, P] (``ris_planner.fim.transmission_vectors``), and
 its work is Σ_ℓ 3·G̃·N_ℓ·P complex products (G̃ = G/Γ beams per block, N_ℓ elements, P pairs).
+With an environment, deciding the legs (TX–RX and TX/RX–RIS, P·(1 + 2L)) against the obstacles
+is at most one segment test per leg and obstacle edge (a wall is one edge); that count is held
+to the same work limit.
 """
 
 from __future__ import annotations
@@ -37,3 +40,15 @@ def check_scenario_size(scenario: Scenario, settings: Settings) -> None:
             f" {settings.max_work}); use fewer pairs, elements or transmissions",
             settings.max_work,
         )
+
+    if scenario.environment is not None:
+        edges = sum(
+            len(ob.footprint) if ob.kind == "prism" else 1 for ob in scenario.environment.obstacles
+        )
+        tests = pairs * (1 + 2 * len(scenario.ris)) * edges
+        if tests > settings.max_work:
+            raise LimitExceededError(
+                f"the request needs {tests} visibility tests (legs × obstacle edges; limit"
+                f" {settings.max_work}); use fewer pairs, RISs or obstacles",
+                settings.max_work,
+            )

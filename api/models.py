@@ -75,9 +75,17 @@ class BoundsResponse(BaseModel):
         description="CEB = sqrt(CRB[B, B]) [m], ≥ 0; null = infinite or clock known"
     )
     reason: str | list[str | None] | None = Field(
-        description="Why the bounds of a pair are infinite (singular FIM), else null"
+        description="Why the bounds of a pair are infinite (singular FIM; 'underdetermined…'"
+        " naming the missing paths), else null"
     )
-    channel: list[ChannelBounds] = Field(description="Per-path DEB/SEB, LOS first")
+    channel: list[ChannelBounds] = Field(
+        description="Per-path DEB/SEB, LOS first; null for a path missing for the pair"
+    )
+    paths_present: dict[str, bool] | dict[str, list[bool]] = Field(
+        description="Per path ('los', 'ris1', …) whether it exists for the pair: LOS iff"
+        " system.los and the TX–RX leg is clear; a RIS path iff both legs are clear and both"
+        " UEs are in its field of view (always true without environment)"
+    )
     far_field: bool | list[bool] = Field(
         description="Whether every RIS is in the far field of the pair (footnote 3)"
     )

@@ -51,6 +51,8 @@ class ChannelEstimate:
     xi, zeta : [L]; gain : [L+1] complex ρ̂ (0 without LOS);
     efim : per path the equivalent FIM at the estimate ([1, 1] LOS, [3, 3] RIS on (ξ, ζ, cτ)),
     ``None`` for an absent LOS or a coarse estimate.
+    A path missing for the pair (blocked, out of view) is not estimated: NaN length, ξ, ζ,
+    gain 0 and EFIM ``None``.
     """
 
     length: FloatArray
@@ -58,6 +60,20 @@ class ChannelEstimate:
     zeta: FloatArray
     gain: ComplexArray
     efim: tuple[FloatArray | None, ...] | None = None
+
+    def restricted(self, ris: tuple[int, ...]) -> ChannelEstimate:
+        """The LOS entry and the RIS paths ``ris`` (0-based, in that order) only."""
+        if ris == tuple(range(len(self.xi))):
+            return self
+        sel = np.asarray(ris, dtype=int)
+        keep = np.concatenate([[0], sel + 1])
+        return ChannelEstimate(
+            length=self.length[keep],
+            xi=self.xi[sel],
+            zeta=self.zeta[sel],
+            gain=self.gain[keep],
+            efim=None if self.efim is None else tuple(self.efim[k] for k in keep),
+        )
 
 
 class ChannelEstimator:
@@ -116,22 +132,27 @@ class ChannelEstimator:
         setup = self.setup
         h = self.depiloted(ytilde)
         n = setup.n_ris
+        present = setup.ris_present
         length = np.full(n + 1, np.nan)
         if setup.los:
             length[0] = self.coarse_delay(h[0].sum(axis=1))
-        for i in range(n):
+        for i in present:
             length[i + 1] = self.coarse_delay(h[i + 1])
         length = unwrap_lengths(length, setup.delay_period_m)
-        xi, zeta = np.zeros(n), np.zeros(n)
-        for i in range(n):
+        xi, zeta = self._unestimated_angles(), self._unestimated_angles()
+        for i in present:
             cd = np.exp(1j * setup.kappa * length[i + 1])
             xi[i], zeta[i] = self.coarse_angles(i, cd @ h[i + 1])
         gain = np.zeros(n + 1, dtype=complex)
         if setup.los:
             gain[0] = self._los_terms(h[0], length[0])[2]
-        for i in range(n):
+        for i in present:
             gain[i + 1] = self._ris_terms(i, h[i + 1], np.array([xi[i], zeta[i], length[i + 1]]))[2]
         return ChannelEstimate(length=length, xi=xi, zeta=zeta, gain=gain)
+
+    def _unestimated_angles(self) -> FloatArray:
+        """[L] ξ or ζ before estimation: 0 for present paths, NaN for missing ones."""
+        return np.asarray(np.where(self.setup.present[1:], 0.0, np.nan))
 
     # ----- refinement -----------------------------------------------------------------------
 
@@ -257,7 +278,7 @@ class ChannelEstimator:
                 max_iter,
             )
             length[0] = eta[0]
-        for i in range(n):
+        for i in setup.ris_present:
             period = setup.ris[i].period(setup.wavelength)
 
             def terms(e: FloatArray, i: int = i) -> tuple[float, FloatArray, complex]:
@@ -278,12 +299,13 @@ class ChannelEstimator:
 
 
 def unwrap_lengths(length: FloatArray, period: float) -> FloatArray:
-    """Put every path length within ±period/2 of the reference (LOS, else RIS 1), so that
-    differences of path lengths are right even when c/Δf wraps them (B is then known modulo
-    c/Δf, like every delay)."""
-    ref_idx = 0 if np.isfinite(length[0]) else 1
-    ref = length[ref_idx]
+    """Put every path length within ±period/2 of the reference (LOS, else the first RIS path
+    present), so that differences of path lengths are right even when c/Δf wraps them (B is
+    then known modulo c/Δf, like every delay). Missing paths (NaN) stay NaN."""
+    finite = np.isfinite(length)
+    if not np.any(finite):
+        return length.copy()
+    ref = length[int(np.argmax(finite))]
     out = length.copy()
-    finite = np.isfinite(out)
     out[finite] = ref + wrap(out[finite] - ref, period)
     return out

@@ -183,10 +183,15 @@ class SimulationDocument(DocumentModel):
                 " leave 'known' empty"
             )
         n_ris = len(sc.ris)
-        if not sc.system.los and n_ris < 3:
-            raise ValueError("without LOS the estimator needs at least 3 RISs (Remark, Alg. 2)")
-        if n_ris < 2:
-            raise ValueError("the estimator needs at least 2 RISs (bearing-line intersection)")
+        los, n_used, note = self._present_paths()
+        if not los and n_used < 3:
+            raise ValueError(
+                f"without LOS the estimator needs at least 3 RISs (Remark, Alg. 2){note}"
+            )
+        if n_used < 2:
+            raise ValueError(
+                f"the estimator needs at least 2 RISs (bearing-line intersection){note}"
+            )
         for i, r in enumerate(sc.ris):
             if r.spacing_m is not None and r.spacing_m > sc.system.wavelength / 2 * (1 + 1e-9):
                 raise ValueError(
@@ -207,6 +212,19 @@ class SimulationDocument(DocumentModel):
             )
         self._check_scatterers()
         return self
+
+    def _present_paths(self) -> tuple[bool, int, str]:
+        """(LOS present, RIS paths present, a note naming the missing ones) for the pair: in
+        an environment the estimator works with the paths that exist (as the bounds do)."""
+        from ris_planner.bounds import scenario_path_presence
+
+        sc = self.scenario
+        presence = scenario_path_presence(sc, sc.tx_array[:1], sc.rx_array[:1])
+        present = {name: bool(v[0]) for name, v in presence.items()}
+        layout = (["los"] if sc.system.los else []) + [f"ris{i + 1}" for i in range(len(sc.ris))]
+        missing = [name for name in layout if not present[name]]
+        note = f" (missing paths: {', '.join(missing)} – blocked or out of view)" if missing else ""
+        return present["los"], sum(present.values()) - present["los"], note
 
     def _check_scatterers(self) -> None:
         sc = self.scenario

@@ -144,20 +144,22 @@ def rmse(e: FloatArray) -> float:
 
 def _channel_names(setup: SignalSetup) -> tuple[str, ...]:
     names = ["los:delay"] if setup.los else []
-    for i in range(setup.n_ris):
+    for i in setup.ris_present:
         names += [f"ris{i + 1}:xi", f"ris{i + 1}:zeta", f"ris{i + 1}:delay"]
     return tuple(names)
 
 
 def channel_errors(setup: SignalSetup, est: ChannelEstimate, truth: Paths) -> FloatArray:
-    """Errors of (cτ0, (ξ, ζ, cτ)_ℓ) against the direct paths, ξ/ζ modulo their period."""
+    """Errors of (cτ0, (ξ, ζ, cτ)_ℓ) against the direct paths present, ξ/ζ modulo their
+    period."""
     direct_len = truth.length[truth.direct]
     direct_ris = truth.ris[truth.direct]
     out = []
     period_r = setup.delay_period_m
     if setup.los:
         out.append(wrap(est.length[0] - direct_len[direct_ris == 0][0], period_r))
-    for i, arr in enumerate(setup.ris):
+    for i in setup.ris_present:
+        arr = setup.ris[i]
         k = int(np.flatnonzero(truth.direct & (truth.ris == i + 1))[0])
         per = arr.period(setup.wavelength)
         out += [

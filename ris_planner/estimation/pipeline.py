@@ -2,13 +2,15 @@
 
 The coarse position is computed from the coarse channel parameters (both coarse stages in a
 row, as the paper's "coarse" curves); the refined position from the refined channel
-parameters, started at the coarse position.
+parameters, started at the coarse position. Only the paths present for the pair (in an
+environment: not blocked, in view) enter Algorithm 2.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from itertools import combinations
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,11 +56,16 @@ class Estimator:
         t1 = time.perf_counter()
         ch_fine = self.channel.refine(ytilde, ch_coarse, st.max_channel_iterations)
         t2 = time.perf_counter()
+        used = s.ris_present
+        ris = tuple(s.ris[i] for i in used)
+        pair_w, path_w = present_weights(used, s.n_ris, st.pair_weights, st.path_weights)
         pos_coarse = coarse_position(
-            s.ris, s.wavelength, ch_coarse, self.candidates, st.pair_weights, st.path_weights
+            ris, s.wavelength, ch_coarse.restricted(used), self.candidates, pair_w, path_w
         )
         t3 = time.perf_counter()
-        pos_fine = refine_position(s.ris, s.wavelength, s.los, ch_fine, pos_coarse, st.sigma)
+        pos_fine = refine_position(
+            ris, s.wavelength, s.los, ch_fine.restricted(used), pos_coarse, st.sigma
+        )
         t4 = time.perf_counter()
         times = {
             "channel_coarse": t1 - t0,
@@ -67,3 +74,24 @@ class Estimator:
             "position_refine": t4 - t3,
         }
         return FullEstimate(ch_coarse, ch_fine, pos_coarse, pos_fine, times)
+
+
+def present_weights(
+    used: tuple[int, ...],
+    n_ris: int,
+    pair_weights: list[float] | None,
+    path_weights: list[float] | None,
+) -> tuple[list[float] | None, list[float] | None]:
+    """The settings' w_ij (RIS pairs i<j of the layout, lexicographic) and w_ℓ restricted to
+    the RISs ``used`` (their path exists for the pair); unchanged when all are used."""
+    if used == tuple(range(n_ris)):
+        return pair_weights, path_weights
+    pairs = list(combinations(range(n_ris), 2))
+    kept = set(combinations(used, 2))
+    pair_w = (
+        None
+        if pair_weights is None
+        else [w for w, ij in zip(pair_weights, pairs, strict=True) if ij in kept]
+    )
+    path_w = None if path_weights is None else [path_weights[i] for i in used]
+    return pair_w, path_w

@@ -7,7 +7,10 @@ with d_k(τ) = exp(−j κ_k r), κ_k = 2πkΔf/c and r = cτ the path length (k
 for uncontrolled paths (LOS, TX–SP–RX) and ω_{ℓ,g}^T a_R(ξ_m, ζ_m) for paths through RIS ℓ. The
 radio constants, profiles, codes and steering vectors come from the core (``fim.Radio``,
 ``codebooks``, ``geometry``, ``bounds.first_block_profiles``), so that the simulated signal is
-the one whose Fisher information the bounds compute.
+the one whose Fisher information the bounds compute. With an ``environment`` the paths are
+those of ``bounds.scenario_path_presence`` for the scenario's pair: a blocked LOS is the
+LOS-blocked mode, a blocked or out-of-view RIS path is absent from the signal (its code column
+stays: Γ is the layout's), and RIS path gains carry the pattern factor as in the bounds.
 """
 
 from __future__ import annotations
@@ -19,7 +22,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import beams, codebooks, geometry
-from ris_planner.bounds import beam_weights, first_block_profiles
+from ris_planner.bounds import (
+    beam_weights,
+    first_block_profiles,
+    ris_path_gain,
+    scenario_path_presence,
+)
 from ris_planner.estimation.models import Multipath
 from ris_planner.fim import Radio, subcarrier_wavenumbers
 from ris_planner.scenario import Scenario
@@ -69,7 +77,8 @@ class SignalSetup:
     """Everything the simulator and the estimator share for one scenario (SI units).
 
     ``profiles[ℓ]`` is RIS ℓ's first block [G̃, N]; ``full_profiles[ℓ]`` the sequence [G, N] of
-    eq. orthogonal_profiles; ``code`` is B [Γ, L+1]; ``delta`` [G] the amplitudes δ_g.
+    eq. orthogonal_profiles; ``code`` is B [Γ, L+1]; ``delta`` [G] the amplitudes δ_g;
+    ``present`` [L+1] which paths exist for the scenario's pair (entry 0 the LOS, ℓ RIS ℓ).
     """
 
     scenario: Scenario
@@ -83,10 +92,16 @@ class SignalSetup:
     kappa: FloatArray
     tx_power_w: float
     noise_variance_w: float
+    present: NDArray[np.bool_]
 
     @property
     def n_ris(self) -> int:
         return len(self.ris)
+
+    @property
+    def ris_present(self) -> tuple[int, ...]:
+        """Indices (0-based) of the RISs whose path exists for the pair."""
+        return tuple(int(i) for i in np.flatnonzero(self.present[1:]))
 
     @property
     def gamma(self) -> int:
@@ -102,7 +117,8 @@ class SignalSetup:
 
     @property
     def los(self) -> bool:
-        return self.scenario.system.los
+        """Whether the LOS path exists (``system.los`` and, in an environment, a clear leg)."""
+        return bool(self.present[0])
 
     @property
     def wavelength(self) -> float:
@@ -147,6 +163,8 @@ def signal_setup(
     if np.any(weights < 0):
         raise ValueError(f"beam_powers must hold G/Γ = {g_tilde} values ≥ 0")
     arrays = ris_arrays(scenario)
+    presence = scenario_path_presence(scenario, scenario.tx_array[:1], scenario.rx_array[:1])
+    present = np.array([bool(v[0]) for v in presence.values()])  # los, ris1, …, risL
     full = tuple(codebooks.expand_profiles(profiles[i], code[:, i + 1]) for i in range(n_ris))
     rng = np.random.default_rng(pilot_seed)
     return SignalSetup(
@@ -161,6 +179,7 @@ def signal_setup(
         kappa=subcarrier_wavenumbers(system),
         tx_power_w=system.tx_power_w,
         noise_variance_w=system.noise_variance_w,
+        present=present,
     )
 
 
@@ -198,10 +217,12 @@ def direct_paths(
     phases: FloatArray,
     amplitudes: FloatArray | None = None,
 ) -> Paths:
-    """The LOS path (if any) and one path per RIS (eqs. channel_LOS_MP, channel_RIS_MP).
+    """The LOS path (if present) and one path per present RIS (eqs. channel_LOS_MP,
+    channel_RIS_MP); paths missing for the pair (``setup.present``) are left out.
 
-    phases : [L+1] phases β of ρ = α e^{−jβ} (entry 0 for the LOS path, ignored without LOS);
-    amplitudes : [L+1] |ρ| overriding the Simulation-Parameters gains (for derivative checks).
+    phases : [L+1] phases β of ρ = α e^{−jβ} (entry 0 for the LOS path, ℓ for RIS ℓ; entries
+    of missing paths are ignored); amplitudes : [L+1] |ρ| overriding the Simulation-Parameters
+    gains (for derivative checks).
     """
     tx2, rx2 = np.atleast_2d(tx), np.atleast_2d(rx)
     lam = setup.wavelength
@@ -213,26 +234,25 @@ def direct_paths(
         alpha.append(float(geometry.los_gain(d0, lam)[0]))
         xi.append(0.0)
         zeta.append(0.0)
-    for i, arr in enumerate(setup.ris):
+    for i in setup.ris_present:
+        arr, ris = setup.ris[i], setup.scenario.ris[i]
         geo = geometry.ris_path_geometry(tx2, rx2, arr.position, arr.orientation)
         ris_idx.append(i + 1)
         length.append(float(geo.path_length(clock_offset_m)[0]))
-        alpha.append(float(geo.gain(lam)[0]))
+        alpha.append(float(ris_path_gain(ris, geo, tx2, rx2, lam)[0]))
         xi.append(float(geo.xi[0]))
         zeta.append(float(geo.zeta[0]))
-    ph = np.asarray(phases, dtype=float)
-    amp = np.asarray(alpha if amplitudes is None else amplitudes, dtype=float)
-    if not setup.los:
-        ph = ph[1:]
-        amp = amp if amplitudes is None else amp[1:]
-    n = len(ris_idx)
+    # [M] path index m (0 = LOS, ℓ = RIS ℓ) of each present path
+    idx = np.asarray(ris_idx, dtype=int)
+    ph = np.asarray(phases, dtype=float)[idx]
+    amp = np.asarray(alpha if amplitudes is None else np.asarray(amplitudes, dtype=float)[idx])
     return Paths(
-        ris=np.asarray(ris_idx, dtype=int),
+        ris=idx,
         length=np.asarray(length),
-        gain=amp[:n] * np.exp(-1j * ph[:n]),
+        gain=amp * np.exp(-1j * ph),
         xi=np.asarray(xi),
         zeta=np.asarray(zeta),
-        direct=np.ones(n, dtype=bool),
+        direct=np.ones(idx.size, dtype=bool),
     )
 
 
