@@ -89,7 +89,8 @@ def _fd_state_fim(doc: dict[str, Any], h: float = 1e-6) -> tuple[np.ndarray, np.
     s0 = truth_state(sc)
     base = direct_paths(setup, s0[0:3], s0[3:6], s0[6], phases)
     amps = np.abs(base.gain)
-    amps_full = amps if setup.los else np.concatenate([[0.0], amps])
+    amps_full = np.zeros(setup.n_ris + 1)  # [L+1] by path index (missing paths: unused)
+    amps_full[base.ris] = amps
 
     def mu(s: np.ndarray) -> np.ndarray:
         p = direct_paths(setup, s[0:3], s[3:6], s[6], phases, amplitudes=amps_full)
@@ -148,6 +149,90 @@ def test_table1_fisher_information_matches_core() -> None:
     fd, core = _fd_state_fim(table1())
     scale = np.sqrt(np.outer(np.diag(core), np.diag(core)))
     np.testing.assert_allclose(fd / scale, core / scale, rtol=0, atol=1e-7)
+
+
+def wall_across(
+    a: list[float], b: list[float], half_width: float = 0.4, at: float = 0.5
+) -> dict[str, Any]:
+    """A wall across the leg a–b at the fraction ``at`` of its length, perpendicular to it in
+    x–y, 0–6 m high."""
+    pa, pb = np.asarray(a, float), np.asarray(b, float)
+    mid, d = pa[:2] + at * (pb[:2] - pa[:2]), pb[:2] - pa[:2]
+    perp = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+    ends = [(mid + s * half_width * perp).tolist() for s in (1, -1)]
+    return {"kind": "wall", "start": ends[0], "end": ends[1], "height_m": 6.0}
+
+
+def environment_doc(rng: np.random.Generator, block: str, q: float = 0.0) -> dict[str, Any]:
+    """Four small RISs facing the UEs' midpoint, a wall blocking the TX–RIS 1 leg, and with
+    ``block = "los+ris1"`` a second one across the TX–RX leg."""
+    doc = small_scenario_doc(rng, n_ris=4)
+    doc["tx"], doc["rx"] = [-1.5, -1.0, 1.2], [1.5, 0.8, 1.0]
+    centre = 0.5 * (np.asarray(doc["tx"]) + np.asarray(doc["rx"]))
+    for i, r in enumerate(doc["ris"]):
+        angle = 1.6 * i + 0.3
+        r["position"] = [float(5 * np.cos(angle)), float(5 * np.sin(angle)), 2.0 + 0.3 * i]
+        v = centre - np.asarray(r["position"])
+        r["orientation"] = [float(np.arctan2(v[1], v[0])), 0.2, float(rng.uniform(-1, 1))]
+        r["pattern_exponent"] = q
+    walls = [wall_across(doc["tx"], doc["ris"][0]["position"], at=0.8)]
+    if block == "los+ris1":
+        walls.append(wall_across(doc["tx"], doc["rx"], half_width=0.2))
+    doc["environment"] = {"obstacles": walls}
+    return doc
+
+
+@pytest.mark.parametrize(("block", "q"), [("ris1", 0.0), ("los+ris1", 0.0), ("ris1", 1.5)])
+def test_simulated_signal_in_an_environment_matches_core(
+    rng: np.random.Generator, block: str, q: float
+) -> None:
+    """With obstacles the simulated signal holds only the paths present for the pair (the
+    bounds' rule), with the pattern factor on the RIS gains: its finite-difference FIM equals
+    the core's masked 7×7 FIM (same check and tolerance as the free-space test)."""
+    doc = environment_doc(rng, block, q)
+    sc = load_scenario(doc)
+    present = {k: bool(v[0]) for k, v in compute_bounds(sc).paths_present.items()}
+    assert present == {"los": block == "ris1", "ris1": False, "ris2": True, "ris3": True,
+                       "ris4": True}  # fmt: skip
+    setup = signal_setup(sc)
+    assert setup.los == present["los"] and setup.ris_present == (1, 2, 3)
+    fd, core = _fd_state_fim(doc)
+    scale = np.sqrt(np.outer(np.diag(core), np.diag(core)))
+    np.testing.assert_allclose(fd / scale, core / scale, rtol=0, atol=1e-7)
+
+
+def test_noise_free_estimate_in_an_environment_returns_the_truth() -> None:
+    """The 4-RIS preset with RIS 2's TX leg behind a wall: Algorithm 1 leaves that path out
+    (NaN), Algorithm 2 uses LOS + 3 RISs and returns the true state from a noise-free signal."""
+    doc = preset_document("4-ris")
+    doc["system"] |= {"noise_figure_db": 0.0}
+    doc["tx"], doc["rx"] = [-1.0, -1.5, 0.0], [1.5, 1.0, 0.3]
+    doc["environment"] = {"obstacles": [wall_across(doc["tx"], doc["ris"][1]["position"])]}
+    sim = load_simulation({"scenario": doc})
+    setup = signal_setup(sim.scenario)
+    assert setup.ris_present == (0, 2, 3) and setup.los
+    paths = realisation_paths(setup, Multipath(), np.random.default_rng(5))
+    assert sorted(paths.ris.tolist()) == [0, 1, 3, 4]
+    settings = sim.estimator
+    est = Estimator(setup, settings, settings.search_area.candidates(sim.scenario.tx_array[0]))
+    fe = est.estimate(separate_paths(setup, noise_free_signal(setup, paths)))
+    ch = fe.channel_refined
+    assert np.isnan(ch.xi[1]) and np.isnan(ch.length[2]) and ch.efim is not None
+    assert ch.efim[2] is None
+    np.testing.assert_allclose(fe.position_refined.state, truth_state(sim.scenario), atol=1e-7)
+    mc = run_monte_carlo(sim, [30.0], 2, seed=3).to_json()
+    assert [c["path"] for c in mc["channel"]] == ["los", "ris1", "ris3", "ris4"]
+    assert mc["failures"] == [0]
+
+
+def test_estimator_needs_enough_present_paths() -> None:
+    """3 RISs without LOS, one of them blocked: the simulation document is refused naming it."""
+    doc = preset_document("3-ris")
+    doc["system"] |= {"los": False}
+    doc["tx"], doc["rx"] = [-1.0, -1.5, 0.0], [1.5, 1.0, 0.3]
+    doc["environment"] = {"obstacles": [wall_across(doc["tx"], doc["ris"][0]["position"])]}
+    with pytest.raises(ValueError, match=r"at least 3 RISs.*missing paths: ris1 – blocked"):
+        load_simulation({"scenario": doc})
 
 
 def test_scatterer_gains_and_delays_follow_the_paper() -> None:
