@@ -10,7 +10,7 @@ RIS_PLANNER_BLAS_THREADS 1                              BLAS threads per request
 RIS_PLANNER_BOUNDS_CONCURRENCY 4                        bounds computations at once (others wait)
 RIS_PLANNER_MAX_PAIRS    10000                          TX–RX pairs per ``POST /v1/bounds``
 RIS_PLANNER_MAX_ARRAY_ELEMENTS 20000000                 largest engine array of a request [elements]
-RIS_PLANNER_MAX_WORK     1000000000                     Σ_ℓ 3·G̃·N_ℓ·pairs products of a request
+RIS_PLANNER_MAX_WORK     1000000000                     Σ_ℓ 3·G̃·N_ℓ·pairs; legs × obstacle edges
 RIS_PLANNER_MAX_BODY_BYTES 10000000                     request body limit [bytes]
 RIS_PLANNER_API_KEY      (unset: no authentication)     key required in ``X-API-Key`` on /v1
 ======================== ============================== =========================================
@@ -57,7 +57,10 @@ class Settings(BaseSettings):
         description="Largest engine array per request: max over RISs of pairs·N, 3G̃·N, 3G̃·pairs",
     )
     max_work: int = Field(
-        1_000_000_000, ge=1000, description="Complex products per request: Σ_ℓ 3·G̃·N_ℓ·pairs"
+        1_000_000_000,
+        ge=1000,
+        description="Complex products per request: Σ_ℓ 3·G̃·N_ℓ·pairs; also the visibility tests"
+        " (legs × obstacle edges) of a request with an environment",
     )
     max_body_bytes: int = Field(10_000_000, ge=1024, description="Request body limit [bytes]")
     api_key: SecretStr | None = Field(None, description="If set, /v1 routes require this key")

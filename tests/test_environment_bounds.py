@@ -372,3 +372,23 @@ def test_bounds_with_environment_cli_equals_rest(
     assert set(cli["paths_present"]) == {"los", "ris1", "ris2", "ris3", "ris4"}
     assert all(len(v) == 6 for v in cli["paths_present"].values())
     assert not all(all(v) for v in cli["paths_present"].values())
+
+
+def test_visibility_work_limit_is_413(tmp_path: Path) -> None:
+    """Legs × obstacle edges is refused before any work: 9 legs (LOS + 2 per RIS) × 200 walls
+    = 1800 > 1000, while the FIM work (Σ 3·G̃·N·pairs = 24) is far below the limit."""
+    doc = site_doc({"kind": "expected_random"}, n_pairs=1)
+    doc["tx"], doc["rx"] = doc["tx"][0], doc["rx"][0]
+    doc["system"] |= {"transmissions": 12}
+    doc["ris"] = [r | {"rows": 1, "cols": 1} for r in doc["ris"]]
+    walls = [
+        {"kind": "wall", "start": [20 + i, 20], "end": [20 + i, 21], "height_m": 1.0}
+        for i in range(200)
+    ]
+    doc["environment"] = {"obstacles": walls}
+    with api_client(tmp_path, max_work=1000) as client:
+        r = client.post("/v1/bounds", json=doc)
+        assert r.status_code == 413 and "1800 visibility tests" in r.json()["message"]
+        assert r.json()["limit"] == 1000
+        doc["environment"] = {"obstacles": walls[:100]}
+        assert client.post("/v1/bounds", json=doc).status_code == 200

@@ -225,6 +225,23 @@ def test_noise_free_estimate_in_an_environment_returns_the_truth() -> None:
     assert mc["failures"] == [0]
 
 
+def test_blind_area_in_an_environment_is_the_sub_layouts() -> None:
+    """The blind-area cost with RIS 1's TX leg blocked equals, point for point, that of the
+    layout without RIS 1 in free space (the estimator's view of the pair)."""
+    from ris_planner.estimation.blind_area import cost_map
+
+    doc = preset_document("4-ris")
+    doc["tx"], doc["rx"] = [-1.0, -1.5, 0.0], [1.5, 1.0, 0.3]
+    site = doc | {"environment": {"obstacles": [wall_across(doc["tx"], doc["ris"][0]["position"])]}}
+    extent = (-5.0, 5.0, -5.0, 5.0)
+    got = cost_map(load_scenario(site), step_m=0.25, extent=extent)
+    ref = cost_map(load_scenario(doc | {"ris": doc["ris"][1:]}), step_m=0.25, extent=extent)
+    assert np.array_equal(got.cost, ref.cost)
+    assert not np.array_equal(
+        got.cost, cost_map(load_scenario(doc), step_m=0.25, extent=extent).cost
+    )
+
+
 def test_estimator_needs_enough_present_paths() -> None:
     """3 RISs without LOS, one of them blocked: the simulation document is refused naming it."""
     doc = preset_document("3-ris")

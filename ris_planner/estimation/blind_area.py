@@ -2,7 +2,8 @@
 cost J of eq. coarse_position_costFun over TX candidates for a fixed true TX/RX pair, as a
 map over x–y at the TX height, and the candidate TX/RX pairs at its local minima. In a blind
 spot the global minimum is shallow and other candidates give almost the same spatial
-frequencies and delay differences, so noise moves the estimate far.
+frequencies and delay differences, so noise moves the estimate far. In an environment the
+cost uses the paths present for the true pair, as the estimator does.
 """
 
 from __future__ import annotations
@@ -14,8 +15,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import minimum_filter
 
+from ris_planner.bounds import scenario_path_presence
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.estimation.channel_estimation import ChannelEstimate
+from ris_planner.estimation.pipeline import present_weights
 from ris_planner.estimation.position_estimation import candidate_costs, channel_model
 from ris_planner.estimation.signal import ris_arrays
 from ris_planner.scenario import Scenario
@@ -72,17 +75,22 @@ class CostMap:
 
 
 def noise_free_channel(scenario: Scenario, tx: FloatArray, rx: FloatArray) -> ChannelEstimate:
-    """The true η_N of a pair as a channel estimate (what a noise-free Algorithm 1 returns)."""
+    """The true η_N of a pair as a channel estimate (what a noise-free Algorithm 1 returns);
+    paths missing for the pair in an environment are NaN, as Algorithm 1 leaves them."""
     ris = ris_arrays(scenario)
-    los = scenario.system.los
+    presence = scenario_path_presence(scenario, tx[None, :], rx[None, :])
+    los = bool(presence["los"][0])
     state = np.concatenate([tx, rx, [scenario.system.clock_offset_m]])
     eta, _ = channel_model(ris, los, state)
     n = len(ris)
     ris_eta = eta[1:] if los else eta
     length = np.concatenate([[eta[0] if los else np.nan], ris_eta[2::3]])
-    return ChannelEstimate(
-        length=length, xi=ris_eta[0::3], zeta=ris_eta[1::3], gain=np.zeros(n + 1, dtype=complex)
-    )
+    xi, zeta = ris_eta[0::3], ris_eta[1::3]
+    missing = ~np.array([bool(presence[f"ris{i + 1}"][0]) for i in range(n)])
+    if np.any(missing):
+        xi, zeta = np.where(missing, np.nan, xi), np.where(missing, np.nan, zeta)
+        length[1:][missing] = np.nan
+    return ChannelEstimate(length=length, xi=xi, zeta=zeta, gain=np.zeros(n + 1, dtype=complex))
 
 
 def cost_map(
@@ -123,7 +131,22 @@ def cost_map(
     gx, gy = np.meshgrid(x, y, indexing="ij")
     cand = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, tx_a[2])], axis=-1)
     channel = noise_free_channel(scenario, tx_a, rx_a)
-    cc = candidate_costs(ris, scenario.system.wavelength, channel, cand, pair_weights, path_weights)
+    # in an environment only the RIS paths present for the pair (as the estimator)
+    used = tuple(int(i) for i in np.flatnonzero(np.isfinite(channel.length[1:])))
+    if len(used) < 2:
+        raise RisPlannerError(
+            f"the blind-area map needs at least 2 RIS paths; {len(used)} exist for this pair"
+            " (the others are blocked or out of view)"
+        )
+    pair_w, path_w = present_weights(used, len(ris), pair_weights, path_weights)
+    cc = candidate_costs(
+        tuple(ris[i] for i in used),
+        scenario.system.wavelength,
+        channel.restricted(used),
+        cand,
+        pair_w,
+        path_w,
+    )
     cost = cc.cost.reshape(gx.shape)
     # candidate_costs maps every non-finite cost to inf
     local = (minimum_filter(cost, size=3, mode="nearest") == cost) & np.isfinite(cost)
