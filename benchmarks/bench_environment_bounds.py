@@ -1,13 +1,13 @@
 """Benchmark: what an environment adds to :func:`ris_planner.compute_bounds` on the Fig. 10
 workload (4753 pairs, 4 RISs, N = 100, G = 192).
 
-The same pairs and layout with and without an environment of ``--prisms`` random 1–2 m
+The same pairs and layout with and without an environment of ``--prisms`` random 0.6–1.2 m
 pillars (UEs inside them have their legs blocked; the scenario document would reject them,
 the array API scores them), median wall time of each, the share of the visibility
 (:func:`ris_planner.bounds.scenario_path_presence`) and the ratio to free space, for the
 ``random`` and ``expected_random`` codebooks. The masking itself is one ``np.where`` per path.
 
-    python benchmarks/bench_environment_bounds.py [--prisms 20] [--repeats 5]
+    python benchmarks/bench_environment_bounds.py [--prisms 10] [--repeats 5]
 """
 
 from __future__ import annotations
@@ -35,11 +35,15 @@ def median_time(fn: Callable[[], Any], repeats: int) -> float:
     return statistics.median(times)
 
 
-def pillars(n: int, rng: np.random.Generator) -> list[dict[str, Any]]:
-    out = []
-    for i in range(n):
+def pillars(n: int, rng: np.random.Generator, keep_clear: np.ndarray) -> list[dict[str, Any]]:
+    """n square pillars (half-width 0.3–0.6 m) at least 2 m from the points ``keep_clear``."""
+    out: list[dict[str, Any]] = []
+    while len(out) < n:
         c = rng.uniform(-5, 5, 2)
-        h = rng.uniform(0.5, 1.0)
+        if np.min(np.linalg.norm(keep_clear[:, :2] - c, axis=1)) < 2.0:
+            continue
+        i = len(out)
+        h = rng.uniform(0.3, 0.6)
         square = [[c[0] - h, c[1] - h], [c[0] + h, c[1] - h], [c[0] + h, c[1] + h]]
         out.append(
             {
@@ -54,12 +58,14 @@ def pillars(n: int, rng: np.random.Generator) -> list[dict[str, Any]]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--prisms", type=int, default=20)
+    parser.add_argument("--prisms", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     tx, rx = fig10_pairs()
     rng = np.random.default_rng(0)
-    env = {"obstacles": pillars(args.prisms, rng)}
+    layout = preset_document("4-ris")
+    fixed = np.array([r["position"] for r in layout["ris"]] + [layout["tx"], layout["rx"]])
+    env = {"obstacles": pillars(args.prisms, rng, fixed)}
     print(f"{len(tx)} pairs, 4-ris, {args.prisms} prisms")
     for kind in ("random", "expected_random"):
         doc = preset_document("4-ris") | {"codebook": {"kind": kind}}
