@@ -164,7 +164,8 @@ def signal_setup(
         raise ValueError(f"beam_powers must hold G/Γ = {g_tilde} values ≥ 0")
     arrays = ris_arrays(scenario)
     presence = scenario_path_presence(scenario, scenario.tx_array[:1], scenario.rx_array[:1])
-    present = np.array([bool(v[0]) for v in presence.values()])  # los, ris1, …, risL
+    names = ["los", *(f"ris{i + 1}" for i in range(n_ris))]
+    present = np.array([bool(presence[name][0]) for name in names])  # [L+1]
     full = tuple(codebooks.expand_profiles(profiles[i], code[:, i + 1]) for i in range(n_ris))
     rng = np.random.default_rng(pilot_seed)
     return SignalSetup(
