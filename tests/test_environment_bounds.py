@@ -134,9 +134,15 @@ def test_environment_equals_sub_layout_of_present_paths_expected_random() -> Non
             scaled(res.fim[k]), scaled(ref.fim[0]), rtol=0, atol=SUBLAYOUT_ATOL
         )
         assert_bounds_close(res, ref, k, ref.fim[0])
+        keep = [f"ris{i + 1}" for i in range(len(doc["ris"])) if present[f"ris{i + 1}"]]
+        sub_name = {"los": "los"} | {name: f"ris{j + 1}" for j, name in enumerate(keep)}
         for name, bounds in res.channel.items():
             if not present[name]:
                 assert all(np.isinf(v[k]) for v in bounds.values())
+                continue
+            for key, values in bounds.items():
+                expect = ref.channel[sub_name[name]][key][0]
+                assert values[k] == pytest.approx(expect, rel=SUBLAYOUT_FLOOR)
         determined += bool(np.isfinite(res.peb_rx[k]))
         if (res.reason[k] or "").startswith(REASON_UNDERDETERMINED):
             assert "missing paths" in res.reason[k] and np.isinf(ref.peb_rx[0])
@@ -154,10 +160,12 @@ def test_environment_equals_sub_layout_with_the_layouts_profiles() -> None:
     gamma = block_count(sc.system.transmissions, len(sc.ris))
     g_tilde = block_length(sc.system.transmissions, len(sc.ris))
     res = compute_bounds(sc)
+    compared = 0
     for k, present in enumerate(presence_rows(res)):
         sub = sub_layout(doc, k, present)
         if sub is None:
             continue
+        compared += 1
         keep = [i for i in range(len(sc.ris)) if present[f"ris{i + 1}"]]
         gamma_sub = len(keep) + 1
         sub["system"] |= {"transmissions": gamma_sub * g_tilde}
@@ -172,6 +180,7 @@ def test_environment_equals_sub_layout_with_the_layouts_profiles() -> None:
             scaled(res.fim[k]), scaled(ref.fim[0]), rtol=0, atol=SUBLAYOUT_ATOL
         )
         assert_bounds_close(res, ref, k, ref.fim[0])
+    assert compared >= 20
 
 
 def test_reason_names_the_missing_paths() -> None:
