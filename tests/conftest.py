@@ -38,6 +38,9 @@ def small_scenario_doc(
                 "orientation": rng.uniform(-np.pi, np.pi, 3).tolist(),
                 "rows": 3,
                 "cols": 4,
+                # random orientations put UEs behind RISs: these scenarios test the measurement
+                # model of every path, so the field of view admits the whole sphere
+                "max_angle_deg": 180,
             }
         )
     return {
