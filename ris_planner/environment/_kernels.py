@@ -121,7 +121,9 @@ def _deep_in_piece(
     rect1 = np.where(good, np.minimum(sb, rb), -np.inf)
     start = np.concatenate([disk0, rect0], axis=1)
     stop = np.concatenate([disk1, rect1], axis=1)
-    start = np.where(start <= stop, start, np.inf)  # empty intervals sort last
+    empty = ~(start <= stop)
+    start = np.where(empty, np.inf, start)  # empty intervals sort last
+    stop = np.where(empty, -np.inf, stop)
     return _has_gap(q0, q1, start, stop)
 
 

@@ -23,8 +23,10 @@ obstacle whose box it enters once, leaving the walk when blocked; the narrow pha
 
 from __future__ import annotations
 
+import importlib.util
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -36,6 +38,13 @@ from ris_planner.obstacles import Environment, Prism
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int_]
+
+Engine = Literal["auto", "numba", "numpy"]
+
+AUTO_COMPILED_MIN_WORK = 10_000_000
+"""``engine="auto"`` compiles (numba) from this many legs × obstacles per query on: below it
+the numpy engine answers faster than loading the compiled code (≈ 1–2 s once per process; the
+first compilation after an install takes 10–40 s and is cached)."""
 
 VISIBILITY_TOLERANCE_M = 1e-3
 """Legs that enter a prism or cross a wall by no more than this (1 mm) are clear; the contract
@@ -63,6 +72,8 @@ class _Index:
     row: IntArray  # [N] row in that bucket
     verts: list[FloatArray]  # per bucket [Nb, nb, 2], padded by repeating the last vertex
     grid: Grid
+    vert_start: IntArray  # [N + 1] CSR offsets into flat (walls: no vertices)
+    flat: FloatArray  # [V, 2] all footprint vertices, obstacle by obstacle
 
     @classmethod
     def build(cls, env: Environment) -> _Index:
@@ -92,7 +103,49 @@ class _Index:
             lo[k] = [*v.min(axis=0), o.base_m]
             hi[k] = [*v.max(axis=0), o.top_m]
         verts = [np.stack(g) for g in groups]
-        return cls(is_wall, base, top, ws, we, bucket, row, verts, Grid.build(lo, hi))
+        own = [o.vertices if isinstance(o, Prism) else np.zeros((0, 2)) for o in obs]
+        vert_start = np.concatenate([[0], np.cumsum([v.shape[0] for v in own])]).astype(int)
+        return cls(
+            is_wall,
+            base,
+            top,
+            ws,
+            we,
+            bucket,
+            row,
+            verts,
+            Grid.build(lo, hi),
+            vert_start,
+            np.ascontiguousarray(np.concatenate(own)),
+        )
+
+    def walk_compiled(self, a: FloatArray, b: FloatArray, tol: float) -> BoolArray:
+        """[M] the same answers as ``grid.walk`` with :meth:`pairs_blocked`, compiled."""
+        from ris_planner.environment import _jit
+
+        g = self.grid
+        return np.asarray(
+            _jit.walk(
+                a,
+                b,
+                tol,
+                g.x0,
+                g.y0,
+                g.h,
+                g.nx,
+                g.ny,
+                g.cell_start,
+                g.cell_items,
+                g.box_lo,
+                g.box_hi,
+                self.is_wall,
+                self.base,
+                self.top,
+                np.ascontiguousarray(np.concatenate([self.wall_start, self.wall_end], axis=1)),
+                self.vert_start,
+                self.flat,
+            )
+        )
 
     def pairs_blocked(
         self, a: FloatArray, b: FloatArray, legs: IntArray, ob: IntArray, tol: float
@@ -122,6 +175,9 @@ class Scene:
     the first query and kept)."""
 
     environment: Environment
+    engine: Engine = "auto"
+    """``"numba"`` (compiled), ``"numpy"``, or ``"auto"`` (numba for large queries, see
+    :data:`AUTO_COMPILED_MIN_WORK`); all give the same answers."""
 
     @classmethod
     def from_environment(cls, environment: Environment | None) -> Scene:
@@ -135,6 +191,12 @@ class Scene:
     def _index(self) -> _Index:
         return _Index.build(self.environment)
 
+    def _compiled(self, legs: int) -> bool:
+        if self.engine != "auto":
+            return self.engine == "numba"
+        work = legs * len(self.environment.obstacles)
+        return work >= AUTO_COMPILED_MIN_WORK and importlib.util.find_spec("numba") is not None
+
     def blocked(self, a: ArrayLike, b: ArrayLike, tol: float = VISIBILITY_TOLERANCE_M) -> BoolArray:
         """[M] whether each leg a[i]–b[i] ([M, 3] each, or one of them [3], broadcast) is
         blocked by an obstacle."""
@@ -147,6 +209,9 @@ class Scene:
             return np.zeros(a_.shape[0], dtype=bool)
         a_, b_ = np.ascontiguousarray(a_), np.ascontiguousarray(b_)
         index = self._index
+
+        if self._compiled(a_.shape[0]):
+            return index.walk_compiled(a_, b_, tol)
 
         def test(legs: IntArray, ob: IntArray) -> BoolArray:
             return index.pairs_blocked(a_, b_, legs, ob, tol)
