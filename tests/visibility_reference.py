@@ -116,14 +116,17 @@ def reference_blocked(a: NDArray, b: NDArray, env: Environment) -> bool | None:
     return None if unsure else False
 
 
-def reference_inside(p: NDArray, env: Environment, margin: float) -> int | None:
-    """Index of the first prism the point p [3] lies more than margin inside, −1 for none,
-    None when a depth is within 1 nm of the margin."""
+def reference_inside(points: NDArray, env: Environment, margin: float) -> list[int | None]:
+    """Per point [S, 3]: the index of the first prism it lies more than margin inside, −1 for
+    none, None when a depth is within 1 nm of the margin."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    first: list[int | None] = [-1] * pts.shape[0]
+    done = np.zeros(pts.shape[0], dtype=bool)
     for k, ob in enumerate(env.obstacles):
         if isinstance(ob, Prism):
-            depth = float(signed_depth(np.asarray(p, dtype=float)[None, :], ob)[0])
-            if abs(depth - margin) < 1e-9:
-                return None
-            if depth > margin:
-                return k
-    return -1
+            depth = signed_depth(pts, ob)
+            for i in np.nonzero(~done & (np.abs(depth - margin) < 1e-9))[0]:
+                first[i], done[i] = None, True
+            for i in np.nonzero(~done & (depth > margin))[0]:
+                first[i], done[i] = k, True
+    return first
