@@ -115,6 +115,11 @@ def test_many_legs_both_engines_agree_and_blocked_to_equals_blocked() -> None:
         by_target = scene.blocked_to(a, target)
         np.testing.assert_array_equal(by_target, scene.blocked(a, np.tile(target, (len(a), 1))))
         np.testing.assert_array_equal(by_target, scene.blocked(a, target))  # broadcast
+        targets = np.array([target, [-4.0, 0.5, 8.0], [10.0, -3.0, 0.0]])
+        matrix = scene.blocked_to(a[:500], targets)
+        assert matrix.shape == (3, 500)
+        for s, t in enumerate(targets):
+            np.testing.assert_array_equal(matrix[s], scene.blocked(a[:500], t))  # reversed
 
 
 def test_walk_in_chunks_keeps_leg_order(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -53,10 +53,11 @@ def _point_depth(px: float, py: float, pz: float, v: FloatArray, base: float, to
         ee = ex * ex + ey * ey
         s = (wx * ex + wy * ey) / (ee if ee > 0 else 1.0)
         s = min(max(s, 0.0), 1.0)
-        dist = min(dist, math.hypot(wx - s * ex, wy - s * ey))
+        qx, qy = wx - s * ex, wy - s * ey
+        dist = min(dist, qx * qx + qy * qy)
     if crossings % 2 == 0:
         return 0.0
-    return min(dist, min(pz - base, top - pz))
+    return min(math.sqrt(dist), min(pz - base, top - pz))
 
 
 @njit(cache=True, nogil=True)

@@ -36,7 +36,8 @@ def point_depth(p: FloatArray, verts: FloatArray, base: FloatArray, top: FloatAr
     wx, wy = px - v0[..., 0], py - v0[..., 1]
     ee = e[..., 0] ** 2 + e[..., 1] ** 2
     s = np.clip((wx * e[..., 0] + wy * e[..., 1]) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
-    dist = np.hypot(wx - s * e[..., 0], wy - s * e[..., 1]).min(axis=1)
+    qx, qy = wx - s * e[..., 0], wy - s * e[..., 1]
+    dist = np.sqrt((qx * qx + qy * qy).min(axis=1))
     dz = np.minimum(p[:, 2] - base, top - p[:, 2])
     return np.asarray(np.where(inside, np.minimum(dist, dz), 0.0))
 

@@ -219,14 +219,20 @@ class Scene:
         return index.grid.walk(a_, b_, test)
 
     def blocked_to(
-        self, points: ArrayLike, target: ArrayLike, tol: float = VISIBILITY_TOLERANCE_M
+        self, points: ArrayLike, targets: ArrayLike, tol: float = VISIBILITY_TOLERANCE_M
     ) -> BoolArray:
-        """[M] whether the leg from each point [M, 3] to one target [3] (a RIS centre, a TX) is
-        blocked – the planner's "many points × few sites" query; the same rule as
-        :meth:`blocked`."""
+        """Whether the legs from points [M, 3] to a target [3] (a RIS centre, a TX) are blocked,
+        [M]; for targets [S, 3], every point to every target in one query, [S, M] – the
+        planner's "many points × few sites" pattern. The same rule as :meth:`blocked` (which
+        is symmetric in the two ends)."""
         pts = np.asarray(points, dtype=float).reshape(-1, 3)
-        t = np.asarray(target, dtype=float).reshape(3)
-        return self.blocked(pts, t[None, :], tol)
+        t = np.asarray(targets, dtype=float)
+        single = t.ndim == 1
+        t = t.reshape(-1, 3)
+        a = np.repeat(t, pts.shape[0], axis=0)  # [S·M, 3] legs target → point
+        b = np.tile(pts, (t.shape[0], 1))
+        out = self.blocked(a, b, tol).reshape(t.shape[0], pts.shape[0])
+        return out[0] if single else out
 
     def inside(self, points: ArrayLike, margin: float = INSIDE_MARGIN_M) -> IntArray:
         """[M] index (in ``environment.obstacles``) of the first prism each point [M, 3] lies
