@@ -256,6 +256,33 @@ def test_degenerate_batches(engine: str) -> None:
     assert Scene.from_environment(None).blocked([[0, 0, 0]], [[1, 1, 1]]).tolist() == [False]
     with pytest.raises(ValueError, match="tolerance"):
         scene.blocked([[0, 0, 0]], [[1, 1, 1]], tol=0.5)
+    with pytest.raises(ValueError, match="b: coordinates must be finite"):
+        scene.blocked([[0, 0, 0]], [[1, np.nan, 1]])
+    with pytest.raises(ValueError, match=r"points: points must be \[x, y, z\]"):
+        scene.inside([[0, 0]])
+
+
+def test_grid_with_huge_and_small_obstacles_stays_small_and_exact() -> None:
+    """A 10 km prism among 30 m ones: the grid coarsens instead of registering the big box in
+    every cell, and the answers stay those of the reference (legs above the big roof)."""
+    rng = np.random.default_rng(9)
+    big = [[0, 0], [1e4, 0], [1e4, 1e4], [0, 1e4]]
+    obs: list[dict[str, Any]] = [{"kind": "prism", "footprint": big, "height_m": 5}]
+    corner = np.array([[0, 0], [30, 0], [0, 30]])
+    for c in rng.uniform(0, 1e4, (300, 2)):
+        fp = (c + corner).tolist()
+        obs.append({"kind": "prism", "footprint": fp, "base_m": 6.0, "height_m": 3.0})
+    env = Environment.model_validate({"obstacles": obs})
+    scene = Scene(env, engine="numpy")
+    a = np.c_[rng.uniform(0, 1e4, (60, 2)), rng.uniform(5.5, 10, 60)]
+    b = a + np.c_[rng.uniform(-1000, 1000, (60, 2)), rng.uniform(-0.4, 0.4, 60)]
+    got = scene.blocked(a, b)
+    grid = scene._index.grid
+    assert grid.cell_items.size <= grid_module.MAX_REGISTRATIONS_PER_OBSTACLE * len(obs)
+    assert got.any() and not got.all()
+    for i in range(60):
+        ref = reference_blocked(a[i], b[i], env)
+        assert ref is None or got[i] == ref
 
 
 def test_inside_equals_the_reference() -> None:

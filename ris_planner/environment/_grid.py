@@ -26,6 +26,9 @@ BOX_PAD_M = 1e-2
 MAX_CELLS = 1 << 20
 """Largest grid (cells); coarser cells beyond it."""
 
+MAX_REGISTRATIONS_PER_OBSTACLE = 64
+"""Cells per obstacle on average at most (a few huge boxes among small ones coarsen the grid)."""
+
 CHUNK_LEGS = 1 << 17
 """Legs walked together (bounds the temporary arrays to tens of MB)."""
 
@@ -56,14 +59,18 @@ class Grid:
         width, height = reg_hi.max(axis=0) - np.array([x0, y0])
         size = np.median(np.max(reg_hi - reg_lo, axis=1))
         h = float(max(size, np.sqrt(width * height / MAX_CELLS), 1e-3))
-        nx = max(1, int(np.ceil(width / h)))
-        ny = max(1, int(np.ceil(height / h)))
-        i0 = np.clip(np.floor((reg_lo[:, 0] - x0) / h).astype(int), 0, nx - 1)
-        i1 = np.clip(np.floor((reg_hi[:, 0] - x0) / h).astype(int), 0, nx - 1)
-        j0 = np.clip(np.floor((reg_lo[:, 1] - y0) / h).astype(int), 0, ny - 1)
-        j1 = np.clip(np.floor((reg_hi[:, 1] - y0) / h).astype(int), 0, ny - 1)
-        wi, wj = i1 - i0 + 1, j1 - j0 + 1
-        counts = wi * wj
+        while True:  # coarser cells until the registrations fit
+            nx = max(1, int(np.ceil(width / h)))
+            ny = max(1, int(np.ceil(height / h)))
+            i0 = np.clip(np.floor((reg_lo[:, 0] - x0) / h).astype(int), 0, nx - 1)
+            i1 = np.clip(np.floor((reg_hi[:, 0] - x0) / h).astype(int), 0, nx - 1)
+            j0 = np.clip(np.floor((reg_lo[:, 1] - y0) / h).astype(int), 0, ny - 1)
+            j1 = np.clip(np.floor((reg_hi[:, 1] - y0) / h).astype(int), 0, ny - 1)
+            wi, wj = i1 - i0 + 1, j1 - j0 + 1
+            counts = wi * wj
+            if counts.sum() <= MAX_REGISTRATIONS_PER_OBSTACLE * lo.shape[0] or nx * ny == 1:
+                break
+            h *= 2.0
         ob = np.repeat(np.arange(lo.shape[0]), counts)
         k = np.arange(ob.size) - np.repeat(np.cumsum(counts) - counts, counts)
         cell = (i0[ob] + k // wj[ob]) * ny + (j0[ob] + k % wj[ob])

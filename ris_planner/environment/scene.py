@@ -54,6 +54,15 @@ INSIDE_MARGIN_M = 1e-2
 """A UE or RIS centre more than this (1 cm) inside a prism is inside it (DESIGN.md)."""
 
 
+def _points(p: FloatArray, name: str) -> FloatArray:
+    """p as [M, 3] finite coordinates, or a ValueError naming the argument."""
+    if p.ndim == 0 or p.shape[-1] != 3:
+        raise ValueError(f"{name}: points must be [x, y, z] ([M, 3] or [3]), got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{name}: coordinates must be finite")
+    return p.reshape(-1, 3)
+
+
 def _bucket(n: int) -> int:
     """Padded vertex count for a footprint of n vertices (powers of two, at least 4)."""
     return max(4, 1 << (n - 1).bit_length())
@@ -204,7 +213,7 @@ class Scene:
             raise ValueError(f"visibility tolerance must lie in [0, 1 cm], got {tol} m")
         a_ = np.asarray(a, dtype=float)
         b_ = np.asarray(b, dtype=float)
-        a_, b_ = np.broadcast_arrays(a_.reshape(-1, 3), b_.reshape(-1, 3))
+        a_, b_ = np.broadcast_arrays(_points(a_, "a"), _points(b_, "b"))
         if a_.shape[0] == 0 or self.empty:
             return np.zeros(a_.shape[0], dtype=bool)
         a_, b_ = np.ascontiguousarray(a_), np.ascontiguousarray(b_)
@@ -225,10 +234,10 @@ class Scene:
         [M]; for targets [S, 3], every point to every target in one query, [S, M] – the
         planner's "many points × few sites" pattern. The same rule as :meth:`blocked` (which
         is symmetric in the two ends)."""
-        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        pts = _points(np.asarray(points, dtype=float), "points")
         t = np.asarray(targets, dtype=float)
         single = t.ndim == 1
-        t = t.reshape(-1, 3)
+        t = _points(t, "targets")
         a = np.repeat(t, pts.shape[0], axis=0)  # [S·M, 3] legs target → point
         b = np.tile(pts, (t.shape[0], 1))
         out = self.blocked(a, b, tol).reshape(t.shape[0], pts.shape[0])
@@ -237,7 +246,7 @@ class Scene:
     def inside(self, points: ArrayLike, margin: float = INSIDE_MARGIN_M) -> IntArray:
         """[M] index (in ``environment.obstacles``) of the first prism each point [M, 3] lies
         more than ``margin`` inside, −1 for none."""
-        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        pts = _points(np.asarray(points, dtype=float), "points")
         out = np.full(pts.shape[0], -1, dtype=int)
         if pts.shape[0] == 0 or self.empty:
             return out
