@@ -11,14 +11,18 @@ prism = its distance to the nearest face when inside, ≤ 0 outside):
   the footprint edges into inside pieces, clipped to the slab, and a piece blocks when it is
   not covered by the ``tol``-neighbourhood of the faces (disks at the footprint vertices,
   strips along its edges, the slab shrunk by ``tol``). So a leg that touches a face, runs along
-  it, starts on a facade and leaves it (even a few ulps inside), or passes a reflex corner of
-  a notch is clear, and one that is deep anywhere is blocked.
+  it within ``tol``, starts on a facade and leaves it (even a few ulps inside), or grazes the
+  reflex corner of a notch from the notch is clear; one that is deeper than ``tol`` anywhere
+  is blocked, also when the middle of its inside piece lies on a reflex corner.
+  The rule is symmetric in A and B.
 * inside: a point is inside a prism when its depth exceeds ``margin`` (:data:`INSIDE_MARGIN_M`).
 
-The engine (exact float64, numpy): a uniform 2-D grid of padded obstacle boxes
+The engine (exact float64): a uniform 2-D grid of padded obstacle boxes
 (:mod:`~ris_planner.environment._grid`); every leg walks its cells in order and meets each
 obstacle whose box it enters once, leaving the walk when blocked; the narrow phase is
-:mod:`~ris_planner.environment._kernels`. Many points to one site: :meth:`Scene.blocked_to`.
+:mod:`~ris_planner.environment._kernels`. The same algorithm runs compiled
+(:mod:`~ris_planner.environment._jit`, numba) for large queries, with the same answers.
+Many points to one or a few sites: :meth:`Scene.blocked_to`.
 """
 
 from __future__ import annotations
