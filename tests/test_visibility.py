@@ -11,6 +11,7 @@ import pytest
 from visibility_reference import reference_blocked, reference_inside
 
 import ris_planner.environment._grid as grid_module
+import ris_planner.environment.scene as scene_module
 from ris_planner.environment import INSIDE_MARGIN_M, VISIBILITY_TOLERANCE_M, Scene
 from ris_planner.obstacles import Environment, Prism
 
@@ -304,3 +305,20 @@ def test_inside_margin_and_first_prism() -> None:
     pts = [[2, 2, 1], [0.005, 2, 1], [0.02, 2, 1], [6, 6, 1], [2, 2, 2.995]]
     np.testing.assert_array_equal(scene.inside(pts), [0, -1, 0, -1, -1])
     assert VISIBILITY_TOLERANCE_M < INSIDE_MARGIN_M
+
+
+def test_auto_engine_compiles_only_large_queries(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[int] = []
+    compiled = scene_module._Index.walk_compiled
+
+    def spy(self: Any, a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray:
+        calls.append(a.shape[0])
+        return compiled(self, a, b, tol)
+
+    monkeypatch.setattr(scene_module._Index, "walk_compiled", spy)
+    scene = Scene(Environment(obstacles=[U_NOTCH]))
+    a, b = np.tile([[-5.0, 5, 2]], (20, 1)), np.tile([[15.0, 5, 2]], (20, 1))
+    assert scene.blocked(a, b).all() and calls == []
+    monkeypatch.setattr(scene_module, "AUTO_COMPILED_MIN_WORK", 20)
+    assert scene.blocked(a, b).all() and calls == [20]
+    assert Scene(scene.environment, engine="numpy").blocked(a, b).all() and calls == [20]

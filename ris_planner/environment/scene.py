@@ -27,9 +27,9 @@ Many points to one or a few sites: :meth:`Scene.blocked_to`.
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
 from typing import Literal
 
 import numpy as np
@@ -65,6 +65,16 @@ def _points(p: FloatArray, name: str) -> FloatArray:
     if not np.all(np.isfinite(p)):
         raise ValueError(f"{name}: coordinates must be finite")
     return p.reshape(-1, 3)
+
+
+@cache
+def _compiled_engine_available() -> bool:
+    """Whether the numba engine imports (``engine="auto"`` falls back to numpy otherwise)."""
+    try:
+        importlib.import_module("ris_planner.environment._jit")
+    except ImportError:
+        return False
+    return True
 
 
 def _bucket(n: int) -> int:
@@ -207,8 +217,9 @@ class Scene:
     def _compiled(self, legs: int) -> bool:
         if self.engine != "auto":
             return self.engine == "numba"
-        work = legs * len(self.environment.obstacles)
-        return work >= AUTO_COMPILED_MIN_WORK and importlib.util.find_spec("numba") is not None
+        if legs * len(self.environment.obstacles) < AUTO_COMPILED_MIN_WORK:
+            return False
+        return _compiled_engine_available()
 
     def blocked(self, a: ArrayLike, b: ArrayLike, tol: float = VISIBILITY_TOLERANCE_M) -> BoolArray:
         """[M] whether each leg a[i]–b[i] ([M, 3] each, or one of them [3], broadcast) is
