@@ -1,28 +1,54 @@
 """Visibility of legs against prisms and walls, batched over legs.
 
-Rules (DESIGN.md contract; ``tol`` = :data:`VISIBILITY_TOLERANCE_M`):
+Rules (DESIGN.md contract; ``tol`` = :data:`VISIBILITY_TOLERANCE_M`, the depth of a point in a
+prism = its distance to the nearest face when inside, ≤ 0 outside):
 
 * wall: a leg A→B is blocked when A and B lie on strictly opposite sides of the wall's
   vertical plane, each more than ``tol`` from it, and the crossing point lies inside the wall
   rectangle by more than ``tol`` (from its ends, its bottom and its top).
-* prism: the leg is clipped to the open slab base < z < top and split at its crossings with
-  the footprint's edges; it is blocked when one of the pieces is longer than ``tol`` and its
-  midpoint lies inside the prism more than ``tol`` from every face. A leg that touches a face,
-  runs along it, or starts on a facade and leaves it (even a few ulps inside) is clear.
+* prism: a leg is blocked when some point of it lies more than ``tol`` inside the prism (the
+  maximum depth along the leg exceeds ``tol``), evaluated exactly: the leg's line is cut at
+  the footprint edges into inside pieces, clipped to the slab, and a piece blocks when it is
+  not covered by the ``tol``-neighbourhood of the faces (disks at the footprint vertices,
+  strips along its edges, the slab shrunk by ``tol``). So a leg that touches a face, runs along
+  it within ``tol``, starts on a facade and leaves it (even a few ulps inside), or grazes the
+  reflex corner of a notch from the notch is clear; one that is deeper than ``tol`` anywhere
+  is blocked, also when the middle of its inside piece lies on a reflex corner.
+  The rule is symmetric in A and B.
+* inside: a point is inside a prism when its depth exceeds ``margin`` (:data:`INSIDE_MARGIN_M`).
+
+The engine (exact float64): a uniform 2-D grid of padded obstacle boxes
+(:mod:`~ris_planner.environment._grid`); every leg walks its cells in order and meets each
+obstacle whose box it enters once, leaving the walk when blocked; the narrow phase is
+:mod:`~ris_planner.environment._kernels`. The same algorithm runs compiled
+(:mod:`~ris_planner.environment._jit`, numba) for large queries, with the same answers.
+Many points to one or a few sites: :meth:`Scene.blocked_to`.
 """
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
+from functools import cache, cached_property
+from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from ris_planner.obstacles import Environment, Prism, WallObstacle
+from ris_planner.environment._grid import Grid
+from ris_planner.environment._kernels import point_depth, prism_blocks, wall_blocks
+from ris_planner.obstacles import Environment, Prism
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int_]
+
+Engine = Literal["auto", "numba", "numpy"]
+
+AUTO_COMPILED_MIN_WORK = 10_000_000
+"""``engine="auto"`` compiles (numba) from this many legs × obstacles per query on: below it
+the numpy engine answers faster than loading the compiled code (≈ 1–2 s once per process; the
+first compilation after an install takes 10–40 s and is cached)."""
 
 VISIBILITY_TOLERANCE_M = 1e-3
 """Legs that enter a prism or cross a wall by no more than this (1 mm) are clear; the contract
@@ -32,105 +58,149 @@ INSIDE_MARGIN_M = 1e-2
 """A UE or RIS centre more than this (1 cm) inside a prism is inside it (DESIGN.md)."""
 
 
-def _point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    """2-D distance from points p [..., 2] to segments a–b [..., 2] (broadcast)."""
-    ab = b - a
-    denom = np.maximum(np.sum(ab * ab, axis=-1), 1e-300)
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / denom, 0.0, 1.0)
-    closest = a + t[..., None] * ab
-    return np.asarray(np.linalg.norm(p - closest, axis=-1))
+def _points(p: FloatArray, name: str) -> FloatArray:
+    """p as [M, 3] finite coordinates, or a ValueError naming the argument."""
+    if p.ndim == 0 or p.shape[-1] != 3:
+        raise ValueError(f"{name}: points must be [x, y, z] ([M, 3] or [3]), got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{name}: coordinates must be finite")
+    return p.reshape(-1, 3)
 
 
-def _inside_polygon(p: FloatArray, a: FloatArray, b: FloatArray) -> BoolArray:
-    """Even-odd point-in-polygon for points p [M, 2] against edges a, b [n, 2]."""
-    px, py = p[:, 0:1], p[:, 1:2]
-    ay, by = a[None, :, 1], b[None, :, 1]
-    ax, bx = a[None, :, 0], b[None, :, 0]
-    straddle = (ay > py) != (by > py)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_cross = ax + (py - ay) * (bx - ax) / (by - ay)
-    return np.asarray(np.sum(straddle & (px < x_cross), axis=1) % 2 == 1)
+@cache
+def _compiled_engine_available() -> bool:
+    """Whether the numba engine imports (``engine="auto"`` falls back to numpy otherwise)."""
+    try:
+        importlib.import_module("ris_planner.environment._jit")
+    except ImportError:
+        return False
+    return True
 
 
-def prism_depth(points: FloatArray, prism: Prism) -> FloatArray:
-    """How far points [M, 3] lie inside the prism [M] (distance to its nearest face; ≤ 0
-    outside: 0 on or outside the footprint, z distance below/above it otherwise)."""
-    v = prism.vertices
-    a, b = v, np.roll(v, -1, axis=0)
-    xy = points[:, :2]
-    inside = _inside_polygon(xy, a, b)
-    d2 = _point_segment_distance(xy[:, None, :], a[None], b[None]).min(axis=1)
-    dz = np.minimum(points[:, 2] - prism.base_m, prism.top_m - points[:, 2])
-    return np.asarray(np.where(inside, np.minimum(d2, dz), 0.0))
+def _bucket(n: int) -> int:
+    """Padded vertex count for a footprint of n vertices (powers of two, at least 4)."""
+    return max(4, 1 << (n - 1).bit_length())
 
 
-def _wall_blocks(a: FloatArray, b: FloatArray, wall: WallObstacle, tol: float) -> BoolArray:
-    s = np.asarray(wall.start, dtype=float)
-    e = np.asarray(wall.end, dtype=float)
-    d = e - s
-    length = float(np.hypot(*d))
-    u = d / length
-    n = np.array([-u[1], u[0]])
-    sa = (a[:, :2] - s) @ n
-    sb = (b[:, :2] - s) @ n
-    cand = (sa * sb < 0) & (np.abs(sa) > tol) & (np.abs(sb) > tol)
-    t = np.where(cand, sa / np.where(cand, sa - sb, 1.0), 0.0)
-    p = a + t[:, None] * (b - a)
-    along = (p[:, :2] - s) @ u
-    return np.asarray(
-        cand
-        & (along > tol)
-        & (along < length - tol)
-        & (p[:, 2] > wall.base_m + tol)
-        & (p[:, 2] < wall.top_m - tol)
-    )
+@dataclass(frozen=True)
+class _Index:
+    """Obstacle arrays [N, …] in document order, footprints grouped by padded size."""
 
+    is_wall: BoolArray  # [N]
+    base: FloatArray  # [N]
+    top: FloatArray  # [N]
+    wall_start: FloatArray  # [N, 2] (zeros for prisms)
+    wall_end: FloatArray  # [N, 2]
+    bucket: IntArray  # [N] index into verts (−1 for walls)
+    row: IntArray  # [N] row in that bucket
+    verts: list[FloatArray]  # per bucket [Nb, nb, 2], padded by repeating the last vertex
+    grid: Grid
+    vert_start: IntArray  # [N + 1] CSR offsets into flat (walls: no vertices)
+    flat: FloatArray  # [V, 2] all footprint vertices, obstacle by obstacle
 
-def _prism_blocks(a: FloatArray, b: FloatArray, prism: Prism, tol: float) -> BoolArray:
-    m = a.shape[0]
-    d = b - a
-    # [M] the leg's parameter range inside the open slab base < z < top
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_base = (prism.base_m - a[:, 2]) / d[:, 2]
-        t_top = (prism.top_m - a[:, 2]) / d[:, 2]
-    flat = d[:, 2] == 0
-    in_slab = (a[:, 2] > prism.base_m) & (a[:, 2] < prism.top_m)
-    lo = np.where(flat, np.where(in_slab, 0.0, 1.0), np.maximum(0.0, np.minimum(t_base, t_top)))
-    hi = np.where(flat, np.where(in_slab, 1.0, 0.0), np.minimum(1.0, np.maximum(t_base, t_top)))
-    lo, hi = np.nan_to_num(lo, nan=1.0), np.nan_to_num(hi, nan=0.0)
-    v = prism.vertices
-    ea, eb = v, np.roll(v, -1, axis=0)
-    # [M, n] crossing parameters of the 2-D leg with each footprint edge
-    r = d[:, None, :2]
-    q = (eb - ea)[None]
-    w = ea[None] - a[:, None, :2]
-    denom = r[..., 0] * q[..., 1] - r[..., 1] * q[..., 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (w[..., 0] * q[..., 1] - w[..., 1] * q[..., 0]) / denom
-        s = (w[..., 0] * r[..., 1] - w[..., 1] * r[..., 0]) / denom
-    ok = (denom != 0) & (s >= 0) & (s <= 1) & (t > lo[:, None]) & (t < hi[:, None])
-    t = np.where(ok, t, hi[:, None])
-    # [M, n + 2] sorted cut points; pieces between consecutive cuts
-    cuts = np.sort(np.concatenate([lo[:, None], t, hi[:, None]], axis=1), axis=1)
-    t0, t1 = cuts[:, :-1], cuts[:, 1:]
-    length = (t1 - t0) * np.linalg.norm(d, axis=1)[:, None]
-    long = length > tol
-    if not np.any(long):
-        return np.zeros(m, dtype=bool)
-    rows, cols = np.nonzero(long)
-    mid_t = 0.5 * (t0[rows, cols] + t1[rows, cols])
-    mid = a[rows] + mid_t[:, None] * d[rows]
-    deep = prism_depth(mid, prism) > tol
-    out = np.zeros(m, dtype=bool)
-    out[rows[deep]] = True
-    return out
+    @classmethod
+    def build(cls, env: Environment) -> _Index:
+        obs = env.obstacles
+        n = len(obs)
+        is_wall = np.array([not isinstance(o, Prism) for o in obs])
+        base = np.array([o.base_m for o in obs], dtype=float)
+        top = np.array([o.top_m for o in obs], dtype=float)
+        ws, we = np.zeros((n, 2)), np.zeros((n, 2))
+        lo, hi = np.zeros((n, 3)), np.zeros((n, 3))
+        bucket, row = np.full(n, -1), np.zeros(n, dtype=int)
+        sizes: list[int] = []
+        groups: list[list[FloatArray]] = []
+        for k, o in enumerate(obs):
+            if isinstance(o, Prism):
+                v = o.vertices
+                size = _bucket(v.shape[0])
+                if size not in sizes:
+                    sizes.append(size)
+                    groups.append([])
+                g = sizes.index(size)
+                bucket[k], row[k] = g, len(groups[g])
+                groups[g].append(np.concatenate([v, np.repeat(v[-1:], size - v.shape[0], 0)]))
+            else:
+                v = np.array([o.start, o.end], dtype=float)
+                ws[k], we[k] = v
+            lo[k] = [*v.min(axis=0), o.base_m]
+            hi[k] = [*v.max(axis=0), o.top_m]
+        verts = [np.stack(g) for g in groups]
+        own = [o.vertices if isinstance(o, Prism) else np.zeros((0, 2)) for o in obs]
+        vert_start = np.concatenate([[0], np.cumsum([v.shape[0] for v in own])]).astype(int)
+        return cls(
+            is_wall,
+            base,
+            top,
+            ws,
+            we,
+            bucket,
+            row,
+            verts,
+            Grid.build(lo, hi),
+            vert_start,
+            np.ascontiguousarray(np.concatenate(own)),
+        )
+
+    def walk_compiled(self, a: FloatArray, b: FloatArray, tol: float) -> BoolArray:
+        """[M] the same answers as ``grid.walk`` with :meth:`pairs_blocked`, compiled."""
+        from ris_planner.environment import _jit
+
+        g = self.grid
+        return np.asarray(
+            _jit.walk(
+                a,
+                b,
+                tol,
+                g.x0,
+                g.y0,
+                g.h,
+                g.nx,
+                g.ny,
+                g.cell_start,
+                g.cell_items,
+                g.box_lo,
+                g.box_hi,
+                self.is_wall,
+                self.base,
+                self.top,
+                np.ascontiguousarray(np.concatenate([self.wall_start, self.wall_end], axis=1)),
+                self.vert_start,
+                self.flat,
+            )
+        )
+
+    def pairs_blocked(
+        self, a: FloatArray, b: FloatArray, legs: IntArray, ob: IntArray, tol: float
+    ) -> BoolArray:
+        """[K] exact test of leg legs[k] (rows of a, b) against obstacle ob[k]."""
+        out = np.zeros(ob.size, dtype=bool)
+        wall = self.is_wall[ob]
+        if np.any(wall):
+            w, o = legs[wall], ob[wall]
+            out[wall] = wall_blocks(
+                a[w], b[w], self.wall_start[o], self.wall_end[o], self.base[o], self.top[o], tol
+            )
+        bucket = self.bucket[ob]
+        for g, verts in enumerate(self.verts):
+            sel = bucket == g
+            if np.any(sel):
+                w, o = legs[sel], ob[sel]
+                out[sel] = prism_blocks(
+                    a[w], b[w], verts[self.row[o]], self.base[o], self.top[o], tol
+                )
+        return out
 
 
 @dataclass(frozen=True)
 class Scene:
-    """The obstacles of one site, ready for batched visibility queries."""
+    """The obstacles of one site, ready for batched visibility queries (the index is built on
+    the first query and kept)."""
 
     environment: Environment
+    engine: Engine = "auto"
+    """``"numba"`` (compiled), ``"numpy"``, or ``"auto"`` (numba for large queries, see
+    :data:`AUTO_COMPILED_MIN_WORK`); all give the same answers."""
 
     @classmethod
     def from_environment(cls, environment: Environment | None) -> Scene:
@@ -140,45 +210,86 @@ class Scene:
     def empty(self) -> bool:
         return not self.environment.obstacles
 
-    def blocked(
-        self, a: FloatArray, b: FloatArray, tol: float = VISIBILITY_TOLERANCE_M
-    ) -> BoolArray:
-        """[M] whether each leg a[i]–b[i] ([M, 3] each) is blocked by an obstacle."""
-        a = np.asarray(a, dtype=float).reshape(-1, 3)
-        b = np.asarray(b, dtype=float).reshape(-1, 3)
-        out = np.zeros(a.shape[0], dtype=bool)
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        for ob in self.environment.obstacles:
-            if isinstance(ob, Prism):
-                v = ob.vertices
-                box_lo = np.array([*v.min(axis=0), ob.base_m])
-                box_hi = np.array([*v.max(axis=0), ob.top_m])
-            else:
-                ends = np.array([ob.start, ob.end], dtype=float)
-                box_lo = np.array([*ends.min(axis=0), ob.base_m])
-                box_hi = np.array([*ends.max(axis=0), ob.top_m])
-            near = ~out & np.all((lo <= box_hi) & (hi >= box_lo), axis=1)
-            if not np.any(near):
-                continue
-            idx = np.nonzero(near)[0]
-            if isinstance(ob, Prism):
-                hit = _prism_blocks(a[idx], b[idx], ob, tol)
-            else:
-                hit = _wall_blocks(a[idx], b[idx], ob, tol)
-            out[idx[hit]] = True
-        return out
+    @cached_property
+    def _index(self) -> _Index:
+        return _Index.build(self.environment)
 
-    def inside(self, points: FloatArray, margin: float = INSIDE_MARGIN_M) -> IntArray:
-        """[M] index of the first prism each point [M, 3] lies more than ``margin`` inside,
-        −1 for none."""
-        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    def _compiled(self, legs: int) -> bool:
+        if self.engine != "auto":
+            return self.engine == "numba"
+        if legs * len(self.environment.obstacles) < AUTO_COMPILED_MIN_WORK:
+            return False
+        return _compiled_engine_available()
+
+    def blocked(self, a: ArrayLike, b: ArrayLike, tol: float = VISIBILITY_TOLERANCE_M) -> BoolArray:
+        """[M] whether each leg a[i]–b[i] ([M, 3] each, or one of them [3], broadcast) is
+        blocked by an obstacle."""
+        if not 0.0 <= tol <= INSIDE_MARGIN_M:
+            raise ValueError(f"visibility tolerance must lie in [0, 1 cm], got {tol} m")
+        a_ = np.asarray(a, dtype=float)
+        b_ = np.asarray(b, dtype=float)
+        a_, b_ = np.broadcast_arrays(_points(a_, "a"), _points(b_, "b"))
+        if a_.shape[0] == 0 or self.empty:
+            return np.zeros(a_.shape[0], dtype=bool)
+        a_, b_ = np.ascontiguousarray(a_), np.ascontiguousarray(b_)
+        index = self._index
+
+        if self._compiled(a_.shape[0]):
+            return index.walk_compiled(a_, b_, tol)
+
+        def test(legs: IntArray, ob: IntArray) -> BoolArray:
+            return index.pairs_blocked(a_, b_, legs, ob, tol)
+
+        return index.grid.walk(a_, b_, test)
+
+    def blocked_to(
+        self, points: ArrayLike, targets: ArrayLike, tol: float = VISIBILITY_TOLERANCE_M
+    ) -> BoolArray:
+        """Whether the legs from points [M, 3] to a target [3] (a RIS centre, a TX) are blocked,
+        [M]; for targets [S, 3], every point to every target in one query, [S, M] – the
+        planner's "many points × few sites" pattern. The same rule as :meth:`blocked` (which
+        is symmetric in the two ends)."""
+        pts = _points(np.asarray(points, dtype=float), "points")
+        t = np.asarray(targets, dtype=float)
+        single = t.ndim == 1
+        t = _points(t, "targets")
+        a = np.repeat(t, pts.shape[0], axis=0)  # [S·M, 3] legs target → point
+        b = np.tile(pts, (t.shape[0], 1))
+        out = self.blocked(a, b, tol).reshape(t.shape[0], pts.shape[0])
+        return out[0] if single else out
+
+    def inside(self, points: ArrayLike, margin: float = INSIDE_MARGIN_M) -> IntArray:
+        """[M] index (in ``environment.obstacles``) of the first prism each point [M, 3] lies
+        more than ``margin`` inside, −1 for none."""
+        pts = _points(np.asarray(points, dtype=float), "points")
         out = np.full(pts.shape[0], -1, dtype=int)
-        for i, ob in enumerate(self.environment.obstacles):
-            if isinstance(ob, Prism):
-                free = out < 0
-                if not np.any(free):
-                    break
-                idx = np.nonzero(free)[0]
-                hit = prism_depth(pts[idx], ob) > margin
-                out[idx[hit]] = i
+        if pts.shape[0] == 0 or self.empty:
+            return out
+        index = self._index
+        grid = index.grid
+        i = np.floor((pts[:, 0] - grid.x0) / grid.h)
+        j = np.floor((pts[:, 1] - grid.y0) / grid.h)
+        ok = (i >= 0) & (i < grid.nx) & (j >= 0) & (j < grid.ny)
+        rows = np.nonzero(ok)[0]
+        cell = (i[rows] * grid.ny + j[rows]).astype(int)
+        s, e = grid.cell_start[cell], grid.cell_start[cell + 1]
+        counts = e - s
+        row = np.repeat(rows, counts)
+        k = np.arange(row.size) - np.repeat(np.cumsum(counts) - counts, counts)
+        ob = grid.cell_items[np.repeat(s, counts) + k]
+        p = pts[row]
+        keep = ~index.is_wall[ob] & np.all((p >= grid.box_lo[ob]) & (p <= grid.box_hi[ob]), axis=1)
+        row, ob, p = row[keep], ob[keep], p[keep]
+        deep = np.zeros(row.size, dtype=bool)
+        bucket = index.bucket[ob]
+        for g, verts in enumerate(index.verts):
+            sel = np.nonzero(bucket == g)[0]
+            if sel.size:
+                o = ob[sel]
+                depth = point_depth(p[sel], verts[index.row[o]], index.base[o], index.top[o])
+                deep[sel] = depth > margin
+        first = np.full(pts.shape[0], np.iinfo(int).max)
+        np.minimum.at(first, row[deep], ob[deep])
+        hit = first < np.iinfo(int).max
+        out[hit] = first[hit]
         return out
