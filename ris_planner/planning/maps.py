@@ -148,9 +148,29 @@ class PairSet:
         return int(self.weights.shape[0])
 
 
-def build_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairsSpec, max_pairs: int) -> PairSet:
+def unordered_directions(spec: PairsSpec, metric: str, known: tuple[str, ...]) -> str:
+    """How unordered pairs count both directions (half the weight each):
+
+    * ``"single"``: not ``"unordered"``, or metric ``max`` (max(PEB_T, PEB_R) is symmetric);
+    * ``"mirror"``: the scorer takes the reverse direction's bound from the same inversion
+      (PEB_R of j→i is PEB_T of i→j; see :mod:`ris_planner.planning.objectives`);
+    * ``"explicit"``: a known TX breaks that symmetry, so the pair set holds both directions.
+    """
+    if spec != "unordered" or metric == "max":
+        return "single"
+    return "explicit" if "tx" in known else "mirror"
+
+
+def build_pairs(
+    tx_map: PointMap,
+    rx_map: PointMap,
+    spec: PairsSpec,
+    max_pairs: int,
+    both_directions: bool = False,
+) -> PairSet:
     """Pairs per the document's ``pairs`` (see :class:`PlanDocument`); raises
-    :class:`LimitExceededError` naming ``max_pairs`` when there are too many."""
+    :class:`LimitExceededError` naming ``max_pairs`` when there are too many.
+    ``both_directions`` (``unordered`` only): every pair i < j also as j → i, weights halved."""
     n_t, n_r = len(tx_map.points), len(rx_map.points)
     if isinstance(spec, PairSample):
         if spec.sample > max_pairs:
@@ -159,6 +179,8 @@ def build_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairsSpec, max_pairs: 
             )
         return _sample_pairs(tx_map, rx_map, spec)
     count = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
+    if spec == "unordered" and both_directions:
+        count *= 2
     if count > max_pairs:
         raise LimitExceededError(
             f"pairs {spec!r} gives {count} TX–RX pairs, above max_pairs = {max_pairs}; use"
@@ -166,6 +188,8 @@ def build_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairsSpec, max_pairs: 
         )
     if spec == "unordered":
         it, ir = np.triu_indices(n_t, k=1)
+        if both_directions:
+            it, ir = np.concatenate([it, ir]), np.concatenate([ir, it])
     else:
         it, ir = (a.ravel() for a in np.meshgrid(np.arange(n_t), np.arange(n_r), indexing="ij"))
     tx, rx = tx_map.points[it], rx_map.points[ir]
