@@ -187,9 +187,7 @@ def build_pairs(
             ' "pairs": {"sample": N, "seed": S} or coarser maps'
         )
     if spec == "unordered":
-        it, ir = np.triu_indices(n_t, k=1)
-        if both_directions:
-            it, ir = np.concatenate([it, ir]), np.concatenate([ir, it])
+        it, ir = canonical_unordered(tx_map, *np.triu_indices(n_t, k=1), both_directions)
     else:
         it, ir = (a.ravel() for a in np.meshgrid(np.arange(n_t), np.arange(n_r), indexing="ij"))
     tx, rx = tx_map.points[it], rx_map.points[ir]
@@ -198,6 +196,24 @@ def build_pairs(
         raise RisPlannerError("no TX–RX pair with distinct positions")
     w = tx_map.weights[it[keep]] * rx_map.weights[ir[keep]]
     return PairSet(tx[keep], rx[keep], w / w.sum(), it[keep], ir[keep])
+
+
+def canonical_unordered(
+    pm: PointMap, i: IntArray, j: IntArray, both_directions: bool
+) -> tuple[IntArray, IntArray]:
+    """(TX, RX) map indices of the unordered pairs {i, j} in an order that does not depend on
+    the map's order: each pair's TX is the point that sorts first by (x, y, z, weight) (both
+    orientations with ``both_directions``), and the pairs are sorted by (TX, RX) in that key.
+    A map listed in another order thus gives bit-identical pairs, weights and scores."""
+    p, w = pm.points, pm.weights
+    rank = np.empty(len(p), dtype=int)
+    rank[np.lexsort((w, p[:, 2], p[:, 1], p[:, 0]))] = np.arange(len(p))
+    swap = rank[j] < rank[i]
+    a, b = np.where(swap, j, i), np.where(swap, i, j)
+    if both_directions:
+        a, b = np.concatenate([a, b]), np.concatenate([b, a])
+    order = np.lexsort((rank[b], rank[a]))
+    return a[order], b[order]
 
 
 def _sample_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairSample) -> PairSet:

@@ -9,7 +9,7 @@ from typing import Any
 
 from ris_planner.errors import RisPlannerError
 
-PLAN_PRESET_NAMES = ("fig10-anchors", "junction")
+PLAN_PRESET_NAMES = ("fig10-anchors", "junction", "hall")
 """``fig10-anchors``: the four Fig. 10 anchor sites over the Fig. 10 pairs, 2–4 RISs;
 ``junction``: a road junction with UEs on the roads and building walls as candidates."""
 
