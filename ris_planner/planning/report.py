@@ -233,9 +233,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
             shading="flat",
             zorder=0,
         )
-        fig.colorbar(
-            mesh, ax=ax, label=f"{label} [m] (red: blind spot)", extend="max", shrink=0.8
-        )
+        fig.colorbar(mesh, ax=ax, label=f"{label} [m] (red: blind spot)", extend="max", shrink=0.8)
     elif np.any(np.isinf(grid) & ~empty):
         blind = np.ma.masked_array(np.ones_like(grid), mask=empty | ~np.isinf(grid))
         ax.pcolormesh(x_edges, y_edges, blind, cmap="autumn", shading="flat", zorder=0)
