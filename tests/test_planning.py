@@ -301,7 +301,7 @@ def test_schema_fields_have_descriptions() -> None:
             if "description" not in prop:
                 missing.append(f"{name}.{field}")
     assert not missing
-    assert set(PLAN_PRESET_NAMES) == {"fig10-anchors", "junction"}
+    assert set(PLAN_PRESET_NAMES) == {"fig10-anchors", "junction", "hall"}
     for name in PLAN_PRESET_NAMES:
         PlanDocument.model_validate(plan_preset(name))
 
