@@ -141,10 +141,13 @@ def test_fig10_anchor_search_beats_l_and_parallel_and_more_ris_improve() -> None
     w = np.full(2 * len(tx), 1 / (2 * len(tx)))
 
     def preset_objective(name: str) -> float:
-        """The objective over both directions of every unordered pair, half weight each."""
+        """The objective over both directions of every unordered pair, half weight each: the
+        reverse direction's PEB_R is this direction's PEB_T (the state FIM is permuted; tested
+        in test_planning_environment), taken from the same compute_bounds call."""
         scen = load_scenario(preset_document(name) | {"codebook": {"kind": "expected_random"}})
-        both_tx, both_rx = np.concatenate([tx, rx]), np.concatenate([rx, tx])
-        peb = compute_bounds(scen, tx=both_tx, rx=both_rx).peb_rx
+        res = compute_bounds(scen, tx=tx, rx=rx)
+        assert res.peb_tx is not None
+        peb = np.concatenate([res.peb_rx, res.peb_tx])
         return float(objective_value(obj, peb[None], w)[0])
 
     best = {c.ris_count: c.ranked[0] for c in res.counts}

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import bounds_rtol
 from pydantic import ValidationError
 
 from ris_planner.bounds import compute_bounds, kept_states
@@ -32,6 +33,11 @@ RTOL = 1e-9
 """Cached score vs the per-pair reference: both invert the same FIM through ris_planner.ldl;
 only the summation order of the 7×7 matrices (and exact zeros for absent paths) differs, which
 moves a bound by ≤ cond·ε (the free-space planning tests use the same tolerance)."""
+
+MIRROR_RTOL = 1e-6
+"""The mirrored score (reverse direction's PEB_R taken as PEB_T of the same inversion) against
+listing both directions: two inversions of permuted FIMs differ by cond·ε; DESIGN.md requires
+bounds accurate to relative 1e-6 wherever the FIM is non-singular."""
 
 GRID = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
 
@@ -91,7 +97,12 @@ def env_doc(**over: Any) -> dict[str, Any]:
 
 
 def per_pair_metric(
-    doc: PlanDocument, sites: list[Site], tx: Any, rx: Any, layout: tuple[int, ...]
+    doc: PlanDocument,
+    sites: list[Site],
+    tx: Any,
+    rx: Any,
+    layout: tuple[int, ...],
+    metric: str | None = None,
 ) -> Any:
     """[P] the metric of a layout, pair by pair: each pair's sub-layout of the paths that exist
     for it (the RIS serves both UEs; LOS if the system has it and the leg is clear), scored by
@@ -118,19 +129,48 @@ def per_pair_metric(
             known=doc.known,
         )
         res = compute_bounds(scen, tx=tx[idx], rx=rx[idx])
-        out[idx] = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx)
+        out[idx] = select_metric(metric or doc.objective.metric, res.peb_tx, res.peb_rx)
     return out
 
 
 def reference_objective(res: PlanResult, layout: tuple[int, ...]) -> float:
     """The plan's objective of a layout from :func:`per_pair_metric`; unordered pairs with
     metric rx/tx in both directions with half the weight each."""
-    doc, pairs = res.document, res.pairs
-    tx, rx, w = pairs.tx, pairs.rx, pairs.weights
-    if doc.pairs == "unordered" and doc.objective.metric != "max" and "tx" not in doc.known:
-        tx, rx, w = np.concatenate([tx, rx]), np.concatenate([rx, tx]), np.concatenate([w, w]) / 2
-    metric = per_pair_metric(doc, res.sites, tx, rx, layout)
+    doc, pairs, w = res.document, res.pairs, res.pairs.weights
+    metric = per_pair_metric(doc, res.sites, pairs.tx, pairs.rx, layout)
+    m = doc.objective.metric
+    if doc.pairs == "unordered" and m != "max" and "tx" not in doc.known:
+        # the reverse direction's PEB_R is this direction's PEB_T (and vice versa): see
+        # test_reverse_direction_permutes_the_state_fim
+        other = "tx" if m == "rx" else "rx"
+        reverse = per_pair_metric(doc, res.sites, pairs.tx, pairs.rx, layout, other)
+        metric, w = np.concatenate([metric, reverse]), np.concatenate([w, w]) / 2
     return float(objective_value(doc.objective, metric[None], w)[0])
+
+
+def test_reverse_direction_permutes_the_state_fim(rng: np.random.Generator) -> None:
+    """Swapping TX and RX swaps the p_T and p_R blocks of the state FIM (ξ, ζ, τ and τ0 are
+    symmetric in the two UEs, the clock is shared): PEB_R of j → i is PEB_T of i → j, to the
+    inversion's conditioning (conftest.bounds_rtol)."""
+    scen = Scenario(
+        ris=[
+            {"position": [x, y, 2.5], "orientation": [yaw, 0.4, 0]}
+            for x, y, yaw in ((-4, 0, 0), (0, 4, -math.pi / 2), (4, 0, math.pi))
+        ],
+        tx=[0, 0, 0],
+        rx=[1, 0, 0],
+        codebook={"kind": "expected_random"},
+    )
+    tx, rx = rng.uniform(-3, 3, (50, 3)), rng.uniform(-3, 3, (50, 3))
+    fwd, rev = compute_bounds(scen, tx=tx, rx=rx), compute_bounds(scen, tx=rx, rx=tx)
+    perm = [3, 4, 5, 0, 1, 2, 6]
+    permuted = fwd.fim[:, perm][:, :, perm]
+    scale = np.abs(fwd.fim).max(axis=(1, 2))[:, None, None]
+    np.testing.assert_allclose(rev.fim / scale, permuted / scale, rtol=0, atol=1e-12)
+    assert fwd.peb_tx is not None
+    for p in range(len(tx)):
+        tol = bounds_rtol(fwd.fim[p], 1e-12)
+        assert rev.peb_rx[p] == pytest.approx(fwd.peb_tx[p], rel=tol)
 
 
 @pytest.mark.parametrize(
@@ -226,7 +266,7 @@ def test_unordered_pairs_count_both_directions_and_map_order_does_not_matter() -
         cache = build_site_cache(d.system, res.sites, both, visibility=vis)
         explicit = Scorer(cache, both.weights, d.objective, ())
         layouts = np.array([lay, (0, 3, 5), (1, 2, 6)])
-        np.testing.assert_allclose(mirrored.loss(layouts), explicit.loss(layouts), rtol=RTOL)
+        np.testing.assert_allclose(mirrored.loss(layouts), explicit.loss(layouts), rtol=MIRROR_RTOL)
     # a known TX breaks the symmetry: both directions are listed
     known = run_plan({**base, "known": ["tx"]}, executor=SerialExecutor())
     assert not known.scorer.mirror and known.pairs.size == 2 * res.pairs.size
