@@ -6,6 +6,7 @@ presets, figures and bad input."""
 from __future__ import annotations
 
 import copy
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -510,3 +511,15 @@ def test_bad_environment_input_is_named(doc: dict[str, Any], message: str) -> No
     with pytest.raises((ValidationError, RisPlannerError)) as exc:
         run_plan(doc, executor=SerialExecutor())
     assert message in str(exc.value)
+
+
+def test_cli_names_an_unknown_facade_building(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ris_planner.cli import main
+
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(env_doc(facades=[{"of": ["b9"], "heights_m": [4], "spacing_m": 5}])))
+    assert main(["plan", str(bad), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "facades[0].of: no obstacle named 'b9'" in err and "Traceback" not in err

@@ -105,7 +105,8 @@ class PlanResult:
         return scorer.metric(np.arange(len(sites))[None, :])[0]
 
     def layout_metric(self, layout: Layout) -> FloatArray:
-        """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``)."""
+        """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``);
+        [2P] for mirrored unordered pairs (weights: :attr:`metric_weights`)."""
         return self.scorer.metric(np.array([layout], dtype=int))[0]
 
     def layout_stats(self, layout: Layout) -> dict[str, Any]:

@@ -43,7 +43,8 @@ class SiteCache:
     """packed : [28, S, P] packed 7×7 state information of each site's RIS path;
     los : [28, P] the LOS path's (``None`` when the LOS is blocked);
     degenerate : [S, P] a UE within 1 mm of the site (the pair is a blind spot there);
-    far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3);
+    far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3), or the path
+    is absent;
     present : [S, P] the site's RIS path exists (``None``: free space, every path does);
     los_present : [P] the LOS path exists (``None``: free space or no LOS)."""
 
@@ -103,6 +104,7 @@ def build_site_cache(
             apply_pattern(packed[:, s], pattern_factor(site.ris, t, r))
         if visibility is not None:
             mask_absent(packed[:, s], visibility.present[s])
+            far[s] |= ~visibility.present[s]  # an absent path has no near-field issue
         degenerate[s] = bad
         far[s] &= ~bad
         progress((s + 1) / len(sites), f"site {s + 1}/{len(sites)}")
