@@ -52,7 +52,7 @@ def square_candidates(n: int = 30, half: float = 4.0) -> list[dict[str, Any]]:
     return out
 
 
-def junction(workers: int, n_layouts: int = 3000) -> None:
+def junction(workers: int, n_layouts: int = 1000) -> None:
     """The junction plan with and without its environment, and the fixed-layout scorer cost."""
     doc = plan_preset("junction")
     runs = {}
@@ -73,15 +73,16 @@ def junction(workers: int, n_layouts: int = 3000) -> None:
     layouts = np.sort(
         np.array([rng.choice(n_sites, 3, replace=False) for _ in range(n_layouts)]), axis=1
     )
-    times = {}
-    for name, res in (("with environment", env), ("free space", free)):
-        t0 = time.perf_counter()
-        res.scorer.loss(layouts)
-        times[name] = time.perf_counter() - t0
+    times = {"with environment": np.inf, "free space": np.inf}
+    for _ in range(3):  # alternating, best of three: the shared machine's load drifts
+        for name, res in (("with environment", env), ("free space", free)):
+            t0 = time.perf_counter()
+            res.scorer.loss(layouts)
+            times[name] = min(times[name], time.perf_counter() - t0)
     ratio = times["with environment"] / times["free space"]
     vis_share = env.timing["visibility"] / (env.timing["cache"] + env.timing["search"])
     print(
-        f"scoring {n_layouts} fixed 3-RIS layouts × {env.pairs.size} pairs, one process:"
+        f"scoring {n_layouts} fixed 3-RIS layouts × {env.pairs.size} pairs, one process, best of 3:"
         f" {times['with environment']:.2f} s with the presence masks, {times['free space']:.2f} s"
         f" without ({ratio - 1:+.1%}); visibility is {vis_share:.1%} of the plan's cache + search"
         " (target: the environment adds ≤ 20 %)"

@@ -158,13 +158,20 @@ class Scorer:
 def underdetermined(cache: SiteCache, layouts: IntArray, n_states: int) -> BoolArray | None:
     """[nb, P] pairs whose present paths in each layout [nb, L] give fewer geometric channel
     parameters (3 per RIS path, 1 for LOS) than ``n_states`` unknowns; ``None`` in free
-    space (the layout-wide count of :func:`ris_planner.bounds.n_observations` applies)."""
+    space (the layout-wide count of :func:`ris_planner.bounds.n_observations` applies).
+
+    Counted as present RIS paths (uint8 sums, one gather per layout column) against the
+    RIS paths each pair needs, ⌈(n_states − LOS present) / 3⌉."""
     if cache.present is None:
         return None
-    count = 3 * np.count_nonzero(cache.present[layouts], axis=1)  # [nb, P]
-    if cache.los_present is not None:
-        count += cache.los_present
-    return np.asarray(count < n_states)
+    wide = layouts.shape[1] > np.iinfo(np.uint8).max
+    p8 = cache.present.astype(np.int32) if wide else cache.present.view(np.uint8)
+    count = p8[layouts[:, 0]]  # [nb, P] (a gather: a new array)
+    for col in range(1, layouts.shape[1]):
+        count += p8[layouts[:, col]]
+    los = 0 if cache.los_present is None else cache.los_present.astype(np.int64)
+    need = -((los - n_states) // 3)  # ceil((n_states - los) / 3)
+    return np.asarray(count < need)
 
 
 def select_metric(metric: str, peb_tx: FloatArray | None, peb_rx: FloatArray) -> FloatArray:
