@@ -98,9 +98,12 @@ def build_site_cache(
     for s, site in enumerate(sites):
         bad = ue_on_ris(tx, rx, site.ris.position)
         t, r = stand_ins(tx, rx, bad)  # as compute_bounds: bounds of these pairs become inf
-        info, far[s] = ris_path_information(site.ris, t, r, radio, None, 1, ones)
+        q = site.ris.pattern_exponent
+        # the isotropic path (q = 0), then the pattern factor here, in one place
+        iso = site.ris if q == 0.0 else site.ris.model_copy(update={"pattern_exponent": 0.0})
+        info, far[s] = ris_path_information(iso, t, r, radio, None, 1, ones)
         packed[:, s] = pack(info.state_information())
-        if site.ris.pattern_exponent != 0.0:
+        if q != 0.0:
             apply_pattern(packed[:, s], pattern_factor(site.ris, t, r))
         if visibility is not None:
             mask_absent(packed[:, s], visibility.present[s])
