@@ -18,6 +18,7 @@ demo: setup
 	mkdir -p $(OUT)
 	$(BIN)/ris-planner bounds --preset paper-table1 | tee $(OUT)/bounds.json
 	$(BIN)/ris-planner plan --preset fig10-anchors --out $(OUT)/plan
+	$(BIN)/ris-planner plan --preset hall --out $(OUT)/plan-hall
 
 lint: setup
 	$(BIN)/ruff check .

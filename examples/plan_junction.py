@@ -2,10 +2,13 @@
 
 Two 8 m wide roads cross at the origin (the east–west main road carries twice the UE density
 of the north–south side road); UEs sit at 1.5 m on a 4 m lattice along the roads. The four
-corner buildings' road-facing facades, 6 m from the centre lines, carry candidate sites every
-8.5 m at 5 m height with two downward tilts (64 candidates, 20×20 RISs, P = 30 dBm). The
-objective is the weighted coverage Pr(PEB_R ≤ 0.5 m) over 3000 sampled TX–RX pairs, for 2, 3
-and 4 RISs (``ris_planner/presets/plans/junction.json``).
+corner buildings are prisms of the plan's ``environment`` (12–15 m high): they block every leg
+through them, so the LOS between different arms of the junction and RIS legs around corners
+are absent. Their road-facing facades, 6 m from the centre lines, carry candidate sites every
+8.5 m at 5 m height with two downward tilts, all facing the street (64 candidates, 20×20 RISs,
+P = 30 dBm). The objective is the weighted coverage Pr(PEB_R ≤ 0.5 m) over all unordered pairs
+of road points, each counted in both directions with half the weight, for 2, 3 and 4 RISs
+(``ris_planner/presets/plans/junction.json``).
 
 Writes to ``--out``: ``plan.json`` (ranked layouts, per-count comparison), ``topview.png``,
 ``heatmap.png``, ``cdf.png``, ``by_count.csv`` and the plan document ``junction.json``. With
@@ -53,6 +56,9 @@ def main() -> None:
             w.writerow([b["ris_count"], " ".join(map(str, b["sites"])), b["objective"],
                         b["quantiles_m"]["0.5"], b["quantiles_m"]["0.9"], b["marginal_gain"],
                         b["method"], b["layouts_evaluated"], b["layouts_total"]])  # fmt: skip
+    print(f"dropped UE points inside buildings: {plan['dropped_points']}")
+    for warning in plan["warnings"]:
+        print(f"warning: {warning}")
     n_flag = sum(c["far_field_flag"] for c in plan["candidates"])
     worst = max(c["near_field_fraction"] for c in plan["candidates"])
     print(f"{len(result.sites)} candidates, {n_flag} flagged: near field (d_T d_R/(d_T + d_R)"

@@ -67,7 +67,7 @@ def test_plan_errors(tmp_path: Path) -> None:
         view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=60)
         assert view["status"] == "failed" and "exceeds the 5 candidate sites" in view["error"]
         presets = client.get("/v1/presets").json()
-        assert [p["name"] for p in presets["plans"]] == ["fig10-anchors", "junction"]
+        assert [p["name"] for p in presets["plans"]] == ["fig10-anchors", "junction", "hall"]
 
 
 def test_plan_body_limit_is_413(tmp_path: Path) -> None:

@@ -6,6 +6,8 @@ It extends the scenario document of DESIGN.md: ``system`` is the scenario's
 candidate (the scenario's per-RIS ``rows``/``cols``/``spacing_m``), ``codebook`` and ``known``
 mean what they mean there; instead of fixed RISs and UEs it names candidate sites, UE
 probability maps, the pairs to evaluate, an objective, the RIS counts and the search.
+``environment`` is the scenario document's (DESIGN.md, "Environment: obstacles, visibility,
+field of view"); ``facades`` put candidate sites on the facades of its named prisms.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from ris_planner.obstacles import Environment, Prism
 from ris_planner.scenario import (
     RIS,
     DocumentModel,
@@ -229,8 +232,58 @@ class Wall(DocumentModel):
             x0, y0, x1, y1 = self.rectangle
             if not (x1 > x0 and y1 > y0):
                 raise ValueError("rectangle must be [x_min, y_min, x_max, y_max] with max > min")
-        if any(abs(t) > math.pi / 2 for t in self.tilts_rad):
-            raise ValueError("tilts_rad must lie within ±π/2")
+        check_tilts(self.tilts_rad)
+        return self
+
+
+def check_tilts(tilts: list[float]) -> None:
+    """Tilts (pitch) of wall and facade sites lie within ±π/2."""
+    if any(abs(t) > math.pi / 2 for t in tilts):
+        raise ValueError("tilts_rad must lie within ±π/2")
+
+
+class Facades(DocumentModel):
+    """Mounting sites on every facade (footprint edge) of the named prisms of ``environment``.
+
+    Each edge is a :class:`Wall` segment facing outward (the normal is computed from the
+    footprint, any winding), moved ``offset_m`` outward, sampled every ``spacing_m`` at every
+    height and tilt. Heights are measured from the prism's base and clipped to its top (a RIS
+    on the roof edge); heights that clip to the same z give one site."""
+
+    of: list[str] = Field(
+        min_length=1,
+        max_length=10_000,
+        description="Names of prisms in environment.obstacles whose facades carry sites",
+    )
+    heights_m: list[float] = Field(
+        min_length=1,
+        max_length=100,
+        description="Heights of the RIS centre above the prism's base [m] (≥ 0), clipped to"
+        " its top",
+    )
+    spacing_m: float = Field(
+        gt=0, le=10000, allow_inf_nan=False, description="Distance between sites along an edge [m]"
+    )
+    tilts_rad: list[float] = Field(
+        default_factory=lambda: [0.0],
+        min_length=1,
+        max_length=100,
+        description="Downward tilts (pitch) to try at each site [rad]",
+    )
+    offset_m: float = Field(
+        0.0,
+        ge=0,
+        le=100,
+        allow_inf_nan=False,
+        description="Distance of the RIS centre in front of the facade [m] (0: on it)",
+    )
+
+    @model_validator(mode="after")
+    def _check_values(self) -> Facades:
+        finite_point(list(self.heights_m), "facades.heights_m")
+        if any(h < 0 for h in self.heights_m):
+            raise ValueError(f"facades.heights_m must be ≥ 0 (from the base), got {self.heights_m}")
+        check_tilts(self.tilts_rad)
         return self
 
 
@@ -246,12 +299,28 @@ class PlanCodebook(DocumentModel):
 
 
 class RISDefaults(DocumentModel):
-    """The element grid of every candidate RIS (the scenario document's per-RIS fields)."""
+    """The element grid, field of view and pattern of every candidate RIS (the scenario
+    document's per-RIS fields of the same names)."""
 
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
     cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
     spacing_m: float | None = Field(
         None, gt=0, allow_inf_nan=False, description="Element spacing [m]; default λ/2"
+    )
+    max_angle_deg: float = Field(
+        90.0,
+        gt=0,
+        le=180,
+        allow_inf_nan=False,
+        description="Field of view (with an environment): a UE is served only when the angle"
+        " between the RIS normal and the direction to it is strictly below this [deg]",
+    )
+    pattern_exponent: float = Field(
+        0.0,
+        ge=0,
+        le=100,
+        allow_inf_nan=False,
+        description="q: the path gain is multiplied by (cos θ_T · cos θ_R)^q (0 = isotropic)",
     )
 
 
@@ -316,13 +385,24 @@ class PlanDocument(DocumentModel):
     walls: list[Wall] = Field(
         default_factory=list, max_length=1000, description="Walls expanded to candidate sites"
     )
+    facades: list[Facades] = Field(
+        default_factory=list,
+        max_length=1000,
+        description="Facades of named environment prisms expanded to candidate sites",
+    )
+    environment: Environment | None = Field(
+        None,
+        description="Obstacles (prisms, walls) that block legs; UE map points inside prisms are"
+        " dropped; absent = free space",
+    )
     tx_map: UEMap = Field(description="TX probability map (positions [m], relative weights)")
     rx_map: UEMap = Field(description="RX probability map (positions [m], relative weights)")
     pairs: PairsSpec = Field(
         "all",
         description="all: every TX×RX combination of distinct positions, weight w_T·w_R;"
-        " unordered: every unordered pair of distinct points of one map (tx_map = rx_map, the"
-        " first point of the map order is the TX, weight w_i·w_j); or a seeded sample",
+        " unordered: every unordered pair of distinct points of one map (tx_map = rx_map,"
+        " weight w_i·w_j), counted in both directions with half the weight each for the"
+        " metrics rx and tx (max is symmetric); or a seeded sample",
     )
     max_pairs: int = Field(
         DEFAULT_MAX_PAIRS,
@@ -380,8 +460,9 @@ class PlanDocument(DocumentModel):
 
     @model_validator(mode="after")
     def _check_plan(self) -> PlanDocument:
-        if not self.candidates and not self.walls:
-            raise ValueError("no candidate sites: give candidates and/or walls")
+        if not self.candidates and not self.walls and not self.facades:
+            raise ValueError("no candidate sites: give candidates, walls and/or facades")
+        self.facade_prisms()  # every named prism exists
         if "tx" in self.known and self.objective.metric != "rx":
             raise ValueError(
                 f"objective metric {self.objective.metric!r} needs PEB_T, but 'tx' is known"
@@ -395,3 +476,33 @@ class PlanDocument(DocumentModel):
                     f" {self.system.transmissions})"
                 )
         return self
+
+    def facade_prisms(self) -> list[list[tuple[int, Prism]]]:
+        """Per entry of ``facades``: (obstacle index, prism) of each name in ``of``; raises a
+        ValueError naming the entry and the name when it is missing, ambiguous or a wall."""
+        obstacles = [] if self.environment is None else self.environment.obstacles
+        out = []
+        for i, fac in enumerate(self.facades):
+            found = []
+            for name in fac.of:
+                hits = [k for k, ob in enumerate(obstacles) if ob.name == name]
+                if not hits:
+                    known = [ob.name for ob in obstacles if isinstance(ob, Prism) and ob.name]
+                    raise ValueError(
+                        f"facades[{i}].of: no obstacle named {name!r} in environment.obstacles"
+                        f" (named prisms: {', '.join(map(repr, known)) or 'none'})"
+                    )
+                if len(hits) > 1:
+                    raise ValueError(
+                        f"facades[{i}].of: the name {name!r} is used by obstacles {hits};"
+                        " facades need unique names"
+                    )
+                ob = obstacles[hits[0]]
+                if not isinstance(ob, Prism):
+                    raise ValueError(
+                        f"facades[{i}].of: obstacle {name!r} is a {ob.kind}; facades are"
+                        " generated on prisms"
+                    )
+                found.append((hits[0], ob))
+            out.append(found)
+        return out

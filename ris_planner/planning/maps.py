@@ -148,9 +148,29 @@ class PairSet:
         return int(self.weights.shape[0])
 
 
-def build_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairsSpec, max_pairs: int) -> PairSet:
+def unordered_directions(spec: PairsSpec, metric: str, known: tuple[str, ...]) -> str:
+    """How unordered pairs count both directions (half the weight each):
+
+    * ``"single"``: not ``"unordered"``, or metric ``max`` (max(PEB_T, PEB_R) is symmetric);
+    * ``"mirror"``: the scorer takes the reverse direction's bound from the same inversion
+      (PEB_R of j→i is PEB_T of i→j; see :mod:`ris_planner.planning.objectives`);
+    * ``"explicit"``: a known TX breaks that symmetry, so the pair set holds both directions.
+    """
+    if spec != "unordered" or metric == "max":
+        return "single"
+    return "explicit" if "tx" in known else "mirror"
+
+
+def build_pairs(
+    tx_map: PointMap,
+    rx_map: PointMap,
+    spec: PairsSpec,
+    max_pairs: int,
+    both_directions: bool = False,
+) -> PairSet:
     """Pairs per the document's ``pairs`` (see :class:`PlanDocument`); raises
-    :class:`LimitExceededError` naming ``max_pairs`` when there are too many."""
+    :class:`LimitExceededError` naming ``max_pairs`` when there are too many.
+    ``both_directions`` (``unordered`` only): every pair i < j also as j → i, weights halved."""
     n_t, n_r = len(tx_map.points), len(rx_map.points)
     if isinstance(spec, PairSample):
         if spec.sample > max_pairs:
@@ -159,13 +179,15 @@ def build_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairsSpec, max_pairs: 
             )
         return _sample_pairs(tx_map, rx_map, spec)
     count = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
+    if spec == "unordered" and both_directions:
+        count *= 2
     if count > max_pairs:
         raise LimitExceededError(
             f"pairs {spec!r} gives {count} TX–RX pairs, above max_pairs = {max_pairs}; use"
             ' "pairs": {"sample": N, "seed": S} or coarser maps'
         )
     if spec == "unordered":
-        it, ir = np.triu_indices(n_t, k=1)
+        it, ir = canonical_unordered(tx_map, *np.triu_indices(n_t, k=1), both_directions)
     else:
         it, ir = (a.ravel() for a in np.meshgrid(np.arange(n_t), np.arange(n_r), indexing="ij"))
     tx, rx = tx_map.points[it], rx_map.points[ir]
@@ -174,6 +196,24 @@ def build_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairsSpec, max_pairs: 
         raise RisPlannerError("no TX–RX pair with distinct positions")
     w = tx_map.weights[it[keep]] * rx_map.weights[ir[keep]]
     return PairSet(tx[keep], rx[keep], w / w.sum(), it[keep], ir[keep])
+
+
+def canonical_unordered(
+    pm: PointMap, i: IntArray, j: IntArray, both_directions: bool
+) -> tuple[IntArray, IntArray]:
+    """(TX, RX) map indices of the unordered pairs {i, j} in an order that does not depend on
+    the map's order: each pair's TX is the point that sorts first by (x, y, z, weight) (both
+    orientations with ``both_directions``), and the pairs are sorted by (TX, RX) in that key.
+    A map listed in another order thus gives bit-identical pairs, weights and scores."""
+    p, w = pm.points, pm.weights
+    rank = np.empty(len(p), dtype=int)
+    rank[np.lexsort((w, p[:, 2], p[:, 1], p[:, 0]))] = np.arange(len(p))
+    swap = rank[j] < rank[i]
+    a, b = np.where(swap, j, i), np.where(swap, i, j)
+    if both_directions:
+        a, b = np.concatenate([a, b]), np.concatenate([b, a])
+    order = np.lexsort((rank[b], rank[a]))
+    return a[order], b[order]
 
 
 def _sample_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairSample) -> PairSet:

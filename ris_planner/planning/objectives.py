@@ -5,6 +5,16 @@ states (one gather-and-add per RIS over all entries × layouts × pairs), then o
 (:func:`ris_planner.ldl.inverse_diagonal_from`) giving the CRB diagonal of the
 metric's states. Known parts (``clock``, ``height``, ``tx``) remove their rows
 before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
+
+With an environment the cache's per-pair presence masks make a pair ``inf`` in a layout where
+its present paths give fewer geometric channel parameters than unknown states
+(:func:`underdetermined`, the rule of ``compute_bounds``).
+
+``mirror`` (unordered pairs, metric ``rx`` or ``tx``): each pair also counts in the reverse
+direction with half the weight. Swapping TX and RX permutes the state FIM (the channel
+parameters ξ, ζ, τ, τ0 are symmetric in the two UEs and the clock offset is shared), so the
+reverse direction's PEB_R is this direction's PEB_T: one inversion gives both, and the metric
+holds 2P values – this direction's, then the reverse's – weighted by :attr:`Scorer.metric_weights`.
 """
 
 from __future__ import annotations
@@ -19,6 +29,7 @@ from ris_planner.bounds import kept_states, n_observations
 from ris_planner.ldl import inverse_diagonal_from, packed_index
 from ris_planner.planning.document import Objective
 from ris_planner.planning.site_cache import N_STATES, SiteCache
+from ris_planner.planning.visibility import BoolArray
 from ris_planner.scenario import KnownPart
 
 FloatArray = NDArray[np.float64]
@@ -41,15 +52,25 @@ class Scorer:
     weights: FloatArray
     objective: Objective
     known: tuple[KnownPart, ...]
+    mirror: bool = False
 
     @property
     def states(self) -> tuple[list[int], list[int], list[int]]:
-        """(kept states in natural order, positions in it of the metric's TX / RX states)."""
+        """(kept states in natural order, positions in it of the metric's TX / RX states;
+        both with ``mirror``)."""
         keep = [int(k) for k in kept_states(self.known)]
         metric = self.objective.metric
-        tx = [i for i, k in enumerate(keep) if k in TX_STATES] if metric != "rx" else []
-        rx = [i for i, k in enumerate(keep) if k in RX_STATES] if metric != "tx" else []
+        both = self.mirror
+        tx = [i for i, k in enumerate(keep) if k in TX_STATES] if metric != "rx" or both else []
+        rx = [i for i, k in enumerate(keep) if k in RX_STATES] if metric != "tx" or both else []
         return keep, tx, rx
+
+    @property
+    def metric_weights(self) -> FloatArray:
+        """Weights of the metric's columns: the pair weights, or [2P] halves with ``mirror``."""
+        if not self.mirror:
+            return self.weights
+        return np.concatenate([self.weights, self.weights]) * 0.5
 
     @cached_property
     def _selected(self) -> tuple[FloatArray, FloatArray | None]:
@@ -65,14 +86,15 @@ class Scorer:
         return self.cache.packed[src], los
 
     def metric(self, layouts: IntArray) -> FloatArray:
-        """[B, P] metric bound (m) of each layout [B, L] and pair; ``inf`` for blind spots.
+        """[B, P] metric bound (m) of each layout [B, L] and pair ([B, 2P] with ``mirror``);
+        ``inf`` for blind spots.
 
         Bit for bit what ``compute_bounds`` gives for the layout (same FIM sum, LOS first, and
         the core's inversion arithmetic, see :mod:`ris_planner.ldl`)."""
         layouts = np.atleast_2d(np.asarray(layouts, dtype=int))
         b_all, n_ris = layouts.shape
         p = self.cache.n_pairs
-        out = np.empty((b_all, p))
+        out = np.empty((b_all, 2 * p if self.mirror else p))
         keep, tx, rx = self.states
         if n_observations(n_ris, self.cache.los is not None) < len(keep):  # as compute_bounds
             out[:] = np.inf
@@ -93,30 +115,63 @@ class Scorer:
             for col in range(1, n_ris):
                 a += packed[:, lay[:, col]]
             diag, _ = inverse_diagonal_from(a.reshape(len(packed), nb * p), n, first)
-            val = self._bound(diag, [i - first for i in tx], [i - first for i in rx])
-            block = val.reshape(nb, p)
+            tx_rel, rx_rel = [i - first for i in tx], [i - first for i in rx]
+            if self.mirror:
+                block = self._mirrored(diag, tx_rel, rx_rel, nb)
+            else:
+                block = self._bound(diag, tx_rel, rx_rel).reshape(nb, p)
             if any_deg:
-                block[np.any(deg[lay], axis=1)] = np.inf
+                block[np.tile(np.any(deg[lay], axis=1), block.shape[1] // p)] = np.inf
+            under = underdetermined(self.cache, lay, n)
+            if under is not None:
+                block[np.tile(under, block.shape[1] // p)] = np.inf
             out[b0 : b0 + nb] = block
         return out
 
     @staticmethod
-    def _bound(diag: FloatArray, tx: list[int], rx: list[int]) -> FloatArray:
+    def _peb(diag: FloatArray, rows: list[int]) -> FloatArray:
         """sqrt of the summed CRB diagonal in the core's order (``diag[:, cols].sum(axis=1)``)."""
+        acc = diag[rows[0]].copy()
+        for r in rows[1:]:
+            acc += diag[r]
+        return np.sqrt(acc)
 
-        def peb(rows: list[int]) -> FloatArray:
-            acc = diag[rows[0]].copy()
-            for r in rows[1:]:
-                acc += diag[r]
-            return np.sqrt(acc)
-
+    @classmethod
+    def _bound(cls, diag: FloatArray, tx: list[int], rx: list[int]) -> FloatArray:
+        """The metric from the CRB diagonal: PEB_T, PEB_R or their maximum."""
         if tx and rx:
-            return np.maximum(peb(tx), peb(rx))
-        return peb(tx or rx)
+            return np.maximum(cls._peb(diag, tx), cls._peb(diag, rx))
+        return cls._peb(diag, tx or rx)
+
+    def _mirrored(self, diag: FloatArray, tx: list[int], rx: list[int], nb: int) -> FloatArray:
+        """[nb, 2P]: the metric of this direction, then of the reverse one (PEB_R of the
+        reverse is PEB_T of this direction, and vice versa)."""
+        peb_t, peb_r = self._peb(diag, tx).reshape(nb, -1), self._peb(diag, rx).reshape(nb, -1)
+        first, second = (peb_r, peb_t) if self.objective.metric == "rx" else (peb_t, peb_r)
+        return np.concatenate([first, second], axis=1)
 
     def loss(self, layouts: IntArray) -> FloatArray:
         """[B] loss (lower is better) of each layout: the objective, negated for coverage."""
-        return loss_from_metric(self.objective, self.metric(layouts), self.weights)
+        return loss_from_metric(self.objective, self.metric(layouts), self.metric_weights)
+
+
+def underdetermined(cache: SiteCache, layouts: IntArray, n_states: int) -> BoolArray | None:
+    """[nb, P] pairs whose present paths in each layout [nb, L] give fewer geometric channel
+    parameters (3 per RIS path, 1 for LOS) than ``n_states`` unknowns; ``None`` in free
+    space (the layout-wide count of :func:`ris_planner.bounds.n_observations` applies).
+
+    Counted as present RIS paths (uint8 sums, one gather per layout column) against the
+    RIS paths each pair needs, ⌈(n_states − LOS present) / 3⌉."""
+    if cache.present is None:
+        return None
+    wide = layouts.shape[1] > np.iinfo(np.uint8).max
+    p8 = cache.present.astype(np.int32) if wide else cache.present.view(np.uint8)
+    count = p8[layouts[:, 0]]  # [nb, P] (a gather: a new array)
+    for col in range(1, layouts.shape[1]):
+        count += p8[layouts[:, col]]
+    los = 0 if cache.los_present is None else cache.los_present.astype(np.int64)
+    need = -((los - n_states) // 3)  # ceil((n_states - los) / 3)
+    return np.asarray(count < need)
 
 
 def select_metric(metric: str, peb_tx: FloatArray | None, peb_rx: FloatArray) -> FloatArray:

@@ -10,23 +10,34 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import compute_bounds
+from ris_planner.environment import Scene
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
-from ris_planner.planning.maps import PairSet, PointMap, build_map, build_pairs
+from ris_planner.planning.maps import (
+    PairSet,
+    PointMap,
+    build_map,
+    build_pairs,
+    unordered_directions,
+)
 from ris_planner.planning.objectives import (
     Scorer,
     objective_from_loss,
     objective_value,
-    select_metric,
     weighted_quantile,
 )
 from ris_planner.planning.search import Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
+from ris_planner.planning.visibility import (
+    check_sites_outside,
+    drop_inside,
+    pair_visibility,
+    serve_warnings,
+)
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import ExpectedRandomCodebook, Scenario
+from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M
 
 FloatArray = NDArray[np.float64]
 
@@ -68,18 +79,39 @@ class PlanResult:
     scorer: Scorer
     counts: list[CountResult]
     timing: dict[str, float]
+    scene: Scene | None = None
+    dropped_points: dict[str, int] | None = None
+    warnings: list[str] | None = None
 
     @property
     def cache(self) -> SiteCache:
         return self.scorer.cache
 
+    @property
+    def metric_weights(self) -> FloatArray:
+        """Weights of the columns of a layout's metric (see :attr:`Scorer.metric_weights`)."""
+        return self.scorer.metric_weights
+
+    def evaluate_layout(self, layout: Layout, pairs: PairSet) -> FloatArray:
+        """[P] metric bound (m) of a layout on other pairs (one direction each), with the
+        plan's visibility rules: a site cache of the layout's sites only."""
+        sites = [self.sites[s] for s in layout]
+        doc = self.document
+        vis = None
+        if self.scene is not None:
+            vis = pair_visibility(self.scene, sites, pairs, doc.system.los)
+        cache = build_site_cache(doc.system, sites, pairs, visibility=vis)
+        scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+        return scorer.metric(np.arange(len(sites))[None, :])[0]
+
     def layout_metric(self, layout: Layout) -> FloatArray:
-        """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``)."""
+        """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``);
+        [2P] for mirrored unordered pairs (weights: :attr:`metric_weights`)."""
         return self.scorer.metric(np.array([layout], dtype=int))[0]
 
     def layout_stats(self, layout: Layout) -> dict[str, Any]:
         metric = self.layout_metric(layout)[None, :]
-        w = self.pairs.weights
+        w = self.metric_weights
         obj = float(objective_value(self.document.objective, metric, w)[0])
         quant = weighted_quantile(metric, w, np.array(REPORT_QUANTILES))[0]
         far = np.all(self.cache.far_field[list(layout)], axis=0)
@@ -92,13 +124,13 @@ class PlanResult:
             },
             "mean_m": _num(float((metric[0] * w).sum())),
             "blind_fraction": _fraction(w, ~np.isfinite(metric[0])),
-            "near_field_fraction": _fraction(w, ~far),
+            "near_field_fraction": _fraction(self.pairs.weights, ~far),
         }
 
     def cdf(self, metric: FloatArray) -> dict[str, list[float | None]]:
         """The weighted CDF as bound values at probabilities 0.01 … 1 (``null`` = blind)."""
         probs = np.linspace(0.0, 1.0, CDF_POINTS)[1:]
-        vals = weighted_quantile(metric[None, :], self.pairs.weights, probs)[0]
+        vals = weighted_quantile(metric[None, :], self.metric_weights, probs)[0]
         return {"probability": [float(p) for p in probs], "bound_m": [_num(v) for v in vals]}
 
     def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
@@ -123,18 +155,14 @@ class PlanResult:
                 pick = rng.choice(len(tx_pts), max_tx, replace=False, p=tx_w / tx_w.sum())
                 tx_pts, tx_w = tx_pts[pick], tx_w[pick]
         n_tx, n_rx = len(tx_pts), len(pts)
-        tx = np.repeat(tx_pts, n_rx, axis=0)
-        rx = np.tile(pts, (n_tx, 1))
-        scenario = Scenario.model_construct(  # parts already validated; pairs checked below
-            system=doc.system,
-            ris=[self.sites[s].ris for s in layout],
-            tx=tx_pts[0].tolist(),
-            rx=pts[0].tolist(),
-            codebook=ExpectedRandomCodebook(),
-            known=list(doc.known),
-        )
-        res = compute_bounds(scenario, tx=tx, rx=rx)  # degenerate pairs: inf with a reason
-        metric = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx).reshape(n_tx, n_rx)
+        it, ir = np.repeat(np.arange(n_tx), n_rx), np.tile(np.arange(n_rx), n_tx)
+        tx, rx = tx_pts[it], pts[ir]
+        ok = np.linalg.norm(tx - rx, axis=1) >= MIN_UE_RIS_DISTANCE_M  # else inf, weight 0
+        flat = np.full(n_tx * n_rx, np.inf)
+        if np.any(ok):
+            hp = PairSet(tx[ok], rx[ok], np.full(int(ok.sum()), 1.0), it[ok], ir[ok])
+            flat[ok] = self.evaluate_layout(layout, hp)
+        metric = flat.reshape(n_tx, n_rx)
         w = np.where(np.linalg.norm(tx - rx, axis=1) > 0, np.repeat(tx_w, n_rx), 0.0)
         w = w.reshape(n_tx, n_rx).T
         empty = w.sum(axis=1) <= 0
@@ -179,6 +207,8 @@ class PlanResult:
         top.sort(key=lambda t: (t[0], t[1], t[2]))
         near = ~self.cache.far_field
         return {
+            "dropped_points": dict(self.dropped_points or {"tx": 0, "rx": 0}),
+            "warnings": list(self.warnings or []),
             "objective": doc.objective.model_dump(),
             "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
             "layouts": [stats_of[lay] for _, _, lay in top],
@@ -209,6 +239,7 @@ def run_plan(
     RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
     t0 = time.perf_counter()
+    scene = None if doc.environment is None else Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
     if max(doc.ris_count) > len(sites):
         raise RisPlannerError(
@@ -216,18 +247,32 @@ def run_plan(
         )
     tx_map = build_map(doc.tx_map, "tx_map")
     rx_map = build_map(doc.rx_map, "rx_map")
-    pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs)
+    dropped = {"tx": 0, "rx": 0}
+    if scene is not None:
+        check_sites_outside(scene, sites)
+        tx_map, dropped["tx"], rx_map, dropped["rx"] = _drop_points(scene, doc, tx_map, rx_map)
+    directions = unordered_directions(doc.pairs, doc.objective.metric, tuple(doc.known))
+    pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs, directions == "explicit")
     if len(sites) * pairs.size > MAX_CACHE_ENTRIES:
         raise LimitExceededError(
             f"{len(sites)} sites × {pairs.size} pairs exceed the site-cache limit of"
             f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
         )
     progress(0.0, "caching site information")
+    visibility = None
+    warnings: list[str] = []
+    t_vis = time.perf_counter()
+    if scene is not None:
+        visibility = pair_visibility(scene, sites, pairs, doc.system.los)
+        warnings = serve_warnings(sites, visibility.present, pairs.weights)
+    t_vis = time.perf_counter() - t_vis
     cache = build_site_cache(
-        doc.system, sites, pairs, lambda f, m: progress(0.2 * f, f"cache: {m}")
+        doc.system, sites, pairs, lambda f, m: progress(0.2 * f, f"cache: {m}"), visibility
     )
     t_cache = time.perf_counter() - t0
-    scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+    scorer = Scorer(
+        cache, pairs.weights, doc.objective, tuple(doc.known), mirror=directions == "mirror"
+    )
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
     counts: list[CountResult] = []
@@ -253,5 +298,27 @@ def run_plan(
             ex.close()
     t_search = time.perf_counter() - t0 - t_cache
     progress(1.0, "done")
-    timing = {"cache": t_cache, "search": t_search}
-    return PlanResult(doc, sites, tx_map, rx_map, pairs, scorer, counts, timing)
+    timing = {"cache": t_cache, "search": t_search, "visibility": t_vis}
+    return PlanResult(
+        doc, sites, tx_map, rx_map, pairs, scorer, counts, timing, scene, dropped, warnings
+    )
+
+
+def _drop_points(
+    scene: Scene, doc: PlanDocument, tx_map: PointMap, rx_map: PointMap
+) -> tuple[PointMap, int, PointMap, int]:
+    """The UE maps without their points inside prisms (and the counts); raises when a map or
+    the fixed heatmap TX lies inside."""
+    tx_map, n_tx = drop_inside(tx_map, scene)
+    rx_map, n_rx = drop_inside(rx_map, scene)
+    for what, pm in (("tx_map", tx_map), ("rx_map", rx_map)):
+        if len(pm.points) == 0:
+            raise RisPlannerError(f"{what}: every point lies inside a prism of the environment")
+    if doc.heatmap_tx is not None:
+        hit = int(scene.inside(np.asarray(doc.heatmap_tx, dtype=float))[0])
+        if hit >= 0:
+            raise RisPlannerError(
+                f"heatmap_tx {doc.heatmap_tx} lies inside environment"
+                f" {scene.environment.label(hit)}"
+            )
+    return tx_map, n_tx, rx_map, n_rx

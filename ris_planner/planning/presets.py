@@ -9,9 +9,11 @@ from typing import Any
 
 from ris_planner.errors import RisPlannerError
 
-PLAN_PRESET_NAMES = ("fig10-anchors", "junction")
+PLAN_PRESET_NAMES = ("fig10-anchors", "junction", "hall")
 """``fig10-anchors``: the four Fig. 10 anchor sites over the Fig. 10 pairs, 2–4 RISs;
-``junction``: a road junction with UEs on the roads and building walls as candidates."""
+``junction``: a road junction with UEs on the roads, its four corner buildings as prisms and
+their road-facing walls as candidates; ``hall``: a factory hall (walls, a machine row, two
+aisles of forklifts) with candidates on its four walls facing inwards."""
 
 
 def plan_preset(name: str) -> dict[str, Any]:

@@ -1,4 +1,9 @@
-"""Plan reports: ``plan.json`` and PNG figures (top view, heatmap, CDFs per RIS count)."""
+"""Plan reports: ``plan.json`` and PNG figures (top view, heatmap, CDFs per RIS count).
+
+The top view and the heatmap draw the environment's obstacles (prisms as filled footprints,
+walls as thick lines); the heatmap is a raster over the RX map (cells of about the map's point
+spacing, each showing the worst bound of the RX points in it, blank where no point is or inside
+a prism, red where the layout is blind)."""
 
 from __future__ import annotations
 
@@ -7,11 +12,104 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
+from ris_planner.environment import Scene
 from ris_planner.geometry import rotation_matrix
+from ris_planner.obstacles import Environment, Prism
 from ris_planner.planning.plan import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")
+
+RASTER_MAX_CELLS = 400
+"""Heatmap raster cells per axis at most (the cell grows beyond it)."""
+
+SPACING_SAMPLE = 2000
+"""RX points used to estimate the map's point spacing (median nearest-neighbour distance)."""
+
+FloatArray = NDArray[np.float64]
+
+
+def draw_obstacles(ax: Any, environment: Environment | None) -> None:
+    """Prisms as filled footprints (darker = taller), walls as thick lines."""
+    if environment is None or not environment.obstacles:
+        return
+    from matplotlib.patches import Polygon
+
+    tops = [ob.top_m for ob in environment.obstacles]
+    hi = max(tops)
+    first = {"prism": True, "wall": True}
+    for ob in environment.obstacles:
+        shade = 0.75 - 0.4 * ob.top_m / hi
+        if isinstance(ob, Prism):
+            ax.add_patch(
+                Polygon(
+                    ob.vertices,
+                    closed=True,
+                    facecolor=str(shade),
+                    edgecolor="k",
+                    linewidth=0.6,
+                    alpha=0.8,
+                    zorder=1,
+                    label="obstacle (prism)" if first["prism"] else None,
+                )
+            )
+        else:
+            ax.plot(
+                [ob.start[0], ob.end[0]],
+                [ob.start[1], ob.end[1]],
+                color=str(shade * 0.6),
+                linewidth=3.5,
+                solid_capstyle="butt",
+                zorder=1,
+                label="obstacle (wall)" if first["wall"] else None,
+            )
+        first[ob.kind] = False
+
+
+def point_spacing(xy: FloatArray) -> float:
+    """Median nearest-neighbour distance of distinct 2-D points (a subsample of them)."""
+    pts = np.unique(xy, axis=0)
+    if len(pts) < 2:
+        return 1.0
+    if len(pts) > SPACING_SAMPLE:
+        pts = pts[np.random.default_rng(0).choice(len(pts), SPACING_SAMPLE, replace=False)]
+    d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    return float(np.median(d.min(axis=1)))
+
+
+def raster(
+    points: FloatArray, values: FloatArray, scene: Scene | None
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
+    """(x edges [nx+1], y edges [ny+1], worst value per cell [ny, nx], no-value mask).
+
+    Cells are squares of the point spacing centred on the lattice of the first point; a cell's
+    value is the largest (worst) bound of its points (``inf`` = blind), NaN points are ignored;
+    cells without a value or whose centre lies inside a prism (at the points' median height)
+    are masked."""
+    xy = points[:, :2]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    cell = max(point_spacing(xy), float((hi - lo).max()) / (RASTER_MAX_CELLS - 1), 1e-6)
+    n = np.floor((hi - lo) / cell + 0.5).astype(int) + 1
+    idx = np.floor((xy - lo) / cell + 0.5).astype(int)
+    grid = np.full((n[1], n[0]), -np.inf)
+    ok = ~np.isnan(values)
+    np.maximum.at(grid, (idx[ok, 1], idx[ok, 0]), values[ok])
+    empty = grid == -np.inf
+    if scene is not None and not scene.empty:
+        cx, cy = np.meshgrid(lo[0] + cell * np.arange(n[0]), lo[1] + cell * np.arange(n[1]))
+        z = np.full(cx.size, float(np.median(points[:, 2])))
+        inside = scene.inside(np.column_stack([cx.ravel(), cy.ravel(), z]), margin=0.0) >= 0
+        empty |= inside.reshape(grid.shape)
+    x_edges = lo[0] + cell * (np.arange(n[0] + 1) - 0.5)
+    y_edges = lo[1] + cell * (np.arange(n[1] + 1) - 0.5)
+    return x_edges, y_edges, grid, empty
+
+
+def _site_label(result: PlanResult, s: int) -> str:
+    ris = result.sites[s].ris
+    return f"{s}: {ris.position[2]:g} m, tilt {ris.orientation[1]:.2f}"
 
 
 def _metric_label(result: PlanResult) -> str:
@@ -40,8 +138,11 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     paths = {name: out_dir / f"{name}.png" for name in FIGURE_NAMES}
     label = _metric_label(result)
 
-    # top view: UE maps (marker size ∝ weight), candidates, chosen RISs with facing arrows
+    env = result.document.environment
+    # top view: obstacles, UE maps (marker size ∝ weight), candidates, chosen RISs with facing
+    # arrows and labels (index: height, tilt)
     fig, ax = plt.subplots(figsize=(9, 6))
+    draw_obstacles(ax, env)
     for pm, colour, name in (
         (result.tx_map, "tab:blue", "TX map"),
         (result.rx_map, "tab:green", "RX map"),
@@ -88,6 +189,21 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
                 xytext=(p[0], p[1]),
                 arrowprops={"arrowstyle": "->", "color": f"C{k + 3}"},
             )
+    chosen = sorted({s for cr in result.counts for s in cr.ranked[0][0]})
+    by_xy: dict[tuple[float, float], list[str]] = {}  # sites above each other: one label
+    for s in chosen:
+        p = result.sites[s].ris.position
+        by_xy.setdefault((round(p[0], 2), round(p[1], 2)), []).append(_site_label(result, s))
+    for (x, y), texts in by_xy.items():
+        ax.annotate(
+            "\n".join(texts),
+            (x, y),
+            xytext=(4, 4),
+            textcoords="offset points",
+            fontsize=6,
+            zorder=20,
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.7, "lw": 0},
+        )
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -100,27 +216,32 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     # heatmap of the bound over the RX map for the best layout of the largest count
     pts, vals, lay = result.heatmap()
     fig, ax = plt.subplots(figsize=(7, 6))
-    finite = np.isfinite(vals)
     from matplotlib.colors import LogNorm
 
+    x_edges, y_edges, grid, empty = raster(pts, vals, result.scene)
+    finite = np.isfinite(grid) & ~empty
     if np.any(finite):
-        lo, hi = np.nanmin(vals[finite]), np.nanmax(vals[finite])
-        sc = ax.scatter(
-            pts[finite, 0],
-            pts[finite, 1],
-            c=vals[finite],
-            s=30,
-            cmap="viridis",
+        lo, hi = float(grid[finite].min()), float(grid[finite].max())
+        cmap = plt.get_cmap("viridis").with_extremes(over="red")
+        shown = np.ma.masked_array(np.where(np.isinf(grid), hi * 10, grid), mask=empty)
+        mesh = ax.pcolormesh(
+            x_edges,
+            y_edges,
+            shown,
+            cmap=cmap,
             norm=LogNorm(vmin=lo, vmax=max(hi, lo * 1.01)),
+            shading="flat",
+            zorder=0,
         )
-        fig.colorbar(sc, ax=ax, label=f"{label} [m]")
-    blind = np.isinf(vals)
-    if np.any(blind):
-        ax.scatter(pts[blind, 0], pts[blind, 1], marker="x", c="red", s=30, label="blind spot")
-        ax.legend(fontsize=7)
+        fig.colorbar(mesh, ax=ax, label=f"{label} [m] (red: blind spot)", extend="max", shrink=0.8)
+    elif np.any(np.isinf(grid) & ~empty):
+        blind = np.ma.masked_array(np.ones_like(grid), mask=empty | ~np.isinf(grid))
+        ax.pcolormesh(x_edges, y_edges, blind, cmap="autumn", shading="flat", zorder=0)
+    draw_obstacles(ax, env)
     for s in lay:
         p = result.sites[s].ris.position
-        ax.scatter(p[0], p[1], marker="s", c="k", s=50)
+        ax.scatter(p[0], p[1], marker="s", c="k", s=50, zorder=5)
+        ax.annotate(str(s), (p[0], p[1]), xytext=(4, 4), textcoords="offset points", fontsize=7)
     tx_txt = "fixed TX" if result.document.heatmap_tx is not None else "weighted median over TX map"
     ax.set_title(f"{label} over the RX map\nbest {len(lay)}-RIS layout, {tx_txt}", fontsize=10)
     ax.set_aspect("equal")
@@ -132,7 +253,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
 
     # weighted CDFs of the bound per RIS count (best layout of each)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    w = result.pairs.weights
+    w = result.metric_weights
     for cr in result.counts:
         m = cr.best_metric
         order = np.argsort(m)

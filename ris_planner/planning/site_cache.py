@@ -7,6 +7,12 @@ With the ``expected_random`` codebook a RIS path's equivalent FIM after eliminat
 so it does not depend on how many RISs share the time-orthogonal blocks: the cached matrix of a
 site is exactly the contribution :func:`ris_planner.bounds.compute_bounds` adds for that RIS in
 any layout, and a layout's state FIM is the LOS matrix plus the sum of its sites' matrices.
+
+With an environment (:mod:`ris_planner.planning.visibility`) a site's matrix is zero for the
+pairs it cannot serve and the LOS matrix zero where the LOS leg is blocked – adding an exact
+zero is removing the path – and ``present`` / ``los_present`` let the scorer count each pair's
+geometric channel parameters per layout (DESIGN.md: fewer than the unknown states is ``inf``).
+The RIS pattern factor (cos θ_T cos θ_R)^q multiplies |ρ_ℓ|, so the 7×7 scales by its square.
 """
 
 from __future__ import annotations
@@ -18,9 +24,11 @@ from numpy.typing import NDArray
 
 from ris_planner import fim
 from ris_planner.bounds import los_path_information, ris_path_information, stand_ins, ue_on_ris
+from ris_planner.environment import pattern_factor
 from ris_planner.ldl import pack
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
+from ris_planner.planning.visibility import Visibility
 from ris_planner.progress import ProgressCallback, no_progress
 from ris_planner.scenario import SystemParams
 
@@ -35,12 +43,17 @@ class SiteCache:
     """packed : [28, S, P] packed 7×7 state information of each site's RIS path;
     los : [28, P] the LOS path's (``None`` when the LOS is blocked);
     degenerate : [S, P] a UE within 1 mm of the site (the pair is a blind spot there);
-    far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3)."""
+    far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3), or the path
+    is absent;
+    present : [S, P] the site's RIS path exists (``None``: free space, every path does);
+    los_present : [P] the LOS path exists (``None``: free space or no LOS)."""
 
     packed: FloatArray
     los: FloatArray | None
     degenerate: NDArray[np.bool_]
     far_field: NDArray[np.bool_]
+    present: NDArray[np.bool_] | None = None
+    los_present: NDArray[np.bool_] | None = None
 
     @property
     def n_sites(self) -> int:
@@ -51,13 +64,25 @@ class SiteCache:
         return int(self.packed.shape[2])
 
 
+def mask_absent(packed: FloatArray, present: NDArray[np.bool_]) -> None:
+    """Zero the packed information [28, P] of the pairs whose path is absent ([P] mask)."""
+    packed[:, ~present] = 0.0
+
+
+def apply_pattern(packed: FloatArray, factor: FloatArray) -> None:
+    """Scale packed information [28, P] by the pattern factor squared (|ρ|² ∝ factor², [P])."""
+    packed *= factor * factor
+
+
 def build_site_cache(
     system: SystemParams,
     sites: list[Site],
     pairs: PairSet,
     progress: ProgressCallback = no_progress,
+    visibility: Visibility | None = None,
 ) -> SiteCache:
-    """LOS once and every candidate RIS path once, each as packed 7×7 information per pair."""
+    """LOS once and every candidate RIS path once, each as packed 7×7 information per pair;
+    with ``visibility`` absent paths carry zero information."""
     radio = fim.Radio.from_system(system)
     g = system.transmissions
     ones = np.ones(g)  # Γ·G̃ = G: with Γ = 1 and G̃ = G the weights sum to the same G
@@ -65,15 +90,27 @@ def build_site_cache(
     los = None
     if system.los:
         los = pack(los_path_information(tx, rx, radio, float(g)).state_information())
+        if visibility is not None and visibility.los is not None:
+            mask_absent(los, visibility.los)
     packed = np.empty((N_PACKED, len(sites), pairs.size))
     degenerate = np.zeros((len(sites), pairs.size), dtype=bool)
     far = np.zeros((len(sites), pairs.size), dtype=bool)
     for s, site in enumerate(sites):
         bad = ue_on_ris(tx, rx, site.ris.position)
         t, r = stand_ins(tx, rx, bad)  # as compute_bounds: bounds of these pairs become inf
-        info, far[s] = ris_path_information(site.ris, t, r, radio, None, 1, ones)
+        q = site.ris.pattern_exponent
+        # the isotropic path (q = 0), then the pattern factor here, in one place
+        iso = site.ris if q == 0.0 else site.ris.model_copy(update={"pattern_exponent": 0.0})
+        info, far[s] = ris_path_information(iso, t, r, radio, None, 1, ones)
         packed[:, s] = pack(info.state_information())
+        if q != 0.0:
+            apply_pattern(packed[:, s], pattern_factor(site.ris, t, r))
+        if visibility is not None:
+            mask_absent(packed[:, s], visibility.present[s])
+            far[s] |= ~visibility.present[s]  # an absent path has no near-field issue
         degenerate[s] = bad
         far[s] &= ~bad
         progress((s + 1) / len(sites), f"site {s + 1}/{len(sites)}")
-    return SiteCache(packed, los, degenerate, far)
+    if visibility is None:
+        return SiteCache(packed, los, degenerate, far)
+    return SiteCache(packed, los, degenerate, far, visibility.present, visibility.los)

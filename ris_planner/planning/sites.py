@@ -1,13 +1,16 @@
-"""Candidate RIS sites: explicit poses and walls expanded to poses."""
+"""Candidate RIS sites: explicit poses, walls and prism facades expanded to poses."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
-from ris_planner.planning.document import Candidate, PlanDocument, RISDefaults, Wall
+from ris_planner.obstacles import Prism
+from ris_planner.planning.document import Candidate, Facades, PlanDocument, RISDefaults, Wall
 from ris_planner.scenario import RIS
 
 
@@ -53,6 +56,41 @@ def wall_poses(wall: Wall) -> list[tuple[list[float], list[float], str]]:
     return out
 
 
+def signed_area(vertices: NDArray[np.float64]) -> float:
+    """Shoelace area of a footprint [n, 2]: > 0 counter-clockwise, < 0 clockwise."""
+    x, y = vertices[:, 0], vertices[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def facade_walls(facades: Facades, prism: Prism) -> list[Wall]:
+    """One outward-facing :class:`Wall` segment per footprint edge of the prism (in vertex
+    order), moved ``offset_m`` outward; heights from the base, clipped to the top, deduplicated.
+
+    The outward normal of edge a→b is on its right for a counter-clockwise footprint (positive
+    :func:`signed_area`) and on its left for a clockwise one."""
+    v = prism.vertices
+    side: Literal["left", "right"] = "right" if signed_area(v) > 0 else "left"
+    heights = list(dict.fromkeys(min(prism.base_m + h, prism.top_m) for h in facades.heights_m))
+    out = []
+    for a, b in zip(v, np.roll(v, -1, axis=0), strict=True):
+        d = b - a
+        outward = np.array([d[1], -d[0]]) / float(np.hypot(*d))  # right-hand normal
+        if side == "left":
+            outward = -outward
+        shift = facades.offset_m * outward
+        out.append(
+            Wall(
+                start=(a + shift).tolist(),
+                end=(b + shift).tolist(),
+                side=side,
+                heights_m=heights,
+                spacing_m=facades.spacing_m,
+                tilts_rad=facades.tilts_rad,
+            )
+        )
+    return out
+
+
 def _ris(position: list[float], orientation: list[float], grid: RISDefaults) -> RIS:
     return RIS(
         position=position,
@@ -60,11 +98,14 @@ def _ris(position: list[float], orientation: list[float], grid: RISDefaults) -> 
         rows=grid.rows,
         cols=grid.cols,
         spacing_m=grid.spacing_m,
+        max_angle_deg=grid.max_angle_deg,
+        pattern_exponent=grid.pattern_exponent,
     )
 
 
 def expand_sites(doc: PlanDocument) -> list[Site]:
-    """Explicit candidates first (input order), then each wall's sites (wall order)."""
+    """Explicit candidates first (input order), then each wall's sites (wall order), then each
+    facade entry's sites (prisms in ``of`` order, edges in footprint order)."""
     sites = [
         Site(_ris(c.position, c.orientation, doc.ris), c.name or f"candidate {i}")
         for i, c in enumerate(doc.candidates)
@@ -72,6 +113,14 @@ def expand_sites(doc: PlanDocument) -> list[Site]:
     for w_i, wall in enumerate(doc.walls):
         for pos, ori, label in wall_poses(wall):
             sites.append(Site(_ris(pos, ori, doc.ris), f"wall {w_i} {label}"))
+    for f_i, (fac, prisms) in enumerate(zip(doc.facades, doc.facade_prisms(), strict=True)):
+        for ob_i, prism in prisms:
+            name = prism.name or f"obstacle {ob_i}"
+            for e_i, wall in enumerate(facade_walls(fac, prism)):
+                for pos, ori, label in wall_poses(wall):
+                    sites.append(
+                        Site(_ris(pos, ori, doc.ris), f"facades {f_i} {name} edge {e_i} {label}")
+                    )
     return sites
 
 

@@ -1,0 +1,108 @@
+"""What each candidate site can serve, computed once per (UE point, site) and per LOS pair,
+never per layout (DESIGN.md, "Environment: obstacles, visibility, field of view").
+
+* A site serves a UE point when the point is in its field of view and the leg between them is
+  clear (:func:`ris_planner.environment.ris_serves`, batched over all sites here); the RIS path
+  of a site exists for a pair iff the site serves both of its UEs.
+* The LOS path of a pair exists iff ``system.los`` and its TX–RX leg is clear.
+* UE map points more than 1 cm inside a prism are dropped (and counted in ``plan.json``);
+  a candidate RIS centre more than 1 cm inside a prism is an error.
+
+Without a document ``environment`` none of this applies (free space, every path present).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.environment import Scene, in_field_of_view, los_clear
+from ris_planner.errors import RisPlannerError
+from ris_planner.planning.maps import PairSet, PointMap
+from ris_planner.planning.sites import Site
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+SERVE_WARNING_FRACTION = 0.01
+"""A candidate whose RIS path exists for less than this fraction (1 %) of the pair weight gets a
+warning in ``plan.json``: it faces away from the UEs or is buried behind obstacles."""
+
+LEG_BATCH = 1_000_000
+"""Legs per visibility query (bounds the temporary arrays of :meth:`Scene.blocked`)."""
+
+
+@dataclass(frozen=True)
+class Visibility:
+    """present : [S, P] the RIS path of each site exists for each pair;
+    los : [P] the LOS path exists (``None`` when the system has no LOS)."""
+
+    present: BoolArray
+    los: BoolArray | None
+
+
+def drop_inside(pm: PointMap, scene: Scene) -> tuple[PointMap, int]:
+    """The map without its points more than 1 cm inside a prism, and how many were dropped."""
+    inside = scene.inside(pm.points) >= 0
+    n = int(np.count_nonzero(inside))
+    if n == 0:
+        return pm, 0
+    return PointMap(pm.points[~inside], pm.weights[~inside]), n
+
+
+def check_sites_outside(scene: Scene, sites: list[Site]) -> None:
+    """Raise naming the first candidate whose RIS centre lies more than 1 cm inside a prism."""
+    if not sites:
+        return
+    hit = scene.inside(np.array([s.ris.position for s in sites]))
+    if np.any(hit >= 0):
+        i = int(np.argmax(hit >= 0))
+        raise RisPlannerError(
+            f"candidate {i} ({sites[i].name}) at {sites[i].ris.position} lies inside"
+            f" environment {scene.environment.label(int(hit[i]))}"
+        )
+
+
+def serve_matrix(scene: Scene, sites: list[Site], points: FloatArray) -> BoolArray:
+    """[S, M] whether each site serves each point [M, 3]: field of view per site, then the legs
+    of all sites in batches of :data:`LEG_BATCH` (= ``ris_serves`` per site)."""
+    fov = np.stack([in_field_of_view(s.ris, points) for s in sites])  # [S, M]
+    if scene.empty:
+        return fov
+    centres = np.array([s.ris.position for s in sites])
+    rows, cols = np.nonzero(fov)
+    for k in range(0, rows.size, LEG_BATCH):
+        r, c = rows[k : k + LEG_BATCH], cols[k : k + LEG_BATCH]
+        hit = scene.blocked(points[c], centres[r])
+        fov[r[hit], c[hit]] = False
+    return fov
+
+
+def _serves_pairs(
+    scene: Scene, sites: list[Site], positions: FloatArray, index: NDArray[np.int_]
+) -> BoolArray:
+    """[S, P] serve flags of the pairs' UEs, evaluated once per distinct map point."""
+    _, first, inverse = np.unique(index, return_index=True, return_inverse=True)
+    return serve_matrix(scene, sites, positions[first])[:, inverse.ravel()]
+
+
+def pair_visibility(scene: Scene, sites: list[Site], pairs: PairSet, los: bool) -> Visibility:
+    """Which paths exist for every (site, pair), and the LOS path of every pair."""
+    present = _serves_pairs(scene, sites, pairs.tx, pairs.tx_index)
+    present &= _serves_pairs(scene, sites, pairs.rx, pairs.rx_index)
+    los_ok = los_clear(scene, pairs.tx, pairs.rx) if los else None
+    return Visibility(present, los_ok)
+
+
+def serve_warnings(sites: list[Site], present: BoolArray, weights: FloatArray) -> list[str]:
+    """A warning per candidate whose RIS path exists for less than
+    :data:`SERVE_WARNING_FRACTION` of the pair weight ``weights`` [P]."""
+    served = present.astype(float) @ weights  # [S]
+    return [
+        f"candidate {i} ({site.name}) serves {served[i]:.1%} of the pair weight (below"
+        f" {SERVE_WARNING_FRACTION:.0%}): it faces away from the UEs or obstacles block it"
+        for i, site in enumerate(sites)
+        if served[i] < SERVE_WARNING_FRACTION
+    ]
