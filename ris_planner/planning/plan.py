@@ -239,7 +239,8 @@ def run_plan(
     RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
     t0 = time.perf_counter()
-    scene = None if doc.environment is None else Scene.from_environment(doc.environment)
+    # the fields of view apply in free space too (an empty scene); obstacles where given
+    scene = Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
     if max(doc.ris_count) > len(sites):
         raise RisPlannerError(
@@ -248,7 +249,7 @@ def run_plan(
     tx_map = build_map(doc.tx_map, "tx_map")
     rx_map = build_map(doc.rx_map, "rx_map")
     dropped = {"tx": 0, "rx": 0}
-    if scene is not None:
+    if not scene.empty:
         check_sites_outside(scene, sites)
         tx_map, dropped["tx"], rx_map, dropped["rx"] = _drop_points(scene, doc, tx_map, rx_map)
     directions = unordered_directions(doc.pairs, doc.objective.metric, tuple(doc.known))
@@ -259,12 +260,9 @@ def run_plan(
             f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
         )
     progress(0.0, "caching site information")
-    visibility = None
-    warnings: list[str] = []
     t_vis = time.perf_counter()
-    if scene is not None:
-        visibility = pair_visibility(scene, sites, pairs, doc.system.los)
-        warnings = serve_warnings(sites, visibility.present, pairs.weights)
+    visibility = pair_visibility(scene, sites, pairs, doc.system.los)
+    warnings = serve_warnings(sites, visibility.present, pairs.weights)
     t_vis = time.perf_counter() - t_vis
     cache = build_site_cache(
         doc.system, sites, pairs, lambda f, m: progress(0.2 * f, f"cache: {m}"), visibility
