@@ -24,8 +24,14 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
 
 
 def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
-    """``ris-planner power``: {"scenario": …, "objective": …, "solver": …} → PowerResult JSON."""
+    """``ris-planner power``: {"scenario": …, "objective": …, "solver": …} → PowerResult JSON,
+    or {"layout": …} (a layout + UE maps document) → the beam report."""
     from ris_planner.power import run_power
+
+    if "layout" in document:
+        from ris_planner.planning.beam_design import run_layout_beams
+
+        return JobOutput(run_layout_beams(document["layout"], progress))
 
     result = run_power(
         document["scenario"],

@@ -13,39 +13,73 @@ from __future__ import annotations
 from api.settings import Settings
 from ris_planner.codebooks import block_length
 from ris_planner.errors import LimitExceededError
+from ris_planner.obstacles import Environment
+from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.scenario import Scenario
 
 
 def check_scenario_size(scenario: Scenario, settings: Settings) -> None:
     """Raise :class:`LimitExceededError` if the scenario exceeds a configured limit."""
-    pairs = int(scenario.tx_array.shape[0])
+    check_size(
+        int(scenario.tx_array.shape[0]),
+        scenario.system.transmissions,
+        [r.elements for r in scenario.ris],
+        settings,
+        scenario.environment,
+    )
+
+
+def check_layout_beams_size(document: LayoutBeamsDocument, settings: Settings) -> None:
+    """The limits of a layout + UE-map power allocation: its pairs are evaluated by the bounds
+    engine once per beam design (the maps are validated and expanded first; their own size
+    limits hold there)."""
+    from ris_planner.planning.maps import build_map, build_pairs
+
+    tx_map = build_map(document.tx_map, "tx_map")
+    rx_map = build_map(document.rx_map, "rx_map")
+    pairs = build_pairs(tx_map, rx_map, document.pairs, document.max_pairs)
+    check_size(
+        pairs.size,
+        document.system.transmissions,
+        [r.elements for r in document.ris],
+        settings,
+        document.environment,
+    )
+
+
+def check_size(
+    pairs: int,
+    transmissions: int,
+    elements: list[int],
+    settings: Settings,
+    environment: Environment | None = None,
+) -> None:
+    """The pair, array, work and visibility limits for ``pairs`` TX–RX pairs, RISs of
+    ``elements`` and the obstacles of ``environment``."""
     if pairs > settings.max_pairs:
         raise LimitExceededError(
             f"{pairs} TX–RX pairs exceed the limit of {settings.max_pairs} pairs per request;"
             " split the batch",
             settings.max_pairs,
         )
-    g3 = 3 * block_length(scenario.system.transmissions, len(scenario.ris))
-    largest = max(max(pairs * r.elements, g3 * r.elements, g3 * pairs) for r in scenario.ris)
+    g3 = 3 * block_length(transmissions, len(elements))
+    largest = max(max(pairs * n, g3 * n, g3 * pairs) for n in elements)
     if largest > settings.max_array_elements:
         raise LimitExceededError(
             f"the request needs an engine array of {largest} elements (limit"
             f" {settings.max_array_elements}); use fewer pairs, elements or transmissions",
             settings.max_array_elements,
         )
-    work = sum(g3 * r.elements * pairs for r in scenario.ris)
+    work = sum(g3 * n * pairs for n in elements)
     if work > settings.max_work:
         raise LimitExceededError(
             f"the request needs {work} complex products Σ 3·G̃·N·pairs (limit"
             f" {settings.max_work}); use fewer pairs, elements or transmissions",
             settings.max_work,
         )
-
-    if scenario.environment is not None:
-        edges = sum(
-            len(ob.footprint) if ob.kind == "prism" else 1 for ob in scenario.environment.obstacles
-        )
-        tests = pairs * (1 + 2 * len(scenario.ris)) * edges
+    if environment is not None:
+        edges = sum(len(ob.footprint) if ob.kind == "prism" else 1 for ob in environment.obstacles)
+        tests = pairs * (1 + 2 * len(elements)) * edges
         if tests > settings.max_work:
             raise LimitExceededError(
                 f"the request needs {tests} visibility tests (legs × obstacle edges; limit"

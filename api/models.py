@@ -32,7 +32,21 @@ def power_examples() -> dict[str, Any]:
         "kind": "directional_derivative",
         "prior": {"sigma_m": 0.1, "samples": 4, "seed": 0},
     }
-    return {"dir_der": {"summary": "Table I, DIR+DER codebook from a 0.1 m prior", "value": doc}}
+    layout = {
+        "system": {"tx_power_dbm": 30},
+        "ris": preset_document("paper-table1")["ris"],
+        "tx_map": {"grid": {"x": [-2.2, -1.8, 0.2], "y": [-4.2, -3.8, 0.2], "z": [0, 0, 1]}},
+        "rx_map": {"grid": {"x": [1.8, 2.2, 0.2], "y": [2.8, 3.2, 0.2], "z": [0, 0, 1]}},
+        "objective": {"kind": "mean_capped", "cap_m": 1.0},
+        "beams": {"design_positions": 16},
+    }
+    return {
+        "dir_der": {"summary": "Table I, DIR+DER codebook from a 0.1 m prior", "value": doc},
+        "layout_maps": {
+            "summary": "Table I's RISs, beams designed from two UE maps",
+            "value": layout,
+        },
+    }
 
 
 def plan_examples() -> dict[str, Any]:

@@ -123,21 +123,25 @@ def codebook_block(scenario: Scenario) -> CodebookBlock:
     with_der = isinstance(cb, DirectionalDerivativeCodebook)
     tx, rx = priors.sample_pairs(cb.prior, scenario, samples)
     wavelength = scenario.system.wavelength
-    profiles = []
-    for ris in scenario.ris:
-        pos = ris_element_positions(ris, wavelength)
-        geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
-        # [S, per_sample, N] beams of each sample in eq. DER_codebook order
-        w1 = directional_beams(pos, geo.xi, geo.zeta, wavelength)
-        if with_der:
-            d_xi, d_zeta = derivative_beams(pos, geo.xi, geo.zeta, wavelength)
-            beams = np.stack(
-                [w1, project_unit_modulus(d_xi, w1), project_unit_modulus(d_zeta, w1)], axis=1
-            )
-        else:
-            beams = w1[:, None, :]
-        profiles.append(np.asarray(beams[sample_index, beam_types]))
+    profiles = [
+        sample_beams(ris, tx, rx, wavelength, with_der)[sample_index, beam_types]
+        for ris in scenario.ris
+    ]
     return CodebookBlock(profiles, beam_types, sample_index, tx, rx)
+
+
+def sample_beams(
+    ris: RIS, tx: FloatArray, rx: FloatArray, wavelength: float, with_der: bool
+) -> ComplexArray:
+    """The beams one RIS points at sampled pairs (tx, rx : [S, 3]) in eq. DER_codebook order:
+    [S, 1, N] DIR beams, or [S, 3, N] DIR and the two projected DER beams per pair."""
+    pos = ris_element_positions(ris, wavelength)
+    geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
+    w1 = directional_beams(pos, geo.xi, geo.zeta, wavelength)
+    if not with_der:
+        return np.asarray(w1[:, None, :])
+    d_xi, d_zeta = derivative_beams(pos, geo.xi, geo.zeta, wavelength)
+    return np.stack([w1, project_unit_modulus(d_xi, w1), project_unit_modulus(d_zeta, w1)], axis=1)
 
 
 def gamma_p_powers(beam_types: NDArray[np.int_], gamma_p: float) -> FloatArray:

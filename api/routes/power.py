@@ -2,23 +2,38 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Depends, Query
 from fastapi.responses import JSONResponse
+from pydantic import Discriminator, Tag
 
 from api.deps import get_runner, get_settings, get_store
 from api.errors import TOO_LARGE_RESPONSE
-from api.limits import check_scenario_size
+from api.limits import check_layout_beams_size, check_scenario_size
 from api.models import JobView, power_examples
 from api.routes.jobs import submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
+from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.power.options import Objective, Solver
 from ris_planner.scenario import Scenario
 
 router = APIRouter(tags=["jobs"])
+
+
+def _document_kind(value: Any) -> str:
+    """``layout`` for a layout + UE-map document (it has ``tx_map``), else ``scenario``."""
+    if isinstance(value, dict):
+        return "layout" if "tx_map" in value or "rx_map" in value else "scenario"
+    return "layout" if isinstance(value, LayoutBeamsDocument) else "scenario"
+
+
+PowerDocument = Annotated[
+    Annotated[Scenario, Tag("scenario")] | Annotated[LayoutBeamsDocument, Tag("layout")],
+    Discriminator(_document_kind),
+]
 
 
 @router.post(
@@ -29,10 +44,13 @@ router = APIRouter(tags=["jobs"])
     summary="Start a power-allocation job (ris-planner power)",
 )
 def post_power(
-    scenario: Annotated[
-        Scenario,
+    body: Annotated[
+        PowerDocument,
         Body(
-            description="The scenario document; its codebook gives the beams (not expected_random)",
+            description="A scenario document (its codebook gives the beams, not"
+            " expected_random), or a layout + UE maps document (`ris`, `tx_map`, `rx_map`,"
+            " `objective`, `beams`): beams designed from the maps, each design re-evaluated on"
+            " the maps' pairs",
             openapi_examples=power_examples(),
         ),
     ],
@@ -47,10 +65,15 @@ def post_power(
 ) -> JSONResponse:
     """202 with the queued job; its result is the JSON of ``ris-planner power`` (uniform power,
     the best γ_P for DIR+DER codebooks, the SDP allocation, each objective re-evaluated by the
-    bounds code). Engine or solver failures end the job as failed with a message."""
-    check_scenario_size(scenario, settings)
+    bounds code), or for a layout + UE maps document the beam report of
+    ``ris_planner.planning.beam_design.run_layout_beams`` (``objective`` and ``solver`` come
+    from the document then). Engine or solver failures end the job as failed with a message."""
+    if isinstance(body, LayoutBeamsDocument):
+        check_layout_beams_size(body, settings)
+        return submit_job("power", {"layout": body.model_dump(mode="json")}, store, runner)
+    check_scenario_size(body, settings)
     document = {
-        "scenario": scenario.model_dump(mode="json"),
+        "scenario": body.model_dump(mode="json"),
         "objective": objective,
         "solver": solver,
     }

@@ -19,6 +19,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.preset is None):
         raise RisPlannerError("give exactly one of FILE or --preset NAME")
     doc = plan_preset(args.preset) if args.preset is not None else load_plan_file(args.file)
+    if args.beams and doc.get("beams") is None:
+        doc = {**doc, "beams": {}}  # the default beam settings (PlanDocument.beams)
     executor: Executor = (
         DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
     )
@@ -49,4 +51,10 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="plan-out", help="output folder (plan.json, PNGs)")
     p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes")
+    p.add_argument(
+        "--beams",
+        action="store_true",
+        help="design DIR/DIR+DER beams from the UE maps and allocate power (γ_P, SDP) for the"
+        " best layout of each count (the document's 'beams' settings, default ones if absent)",
+    )
     p.set_defaults(func=_cmd_plan)

@@ -19,6 +19,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ris_planner.obstacles import Environment, Prism
+from ris_planner.power.options import MAX_DESIGN_POSITIONS, Solver
 from ris_planner.scenario import (
     RIS,
     DocumentModel,
@@ -369,6 +370,31 @@ class SearchSpec(DocumentModel):
     max_rounds: int = Field(50, ge=1, le=10000, description="Greedy: maximum swap rounds per start")
 
 
+class BeamsSpec(DocumentModel):
+    """Beams and power for the recommended layouts (``planning.beam_design``): DIR and DIR+DER
+    codebooks designed from the UE maps, uniform power, the best γ_P and the SDP, each
+    re-evaluated on the plan's pairs with its objective, next to ``expected_random`` and
+    ``random`` codebooks."""
+
+    design_positions: int = Field(
+        64,
+        ge=1,
+        le=MAX_DESIGN_POSITIONS,
+        description="Pairs (LMIs) the γ_P search and the SDP optimise over: a seeded weighted"
+        " subsample of the pairs the layout resolves",
+    )
+    seed: int = Field(0, ge=0, description="Seed of the beam samples and the design positions")
+    random_seeds: int = Field(
+        3, ge=1, le=20, description="Random codebooks (seeds 0…n−1) the designs are compared with"
+    )
+    solver: Solver = Field("CLARABEL", description="SDP solver (CLARABEL or SCS)")
+    layouts: list[list[int]] = Field(
+        default_factory=list,
+        max_length=20,
+        description="Further layouts (candidate indices) to evaluate besides the best per count",
+    )
+
+
 class PlanDocument(DocumentModel):
     """A planning request: where UEs are, where RISs may go, what to optimise."""
 
@@ -421,6 +447,11 @@ class PlanDocument(DocumentModel):
         default_factory=list, description="Known state parts: clock, height, tx"
     )
     search: SearchSpec = Field(default_factory=SearchSpec, description="Placement search")
+    beams: BeamsSpec | None = Field(
+        None,
+        description="Design beams from the UE maps and allocate power for the recommended"
+        " layouts (absent: expected_random scoring only)",
+    )
     heatmap_tx: Point3 | None = Field(
         None,
         description="Fixed TX position [m] for the heatmap; default: TX averaged over its map",
@@ -506,3 +537,53 @@ class PlanDocument(DocumentModel):
                 found.append((hits[0], ob))
             out.append(found)
         return out
+
+
+class LayoutBeamsDocument(DocumentModel):
+    """A power-allocation request for a given layout and UE probability maps (instead of one
+    scenario with a Gaussian prior): beams designed from the maps, uniform power, the best γ_P
+    and the SDP, each re-evaluated on the maps' pairs with ``objective``
+    (:func:`ris_planner.planning.beam_design.run_layout_beams`)."""
+
+    description: str | None = Field(None, max_length=2000, description="Free text")
+    system: SystemParams = Field(
+        default_factory=SystemParams, description="Radio parameters (Table I defaults)"
+    )
+    ris: list[RIS] = Field(min_length=1, max_length=64, description="The layout's RISs")
+    environment: Environment | None = Field(
+        None, description="Obstacles (prisms, walls) that block legs; absent = free space"
+    )
+    tx_map: UEMap = Field(description="TX probability map (positions [m], relative weights)")
+    rx_map: UEMap = Field(description="RX probability map (positions [m], relative weights)")
+    pairs: PairsSpec = Field("all", description="As in the plan document")
+    max_pairs: int = Field(
+        DEFAULT_MAX_PAIRS, ge=1, le=MAX_PAIRS_LIMIT, description="Limit on evaluated pairs"
+    )
+    objective: Objective = Field(description="The objective the designs are compared on")
+    known: list[KnownPart] = Field(
+        default_factory=list, description="Known state parts: clock, height, tx"
+    )
+    beams: BeamsSpec = Field(
+        default_factory=BeamsSpec, description="Design positions, seeds, solver"
+    )
+
+    @field_validator("known")
+    @classmethod
+    def _unique_known(cls, v: list[str]) -> list[str]:
+        return Scenario._unique_known(v)
+
+    @model_validator(mode="after")
+    def _check_document(self) -> LayoutBeamsDocument:
+        if "tx" in self.known and self.objective.metric != "rx":
+            raise ValueError(
+                f"objective metric {self.objective.metric!r} needs PEB_T, but 'tx' is known"
+            )
+        if self.pairs == "unordered" and self.tx_map != self.rx_map:
+            raise ValueError("pairs 'unordered' needs tx_map and rx_map to be the same map")
+        if self.beams.layouts:
+            raise ValueError("beams.layouts is for plan documents; here 'ris' is the layout")
+        if len(self.ris) + 1 > self.system.transmissions:
+            raise ValueError(
+                f"{len(self.ris)} RISs need at least L+1 = {len(self.ris) + 1} transmissions"
+            )
+        return self

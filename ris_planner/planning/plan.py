@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -12,6 +12,12 @@ from numpy.typing import NDArray
 
 from ris_planner.environment import Scene
 from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.planning.beam_design import (
+    BeamReport,
+    evaluate_layout_beams,
+    layout_scenario,
+    served_pairs,
+)
 from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import (
@@ -82,6 +88,8 @@ class PlanResult:
     scene: Scene | None = None
     dropped_points: dict[str, int] | None = None
     warnings: list[str] | None = None
+    beams: dict[Layout, BeamReport] = field(default_factory=dict)
+    """Beam designs per evaluated layout (``document.beams``): the best of each count first."""
 
     @property
     def cache(self) -> SiteCache:
@@ -202,6 +210,7 @@ class PlanResult:
                         for lay, loss in cr.ranked
                     ],
                     "cdf": self.cdf(cr.best_metric),
+                    **({"beams": self.beams[best_lay].to_json()} if best_lay in self.beams else {}),
                 }
             )
         top.sort(key=lambda t: (t[0], t[1], t[2]))
@@ -227,6 +236,18 @@ class PlanResult:
             "rx_points": len(self.rx_map.points),
             "known": list(doc.known),
             "timing_s": self.timing,
+            **({"beams": self.beams_json()} if self.document.beams is not None else {}),
+        }
+
+    def beams_json(self) -> dict[str, Any]:
+        """``plan.json["beams"]``: the settings and every evaluated layout's report."""
+        spec = self.document.beams
+        assert spec is not None
+        return {
+            "settings": spec.model_dump(exclude={"layouts"}),
+            "layouts": [
+                {"sites": [int(s) for s in lay], **rep.to_json()} for lay, rep in self.beams.items()
+            ],
         }
 
 
@@ -276,13 +297,14 @@ def run_plan(
     counts: list[CountResult] = []
     # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
     effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in doc.ris_count]
+    share = 0.75 if doc.beams is None else 0.7  # of the progress bar
     done = 0.0
     try:
         for c, e in zip(doc.ris_count, effort, strict=True):
             base = done
 
             def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
-                progress(0.2 + 0.75 * (base + f * e) / sum(effort), f"search L={c}")
+                progress(0.2 + share * (base + f * e) / sum(effort), f"search L={c}")
 
             # the best layouts of the smaller counts seed the greedy search
             seeds = tuple(cr.ranked[0][0] for cr in counts)
@@ -295,11 +317,16 @@ def run_plan(
         if own:
             ex.close()
     t_search = time.perf_counter() - t0 - t_cache
-    progress(1.0, "done")
     timing = {"cache": t_cache, "search": t_search, "visibility": t_vis}
-    return PlanResult(
+    result = PlanResult(
         doc, sites, tx_map, rx_map, pairs, scorer, counts, timing, scene, dropped, warnings
     )
+    if doc.beams is not None:
+        t1 = time.perf_counter()
+        result.beams = plan_beams(result, lambda f, m: progress(0.9 + 0.1 * f, m))
+        timing["beams"] = time.perf_counter() - t1
+    progress(1.0, "done")
+    return result
 
 
 def _drop_points(
@@ -320,3 +347,46 @@ def _drop_points(
                 f" {scene.environment.label(hit)}"
             )
     return tx_map, n_tx, rx_map, n_rx
+
+
+def plan_beams(
+    result: PlanResult, progress: ProgressCallback = no_progress
+) -> dict[Layout, BeamReport]:
+    """Beam designs and power allocations for the best layout of each count and the
+    document's extra ``beams.layouts`` (:mod:`ris_planner.planning.beam_design`)."""
+    doc = result.document
+    spec = doc.beams
+    assert spec is not None
+    n_sites = len(result.sites)
+    layouts: list[Layout] = [cr.ranked[0][0] for cr in result.counts]
+    for extra in spec.layouts:
+        if len(set(extra)) != len(extra) or any(not 0 <= s < n_sites for s in extra):
+            raise RisPlannerError(
+                f"beams.layouts entry {extra} must list distinct candidate indices 0…{n_sites - 1}"
+            )
+        layouts.append(tuple(sorted(extra)))
+    layouts = list(dict.fromkeys(layouts))
+    scene = Scene.from_environment(doc.environment)
+    served = served_pairs(scene, [s.ris for s in result.sites], result.pairs)
+    out: dict[Layout, BeamReport] = {}
+    for i, lay in enumerate(layouts):
+
+        def on_layout(f: float, m: str, i: int = i) -> None:
+            progress((i + f) / len(layouts), m)
+
+        ris = [result.sites[s].ris for s in lay]
+        scenario = layout_scenario(doc.system, ris, list(doc.known), doc.environment)
+        out[lay] = evaluate_layout_beams(
+            scenario,
+            result.pairs,
+            doc.objective,
+            result.layout_metric(lay),
+            served[list(lay)],
+            seed=spec.seed,
+            positions=spec.design_positions,
+            random_seeds=spec.random_seeds,
+            solver=spec.solver,
+            mirror=result.scorer.mirror,
+            progress=on_layout,
+        )
+    return out

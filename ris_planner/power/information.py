@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import beams, bounds, codebooks, fim, geometry
+from ris_planner.environment import Scene, path_presence, pattern_factor
 from ris_planner.scenario import KnownPart, Scenario
 
 FloatArray = NDArray[np.float64]
@@ -78,6 +79,24 @@ def _path_map(jacobian: FloatArray, gain_col: int, n_full: int) -> FloatArray:
     return t
 
 
+ABSENT_GAIN_INFORMATION = 1.0
+"""Information put on the (α, β) of a path that does not exist for a position. Such gains
+are decoupled from every other state (no cross terms), so any positive value leaves the
+position and clock CRBs unchanged while keeping the full FIM invertible for the SDP."""
+
+
+def _decouple_absent_gains(
+    stack: FloatArray, absent: NDArray[np.bool_], col: int, beams_total: int
+) -> None:
+    """Add ABSENT_GAIN_INFORMATION·I on the gains (columns col, col+1) of the positions where
+    the path is absent, split over the beams as 1/G̃ each: Σ_g γ_g S_g then carries exactly
+    that identity at every allocation with Σ_g γ_g = G̃ (the SDP's power constraint)."""
+    if np.any(absent):
+        share = ABSENT_GAIN_INFORMATION / beams_total
+        for c in (col, col + 1):
+            stack[absent, :, c, c] += share
+
+
 def beam_information(
     scenario: Scenario,
     tx: FloatArray,
@@ -104,10 +123,16 @@ def _beam_information(
     system = scenario.system
     radio = fim.Radio.from_system(system)
     n_ris = len(scenario.ris)
+    # paths that exist per position (DESIGN.md environment rules): a missing path carries no
+    # information, exactly as in compute_bounds; the pattern factor scales each RIS gain
+    present = path_presence(
+        Scene.from_environment(scenario.environment), list(scenario.ris), tx, rx, system.los
+    )
     gamma = codebooks.block_count(system.transmissions, n_ris)
     n_paths = n_ris + (1 if system.los else 0)
     n_full = 7 + 2 * n_paths
     # distinct beams: the same profile on every RIS in the same slot (exact comparison)
+    beams_total = profiles[0].shape[0]  # G̃ before merging identical beams
     _, first, group = np.unique(
         np.concatenate(profiles, axis=1), axis=0, return_index=True, return_inverse=True
     )
@@ -120,19 +145,25 @@ def _beam_information(
         # every beam carries the LOS path with t_g = 1: the same block for all g̃
         block = fim.los_path_fim(float(gamma), alpha0, radio)
         t = _path_map(geometry.los_jacobian(tx, rx), col, n_full)
-        stack += (t.transpose(0, 2, 1) @ block @ t)[:, None]
+        stack += np.where(present["los"][:, None, None], t.transpose(0, 2, 1) @ block @ t, 0.0)[
+            :, None
+        ]
+        _decouple_absent_gains(stack, ~present["los"], col, beams_total)
         col += 2
-    for ris, prof in zip(scenario.ris, profiles, strict=True):
+    for i, (ris, prof) in enumerate(zip(scenario.ris, profiles, strict=True)):
         pos = beams.ris_element_positions(ris, radio.wavelength)
         geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
+        gain = geo.gain(radio.wavelength) * pattern_factor(ris, tx, rx)
         # [P, G̃, 3] t_g = ω_gᵀ [∂a/∂ξ, ∂a/∂ζ, a]; per-beam Gram Γ·conj(t_g) t_gᵀ
         tv = fim.transmission_vectors(prof, pos, geo.xi, geo.zeta, radio.wavelength)
         q = gamma * np.conj(tv)[..., :, None] * tv[..., None, :]
-        block5 = fim.ris_path_fim(
-            q.reshape(-1, 3, 3), np.repeat(geo.gain(radio.wavelength), g_tilde), radio
-        ).reshape(n_pos, g_tilde, 5, 5)
+        block5 = fim.ris_path_fim(q.reshape(-1, 3, 3), np.repeat(gain, g_tilde), radio).reshape(
+            n_pos, g_tilde, 5, 5
+        )
         t = _path_map(geo.jacobian(), col, n_full)
-        stack += np.einsum("pai,pgab,pbj->pgij", t, block5, t, optimize=True)
+        contribution = np.einsum("pai,pgab,pbj->pgij", t, block5, t, optimize=True)
+        stack += np.where(present[f"ris{i + 1}"][:, None, None, None], contribution, 0.0)
+        _decouple_absent_gains(stack, ~present[f"ris{i + 1}"], col, beams_total)
         col += 2
     kept = bounds.kept_states(scenario.known if known is None else known)
     keep = np.concatenate([kept, np.arange(7, n_full)])

@@ -20,7 +20,7 @@ from ris_planner.bounds import ComplexArray, compute_bounds, first_block_profile
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.power.gamma import GammaSearch, search_gamma_p
 from ris_planner.power.information import beam_information
-from ris_planner.power.options import OBJECTIVES, Objective
+from ris_planner.power.options import MAX_DESIGN_POSITIONS, OBJECTIVES, Objective
 from ris_planner.power.sdp import (
     SdpResult,
     mean_trace_bound,
@@ -38,8 +38,6 @@ from ris_planner.scenario import (
 
 FloatArray = NDArray[np.float64]
 
-MAX_DESIGN_POSITIONS = 256
-"""Positions (LMIs) of one SDP; the solve time grows about linearly with them."""
 MAX_DESIGN_BEAMS = 4096
 """First-block beams (SDP variables)."""
 
