@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.bounds import compute_bounds
+from ris_planner.environment import Scene, ris_serves
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
@@ -22,6 +23,7 @@ from ris_planner.planning.objectives import (
     select_metric,
     weighted_quantile,
 )
+from ris_planner.planning.points import heatmap_json, points_json
 from ris_planner.planning.search import Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
@@ -35,6 +37,7 @@ CDF_POINTS = 101
 HEATMAP_MAX_PAIRS = 200_000
 """TX–RX pairs the heatmap evaluates (about a second with expected_random): beyond it each RX
 point is evaluated against a seeded weighted sample of the TX map."""
+REASON_NO_TX = "no TX point of the heatmap differs from this RX point"
 
 
 def _fraction(weights: FloatArray, mask: NDArray[np.bool_]) -> float:
@@ -44,6 +47,39 @@ def _fraction(weights: FloatArray, mask: NDArray[np.bool_]) -> float:
 
 def _num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
+
+
+def _dominant_reason(
+    reason: NDArray[np.object_], weights: FloatArray, blind: NDArray[np.bool_]
+) -> list[str | None]:
+    """Per row (an RX point, [M, T] reasons and weights): for a blind point the reason carried by
+    the largest weight of its infinite pairs (ties: the first reason in sorted order), else None."""
+    out: list[str | None] = [None] * reason.shape[0]
+    if not np.any(blind):
+        return out
+    r, w = reason[blind], weights[blind]  # [B, T]
+    names = sorted({str(x) for x in r.ravel() if x is not None})
+    if not names:
+        return out
+    # [K, B] weight of each distinct reason per blind point
+    mass = np.stack([((r == name) * w).sum(axis=1) for name in names])
+    best = np.argmax(mass, axis=0)
+    for b, m in enumerate(np.nonzero(blind)[0]):
+        out[m] = names[best[b]] if mass[best[b], b] > 0 else None
+    return out
+
+
+@dataclass(frozen=True)
+class RxField:
+    """One layout evaluated at every RX map point (:meth:`PlanResult.rx_field`)."""
+
+    layout: Layout
+    bound: FloatArray
+    """[M] weighted median over TX of the objective's metric [m]; inf = blind, NaN = no TX."""
+    reason: list[str | None]
+    """[M] why the bound is infinite (the dominant reason over TX) or absent; None otherwise."""
+    serving: list[list[int]]
+    """[M] the layout's sites (candidate indices) with a RIS path to the point from ≥ 1 TX."""
 
 
 @dataclass
@@ -68,6 +104,7 @@ class PlanResult:
     scorer: Scorer
     counts: list[CountResult]
     timing: dict[str, float]
+    _rx_fields: dict[Layout, RxField] = field(default_factory=dict, repr=False)
 
     @property
     def cache(self) -> SiteCache:
@@ -101,30 +138,39 @@ class PlanResult:
         vals = weighted_quantile(metric[None, :], self.pairs.weights, probs)[0]
         return {"probability": [float(p) for p in probs], "bound_m": [_num(v) for v in vals]}
 
-    def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
-        """(RX points [M, 3], bound [M], layout) for the best layout of the largest count.
-
-        Each RX map point is evaluated against the whole TX map (a seeded weighted sample of it
-        when the product exceeds :data:`HEATMAP_MAX_PAIRS`) or against the document's fixed
-        ``heatmap_tx``, whatever pairs the plan itself used, so every point of the map gets a
-        value from the same TX population; the value is the weighted median over TX (a mean is
-        undefined where some bounds are infinite). NaN where no TX point differs from the RX
-        point."""
-        layout = self.counts[-1].ranked[0][0]
+    def heatmap_tx(self) -> tuple[FloatArray, FloatArray]:
+        """(TX points [T, 3], weights [T]) every RX map point is evaluated against: the document's
+        fixed ``heatmap_tx``, else the whole TX map – a seeded weighted sample of it when
+        T × M would exceed :data:`HEATMAP_MAX_PAIRS` (the same sample for every layout)."""
         doc = self.document
-        pts = self.rx_map.points
         if doc.heatmap_tx is not None:
-            tx_pts, tx_w = np.asarray(doc.heatmap_tx, dtype=float)[None], np.ones(1)
-        else:
-            tx_pts, tx_w = self.tx_map.points, self.tx_map.weights
-            max_tx = max(1, HEATMAP_MAX_PAIRS // len(pts))
-            if len(tx_pts) > max_tx:
-                rng = np.random.default_rng(0)
-                pick = rng.choice(len(tx_pts), max_tx, replace=False, p=tx_w / tx_w.sum())
-                tx_pts, tx_w = tx_pts[pick], tx_w[pick]
+            return np.asarray(doc.heatmap_tx, dtype=float)[None], np.ones(1)
+        tx_pts, tx_w = self.tx_map.points, self.tx_map.weights
+        max_tx = max(1, HEATMAP_MAX_PAIRS // len(self.rx_map.points))
+        if len(tx_pts) > max_tx:
+            rng = np.random.default_rng(0)
+            pick = rng.choice(len(tx_pts), max_tx, replace=False, p=tx_w / tx_w.sum())
+            tx_pts, tx_w = tx_pts[pick], tx_w[pick]
+        return tx_pts, tx_w
+
+    def rx_field(self, layout: Layout) -> RxField:
+        """The layout's bound at every RX map point against the :meth:`heatmap_tx` population,
+        with its blind reason and serving sites (computed once per layout, then cached).
+
+        The value is the weighted median over TX (a mean is undefined where some bounds are
+        infinite); TX points that coincide with the RX point carry no weight, and a point with
+        none left is NaN."""
+        layout = tuple(int(s) for s in layout)
+        cached = self._rx_fields.get(layout)
+        if cached is not None:
+            return cached
+        doc = self.document
+        pts = self.rx_map.points  # [M, 3]
+        tx_pts, tx_w = self.heatmap_tx()  # [T, 3], [T]
         n_tx, n_rx = len(tx_pts), len(pts)
-        tx = np.repeat(tx_pts, n_rx, axis=0)
+        tx = np.repeat(tx_pts, n_rx, axis=0)  # [T·M, 3], TX-major
         rx = np.tile(pts, (n_tx, 1))
+        environment = getattr(doc, "environment", None)  # present once plans take obstacles
         scenario = Scenario.model_construct(  # parts already validated; pairs checked below
             system=doc.system,
             ris=[self.sites[s].ris for s in layout],
@@ -132,16 +178,37 @@ class PlanResult:
             rx=pts[0].tolist(),
             codebook=ExpectedRandomCodebook(),
             known=list(doc.known),
+            environment=environment,
         )
         res = compute_bounds(scenario, tx=tx, rx=rx)  # degenerate pairs: inf with a reason
         metric = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx).reshape(n_tx, n_rx)
         w = np.where(np.linalg.norm(tx - rx, axis=1) > 0, np.repeat(tx_w, n_rx), 0.0)
-        w = w.reshape(n_tx, n_rx).T
+        w = w.reshape(n_tx, n_rx).T  # [M, T]
         empty = w.sum(axis=1) <= 0
-        w[empty] = 1.0
-        vals = weighted_quantile(metric.T, w, 0.5)
+        w_med = w.copy()
+        w_med[empty] = 1.0
+        vals = weighted_quantile(metric.T, w_med, 0.5)  # [M]
         vals[empty] = np.nan
-        return pts, vals, layout
+        reasons = _dominant_reason(res.reason.reshape(n_tx, n_rx).T, w, np.isinf(vals))
+        for m in np.nonzero(empty)[0]:
+            reasons[m] = REASON_NO_TX
+        # RIS path for (TX, RX) iff the RIS serves both (DESIGN.md); serving: with ≥ 1 weighted TX
+        scene = Scene.from_environment(environment)
+        serves = np.zeros((len(layout), n_rx), dtype=bool)  # [L, M]
+        for j, s in enumerate(layout):
+            ris = self.sites[s].ris
+            any_tx = ((w > 0) & ris_serves(scene, ris, tx_pts)[None, :]).any(axis=1)  # [M]
+            serves[j] = ris_serves(scene, ris, pts) & any_tx
+        serving = [[layout[j] for j in np.nonzero(serves[:, m])[0]] for m in range(n_rx)]
+        out = RxField(layout, vals, reasons, serving)
+        self._rx_fields[layout] = out
+        return out
+
+    def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
+        """(RX points [M, 3], bound [M], layout) for the best layout of the largest count: the
+        :meth:`rx_field` of that layout (NaN where no TX point differs from the RX point)."""
+        layout = self.counts[-1].ranked[0][0]
+        return self.rx_map.points, self.rx_field(layout).bound, layout
 
     def to_json(self) -> dict[str, Any]:
         """The plan.json content (``inf`` → ``null``)."""
@@ -196,6 +263,8 @@ class PlanResult:
             "tx_points": len(self.tx_map.points),
             "rx_points": len(self.rx_map.points),
             "known": list(doc.known),
+            "points": points_json(self),
+            "heatmap": heatmap_json(self),
             "timing_s": self.timing,
         }
 
