@@ -269,15 +269,22 @@ class PlanResult:
         }
 
 
-def run_plan(
-    document: PlanDocument | dict[str, Any],
-    progress: ProgressCallback = no_progress,
-    executor: Executor | None = None,
-) -> PlanResult:
-    """Run a plan document: build maps and pairs, cache every site's information, search each
-    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+@dataclass(frozen=True)
+class PlanInputs:
+    """A plan's checked inputs before any bound is computed (:func:`prepare_plan`)."""
+
+    document: PlanDocument
+    sites: list[Site]
+    tx_map: PointMap
+    rx_map: PointMap
+    pairs: PairSet
+
+
+def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
+    """Validate a plan document, expand its sites and maps, build its pairs and check every limit
+    that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
+    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
-    t0 = time.perf_counter()
     sites = expand_sites(doc)
     if max(doc.ris_count) > len(sites):
         raise RisPlannerError(
@@ -291,6 +298,25 @@ def run_plan(
             f"{len(sites)} sites × {pairs.size} pairs exceed the site-cache limit of"
             f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
         )
+    return PlanInputs(doc, sites, tx_map, rx_map, pairs)
+
+
+def run_plan(
+    document: PlanDocument | dict[str, Any],
+    progress: ProgressCallback = no_progress,
+    executor: Executor | None = None,
+) -> PlanResult:
+    """Run a plan document: build maps and pairs, cache every site's information, search each
+    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+    t0 = time.perf_counter()
+    inputs = prepare_plan(document)
+    doc, sites, tx_map, rx_map, pairs = (
+        inputs.document,
+        inputs.sites,
+        inputs.tx_map,
+        inputs.rx_map,
+        inputs.pairs,
+    )
     progress(0.0, "caching site information")
     cache = build_site_cache(
         doc.system, sites, pairs, lambda f, m: progress(0.2 * f, f"cache: {m}")
