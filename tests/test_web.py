@@ -262,6 +262,19 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     assert saved["by_count"] == plan["by_count"]
     for name, url in view["figures"].items():
         assert pg.locator(f"#downloads a[href='{url}']").inner_text() == name
+    # the list is generic over a job's files: figures and any "files" (dict or list) appear
+    listed = pg.evaluate(
+        "window.risPlanner.jobFiles({figures: {cdf: '/v1/jobs/x/figures/cdf'},"
+        " files: {coverage: '/v1/jobs/x/files/coverage.geojson',"
+        " raster: {url: '/v1/jobs/x/files/peb.tif'}}})"
+    )
+    assert [(f["name"], f["ext"]) for f in listed] == [
+        ("cdf", "PNG"),
+        ("coverage", "GEOJSON"),
+        ("raster", "TIF"),
+    ]
+    listed = pg.evaluate("window.risPlanner.jobFiles({files: [{name: 'a.csv', url: '/f/1'}]})")
+    assert [(f["name"], f["url"], f["ext"]) for f in listed] == [("a.csv", "/f/1", "CSV")]
     # the job list has it, with what it was
     row = pg.locator(f"#jobs-body tr[data-job='{job_id}']")
     expect(row).to_contain_text("succeeded")

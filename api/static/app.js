@@ -1383,7 +1383,7 @@
     refreshJobs();
   }
 
-  window.risPlanner = { state }; // for debugging and the browser tests
+  window.risPlanner = { state, jobFiles }; // for debugging and the browser tests
   if (document.readyState === "loading") document.addEventListener("DOMContentLoaded", init);
   else init();
 })();
