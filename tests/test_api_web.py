@@ -195,3 +195,39 @@ class TestJobEvents:
         anyio.run(run)
         assert 3 <= reads <= 7
         assert sum(c.startswith("id:") for c in got) == 1
+
+    def test_stream_closes_when_uvicorn_is_stopping(self, tmp_path: Path) -> None:
+        """uvicorn waits for open responses before it stops: a stream must end once the
+        server's signal handler (``Server.handle_exit``) has set ``should_exit``."""
+        import signal
+
+        import anyio
+
+        from api.store import JobStore
+
+        class FakeServer:
+            should_exit = False
+
+            def handle_exit(self, sig: int, frame: Any) -> None:
+                self.should_exit = True
+
+        store = JobStore(tmp_path / "j.db")
+        job = store.create("count", {})
+        store.start(job.id)
+        fake = FakeServer()
+        previous = signal.signal(signal.SIGINT, fake.handle_exit)
+        chunks: list[str] = []
+
+        async def run() -> bool:
+            with anyio.move_on_after(5.0) as scope:
+                async for chunk in job_events(store, job.id, check_s=0.05):
+                    chunks.append(chunk)
+                    if len(chunks) == 2:  # retry + the first event: now ask the server to stop
+                        fake.handle_exit(signal.SIGINT, None)
+            return not scope.cancelled_caught
+
+        try:
+            assert anyio.run(run)  # the generator returned by itself, well before 5 s
+        finally:
+            signal.signal(signal.SIGINT, previous)
+        assert len(chunks) == 2

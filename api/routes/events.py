@@ -9,13 +9,15 @@ event only when the state changed:
 * ``event: end`` with the summary once the job has ended (succeeded, failed, cancelled); the
   stream then closes;
 * a ``: keep-alive`` comment every :data:`KEEPALIVE_S` while nothing changes;
-* after :data:`MAX_STREAM_S` the stream closes without ``end``; ``retry:`` tells an
+* after :data:`MAX_STREAM_S`, or as soon as the server is shutting down (uvicorn waits for
+  open responses before it stops), the stream closes without ``end``; ``retry:`` tells an
   ``EventSource`` to reconnect after :data:`RETRY_MS` (the page's own reader does the same).
 """
 
 from __future__ import annotations
 
 import json
+import signal
 import time
 from collections.abc import AsyncIterator
 from typing import Annotated
@@ -47,6 +49,14 @@ ENDED = ("succeeded", "failed", "cancelled")
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 
+def server_exiting() -> bool:
+    """Whether the uvicorn server of this process has been asked to stop: its signal handler
+    is the bound method ``Server.handle_exit``, which sets ``should_exit`` (False when not
+    served by uvicorn, e.g. under a test client)."""
+    server = getattr(signal.getsignal(signal.SIGINT), "__self__", None)
+    return bool(getattr(server, "should_exit", False))
+
+
 def _event(name: str, job: JobHead, seq: int) -> str:
     data = json.dumps(JobSummary.of_head(job).model_dump(mode="json"))
     return f"id: {seq}\nevent: {name}\ndata: {data}\n\n"
@@ -76,7 +86,7 @@ async def job_events(
         elif now - sent >= KEEPALIVE_S:
             yield ": keep-alive\n\n"
             sent = now
-        if now - started >= MAX_STREAM_S:  # (a disconnect cancels this generator)
+        if now - started >= MAX_STREAM_S or server_exiting():  # (a disconnect cancels us)
             return
         await anyio.sleep(check_s)
 

@@ -71,8 +71,8 @@ class PlanPreview(BaseModel):
     candidates: list[dict[str, Any]] = Field(
         description="Every candidate site: index, position [m], orientation [rad], name"
     )
-    tx_map: MapPreview
-    rx_map: MapPreview
+    tx_map: MapPreview = Field(description="The TX map's points (every stride-th)")
+    rx_map: MapPreview = Field(description="The RX map's points (every stride-th)")
 
 
 def _map_preview(pm: PointMap) -> MapPreview:

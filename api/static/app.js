@@ -698,20 +698,24 @@
     $("results-note").textContent =
       `Objective: ${plan.objective.kind} of ${metric} (${better}); ${plan.pairs} TX–RX pairs scored. ` +
       (plan.heatmap ? `Heatmap: ${plan.heatmap.tx}; contour at ${plan.heatmap.threshold_label}.` : "This job has no heatmap data (older version).");
-    // count picker
-    const opts = clear($("count-options"));
-    for (const b of plan.by_count) {
-      const id = `count-${b.ris_count}`;
-      const input = h("input", { type: "radio", name: "count", id, value: String(b.ris_count) });
-      input.checked = String(b.ris_count) === state.count;
-      input.addEventListener("change", () => {
-        state.count = input.value;
-        state.layoutIdx = 0;
-        renderResults();
-        drawAll();
-      });
-      opts.append(h("label", { class: "inline", for: id }, input, `${b.ris_count} RIS`));
+    // count picker (rebuilt only for another plan, so arrow keys keep their focus in it)
+    const opts = $("count-options");
+    if (opts.dataset.plan !== state.job.id) {
+      clear(opts);
+      opts.dataset.plan = state.job.id;
+      for (const b of plan.by_count) {
+        const id = `count-${b.ris_count}`;
+        const input = h("input", { type: "radio", name: "count", id, value: String(b.ris_count) });
+        input.addEventListener("change", () => {
+          state.count = input.value;
+          state.layoutIdx = 0;
+          renderResults();
+          drawAll();
+        });
+        opts.append(h("label", { class: "inline", for: id }, input, `${b.ris_count} RIS`));
+      }
     }
+    for (const input of opts.querySelectorAll("input")) input.checked = input.value === state.count;
     $("count-picker").hidden = false;
     // table per count
     const table = clear($("count-table"));
@@ -742,8 +746,8 @@
     const entry = countEntry(state.count);
     (entry ? entry.top_layouts : []).forEach((lay, i) => {
       const btn = h("button", {
-        type: "button", class: "secondary small", "aria-pressed": String(i === state.layoutIdx),
-        onclick: () => { state.layoutIdx = i; renderResults(); drawAll(); },
+        type: "button", class: "secondary small", id: `layout-${i}`, "aria-pressed": String(i === state.layoutIdx),
+        onclick: () => { state.layoutIdx = i; renderResults(); drawAll(); $(`layout-${i}`).focus(); },
       }, i === state.layoutIdx ? "Shown" : "Show");
       list.append(h("li", {}, `sites ${lay.sites.join(", ")} – objective ${fmtObjective(lay.objective)} `, btn));
     });
