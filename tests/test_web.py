@@ -183,6 +183,57 @@ def no_horizontal_scroll(pg: Page) -> None:
     assert width <= 1280, f"page is {width} px wide at a 1280 px window"
 
 
+def unlabelled_controls(pg: Page) -> list[str]:
+    """Visible inputs, selects and buttons without an accessible name."""
+    found: list[str] = pg.evaluate(
+        """(() => [...document.querySelectorAll('input, select, button')]
+          .filter(el => el.offsetParent !== null)
+          .filter(el => !((el.labels && el.labels.length) || el.getAttribute('aria-label')
+                          || el.getAttribute('aria-labelledby')
+                          || (el.tagName === 'BUTTON' && el.textContent.trim())))
+          .map(el => el.id || el.outerHTML.slice(0, 80)))()"""
+    )
+    return found
+
+
+def low_contrast_text(pg: Page) -> list[str]:
+    """HTML elements with their own visible text whose colour against the first opaque
+    background behind them is below WCAG AA (4.5:1; 3:1 for large text)."""
+    found: list[str] = pg.evaluate(
+        """(() => {
+          const rgb = (c) => (c.match(/[0-9.]+/g) || []).map(Number);
+          const lum = ([r, g, b]) => {
+            const f = (v) => {
+              v /= 255;
+              return v <= 0.03928 ? v / 12.92 : ((v + 0.055) / 1.055) ** 2.4;
+            };
+            return 0.2126 * f(r) + 0.7152 * f(g) + 0.0722 * f(b);
+          };
+          const bg = (el) => {
+            for (let e = el; e; e = e.parentElement) {
+              const c = rgb(getComputedStyle(e).backgroundColor);
+              if (c.length === 3 || (c.length === 4 && c[3] === 1)) return c.slice(0, 3);
+            }
+            return [255, 255, 255];
+          };
+          const out = [];
+          for (const el of document.body.querySelectorAll('*')) {
+            if (el.closest('svg') || el.offsetParent === null) continue;
+            const own = [...el.childNodes].some(n => n.nodeType === 3 && n.textContent.trim());
+            if (!own) continue;
+            const st = getComputedStyle(el);
+            const a = lum(rgb(st.color)), b = lum(bg(el));
+            const ratio = (Math.max(a, b) + 0.05) / (Math.min(a, b) + 0.05);
+            const size = parseFloat(st.fontSize), bold = Number(st.fontWeight) >= 700;
+            const need = size >= 24 || (bold && size >= 18.66) ? 3 : 4.5;
+            if (ratio < need) out.push(`${el.tagName}#${el.id}: ${ratio.toFixed(2)}`);
+          }
+          return out;
+        })()"""
+    )
+    return found
+
+
 def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Shots) -> None:
     pg, _ = page
     open_page(pg, server)
@@ -244,8 +295,11 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     pg.keyboard.press("ArrowRight")
     moved = pg.evaluate("window.risPlanner.state.selected")
     assert plan["points"][moved]["position"][0] > x
-    # another count: its best layout (2 sites) and its own heatmap
-    pg.check("#count-2")
+    # another count by keyboard (radio group: arrow keys): its best layout (2 sites)
+    pg.focus("#count-4")
+    pg.keyboard.press("ArrowLeft")
+    expect(pg.locator("#count-2")).to_be_checked()
+    expect(pg.locator("#count-2")).to_be_focused()
     assert pg.locator("#candidates .site.chosen").count() == 2
     assert (
         pg.locator("#candidates .site.chosen").evaluate_all(
@@ -280,6 +334,8 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     expect(row).to_contain_text("succeeded")
     expect(row).to_contain_text("2/4 RIS · coverage")
     no_horizontal_scroll(pg)
+    assert unlabelled_controls(pg) == []
+    assert low_contrast_text(pg) == []
     shots.take(pg, "04-count-2")
 
 
@@ -410,6 +466,35 @@ def test_api_docs_work_offline(browser: Browser, server: str, shots: Shots) -> N
         context.close()
     assert outside == []
     assert console.unexpected() == []
+
+
+def test_server_error_is_a_notice_not_a_traceback(
+    page: tuple[Page, Console], server: str, shots: Shots
+) -> None:
+    """A 500 (here a proxy's HTML page with a traceback, and the service's own JSON 500)
+    becomes a short notice; the page never shows the body's traceback."""
+    pg, console = page
+    console.allow(r"status of 500")
+    trace = 'Traceback (most recent call last):\n  File "x.py", line 1\nKeyError: boom'
+    pg.route(
+        "**/v1/plans/validate",
+        lambda route: route.fulfill(status=500, content_type="text/html", body=trace),
+    )
+    open_page(pg, server)
+    pg.select_option("#preset", "fig10-anchors")
+    pg.click("#load-preset")
+    expect(pg.locator("#banner-text")).to_contain_text("internal problem (HTTP 500)")
+    body = json.dumps({"status": 500, "error": "internal_error", "message": trace})
+    pg.unroute("**/v1/plans/validate")
+    pg.route(
+        "**/v1/plans/validate",
+        lambda route: route.fulfill(status=500, content_type="application/json", body=body),
+    )
+    pg.click("#validate")
+    expect(pg.locator("#banner-text")).to_contain_text("the server log has the details")
+    assert "Traceback" not in pg.locator("body").inner_text()
+    assert "KeyError" not in pg.locator("body").inner_text()
+    shots.take(pg, "12-server-error", full_page=False)
 
 
 def test_server_down_gives_a_clear_message(
