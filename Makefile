@@ -3,8 +3,10 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out
+# Debian's chromium for the browser tests (tests/test_web.py); override for another binary
+CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: demo test setup lint typecheck unit bench clean
+.PHONY: demo test setup lint typecheck unit browser-check bench clean
 
 $(BIN)/ris-planner: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,8 +29,18 @@ lint: setup
 typecheck: setup
 	$(BIN)/mypy
 
-unit: setup
-	$(BIN)/pytest -n 2
+# the browser tests need Chromium: say exactly what to install (and fail under CI=true)
+browser-check:
+	@if [ ! -x "$(CHROMIUM)" ]; then \
+	  echo "Chromium not found at $(CHROMIUM): the browser tests (tests/test_web.py) need it."; \
+	  echo "  install it with:  apt-get update && apt-get install -y chromium   (as root)"; \
+	  echo "  or run:           make test CHROMIUM=/path/to/chromium"; \
+	  if [ "$$CI" = "true" ]; then exit 1; fi; \
+	  echo "  (outside CI the browser tests are skipped)"; \
+	fi
+
+unit: setup browser-check
+	RIS_PLANNER_CHROMIUM=$(CHROMIUM) $(BIN)/pytest -n 2 -rs
 
 test: lint typecheck unit
 

@@ -17,7 +17,7 @@ from threadpoolctl import threadpool_limits
 from api.deps import require_api_key
 from api.errors import V1_ERROR_RESPONSES, BodyLimitMiddleware, install_error_handlers
 from api.kinds import JOB_KINDS
-from api.routes import bounds, jobs, meta, plans, power
+from api.routes import bounds, events, jobs, meta, plans, power, web
 from api.settings import Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
@@ -65,13 +65,17 @@ def create_app(
         version=version("ris_planner"),
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # local Swagger UI and ReDoc assets instead: api.routes.web
+        redoc_url=None,
     )
     app.state.settings = settings
     install_error_handlers(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.include_router(meta.health_router)
+    web.install_web(app)
     v1 = [Depends(require_api_key)]
-    for router in (bounds.router, plans.router, power.router, jobs.router, meta.router):
+    routers = (web.router, bounds.router, plans.router, power.router, events.router, jobs.router)
+    for router in (*routers, meta.router):
         app.include_router(router, prefix="/v1", dependencies=v1, responses=V1_ERROR_RESPONSES)
     return app
 

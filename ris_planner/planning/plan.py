@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.environment import Scene
+from ris_planner.bounds import compute_bounds
+from ris_planner.environment import Scene, ris_serves
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.planning.beam_design import (
     BeamReport,
@@ -31,8 +32,10 @@ from ris_planner.planning.objectives import (
     Scorer,
     objective_from_loss,
     objective_value,
+    select_metric,
     weighted_quantile,
 )
+from ris_planner.planning.points import heatmap_json, points_json
 from ris_planner.planning.search import Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
@@ -43,7 +46,6 @@ from ris_planner.planning.visibility import (
     serve_warnings,
 )
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M
 
 FloatArray = NDArray[np.float64]
 
@@ -52,6 +54,7 @@ CDF_POINTS = 101
 HEATMAP_MAX_PAIRS = 200_000
 """TX–RX pairs the heatmap evaluates (about a second with expected_random): beyond it each RX
 point is evaluated against a seeded weighted sample of the TX map."""
+REASON_NO_TX = "no TX point of the heatmap differs from this RX point"
 
 
 def _fraction(weights: FloatArray, mask: NDArray[np.bool_]) -> float:
@@ -61,6 +64,39 @@ def _fraction(weights: FloatArray, mask: NDArray[np.bool_]) -> float:
 
 def _num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
+
+
+def _dominant_reason(
+    reason: NDArray[np.object_], weights: FloatArray, blind: NDArray[np.bool_]
+) -> list[str | None]:
+    """Per row (an RX point, [M, T] reasons and weights): for a blind point the reason carried by
+    the largest weight of its infinite pairs (ties: the first reason in sorted order), else None."""
+    out: list[str | None] = [None] * reason.shape[0]
+    if not np.any(blind):
+        return out
+    r, w = reason[blind], weights[blind]  # [B, T]
+    names = sorted({str(x) for x in r.ravel() if x is not None})
+    if not names:
+        return out
+    # [K, B] weight of each distinct reason per blind point
+    mass = np.stack([((r == name) * w).sum(axis=1) for name in names])
+    best = np.argmax(mass, axis=0)
+    for b, m in enumerate(np.nonzero(blind)[0]):
+        out[m] = names[best[b]] if mass[best[b], b] > 0 else None
+    return out
+
+
+@dataclass(frozen=True)
+class RxField:
+    """One layout evaluated at every RX map point (:meth:`PlanResult.rx_field`)."""
+
+    layout: Layout
+    bound: FloatArray
+    """[M] weighted median over TX of the objective's metric [m]; inf = blind, NaN = no TX."""
+    reason: list[str | None]
+    """[M] why the bound is infinite (the dominant reason over TX) or absent; None otherwise."""
+    serving: list[list[int]]
+    """[M] the layout's sites (candidate indices) with a RIS path to the point from ≥ 1 TX."""
 
 
 @dataclass
@@ -90,6 +126,7 @@ class PlanResult:
     warnings: list[str] | None = None
     beams: dict[Layout, BeamReport] = field(default_factory=dict)
     """Beam designs per evaluated layout (``document.beams``): the best of each count first."""
+    _rx_fields: dict[Layout, RxField] = field(default_factory=dict, repr=False)
 
     @property
     def cache(self) -> SiteCache:
@@ -99,18 +136,6 @@ class PlanResult:
     def metric_weights(self) -> FloatArray:
         """Weights of the columns of a layout's metric (see :attr:`Scorer.metric_weights`)."""
         return self.scorer.metric_weights
-
-    def evaluate_layout(self, layout: Layout, pairs: PairSet) -> FloatArray:
-        """[P] metric bound (m) of a layout on other pairs (one direction each), with the
-        plan's visibility rules: a site cache of the layout's sites only."""
-        sites = [self.sites[s] for s in layout]
-        doc = self.document
-        vis = None
-        if self.scene is not None:
-            vis = pair_visibility(self.scene, sites, pairs, doc.system.los)
-        cache = build_site_cache(doc.system, sites, pairs, visibility=vis)
-        scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
-        return scorer.metric(np.arange(len(sites))[None, :])[0]
 
     def layout_metric(self, layout: Layout) -> FloatArray:
         """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``);
@@ -141,43 +166,71 @@ class PlanResult:
         vals = weighted_quantile(metric[None, :], self.metric_weights, probs)[0]
         return {"probability": [float(p) for p in probs], "bound_m": [_num(v) for v in vals]}
 
-    def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
-        """(RX points [M, 3], bound [M], layout) for the best layout of the largest count.
-
-        Each RX map point is evaluated against the whole TX map (a seeded weighted sample of it
-        when the product exceeds :data:`HEATMAP_MAX_PAIRS`) or against the document's fixed
-        ``heatmap_tx``, whatever pairs the plan itself used, so every point of the map gets a
-        value from the same TX population; the value is the weighted median over TX (a mean is
-        undefined where some bounds are infinite). NaN where no TX point differs from the RX
-        point."""
-        layout = self.counts[-1].ranked[0][0]
+    def heatmap_tx(self) -> tuple[FloatArray, FloatArray]:
+        """(TX points [T, 3], weights [T]) every RX map point is evaluated against: the document's
+        fixed ``heatmap_tx``, else the whole TX map – a seeded weighted sample of it when
+        T × M would exceed :data:`HEATMAP_MAX_PAIRS` (the same sample for every layout)."""
         doc = self.document
-        pts = self.rx_map.points
         if doc.heatmap_tx is not None:
-            tx_pts, tx_w = np.asarray(doc.heatmap_tx, dtype=float)[None], np.ones(1)
-        else:
-            tx_pts, tx_w = self.tx_map.points, self.tx_map.weights
-            max_tx = max(1, HEATMAP_MAX_PAIRS // len(pts))
-            if len(tx_pts) > max_tx:
-                rng = np.random.default_rng(0)
-                pick = rng.choice(len(tx_pts), max_tx, replace=False, p=tx_w / tx_w.sum())
-                tx_pts, tx_w = tx_pts[pick], tx_w[pick]
+            return np.asarray(doc.heatmap_tx, dtype=float)[None], np.ones(1)
+        tx_pts, tx_w = self.tx_map.points, self.tx_map.weights
+        max_tx = max(1, HEATMAP_MAX_PAIRS // len(self.rx_map.points))
+        if len(tx_pts) > max_tx:
+            rng = np.random.default_rng(0)
+            pick = rng.choice(len(tx_pts), max_tx, replace=False, p=tx_w / tx_w.sum())
+            tx_pts, tx_w = tx_pts[pick], tx_w[pick]
+        return tx_pts, tx_w
+
+    def rx_field(self, layout: Layout) -> RxField:
+        """The layout's bound at every RX map point against the :meth:`heatmap_tx` population,
+        with its blind reason and serving sites (computed once per layout, then cached).
+
+        The value is the weighted median over TX (a mean is undefined where some bounds are
+        infinite); TX points that coincide with the RX point carry no weight, and a point with
+        none left is NaN."""
+        layout = tuple(int(s) for s in layout)
+        cached = self._rx_fields.get(layout)
+        if cached is not None:
+            return cached
+        doc = self.document
+        pts = self.rx_map.points  # [M, 3]
+        tx_pts, tx_w = self.heatmap_tx()  # [T, 3], [T]
         n_tx, n_rx = len(tx_pts), len(pts)
-        it, ir = np.repeat(np.arange(n_tx), n_rx), np.tile(np.arange(n_rx), n_tx)
-        tx, rx = tx_pts[it], pts[ir]
-        ok = np.linalg.norm(tx - rx, axis=1) >= MIN_UE_RIS_DISTANCE_M  # else inf, weight 0
-        flat = np.full(n_tx * n_rx, np.inf)
-        if np.any(ok):
-            hp = PairSet(tx[ok], rx[ok], np.full(int(ok.sum()), 1.0), it[ok], ir[ok])
-            flat[ok] = self.evaluate_layout(layout, hp)
-        metric = flat.reshape(n_tx, n_rx)
+        tx = np.repeat(tx_pts, n_rx, axis=0)  # [T·M, 3], TX-major
+        rx = np.tile(pts, (n_tx, 1))
+        environment = doc.environment
+        layout_ris = [self.sites[s].ris for s in layout]
+        scenario = layout_scenario(doc.system, layout_ris, list(doc.known), environment)
+        # the plan's visibility rules through compute_bounds; degenerate pairs: inf, a reason
+        res = compute_bounds(scenario, tx=tx, rx=rx, profiles=None)
+        metric = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx).reshape(n_tx, n_rx)
         w = np.where(np.linalg.norm(tx - rx, axis=1) > 0, np.repeat(tx_w, n_rx), 0.0)
-        w = w.reshape(n_tx, n_rx).T
+        w = w.reshape(n_tx, n_rx).T  # [M, T]
         empty = w.sum(axis=1) <= 0
-        w[empty] = 1.0
-        vals = weighted_quantile(metric.T, w, 0.5)
+        w_med = w.copy()
+        w_med[empty] = 1.0
+        vals = weighted_quantile(metric.T, w_med, 0.5)  # [M]
         vals[empty] = np.nan
-        return pts, vals, layout
+        reasons = _dominant_reason(res.reason.reshape(n_tx, n_rx).T, w, np.isinf(vals))
+        for m in np.nonzero(empty)[0]:
+            reasons[m] = REASON_NO_TX
+        # RIS path for (TX, RX) iff the RIS serves both (DESIGN.md); serving: with ≥ 1 weighted TX
+        scene = self.scene if self.scene is not None else Scene.from_environment(environment)
+        serves = np.zeros((len(layout), n_rx), dtype=bool)  # [L, M]
+        for j, s in enumerate(layout):
+            ris = self.sites[s].ris
+            any_tx = ((w > 0) & ris_serves(scene, ris, tx_pts)[None, :]).any(axis=1)  # [M]
+            serves[j] = ris_serves(scene, ris, pts) & any_tx
+        serving = [[layout[j] for j in np.nonzero(serves[:, m])[0]] for m in range(n_rx)]
+        out = RxField(layout, vals, reasons, serving)
+        self._rx_fields[layout] = out
+        return out
+
+    def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
+        """(RX points [M, 3], bound [M], layout) for the best layout of the largest count: the
+        :meth:`rx_field` of that layout (NaN where no TX point differs from the RX point)."""
+        layout = self.counts[-1].ranked[0][0]
+        return self.rx_map.points, self.rx_field(layout).bound, layout
 
     def to_json(self) -> dict[str, Any]:
         """The plan.json content (``inf`` → ``null``)."""
@@ -235,6 +288,8 @@ class PlanResult:
             "tx_points": len(self.tx_map.points),
             "rx_points": len(self.rx_map.points),
             "known": list(doc.known),
+            "points": points_json(self),
+            "heatmap": heatmap_json(self),
             "timing_s": self.timing,
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
         }
@@ -251,15 +306,27 @@ class PlanResult:
         }
 
 
-def run_plan(
-    document: PlanDocument | dict[str, Any],
-    progress: ProgressCallback = no_progress,
-    executor: Executor | None = None,
-) -> PlanResult:
-    """Run a plan document: build maps and pairs, cache every site's information, search each
-    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+@dataclass(frozen=True)
+class PlanInputs:
+    """A plan's checked inputs before any bound is computed (:func:`prepare_plan`)."""
+
+    document: PlanDocument
+    sites: list[Site]
+    tx_map: PointMap
+    rx_map: PointMap
+    pairs: PairSet
+    scene: Scene
+    dropped: dict[str, int]
+    """UE map points dropped inside prisms, per map."""
+    directions: str
+    """How unordered pairs count both directions (:func:`maps.unordered_directions`)."""
+
+
+def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
+    """Validate a plan document, expand its sites and maps, build its pairs and check every limit
+    that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
+    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
-    t0 = time.perf_counter()
     # the fields of view apply in free space too (an empty scene); obstacles where given
     scene = Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
@@ -280,6 +347,26 @@ def run_plan(
             f"{len(sites)} sites × {pairs.size} pairs exceed the site-cache limit of"
             f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
         )
+    return PlanInputs(doc, sites, tx_map, rx_map, pairs, scene, dropped, directions)
+
+
+def run_plan(
+    document: PlanDocument | dict[str, Any],
+    progress: ProgressCallback = no_progress,
+    executor: Executor | None = None,
+) -> PlanResult:
+    """Run a plan document: build maps and pairs, cache every site's information, search each
+    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+    t0 = time.perf_counter()
+    inputs = prepare_plan(document)
+    doc, sites, tx_map, rx_map, pairs = (
+        inputs.document,
+        inputs.sites,
+        inputs.tx_map,
+        inputs.rx_map,
+        inputs.pairs,
+    )
+    scene, dropped, directions = inputs.scene, inputs.dropped, inputs.directions
     progress(0.0, "caching site information")
     t_vis = time.perf_counter()
     visibility = pair_visibility(scene, sites, pairs, doc.system.los)

@@ -1,0 +1,173 @@
+"""The planner's web page and the API documentation pages, all from files shipped in the
+package (``api/static``; nothing is loaded from a CDN), and ``POST /v1/plans/validate``: the
+job submission's validation and pre-work checks as a dry run, with a preview of what the page
+draws (expanded candidate sites, UE map points).
+
+* ``GET /`` – the single-page planner (``static/index.html`` + ``app.js`` + ``app.css``);
+* ``GET /docs`` – Swagger UI, ``GET /redoc`` – ReDoc, from the vendored ``swagger-ui-dist``
+  and ``redoc`` bundles under ``static/vendor`` (versions in ``static/vendor/VENDORED.md``);
+* ``GET /static/...`` – the files themselves.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+from fastapi import APIRouter, Body, FastAPI
+from fastapi.openapi.docs import (
+    get_redoc_html,
+    get_swagger_ui_html,
+    get_swagger_ui_oauth2_redirect_html,
+)
+from fastapi.responses import FileResponse, HTMLResponse
+from fastapi.staticfiles import StaticFiles
+from pydantic import BaseModel, Field
+
+from api.errors import TOO_LARGE_RESPONSE
+from api.models import plan_examples
+from ris_planner.planning import PlanDocument
+from ris_planner.planning.maps import PointMap
+from ris_planner.planning.plan import prepare_plan
+from ris_planner.planning.sites import candidate_json
+
+STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
+"""The shipped page and vendored assets (package data of ``api``)."""
+
+PREVIEW_MAX_POINTS = 5000
+"""UE map points returned per map by the validation preview (every k-th point beyond it)."""
+
+PAGE_CSP = (
+    "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:;"
+    " connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
+)
+"""Content-Security-Policy of the planner page: only its own origin (proves no CDN use)."""
+
+router = APIRouter(tags=["jobs"])
+
+
+class MapPreview(BaseModel):
+    """A UE map as the engine expanded it (grids, roads and CSV rows to points)."""
+
+    total: int = Field(ge=1, description="Points in the map (after dropping zero weights)")
+    stride: int = Field(ge=1, description="Every stride-th point is listed")
+    points: list[list[float]] = Field(description="Listed positions [x, y, z] in metres")
+    weights: list[float] = Field(description="Relative weights of the listed points")
+
+
+class PlanPreview(BaseModel):
+    """The answer of ``POST /v1/plans/validate``: the document passed every check that job
+    submission and the start of the job run, and this is what the job would work on."""
+
+    valid: bool = Field(description="Always true (an invalid document is a 422 / 413)")
+    sites: int = Field(ge=1, description="Candidate sites after expanding walls")
+    pairs: int = Field(ge=1, description="TX–RX pairs the search scores")
+    tx_points: int = Field(ge=1, description="Points of the TX map")
+    rx_points: int = Field(ge=1, description="Points of the RX map")
+    layouts: dict[str, int] = Field(description="Per RIS count: C(sites, count) layouts")
+    methods: dict[str, str] = Field(description="Per RIS count: exhaustive or greedy search")
+    candidates: list[dict[str, Any]] = Field(
+        description="Every candidate site: index, position [m], orientation [rad], name"
+    )
+    tx_map: MapPreview = Field(description="The TX map's points (every stride-th)")
+    rx_map: MapPreview = Field(description="The RX map's points (every stride-th)")
+
+
+def _map_preview(pm: PointMap) -> MapPreview:
+    n = len(pm.points)
+    stride = max(1, math.ceil(n / PREVIEW_MAX_POINTS))
+    return MapPreview(
+        total=n,
+        stride=stride,
+        points=np.round(pm.points[::stride], 6).tolist(),
+        weights=pm.weights[::stride].tolist(),
+    )
+
+
+@router.post(
+    "/plans/validate",
+    response_model=PlanPreview,
+    responses=TOO_LARGE_RESPONSE,
+    summary="Check a plan document without starting a job (dry run of POST /v1/plans)",
+)
+def validate_plan(
+    document: Annotated[
+        PlanDocument,
+        Body(
+            description="The plan document, as for POST /v1/plans", openapi_examples=plan_examples()
+        ),
+    ],
+) -> PlanPreview:
+    """The validation of ``POST /v1/plans`` (422 with the field paths) plus the checks the job
+    makes before it computes anything (RIS counts against the sites, pair and site-cache limits:
+    422 / 413); nothing is queued. The answer previews the expanded sites and maps."""
+    inputs = prepare_plan(document)
+    n_sites = len(inputs.sites)
+    search = inputs.document.search
+    layouts = {str(c): math.comb(n_sites, c) for c in inputs.document.ris_count}
+    methods = {
+        c: search.method
+        if search.method != "auto"
+        else ("exhaustive" if n <= search.max_exhaustive else "greedy")
+        for c, n in layouts.items()
+    }
+    return PlanPreview(
+        valid=True,
+        sites=n_sites,
+        pairs=inputs.pairs.size,
+        tx_points=len(inputs.tx_map.points),
+        rx_points=len(inputs.rx_map.points),
+        layouts=layouts,
+        methods=methods,
+        candidates=[{"index": i, **candidate_json(s)} for i, s in enumerate(inputs.sites)],
+        tx_map=_map_preview(inputs.tx_map),
+        rx_map=_map_preview(inputs.rx_map),
+    )
+
+
+def install_web(app: FastAPI) -> None:
+    """Serve the page, the static files and local ``/docs`` + ``/redoc`` on ``app`` (created
+    with ``docs_url=None, redoc_url=None`` so FastAPI's CDN-based pages are not registered)."""
+    app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    pages = APIRouter(include_in_schema=False)
+    title = app.title
+    openapi_url = app.openapi_url or "/openapi.json"
+    oauth_redirect = "/docs/oauth2-redirect"
+
+    @pages.get("/", response_class=HTMLResponse)
+    def index() -> FileResponse:
+        return FileResponse(
+            STATIC_DIR / "index.html",
+            media_type="text/html",
+            headers={"Content-Security-Policy": PAGE_CSP, "Cache-Control": "no-cache"},
+        )
+
+    @pages.get("/docs", response_class=HTMLResponse)
+    def swagger_ui() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url=openapi_url,
+            title=f"{title} – Swagger UI",
+            swagger_js_url="/static/vendor/swagger-ui/swagger-ui-bundle.js",
+            swagger_css_url="/static/vendor/swagger-ui/swagger-ui.css",
+            swagger_favicon_url="/static/favicon.svg",
+            oauth2_redirect_url=oauth_redirect,
+            swagger_ui_parameters={"validatorUrl": None},
+        )
+
+    @pages.get(oauth_redirect, response_class=HTMLResponse)
+    def swagger_redirect() -> HTMLResponse:
+        return get_swagger_ui_oauth2_redirect_html()
+
+    @pages.get("/redoc", response_class=HTMLResponse)
+    def redoc() -> HTMLResponse:
+        return get_redoc_html(
+            openapi_url=openapi_url,
+            title=f"{title} – ReDoc",
+            redoc_js_url="/static/vendor/redoc/redoc.standalone.js",
+            redoc_favicon_url="/static/favicon.svg",
+            with_google_fonts=False,
+        )
+
+    app.include_router(pages)

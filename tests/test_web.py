@@ -1,0 +1,512 @@
+"""The planner page in a real headless Chromium (Debian's ``chromium`` driven by Playwright)
+against a real uvicorn on 127.0.0.1: open a preset, edit it, submit, follow the progress to
+100 %, see the layout, heatmap and contour, read a point's bound, switch counts, cancel a job,
+see validation errors next to their fields, the API docs offline, a server that went down.
+
+Screenshots go to a temporary folder, and to ``out/web/`` when ``RIS_PLANNER_SCREENSHOTS`` is
+set. No console error is allowed except the browser's own line for an HTTP error response the
+test provokes on purpose (a 422, a refused connection).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from api.launch import served
+from ris_planner.planning import plan_preset as plan_preset_doc
+
+CHROMIUM = os.environ.get("RIS_PLANNER_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+INSTALL_HINT = (
+    "the browser tests need Debian's Chromium at {path}: install it with"
+    " `apt-get update && apt-get install -y chromium` (as root), or point"
+    " RIS_PLANNER_CHROMIUM at a Chromium binary; and the playwright package"
+    " (`pip install -e '.[dev]'`; never `playwright install`)"
+)
+WAIT_MS = 60_000
+"""Upper bound for a job's progress to reach an end state (the fig10 plan takes ~2 s)."""
+
+BOUND_DIGITS_RTOL = 5e-3
+"""The page prints bounds with 3 significant digits: relative rounding ≤ 5e-3."""
+
+
+def _browser_available() -> str | None:
+    """None if Chromium and Playwright are there, else what to install."""
+    problems = []
+    if not (Path(CHROMIUM).is_file() and os.access(CHROMIUM, os.X_OK)):
+        problems.append("chromium")
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        problems.append("playwright")
+    return INSTALL_HINT.format(path=CHROMIUM) if problems else None
+
+
+_MISSING = _browser_available()
+if _MISSING is not None:
+    if os.environ.get("CI") == "true":  # CI installs both (.ci/run): missing is a failure
+        pytest.fail(_MISSING, pytrace=False)
+    pytest.skip(_MISSING, allow_module_level=True)
+
+from playwright.sync_api import Browser, ConsoleMessage, Page, expect, sync_playwright  # noqa: E402
+
+
+def slow_plan_doc() -> dict[str, Any]:
+    """A plan of many seconds (24 sites, C(24, 4) = 10626 layouts × 4000 pairs) to cancel."""
+    cands = []
+    for k in range(24):
+        phi = 2 * math.pi * k / 24
+        cands.append(
+            {
+                "position": [8 * math.cos(phi), 8 * math.sin(phi), 2.0 + (k % 3)],
+                "orientation": [phi + math.pi, 0.4, 0.0],
+            }
+        )
+    grid = {"grid": {"x": [-5, 5, 0.5], "y": [-5, 5, 0.5], "z": [0, 0, 1]}}
+    return {
+        "description": "slow ring (browser test: cancel)",
+        "candidates": cands,
+        "tx_map": grid,
+        "rx_map": grid,
+        "pairs": {"sample": 4000, "seed": 0},
+        "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
+        "ris_count": [4],
+    }
+
+
+@dataclass
+class Shots:
+    """Screenshot folder(s): always a temporary one, ``out/web`` too when asked for."""
+
+    folder: Path
+    copy_to: Path | None
+    taken: list[Path] = field(default_factory=list)
+
+    def take(self, page: Page, name: str, full_page: bool = True) -> Path:
+        path = self.folder / f"{name}.png"
+        page.screenshot(path=str(path), full_page=full_page)
+        self.taken.append(path)
+        if self.copy_to is not None:
+            self.copy_to.mkdir(parents=True, exist_ok=True)
+            shutil.copy(path, self.copy_to / path.name)
+        return path
+
+
+@pytest.fixture(scope="module")
+def shots(tmp_path_factory: pytest.TempPathFactory) -> Shots:
+    copy = Path("out/web") if os.environ.get("RIS_PLANNER_SCREENSHOTS") else None
+    return Shots(tmp_path_factory.mktemp("screenshots"), copy)
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    tmp = tmp_path_factory.mktemp("web-server")
+    with served(tmp / "jobs.db", workers=2, log=tmp / "server.log") as srv:
+        yield srv.url
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+class Console:
+    """Console errors and page errors of a page; ``allow`` adds an expected pattern."""
+
+    def __init__(self, page: Page) -> None:
+        self.errors: list[str] = []
+        self.allowed: list[re.Pattern[str]] = []
+        page.on("console", self._on_console)
+        page.on("pageerror", lambda exc: self.errors.append(f"page error: {exc}"))
+
+    def _on_console(self, msg: ConsoleMessage) -> None:
+        if msg.type in ("error", "assert"):
+            self.errors.append(msg.text)
+
+    def allow(self, pattern: str) -> None:
+        self.allowed.append(re.compile(pattern))
+
+    def unexpected(self) -> list[str]:
+        return [e for e in self.errors if not any(p.search(e) for p in self.allowed)]
+
+
+@pytest.fixture
+def page(browser: Browser) -> Iterator[tuple[Page, Console]]:
+    context = browser.new_context(viewport={"width": 1280, "height": 900})
+    pg = context.new_page()
+    console = Console(pg)
+    try:
+        yield pg, console
+        assert console.unexpected() == []
+    finally:
+        context.close()
+
+
+def open_page(pg: Page, url: str) -> None:
+    pg.goto(url + "/")
+    expect(pg.locator("#server-status")).to_contain_text("Server ok")
+    expect(pg.locator("#preset option[value='fig10-anchors']")).to_be_attached()
+
+
+def load_preset(pg: Page, name: str) -> None:
+    pg.select_option("#preset", name)
+    pg.click("#load-preset")
+    expect(pg.locator("#validation-status")).to_contain_text("Valid:", timeout=WAIT_MS)
+
+
+def no_horizontal_scroll(pg: Page) -> None:
+    width = pg.evaluate("document.documentElement.scrollWidth")
+    assert width <= 1280, f"page is {width} px wide at a 1280 px window"
+
+
+def unlabelled_controls(pg: Page) -> list[str]:
+    """Visible inputs, selects and buttons without an accessible name."""
+    found: list[str] = pg.evaluate(
+        """(() => [...document.querySelectorAll('input, select, button')]
+          .filter(el => el.offsetParent !== null)
+          .filter(el => !((el.labels && el.labels.length) || el.getAttribute('aria-label')
+                          || el.getAttribute('aria-labelledby')
+                          || (el.tagName === 'BUTTON' && el.textContent.trim())))
+          .map(el => el.id || el.outerHTML.slice(0, 80)))()"""
+    )
+    return found
+
+
+def low_contrast_text(pg: Page) -> list[str]:
+    """HTML elements with their own visible text whose colour against the first opaque
+    background behind them is below WCAG AA (4.5:1; 3:1 for large text)."""
+    found: list[str] = pg.evaluate(
+        """(() => {
+          const rgb = (c) => (c.match(/[0-9.]+/g) || []).map(Number);
+          const lum = ([r, g, b]) => {
+            const f = (v) => {
+              v /= 255;
+              return v <= 0.03928 ? v / 12.92 : ((v + 0.055) / 1.055) ** 2.4;
+            };
+            return 0.2126 * f(r) + 0.7152 * f(g) + 0.0722 * f(b);
+          };
+          const bg = (el) => {
+            for (let e = el; e; e = e.parentElement) {
+              const c = rgb(getComputedStyle(e).backgroundColor);
+              if (c.length === 3 || (c.length === 4 && c[3] === 1)) return c.slice(0, 3);
+            }
+            return [255, 255, 255];
+          };
+          const out = [];
+          for (const el of document.body.querySelectorAll('*')) {
+            if (el.closest('svg') || el.offsetParent === null) continue;
+            const own = [...el.childNodes].some(n => n.nodeType === 3 && n.textContent.trim());
+            if (!own) continue;
+            const st = getComputedStyle(el);
+            const a = lum(rgb(st.color)), b = lum(bg(el));
+            const ratio = (Math.max(a, b) + 0.05) / (Math.min(a, b) + 0.05);
+            const size = parseFloat(st.fontSize), bold = Number(st.fontWeight) >= 700;
+            const need = size >= 24 || (bold && size >= 18.66) ? 3 : 4.5;
+            if (ratio < need) out.push(`${el.tagName}#${el.id}: ${ratio.toFixed(2)}`);
+          }
+          return out;
+        })()"""
+    )
+    return found
+
+
+def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Shots) -> None:
+    pg, _ = page
+    open_page(pg, server)
+    load_preset(pg, "fig10-anchors")
+    # the site to scale: 4 candidates with facing arrows, the 98-point UE map
+    assert pg.locator("#candidates .site").count() == 4
+    assert pg.locator(".ue-map circle").count() == 98
+    expect(pg.locator("#validation-status")).to_contain_text("4 candidate sites, 4753 TX–RX pairs")
+    shots.take(pg, "01-preset-loaded")
+    # edit: coverage of PEB_R ≤ 2 cm (a contour that cuts through the map), counts 2 and 4
+    pg.select_option("#f-objective-kind", "coverage")
+    expect(pg.locator("#label-objective-level")).to_have_text("Coverage threshold [m]")
+    pg.fill("#f-objective-level", "0.02")
+    pg.fill("#f-ris_count", "2, 4")
+    pg.click("#validate")
+    expect(pg.locator("#validation-status")).to_contain_text("2 RIS: 6 layouts")
+    pg.click("#submit")
+    expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=WAIT_MS)
+    expect(pg.locator("#job-status")).to_contain_text("succeeded")
+    assert pg.locator("#progress").get_attribute("value") == "100"
+    expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
+    job_id = pg.evaluate("window.risPlanner.state.job.id")
+    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    plan = view["result"]
+    objective = {k: v for k, v in view["request"]["objective"].items() if v is not None}
+    assert objective == {"kind": "coverage", "metric": "rx", "threshold_m": 0.02}
+    assert [b["ris_count"] for b in plan["by_count"]] == [2, 4]
+    # layout of the largest count on the map, heatmap and contour drawn, legend
+    assert pg.locator("#candidates .site.chosen").count() == 4
+    assert len(pg.locator("#contour").get_attribute("d") or "") > 20
+    expect(pg.locator("#legend")).to_contain_text("coverage threshold 0.02 m")
+    expect(pg.locator("#count-table tbody tr")).to_have_count(2)
+    assert pg.locator("#cdf polyline").count() == 2
+    shots.take(pg, "02-results-4-ris")
+    # click a point: the page shows plan.json's bound for it
+    target = plan["points"][10]
+    x, y = target["position"][:2]
+    px, py = pg.evaluate(
+        f"(() => {{ const v = window.risPlanner.state.view; return [v.X({x}), v.Y({y})]; }})()"
+    )
+    box = pg.locator("#map").bounding_box()
+    assert box is not None
+    vb = pg.evaluate(
+        "(() => { const b = document.getElementById('map').viewBox.baseVal;"
+        " return [b.width, b.height]; })()"
+    )
+    pg.locator("#map").click(
+        position={"x": px * box["width"] / vb[0], "y": py * box["height"] / vb[1]}
+    )
+    row = pg.locator(f"#point-info tr[data-point='{target['index']}']")
+    expect(row).to_be_visible()
+    shown = row.locator("td[data-count='4'] .bound").inner_text()
+    assert float(shown.split()[0]) == pytest.approx(target["bound_m"]["4"], rel=BOUND_DIGITS_RTOL)
+    serving = ", ".join(str(s) for s in target["serving"]["4"])
+    expect(row.locator("td[data-count='4']")).to_contain_text(f"sites {serving}")
+    shots.take(pg, "03-point-clicked")
+    # keyboard: the map takes focus, an arrow key moves to a neighbouring point
+    pg.focus("#map")
+    pg.keyboard.press("ArrowRight")
+    moved = pg.evaluate("window.risPlanner.state.selected")
+    assert plan["points"][moved]["position"][0] > x
+    # another count by keyboard (radio group: arrow keys): its best layout (2 sites)
+    pg.focus("#count-4")
+    pg.keyboard.press("ArrowLeft")
+    expect(pg.locator("#count-2")).to_be_checked()
+    expect(pg.locator("#count-2")).to_be_focused()
+    assert pg.locator("#candidates .site.chosen").count() == 2
+    assert (
+        pg.locator("#candidates .site.chosen").evaluate_all(
+            "els => els.map(e => Number(e.dataset.site))"
+        )
+        == plan["by_count"][0]["sites"]
+    )
+    # downloads: plan.json and every file of the job
+    links = pg.locator("#downloads a")
+    assert links.all_inner_texts() == ["plan.json", "topview", "heatmap", "cdf"]
+    with pg.expect_download() as dl:
+        links.first.click()
+    saved = json.loads(Path(dl.value.path()).read_text())
+    assert saved["by_count"] == plan["by_count"]
+    for name, url in view["figures"].items():
+        assert pg.locator(f"#downloads a[href='{url}']").inner_text() == name
+    # the list is generic over a job's files: figures and any "files" (dict or list) appear
+    listed = pg.evaluate(
+        "window.risPlanner.jobFiles({figures: {cdf: '/v1/jobs/x/figures/cdf'},"
+        " files: {coverage: '/v1/jobs/x/files/coverage.geojson',"
+        " raster: {url: '/v1/jobs/x/files/peb.tif'}}})"
+    )
+    assert [(f["name"], f["ext"]) for f in listed] == [
+        ("cdf", "PNG"),
+        ("coverage", "GEOJSON"),
+        ("raster", "TIF"),
+    ]
+    listed = pg.evaluate("window.risPlanner.jobFiles({files: [{name: 'a.csv', url: '/f/1'}]})")
+    assert [(f["name"], f["url"], f["ext"]) for f in listed] == [("a.csv", "/f/1", "CSV")]
+    # the job list has it, with what it was
+    row = pg.locator(f"#jobs-body tr[data-job='{job_id}']")
+    expect(row).to_contain_text("succeeded")
+    expect(row).to_contain_text("2/4 RIS · coverage")
+    no_horizontal_scroll(pg)
+    assert unlabelled_controls(pg) == []
+    assert low_contrast_text(pg) == []
+    shots.take(pg, "04-count-2")
+
+
+def test_validation_errors_next_to_their_fields(
+    page: tuple[Page, Console], server: str, shots: Shots
+) -> None:
+    pg, console = page
+    console.allow(r"status of 422")  # the browser logs each 422 answer it receives
+    open_page(pg, server)
+    load_preset(pg, "fig10-anchors")
+    pg.fill("#f-ris-rows", "0")
+    pg.fill("#f-power", "loud")
+    pg.click("#validate")
+    rows_err = pg.locator("#err-f-ris-rows")
+    expect(rows_err).to_contain_text("ris.rows: Input should be greater than or equal to 1")
+    expect(pg.locator("#err-f-power")).to_contain_text("system.tx_power_dbm")
+    assert pg.locator("#f-ris-rows").get_attribute("aria-invalid") == "true"
+    assert pg.locator("#f-ris-cols").get_attribute("aria-invalid") is None
+    shots.take(pg, "05-validation-errors")
+    # an engine check without a field path lands at the field its message names
+    pg.fill("#f-ris-rows", "10")
+    pg.fill("#f-power", "30")
+    pg.fill("#f-ris_count", "2, 9")
+    pg.click("#submit")
+    expect(pg.locator("#err-f-ris_count")).to_contain_text("ris_count 9 exceeds the 4 candidate")
+    expect(pg.locator("#err-f-ris-rows")).to_be_hidden()
+    assert httpx.get(f"{server}/v1/jobs?status=queued").json()["total"] == 0
+    body = pg.locator("body").inner_text()
+    assert "Traceback" not in body and "Internal Server Error" not in body
+
+
+def test_cancel_a_running_job(page: tuple[Page, Console], server: str, shots: Shots) -> None:
+    pg, _ = page
+    open_page(pg, server)
+    pg.set_input_files(
+        "#upload",
+        files=[
+            {
+                "name": "slow.json",
+                "mimeType": "application/json",
+                "buffer": json.dumps(slow_plan_doc()).encode(),
+            }
+        ],
+    )
+    expect(pg.locator("#validation-status")).to_contain_text("24 candidate sites", timeout=WAIT_MS)
+    expect(pg.locator("#doc-name")).to_contain_text("slow.json")
+    pg.click("#submit")
+    expect(pg.locator("#job-status")).to_contain_text("running", timeout=WAIT_MS)
+    expect(pg.locator("#cancel")).to_be_enabled()
+    shots.take(pg, "06-running")
+    pg.click("#cancel")
+    expect(pg.locator("#job-status")).to_contain_text("cancelled", timeout=WAIT_MS)
+    expect(pg.locator("#cancel")).to_be_disabled()
+    job_id = pg.evaluate("window.risPlanner.state.job.id")
+    assert httpx.get(f"{server}/v1/jobs/{job_id}").json()["status"] == "cancelled"
+    expect(pg.locator(f"#jobs-body tr[data-job='{job_id}']")).to_contain_text("cancelled")
+    assert int(pg.locator("#progress").get_attribute("value") or "0") < 100
+    shots.take(pg, "07-cancelled")
+
+
+def test_obstacles_drawn_to_scale(page: tuple[Page, Console], server: str, shots: Shots) -> None:
+    """A document's environment: a 4 m × 2 m prism as a polygon and a 6 m wall as a line, at the
+    map's scale (pixels per metre the same along x and y)."""
+    pg, console = page
+    console.allow(r"status of 422")  # a server whose plans take no environment yet says so
+    doc = plan_preset_doc("fig10-anchors")
+    doc["environment"] = {
+        "obstacles": [
+            {
+                "kind": "prism",
+                "name": "cabinet",
+                "footprint": [[-1, -1], [3, -1], [3, 1], [-1, 1]],
+                "base_m": 0,
+                "height_m": 2,
+            },
+            {"kind": "wall", "start": [-2, -3], "end": [-2, 3], "base_m": 0, "height_m": 2.5},
+        ]
+    }
+    open_page(pg, server)
+    pg.set_input_files(
+        "#upload",
+        files=[
+            {"name": "env.json", "mimeType": "application/json", "buffer": json.dumps(doc).encode()}
+        ],
+    )
+    expect(pg.locator("#doc-name")).to_contain_text("env.json")
+    prism = pg.locator("polygon.prism")
+    expect(prism).to_have_count(1)
+    k = pg.evaluate("window.risPlanner.state.view.k")
+    xy = [[float(v) for v in p.split(",")] for p in (prism.get_attribute("points") or "").split()]
+    xs, ys = [p[0] for p in xy], [p[1] for p in xy]
+    assert max(xs) - min(xs) == pytest.approx(4 * k) and max(ys) - min(ys) == pytest.approx(2 * k)
+    wall = pg.locator("line.wall")
+    expect(wall).to_have_count(1)
+    y1, y2 = (float(wall.get_attribute(a) or "nan") for a in ("y1", "y2"))
+    assert abs(y1 - y2) == pytest.approx(6 * k)
+    assert "cabinet" in (prism.locator("title").text_content() or "")
+    shots.take(pg, "08-obstacles")
+
+
+def test_api_docs_work_offline(browser: Browser, server: str, shots: Shots) -> None:
+    """Every request of /docs and /redoc stays on the server (others would be aborted)."""
+    context = browser.new_context(viewport={"width": 1280, "height": 900})
+    outside: list[str] = []
+
+    def only_local(route: Any) -> None:
+        url = route.request.url
+        if url.startswith(server) or url.startswith(("data:", "blob:")):
+            route.continue_()
+        else:
+            outside.append(url)
+            route.abort()
+
+    context.route("**/*", only_local)
+    pg = context.new_page()
+    console = Console(pg)
+    try:
+        pg.goto(f"{server}/docs")
+        expect(pg.locator(".swagger-ui .info .title")).to_contain_text(
+            "ris_planner", timeout=WAIT_MS
+        )
+        expect(pg.locator(".swagger-ui").get_by_text("/v1/plans/validate")).to_be_visible()
+        shots.take(pg, "09-swagger-ui", full_page=False)
+        pg.goto(f"{server}/redoc")
+        expect(pg.locator("h1").first).to_contain_text("ris_planner", timeout=WAIT_MS)
+        shots.take(pg, "10-redoc", full_page=False)
+    finally:
+        context.close()
+    assert outside == []
+    assert console.unexpected() == []
+
+
+def test_server_error_is_a_notice_not_a_traceback(
+    page: tuple[Page, Console], server: str, shots: Shots
+) -> None:
+    """A 500 (here a proxy's HTML page with a traceback, and the service's own JSON 500)
+    becomes a short notice; the page never shows the body's traceback."""
+    pg, console = page
+    console.allow(r"status of 500")
+    trace = 'Traceback (most recent call last):\n  File "x.py", line 1\nKeyError: boom'
+    pg.route(
+        "**/v1/plans/validate",
+        lambda route: route.fulfill(status=500, content_type="text/html", body=trace),
+    )
+    open_page(pg, server)
+    pg.select_option("#preset", "fig10-anchors")
+    pg.click("#load-preset")
+    expect(pg.locator("#banner-text")).to_contain_text("internal problem (HTTP 500)")
+    body = json.dumps({"status": 500, "error": "internal_error", "message": trace})
+    pg.unroute("**/v1/plans/validate")
+    pg.route(
+        "**/v1/plans/validate",
+        lambda route: route.fulfill(status=500, content_type="application/json", body=body),
+    )
+    pg.click("#validate")
+    expect(pg.locator("#banner-text")).to_contain_text("the server log has the details")
+    assert "Traceback" not in pg.locator("body").inner_text()
+    assert "KeyError" not in pg.locator("body").inner_text()
+    shots.take(pg, "12-server-error", full_page=False)
+
+
+def test_server_down_gives_a_clear_message(
+    page: tuple[Page, Console], tmp_path: Path, shots: Shots
+) -> None:
+    pg, console = page
+    console.allow(r"ERR_CONNECTION_REFUSED")
+    with served(tmp_path / "jobs.db", workers=1) as srv:
+        open_page(pg, srv.url)
+    # the server has stopped
+    pg.click("#refresh-jobs")
+    expect(pg.locator("#banner")).to_be_visible()
+    expect(pg.locator("#banner-text")).to_contain_text("does not answer")
+    expect(pg.locator("#server-status")).to_have_text("Server unreachable")
+    shots.take(pg, "11-server-down")
