@@ -246,9 +246,7 @@ def _check_outline(xy: FloatArray, label: str) -> Any:
     shapely = require("shapely")
     poly = shapely.Polygon(xy)
     if not poly.is_valid:
-        raise RisPlannerError(
-            f"{label}: invalid outline ({shapely.validation.explain_validity(poly)})"
-        )
+        raise RisPlannerError(f"{label}: invalid outline ({shapely.is_valid_reason(poly)})")
     return poly
 
 
@@ -381,8 +379,7 @@ def import_features(
                     poly = shapely.Polygon(local[0], local[1:])
                     if not poly.is_valid:
                         raise RisPlannerError(
-                            f"{where}: invalid polygon"
-                            f" ({shapely.validation.explain_validity(poly)})"
+                            f"{where}: invalid polygon ({shapely.is_valid_reason(poly)})"
                         )
                     xy, w = _area_points(poly, density, opts)
                     ll = frame.to_geographic(xy)
