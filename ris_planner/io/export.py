@@ -267,8 +267,6 @@ def write_geotiff(
     the largest count the points carry)."""
     rasterio = require("rasterio")
     shapely = require("shapely")
-    from rasterio.transform import from_origin
-
     local, frame = to_local(document)
     key = ris_count or _largest_count(points)
     pos = np.array([p["position"] for p in points], dtype=float)
@@ -306,7 +304,9 @@ def write_geotiff(
         count=1,
         dtype="float32",
         crs=rasterio.crs.CRS.from_wkt(crs),
-        transform=from_origin(x0 - res / 2, y1 + res / 2, res, res),
+        # north up: x = c + col·res, y = f − row·res at pixel corners (no from_origin: it
+        # multiplies Affine objects with `*`, deprecated by affine 3)
+        transform=rasterio.Affine(res, 0.0, x0 - res / 2, 0.0, -res, y1 + res / 2),
         nodata=NODATA,
         compress="deflate",
     ) as ds:
