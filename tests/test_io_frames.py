@@ -4,6 +4,8 @@ document conversion at the boundary and its errors."""
 from __future__ import annotations
 
 import copy
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -250,3 +252,28 @@ def test_malformed_point_names_the_field() -> None:
     doc = {"frame": {"origin": [24.9, 60.1]}, "tx_map": {"points": [[24.9, 60.1]]}}
     with pytest.raises(RisPlannerError, match=r"tx_map\.points\.0: expected 3 numbers"):
         to_local(doc)
+
+
+def test_bounds_cli_takes_a_geographic_scenario(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ris_planner.cli import main
+    from ris_planner.scenario import preset_document
+
+    local = preset_document("paper-table1")
+    frame = Frame((24.949, 60.1655, 0.0))
+    geo = copy.deepcopy(local)
+    geo["frame"] = {"origin": list(frame.origin)}
+    for ris in geo["ris"]:
+        ris["position"] = frame.to_geographic(np.array([ris["position"]]))[0].tolist()
+    for key in ("tx", "rx"):
+        geo[key] = frame.to_geographic(np.array([local[key]]))[0].tolist()
+    answers = []
+    for doc in (local, geo):
+        path = tmp_path / "scenario.json"
+        path.write_text(json.dumps(doc))
+        assert main(["bounds", str(path)]) == 0
+        answers.append(json.loads(capsys.readouterr().out))
+    # positions survive the round trip to ~1e-9 m: bounds agree to far better than 1e-6
+    assert answers[1]["peb_rx_m"] == pytest.approx(answers[0]["peb_rx_m"], rel=1e-6)
+    assert answers[1]["peb_tx_m"] == pytest.approx(answers[0]["peb_tx_m"], rel=1e-6)
