@@ -345,3 +345,27 @@ def test_helsinki_example_small(tmp_path: Path) -> None:
     assert min(lons) > 24.94 and max(lons) < 24.96  # central Helsinki
     with rasterio.open(files["geotiff"]) as ds:
         assert ds.crs.is_projected and (ds.read(1) == NODATA).any()
+
+
+def test_heights_go_back_to_the_documents_datum() -> None:
+    """With an origin at h = 20 m, local z = h − 20; the export adds the 20 m back."""
+    frame = Frame((24.949, 60.1655, 20.0))
+    pos = frame.to_geographic(np.array([[3.0, 4.0, 5.0]]))[0].tolist()  # h = 25
+    doc = {
+        "frame": {"origin": list(frame.origin)},
+        "candidates": [{"position": pos}],
+        "environment": {
+            "obstacles": [
+                {"kind": "prism", "footprint": _ll(BUILDING), "base_m": 21.0, "height_m": 4}
+            ]
+        },
+    }
+    plan = {
+        "candidates": [{"index": 0, "position": [3.0, 4.0, 5.0], "orientation": [0.0, 0.0, 0.0]}],
+        "by_count": [{"ris_count": 1, "top_layouts": [{"sites": [0], "objective": 0.5}]}],
+    }
+    fc = plan_geojson(plan, doc)
+    site, cand, block = (f["properties"] for f in fc["features"])
+    assert site["height_m"] == cand["height_m"] == pytest.approx(25.0)
+    assert site["azimuth_deg"] == pytest.approx(90.0)  # yaw 0 faces east
+    assert block["base_m"] == pytest.approx(21.0) and block["height_m"] == 4

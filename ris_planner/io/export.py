@@ -133,6 +133,7 @@ def plan_geojson(
     ``plan["points"]`` (absent: no UE features)."""
     local, frame = to_local(document)
     out = _Out(frame)
+    h0 = frame.origin[2] if frame is not None else 0.0  # heights back in the document's datum
     size = _ris_size(local)
     cands = plan.get("candidates") or []
     cand_xy = out.xy([c["position"] for c in cands]) if cands else np.zeros((0, 2))
@@ -151,7 +152,7 @@ def plan_geojson(
                             "objective": lay.get("objective"),
                             "candidate": s,
                             "name": c.get("name"),
-                            "height_m": float(c["position"][2]),
+                            "height_m": float(c["position"][2]) + h0,
                             **_pose(c["orientation"]),
                             **size,
                         },
@@ -165,7 +166,7 @@ def plan_geojson(
                 {
                     "role": "candidate",
                     **props,
-                    "height_m": float(c["position"][2]),
+                    "height_m": float(c["position"][2]) + h0,
                     **_pose(c["orientation"]),
                 },
             )
@@ -176,7 +177,9 @@ def plan_geojson(
         for p, xy in zip(pts, pxy, strict=True):
             props = {k: v for k, v in p.items() if k != "position"}
             feats.append(
-                _feature(_point(xy), {"role": "ue", **props, "height_m": float(p["position"][2])})
+                _feature(
+                    _point(xy), {"role": "ue", **props, "height_m": float(p["position"][2]) + h0}
+                )
             )
     env = local.get("environment") or {}
     for k, ob in enumerate(env.get("obstacles") or []):
@@ -185,7 +188,7 @@ def plan_geojson(
             "index": k,
             "kind": ob.get("kind", "prism"),
             "name": ob.get("name"),
-            "base_m": float(ob.get("base_m", 0.0)) + (frame.origin[2] if frame else 0.0),
+            "base_m": float(ob.get("base_m", 0.0)) + h0,
             "height_m": float(ob["height_m"]),
         }
         if props["kind"] == "prism":
