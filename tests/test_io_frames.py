@@ -277,3 +277,11 @@ def test_bounds_cli_takes_a_geographic_scenario(
     # positions survive the round trip to ~1e-9 m: bounds agree to far better than 1e-6
     assert answers[1]["peb_rx_m"] == pytest.approx(answers[0]["peb_rx_m"], rel=1e-6)
     assert answers[1]["peb_tx_m"] == pytest.approx(answers[0]["peb_tx_m"], rel=1e-6)
+
+
+def test_missing_extra_message() -> None:
+    from ris_planner.io import MissingExtraError, require
+
+    with pytest.raises(MissingExtraError, match=r"pip install 'ris_planner\[gis\]'"):
+        require("ris_planner_no_such_gis_library")
+    assert issubclass(MissingExtraError, RisPlannerError)  # CLI: exit 2, REST: 4xx
