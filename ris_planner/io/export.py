@@ -289,11 +289,17 @@ def write_geotiff(
     grid.ravel()[flat[order]] = val[order]
     cx = x0 + res * np.arange(w)
     cy = y1 - res * np.arange(h)
-    gx, gy = np.meshgrid(cx, cy)
     for ob in (local.get("environment") or {}).get("obstacles") or []:
-        if ob.get("kind", "prism") == "prism":
-            inside = shapely.contains_xy(shapely.Polygon(ob["footprint"]), gx, gy)
-            grid[inside] = np.nan
+        if ob.get("kind", "prism") != "prism":
+            continue
+        poly = shapely.Polygon(ob["footprint"])
+        x_lo, y_lo, x_hi, y_hi = poly.bounds
+        cols = np.nonzero((cx > x_lo) & (cx < x_hi))[0]  # only the pixels of its bounding box
+        rows = np.nonzero((cy > y_lo) & (cy < y_hi))[0]
+        if len(cols) and len(rows):
+            gx, gy = np.meshgrid(cx[cols], cy[rows])
+            inside = shapely.contains_xy(poly, gx, gy)
+            grid[np.ix_(rows, cols)] = np.where(inside, np.nan, grid[np.ix_(rows, cols)])
     data = np.where(np.isnan(grid), NODATA, grid).astype(np.float32)
     crs = frame.local_crs().to_wkt() if frame is not None else LOCAL_CS_WKT
     path = Path(path)
