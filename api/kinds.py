@@ -13,14 +13,24 @@ from ris_planner.progress import ProgressCallback
 
 def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
     """``ris-planner plan``: a plan document → plan.json content and the figures ``topview``,
-    ``heatmap``, ``cdf``. The search runs serially inside this worker process (parallelism
-    comes from the service's job workers)."""
+    ``heatmap``, ``cdf`` (PNG) and, with the GIS extra, the files ``geojson`` (plan.geojson),
+    ``geotiff`` (heatmap.tif) and ``points_csv`` (points.csv) of ``ris-planner plan --out``.
+    The search runs serially inside this worker process (parallelism comes from the service's
+    job workers)."""
+    from ris_planner.io import MissingExtraError
     from ris_planner.planning import SerialExecutor, run_plan, write_figures
 
     with SerialExecutor() as executor:
         result = run_plan(document, progress, executor)
     figures = write_figures(result, out_dir)
-    return JobOutput(result.to_json(), figures)
+    plan = result.to_json()
+    try:
+        from ris_planner.io.export import plan_outputs
+
+        figures.update(plan_outputs(result, plan, document, out_dir))
+    except MissingExtraError:  # the service runs without the GIS files
+        pass
+    return JobOutput(plan, figures)
 
 
 def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:

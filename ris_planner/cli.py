@@ -65,7 +65,14 @@ def read_document(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def read_scenario(args: argparse.Namespace) -> Scenario:
-    return load_scenario(read_document(args))
+    """The scenario of ``FILE`` / ``--preset``; a document with a geographic ``frame`` is
+    converted to local metres first (:func:`ris_planner.io.frames.to_local`)."""
+    doc = read_document(args)
+    if "frame" in doc:
+        from ris_planner.io.frames import to_local
+
+        doc = to_local(doc)[0]
+    return load_scenario(doc)
 
 
 def print_json(obj: Any) -> None:
@@ -99,10 +106,11 @@ def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
     """Every feature's ``add_cli``: one line per feature (imported here, not at module load)."""
     from api.cli import add_cli as api_cli
     from ris_planner.estimation.cli import add_cli as estimation_cli
+    from ris_planner.io.cli import add_cli as import_cli
     from ris_planner.planning.cli import add_cli as plan_cli
     from ris_planner.power.cli import add_cli as power_cli
 
-    return [_add_core, power_cli, plan_cli, estimation_cli, api_cli]
+    return [_add_core, power_cli, plan_cli, estimation_cli, import_cli, api_cli]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -47,10 +47,19 @@ def test_plan_job_equals_run_plan_with_figures(tmp_path: Path) -> None:
         assert r.status_code == 202 and r.json()["kind"] == "plan"
         view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=120)
         assert view["status"] == "succeeded", view["error"]
-        assert set(view["figures"]) == {"topview", "heatmap", "cdf"}
-        for url in view["figures"].values():
-            png = client.get(url)
-            assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+        gis = {"geojson", "geotiff", "points_csv"}  # ris_planner.io.export.GIS_FILES
+        assert set(view["figures"]) == {"topview", "heatmap", "cdf"} | gis
+        for name, url in view["figures"].items():
+            if name not in gis:
+                png = client.get(url)
+                assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+        geo = client.get(view["figures"]["geojson"])
+        assert geo.headers["content-type"] == "application/geo+json"
+        assert geo.json()["type"] == "FeatureCollection"
+        tif = client.get(view["figures"]["geotiff"])
+        assert tif.headers["content-type"] == "image/tiff" and tif.content[:4] == b"II*\x00"
+        rows = client.get(view["figures"]["points_csv"]).text.splitlines()
+        assert rows[0].startswith("index,x_m,y_m,z_m,weight") and len(rows) == 1 + 7 * 7 * 2
     with SerialExecutor() as executor:
         expected = run_plan(doc, executor=executor).to_json()
     assert without_timing(view["result"]) == without_timing(expected)

@@ -22,6 +22,13 @@ router = APIRouter(prefix="/jobs", tags=["jobs"])
 JobId = Annotated[
     str, PathParam(description="Job id as returned on submission", pattern="^[0-9a-f]{32}$")
 ]
+MEDIA_TYPES = {
+    ".png": "image/png",
+    ".geojson": "application/geo+json",
+    ".tif": "image/tiff",
+    ".csv": "text/csv",
+}
+"""Media type of a job file by suffix (PNG figures; the plan's GIS files)."""
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody, "description": "No such job"}
 }
@@ -96,10 +103,13 @@ def cancel_job(
     "/{job_id}/figures/{name}",
     response_class=FileResponse,
     responses={
-        200: {"content": {"image/png": {}}, "description": "The figure as a PNG image"},
+        200: {
+            "content": {t: {} for t in MEDIA_TYPES.values()},
+            "description": "The figure or file (PNG, GeoJSON, GeoTIFF, CSV)",
+        },
         **NOT_FOUND,
     },
-    summary="A figure of a finished job (PNG)",
+    summary="A figure or result file of a finished job (PNG, GeoJSON, GeoTIFF, CSV)",
 )
 def get_figure(
     job_id: JobId,
@@ -117,4 +127,4 @@ def get_figure(
     path = Path(settings.figures_dir) / job_id / filename
     if not path.is_file():
         raise JobNotFoundError(f"the file of figure {name!r} of job {job_id} is missing")
-    return FileResponse(path, media_type="image/png")
+    return FileResponse(path, media_type=MEDIA_TYPES.get(path.suffix, "application/octet-stream"))

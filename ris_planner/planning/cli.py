@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from ris_planner.errors import RisPlannerError
 
@@ -21,15 +22,19 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     doc = plan_preset(args.preset) if args.preset is not None else load_plan_file(args.file)
     if args.beams and doc.get("beams") is None:
         doc = {**doc, "beams": {}}  # the default beam settings (PlanDocument.beams)
+    local, frame = _local_document(doc)
     executor: Executor = (
         DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
     )
     with executor:
-        result = run_plan(doc, ProgressBar("plan"), executor)
+        result = run_plan(local, ProgressBar("plan"), executor)
     out = Path(args.out)
     plan = result.to_json()
+    if frame is not None:
+        plan["frame"] = {"origin": list(frame.origin), "local_crs": frame.proj4}
     plan_path = write_plan_json(plan, out)
     figures = write_figures(result, out)
+    figures.update(_gis_files(result, plan, doc, out))
     print(f"wrote {plan_path}", file=sys.stderr)
     for p in figures.values():
         print(f"wrote {p}", file=sys.stderr)
@@ -41,6 +46,32 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _local_document(doc: dict[str, Any]) -> tuple[dict[str, Any], Any]:
+    """The document in local metres and its frame (``ris_planner.io.frames``; only a document
+    with a ``frame`` needs the GIS extra)."""
+    if "frame" not in doc:
+        return doc, None
+    from ris_planner.io.frames import to_local
+
+    return to_local(doc)
+
+
+def _gis_files(
+    result: Any, plan: dict[str, Any], doc: dict[str, Any], out: Path
+) -> dict[str, Path]:
+    """plan.geojson, heatmap.tif, points.csv (``ris_planner.io.export``); skipped with a note
+    when the GIS extra is not installed."""
+    from ris_planner.io import MissingExtraError
+
+    try:
+        from ris_planner.io.export import plan_outputs
+
+        return plan_outputs(result, plan, doc, out)
+    except MissingExtraError as exc:
+        print(f"note: GIS files skipped: {exc}", file=sys.stderr)
+        return {}
+
+
 def add_cli(sub: argparse._SubParsersAction) -> None:
     """Register the ``plan`` subcommand."""
     from ris_planner.planning.presets import PLAN_PRESET_NAMES
@@ -48,7 +79,11 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help="search RIS placements and compare RIS counts")
     p.add_argument("file", nargs="?", help="plan JSON document ('-' for stdin)")
     p.add_argument("--preset", choices=PLAN_PRESET_NAMES, help="use a shipped plan instead")
-    p.add_argument("--out", default="plan-out", help="output folder (plan.json, PNGs)")
+    p.add_argument(
+        "--out",
+        default="plan-out",
+        help="output folder (plan.json, PNGs, plan.geojson, heatmap.tif, points.csv)",
+    )
     p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes")
     p.add_argument(

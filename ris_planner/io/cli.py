@@ -1,0 +1,115 @@
+"""``ris-planner import {geojson,osm,sites,dxf} FILE …``: site data → document fragments.
+
+Prints the fragment (JSON) on stdout or writes it to ``--out``; the import summary (counts,
+buildings given the default height, dropped holes, skipped features) goes to stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from ris_planner.errors import RisPlannerError
+
+
+def _origin(text: str | None) -> tuple[float, ...] | None:
+    if text is None:
+        return None
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise RisPlannerError(f"--origin {text!r}: expected LON,LAT[,H] numbers") from None
+    if len(vals) not in (2, 3):
+        raise RisPlannerError(f"--origin {text!r}: expected LON,LAT[,H]")
+    return vals
+
+
+def _cmd_import(args: argparse.Namespace) -> int:
+    from ris_planner.cli import read_json_object
+
+    summary: dict[str, Any]
+    if args.format == "dxf":
+        from ris_planner.io.dxf_import import import_dxf, parse_layer_spec
+
+        layers = dict(parse_layer_spec(s) for s in args.layer or [])
+        fragment, summary = import_dxf(args.file, layers, args.units)
+    else:
+        from ris_planner.io.geojson_import import (
+            ImportOptions,
+            import_features,
+            import_sites,
+            osm_xml_features,
+        )
+
+        opts = ImportOptions(
+            metres_per_level=args.metres_per_level,
+            default_height_m=args.default_height,
+            road_step_m=args.road_step,
+            ue_height_m=args.ue_height,
+            density_key=args.density_key,
+            area_step_m=args.area_step,
+            site_spacing_m=args.site_spacing,
+            highways=tuple(args.highways.split(",")) if args.highways else None,
+        )
+        notes: list[str] = []
+        if args.format == "osm":
+            collection, osm_summary = osm_xml_features(args.file)
+            notes = osm_summary.notes
+        else:
+            collection = read_json_object(args.file)
+        run = import_sites if args.format == "sites" else import_features
+        fragment, s = run(collection, _origin(args.origin), opts)
+        s.notes = notes + s.notes
+        summary = s.to_json()
+    text = json.dumps(fragment, indent=1, allow_nan=False)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
+    else:
+        sys.stdout.write(text + "\n")
+    print("import summary: " + json.dumps(summary), file=sys.stderr)
+    return 0
+
+
+def add_cli(sub: argparse._SubParsersAction) -> None:
+    """Register the ``import`` subcommand."""
+    from ris_planner.io.geojson_import import (
+        DEFAULT_AREA_STEP_M,
+        DEFAULT_BUILDING_HEIGHT_M,
+        DEFAULT_ROAD_STEP_M,
+        DEFAULT_SITE_SPACING_M,
+        DEFAULT_UE_HEIGHT_M,
+        METRES_PER_LEVEL,
+    )
+
+    p = sub.add_parser(
+        "import",
+        help="GeoJSON / OSM buildings, roads, UE areas, mounting sites, DXF floor plans →"
+        " document fragments (environment, UE maps, candidates)",
+    )
+    p.add_argument(
+        "format",
+        choices=("geojson", "osm", "sites", "dxf"),
+        help="geojson: buildings/roads/density areas; osm: the same from .osm XML; sites:"
+        " mounting points/lines → candidates/walls; dxf: floor plan layers → walls/prisms",
+    )
+    p.add_argument("file", help="input file ('-' for stdin with geojson/sites)")
+    p.add_argument("--out", help="write the fragment here instead of stdout")
+    p.add_argument("--origin", help="frame origin LON,LAT[,H] (default: bounding-box centre)")
+    p.add_argument("--metres-per-level", type=float, default=METRES_PER_LEVEL)
+    p.add_argument("--default-height", type=float, default=DEFAULT_BUILDING_HEIGHT_M)
+    p.add_argument("--road-step", type=float, default=DEFAULT_ROAD_STEP_M)
+    p.add_argument("--ue-height", type=float, default=DEFAULT_UE_HEIGHT_M)
+    p.add_argument("--density-key", default="density")
+    p.add_argument("--area-step", type=float, default=DEFAULT_AREA_STEP_M)
+    p.add_argument("--site-spacing", type=float, default=DEFAULT_SITE_SPACING_M)
+    p.add_argument("--highways", help="road classes to import, comma-separated (default: all)")
+    p.add_argument(
+        "--layer",
+        action="append",
+        help="dxf: LAYER=wall:HEIGHT_M or LAYER=prism:HEIGHT_M[:BASE_M] (repeatable)",
+    )
+    p.add_argument("--units", choices=("mm", "cm", "m", "in", "ft"), help="dxf: override $INSUNITS")
+    p.set_defaults(func=_cmd_import)

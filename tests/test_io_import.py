@@ -1,0 +1,384 @@
+"""Import: GeoJSON / OSM buildings, roads and density areas, mounting sites, DXF floor plans."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyproj")
+pytest.importorskip("shapely")
+
+from ris_planner.cli import main
+from ris_planner.environment import Scene
+from ris_planner.errors import RisPlannerError
+from ris_planner.io.frames import Frame, to_local
+from ris_planner.io.geojson_import import (
+    DEFAULT_BUILDING_HEIGHT_M,
+    HIGHWAY_WIDTH_M,
+    METRES_PER_LEVEL,
+    ImportOptions,
+    import_features,
+    import_sites,
+    osm_xml_features,
+    parse_length,
+    yaw_from_azimuth,
+)
+from ris_planner.obstacles import Environment, Prism
+
+ORIGIN = (24.949, 60.1655, 0.0)
+FRAME = Frame(ORIGIN)
+HELSINKI = Path(__file__).parent.parent / "examples" / "helsinki"
+
+COORD_TOLERANCE_M = 1e-6
+"""Footprints survive metres → lon/lat → metres to nanometres (tests/test_io_frames.py)."""
+
+
+def _ring(xy: list[list[float]]) -> list[list[float]]:
+    ll = FRAME.to_geographic(np.asarray(xy, dtype=float)).tolist()
+    return [*ll, ll[0]]
+
+
+def _feature(geom: dict, fid: str | None = None, **props: object) -> dict:
+    f: dict = {"type": "Feature", "properties": props, "geometry": geom}
+    if fid is not None:
+        f["id"] = fid
+    return f
+
+
+def _poly(*rings: list[list[float]]) -> dict:
+    return {"type": "Polygon", "coordinates": [_ring(r) for r in rings]}
+
+
+def _fc(*features: dict) -> dict:
+    return {"type": "FeatureCollection", "features": list(features)}
+
+
+SQUARE = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]]
+L_SHAPE = [[30.0, 0.0], [50.0, 0.0], [50.0, 8.0], [38.0, 8.0], [38.0, 25.0], [30.0, 25.0]]
+
+
+def _import(*features: dict, **opts: object) -> tuple[dict, object]:
+    fragment, summary = import_features(_fc(*features), ORIGIN, ImportOptions(**opts))  # type: ignore[arg-type]
+    return fragment, summary
+
+
+def test_building_heights_levels_defaults_and_holes() -> None:
+    features = [
+        _feature(_poly(SQUARE), "way/1", building="yes", height="21.5 m"),
+        _feature(_poly(L_SHAPE), "way/2", building="yes", **{"building:levels": "5"}),
+        _feature(_poly([[0, 30], [10, 30], [10, 40]]), "way/3", building="yes", name="Shed"),
+        _feature(
+            _poly(SQUARE, [[5, 5], [5, 10], [10, 10]]),
+            "way/4",
+            building="y",
+            min_height=3,
+            height=12,
+        ),
+        _feature(_poly([[60, 0], [70, 0], [70, 10]]), "way/5", building="no"),
+    ]
+    fragment, summary = _import(*features)
+    obs = fragment["environment"]["obstacles"]
+    assert [o["name"] for o in obs] == ["way/1", "way/2", "Shed", "way/4"]
+    assert obs[0]["height_m"] == 21.5 and obs[0]["base_m"] == 0
+    assert obs[1]["height_m"] == 5 * METRES_PER_LEVEL
+    assert obs[2]["height_m"] == DEFAULT_BUILDING_HEIGHT_M
+    assert obs[3]["base_m"] == 3 and obs[3]["height_m"] == 9
+    assert summary.default_height == ["feature 2 (id way/3, name 'Shed')"]
+    assert summary.heights_from_levels == 1 and summary.holes_dropped == 1
+    assert summary.skipped == 1  # building=no
+    local, _ = to_local(fragment)
+    env = Environment.model_validate(local["environment"])
+    assert np.allclose(env.obstacles[1].vertices, L_SHAPE, atol=COORD_TOLERANCE_M)
+    # other metres per level and default height
+    fragment, _ = _import(*features[1:3], metres_per_level=3.5, default_height_m=7)
+    assert [o["height_m"] for o in fragment["environment"]["obstacles"]] == [17.5, 7]
+
+
+def test_multipolygon_gives_one_prism_per_part() -> None:
+    geom = {"type": "MultiPolygon", "coordinates": [[_ring(SQUARE)], [_ring(L_SHAPE)]]}
+    fragment, summary = _import(_feature(geom, name="Twin", building="yes", height=9))
+    assert [o["name"] for o in fragment["environment"]["obstacles"]] == ["Twin#0", "Twin#1"]
+    assert summary.buildings == 1 and summary.prisms == 2
+
+
+def test_plain_building_layer_without_building_tags() -> None:
+    fragment, _ = _import(_feature(_poly(SQUARE), height=6), _feature(_poly(L_SHAPE)))
+    assert len(fragment["environment"]["obstacles"]) == 2
+
+
+def test_imported_building_blocks_the_same_legs_as_the_metre_prism() -> None:
+    fragment, _ = _import(_feature(_poly(L_SHAPE), building="yes", height=12, min_height=2))
+    local, _ = to_local(fragment)
+    imported = Scene.from_environment(Environment.model_validate(local["environment"]))
+    typed = Scene.from_environment(
+        Environment(obstacles=[Prism(footprint=L_SHAPE, base_m=2, height_m=10)])
+    )
+    rng = np.random.default_rng(3)
+    a = rng.uniform([10, -20, 0], [70, 45, 16], size=(4000, 3))
+    b = rng.uniform([10, -20, 0], [70, 45, 16], size=(4000, 3))
+    blocked = typed.blocked(a, b)
+    assert 0.1 < blocked.mean() < 0.9  # the legs exercise both outcomes
+    assert np.array_equal(imported.blocked(a, b), blocked)
+
+
+@pytest.mark.parametrize(
+    ("geometry", "match"),
+    [
+        (_poly([[0, 0], [10, 10], [10, 0], [0, 10]]), "feature 0 \\(id way/9.*Self-intersection"),
+        ({"type": "Polygon", "coordinates": []}, "feature 0 \\(id way/9.*empty"),
+        (
+            {"type": "Polygon", "coordinates": [_ring(SQUARE)[:-1]]},
+            "feature 0 \\(id way/9.*ring 0: ring is not closed",
+        ),
+        (
+            {"type": "Polygon", "coordinates": [[[p[1], p[0]] for p in _ring(SQUARE)]]},
+            "feature 0 \\(id way/9.*km from the origin.*swapped",
+        ),
+        (
+            {"type": "Polygon", "coordinates": [[[200, 0], [201, 0], [201, 1], [200, 0]]]},
+            "feature 0 \\(id way/9.*not a WGS84",
+        ),
+        ({"type": "LineString", "coordinates": [[24.9, 60.1]]}, "at least 2 distinct"),
+    ],
+)
+def test_invalid_geometries_name_the_feature(geometry: dict, match: str) -> None:
+    with pytest.raises(RisPlannerError, match=match):
+        _import(_feature(geometry, "way/9", building="yes", highway="residential"))
+
+
+def test_building_top_below_base_is_an_error() -> None:
+    with pytest.raises(RisPlannerError, match=r"feature 0.*top 5 m must lie above its base 8 m"):
+        _import(_feature(_poly(SQUARE), building="yes", height=5, min_height=8))
+
+
+def test_roads_widths_by_property_and_class() -> None:
+    def line(xy: list[list[float]]) -> dict:
+        return {"type": "LineString", "coordinates": FRAME.to_geographic(np.array(xy)).tolist()}
+
+    fragment, summary = _import(
+        _feature(line([[0, -10], [50, -10]]), highway="residential"),
+        _feature(line([[0, -20], [50, -20]]), highway="primary", width="12.5"),
+        _feature(line([[0, -30], [50, -30]]), highway="bus_guideway"),
+        _feature(line([[0, -40], [50, -40]]), width=4),
+        road_step_m=2.5,
+        ue_height_m=1.2,
+    )
+    roads = fragment["ue_map"]["roads"]
+    assert [r["width_m"] for r in roads] == [HIGHWAY_WIDTH_M["residential"], 12.5, 4.0]
+    assert all(r["step_m"] == 2.5 and r["height_m"] == 1.2 for r in roads)
+    assert summary.roads_skipped == {"bus_guideway": 1}
+    local, _ = to_local({**fragment, "tx_map": fragment["ue_map"]})
+    assert np.allclose(local["tx_map"]["roads"][0]["points"], [[0, -10], [50, -10]], atol=1e-6)
+    only, s2 = _import(
+        _feature(line([[0, -10], [50, -10]]), highway="residential"),
+        _feature(line([[0, -20], [50, -20]]), highway="footway"),
+        highways=("footway",),
+    )
+    assert len(only["ue_map"]["roads"]) == 1 and s2.roads_skipped == {"residential (not chosen)": 1}
+
+
+def test_density_areas_become_weighted_grid_points() -> None:
+    area = [[0.0, 0.0], [50.0, 0.0], [50.0, 30.0], [0.0, 30.0]]
+    tiny = [[100.0, 0.0], [101.0, 0.0], [101.0, 1.0], [100.0, 1.0]]
+    fragment, summary = _import(
+        _feature(_poly(area), name="square", density=0.2),
+        _feature(_poly(tiny), name="kiosk", density=2.0),
+        area_step_m=5.0,
+    )
+    ue = fragment["ue_map"]
+    assert len(ue["points"]) == 10 * 6 + 1 and summary.area_points == 61
+    w = np.array(ue["weights"])
+    assert w[:60].sum() == pytest.approx(0.2 * 50 * 30)  # density × area, cell by cell
+    assert w[60] == pytest.approx(2.0 * 1.0, rel=1e-6)  # a sub-cell area: one point
+    local, _ = to_local({**fragment, "rx_map": ue})
+    xyz = np.array(local["rx_map"]["points"])
+    assert np.allclose(xyz[:, 2], 1.5)
+    assert np.allclose(np.sort(np.unique(np.round(xyz[:60, 0], 3))), 2.5 + 5 * np.arange(10))
+    assert fragment.get("environment") is None  # an area is not a building
+
+
+def test_parse_length() -> None:
+    assert parse_length("12") == 12 and parse_length("12,5 m") == 12.5
+    assert parse_length("40 ft") == pytest.approx(12.192) and parse_length("10'") == pytest.approx(
+        3.048
+    )
+    assert (
+        parse_length("tall") is None and parse_length(True) is None and parse_length(None) is None
+    )
+
+
+def test_mounting_points_and_lines_become_candidates() -> None:
+    pt = FRAME.to_geographic(np.array([[5.0, -0.1]]))[0].tolist()
+    line = FRAME.to_geographic(np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 10.0]])).tolist()
+    fc = _fc(
+        _feature(
+            {"type": "Point", "coordinates": pt},
+            name="pole",
+            height=6,
+            azimuth_deg=180,
+            tilt_deg=15,
+        ),
+        _feature({"type": "Point", "coordinates": [*pt, 4.0]}, orientation=90),
+        _feature(
+            {"type": "LineString", "coordinates": line},
+            heights_m=[3, 5],
+            spacing_m=4,
+            side="right",
+            tilts_deg=[0, 20],
+        ),
+    )
+    fragment, summary = import_sites(fc, ORIGIN)
+    local, _ = to_local(fragment)
+    c0, c1 = local["candidates"]
+    assert np.allclose(c0["position"], [5, -0.1, 6], atol=1e-6)
+    assert np.allclose(c0["orientation"], [-math.pi / 2, math.radians(15), 0])  # faces south
+    assert np.allclose(c1["position"][2], 4) and np.allclose(c1["orientation"][0], 0)  # east
+    walls = local["walls"]
+    assert len(walls) == 2 and summary.walls == 2 and summary.candidates == 2
+    assert np.allclose([*walls[0]["start"], *walls[0]["end"]], [0, 0, 20, 0], atol=1e-6)
+    assert walls[1]["heights_m"] == [3, 5] and walls[1]["side"] == "right"
+    assert np.allclose(walls[1]["tilts_rad"], [0, math.radians(20)])
+    with pytest.raises(RisPlannerError, match=r"feature 0.*azimuth_deg"):
+        import_sites(_fc(_feature({"type": "Point", "coordinates": pt}, height=3)), ORIGIN)
+
+
+def test_yaw_from_azimuth() -> None:
+    for az, yaw in [(0, math.pi / 2), (90, 0), (180, -math.pi / 2), (270, math.pi)]:
+        assert math.isclose(math.cos(yaw_from_azimuth(az) - yaw), 1.0)
+
+
+OSM_XML = """<?xml version='1.0' encoding='UTF-8'?>
+<osm version="0.6">
+ {nodes}
+ <way id="10"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/>
+  <tag k="building" v="yes"/><tag k="building:levels" v="4"/><tag k="name" v="Talo"/></way>
+ <way id="11"><nd ref="5"/><nd ref="6"/><tag k="highway" v="tertiary"/></way>
+ <way id="12"><nd ref="5"/><nd ref="99"/><tag k="highway" v="tertiary"/></way>
+ <way id="13"><nd ref="7"/><nd ref="8"/><nd ref="9"/><nd ref="7"/></way>
+ <relation id="20"><member type="way" ref="13" role="outer"/>
+  <tag k="type" v="multipolygon"/><tag k="building" v="yes"/><tag k="height" v="8"/></relation>
+</osm>
+"""
+
+
+def test_osm_xml(tmp_path: Path) -> None:
+    xy = [[0, 0], [20, 0], [20, 20], [0, 20], [0, -10], [50, -10], [30, 30], [40, 30], [35, 40]]
+    ll = FRAME.to_geographic(np.array(xy, dtype=float))
+    nodes = "\n ".join(
+        f'<node id="{i + 1}" lat="{lat!r}" lon="{lon!r}"/>'
+        for i, (lon, lat) in enumerate(ll.tolist())
+    )
+    path = tmp_path / "site.osm"
+    path.write_text(OSM_XML.format(nodes=nodes))
+    fc, summary = osm_xml_features(path)
+    assert [f["id"] for f in fc["features"]] == ["way/10", "way/11", "relation/20"]
+    assert any("outside the file" in n for n in summary.notes)
+    fragment, _ = import_features(fc, ORIGIN)
+    obs = fragment["environment"]["obstacles"]
+    assert [(o["name"], o["height_m"]) for o in obs] == [("Talo", 12.0), ("relation/20", 8.0)]
+    assert fragment["ue_map"]["roads"][0]["width_m"] == HIGHWAY_WIDTH_M["tertiary"]
+    # and through the CLI
+    out = tmp_path / "frag.json"
+    assert main(["import", "osm", str(path), "--origin", "24.949,60.1655", "--out", str(out)]) == 0
+    assert json.loads(out.read_text()) == fragment
+
+
+def test_cli_import_geojson_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "b.geojson"
+    src.write_text(json.dumps(_fc(_feature(_poly(SQUARE), "way/1", building="yes"))))
+    assert main(["import", "geojson", str(src), "--default-height", "7"]) == 0
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert doc["environment"]["obstacles"][0]["height_m"] == 7
+    assert "import summary" in captured.err and "way/1" in captured.err
+    bad = tmp_path / "bad.geojson"
+    bad.write_text(json.dumps(_fc(_feature(_poly([[0, 0], [10, 10], [10, 0], [0, 10]]), "w/7"))))
+    assert main(["import", "geojson", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: feature 0 (id w/7)") and err.count("\n") == 1
+
+
+def test_helsinki_data_imports() -> None:
+    path = HELSINKI / "helsinki.geojson"
+    assert path.stat().st_size < 200_000
+    fc = json.loads(path.read_text())
+    assert fc["license"] == "© OpenStreetMap contributors, ODbL 1.0"
+    fragment, summary = import_features(fc)
+    assert summary.prisms == 29 and summary.heights_from_levels == 13
+    assert len(summary.default_height) == 16
+    local, frame = to_local(fragment)
+    assert frame is not None
+    env = Environment.model_validate(local["environment"])
+    span = np.ptp(np.vstack([o.vertices for o in env.obstacles if isinstance(o, Prism)]), axis=0)
+    assert np.all((span > 150) & (span < 300))  # a few blocks, ~220 m across
+
+
+# --- DXF ------------------------------------------------------------------------------------
+
+
+def _floor_plan(path: Path, insunits: int) -> None:
+    ezdxf = pytest.importorskip("ezdxf")
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = insunits
+    for name in ("WALLS", "COLUMNS", "FURNITURE"):
+        doc.layers.add(name)
+    msp = doc.modelspace()
+    msp.add_line((0, 0), (10_000, 0), dxfattribs={"layer": "WALLS"})
+    msp.add_lwpolyline(
+        [(0, 5000), (4000, 5000), (4000, 8000)], dxfattribs={"layer": "WALLS"}
+    )  # open: two walls
+    msp.add_lwpolyline(
+        [(6000, 2000), (6500, 2000), (6500, 2500), (6000, 2500)],
+        close=True,
+        dxfattribs={"layer": "COLUMNS"},
+    )
+    msp.add_line((0, 0), (0, 10_000), dxfattribs={"layer": "FURNITURE"})
+    msp.add_circle((1000, 1000), 300, dxfattribs={"layer": "WALLS"})
+    doc.saveas(path)
+
+
+def test_dxf_floor_plan_imports_into_the_expected_walls(tmp_path: Path) -> None:
+    from ris_planner.io.dxf_import import LayerSpec, import_dxf
+
+    path = tmp_path / "floor.dxf"
+    _floor_plan(path, insunits=4)  # millimetres
+    layers = {"WALLS": LayerSpec("wall", 2.7), "COLUMNS": LayerSpec("prism", 3.0, 0.1)}
+    fragment, summary = import_dxf(path, layers)
+    env = Environment.model_validate(fragment["environment"])
+    walls = [(o.start, o.end, o.height_m) for o in env.obstacles if o.kind == "wall"]
+    assert walls == [
+        ([0.0, 0.0], [10.0, 0.0], 2.7),
+        ([0.0, 5.0], [4.0, 5.0], 2.7),
+        ([4.0, 5.0], [4.0, 8.0], 2.7),
+    ]
+    (prism,) = [o for o in env.obstacles if isinstance(o, Prism)]
+    assert np.allclose(prism.vertices, [[6, 2], [6.5, 2], [6.5, 2.5], [6, 2.5]])
+    assert prism.base_m == 0.1 and prism.height_m == 3.0
+    assert summary["units_to_m"] == 0.001
+    assert summary["ignored"] == {"FURNITURE:LINE": 1, "WALLS:CIRCLE": 1}
+    # $INSUNITS overridden; a wall across the room blocks a leg through it
+    frag_cm, _ = import_dxf(path, {"WALLS": LayerSpec("wall", 2.7)}, units="cm")
+    assert frag_cm["environment"]["obstacles"][0]["end"] == [100.0, 0.0]
+    scene = Scene.from_environment(env)
+    assert scene.blocked(np.array([[5.0, -1, 1.5]]), np.array([[5.0, 1, 1.5]]))[0]
+    assert not scene.blocked(np.array([[5.0, -1, 2.8]]), np.array([[5.0, 1, 2.8]]))[0]
+
+
+def test_dxf_errors_and_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "floor.dxf"
+    _floor_plan(path, insunits=6)
+    out = tmp_path / "env.json"
+    args = ["import", "dxf", str(path), "--layer", "WALLS=wall:2.5", "--out", str(out)]
+    assert main(args) == 0
+    assert len(json.loads(out.read_text())["environment"]["obstacles"]) == 3
+    assert main(["import", "dxf", str(path), "--layer", "DOORS=wall:2"]) == 2
+    assert "layer(s) 'DOORS' not in the drawing" in capsys.readouterr().err
+    assert main(["import", "dxf", str(path), "--layer", "WALLS=window:2"]) == 2
+    assert "expected LAYER=wall:HEIGHT_M" in capsys.readouterr().err
+    assert main(["import", "dxf", str(path), "--layer", "WALLS=prism:2"]) == 2
+    err = capsys.readouterr().err
+    assert "LWPOLYLINE" in err and "closed polylines" in err
