@@ -9,13 +9,14 @@ with respect to all gains, because every gain belongs to one path only.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import beams, codebooks, fim, geometry, ldl
+from ris_planner import beams, codebooks, crb, fim, geometry, ldl
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
@@ -35,6 +36,11 @@ STATE_NAMES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "clock")
 REASON_UNDERDETERMINED = "underdetermined"
 REASON_SINGULAR = "singular Fisher information (blind spot): the layout cannot resolve this pair"
 REASON_DEGENERATE = "degenerate geometry: a UE coincides with a RIS or with the other UE"
+REASON_NOT_IDENTIFIABLE = "not identifiable"
+"""Start of the reason of a pair whose PEB_R is determined but another part is not (a singular
+direction of the information involves only those states, :mod:`ris_planner.crb`)."""
+PART_STATES = {"tx": range(0, 3), "rx": range(3, 6), "clock": range(6, 7)}
+PART_LABELS = {"tx": "PEB_T", "rx": "PEB_R", "clock": "CEB"}
 
 
 def kept_states(known: list[KnownPart] | tuple[KnownPart, ...]) -> NDArray[np.int_]:
@@ -85,6 +91,11 @@ class PathInfo:
         """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]."""
         # [P, 7, 7]
         return np.asarray(self.jacobian.transpose(0, 2, 1) @ self.efim @ self.jacobian)
+
+    def factor(self, pairs: NDArray[np.int_] | slice = slice(None)) -> FloatArray:
+        """Square-root rows [p, m, 7] of :meth:`state_information` for the given pairs
+        (:func:`ris_planner.crb.path_factor`)."""
+        return crb.path_factor(self.efim[pairs], self.jacobian[pairs])
 
 
 @dataclass(frozen=True)
@@ -265,35 +276,136 @@ def n_observations(n_ris: int, los: bool) -> int:
 
 
 def bounds_from_state_fim(
-    f: FloatArray, known: list[KnownPart] | tuple[KnownPart, ...], n_observations: int
+    f: FloatArray,
+    known: list[KnownPart] | tuple[KnownPart, ...],
+    n_observations: int,
+    factors: Callable[[NDArray[np.int_]], FloatArray] | None = None,
+    clock: FloatArray | None = None,
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
     """PEB_T, PEB_R, CEB and reasons from [P, 7, 7] information on [p_T, p_R, B].
 
     ``n_observations`` is the number of geometric channel parameters (3L, +1 with LOS); fewer
     than the unknown states makes every pair singular with an explicit reason.
+    ``factors(idx)`` gives the stacked square-root factors [len(idx), n_obs, 7] of the pairs
+    idx (:func:`path_factor_rows`); without it they are taken from F itself (correct
+    identifiability, but the accuracy of the squared form). The inversion is
+    :func:`ris_planner.crb.crb_diagonal`. ``clock`` [P, 7]: the clock offset as a combination
+    of the states of F when F is on other coordinates than [p_T, p_R, B] (the LOS-referenced
+    clock of :func:`los_referenced`); default the last state.
     """
     keep = kept_states(known)
-    diag, singular = fim_inverse_diagonal(f[:, keep][:, :, keep])
-    reason = np.full(f.shape[0], None, dtype=object)
+    n_pairs = f.shape[0]
+    reason = np.full(n_pairs, None, dtype=object)
     if n_observations < keep.size:
-        singular = np.ones(f.shape[0], dtype=bool)
         reason[:] = (
             f"{REASON_UNDERDETERMINED}: {n_observations} geometric channel parameters for"
             f" {keep.size} unknown states; add RISs, the LOS path, or known parts"
         )
-        diag = np.full_like(diag, np.inf)
+        diag = np.full((n_pairs, keep.size), np.inf)
     else:
-        reason[singular] = REASON_SINGULAR
+        rows = factors if factors is not None else _factors_of_fim(f)
 
-    def part(indices: range) -> FloatArray | None:
-        cols = [i for i, k in enumerate(keep) if k in indices]
+        def kept_rows(idx: NDArray[np.int_]) -> FloatArray:
+            return rows(idx)[:, :, keep]
+
+        f_kept = ldl.pack(f[:, keep][:, :, keep])
+        d, _ = crb.crb_diagonal(f_kept, keep.size, kept_rows)
+        diag = d.T
+        if clock is not None and 6 in keep:
+            diag[:, -1] = crb.crb_quadratic(f_kept, keep.size, kept_rows, clock[:, keep])
+
+    def part(name: str) -> FloatArray | None:
+        cols = [i for i, k in enumerate(keep) if k in PART_STATES[name]]
         if not cols:
             return None
         return np.asarray(np.sqrt(diag[:, cols].sum(axis=1)))
 
-    peb_rx = part(range(3, 6))
+    bounds = {name: part(name) for name in PART_STATES}
+    peb_rx = bounds["rx"]
     assert peb_rx is not None  # RX is never known
-    return part(range(0, 3)), peb_rx, part(range(6, 7)), reason
+    if n_observations >= keep.size:
+        reason[np.isinf(peb_rx)] = REASON_SINGULAR
+        missing = [(PART_LABELS[name], np.isinf(b)) for name, b in bounds.items() if b is not None]
+        for i in np.flatnonzero(np.isfinite(peb_rx) & np.any([m for _, m in missing], axis=0)):
+            labels = ", ".join(label for label, m in missing if m[i])
+            reason[i] = (
+                f"{REASON_NOT_IDENTIFIABLE}: {labels} (a singular direction of the Fisher"
+                " information involves only these states; the finite bounds are exact)"
+            )
+    return bounds["tx"], peb_rx, bounds["clock"], reason
+
+
+def los_referenced(paths: list[PathInfo]) -> tuple[list[PathInfo], FloatArray]:
+    """The paths on the LOS-referenced coordinates s' = [p_T, p_R, B'] with B' = B + d_TR
+    (the LOS pseudo-range), and the clock B = B' − ∇d_TRᵀp as a combination [P, 7] of s'.
+
+    The LOS measures d_TR + B far more precisely than the RIS paths measure anything, so F on
+    [p_T, p_R, B] has a strong direction that is not a coordinate and its scaled condition
+    number is huge (median 2e7 over the Fig. 10 planning pairs); on s' the LOS row is e_B' and
+    the median is 250 (``examples/crb_accuracy.py``). A linear change of variables: the CRB of
+    the positions is unchanged, J' = J T with T = I except T[6, :6] = −∇d_TR. ``paths[0]``
+    must be the LOS path.
+    """
+    los = paths[0]
+    # [P, 6] ∇d_TR w.r.t. [p_T, p_R]
+    grad = los.jacobian[:, 0, :6]
+    out = []
+    for p in paths:
+        jac = p.jacobian.copy()
+        jac[:, :, :6] -= p.jacobian[:, :, 6:7] * grad[:, None, :]
+        out.append(PathInfo(p.name, p.efim, jac))
+    out[0].jacobian[:, 0, :6] = 0.0  # exactly e_B'
+    clock = np.concatenate([-grad, np.ones((grad.shape[0], 1))], axis=1)
+    return out, clock
+
+
+def uses_los_reference(los: bool, known: list[KnownPart] | tuple[KnownPart, ...]) -> bool:
+    """Whether the bounds are computed on the LOS-referenced coordinates (LOS present and the
+    clock unknown; :func:`los_referenced`); the planning site cache follows the same rule."""
+    return los and "clock" not in known
+
+
+def bounds_from_paths(
+    paths: list[PathInfo],
+    known: list[KnownPart] | tuple[KnownPart, ...],
+    n_observations: int,
+    present: NDArray[np.bool_] | None = None,
+) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
+    """PEB_T, PEB_R, CEB and reasons from the paths' equivalent FIMs and Jacobians (the one
+    inversion of :func:`compute_bounds` and the planning scorer).
+
+    ``present`` [P, n_paths]: paths missing for a pair contribute nothing.
+    """
+    clock = None
+    if paths and paths[0].name == "los" and uses_los_reference(True, known):
+        paths, clock = los_referenced(paths)
+    infos = [p.state_information() for p in paths]
+    if present is not None:
+        infos = [f * present[:, k, None, None] for k, f in enumerate(infos)]
+    f = np.sum(infos, axis=0)
+    return bounds_from_state_fim(f, known, n_observations, path_factor_rows(paths, present), clock)
+
+
+def _factors_of_fim(f: FloatArray) -> Callable[[NDArray[np.int_]], FloatArray]:
+    """Square-root factors [p, 7, 7] of F itself (a symmetric square root by eigh)."""
+
+    def rows(idx: NDArray[np.int_]) -> FloatArray:
+        return crb.path_factor(f[idx], np.broadcast_to(np.eye(7), (idx.size, 7, 7)))
+
+    return rows
+
+
+def path_factor_rows(
+    paths: list[PathInfo], present: NDArray[np.bool_] | None = None
+) -> Callable[[NDArray[np.int_]], FloatArray]:
+    """``factors(idx)``: the paths' stacked square-root factors [len(idx), n_obs, 7] of the
+    pairs idx, in path order (``present`` [P, n_paths] zeroes a missing path's rows)."""
+
+    def rows(idx: NDArray[np.int_]) -> FloatArray:
+        mask = None if present is None else present[idx]
+        return crb.stack_factors([p.factor(idx) for p in paths], mask)
+
+    return rows
 
 
 def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
@@ -371,7 +483,7 @@ def compute_bounds(
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     f = np.sum([p.state_information() for p in paths], axis=0)
     n_obs = n_observations(len(scenario.ris), scenario.system.los)
-    peb_tx, peb_rx, ceb, reason = bounds_from_state_fim(f, known_t, n_obs)
+    peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs)
     chan = channel_bounds(paths)
     if np.any(bad):
         for arr in (peb_tx, peb_rx, ceb, *[v for c in chan.values() for v in c.values()]):

@@ -224,7 +224,11 @@ def run_plan(
         )
     progress(0.0, "caching site information")
     cache = build_site_cache(
-        doc.system, sites, pairs, lambda f, m: progress(0.2 * f, f"cache: {m}")
+        doc.system,
+        sites,
+        pairs,
+        lambda f, m: progress(0.2 * f, f"cache: {m}"),
+        known=tuple(doc.known),
     )
     t_cache = time.perf_counter() - t0
     scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))

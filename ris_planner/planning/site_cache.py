@@ -7,6 +7,9 @@ With the ``expected_random`` codebook a RIS path's equivalent FIM after eliminat
 so it does not depend on how many RISs share the time-orthogonal blocks: the cached matrix of a
 site is exactly the contribution :func:`ris_planner.bounds.compute_bounds` adds for that RIS in
 any layout, and a layout's state FIM is the LOS matrix plus the sum of its sites' matrices.
+The cache also holds each path's square-root rows (:func:`ris_planner.crb.path_factor`), from
+which the scorer recomputes the few ill-conditioned (layout, pair) combinations
+(:func:`ris_planner.crb.crb_diagonal`).
 """
 
 from __future__ import annotations
@@ -17,12 +20,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import fim
-from ris_planner.bounds import los_path_information, ris_path_information, stand_ins, ue_on_ris
+from ris_planner.bounds import (
+    PathInfo,
+    los_path_information,
+    los_referenced,
+    ris_path_information,
+    stand_ins,
+    ue_on_ris,
+    uses_los_reference,
+)
 from ris_planner.ldl import pack
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import SystemParams
+from ris_planner.scenario import KnownPart, SystemParams
 
 FloatArray = NDArray[np.float64]
 
@@ -35,12 +46,19 @@ class SiteCache:
     """packed : [28, S, P] packed 7×7 state information of each site's RIS path;
     los : [28, P] the LOS path's (``None`` when the LOS is blocked);
     degenerate : [S, P] a UE within 1 mm of the site (the pair is a blind spot there);
-    far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3)."""
+    far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3);
+    factor : [S, P, 3, 7] square-root rows of each site's RIS path (F_site = factorᵀ factor);
+    los_factor : [P, 1, 7] the LOS path's (``None`` when the LOS is blocked);
+    los_referenced : the states are [p_T, p_R, B + d_TR] (:func:`ris_planner.bounds.
+    los_referenced`, used with the LOS and an unknown clock, as ``compute_bounds`` does)."""
 
     packed: FloatArray
     los: FloatArray | None
     degenerate: NDArray[np.bool_]
     far_field: NDArray[np.bool_]
+    factor: FloatArray
+    los_factor: FloatArray | None
+    los_referenced: bool = False
 
     @property
     def n_sites(self) -> int:
@@ -56,24 +74,37 @@ def build_site_cache(
     sites: list[Site],
     pairs: PairSet,
     progress: ProgressCallback = no_progress,
+    *,
+    known: list[KnownPart] | tuple[KnownPart, ...] = (),
 ) -> SiteCache:
-    """LOS once and every candidate RIS path once, each as packed 7×7 information per pair."""
+    """LOS once and every candidate RIS path once, each as packed 7×7 information per pair
+    (on the coordinates ``compute_bounds`` uses for ``known``, see :class:`SiteCache`)."""
     radio = fim.Radio.from_system(system)
     g = system.transmissions
     ones = np.ones(g)  # Γ·G̃ = G: with Γ = 1 and G̃ = G the weights sum to the same G
     tx, rx = pairs.tx, pairs.rx
-    los = None
+    los = los_factor = None
+    referenced = uses_los_reference(system.los, known)
+
+    def on_states(info: PathInfo) -> PathInfo:
+        return los_referenced([los_info, info])[0][1] if referenced else info
+
     if system.los:
-        los = pack(los_path_information(tx, rx, radio, float(g)).state_information())
+        los_info = los_path_information(tx, rx, radio, float(g))
+        los_states = los_referenced([los_info])[0][0] if referenced else los_info
+        los, los_factor = pack(los_states.state_information()), los_states.factor()
     packed = np.empty((N_PACKED, len(sites), pairs.size))
+    factor = np.empty((len(sites), pairs.size, 3, N_STATES))
     degenerate = np.zeros((len(sites), pairs.size), dtype=bool)
     far = np.zeros((len(sites), pairs.size), dtype=bool)
     for s, site in enumerate(sites):
         bad = ue_on_ris(tx, rx, site.ris.position)
         t, r = stand_ins(tx, rx, bad)  # as compute_bounds: bounds of these pairs become inf
         info, far[s] = ris_path_information(site.ris, t, r, radio, None, 1, ones)
+        info = on_states(info)
         packed[:, s] = pack(info.state_information())
+        factor[s] = info.factor()
         degenerate[s] = bad
         far[s] &= ~bad
         progress((s + 1) / len(sites), f"site {s + 1}/{len(sites)}")
-    return SiteCache(packed, los, degenerate, far)
+    return SiteCache(packed, los, degenerate, far, factor, los_factor, referenced)
