@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import beams, codebooks, crb, fim, geometry, ldl
+from ris_planner import advice, beams, codebooks, crb, fim, geometry, ldl
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
@@ -112,6 +112,7 @@ class BoundsResult:
     far_field : [P, L] whether d_T d_R/(d_T + d_R) ≥ 2D²/λ for each RIS (footnote 3).
     fim : [P, 7, 7] information on [p_T, p_R, B] (gains eliminated, nothing known removed).
     known : the state parts treated as known.
+    warnings : the modelling assumptions that may mislead (:mod:`ris_planner.advice`).
     """
 
     peb_tx: FloatArray | None
@@ -122,6 +123,7 @@ class BoundsResult:
     far_field: NDArray[np.bool_]
     fim: FloatArray
     known: tuple[KnownPart, ...] = field(default=())
+    warnings: tuple[str, ...] = field(default=())
 
     @property
     def n_pairs(self) -> int:
@@ -151,6 +153,7 @@ class BoundsResult:
             "far_field": per_pair([bool(x) for x in np.all(self.far_field, axis=1)]),
             "far_field_ris": per_pair([[bool(x) for x in row] for row in self.far_field]),
             "known": list(self.known),
+            "warnings": list(self.warnings),
         }
         if self.peb_tx is None:
             out["peb_tx_reason"] = "TX position is known ('tx' in known)"
@@ -500,4 +503,20 @@ def compute_bounds(
         far_field=far,
         fim=f,
         known=known_t,
+        warnings=tuple(bounds_warnings(scenario, expected=prof is None, far=far)),
     )
+
+
+def bounds_warnings(scenario: Scenario, *, expected: bool, far: NDArray[np.bool_]) -> list[str]:
+    """The warnings of a bounds result: expected-random optimism (when the expected FIM was
+    used), grating lobes, near-field majority (far : [P, L] far-field flags)."""
+    system = scenario.system
+    out = []
+    if expected:
+        out.append(advice.expected_random_warning(system.transmissions, len(scenario.ris)))
+    wavelength = fim.Radio.from_system(system).wavelength
+    names = [f"ris{i + 1}" for i in range(len(scenario.ris))]
+    out.extend(advice.spacing_warnings(scenario.ris, wavelength, names))
+    if far.size:
+        out.append(advice.near_field_warning(float(np.mean(np.all(far, axis=1)))))
+    return [w for w in out if w is not None]

@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner import advice
 from ris_planner.bounds import compute_bounds
 from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.fim import Radio
 from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import PairSet, PointMap, build_map, build_pairs
@@ -26,13 +28,21 @@ from ris_planner.planning.search import Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import ExpectedRandomCodebook, Scenario
+from ris_planner.scenario import ExpectedRandomCodebook, RandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
 
 REPORT_QUANTILES = (0.5, 0.9, 0.95)
 CDF_POINTS = 101
 HEATMAP_MAX_PAIRS = 200_000
+RANDOM_CODEBOOK_SEEDS = 5
+"""Seeds (0 … 4) of the ``random`` codebooks that re-evaluate each count's best layout beside
+the expected-random objective the search used (``by_count[i]["random_codebook"]``): enough for
+the spread at the G/Γ where the optimism matters, cheap next to the search."""
+RANDOM_CODEBOOK_MAX_PAIRS = 20_000
+"""Above this many pairs the random-codebook re-evaluation uses a seeded sample of this many
+pairs drawn ∝ weight (with replacement, equal weights: an unbiased estimate), and reports the
+expected-random objective on the same sample beside it."""
 """TX–RX pairs the heatmap evaluates (about a second with expected_random): beyond it each RX
 point is evaluated against a seeded weighted sample of the TX map."""
 
@@ -54,6 +64,7 @@ class CountResult:
     outcome: SearchOutcome
     ranked: list[tuple[Layout, float]]
     best_metric: FloatArray
+    random_codebook: dict[str, Any] | None = None
 
 
 @dataclass
@@ -143,6 +154,20 @@ class PlanResult:
         vals[empty] = np.nan
         return pts, vals, layout
 
+    def warnings(self) -> list[str]:
+        """Expected-random optimism per RIS count, grating lobes of the candidate RISs, and
+        the near-field advice for the best layout of the largest count."""
+        doc = self.document
+        out: list[str | None] = [
+            advice.expected_random_warning(doc.system.transmissions, c) for c in doc.ris_count
+        ]
+        wavelength = Radio.from_system(doc.system).wavelength
+        out += advice.spacing_warnings([self.sites[0].ris], wavelength, ["the candidate RIS"])
+        lay = list(self.counts[-1].ranked[0][0])
+        far = np.all(self.cache.far_field[lay], axis=0)
+        out.append(advice.near_field_warning(float((far * self.pairs.weights).sum())))
+        return list(dict.fromkeys(w for w in out if w is not None))
+
     def to_json(self) -> dict[str, Any]:
         """The plan.json content (``inf`` → ``null``)."""
         doc = self.document
@@ -174,6 +199,7 @@ class PlanResult:
                         for lay, loss in cr.ranked
                     ],
                     "cdf": self.cdf(cr.best_metric),
+                    "random_codebook": cr.random_codebook,
                 }
             )
         top.sort(key=lambda t: (t[0], t[1], t[2]))
@@ -197,6 +223,7 @@ class PlanResult:
             "rx_points": len(self.rx_map.points),
             "known": list(doc.known),
             "timing_s": self.timing,
+            "warnings": self.warnings(),
         }
 
 
@@ -256,6 +283,48 @@ def run_plan(
         if own:
             ex.close()
     t_search = time.perf_counter() - t0 - t_cache
+    for cr in counts:
+        cr.random_codebook = random_codebook_objective(doc, sites, pairs, cr.ranked[0][0])
+    t_random = time.perf_counter() - t0 - t_cache - t_search
     progress(1.0, "done")
-    timing = {"cache": t_cache, "search": t_search}
+    timing = {"cache": t_cache, "search": t_search, "random_codebook": t_random}
     return PlanResult(doc, sites, tx_map, rx_map, pairs, scorer, counts, timing)
+
+
+def random_codebook_objective(
+    doc: PlanDocument,
+    sites: list[Site],
+    pairs: PairSet,
+    layout: Layout,
+    seeds: int = RANDOM_CODEBOOK_SEEDS,
+) -> dict[str, Any]:
+    """The objective of ``layout`` re-evaluated with ``random`` codebooks (seeds 0 … seeds−1):
+    ``{"seeds", "pairs", "expected", "mean", "min", "max"}`` (``null`` for an infinite value;
+    ``expected`` is the expected-random objective on the same pairs)."""
+    tx, rx, w = pairs.tx, pairs.rx, pairs.weights
+    if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
+        pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
+        tx, rx = tx[pick], rx[pick]
+        w = np.full(pick.size, 1.0 / pick.size)
+    values = []
+    for seed in range(-1, seeds):
+        scenario = Scenario.model_construct(  # parts already validated
+            system=doc.system,
+            ris=[sites[s].ris for s in layout],
+            tx=tx[0].tolist(),
+            rx=rx[0].tolist(),
+            codebook=ExpectedRandomCodebook() if seed < 0 else RandomCodebook(seed=seed),
+            known=list(doc.known),
+        )
+        res = compute_bounds(scenario, tx=tx, rx=rx)
+        metric = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx)
+        values.append(float(objective_value(doc.objective, metric[None], w)[0]))
+    v = np.array(values[1:])
+    return {
+        "seeds": seeds,
+        "pairs": int(tx.shape[0]),
+        "expected": _num(values[0]),
+        "mean": _num(float(v.mean())),
+        "min": _num(float(v.min())),
+        "max": _num(float(v.max())),
+    }
