@@ -59,5 +59,5 @@ def near_field_warning(far_fraction: float) -> str | None:
     return (
         f"near field: only {100 * far_fraction:.0f} % of the pairs are in the far field of every"
         " RIS (d_T d_R/(d_T + d_R) ≥ 2D²/λ); the planar (far-field) model is approximate for the"
-        " others"
+        " others: use system.wavefront = 'spherical'"
     )

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import advice, beams, codebooks, crb, fim, geometry, ldl
+from ris_planner import advice, beams, codebooks, crb, fim, geometry, ldl, spherical
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
@@ -27,6 +27,7 @@ from ris_planner.scenario import (
     KnownPart,
     RandomCodebook,
     Scenario,
+    Wavefront,
 )
 
 FloatArray = NDArray[np.float64]
@@ -36,6 +37,10 @@ STATE_NAMES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "clock")
 REASON_UNDERDETERMINED = "underdetermined"
 REASON_SINGULAR = "singular Fisher information (blind spot): the layout cannot resolve this pair"
 REASON_DEGENERATE = "degenerate geometry: a UE coincides with a RIS or with the other UE"
+REASON_CHANNEL_SPHERICAL = (
+    "channel bounds (DEB/SEB) are defined for the planar wavefront only: the spherical model"
+    " has no (ξ, ζ) parameters"
+)
 REASON_NOT_IDENTIFIABLE = "not identifiable"
 """Start of the reason of a pair whose PEB_R is determined but another part is not (a singular
 direction of the information involves only those states, :mod:`ris_planner.crb`)."""
@@ -124,6 +129,7 @@ class BoundsResult:
     fim: FloatArray
     known: tuple[KnownPart, ...] = field(default=())
     warnings: tuple[str, ...] = field(default=())
+    wavefront: Wavefront = "planar"
 
     @property
     def n_pairs(self) -> int:
@@ -159,6 +165,8 @@ class BoundsResult:
             out["peb_tx_reason"] = "TX position is known ('tx' in known)"
         if self.ceb is None:
             out["ceb_reason"] = "clock offset is known ('clock' in known)"
+        if self.wavefront == "spherical":
+            out["channel_reason"] = REASON_CHANNEL_SPHERICAL
         return out
 
 
@@ -198,8 +206,10 @@ def ris_path_information(
     block_count: int,
     weights: FloatArray,
     name: str = "ris",
+    wavefront: Wavefront = "planar",
 ) -> tuple[PathInfo, NDArray[np.bool_]]:
-    """One RIS path's equivalent FIM on (ξ, ζ, cτ), its Jacobian, and far-field flags [P].
+    """One RIS path's equivalent FIM on (ξ, ζ, cτ) (planar) or (p_T, p_R, cτ) (spherical,
+    :mod:`ris_planner.spherical`), its Jacobian, and far-field flags [P].
 
     profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
     block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks.
@@ -207,7 +217,18 @@ def ris_path_information(
     pos = beams.ris_element_positions(ris, radio.wavelength)
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
     alpha = geo.gain(radio.wavelength)
-    if profile is None:
+    jacobian = geo.jacobian()
+    if wavefront == "spherical":
+        if profile is None:
+            # E[Q] = Σ_g δ_g² Vᴴ V per pair (it depends on the geometry here)
+            gram = spherical.expected_gram(tx, rx, ris, radio.wavelength)
+            q = block_count * weights.sum() * gram
+        else:
+            t = spherical.transmission_vectors(profile, tx, rx, ris, radio.wavelength)
+            q = block_count * fim.transmission_gram(t, weights)
+        efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 7)
+        jacobian = spherical.jacobian(geo)
+    elif profile is None:
         # E[Q] does not depend on ξ, ζ: one 3×3 EFIM at unit gain, scaled by α² per pair
         q = fim.transmission_gram_expected(pos, radio.wavelength, block_count * weights.sum())
         unit = fim.eliminate_nuisance(fim.ris_path_fim(q, np.ones(1), radio), 3)
@@ -220,7 +241,7 @@ def ris_path_information(
         ris.rows, ris.cols, ris.element_spacing(radio.wavelength), radio.wavelength
     )
     far = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
-    return PathInfo(name, efim, geo.jacobian()), far
+    return PathInfo(name, efim, jacobian), far
 
 
 def beam_weights(
@@ -267,29 +288,34 @@ def path_information(
     for idx, ris in enumerate(scenario.ris):
         prof = None if profiles is None else profiles[idx]
         info, far[:, idx] = ris_path_information(
-            ris, tx, rx, radio, prof, gamma, weights, name=f"ris{idx + 1}"
+            ris, tx, rx, radio, prof, gamma, weights, f"ris{idx + 1}", system.wavefront
         )
         paths.append(info)
     return paths, far
 
 
-def n_observations(n_ris: int, los: bool) -> int:
-    """Geometric channel parameters of a layout: (ξ, ζ, τ) per RIS, τ0 with LOS."""
+def n_observations(n_ris: int, los: bool, wavefront: Wavefront = "planar") -> int | None:
+    """Geometric channel parameters of a layout: (ξ, ζ, τ) per RIS, τ0 with LOS; ``None`` for
+    the spherical model, where the counting rule does not apply (a single RIS can resolve
+    range; singularity is decided numerically)."""
+    if wavefront == "spherical":
+        return None
     return 3 * n_ris + (1 if los else 0)
 
 
 def bounds_from_state_fim(
     f: FloatArray,
     known: list[KnownPart] | tuple[KnownPart, ...],
-    n_observations: int,
+    n_observations: int | None,
     factors: Callable[[NDArray[np.int_]], FloatArray] | None = None,
     clock: FloatArray | None = None,
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
     """PEB_T, PEB_R, CEB and reasons from [P, 7, 7] information on [p_T, p_R, B].
 
     ``n_observations`` is the number of geometric channel parameters (3L, +1 with LOS); fewer
-    than the unknown states makes every pair singular with an explicit reason.
-    ``factors(idx)`` gives the stacked square-root factors [len(idx), n_obs, 7] of the pairs
+    than the unknown states makes every pair singular with an explicit reason (``None``: no
+    counting rule, the spherical model). ``factors(idx)`` gives the stacked square-root
+    factors [len(idx), n_obs, 7] of the pairs
     idx (:func:`path_factor_rows`); without it they are taken from F itself (correct
     identifiability, but the accuracy of the squared form). The inversion is
     :func:`ris_planner.crb.crb_diagonal`. ``clock`` [P, 7]: the clock offset as a combination
@@ -299,7 +325,8 @@ def bounds_from_state_fim(
     keep = kept_states(known)
     n_pairs = f.shape[0]
     reason = np.full(n_pairs, None, dtype=object)
-    if n_observations < keep.size:
+    underdetermined = n_observations is not None and n_observations < keep.size
+    if underdetermined:
         reason[:] = (
             f"{REASON_UNDERDETERMINED}: {n_observations} geometric channel parameters for"
             f" {keep.size} unknown states; add RISs, the LOS path, or known parts"
@@ -326,7 +353,7 @@ def bounds_from_state_fim(
     bounds = {name: part(name) for name in PART_STATES}
     peb_rx = bounds["rx"]
     assert peb_rx is not None  # RX is never known
-    if n_observations >= keep.size:
+    if not underdetermined:
         reason[np.isinf(peb_rx)] = REASON_SINGULAR
         missing = [(PART_LABELS[name], np.isinf(b)) for name, b in bounds.items() if b is not None]
         for i in np.flatnonzero(np.isfinite(peb_rx) & np.any([m for _, m in missing], axis=0)):
@@ -371,7 +398,7 @@ def uses_los_reference(los: bool, known: list[KnownPart] | tuple[KnownPart, ...]
 def bounds_from_paths(
     paths: list[PathInfo],
     known: list[KnownPart] | tuple[KnownPart, ...],
-    n_observations: int,
+    n_observations: int | None,
     present: NDArray[np.bool_] | None = None,
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
     """PEB_T, PEB_R, CEB and reasons from the paths' equivalent FIMs and Jacobians (the one
@@ -485,9 +512,14 @@ def compute_bounds(
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     f = np.sum([p.state_information() for p in paths], axis=0)
-    n_obs = n_observations(len(scenario.ris), scenario.system.los)
+    system = scenario.system
+    n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
     peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs)
-    chan = channel_bounds(paths)
+    if system.wavefront == "planar":
+        chan = channel_bounds(paths)
+    else:  # null with REASON_CHANNEL_SPHERICAL in JSON
+        inf = np.full(tx_a.shape[0], np.inf)
+        chan = {p.name: {"deb_m": inf.copy()} for p in paths}
     if np.any(bad):
         for arr in (peb_tx, peb_rx, ceb, *[v for c in chan.values() for v in c.values()]):
             if arr is not None:
@@ -504,6 +536,7 @@ def compute_bounds(
         fim=f,
         known=known_t,
         warnings=tuple(bounds_warnings(scenario, expected=prof is None, far=far)),
+        wavefront=system.wavefront,
     )
 
 
@@ -517,6 +550,6 @@ def bounds_warnings(scenario: Scenario, *, expected: bool, far: NDArray[np.bool_
     wavelength = fim.Radio.from_system(system).wavelength
     names = [f"ris{i + 1}" for i in range(len(scenario.ris))]
     out.extend(advice.spacing_warnings(scenario.ris, wavelength, names))
-    if far.size:
+    if far.size and system.wavefront == "planar":
         out.append(advice.near_field_warning(float(np.mean(np.all(far, axis=1)))))
     return [w for w in out if w is not None]

@@ -84,7 +84,8 @@ class Scorer:
         p = self.cache.n_pairs
         out = np.empty((b_all, p))
         keep, tx, rx = self.states
-        if n_observations(n_ris, self.cache.los is not None) < len(keep):  # as compute_bounds
+        n_obs = n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
+        if n_obs is not None and n_obs < len(keep):  # as compute_bounds
             out[:] = np.inf
             return out
         n = len(keep)

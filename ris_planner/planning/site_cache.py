@@ -33,7 +33,7 @@ from ris_planner.ldl import pack
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import KnownPart, SystemParams
+from ris_planner.scenario import KnownPart, SystemParams, Wavefront
 
 FloatArray = NDArray[np.float64]
 
@@ -47,7 +47,8 @@ class SiteCache:
     los : [28, P] the LOS path's (``None`` when the LOS is blocked);
     degenerate : [S, P] a UE within 1 mm of the site (the pair is a blind spot there);
     far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3);
-    factor : [S, P, 3, 7] square-root rows of each site's RIS path (F_site = factorᵀ factor);
+    factor : [S, P, m, 7] square-root rows of each site's RIS path (F_site = factorᵀ factor;
+    m = 3 planar, 7 spherical);
     los_factor : [P, 1, 7] the LOS path's (``None`` when the LOS is blocked);
     los_referenced : the states are [p_T, p_R, B + d_TR] (:func:`ris_planner.bounds.
     los_referenced`, used with the LOS and an unknown clock, as ``compute_bounds`` does)."""
@@ -59,6 +60,7 @@ class SiteCache:
     factor: FloatArray
     los_factor: FloatArray | None
     los_referenced: bool = False
+    wavefront: Wavefront = "planar"
 
     @property
     def n_sites(self) -> int:
@@ -94,17 +96,20 @@ def build_site_cache(
         los_states = los_referenced([los_info])[0][0] if referenced else los_info
         los, los_factor = pack(los_states.state_information()), los_states.factor()
     packed = np.empty((N_PACKED, len(sites), pairs.size))
-    factor = np.empty((len(sites), pairs.size, 3, N_STATES))
+    m = 7 if system.wavefront == "spherical" else 3
+    factor = np.empty((len(sites), pairs.size, m, N_STATES))
     degenerate = np.zeros((len(sites), pairs.size), dtype=bool)
     far = np.zeros((len(sites), pairs.size), dtype=bool)
     for s, site in enumerate(sites):
         bad = ue_on_ris(tx, rx, site.ris.position)
         t, r = stand_ins(tx, rx, bad)  # as compute_bounds: bounds of these pairs become inf
-        info, far[s] = ris_path_information(site.ris, t, r, radio, None, 1, ones)
+        info, far[s] = ris_path_information(
+            site.ris, t, r, radio, None, 1, ones, wavefront=system.wavefront
+        )
         info = on_states(info)
         packed[:, s] = pack(info.state_information())
         factor[s] = info.factor()
         degenerate[s] = bad
         far[s] &= ~bad
         progress((s + 1) / len(sites), f"site {s + 1}/{len(sites)}")
-    return SiteCache(packed, los, degenerate, far, factor, los_factor, referenced)
+    return SiteCache(packed, los, degenerate, far, factor, los_factor, referenced, system.wavefront)
