@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import beams, bounds, codebooks, fim, geometry
+from ris_planner import beams, bounds, codebooks, fim, geometry, spherical
 from ris_planner.scenario import KnownPart, Scenario
 
 FloatArray = NDArray[np.float64]
@@ -125,13 +125,21 @@ def _beam_information(
     for ris, prof in zip(scenario.ris, profiles, strict=True):
         pos = beams.ris_element_positions(ris, radio.wavelength)
         geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
-        # [P, G̃, 3] t_g = ω_gᵀ [∂a/∂ξ, ∂a/∂ζ, a]; per-beam Gram Γ·conj(t_g) t_gᵀ
-        tv = fim.transmission_vectors(prof, pos, geo.xi, geo.zeta, radio.wavelength)
+        if system.wavefront == "spherical":
+            # [P, G̃, 7] t_g = ω_gᵀ [∂a/∂p_T, ∂a/∂p_R, a] (ris_planner.spherical)
+            tv = spherical.transmission_vectors(prof, tx, rx, ris, radio.wavelength)
+            jac = spherical.jacobian(geo)
+        else:
+            # [P, G̃, 3] t_g = ω_gᵀ [∂a/∂ξ, ∂a/∂ζ, a]
+            tv = fim.transmission_vectors(prof, pos, geo.xi, geo.zeta, radio.wavelength)
+            jac = geo.jacobian()
+        m = tv.shape[-1]
+        # per-beam Gram Γ·conj(t_g) t_gᵀ: the path's block is linear in each beam's power
         q = gamma * np.conj(tv)[..., :, None] * tv[..., None, :]
         block5 = fim.ris_path_fim(
-            q.reshape(-1, 3, 3), np.repeat(geo.gain(radio.wavelength), g_tilde), radio
-        ).reshape(n_pos, g_tilde, 5, 5)
-        t = _path_map(geo.jacobian(), col, n_full)
+            q.reshape(-1, m, m), np.repeat(geo.gain(radio.wavelength), g_tilde), radio
+        ).reshape(n_pos, g_tilde, m + 2, m + 2)
+        t = _path_map(jac, col, n_full)
         stack += np.einsum("pai,pgab,pbj->pgij", t, block5, t, optimize=True)
         col += 2
     kept = bounds.kept_states(scenario.known if known is None else known)
