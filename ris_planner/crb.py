@@ -39,9 +39,10 @@ IntArray = NDArray[np.int_]
 FAST_TRACE_LIMIT = 1e8
 """The LDLᵀ of F is used when trace(F̂⁻¹) ≤ this. Rounding F̂'s entries (sums of PSD terms,
 each |F̂_ij| ≤ 1) perturbs a CRB entry by at most λ_max(F̂⁻¹)·‖δF̂‖ ≤ trace(F̂⁻¹)·‖δF̂‖;
-measured against the square-root route on 20 000 Fig. 10 planning pairs the relative error of
-PEB_R stayed ≤ 4.8e-16·trace(F̂⁻¹) (``examples/crb_accuracy.py``), i.e. ≤ 5e-8 at the limit:
-inside the contract's 1e-6 with a factor 20 margin. Above it the square-root route decides."""
+measured against the square-root route on 10 000 layout-pairs of the planning benchmark
+(plain coordinates, ``examples/crb_accuracy.py``) the relative error of PEB_R stayed
+≤ 3.7e-16·trace(F̂⁻¹), i.e. ≤ 4e-8 at the limit: inside the contract's 1e-6 with a factor
+25 margin. Above it the square-root route decides."""
 
 SINGULAR_SV_RTOL = 1e-9
 """A singular value of the column-scaled square-root factor Â with σ ≤ this · σ_max belongs to

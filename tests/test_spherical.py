@@ -231,3 +231,20 @@ def test_plan_scorer_equals_compute_bounds_spherical() -> None:
         np.testing.assert_allclose(got, ref, rtol=1e-9)
     # one RIS with LOS: planar-underdetermined, finite with the spherical model
     assert np.all(np.isfinite(scorer.metric(np.array([(3,)]))[0]))
+
+
+@pytest.mark.parametrize("kind", ["explicit", "directional_derivative"])
+def test_spherical_other_codebooks_equal_brute_force(kind: str) -> None:
+    """Explicit phases and DIR+DER beams (planar designs) through the exact response."""
+    doc = small_doc(2, True)
+    if kind == "explicit":
+        phases = np.random.default_rng(8).uniform(0, 2 * np.pi, (2, 8, 16))
+        doc["codebook"] = {"kind": "explicit", "phases": phases.tolist()}
+    else:
+        doc["codebook"] = {"kind": kind, "prior": {"sigma_m": 0.2, "samples": 2, "seed": 1}}
+    sc = load_scenario(doc)
+    res = compute_bounds(sc)
+    root = brute_force_factor(sc, full_profiles(sc))
+    peb_t, peb_r = bounds_of(root, list(range(7)))
+    assert res.peb_rx[0] == pytest.approx(peb_r, rel=BRUTE_RTOL)
+    assert res.peb_tx is not None and res.peb_tx[0] == pytest.approx(peb_t, rel=BRUTE_RTOL)
