@@ -519,7 +519,11 @@ def compute_bounds(
         chan = channel_bounds(paths)
     else:  # null with REASON_CHANNEL_SPHERICAL in JSON
         inf = np.full(tx_a.shape[0], np.inf)
-        chan = {p.name: {"deb_m": inf.copy()} for p in paths}
+        keys = {"los": ("deb_m",)}
+        chan = {
+            p.name: {k: inf.copy() for k in keys.get(p.name, ("deb_m", "seb_xi", "seb_zeta"))}
+            for p in paths
+        }
     if np.any(bad):
         for arr in (peb_tx, peb_rx, ceb, *[v for c in chan.values() for v in c.values()]):
             if arr is not None:
