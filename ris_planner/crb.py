@@ -138,15 +138,17 @@ def sqrt_crb_quadratic(a: FloatArray, w: FloatArray) -> FloatArray:
     return np.asarray(out)
 
 
-def _trace_scaled_inverse(
-    f_packed: FloatArray, n: int, diag: FloatArray, singular: BoolArray
-) -> FloatArray:
-    """[N] trace(F̂⁻¹) = Σ_i (F⁻¹)_ii F_ii (0 where the LDLᵀ declared F singular)."""
+def _trace_scaled_inverse(f_packed: FloatArray, n: int, diag: FloatArray) -> FloatArray:
+    """[N] trace(F̂⁻¹) = Σ_i (F⁻¹)_ii F_ii; ``inf`` or NaN where the LDLᵀ declared F singular
+    (its diagonal is ``inf`` there), which the callers' ``~(trace <= limit)`` sends on."""
     idx = ldl.packed_index(n)
-    trace = np.zeros(f_packed.shape[1])
-    for i in range(n):
-        trace += np.where(singular, 0.0, diag[i]) * f_packed[idx[i, i]]
-    return trace
+    with np.errstate(invalid="ignore"):  # inf · 0 on singular pairs
+        trace = diag[0] * f_packed[idx[0, 0]]
+        tmp = np.empty_like(trace)
+        for i in range(1, n):
+            np.multiply(diag[i], f_packed[idx[i, i]], out=tmp)
+            trace += tmp
+    return np.asarray(trace)
 
 
 def crb_diagonal(
@@ -161,7 +163,7 @@ def crb_diagonal(
     non-identifiable states, rank_deficient [N]).
     """
     diag, singular = ldl.inverse_diagonal_from(f_packed, n, 0)
-    trace = _trace_scaled_inverse(f_packed, n, diag, singular)
+    trace = _trace_scaled_inverse(f_packed, n, diag)
     slow = np.flatnonzero(singular | ~(trace <= FAST_TRACE_LIMIT))
     rank_deficient = np.zeros(f_packed.shape[1], dtype=bool)
     if slow.size:
@@ -178,7 +180,7 @@ def crb_quadratic(
     inv, singular = ldl.inverse_from(f_packed, n)
     idx = ldl.packed_index(n)
     diag = np.stack([inv[idx[i, i]] for i in range(n)])
-    trace = _trace_scaled_inverse(f_packed, n, diag, singular)
+    trace = _trace_scaled_inverse(f_packed, n, diag)
     out = np.zeros(f_packed.shape[1])
     ok = ~singular
     for i in range(n):
