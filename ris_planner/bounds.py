@@ -15,14 +15,14 @@ time-orthogonal profiles (Γ from the layout's RIS count) do not change.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import beams, codebooks, fim, geometry, ldl
+from ris_planner import advice, beams, codebooks, crb, fim, geometry, ldl, spherical
 from ris_planner.environment import Scene, path_presence, pattern_factor
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
@@ -34,6 +34,7 @@ from ris_planner.scenario import (
     KnownPart,
     RandomCodebook,
     Scenario,
+    Wavefront,
 )
 
 FloatArray = NDArray[np.float64]
@@ -44,6 +45,15 @@ STATE_NAMES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "clock")
 REASON_UNDERDETERMINED = "underdetermined"
 REASON_SINGULAR = "singular Fisher information (blind spot): the layout cannot resolve this pair"
 REASON_DEGENERATE = "degenerate geometry: a UE coincides with a RIS or with the other UE"
+REASON_CHANNEL_SPHERICAL = (
+    "channel bounds (DEB/SEB) are defined for the planar wavefront only: the spherical model"
+    " has no (ξ, ζ) parameters"
+)
+REASON_NOT_IDENTIFIABLE = "not identifiable"
+"""Start of the reason of a pair whose PEB_R is determined but another part is not (a singular
+direction of the information involves only those states, :mod:`ris_planner.crb`)."""
+PART_STATES = {"tx": range(0, 3), "rx": range(3, 6), "clock": range(6, 7)}
+PART_LABELS = {"tx": "PEB_T", "rx": "PEB_R", "clock": "CEB"}
 
 
 def kept_states(known: list[KnownPart] | tuple[KnownPart, ...]) -> NDArray[np.int_]:
@@ -95,6 +105,11 @@ class PathInfo:
         # [P, 7, 7]
         return np.asarray(self.jacobian.transpose(0, 2, 1) @ self.efim @ self.jacobian)
 
+    def factor(self, pairs: NDArray[np.int_] | slice = slice(None)) -> FloatArray:
+        """Square-root rows [p, m, 7] of :meth:`state_information` for the given pairs
+        (:func:`ris_planner.crb.path_factor`)."""
+        return crb.path_factor(self.efim[pairs], self.jacobian[pairs])
+
 
 @dataclass(frozen=True)
 class BoundsResult:
@@ -112,6 +127,7 @@ class BoundsResult:
     known : the state parts treated as known.
     paths_present : per path (``"los"``, ``"ris1"``, …) [P] whether it exists for the pair
         (:func:`scenario_path_presence`); ``"los"`` is False throughout without ``system.los``.
+    warnings : the modelling assumptions that may mislead (:mod:`ris_planner.advice`).
     """
 
     peb_tx: FloatArray | None
@@ -123,6 +139,8 @@ class BoundsResult:
     fim: FloatArray
     known: tuple[KnownPart, ...] = field(default=())
     paths_present: dict[str, BoolArray] = field(default_factory=dict)
+    warnings: tuple[str, ...] = field(default=())
+    wavefront: Wavefront = "planar"
 
     @property
     def n_pairs(self) -> int:
@@ -156,11 +174,14 @@ class BoundsResult:
             "far_field": per_pair([bool(x) for x in np.all(self.far_field, axis=1)]),
             "far_field_ris": per_pair([[bool(x) for x in row] for row in self.far_field]),
             "known": list(self.known),
+            "warnings": list(self.warnings),
         }
         if self.peb_tx is None:
             out["peb_tx_reason"] = "TX position is known ('tx' in known)"
         if self.ceb is None:
             out["ceb_reason"] = "clock offset is known ('clock' in known)"
+        if self.wavefront == "spherical":
+            out["channel_reason"] = REASON_CHANNEL_SPHERICAL
         return out
 
 
@@ -212,8 +233,10 @@ def ris_path_information(
     block_count: int,
     weights: FloatArray,
     name: str = "ris",
+    wavefront: Wavefront = "planar",
 ) -> tuple[PathInfo, NDArray[np.bool_]]:
-    """One RIS path's equivalent FIM on (ξ, ζ, cτ), its Jacobian, and far-field flags [P].
+    """One RIS path's equivalent FIM on (ξ, ζ, cτ) (planar) or (p_T, p_R, cτ) (spherical,
+    :mod:`ris_planner.spherical`), its Jacobian, and far-field flags [P].
 
     profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
     block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks. The gain is
@@ -222,7 +245,18 @@ def ris_path_information(
     pos = beams.ris_element_positions(ris, radio.wavelength)
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
     alpha = ris_path_gain(ris, geo, tx, rx, radio.wavelength)
-    if profile is None:
+    jacobian = geo.jacobian()
+    if wavefront == "spherical":
+        if profile is None:
+            # E[Q] = Σ_g δ_g² Vᴴ V per pair (it depends on the geometry here)
+            gram = spherical.expected_gram(tx, rx, ris, radio.wavelength)
+            q = block_count * weights.sum() * gram
+        else:
+            t = spherical.transmission_vectors(profile, tx, rx, ris, radio.wavelength)
+            q = block_count * fim.transmission_gram(t, weights)
+        efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 7)
+        jacobian = spherical.jacobian(geo)
+    elif profile is None:
         # E[Q] does not depend on ξ, ζ: one 3×3 EFIM at unit gain, scaled by α² per pair
         q = fim.transmission_gram_expected(pos, radio.wavelength, block_count * weights.sum())
         unit = fim.eliminate_nuisance(fim.ris_path_fim(q, np.ones(1), radio), 3)
@@ -235,7 +269,7 @@ def ris_path_information(
         ris.rows, ris.cols, ris.element_spacing(radio.wavelength), radio.wavelength
     )
     far = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
-    return PathInfo(name, efim, geo.jacobian()), far
+    return PathInfo(name, efim, jacobian), far
 
 
 def beam_weights(
@@ -282,14 +316,18 @@ def path_information(
     for idx, ris in enumerate(scenario.ris):
         prof = None if profiles is None else profiles[idx]
         info, far[:, idx] = ris_path_information(
-            ris, tx, rx, radio, prof, gamma, weights, name=f"ris{idx + 1}"
+            ris, tx, rx, radio, prof, gamma, weights, f"ris{idx + 1}", system.wavefront
         )
         paths.append(info)
     return paths, far
 
 
-def n_observations(n_ris: int, los: bool) -> int:
-    """Geometric channel parameters of a layout: (ξ, ζ, τ) per RIS, τ0 with LOS."""
+def n_observations(n_ris: int, los: bool, wavefront: Wavefront = "planar") -> int | None:
+    """Geometric channel parameters of a layout: (ξ, ζ, τ) per RIS, τ0 with LOS; ``None`` for
+    the spherical model, where the counting rule does not apply (a single RIS can resolve
+    range; singularity is decided numerically)."""
+    if wavefront == "spherical":
+        return None
     return 3 * n_ris + (1 if los else 0)
 
 
@@ -316,17 +354,13 @@ def scenario_path_presence(
     """``{"los": [P], "ris1": [P], …}``: which paths exist for each pair (DESIGN.md rules,
     :func:`ris_planner.environment.path_presence`); ``"los"`` is False without ``system.los``.
 
-    Without ``environment`` the document is the paper's free space: every RIS path exists
-    (no field-of-view test), so its results are exactly those of the paper's model. With an
-    environment (even one without obstacles) the legs and the fields of view decide.
+    The fields of view always apply (a RIS serves only UEs in front of it: ``max_angle_deg``,
+    default 90°, the open front half-space); without ``environment`` no leg is blocked, so the
+    paper's scenes (every UE in front of every RIS) keep exactly the paper's model.
     """
     n = tx.shape[0]
-    los = scenario.system.los
-    if scenario.environment is None:
-        free = {"los": np.full(n, los)}
-        return free | {f"ris{i + 1}": np.ones(n, dtype=bool) for i in range(len(scenario.ris))}
     scene = Scene.from_environment(scenario.environment)
-    found = path_presence(scene, scenario.ris, tx, rx, los)
+    found = path_presence(scene, list(scenario.ris), tx, rx, scenario.system.los)
     return {"los": found.pop("los", np.zeros(n, dtype=bool))} | found
 
 
@@ -389,32 +423,136 @@ def mask_channel_bounds(
 
 
 def bounds_from_state_fim(
-    f: FloatArray, known: list[KnownPart] | tuple[KnownPart, ...], n_observations: int
+    f: FloatArray,
+    known: list[KnownPart] | tuple[KnownPart, ...],
+    n_observations: int | None,
+    factors: Callable[[NDArray[np.int_]], FloatArray] | None = None,
+    clock: FloatArray | None = None,
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
     """PEB_T, PEB_R, CEB and reasons from [P, 7, 7] information on [p_T, p_R, B].
 
     ``n_observations`` is the number of geometric channel parameters (3L, +1 with LOS); fewer
-    than the unknown states makes every pair singular with an explicit reason.
+    than the unknown states makes every pair singular with an explicit reason (``None``: no
+    counting rule, the spherical model). ``factors(idx)`` gives the stacked square-root
+    factors [len(idx), n_obs, 7] of the pairs
+    idx (:func:`path_factor_rows`); without it they are taken from F itself (correct
+    identifiability, but the accuracy of the squared form). The inversion is
+    :func:`ris_planner.crb.crb_diagonal`. ``clock`` [P, 7]: the clock offset as a combination
+    of the states of F when F is on other coordinates than [p_T, p_R, B] (the LOS-referenced
+    clock of :func:`los_referenced`); default the last state.
     """
     keep = kept_states(known)
-    diag, singular = fim_inverse_diagonal(f[:, keep][:, :, keep])
-    reason = np.full(f.shape[0], None, dtype=object)
-    if n_observations < keep.size:
-        singular = np.ones(f.shape[0], dtype=bool)
+    n_pairs = f.shape[0]
+    reason = np.full(n_pairs, None, dtype=object)
+    underdetermined = n_observations is not None and n_observations < keep.size
+    if underdetermined:
+        assert n_observations is not None
         reason[:] = underdetermined_reason(n_observations, keep.size)
-        diag = np.full_like(diag, np.inf)
+        diag = np.full((n_pairs, keep.size), np.inf)
     else:
-        reason[singular] = REASON_SINGULAR
+        rows = factors if factors is not None else _factors_of_fim(f)
 
-    def part(indices: range) -> FloatArray | None:
-        cols = [i for i, k in enumerate(keep) if k in indices]
+        def kept_rows(idx: NDArray[np.int_]) -> FloatArray:
+            return rows(idx)[:, :, keep]
+
+        f_kept = ldl.pack(f[:, keep][:, :, keep])
+        d, _ = crb.crb_diagonal(f_kept, keep.size, kept_rows)
+        diag = d.T
+        if clock is not None and 6 in keep:
+            diag[:, -1] = crb.crb_quadratic(f_kept, keep.size, kept_rows, clock[:, keep])
+
+    def part(name: str) -> FloatArray | None:
+        cols = [i for i, k in enumerate(keep) if k in PART_STATES[name]]
         if not cols:
             return None
         return np.asarray(np.sqrt(diag[:, cols].sum(axis=1)))
 
-    peb_rx = part(range(3, 6))
+    bounds = {name: part(name) for name in PART_STATES}
+    peb_rx = bounds["rx"]
     assert peb_rx is not None  # RX is never known
-    return part(range(0, 3)), peb_rx, part(range(6, 7)), reason
+    if not underdetermined:
+        reason[np.isinf(peb_rx)] = REASON_SINGULAR
+        missing = [(PART_LABELS[name], np.isinf(b)) for name, b in bounds.items() if b is not None]
+        for i in np.flatnonzero(np.isfinite(peb_rx) & np.any([m for _, m in missing], axis=0)):
+            labels = ", ".join(label for label, m in missing if m[i])
+            reason[i] = (
+                f"{REASON_NOT_IDENTIFIABLE}: {labels} (a singular direction of the Fisher"
+                " information involves only these states; the finite bounds are exact)"
+            )
+    return bounds["tx"], peb_rx, bounds["clock"], reason
+
+
+def los_referenced(paths: list[PathInfo]) -> tuple[list[PathInfo], FloatArray]:
+    """The paths on the LOS-referenced coordinates s' = [p_T, p_R, B'] with B' = B + d_TR
+    (the LOS pseudo-range), and the clock B = B' − ∇d_TRᵀp as a combination [P, 7] of s'.
+
+    The LOS measures d_TR + B far more precisely than the RIS paths measure anything, so F on
+    [p_T, p_R, B] has a strong direction that is not a coordinate and its scaled condition
+    number is huge (median 2e7 over the Fig. 10 planning pairs); on s' the LOS row is e_B' and
+    the median is 250 (``examples/crb_accuracy.py``). A linear change of variables: the CRB of
+    the positions is unchanged, J' = J T with T = I except T[6, :6] = −∇d_TR. ``paths[0]``
+    must be the LOS path.
+    """
+    los = paths[0]
+    # [P, 6] ∇d_TR w.r.t. [p_T, p_R]
+    grad = los.jacobian[:, 0, :6]
+    out = []
+    for p in paths:
+        jac = p.jacobian.copy()
+        jac[:, :, :6] -= p.jacobian[:, :, 6:7] * grad[:, None, :]
+        out.append(PathInfo(p.name, p.efim, jac))
+    out[0].jacobian[:, 0, :6] = 0.0  # exactly e_B'
+    clock = np.concatenate([-grad, np.ones((grad.shape[0], 1))], axis=1)
+    return out, clock
+
+
+def uses_los_reference(los: bool, known: list[KnownPart] | tuple[KnownPart, ...]) -> bool:
+    """Whether the bounds are computed on the LOS-referenced coordinates (LOS present and the
+    clock unknown; :func:`los_referenced`); the planning site cache follows the same rule."""
+    return los and "clock" not in known
+
+
+def bounds_from_paths(
+    paths: list[PathInfo],
+    known: list[KnownPart] | tuple[KnownPart, ...],
+    n_observations: int | None,
+    present: NDArray[np.bool_] | None = None,
+) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
+    """PEB_T, PEB_R, CEB and reasons from the paths' equivalent FIMs and Jacobians (the one
+    inversion of :func:`compute_bounds` and the planning scorer).
+
+    ``present`` [P, n_paths]: paths missing for a pair contribute nothing.
+    """
+    clock = None
+    if paths and paths[0].name == "los" and uses_los_reference(True, known):
+        paths, clock = los_referenced(paths)
+    infos = [p.state_information() for p in paths]
+    if present is not None:
+        infos = [f * present[:, k, None, None] for k, f in enumerate(infos)]
+    f = np.sum(infos, axis=0)
+    return bounds_from_state_fim(f, known, n_observations, path_factor_rows(paths, present), clock)
+
+
+def _factors_of_fim(f: FloatArray) -> Callable[[NDArray[np.int_]], FloatArray]:
+    """Square-root factors [p, 7, 7] of F itself (a symmetric square root by eigh)."""
+
+    def rows(idx: NDArray[np.int_]) -> FloatArray:
+        return crb.path_factor(f[idx], np.broadcast_to(np.eye(7), (idx.size, 7, 7)))
+
+    return rows
+
+
+def path_factor_rows(
+    paths: list[PathInfo], present: NDArray[np.bool_] | None = None
+) -> Callable[[NDArray[np.int_]], FloatArray]:
+    """``factors(idx)``: the paths' stacked square-root factors [len(idx), n_obs, 7] of the
+    pairs idx, in path order (``present`` [P, n_paths] zeroes a missing path's rows)."""
+
+    def rows(idx: NDArray[np.int_]) -> FloatArray:
+        mask = None if present is None else present[idx]
+        return crb.stack_factors([p.factor(idx) for p in paths], mask)
+
+    return rows
 
 
 def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
@@ -487,19 +625,31 @@ def compute_bounds(
     if not (np.all(np.isfinite(tx_a)) and np.all(np.isfinite(rx_a))):
         raise ValueError("tx and rx must be finite coordinates")
     known_t: tuple[KnownPart, ...] = tuple(scenario.known if known is None else known)
-    presence = scenario_path_presence(scenario, tx_a, rx_a)
     bad = _degenerate_pairs(scenario, tx_a, rx_a)
     tx_a, rx_a = stand_ins(tx_a, rx_a, bad)  # evaluated there, reported inf below
+    presence = scenario_path_presence(scenario, tx_a, rx_a)
     prof = first_block_profiles(scenario) if isinstance(profiles, str) else profiles
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     mask = present_path_mask(paths, presence)
-    f = masked_state_information(paths, mask)
-    n_obs = n_observations(len(scenario.ris), scenario.system.los)
-    peb_tx, peb_rx, ceb, reason = bounds_from_state_fim(f, known_t, n_obs)
-    chan = channel_bounds(paths)
-    mask_channel_bounds(chan, presence)
-    under, under_reason = underdetermined_pairs(paths, mask, int(kept_states(known_t).size))
+    f = masked_state_information(paths, mask)  # on [p_T, p_R, B], as reported
+    system = scenario.system
+    n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
+    peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask)
+    if system.wavefront == "planar":
+        chan = channel_bounds(paths)
+        mask_channel_bounds(chan, presence)
+        # the counting rule of the planar model, per pair with the paths it has
+        under, under_reason = underdetermined_pairs(paths, mask, int(kept_states(known_t).size))
+    else:  # null with REASON_CHANNEL_SPHERICAL in JSON; singularity decided numerically
+        inf = np.full(tx_a.shape[0], np.inf)
+        keys = {"los": ("deb_m",)}
+        chan = {
+            p.name: {k: inf.copy() for k in keys.get(p.name, ("deb_m", "seb_xi", "seb_zeta"))}
+            for p in paths
+        }
+        under = np.zeros(tx_a.shape[0], dtype=bool)
+        under_reason = np.full(tx_a.shape[0], None, dtype=object)
     for flags, why in ((under, under_reason), (bad, REASON_DEGENERATE)):
         if np.any(flags):
             for arr in (peb_tx, peb_rx, ceb):
@@ -520,4 +670,21 @@ def compute_bounds(
         fim=f,
         known=known_t,
         paths_present=presence,
+        warnings=tuple(bounds_warnings(scenario, expected=prof is None, far=far)),
+        wavefront=system.wavefront,
     )
+
+
+def bounds_warnings(scenario: Scenario, *, expected: bool, far: NDArray[np.bool_]) -> list[str]:
+    """The warnings of a bounds result: expected-random optimism (when the expected FIM was
+    used), grating lobes, near-field majority (far : [P, L] far-field flags)."""
+    system = scenario.system
+    out = []
+    if expected:
+        out.append(advice.expected_random_warning(system.transmissions, len(scenario.ris)))
+    wavelength = fim.Radio.from_system(system).wavelength
+    names = [f"ris{i + 1}" for i in range(len(scenario.ris))]
+    out.extend(advice.spacing_warnings(scenario.ris, wavelength, names))
+    if far.size and system.wavefront == "planar":
+        out.append(advice.near_field_warning(float(np.mean(np.all(far, axis=1)))))
+    return [w for w in out if w is not None]

@@ -75,9 +75,6 @@ class Radio:
         ).astype(complex)
 
 
-# RIS path parameters (ξ, ζ, r, α, β): index into t_g, and whether ∂/∂r acts (−jκ_k)
-_RIS_T_INDEX = np.array([0, 1, 2, 2, 2])
-_RIS_DELAY = np.array([False, False, True, False, False])
 # LOS path parameters (r0, α0, β0)
 _LOS_DELAY = np.array([True, False, False])
 
@@ -135,21 +132,28 @@ def transmission_gram(t: ComplexArray, weights: FloatArray) -> ComplexArray:
 
 
 def ris_path_fim(q: ComplexArray, alpha: FloatArray, radio: Radio) -> FloatArray:
-    """The 5×5 FIM block of one RIS path on (ξ, ζ, r, α, β) (eq. FIM_measurement), [P, 5, 5].
+    """The FIM block of one RIS path on (spatial parameters, r, α, β) (eq. FIM_measurement),
+    [P, m+3, m+3]: (ξ, ζ, r, α, β) for the planar model (m = 2), (p_T, p_R, r, α, β) for the
+    spherical one (m = 6, :mod:`ris_planner.spherical`).
 
-    q : [P, 3, 3] or [3, 3] transmission Gram; alpha : [P] |ρ_ℓ|. The phase β drops out.
+    q : [P, m+1, m+1] or [m+1, m+1] transmission Gram (spatial derivatives first, then the
+    response itself); alpha : [P] |ρ_ℓ|. The phase β drops out.
     """
     n = alpha.shape[0]
-    # [P, 5] gain factors: ρ, ρ, ρ, e^{−jβ}, −jρ (β = 0 without loss of generality)
-    c = np.zeros((n, 5), dtype=complex)
-    c[:, 0:3] = alpha[:, None]
-    c[:, 3] = 1.0
-    c[:, 4] = -1j * alpha
-    qb = np.broadcast_to(q, (n, 3, 3))
-    # [P, 5, 5]
-    q5 = qb[:, _RIS_T_INDEX[:, None], _RIS_T_INDEX[None, :]]
-    s = radio.subcarrier_matrix(_RIS_DELAY)
-    return radio.snr_scale * np.real(s[None] * np.conj(c)[:, :, None] * c[:, None, :] * q5)
+    m = q.shape[-1] - 1
+    # parameters → column of t_g (r, α, β all use the response itself), and the −jκ_k flags
+    t_index = np.array([*range(m), m, m, m])
+    delay = np.array([False] * m + [True, False, False])
+    # [P, m+3] gain factors: ρ (spatial and r), e^{−jβ}, −jρ (β = 0 without loss of generality)
+    c = np.zeros((n, m + 3), dtype=complex)
+    c[:, 0 : m + 1] = alpha[:, None]
+    c[:, m + 1] = 1.0
+    c[:, m + 2] = -1j * alpha
+    qb = np.broadcast_to(q, (n, m + 1, m + 1))
+    # [P, m+3, m+3]
+    qm = qb[:, t_index[:, None], t_index[None, :]]
+    s = radio.subcarrier_matrix(delay)
+    return radio.snr_scale * np.real(s[None] * np.conj(c)[:, :, None] * c[:, None, :] * qm)
 
 
 def los_path_fim(total_weight: float, alpha0: FloatArray, radio: Radio) -> FloatArray:

@@ -34,6 +34,9 @@ KnownPart = Literal["clock", "height", "tx"]
 """State parts that may be known: ``clock`` (B, round trip), ``height`` (z of both UEs), ``tx``."""
 
 
+Wavefront = Literal["planar", "spherical"]
+
+
 class SystemParams(DocumentModel):
     """Radio parameters (Table I). ``P`` is the per-transmission power of eq.
     transmission_matrix; the noise variance is σ² = W·N0·NF (linear)."""
@@ -61,6 +64,11 @@ class SystemParams(DocumentModel):
         5.0, ge=-1e6, le=1e6, allow_inf_nan=False, description="Clock offset B [m]"
     )
     los: bool = Field(True, description="Whether the TX–RX line-of-sight path exists")
+    wavefront: Wavefront = Field(
+        "planar",
+        description="RIS response model: 'planar' (the paper's far-field a_R(ξ, ζ)) or"
+        " 'spherical' (exact per-element distances; for pairs inside the Fraunhofer distance)",
+    )
 
     @model_validator(mode="after")
     def _check_derived(self) -> SystemParams:

@@ -76,7 +76,7 @@ def setup(doc: dict[str, Any]) -> tuple[PlanDocument, Any, Any, Scorer]:
     d = PlanDocument.model_validate(doc)
     sites = expand_sites(d)
     pairs = build_pairs(build_map(d.tx_map, "tx"), build_map(d.rx_map, "rx"), d.pairs, d.max_pairs)
-    cache = build_site_cache(d.system, sites, pairs)
+    cache = build_site_cache(d.system, sites, pairs, known=tuple(d.known))
     return d, sites, pairs, Scorer(cache, pairs.weights, d.objective, tuple(d.known))
 
 

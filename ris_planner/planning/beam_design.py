@@ -150,6 +150,29 @@ def _num(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
 
+def objective_on_pairs(
+    scenario: Scenario,
+    tx: FloatArray,
+    rx: FloatArray,
+    weights: FloatArray,
+    objective: Any,
+    mirror: bool = False,
+    profiles: list[ComplexArray] | str | None = "codebook",
+    beam_powers: FloatArray | None = None,
+) -> float:
+    """A plan objective of a layout by ``compute_bounds`` on pairs tx, rx [P, 3] with weights
+    [P] (sum 1); with ``mirror`` each pair also counts reversed with half the weight (the
+    reverse direction's PEB_R is the forward PEB_T, as the planning scorer counts it)."""
+    res = compute_bounds(scenario, tx, rx, profiles=profiles, beam_powers=beam_powers)
+    metric = select_metric(objective.metric, res.peb_tx, res.peb_rx)
+    w = weights
+    if mirror:  # j → i: its PEB_R is the PEB_T of i → j (and vice versa)
+        assert res.peb_tx is not None  # mirror needs an unknown TX (maps.unordered_directions)
+        metric = np.concatenate([metric, select_metric(objective.metric, res.peb_rx, res.peb_tx)])
+        w = np.concatenate([weights, weights]) / 2
+    return float(objective_value(objective, metric[None, :], w)[0])
+
+
 def layout_scenario(
     system: SystemParams, ris: list[RIS], known: list[KnownPart], environment: Any = None
 ) -> Scenario:
@@ -203,13 +226,9 @@ def evaluate_layout_beams(
     weights = np.concatenate([pairs.weights, pairs.weights]) / 2 if mirror else pairs.weights
 
     def on_pairs(profiles: list[ComplexArray], powers: FloatArray | None = None) -> float:
-        res = compute_bounds(scenario, pairs.tx, pairs.rx, profiles=profiles, beam_powers=powers)
-        metric = select_metric(plan_objective.metric, res.peb_tx, res.peb_rx)
-        if mirror:  # j → i: its PEB_R is the PEB_T of i → j (and vice versa)
-            assert res.peb_tx is not None  # mirror needs an unknown TX (unordered_directions)
-            reverse = select_metric(plan_objective.metric, res.peb_rx, res.peb_tx)
-            metric = np.concatenate([metric, reverse])
-        return float(objective_value(plan_objective, metric[None, :], weights)[0])
+        return objective_on_pairs(
+            scenario, pairs.tx, pairs.rx, pairs.weights, plan_objective, mirror, profiles, powers
+        )
 
     report = BeamReport()
     obj = report.objective

@@ -1,10 +1,11 @@
 """Objectives over weighted pairs and the batched layout score.
 
 Scoring a batch of layouts: LOS + Σ cached site matrices on the packed entries of the unknown
-states (one gather-and-add per RIS over all entries × layouts × pairs), then one batched LDLᵀ
-(:func:`ris_planner.ldl.inverse_diagonal_from`) giving the CRB diagonal of the
-metric's states. Known parts (``clock``, ``height``, ``tx``) remove their rows
-before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
+states (one gather-and-add per RIS over all entries × layouts × pairs), then the core's hybrid
+inversion (:func:`ris_planner.crb.crb_diagonal`: one batched LDLᵀ, and the square-root route
+over the cached per-site factors for the ill-conditioned combinations) giving the CRB diagonal.
+Known parts (``clock``, ``height``, ``tx``) remove their rows before inversion, as
+:func:`ris_planner.bounds.bounds_from_state_fim` does.
 
 With an environment the cache's per-pair presence masks make a pair ``inf`` in a layout where
 its present paths give fewer geometric channel parameters than unknown states
@@ -19,14 +20,16 @@ holds 2P values – this direction's, then the reverse's – weighted by :attr:`
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import kept_states, n_observations
-from ris_planner.ldl import inverse_diagonal_from, packed_index
+from ris_planner.bounds import kept_states, n_observations, uses_los_reference
+from ris_planner.crb import crb_diagonal
+from ris_planner.ldl import packed_index
 from ris_planner.planning.document import Objective
 from ris_planner.planning.site_cache import N_STATES, SiteCache
 from ris_planner.planning.visibility import BoolArray
@@ -53,6 +56,13 @@ class Scorer:
     objective: Objective
     known: tuple[KnownPart, ...]
     mirror: bool = False
+
+    def __post_init__(self) -> None:
+        if self.cache.los_referenced != uses_los_reference(self.cache.los is not None, self.known):
+            raise ValueError(
+                "the site cache was built for other known parts than the scorer's"
+                f" {list(self.known)}: pass known= to build_site_cache"
+            )
 
     @property
     def states(self) -> tuple[list[int], list[int], list[int]]:
@@ -89,18 +99,18 @@ class Scorer:
         """[B, P] metric bound (m) of each layout [B, L] and pair ([B, 2P] with ``mirror``);
         ``inf`` for blind spots.
 
-        Bit for bit what ``compute_bounds`` gives for the layout (same FIM sum, LOS first, and
-        the core's inversion arithmetic, see :mod:`ris_planner.ldl`)."""
+        Bit for bit what ``compute_bounds`` gives for the layout (same FIM sum, LOS first, same
+        square-root factors, and the core's inversion, :func:`ris_planner.crb.crb_diagonal`)."""
         layouts = np.atleast_2d(np.asarray(layouts, dtype=int))
         b_all, n_ris = layouts.shape
         p = self.cache.n_pairs
         out = np.empty((b_all, 2 * p if self.mirror else p))
         keep, tx, rx = self.states
-        if n_observations(n_ris, self.cache.los is not None) < len(keep):  # as compute_bounds
+        n_obs = n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
+        if n_obs is not None and n_obs < len(keep):  # as compute_bounds
             out[:] = np.inf
             return out
         n = len(keep)
-        first = min(tx + rx)
         packed, los = self._selected
         step = max(1, BATCH_MATRICES // p)
         deg = self.cache.degenerate
@@ -114,12 +124,11 @@ class Scorer:
                 np.add(los[:, None, :], a, out=a)
             for col in range(1, n_ris):
                 a += packed[:, lay[:, col]]
-            diag, _ = inverse_diagonal_from(a.reshape(len(packed), nb * p), n, first)
-            tx_rel, rx_rel = [i - first for i in tx], [i - first for i in rx]
+            diag, _ = crb_diagonal(a.reshape(len(packed), nb * p), n, self._factor_rows(lay))
             if self.mirror:
-                block = self._mirrored(diag, tx_rel, rx_rel, nb)
+                block = self._mirrored(diag, tx, rx, nb)
             else:
-                block = self._bound(diag, tx_rel, rx_rel).reshape(nb, p)
+                block = self._bound(diag, tx, rx).reshape(nb, p)
             if any_deg:
                 block[np.tile(np.any(deg[lay], axis=1), block.shape[1] // p)] = np.inf
             under = underdetermined(self.cache, lay, n)
@@ -127,6 +136,20 @@ class Scorer:
                 block[np.tile(under, block.shape[1] // p)] = np.inf
             out[b0 : b0 + nb] = block
         return out
+
+    def _factor_rows(self, lay: IntArray) -> Callable[[IntArray], FloatArray]:
+        """``factors(idx)`` over the flattened (layout, pair) index of a block: the stacked
+        square-root rows [len(idx), n_obs, kept] in the core's path order (LOS, RIS 1, …)."""
+        keep, _, _ = self.states
+        cache = self.cache
+
+        def rows(idx: IntArray) -> FloatArray:
+            b, pair = np.divmod(idx, cache.n_pairs)
+            parts = [] if cache.los_factor is None else [cache.los_factor[pair]]
+            parts += [cache.factor[lay[b, col], pair] for col in range(lay.shape[1])]
+            return np.concatenate(parts, axis=1)[:, :, keep]
+
+        return rows
 
     @staticmethod
     def _peb(diag: FloatArray, rows: list[int]) -> FloatArray:
@@ -162,7 +185,7 @@ def underdetermined(cache: SiteCache, layouts: IntArray, n_states: int) -> BoolA
 
     Counted as present RIS paths (uint8 sums, one gather per layout column) against the
     RIS paths each pair needs, ⌈(n_states − LOS present) / 3⌉."""
-    if cache.present is None:
+    if cache.present is None or cache.wavefront == "spherical":  # no counting rule there
         return None
     wide = layouts.shape[1] > np.iinfo(np.uint8).max
     p8 = cache.present.astype(np.int32) if wide else cache.present.view(np.uint8)

@@ -10,13 +10,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner import advice
 from ris_planner.bounds import compute_bounds
 from ris_planner.environment import Scene, ris_serves
 from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.fim import Radio
 from ris_planner.planning.beam_design import (
     BeamReport,
     evaluate_layout_beams,
     layout_scenario,
+    objective_on_pairs,
     served_pairs,
 )
 from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
@@ -46,12 +49,21 @@ from ris_planner.planning.visibility import (
     serve_warnings,
 )
 from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.scenario import RandomCodebook
 
 FloatArray = NDArray[np.float64]
 
 REPORT_QUANTILES = (0.5, 0.9, 0.95)
 CDF_POINTS = 101
 HEATMAP_MAX_PAIRS = 200_000
+RANDOM_CODEBOOK_SEEDS = 5
+"""Seeds (0 … 4) of the ``random`` codebooks that re-evaluate each count's best layout beside
+the expected-random objective the search used (``by_count[i]["random_codebook"]``): enough for
+the spread at the G/Γ where the optimism matters, cheap next to the search."""
+RANDOM_CODEBOOK_MAX_PAIRS = 20_000
+"""Above this many pairs the random-codebook re-evaluation uses a seeded sample of this many
+pairs drawn ∝ weight (with replacement, equal weights: an unbiased estimate), and reports the
+expected-random objective on the same sample beside it."""
 """TX–RX pairs the heatmap evaluates (about a second with expected_random): beyond it each RX
 point is evaluated against a seeded weighted sample of the TX map."""
 REASON_NO_TX = "no TX point of the heatmap differs from this RX point"
@@ -107,6 +119,7 @@ class CountResult:
     outcome: SearchOutcome
     ranked: list[tuple[Layout, float]]
     best_metric: FloatArray
+    random_codebook: dict[str, Any] | None = None
 
 
 @dataclass
@@ -123,7 +136,8 @@ class PlanResult:
     timing: dict[str, float]
     scene: Scene | None = None
     dropped_points: dict[str, int] | None = None
-    warnings: list[str] | None = None
+    site_warnings: list[str] | None = None
+    """Candidates that serve (almost) none of the pairs (:func:`visibility.serve_warnings`)."""
     beams: dict[Layout, BeamReport] = field(default_factory=dict)
     """Beam designs per evaluated layout (``document.beams``): the best of each count first."""
     _rx_fields: dict[Layout, RxField] = field(default_factory=dict, repr=False)
@@ -232,6 +246,22 @@ class PlanResult:
         layout = self.counts[-1].ranked[0][0]
         return self.rx_map.points, self.rx_field(layout).bound, layout
 
+    def warnings(self) -> list[str]:
+        """Expected-random optimism per RIS count, grating lobes of the candidate RISs, the
+        near-field advice for the best layout of the largest count, and candidates that serve
+        (almost) no pair."""
+        doc = self.document
+        out: list[str | None] = [
+            advice.expected_random_warning(doc.system.transmissions, c) for c in doc.ris_count
+        ]
+        wavelength = Radio.from_system(doc.system).wavelength
+        out += advice.spacing_warnings([self.sites[0].ris], wavelength, ["the candidate RIS"])
+        lay = list(self.counts[-1].ranked[0][0])
+        far = np.all(self.cache.far_field[lay], axis=0)
+        out.append(advice.near_field_warning(float((far * self.pairs.weights).sum())))
+        out += self.site_warnings or []
+        return list(dict.fromkeys(w for w in out if w is not None))
+
     def to_json(self) -> dict[str, Any]:
         """The plan.json content (``inf`` → ``null``)."""
         doc = self.document
@@ -264,13 +294,13 @@ class PlanResult:
                     ],
                     "cdf": self.cdf(cr.best_metric),
                     **({"beams": self.beams[best_lay].to_json()} if best_lay in self.beams else {}),
+                    "random_codebook": cr.random_codebook,
                 }
             )
         top.sort(key=lambda t: (t[0], t[1], t[2]))
         near = ~self.cache.far_field
         return {
             "dropped_points": dict(self.dropped_points or {"tx": 0, "rx": 0}),
-            "warnings": list(self.warnings or []),
             "objective": doc.objective.model_dump(),
             "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
             "layouts": [stats_of[lay] for _, _, lay in top],
@@ -291,6 +321,7 @@ class PlanResult:
             "points": points_json(self),
             "heatmap": heatmap_json(self),
             "timing_s": self.timing,
+            "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
         }
 
@@ -373,7 +404,12 @@ def run_plan(
     warnings = serve_warnings(sites, visibility.present, pairs.weights)
     t_vis = time.perf_counter() - t_vis
     cache = build_site_cache(
-        doc.system, sites, pairs, lambda f, m: progress(0.2 * f, f"cache: {m}"), visibility
+        doc.system,
+        sites,
+        pairs,
+        lambda f, m: progress(0.2 * f, f"cache: {m}"),
+        visibility,
+        known=tuple(doc.known),
     )
     t_cache = time.perf_counter() - t0
     scorer = Scorer(
@@ -404,7 +440,16 @@ def run_plan(
         if own:
             ex.close()
     t_search = time.perf_counter() - t0 - t_cache
-    timing = {"cache": t_cache, "search": t_search, "visibility": t_vis}
+    t1 = time.perf_counter()
+    mirror = directions == "mirror"
+    for cr in counts:
+        cr.random_codebook = random_codebook_objective(doc, sites, pairs, cr.ranked[0][0], mirror)
+    timing = {
+        "cache": t_cache,
+        "search": t_search,
+        "visibility": t_vis,
+        "random_codebook": time.perf_counter() - t1,
+    }
     result = PlanResult(
         doc, sites, tx_map, rx_map, pairs, scorer, counts, timing, scene, dropped, warnings
     )
@@ -477,3 +522,37 @@ def plan_beams(
             progress=on_layout,
         )
     return out
+
+
+def random_codebook_objective(
+    doc: PlanDocument,
+    sites: list[Site],
+    pairs: PairSet,
+    layout: Layout,
+    mirror: bool = False,
+    seeds: int = RANDOM_CODEBOOK_SEEDS,
+) -> dict[str, Any]:
+    """The objective of ``layout`` re-evaluated with ``random`` codebooks (seeds 0 … seeds−1):
+    ``{"seeds", "pairs", "expected", "mean", "min", "max"}`` (``null`` for an infinite value;
+    ``expected`` is the expected-random objective on the same pairs)."""
+    tx, rx, w = pairs.tx, pairs.rx, pairs.weights
+    if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
+        pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
+        tx, rx = tx[pick], rx[pick]
+        w = np.full(pick.size, 1.0 / pick.size)
+    base = layout_scenario(doc.system, [sites[s].ris for s in layout], doc.known, doc.environment)
+    values = []
+    for seed in range(-1, seeds):
+        scenario = (
+            base if seed < 0 else base.model_copy(update={"codebook": RandomCodebook(seed=seed)})
+        )
+        values.append(objective_on_pairs(scenario, tx, rx, w, doc.objective, mirror))
+    v = np.array(values[1:])
+    return {
+        "seeds": seeds,
+        "pairs": int(tx.shape[0]),
+        "expected": _num(values[0]),
+        "mean": _num(float(v.mean())),
+        "min": _num(float(v.min())),
+        "max": _num(float(v.max())),
+    }

@@ -12,7 +12,11 @@ With an environment (:mod:`ris_planner.planning.visibility`) a site's matrix is 
 pairs it cannot serve and the LOS matrix zero where the LOS leg is blocked – adding an exact
 zero is removing the path – and ``present`` / ``los_present`` let the scorer count each pair's
 geometric channel parameters per layout (DESIGN.md: fewer than the unknown states is ``inf``).
-The RIS pattern factor (cos θ_T cos θ_R)^q multiplies |ρ_ℓ|, so the 7×7 scales by its square.
+The RIS pattern factor (cos θ_T cos θ_R)^q is in the path gain
+(:func:`ris_planner.bounds.ris_path_gain`).
+The cache also holds each path's square-root rows (:func:`ris_planner.crb.path_factor`), from
+which the scorer recomputes the few ill-conditioned (layout, pair) combinations
+(:func:`ris_planner.crb.crb_diagonal`).
 """
 
 from __future__ import annotations
@@ -23,14 +27,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import fim
-from ris_planner.bounds import los_path_information, ris_path_information, stand_ins, ue_on_ris
-from ris_planner.environment import pattern_factor
+from ris_planner.bounds import (
+    PathInfo,
+    los_path_information,
+    los_referenced,
+    ris_path_information,
+    stand_ins,
+    ue_on_ris,
+    uses_los_reference,
+)
 from ris_planner.ldl import pack
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.planning.visibility import Visibility
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import SystemParams
+from ris_planner.scenario import KnownPart, SystemParams, Wavefront
 
 FloatArray = NDArray[np.float64]
 
@@ -45,13 +56,22 @@ class SiteCache:
     degenerate : [S, P] a UE within 1 mm of the site (the pair is a blind spot there);
     far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3), or the path
     is absent;
-    present : [S, P] the site's RIS path exists (``None``: free space, every path does);
-    los_present : [P] the LOS path exists (``None``: free space or no LOS)."""
+    factor : [S, P, m, 7] square-root rows of each site's RIS path (F_site = factorᵀ factor;
+    m = 3 planar, 7 spherical), zero where the path is absent;
+    los_factor : [P, 1, 7] the LOS path's (``None`` when the system has no LOS);
+    los_referenced : the states are [p_T, p_R, B + d_TR] (:func:`ris_planner.bounds.
+    los_referenced`, used with the LOS and an unknown clock, as ``compute_bounds`` does);
+    present : [S, P] the site's RIS path exists (``None``: every path does);
+    los_present : [P] the LOS path exists (``None``: every pair's does, or no LOS)."""
 
     packed: FloatArray
     los: FloatArray | None
     degenerate: NDArray[np.bool_]
     far_field: NDArray[np.bool_]
+    factor: FloatArray
+    los_factor: FloatArray | None
+    los_referenced: bool = False
+    wavefront: Wavefront = "planar"
     present: NDArray[np.bool_] | None = None
     los_present: NDArray[np.bool_] | None = None
 
@@ -69,48 +89,68 @@ def mask_absent(packed: FloatArray, present: NDArray[np.bool_]) -> None:
     packed[:, ~present] = 0.0
 
 
-def apply_pattern(packed: FloatArray, factor: FloatArray) -> None:
-    """Scale packed information [28, P] by the pattern factor squared (|ρ|² ∝ factor², [P])."""
-    packed *= factor * factor
-
-
 def build_site_cache(
     system: SystemParams,
     sites: list[Site],
     pairs: PairSet,
     progress: ProgressCallback = no_progress,
     visibility: Visibility | None = None,
+    *,
+    known: list[KnownPart] | tuple[KnownPart, ...] = (),
 ) -> SiteCache:
-    """LOS once and every candidate RIS path once, each as packed 7×7 information per pair;
-    with ``visibility`` absent paths carry zero information."""
+    """LOS once and every candidate RIS path once, each as packed 7×7 information per pair
+    (on the coordinates ``compute_bounds`` uses for ``known``, see :class:`SiteCache`); with
+    ``visibility`` absent paths carry zero information."""
     radio = fim.Radio.from_system(system)
     g = system.transmissions
     ones = np.ones(g)  # Γ·G̃ = G: with Γ = 1 and G̃ = G the weights sum to the same G
     tx, rx = pairs.tx, pairs.rx
-    los = None
+    los = los_factor = None
+    referenced = uses_los_reference(system.los, known)
+
+    def on_states(info: PathInfo) -> PathInfo:
+        return los_referenced([los_info, info])[0][1] if referenced else info
+
     if system.los:
-        los = pack(los_path_information(tx, rx, radio, float(g)).state_information())
+        los_info = los_path_information(tx, rx, radio, float(g))
+        los_states = los_referenced([los_info])[0][0] if referenced else los_info
+        los, los_factor = pack(los_states.state_information()), los_states.factor()
         if visibility is not None and visibility.los is not None:
             mask_absent(los, visibility.los)
+            los_factor[~visibility.los] = 0.0
     packed = np.empty((N_PACKED, len(sites), pairs.size))
+    m = 7 if system.wavefront == "spherical" else 3
+    factor = np.empty((len(sites), pairs.size, m, N_STATES))
     degenerate = np.zeros((len(sites), pairs.size), dtype=bool)
     far = np.zeros((len(sites), pairs.size), dtype=bool)
     for s, site in enumerate(sites):
         bad = ue_on_ris(tx, rx, site.ris.position)
         t, r = stand_ins(tx, rx, bad)  # as compute_bounds: bounds of these pairs become inf
-        q = site.ris.pattern_exponent
-        # the isotropic path (q = 0), then the pattern factor here, in one place
-        iso = site.ris if q == 0.0 else site.ris.model_copy(update={"pattern_exponent": 0.0})
-        info, far[s] = ris_path_information(iso, t, r, radio, None, 1, ones)
+        # the gain carries the pattern factor (bounds.ris_path_gain), as in compute_bounds
+        info, far[s] = ris_path_information(
+            site.ris, t, r, radio, None, 1, ones, wavefront=system.wavefront
+        )
+        info = on_states(info)
         packed[:, s] = pack(info.state_information())
-        if q != 0.0:
-            apply_pattern(packed[:, s], pattern_factor(site.ris, t, r))
+        factor[s] = info.factor()
         if visibility is not None:
             mask_absent(packed[:, s], visibility.present[s])
+            factor[s][~visibility.present[s]] = 0.0
             far[s] |= ~visibility.present[s]  # an absent path has no near-field issue
         degenerate[s] = bad
         far[s] &= ~bad
         progress((s + 1) / len(sites), f"site {s + 1}/{len(sites)}")
-    if visibility is None:
-        return SiteCache(packed, los, degenerate, far)
-    return SiteCache(packed, los, degenerate, far, visibility.present, visibility.los)
+    present = None if visibility is None else visibility.present
+    los_present = None if visibility is None else visibility.los
+    return SiteCache(
+        packed,
+        los,
+        degenerate,
+        far,
+        factor,
+        los_factor,
+        referenced,
+        system.wavefront,
+        present,
+        los_present,
+    )

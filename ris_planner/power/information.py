@@ -21,8 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import beams, bounds, codebooks, fim, geometry
-from ris_planner.environment import Scene, path_presence, pattern_factor
+from ris_planner import beams, bounds, codebooks, fim, geometry, spherical
 from ris_planner.scenario import KnownPart, Scenario
 
 FloatArray = NDArray[np.float64]
@@ -125,9 +124,7 @@ def _beam_information(
     n_ris = len(scenario.ris)
     # paths that exist per position (DESIGN.md environment rules): a missing path carries no
     # information, exactly as in compute_bounds; the pattern factor scales each RIS gain
-    present = path_presence(
-        Scene.from_environment(scenario.environment), list(scenario.ris), tx, rx, system.los
-    )
+    present = bounds.scenario_path_presence(scenario, tx, rx)
     gamma = codebooks.block_count(system.transmissions, n_ris)
     n_paths = n_ris + (1 if system.los else 0)
     n_full = 7 + 2 * n_paths
@@ -153,14 +150,22 @@ def _beam_information(
     for i, (ris, prof) in enumerate(zip(scenario.ris, profiles, strict=True)):
         pos = beams.ris_element_positions(ris, radio.wavelength)
         geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
-        gain = geo.gain(radio.wavelength) * pattern_factor(ris, tx, rx)
-        # [P, G̃, 3] t_g = ω_gᵀ [∂a/∂ξ, ∂a/∂ζ, a]; per-beam Gram Γ·conj(t_g) t_gᵀ
-        tv = fim.transmission_vectors(prof, pos, geo.xi, geo.zeta, radio.wavelength)
+        gain = bounds.ris_path_gain(ris, geo, tx, rx, radio.wavelength)
+        if system.wavefront == "spherical":
+            # [P, G̃, 7] t_g = ω_gᵀ [∂a/∂p_T, ∂a/∂p_R, a] (ris_planner.spherical)
+            tv = spherical.transmission_vectors(prof, tx, rx, ris, radio.wavelength)
+            jac = spherical.jacobian(geo)
+        else:
+            # [P, G̃, 3] t_g = ω_gᵀ [∂a/∂ξ, ∂a/∂ζ, a]
+            tv = fim.transmission_vectors(prof, pos, geo.xi, geo.zeta, radio.wavelength)
+            jac = geo.jacobian()
+        m = tv.shape[-1]
+        # per-beam Gram Γ·conj(t_g) t_gᵀ: the path's block is linear in each beam's power
         q = gamma * np.conj(tv)[..., :, None] * tv[..., None, :]
-        block5 = fim.ris_path_fim(q.reshape(-1, 3, 3), np.repeat(gain, g_tilde), radio).reshape(
-            n_pos, g_tilde, 5, 5
+        block5 = fim.ris_path_fim(q.reshape(-1, m, m), np.repeat(gain, g_tilde), radio).reshape(
+            n_pos, g_tilde, m + 2, m + 2
         )
-        t = _path_map(geo.jacobian(), col, n_full)
+        t = _path_map(jac, col, n_full)
         contribution = np.einsum("pai,pgab,pbj->pgij", t, block5, t, optimize=True)
         stack += np.where(present[f"ris{i + 1}"][:, None, None, None], contribution, 0.0)
         _decouple_absent_gains(stack, ~present[f"ris{i + 1}"], col, beams_total)

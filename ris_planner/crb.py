@@ -1,0 +1,192 @@
+"""Numerically sound CRB of the state [p_T, p_R, B] from per-path information (DESIGN.md,
+"Numerical accuracy of the bounds").
+
+Every path ℓ gives an equivalent FIM Ĩ_ℓ [m, m] on its channel parameters and a Jacobian
+J_ℓ [m, 7] (eq. crb_sidelink), so F = Σ_ℓ J_ℓᵀ Ĩ_ℓ J_ℓ. With Ĩ_ℓ = L_ℓ L_ℓᵀ the rows
+A_ℓ = L_ℓᵀ J_ℓ are a square-root factor: F = AᵀA for the stack A of all paths' rows
+[P, n_obs, 7]. Forming F squares the condition number; working on A does not.
+
+The route (one rule for ``compute_bounds`` and the planning scorer, so both give the same
+numbers bit for bit):
+
+1. Fast path: batched LDLᵀ of the symmetrically scaled F (:mod:`ris_planner.ldl`), which is
+   accurate to ~ε·cond(F̂). Kept where trace(F̂⁻¹) ≤ :data:`FAST_TRACE_LIMIT` (F̂ = F scaled to
+   unit diagonal; cond(F̂) ≤ 7·trace(F̂⁻¹) since λ_max(F̂) ≤ 7).
+2. Everything else (near-singular or singular pairs): SVD of the column-scaled factor
+   Â = A·diag(1/‖A_:,j‖) restricted to the unknown states, Â = U Σ Vᵀ. Singular values with
+   σ_j ≤ :data:`SINGULAR_SV_RTOL`·σ_max span the numerical null space. A state i is
+   identifiable when its leak into the null space, ‖V[i, null]‖, is ≤ :data:`NULL_LEAK_TOL`;
+   its bound is then (F⁻)_ii = Σ_{j kept} V_ij²/σ_j² / ‖A_:,i‖² (the pseudo-inverse is a
+   generalised inverse of F, and every generalised inverse gives the CRB of an estimable
+   state). A non-identifiable state is ``inf``. So a null direction that involves only the
+   clock or the TX does not hide a determined PEB_R.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner import ldl
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int_]
+
+FAST_TRACE_LIMIT = 1e8
+"""The LDLᵀ of F is used when trace(F̂⁻¹) ≤ this. Rounding F̂'s entries (sums of PSD terms,
+each |F̂_ij| ≤ 1) perturbs a CRB entry by at most λ_max(F̂⁻¹)·‖δF̂‖ ≤ trace(F̂⁻¹)·‖δF̂‖;
+measured against the square-root route on 10 000 layout-pairs of the planning benchmark
+(plain coordinates, ``examples/crb_accuracy.py``) the relative error of PEB_R stayed
+≤ 3.7e-16·trace(F̂⁻¹), i.e. ≤ 4e-8 at the limit: inside the contract's 1e-6 with a factor
+25 margin. Above it the square-root route decides."""
+
+SINGULAR_SV_RTOL = 1e-9
+"""A singular value of the column-scaled square-root factor Â with σ ≤ this · σ_max belongs to
+the null space (the state information is singular there). Float64 perturbations of Â of
+~ε·σ_max move σ_min by that much, so a kept σ ≥ 1e-9·σ_max carries ≤ 2.2e-7 relative error,
+and the CRB (∝ 1/σ²) ≤ ~5e-7: reported bounds stay within 1e-6. The threshold is cond(F̂)
+= 1e18 in the squared form; an exactly singular layout has σ_min ~ 1e-16·σ_max."""
+
+NULL_LEAK_TOL = 1e-6
+"""A state is identifiable when its component in the numerical null space, ‖V[i, null]‖, is
+≤ this. Float64 null vectors are accurate to ~ε·σ_max/σ_gap ≤ 2.2e-7 when the kept singular
+values are ≥ SINGULAR_SV_RTOL·σ_max, so an exactly orthogonal state reads ≤ 2.2e-7."""
+
+
+def path_factor(efim: FloatArray, jacobian: FloatArray) -> FloatArray:
+    """Square-root rows L_ℓᵀ J_ℓ of one path's contribution J_ℓᵀ Ĩ_ℓ J_ℓ, [P, m, 7].
+
+    efim : [P, m, m] symmetric positive semidefinite (Ĩ_ℓ = V diag(w) Vᵀ, L = V diag(√w));
+    jacobian : [P, m, 7]. Negative rounding eigenvalues are clipped to 0.
+    """
+    if efim.shape[-1] == 1:
+        # [P, 1, 7]
+        return np.asarray(np.sqrt(np.clip(efim, 0.0, None)) * jacobian)
+    w, v = np.linalg.eigh(efim)
+    # [P, m, m] rows √w_k v_kᵀ
+    lt = np.sqrt(np.clip(w, 0.0, None))[:, :, None] * v.transpose(0, 2, 1)
+    return np.asarray(lt @ jacobian)
+
+
+def stack_factors(factors: list[FloatArray], present: BoolArray | None = None) -> FloatArray:
+    """The stacked square-root factor A [P, n_obs, 7] of the paths' rows [P, m_ℓ, 7], in path
+    order; ``present`` [P, n_paths] zeroes the rows of a path missing for a pair."""
+    if present is not None:
+        factors = [f * present[:, k, None, None] for k, f in enumerate(factors)]
+    return np.concatenate(factors, axis=1)
+
+
+class _SqrtSVD(NamedTuple):
+    """SVD of the column-scaled square-root factor (module docstring)."""
+
+    scale: FloatArray  # [N, k] ‖A_:,i‖ (zeros replaced by 1)
+    zero: BoolArray  # [N, k] states with no information at all
+    inv_s2: FloatArray  # [N, k] 1/σ_j² on the kept singular values, 0 on the null space
+    null: BoolArray  # [N, k] null-space singular values
+    vt: FloatArray  # [N, k, k] Vᵀ
+
+
+def _sqrt_svd(a: FloatArray) -> _SqrtSVD:
+    n, r, k = a.shape
+    if r < k:  # pad with zero rows so the SVD returns the full V
+        a = np.concatenate([a, np.zeros((n, k - r, k))], axis=1)
+    # [N, k] column norms = sqrt(F_ii)
+    scale = np.sqrt(np.einsum("nrk,nrk->nk", a, a))
+    zero = ~(scale > 0.0)
+    safe = np.where(zero, 1.0, scale)
+    _, s, vt = np.linalg.svd(a / safe[:, None, :], full_matrices=False)
+    # [N, k]: null-space singular values (all of them when Â = 0)
+    null = s <= SINGULAR_SV_RTOL * s[:, :1]
+    null |= ~(s[:, :1] > 0.0)
+    inv_s2 = np.zeros_like(s)
+    np.divide(1.0, np.square(s, where=~null, out=np.ones_like(s)), where=~null, out=inv_s2)
+    return _SqrtSVD(safe, zero, inv_s2, null, vt)
+
+
+def sqrt_crb_diagonal(a: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """diag of the CRB from square-root factors a [N, r, k] (F = aᵀa on k states).
+
+    Returns (diag [N, k], ``inf`` for states that are not identifiable; rank_deficient [N],
+    the pairs whose information has a numerical null space). See the module docstring.
+    """
+    d = _sqrt_svd(a)
+    v2 = np.square(d.vt)  # [N, j, i] = V_ij²
+    diag = np.einsum("nj,nji->ni", d.inv_s2, v2) / np.square(d.scale)
+    leak = np.einsum("nj,nji->ni", d.null.astype(float), v2)
+    ident = (leak <= NULL_LEAK_TOL**2) & ~d.zero
+    diag[~ident] = np.inf
+    return diag, np.asarray(np.any(d.null, axis=1))
+
+
+def sqrt_crb_quadratic(a: FloatArray, w: FloatArray) -> FloatArray:
+    """wᵀ F⁻ w [N] for square-root factors a [N, r, k] and combinations w [N, k] of the
+    states (the CRB of wᵀs); ``inf`` where wᵀs is not identifiable (its normalised leak into
+    the null space exceeds :data:`NULL_LEAK_TOL`, or it involves a state with no information).
+    """
+    d = _sqrt_svd(a)
+    # [N, j] components of the scaled combination along V's columns
+    c = np.einsum("nji,ni->nj", d.vt, w / d.scale)
+    out = np.einsum("nj,nj->n", d.inv_s2, np.square(c))
+    norm2 = np.einsum("nj,nj->n", c, c)
+    leak = np.einsum("nj,nj->n", d.null.astype(float), np.square(c))
+    bad = ~(leak <= NULL_LEAK_TOL**2 * norm2) | np.any(d.zero & (w != 0.0), axis=1)
+    out[bad] = np.inf
+    return np.asarray(out)
+
+
+def _trace_scaled_inverse(f_packed: FloatArray, n: int, diag: FloatArray) -> FloatArray:
+    """[N] trace(F̂⁻¹) = Σ_i (F⁻¹)_ii F_ii; ``inf`` or NaN where the LDLᵀ declared F singular
+    (its diagonal is ``inf`` there), which the callers' ``~(trace <= limit)`` sends on."""
+    idx = ldl.packed_index(n)
+    with np.errstate(invalid="ignore"):  # inf · 0 on singular pairs
+        trace = diag[0] * f_packed[idx[0, 0]]
+        tmp = np.empty_like(trace)
+        for i in range(1, n):
+            np.multiply(diag[i], f_packed[idx[i, i]], out=tmp)
+            trace += tmp
+    return np.asarray(trace)
+
+
+def crb_diagonal(
+    f_packed: FloatArray, n: int, factor_rows: Callable[[IntArray], FloatArray]
+) -> tuple[FloatArray, BoolArray]:
+    """diag of the CRB of N state FIMs on n unknown states, batch last (the hybrid route of
+    the module docstring).
+
+    f_packed : [n(n+1)/2, N] packed F restricted to the unknown states (:func:`ldl.pack`);
+    factor_rows(idx) : the square-root factors [len(idx), r, n] of the pairs idx (called
+    once, for the pairs the fast path does not settle). Returns (diag [n, N] with ``inf`` for
+    non-identifiable states, rank_deficient [N]).
+    """
+    diag, singular = ldl.inverse_diagonal_from(f_packed, n, 0)
+    trace = _trace_scaled_inverse(f_packed, n, diag)
+    slow = np.flatnonzero(singular | ~(trace <= FAST_TRACE_LIMIT))
+    rank_deficient = np.zeros(f_packed.shape[1], dtype=bool)
+    if slow.size:
+        d_slow, rank_deficient[slow] = sqrt_crb_diagonal(factor_rows(slow))
+        diag[:, slow] = d_slow.T
+    return diag, rank_deficient
+
+
+def crb_quadratic(
+    f_packed: FloatArray, n: int, factor_rows: Callable[[IntArray], FloatArray], w: FloatArray
+) -> FloatArray:
+    """wᵀ F⁻¹ w [N] for combinations w [N, n] of the states, by the same hybrid route as
+    :func:`crb_diagonal` (``inf`` where wᵀs is not identifiable)."""
+    inv, singular = ldl.inverse_from(f_packed, n)
+    idx = ldl.packed_index(n)
+    diag = np.stack([inv[idx[i, i]] for i in range(n)])
+    trace = _trace_scaled_inverse(f_packed, n, diag)
+    out = np.zeros(f_packed.shape[1])
+    ok = ~singular
+    for i in range(n):
+        for j in range(n):
+            out[ok] += w[ok, i] * inv[idx[i, j]][ok] * w[ok, j]
+    slow = np.flatnonzero(singular | ~(trace <= FAST_TRACE_LIMIT))
+    if slow.size:
+        out[slow] = sqrt_crb_quadratic(factor_rows(slow), w[slow])
+    return out
