@@ -98,7 +98,7 @@ class BoundsResponse(BaseModel):
     paths_present: dict[str, bool] | dict[str, list[bool]] = Field(
         description="Per path ('los', 'ris1', …) whether it exists for the pair: LOS iff"
         " system.los and the TX–RX leg is clear; a RIS path iff both legs are clear and both"
-        " UEs are in its field of view (always true without environment)"
+        " UEs are in its field of view (max_angle_deg; no leg is blocked without environment)"
     )
     far_field: bool | list[bool] = Field(
         description="Whether every RIS is in the far field of the pair (footnote 3)"
@@ -109,6 +109,15 @@ class BoundsResponse(BaseModel):
     known: list[KnownPart] = Field(description="State parts treated as known")
     peb_tx_reason: str | None = Field(None, description="Why peb_tx_m is null (TX known)")
     ceb_reason: str | None = Field(None, description="Why ceb_m is null (clock known)")
+    channel_reason: str | None = Field(
+        None, description="Why the channel bounds are null (defined for the planar model only)"
+    )
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="Modelling assumptions that may mislead: expected-random optimism at small"
+        " G/Γ, element spacing above λ/2 (grating lobes), far-field pairs a minority (advice:"
+        " system.wavefront = 'spherical')",
+    )
 
 
 class JobSummary(BaseModel):
