@@ -44,8 +44,13 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
-        with server_lock(current.db):  # refuses a second server on this database
-            store = JobStore(current.db)
+        with server_lock(current.db):  # refuses a second server on this database file
+            store = JobStore(
+                current.db,
+                recreate=True,
+                busy_timeout_s=current.db_busy_timeout_s,
+                retry_s=current.db_retry_s,
+            )
             runner = JobRunner(
                 store, current.figures_dir, job_kinds, current.workers, current.blas_threads
             )

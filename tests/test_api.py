@@ -234,7 +234,9 @@ def test_health_reports_database_failure_as_503(tmp_path: Path) -> None:
     with api_client(tmp_path) as client:
         client.app.state.store.path = tmp_path  # a folder: SQLite cannot open it
         r = client.get("/healthz")
-    assert r.status_code == 503 and r.json()["status"].startswith("database error")
+    body = r.json()
+    assert r.status_code == 503 and body["status"] == "unavailable"
+    assert body["reason"].startswith("the job database does not answer")
 
 
 def test_settings_from_environment_and_bad_values(

@@ -32,7 +32,7 @@ def submit_job(
 ) -> JSONResponse:
     """Store a queued job, hand it to the runner, answer 202 with its view and Location."""
     job = store.create(kind, document)
-    runner.submit(job.id)
+    runner.submit(job.id, kind)
     view = JobView.of(job)
     return JSONResponse(
         view.model_dump(mode="json"), status_code=202, headers={"Location": view.url}

@@ -11,8 +11,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.bounds import compute_bounds
-from ris_planner.errors import LimitExceededError, RisPlannerError
-from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
+from ris_planner.errors import LimitExceededError
+from ris_planner.limits import HEATMAP_MAX_PAIRS, MAX_CACHE_ENTRIES
+from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import PairSet, PointMap, build_map, build_pairs
 from ris_planner.planning.objectives import (
@@ -32,9 +33,6 @@ FloatArray = NDArray[np.float64]
 
 REPORT_QUANTILES = (0.5, 0.9, 0.95)
 CDF_POINTS = 101
-HEATMAP_MAX_PAIRS = 200_000
-"""TX–RX pairs the heatmap evaluates (about a second with expected_random): beyond it each RX
-point is evaluated against a seeded weighted sample of the TX map."""
 
 
 def _fraction(weights: FloatArray, mask: NDArray[np.bool_]) -> float:
@@ -104,15 +102,17 @@ class PlanResult:
     def heatmap(self) -> tuple[FloatArray, FloatArray, Layout]:
         """(RX points [M, 3], bound [M], layout) for the best layout of the largest count.
 
-        Each RX map point is evaluated against the whole TX map (a seeded weighted sample of it
-        when the product exceeds :data:`HEATMAP_MAX_PAIRS`) or against the document's fixed
+        Each RX map point (a seeded sample of :data:`HEATMAP_MAX_PAIRS` of them for a larger
+        map, :func:`heatmap_rx_points`) is evaluated against the whole TX map (a seeded
+        weighted sample of it when the product exceeds :data:`HEATMAP_MAX_PAIRS`) or against
+        the document's fixed
         ``heatmap_tx``, whatever pairs the plan itself used, so every point of the map gets a
         value from the same TX population; the value is the weighted median over TX (a mean is
         undefined where some bounds are infinite). NaN where no TX point differs from the RX
         point."""
         layout = self.counts[-1].ranked[0][0]
         doc = self.document
-        pts = self.rx_map.points
+        pts = heatmap_rx_points(self.rx_map.points)
         if doc.heatmap_tx is not None:
             tx_pts, tx_w = np.asarray(doc.heatmap_tx, dtype=float)[None], np.ones(1)
         else:
@@ -200,6 +200,16 @@ class PlanResult:
         }
 
 
+def heatmap_rx_points(points: FloatArray) -> FloatArray:
+    """The RX points the heatmap evaluates: all of them up to :data:`HEATMAP_MAX_PAIRS`, else a
+    seeded uniform sample of that many (map order kept), so the heatmap's pairs never exceed
+    the limit whatever the map's size."""
+    if len(points) <= HEATMAP_MAX_PAIRS:
+        return points
+    pick = np.sort(np.random.default_rng(0).choice(len(points), HEATMAP_MAX_PAIRS, replace=False))
+    return points[pick]
+
+
 def run_plan(
     document: PlanDocument | dict[str, Any],
     progress: ProgressCallback = no_progress,
@@ -207,13 +217,11 @@ def run_plan(
 ) -> PlanResult:
     """Run a plan document: build maps and pairs, cache every site's information, search each
     RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
-    doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
+    from ris_planner.validation import validate_plan
+
+    doc = validate_plan(document)  # the CLI's and the service's checks, sizes before work
     t0 = time.perf_counter()
     sites = expand_sites(doc)
-    if max(doc.ris_count) > len(sites):
-        raise RisPlannerError(
-            f"ris_count {max(doc.ris_count)} exceeds the {len(sites)} candidate sites"
-        )
     tx_map = build_map(doc.tx_map, "tx_map")
     rx_map = build_map(doc.rx_map, "rx_map")
     pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs)
