@@ -28,7 +28,7 @@ from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from ris_planner.errors import LimitExceededError
+from ris_planner.errors import DocumentFieldError, LimitExceededError
 
 log = logging.getLogger("api")
 
@@ -143,7 +143,12 @@ async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
 
 
 async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
-    return error_response(422, "invalid_input", str(exc))
+    fields: list[FieldError] = []
+    if isinstance(exc, DocumentFieldError):
+        fields = [
+            FieldError(location="body", field=exc.field, message=exc.reason, type="value_error")
+        ]
+    return error_response(422, "invalid_input", str(exc), fields)
 
 
 async def _on_not_found(request: Request, exc: Exception) -> JSONResponse:

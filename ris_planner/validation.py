@@ -19,10 +19,8 @@ from ris_planner.limits import (
     plan_sites,
 )
 from ris_planner.planning.document import PlanDocument
+from ris_planner.power.options import OBJECTIVES
 from ris_planner.scenario import ExpectedRandomCodebook, Scenario, load_scenario
-
-POWER_OBJECTIVES = ("rx", "tx", "sum")
-"""The power objectives (``ris_planner.power.options.OBJECTIVES``, without importing cvxpy)."""
 
 
 def _budget(memory_mb: int | None) -> int:
@@ -66,10 +64,10 @@ def validate_power(
 
 def power_check(sc: Scenario, objective: str, memory_mb: int | None = None) -> Sizes:
     """The power rules of a validated scenario; its sizes."""
-    if objective not in POWER_OBJECTIVES:
+    if objective not in OBJECTIVES:
         raise DocumentFieldError(
             "objective",
-            f"objective must be one of {', '.join(POWER_OBJECTIVES)}, got {objective!r}",
+            f"objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}",
         )
     if isinstance(sc.codebook, ExpectedRandomCodebook):
         raise DocumentFieldError(

@@ -17,6 +17,7 @@ from api.store import JobStore
 from api.worker import JobRunner
 from ris_planner.power.options import Objective, Solver
 from ris_planner.scenario import Scenario
+from ris_planner.validation import power_check
 
 router = APIRouter(tags=["jobs"])
 
@@ -47,8 +48,10 @@ def post_power(
 ) -> JSONResponse:
     """202 with the queued job; its result is the JSON of ``ris-planner power`` (uniform power,
     the best γ_P for DIR+DER codebooks, the SDP allocation, each objective re-evaluated by the
-    bounds code). Engine or solver failures end the job as failed with a message."""
+    bounds code). The checks of ``ris-planner power`` run here (422 naming the field, 413 naming
+    the limit); engine or solver failures end the job as failed with a message."""
     check_scenario_size(scenario, settings)
+    power_check(scenario, objective, settings.job_memory_mb)  # ris-planner power's checks
     document = {
         "scenario": scenario.model_dump(mode="json"),
         "objective": objective,
