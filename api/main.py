@@ -15,10 +15,15 @@ from fastapi import Depends, FastAPI
 from threadpoolctl import threadpool_limits
 
 from api.deps import require_api_key
-from api.errors import V1_ERROR_RESPONSES, BodyLimitMiddleware, install_error_handlers
+from api.errors import (
+    V1_ERROR_RESPONSES,
+    ApiKeyMiddleware,
+    BodyLimitMiddleware,
+    install_error_handlers,
+)
 from api.kinds import JOB_KINDS
 from api.routes import bounds, jobs, meta, plans, power
-from api.settings import Settings
+from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
 
@@ -70,10 +75,13 @@ def create_app(
         version=version("ris_planner"),
         description=DESCRIPTION,
         lifespan=lifespan,
+        redirect_slashes=False,  # a redirect would echo the request's (untrusted) Host
     )
     app.state.settings = settings
     install_error_handlers(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    key = None if settings.api_key is None else settings.api_key.get_secret_value()
+    app.add_middleware(ApiKeyMiddleware, key=key, header=API_KEY_HEADER)  # outermost: first
     app.include_router(meta.health_router)
     v1 = [Depends(require_api_key)]
     for router in (bounds.router, plans.router, power.router, jobs.router, meta.router):

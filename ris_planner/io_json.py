@@ -49,19 +49,26 @@ def check_depth(value: Any, what: str = "document") -> None:
         raise RisPlannerError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels")
 
 
-def parse_json_object(text: str | bytes, what: str = "document") -> dict[str, Any]:
-    """A JSON object from text, every failure a one-line :class:`RisPlannerError`."""
+def parse_json(text: str | bytes, what: str = "document") -> Any:
+    """A JSON value from text, nested at most :data:`MAX_JSON_DEPTH` deep; every failure a
+    one-line :class:`RisPlannerError`."""
     try:
-        doc = json.loads(text)
+        value = json.loads(text)
     except json.JSONDecodeError as exc:
         raise RisPlannerError(f"{what}: not valid JSON ({exc})") from None
     except UnicodeDecodeError:
         raise RisPlannerError(f"{what}: not UTF-8 text") from None
     except RecursionError:
         raise RisPlannerError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels") from None
+    check_depth(value, what)
+    return value
+
+
+def parse_json_object(text: str | bytes, what: str = "document") -> dict[str, Any]:
+    """A JSON object from text, every failure a one-line :class:`RisPlannerError`."""
+    doc = parse_json(text, what)
     if not isinstance(doc, dict):
         raise RisPlannerError(f"{what}: the document must be a JSON object")
-    check_depth(doc, what)
     return doc
 
 
