@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 
+from ris_planner.errors import RisPlannerError
+
 
 def run_serve(args: argparse.Namespace) -> int:
     """Start uvicorn with the app of :func:`api.main.create_app` (arguments already checked)."""
@@ -18,5 +20,12 @@ def run_serve(args: argparse.Namespace) -> int:
 
     overrides = {"db": args.db, "workers": args.workers}
     settings = Settings(**{k: v for k, v in overrides.items() if v is not None})
-    uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level)
+    try:
+        uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level)
+    except SystemExit as exc:  # uvicorn's own exit (port in use, lifespan failure): logged above
+        if exc.code not in (0, None):
+            raise RisPlannerError(
+                f"the service could not run on {args.host}:{args.port} (uvicorn exited with"
+                f" {exc.code}; its message is above)"
+            ) from None
     return 0

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ris_planner.cli import int_in
 from ris_planner.errors import RisPlannerError
 
 
@@ -48,5 +49,7 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", choices=PLAN_PRESET_NAMES, help="use a shipped plan instead")
     p.add_argument("--out", default="plan-out", help="output folder (plan.json, PNGs)")
     p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786)")
-    p.add_argument("--workers", type=int, default=None, help="local worker processes")
+    p.add_argument(
+        "--workers", type=int_in(1, 256), default=None, help="local worker processes (1–256)"
+    )
     p.set_defaults(func=_cmd_plan)
