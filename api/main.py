@@ -57,7 +57,12 @@ def create_app(
                 retry_s=current.db_retry_s,
             )
             runner = JobRunner(
-                store, current.figures_dir, job_kinds, current.workers, current.blas_threads
+                store,
+                current.figures_dir,
+                job_kinds,
+                current.workers,
+                current.blas_threads,
+                memory_mb=current.job_memory_mb,
             )
             app.state.store = store
             app.state.runner = runner

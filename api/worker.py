@@ -185,6 +185,24 @@ def staging_dir(figures_dir: Path, job_id: str) -> Path:
     return figures_dir / f".{job_id}.partial"
 
 
+def cap_memory(budget_mb: int) -> None:
+    """Cap this process's address space at its current size plus ``budget_mb`` (Linux
+    ``RLIMIT_AS``): a job that outgrows its budget gets MemoryError (its job fails with "out of
+    memory") instead of pushing the machine into swap or the OOM killer."""
+    try:
+        import resource
+
+        pages = int(Path("/proc/self/statm").read_text().split()[0])
+        current = pages * os.sysconf("SC_PAGE_SIZE")
+        limit = current + (budget_mb << 20)
+        hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+        if hard != resource.RLIM_INFINITY:
+            limit = min(limit, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    except (OSError, ValueError, ImportError):  # not Linux: the size estimate alone guards
+        pass
+
+
 def execute_job(
     db_path: Path,
     figures_dir: Path,
@@ -194,10 +212,13 @@ def execute_job(
     identity: FileIdentity | None = None,
     server_pid: int | None = None,
     store_options: dict[str, float] | None = None,
+    memory_mb: int | None = None,
 ) -> None:
     """Run one job to its end state (the body of a worker process)."""
     _close_inherited_alive_pipe()
     set_parent_death_signal()
+    if memory_mb is not None:
+        cap_memory(memory_mb)
     server = os.getppid() if server_pid is None else server_pid
     threading.Thread(
         target=_exit_when_orphaned, args=(server,), name="orphan-watch", daemon=True
@@ -286,8 +307,10 @@ class JobRunner:
         workers: int,
         blas_threads: int = 1,
         poll_s: float = 0.05,
+        memory_mb: int | None = None,
     ) -> None:
         self.store = store
+        self.memory_mb = memory_mb
         self.figures_dir = figures_dir
         self.kinds = dict(kinds)
         self.workers = workers
@@ -401,6 +424,7 @@ class JobRunner:
                 self.store.identity,
                 os.getpid(),
                 store_options,
+                self.memory_mb,
             ),
             name=f"job-{job_id}",
             daemon=True,
