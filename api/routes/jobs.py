@@ -27,6 +27,26 @@ NOT_FOUND: dict[int | str, dict[str, Any]] = {
 }
 
 
+JOB_LINKS: dict[int | str, dict[str, Any]] = {
+    202: {
+        "description": "The queued job; its URL is in the Location header",
+        "links": {
+            "GetJob": {
+                "operationId": "get_job_v1_jobs__job_id__get",
+                "parameters": {"job_id": "$response.body#/id"},
+                "description": "Status and result of the job",
+            },
+            "CancelJob": {
+                "operationId": "cancel_job_v1_jobs__job_id__delete",
+                "parameters": {"job_id": "$response.body#/id"},
+                "description": "Cancel the job",
+            },
+        },
+    }
+}
+"""OpenAPI links of a 202 job answer (clients and stateful testers follow them)."""
+
+
 def submit_job(
     kind: str, document: dict[str, Any], store: JobStore, runner: JobRunner
 ) -> JSONResponse:

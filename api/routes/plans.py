@@ -10,7 +10,7 @@ from fastapi.responses import JSONResponse
 from api.deps import get_runner, get_settings, get_store
 from api.errors import TOO_LARGE_RESPONSE
 from api.models import JobView, plan_examples
-from api.routes.jobs import submit_job
+from api.routes.jobs import JOB_LINKS, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
@@ -24,7 +24,7 @@ router = APIRouter(tags=["jobs"])
     "/plans",
     status_code=202,
     response_model=JobView,
-    responses=TOO_LARGE_RESPONSE,
+    responses={**TOO_LARGE_RESPONSE, **JOB_LINKS},
     summary="Start a placement-planning job (ris-planner plan)",
 )
 def post_plan(

@@ -11,7 +11,7 @@ from api.deps import get_runner, get_settings, get_store
 from api.errors import TOO_LARGE_RESPONSE
 from api.limits import check_scenario_size
 from api.models import JobView, power_examples
-from api.routes.jobs import submit_job
+from api.routes.jobs import JOB_LINKS, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
@@ -26,7 +26,7 @@ router = APIRouter(tags=["jobs"])
     "/power-allocations",
     status_code=202,
     response_model=JobView,
-    responses=TOO_LARGE_RESPONSE,
+    responses={**TOO_LARGE_RESPONSE, **JOB_LINKS},
     summary="Start a power-allocation job (ris-planner power)",
 )
 def post_power(
