@@ -1,11 +1,18 @@
-"""``ris-planner serve``: run the REST service with uvicorn (127.0.0.1:8000 by default)."""
+"""``ris-planner serve``: run the REST service with uvicorn (127.0.0.1:8000 by default).
+
+The command's arguments are declared in :mod:`ris_planner.cli`, which imports this module only
+when ``serve`` runs (the package never imports the service at import time).
+"""
 
 from __future__ import annotations
 
 import argparse
 
+from ris_planner.errors import RisPlannerError
 
-def _cmd_serve(args: argparse.Namespace) -> int:
+
+def run_serve(args: argparse.Namespace) -> int:
+    """Start uvicorn with the app of :func:`api.main.create_app` (arguments already checked)."""
     import uvicorn
 
     from api.main import create_app
@@ -13,22 +20,12 @@ def _cmd_serve(args: argparse.Namespace) -> int:
 
     overrides = {"db": args.db, "workers": args.workers}
     settings = Settings(**{k: v for k, v in overrides.items() if v is not None})
-    uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level)
+    try:
+        uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level)
+    except SystemExit as exc:  # uvicorn's own exit (port in use, lifespan failure): logged above
+        if exc.code not in (0, None):
+            raise RisPlannerError(
+                f"the service could not run on {args.host}:{args.port} (uvicorn exited with"
+                f" {exc.code}; its message is above)"
+            ) from None
     return 0
-
-
-def add_cli(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "serve",
-        help="run the REST service (settings from RIS_PLANNER_* environment variables)",
-    )
-    p.add_argument("--host", default="127.0.0.1", help="interface to listen on (default 127.0.0.1)")
-    p.add_argument("--port", type=int, default=8000, help="TCP port (default 8000)")
-    p.add_argument("--db", help="SQLite job database (overrides RIS_PLANNER_DB)")
-    p.add_argument(
-        "--workers", type=int, help="job worker processes (overrides RIS_PLANNER_WORKERS)"
-    )
-    p.add_argument(
-        "--log-level", default="info", choices=["critical", "error", "warning", "info", "debug"]
-    )
-    p.set_defaults(func=_cmd_serve)

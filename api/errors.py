@@ -16,6 +16,7 @@ a readable ``message``, the offending ``fields`` (validation) and the ``limit`` 
 
 from __future__ import annotations
 
+import hmac
 import logging
 import uuid
 from collections.abc import Sequence
@@ -26,9 +27,10 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from ris_planner.errors import LimitExceededError
+from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 
 log = logging.getLogger("api")
 
@@ -54,6 +56,10 @@ class ErrorBody(BaseModel):
     limit: int | None = Field(None, description="The limit that was exceeded (413 only)")
 
 
+class MalformedBodyError(RisPlannerError):
+    """A request body that is not a JSON object (→ 400)."""
+
+
 class JobNotFoundError(Exception):
     """No job (or no figure of a job) with this id/name."""
 
@@ -72,6 +78,11 @@ class BodyTooLargeError(StarletteHTTPException):
 
 
 V1_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    400: {
+        "model": ErrorBody,
+        "description": "Malformed request: a body that is not JSON, nested too deeply, or an"
+        " invalid Content-Length",
+    },
     401: {"model": ErrorBody, "description": "Missing or wrong API key (when one is configured)"},
     422: {"model": ErrorBody, "description": "Invalid request; `fields` names each problem"},
 }
@@ -113,10 +124,20 @@ def _field_errors(errors: Sequence[Any], default_location: str = "body") -> list
     return out
 
 
+MAX_FIELD_ERRORS = 50
+"""Validation problems listed in one 422 body (a NaN-filled phase table has thousands)."""
+
+
 def _validation_response(fields: list[FieldError]) -> JSONResponse:
+    if not fields:  # never an empty list: the document as a whole is at fault
+        fields = [
+            FieldError(location="body", field="(document)", message="invalid", type="value_error")
+        ]
     summary = "; ".join(f"{f.field}: {f.message}" for f in fields[:5])
     more = f" (and {len(fields) - 5} more)" if len(fields) > 5 else ""
-    return error_response(422, "validation_error", f"invalid request: {summary}{more}", fields)
+    return error_response(
+        422, "validation_error", f"invalid request: {summary}{more}", fields[:MAX_FIELD_ERRORS]
+    )
 
 
 _HTTP_CODES = {
@@ -134,7 +155,12 @@ _HTTP_CODES = {
 async def _on_validation(request: Request, exc: Exception) -> JSONResponse:
     """Request bodies (FastAPI) and documents validated later (pydantic) alike."""
     assert isinstance(exc, RequestValidationError | ValidationError)
-    return _validation_response(_field_errors(exc.errors()))
+    errors = exc.errors()
+    bad_json = [e for e in errors if e.get("type") == "json_invalid"]
+    if bad_json:  # text that is not JSON: a malformed request, not an invalid document
+        detail = bad_json[0].get("ctx", {}).get("error", "JSON decode error")
+        return error_response(400, "bad_request", f"request body: not valid JSON ({detail})")
+    return _validation_response(_field_errors(errors))
 
 
 async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
@@ -143,7 +169,14 @@ async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
 
 
 async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
-    return error_response(422, "invalid_input", str(exc))
+    """Every 422 names a field: the rule's own field, else the document as a whole."""
+    if isinstance(exc, MalformedBodyError):
+        return error_response(400, "bad_request", str(exc))
+    field, reason = "(document)", str(exc)
+    if isinstance(exc, DocumentFieldError):
+        field, reason = exc.field, exc.reason
+    fields = [FieldError(location="body", field=field, message=reason, type="value_error")]
+    return error_response(422, "invalid_input", str(exc), fields)
 
 
 async def _on_not_found(request: Request, exc: Exception) -> JSONResponse:
@@ -154,15 +187,35 @@ async def _on_conflict(request: Request, exc: Exception) -> JSONResponse:
     return error_response(409, "conflict", str(exc))
 
 
+HTTP_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+def allowed_methods(request: Request) -> list[str]:
+    """Every method some route serves at this request's path (the routes of one path may be
+    separate, e.g. GET and DELETE of a job, and a 405 names them all)."""
+    allowed = []
+    for method in HTTP_METHODS:
+        scope = {**request.scope, "method": method}
+        if any(route.matches(scope)[0] == Match.FULL for route in request.app.router.routes):
+            allowed.append(method)
+    return allowed
+
+
 async def _on_http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     limit = exc.limit if isinstance(exc, BodyTooLargeError) else None
+    headers = dict(exc.headers) if exc.headers else {}
+    message = str(exc.detail)
+    if exc.status_code == 405:
+        allow = allowed_methods(request)
+        headers["Allow"] = ", ".join(allow)
+        message = f"method {request.method} not allowed here; allowed: {', '.join(allow)}"
     return error_response(
         exc.status_code,
         _HTTP_CODES.get(exc.status_code, "http_error"),
-        str(exc.detail),
+        message,
         limit=limit,
-        headers=dict(exc.headers) if exc.headers else None,
+        headers=headers or None,
     )
 
 
@@ -232,3 +285,36 @@ class BodyLimitMiddleware:
             return message
 
         await self.app(scope, limited_receive, send)
+
+
+class ApiKeyMiddleware:
+    """Pure ASGI middleware: with a key configured, a ``/v1`` request without the right
+    ``X-API-Key`` gets 401 before anything reads or parses its body (constant-time compare)."""
+
+    def __init__(self, app: ASGIApp, key: str | None, header: str, prefix: str = "/v1") -> None:
+        self.app = app
+        self.key = None if key is None else key.encode("utf-8")
+        self.header = header.lower().encode("latin-1")
+        self.header_name = header
+        self.prefix = prefix
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        path = scope.get("path", "")
+        if (
+            self.key is None
+            or scope["type"] != "http"
+            or not (path == self.prefix or path.startswith(self.prefix + "/"))
+        ):
+            await self.app(scope, receive, send)
+            return
+        given = next((v for k, v in scope.get("headers", []) if k == self.header), None)
+        if given is None or not hmac.compare_digest(given, self.key):
+            response = error_response(
+                401,
+                "unauthorized",
+                f"missing or wrong API key: send it in the {self.header_name} header",
+                headers={"WWW-Authenticate": "ApiKey"},
+            )
+            await response(scope, receive, send)
+            return
+        await self.app(scope, receive, send)

@@ -15,10 +15,15 @@ from fastapi import Depends, FastAPI
 from threadpoolctl import threadpool_limits
 
 from api.deps import require_api_key
-from api.errors import V1_ERROR_RESPONSES, BodyLimitMiddleware, install_error_handlers
+from api.errors import (
+    V1_ERROR_RESPONSES,
+    ApiKeyMiddleware,
+    BodyLimitMiddleware,
+    install_error_handlers,
+)
 from api.kinds import JOB_KINDS
 from api.routes import bounds, events, jobs, meta, plans, power, web
-from api.settings import Settings
+from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
 
@@ -44,10 +49,20 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
-        with server_lock(current.db):  # refuses a second server on this database
-            store = JobStore(current.db)
+        with server_lock(current.db):  # refuses a second server on this database file
+            store = JobStore(
+                current.db,
+                recreate=True,
+                busy_timeout_s=current.db_busy_timeout_s,
+                retry_s=current.db_retry_s,
+            )
             runner = JobRunner(
-                store, current.figures_dir, job_kinds, current.workers, current.blas_threads
+                store,
+                current.figures_dir,
+                job_kinds,
+                current.workers,
+                current.blas_threads,
+                memory_mb=current.job_memory_mb,
             )
             app.state.store = store
             app.state.runner = runner
@@ -67,10 +82,13 @@ def create_app(
         lifespan=lifespan,
         docs_url=None,  # local Swagger UI and ReDoc assets instead: api.routes.web
         redoc_url=None,
+        redirect_slashes=False,  # a redirect would echo the request's (untrusted) Host
     )
     app.state.settings = settings
     install_error_handlers(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    key = None if settings.api_key is None else settings.api_key.get_secret_value()
+    app.add_middleware(ApiKeyMiddleware, key=key, header=API_KEY_HEADER)  # outermost: first
     app.include_router(meta.health_router)
     web.install_web(app)
     v1 = [Depends(require_api_key)]

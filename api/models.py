@@ -3,7 +3,7 @@ pydantic documents: :class:`ris_planner.scenario.Scenario` and friends)."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -206,7 +206,11 @@ class PresetList(BaseModel):
 class Health(BaseModel):
     """Liveness and queue state."""
 
-    status: str = Field(description="'ok' when the database answers")
+    status: Literal["ok", "degraded", "unavailable"] = Field(
+        description="ok; degraded: a fault happened in the last 5 minutes and the service"
+        " recovered (see reason); unavailable (503): the job database does not answer"
+    )
+    reason: str | None = Field(None, description="Why the service is degraded or unavailable")
     version: str = Field(description="Package version")
     workers: int = Field(ge=1, description="Configured job worker processes")
     running: int = Field(ge=0, description="Worker processes running a job now")

@@ -13,6 +13,9 @@ RIS_PLANNER_MAX_ARRAY_ELEMENTS 20000000                 largest engine array of 
 RIS_PLANNER_MAX_WORK     1000000000                     Σ_ℓ 3·G̃·N_ℓ·pairs; legs × obstacle edges
 RIS_PLANNER_MAX_BODY_BYTES 10000000                     request body limit [bytes]
 RIS_PLANNER_API_KEY      (unset: no authentication)     key required in ``X-API-Key`` on /v1
+RIS_PLANNER_DB_BUSY_TIMEOUT_S 10                        SQLite lock wait per attempt [s]
+RIS_PLANNER_DB_RETRY_S   60                             retries of a failing store call [s]
+RIS_PLANNER_JOB_MEMORY_MB 4096                          memory budget of one job worker [MiB]
 ======================== ============================== =========================================
 """
 
@@ -22,6 +25,8 @@ from pathlib import Path
 
 from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from ris_planner.limits import JOB_MEMORY_MB_DEFAULT
 
 API_KEY_HEADER = "X-API-Key"
 
@@ -63,6 +68,23 @@ class Settings(BaseSettings):
         " (legs × obstacle edges) of a request with an environment",
     )
     max_body_bytes: int = Field(10_000_000, ge=1024, description="Request body limit [bytes]")
+    db_busy_timeout_s: float = Field(
+        10.0, gt=0, le=600, description="SQLite lock wait per attempt [s]"
+    )
+    db_retry_s: float = Field(
+        60.0,
+        ge=0,
+        le=3600,
+        description="How long a store call retries a locked/busy database before the job is"
+        " failed with a message (and /healthz reports degraded) [s]",
+    )
+    job_memory_mb: int = Field(
+        JOB_MEMORY_MB_DEFAULT,
+        ge=64,
+        le=1 << 22,
+        description="Memory budget of one job worker [MiB]: the size estimate of a submitted"
+        " document must fit it (413 otherwise) and the worker's address space is capped at it",
+    )
     api_key: SecretStr | None = Field(None, description="If set, /v1 routes require this key")
 
     @property

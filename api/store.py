@@ -12,17 +12,31 @@ Life cycle: ``queued`` → ``running`` → ``succeeded`` | ``failed``; ``queued`
 could crash again – and ``queued`` jobs are handed back to be run. A graceful shutdown instead
 puts its running jobs back to ``queued`` (:meth:`JobStore.requeue`): they were not at fault and
 run again on the next start.
+
+Faults (README "Fault behaviour"): every call is retried with exponential backoff while SQLite
+reports a transient error (locked, busy, I/O) for up to ``retry_s`` seconds, then raises
+:class:`StoreUnavailableError`. The store remembers the identity (device, inode) of its file:
+a call that finds the file removed or replaced raises :class:`StoreGoneError` – a worker's
+store never creates a file – except in the server's store (``recreate=True``), which creates a
+fresh empty database at the same path, records the fault and tells its listener (the job runner
+fails the jobs that were lost with the old file). One server per database: the server holds an
+exclusive ``flock`` on the database file itself, so two paths to one file (a symlink, ``./x``
+and an absolute path) collide.
 """
 
 from __future__ import annotations
 
 import fcntl
 import json
+import logging
+import os
 import sqlite3
+import threading
+import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -31,6 +45,19 @@ JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 JOB_STATUSES: tuple[JobStatus, ...] = get_args(JobStatus)
 
 INTERRUPTED_MESSAGE = "interrupted: the server stopped while this job was running; submit it again"
+LOST_MESSAGE = (
+    "lost: the job database was removed or replaced while this job was {status}; a new empty"
+    " database was created; submit the job again"
+)
+
+BUSY_TIMEOUT_S = 10.0
+"""SQLite's wait for a lock held by another connection, per attempt."""
+RETRY_S = 60.0
+"""Total time a store call keeps retrying transient errors before it gives up."""
+BACKOFF_S = (0.05, 2.0)
+"""First and largest pause between two attempts (doubling)."""
+
+log = logging.getLogger("api.store")
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS jobs (
@@ -58,25 +85,103 @@ class DatabaseInUseError(RuntimeError):
     """Another server process holds the database's lock."""
 
 
-@contextmanager
-def server_lock(db_path: Path | str) -> Iterator[None]:
-    """Hold ``<db>.lock`` exclusively while a server runs: a second server (e.g. ``uvicorn
-    --workers 2``) on the same database would re-queue and fail the first one's jobs at its
-    start-up, so it is refused. The kernel releases the lock when the process dies."""
-    path = Path(f"{db_path}.lock")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a") as handle:
+class StoreUnavailableError(RuntimeError):
+    """The database did not answer within the retry time (locked, busy, I/O errors)."""
+
+
+class StoreGoneError(StoreUnavailableError):
+    """The database file was removed or replaced since the store opened it."""
+
+
+FileIdentity = tuple[int, int]
+"""(st_dev, st_ino) of a database file."""
+
+
+def file_identity(path: Path) -> FileIdentity | None:
+    """The file's (device, inode), None when it does not exist."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return None
+    return (st.st_dev, st.st_ino)
+
+
+class DatabaseLock:
+    """An exclusive ``flock`` on the database file itself (created empty if missing: SQLite
+    takes an empty file as a new database). ``flock`` locks are separate from SQLite's POSIX
+    record locks; the descriptor is closed only after the store's last connection (closing an
+    fd of a file drops the process's POSIX locks on it). The kernel releases the lock when the
+    process dies."""
+
+    def __init__(self, db_path: Path | str) -> None:
+        self.db_path = Path(db_path)
+        self._fd: int | None = None
+
+    def acquire(self) -> None:
+        self.db_path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.db_path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            os.close(fd)
             raise DatabaseInUseError(
-                f"another server process uses the job database {db_path}; run one server per"
-                " database (one uvicorn process)"
+                f"another server process uses the job database {self.db_path.name}; run one"
+                " server per database (one uvicorn process)"
             ) from None
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+        self.release()
+        self._fd = fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+
+@contextmanager
+def server_lock(db_path: Path | str) -> Iterator[DatabaseLock]:
+    """Hold the database's lock while a server runs: a second server (e.g. ``uvicorn
+    --workers 2``) on the same database would re-queue and fail the first one's jobs at its
+    start-up, so it is refused."""
+    lock = DatabaseLock(db_path)
+    lock.acquire()
+    try:
+        yield lock
+    finally:
+        lock.release()
+
+
+def _transient(exc: sqlite3.Error) -> bool:
+    """Errors worth another attempt: locks and busy databases, I/O hiccups."""
+    text = str(exc).lower()
+    return isinstance(exc, sqlite3.OperationalError) and any(
+        word in text for word in ("locked", "busy", "disk i/o", "unable to open")
+    )
+
+
+@dataclass
+class Fault:
+    """One fault the store met (README "Fault behaviour")."""
+
+    at: str
+    reason: str
+    mono: float = field(default_factory=time.monotonic)
+
+
+@dataclass
+class FaultLog:
+    """The last faults, and whether the store is failing now."""
+
+    current: str | None = None
+    recent: list[Fault] = field(default_factory=list)
+
+    def record(self, reason: str) -> None:
+        self.current = reason
+        if not self.recent or self.recent[-1].reason != reason:
+            self.recent = [*self.recent[-9:], Fault(utc_now(), reason)]
+
+    def clear(self) -> None:
+        self.current = None
 
 
 def utc_now() -> str:
@@ -126,18 +231,79 @@ class Job(JobHead):
 
 
 class JobStore:
-    """Jobs in one SQLite file; the schema is created when the store is opened."""
+    """Jobs in one SQLite file; the schema is created when the store is opened.
 
-    def __init__(self, path: Path | str) -> None:
+    ``expect``: the file identity the store must find (a worker checks that it writes to the
+    server's database); ``recreate``: the server's store, which creates a fresh database when
+    the file was removed (and calls ``on_recreated``)."""
+
+    def __init__(
+        self,
+        path: Path | str,
+        *,
+        expect: FileIdentity | None = None,
+        recreate: bool = False,
+        busy_timeout_s: float = BUSY_TIMEOUT_S,
+        retry_s: float = RETRY_S,
+    ) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        with self._connect() as con:
+        self.recreate = recreate
+        self.busy_timeout_s = busy_timeout_s
+        self.retry_s = retry_s
+        self.faults = FaultLog()
+        self.on_recreated: Callable[[], None] | None = None
+        self._reopen_lock = threading.Lock()
+        if expect is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._create_schema()
+            identity = file_identity(self.path)
+            assert identity is not None
+            self.identity: FileIdentity = identity
+        else:
+            self.identity = expect
+            self._check_identity()
+
+    def _create_schema(self) -> None:
+        con = sqlite3.connect(self.path, timeout=self.busy_timeout_s)
+        try:
             con.execute("PRAGMA journal_mode=WAL")
             con.executescript(_SCHEMA)
+        finally:
+            con.close()
+
+    def _check_identity(self) -> None:
+        """Raise :class:`StoreGoneError` when the file is not the one this store opened; the
+        server's store recreates it instead."""
+        if file_identity(self.path) == self.identity:
+            return
+        if not self.recreate:
+            raise StoreGoneError(f"the job database {self.path.name} was removed or replaced")
+        with self._reopen_lock:
+            if file_identity(self.path) == self.identity:
+                return  # another thread recreated it meanwhile
+            for suffix in ("-wal", "-shm"):  # stale journal files of the removed database
+                Path(f"{self.path}{suffix}").unlink(missing_ok=True)
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._create_schema()
+            identity = file_identity(self.path)
+            assert identity is not None
+            self.identity = identity
+            reason = (
+                f"the job database {self.path.name} was removed or replaced while the server"
+                " ran; a new empty database was created (jobs it held are lost)"
+            )
+            log.error(reason)
+            self.faults.record(reason)
+            self.faults.clear()
+        if self.on_recreated is not None:
+            self.on_recreated()
 
     @contextmanager
     def _connect(self) -> Iterator[sqlite3.Connection]:
-        con = sqlite3.connect(self.path, timeout=10.0)
+        """One attempt: a connection in one transaction (commit on success)."""
+        self._check_identity()
+        # mode=rw: never create a file behind the store's back (a removed database)
+        con = sqlite3.connect(f"file:{self.path}?mode=rw", uri=True, timeout=self.busy_timeout_s)
         con.row_factory = sqlite3.Row
         try:
             with con:  # one transaction: commit on success, roll back on error
@@ -145,18 +311,46 @@ class JobStore:
         finally:
             con.close()
 
+    def _run(self, work: Callable[[sqlite3.Connection], Any], *, retry: bool = True) -> Any:
+        """``work(con)`` in one transaction, retried with backoff on transient errors for up
+        to ``retry_s`` (README "Fault behaviour"); :class:`StoreUnavailableError` after that."""
+        deadline = time.monotonic() + (self.retry_s if retry else 0.0)
+        pause = BACKOFF_S[0]
+        while True:
+            try:
+                with self._connect() as con:
+                    out = work(con)
+                if self.faults.current is not None:
+                    self.faults.clear()
+                return out
+            except StoreGoneError:
+                raise
+            except sqlite3.Error as exc:
+                if not _transient(exc) and file_identity(self.path) == self.identity:
+                    raise
+                reason = f"job database error: {exc}"
+                self.faults.record(reason)
+                if time.monotonic() + pause > deadline:
+                    raise StoreUnavailableError(
+                        f"the job database did not answer for {self.retry_s:g} s ({exc})"
+                    ) from None
+                time.sleep(pause)
+                pause = min(2 * pause, BACKOFF_S[1])
+
     # -- creation and reading -------------------------------------------------------------
 
     def create(self, kind: str, request: dict[str, Any]) -> Job:
         """A new ``queued`` job holding the (validated) request document."""
         job_id = uuid.uuid4().hex
         created_at = utc_now()
-        with self._connect() as con:  # one statement: seq is unique under concurrent inserts
-            con.execute(
+        text = json.dumps(request, allow_nan=False)
+        self._run(  # one statement: seq is unique under concurrent inserts
+            lambda con: con.execute(
                 "INSERT INTO jobs (id, kind, status, request, seq, created_at)"
                 " SELECT ?, ?, 'queued', ?, COALESCE(MAX(seq), 0) + 1, ? FROM jobs",
-                (job_id, kind, json.dumps(request, allow_nan=False), created_at),
+                (job_id, kind, text, created_at),
             )
+        )
         return Job(
             id=job_id,
             kind=kind,
@@ -172,15 +366,17 @@ class JobStore:
             figures={},
         )
 
+    def _row(self, sql: str, args: tuple[Any, ...]) -> sqlite3.Row | None:
+        row: sqlite3.Row | None = self._run(lambda con: con.execute(sql, args).fetchone())
+        return row
+
     def get(self, job_id: str) -> Job | None:
-        with self._connect() as con:
-            row = con.execute("SELECT * FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        row = self._row("SELECT * FROM jobs WHERE id = ?", (job_id,))
         return None if row is None else Job.from_row(row)
 
     def head(self, job_id: str) -> JobHead | None:
         """The job's state without decoding its request and result."""
-        with self._connect() as con:
-            row = con.execute(f"SELECT {_HEAD_SELECT} FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        row = self._row(f"SELECT {_HEAD_SELECT} FROM jobs WHERE id = ?", (job_id,))
         return None if row is None else JobHead.from_row(row)
 
     def list_jobs(
@@ -202,35 +398,44 @@ class JobStore:
             where.append("kind = ?")
             args.append(kind)
         clause = f"WHERE {' AND '.join(where)}" if where else ""
-        with self._connect() as con:
+
+        def work(con: sqlite3.Connection) -> tuple[int, list[sqlite3.Row]]:
             total = con.execute(f"SELECT COUNT(*) FROM jobs {clause}", args).fetchone()[0]
             rows = con.execute(
                 f"SELECT {_HEAD_SELECT} FROM jobs {clause} ORDER BY seq DESC LIMIT ? OFFSET ?",
                 [*args, limit, offset],
             ).fetchall()
-        return [JobHead.from_row(r) for r in rows], int(total)
+            return int(total), rows
+
+        total, rows = self._run(work)
+        return [JobHead.from_row(r) for r in rows], total
 
     def ids_with_status(self, status: JobStatus) -> list[str]:
         """Ids of all jobs with this status, oldest first."""
-        with self._connect() as con:
-            rows = con.execute(
+        rows = self._run(
+            lambda con: con.execute(
                 "SELECT id FROM jobs WHERE status = ? ORDER BY seq", (status,)
             ).fetchall()
+        )
         return [r["id"] for r in rows]
 
-    def counts(self) -> dict[str, int]:
-        """Number of jobs per status (every status present, 0 if none)."""
-        with self._connect() as con:
-            rows = con.execute("SELECT status, COUNT(*) AS n FROM jobs GROUP BY status")
-            found = {r["status"]: int(r["n"]) for r in rows}
+    def counts(self, *, retry: bool = True) -> dict[str, int]:
+        """Number of jobs per status (every status present, 0 if none); ``retry=False``: one
+        attempt (``/healthz`` answers at once)."""
+        rows = self._run(
+            lambda con: con.execute(
+                "SELECT status, COUNT(*) AS n FROM jobs GROUP BY status"
+            ).fetchall(),
+            retry=retry,
+        )
+        found = {r["status"]: int(r["n"]) for r in rows}
         return {s: found.get(s, 0) for s in JOB_STATUSES}
 
     # -- transitions (conditional: each returns whether it applied) ------------------------
 
     def _update(self, job_id: str, sql: str, args: tuple[Any, ...]) -> bool:
-        with self._connect() as con:
-            cur = con.execute(sql, (*args, job_id))
-            return cur.rowcount == 1
+        changed: int = self._run(lambda con: con.execute(sql, (*args, job_id)).rowcount)
+        return changed == 1
 
     def start(self, job_id: str) -> bool:
         """queued → running (False if the job was cancelled or taken meanwhile)."""
@@ -269,6 +474,23 @@ class JobStore:
             (error, utc_now()),
         )
 
+    def record_lost(self, job_id: str, kind: str, status: str) -> bool:
+        """A failed row for a job whose row was lost with a removed database (no-op if the id
+        exists): the job's URL keeps answering, with the reason."""
+        now = utc_now()
+        error = LOST_MESSAGE.format(status=status)
+        changed: int = self._run(
+            lambda con: (
+                con.execute(
+                    "INSERT OR IGNORE INTO jobs (id, kind, status, message, request, error, seq,"
+                    " created_at, finished_at) SELECT ?, ?, 'failed', 'failed', '{}', ?,"
+                    " COALESCE(MAX(seq), 0) + 1, ?, ? FROM jobs",
+                    (job_id, kind, error, now, now),
+                ).rowcount
+            )
+        )
+        return changed == 1
+
     def cancel(self, job_id: str) -> bool:
         """queued/running → cancelled."""
         return self._update(
@@ -292,10 +514,11 @@ class JobStore:
     def recover(self) -> list[str]:
         """Start-up repair: ``running`` jobs become ``failed`` (the process that ran them is
         gone); returns the ids of ``queued`` jobs, oldest first, to be run again."""
-        with self._connect() as con:
-            con.execute(
+        self._run(
+            lambda con: con.execute(
                 "UPDATE jobs SET status = 'failed', message = 'failed', error = ?,"
                 " finished_at = ? WHERE status = 'running'",
                 (INTERRUPTED_MESSAGE, utc_now()),
             )
+        )
         return self.ids_with_status("queued")

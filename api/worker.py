@@ -8,16 +8,35 @@ kind's function with a progress callback that writes to SQLite as it goes, and s
 or a one-line error. Cancelling a running job terminates its process; a worker that dies
 (killed, out of memory) ends its job as failed with the exit code.
 
+Faults (README "Fault behaviour"): the dispatcher never dies – each cycle runs under a guard
+that records the fault and backs off, and a final state the store cannot take now (locked,
+busy) is kept and written once the store answers again. A worker ends with its server: it
+closes the forkserver's "alive" pipe it inherits (so the forkserver exits when the server
+does), asks the kernel for SIGKILL when its parent dies (Linux ``PR_SET_PDEATHSIG``) and checks
+the server's pid every :data:`ORPHAN_CHECK_S` (the fallback elsewhere). Figures are written to
+a hidden folder and moved in place only when the job succeeds: a cancelled or failed job leaves
+no partial figures.
+
 A job kind is a module-level function ``(document, progress, out_dir) -> JobOutput`` (see
 :mod:`api.kinds`); it is handed to the worker by reference (pickled by qualified name).
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ctypes.util
 import logging
+import math
 import multiprocessing
 import multiprocessing.connection
+import multiprocessing.forkserver
 import os
+import re
+import shutil
+import signal
+import sqlite3
+import sys
 import threading
 import time
 import traceback
@@ -31,9 +50,9 @@ from typing import Any
 from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
-from api.store import JobStore
-from ris_planner.cli import validation_problems
+from api.store import BUSY_TIMEOUT_S, RETRY_S, FileIdentity, JobStore, StoreUnavailableError
 from ris_planner.errors import RisPlannerError
+from ris_planner.io_json import one_line_validation_error
 from ris_planner.progress import ProgressCallback
 
 log = logging.getLogger("api.worker")
@@ -79,52 +98,202 @@ class StoreProgress:
             raise JobCancelledError(self.job_id)
 
 
+_PATH = re.compile(r"(?<![\w.:/])(?:/[^\s/'\"():;,]+)+/?")
+"""An absolute POSIX path inside a message."""
+
+
+def redact_paths(text: str) -> str:
+    """``text`` with every absolute path replaced by its last component (job messages are
+    read by clients; the server's file layout is not theirs to see)."""
+    return _PATH.sub(lambda m: m.group(0).rstrip("/").rsplit("/", 1)[-1] or "/", text)
+
+
 def describe_error(exc: BaseException) -> str:
-    """A one-line message for a failed job (the field paths for validation errors)."""
+    """A one-line message for a failed job (the field paths for validation errors), without
+    server file paths."""
     if isinstance(exc, ValidationError):  # the CLI's message, on one line
-        return "invalid document: " + "; ".join(validation_problems(exc))
-    if isinstance(exc, RisPlannerError):
-        return str(exc)
-    return f"{type(exc).__name__}: {exc}"
+        text = one_line_validation_error(exc)
+    elif isinstance(exc, RisPlannerError):
+        text = str(exc)
+    elif isinstance(exc, MemoryError):
+        text = "out of memory: the job needs more memory than a worker may use"
+    else:
+        text = f"{type(exc).__name__}: {exc}"
+    return redact_paths(" ".join(text.split()))[:2000]
 
 
 ORPHAN_CHECK_S = 1.0
-"""A worker checks this often whether its parent (the forkserver) is gone, and exits if so."""
+"""A worker checks this often whether its server (and its parent) are gone, and exits if so."""
+
+EXIT_STORE_UNAVAILABLE = 75
+"""A worker's exit status when the job database did not answer within its retry time."""
+EXIT_STORE_GONE = 76
+"""A worker's exit status when the job database file was removed or replaced."""
+
+_PR_SET_PDEATHSIG = 1
 
 
-def _exit_when_orphaned() -> None:
-    """Daemon thread: a worker whose server was killed (so the forkserver exited too) stops
-    instead of computing on; the restarted server has marked its job failed."""
+def set_parent_death_signal(sig: int = signal.SIGKILL) -> bool:
+    """Linux: deliver ``sig`` to this process when its parent dies (``prctl``); False where
+    unavailable (other systems rely on :func:`_exit_when_orphaned`)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        return int(libc.prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0)) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _close_inherited_alive_pipe() -> None:
+    """A forkserver child inherits the write end of the forkserver's "alive" pipe; holding it
+    keeps the forkserver running after its server died, so the worker closes it."""
+    fs = multiprocessing.forkserver._forkserver
+    fd = getattr(fs, "_forkserver_alive_fd", None)
+    if fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+        fs._forkserver_alive_fd = None  # type: ignore[attr-defined]
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _exit_when_orphaned(server_pid: int) -> None:
+    """Daemon thread: a worker whose server (or parent, the forkserver) is gone stops instead
+    of computing on; the restarted server marks its job failed."""
     parent = os.getppid()
     while True:
-        time.sleep(ORPHAN_CHECK_S)
-        if os.getppid() != parent:
+        if os.getppid() != parent or not _pid_alive(server_pid):
             os._exit(1)
+        time.sleep(ORPHAN_CHECK_S)
+
+
+def _remove(path: Path) -> None:
+    shutil.rmtree(path, ignore_errors=True)
+
+
+def staging_dir(figures_dir: Path, job_id: str) -> Path:
+    """Where a running job writes its figures (moved to ``figures_dir/job_id`` on success)."""
+    return figures_dir / f".{job_id}.partial"
+
+
+def cap_memory(budget_mb: int) -> None:
+    """Cap this process's address space at its current size plus ``budget_mb`` (Linux
+    ``RLIMIT_AS``): a job that outgrows its budget gets MemoryError (its job fails with "out of
+    memory") instead of pushing the machine into swap or the OOM killer."""
+    try:
+        import resource
+
+        pages = int(Path("/proc/self/statm").read_text().split()[0])
+        current = pages * os.sysconf("SC_PAGE_SIZE")
+        limit = current + (budget_mb << 20)
+        hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+        if hard != resource.RLIM_INFINITY:
+            limit = min(limit, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    except (OSError, ValueError, ImportError):  # not Linux: the size estimate alone guards
+        pass
 
 
 def execute_job(
-    db_path: Path, figures_dir: Path, job_id: str, func: JobFunction, blas_threads: int = 1
+    db_path: Path,
+    figures_dir: Path,
+    job_id: str,
+    func: JobFunction,
+    blas_threads: int = 1,
+    identity: FileIdentity | None = None,
+    server_pid: int | None = None,
+    store_options: dict[str, float] | None = None,
+    memory_mb: int | None = None,
 ) -> None:
     """Run one job to its end state (the body of a worker process)."""
-    threading.Thread(target=_exit_when_orphaned, name="orphan-watch", daemon=True).start()
+    _close_inherited_alive_pipe()
+    set_parent_death_signal()
+    if memory_mb is not None:
+        cap_memory(memory_mb)
+    server = os.getppid() if server_pid is None else server_pid
+    threading.Thread(
+        target=_exit_when_orphaned, args=(server,), name="orphan-watch", daemon=True
+    ).start()
     threadpool_limits(limits=blas_threads)
-    store = JobStore(db_path)
+    try:
+        _execute(db_path, figures_dir, job_id, func, identity, store_options or {})
+    except StoreUnavailableError as exc:
+        from api.store import StoreGoneError
+
+        log.error("job %s: %s", job_id, exc)
+        _remove(staging_dir(figures_dir, job_id))
+        sys.exit(EXIT_STORE_GONE if isinstance(exc, StoreGoneError) else EXIT_STORE_UNAVAILABLE)
+
+
+def _execute(
+    db_path: Path,
+    figures_dir: Path,
+    job_id: str,
+    func: JobFunction,
+    identity: FileIdentity | None,
+    store_options: dict[str, float],
+) -> None:
+    store = JobStore(
+        db_path,
+        expect=identity,
+        busy_timeout_s=store_options.get("busy_timeout_s", BUSY_TIMEOUT_S),
+        retry_s=store_options.get("retry_s", RETRY_S),
+    )
     job = store.get(job_id)
     if job is None or not store.start(job_id):
         return  # cancelled (or taken) before it started
-    out_dir = figures_dir / job_id
+    staging, final = staging_dir(figures_dir, job_id), figures_dir / job_id
+    _remove(staging)
     progress = StoreProgress(store, job_id)
     try:
-        output = func(job.request, progress, out_dir)
-        figures = {name: str(path.relative_to(out_dir)) for name, path in output.figures.items()}
+        output = func(job.request, progress, staging)
+        figures = {name: str(path.relative_to(staging)) for name, path in output.figures.items()}
     except JobCancelledError:
+        _remove(staging)
         return
+    except StoreUnavailableError:
+        raise
     except Exception as exc:  # every failure ends the job with a message, never a hang
+        _remove(staging)
         if not isinstance(exc, RisPlannerError | ValidationError):
             log.error("job %s (%s) failed:\n%s", job_id, job.kind, traceback.format_exc())
         store.fail(job_id, describe_error(exc))
         return
-    store.succeed(job_id, output.result, figures)
+    if figures:
+        _remove(final)
+        staging.rename(final)
+    if not store.succeed(job_id, output.result, figures):
+        _remove(final)  # cancelled while it finished: no figures for a cancelled job
+    _remove(staging)
+
+
+def exit_message(code: int | None) -> str:
+    """Why a worker process ended without recording its job's end (one line)."""
+    if code == EXIT_STORE_UNAVAILABLE:
+        return "the worker could not record the job's end: the job database did not answer"
+    if code == EXIT_STORE_GONE:
+        return "the job database was removed or replaced while this job ran; submit it again"
+    if code is not None and code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        hint = " (out of memory?)" if -code == signal.SIGKILL else ""
+        return f"worker process was killed by {name}{hint}"
+    return f"worker process exited with code {code}"
+
+
+FAULT_HOLD_S = 300.0
+"""``/healthz`` reports ``degraded`` for this long after the last fault."""
 
 
 class JobRunner:
@@ -138,20 +307,28 @@ class JobRunner:
         workers: int,
         blas_threads: int = 1,
         poll_s: float = 0.05,
+        memory_mb: int | None = None,
     ) -> None:
         self.store = store
+        self.memory_mb = memory_mb
         self.figures_dir = figures_dir
         self.kinds = dict(kinds)
         self.workers = workers
         self.blas_threads = blas_threads
         self.poll_s = poll_s
         self._queue: deque[str] = deque()
+        self._kind_of: dict[str, str] = {}
         self._procs: dict[str, BaseProcess] = {}
+        self._unsettled: dict[str, str] = {}  # job id → final error not yet stored
         self._lock = threading.Condition()
         self._stopping = False
         self._thread: threading.Thread | None = None
+        self._db_lost = threading.Event()
+        self._fault: str | None = None
+        self._fault_at = -math.inf
         self._ctx = multiprocessing.get_context("forkserver")
         self._ctx.set_forkserver_preload(PRELOAD_MODULES)
+        store.on_recreated = self._db_lost.set
 
     # -- public ------------------------------------------------------------------------------
 
@@ -163,9 +340,10 @@ class JobRunner:
         self._thread = threading.Thread(target=self._loop, name="job-dispatcher", daemon=True)
         self._thread.start()
 
-    def submit(self, job_id: str) -> None:
+    def submit(self, job_id: str, kind: str = "unknown") -> None:
         with self._lock:
             self._queue.append(job_id)
+            self._kind_of[job_id] = kind
             self._lock.notify_all()
 
     def cancel(self, job_id: str) -> bool:
@@ -182,6 +360,24 @@ class JobRunner:
         with self._lock:
             return sum(p.is_alive() for p in self._procs.values())
 
+    def worker_pids(self) -> list[int]:
+        """Pids of the running worker processes."""
+        with self._lock:
+            return [p.pid for p in self._procs.values() if p.pid is not None and p.is_alive()]
+
+    def health(self) -> str | None:
+        """None when healthy, else why the service is degraded (a fault now or within
+        :data:`FAULT_HOLD_S`: the dispatcher's, or the store's)."""
+        if self._fault is not None and time.monotonic() - self._fault_at < FAULT_HOLD_S:
+            return self._fault
+        current = self.store.faults.current
+        if current is not None:
+            return current
+        recent = self.store.faults.recent
+        if recent and time.monotonic() - recent[-1].mono < FAULT_HOLD_S:
+            return recent[-1].reason
+        return None
+
     def stop(self, timeout_s: float = 10.0) -> None:
         """Stop dispatching; terminate running workers and put their jobs back in the queue."""
         with self._lock:
@@ -194,10 +390,18 @@ class JobRunner:
                 if proc.is_alive():
                     proc.terminate()
                 proc.join(timeout_s)
-                self.store.requeue(job_id)
+                _remove(staging_dir(self.figures_dir, job_id))
+                try:
+                    self.store.requeue(job_id)
+                except (StoreUnavailableError, sqlite3.Error) as exc:
+                    log.error("could not re-queue job %s at shutdown: %s", job_id, exc)
             self._procs.clear()
 
     # -- dispatcher thread ---------------------------------------------------------------------
+
+    def _note_fault(self, reason: str) -> None:
+        log.error("job dispatcher: %s", reason)
+        self._fault, self._fault_at = reason, time.monotonic()
 
     def _launch(self, job_id: str) -> None:
         job = self.store.head(job_id)
@@ -207,14 +411,34 @@ class JobRunner:
         if func is None:
             self.store.fail(job_id, f"unknown job kind {job.kind!r} (not served by this version)")
             return
+        self._kind_of[job_id] = job.kind
+        store_options = {"busy_timeout_s": self.store.busy_timeout_s, "retry_s": self.store.retry_s}
         proc = self._ctx.Process(
             target=execute_job,
-            args=(self.store.path, self.figures_dir, job_id, func, self.blas_threads),
+            args=(
+                self.store.path,
+                self.figures_dir,
+                job_id,
+                func,
+                self.blas_threads,
+                self.store.identity,
+                os.getpid(),
+                store_options,
+                self.memory_mb,
+            ),
             name=f"job-{job_id}",
             daemon=True,
         )
         proc.start()
         self._procs[job_id] = proc
+
+    def _settle(self, job_id: str, error: str) -> None:
+        """Store a job's final error; kept for a later cycle when the store is unavailable."""
+        self._unsettled[job_id] = error
+        if not self.store.fail(job_id, error) and self.store.head(job_id) is None:
+            self.store.record_lost(job_id, self._kind_of.get(job_id, "unknown"), "running")
+        del self._unsettled[job_id]
+        self._kind_of.pop(job_id, None)
 
     def _reap(self) -> None:
         for job_id, proc in list(self._procs.items()):
@@ -222,23 +446,68 @@ class JobRunner:
                 continue
             proc.join()
             del self._procs[job_id]
+            _remove(staging_dir(self.figures_dir, job_id))
             if proc.exitcode != 0:  # no-op when the job was cancelled (terminated) or ended
-                self.store.fail(job_id, f"worker process exited with code {proc.exitcode}")
+                self._settle(job_id, exit_message(proc.exitcode))
+            else:
+                self._kind_of.pop(job_id, None)
+
+    def _handle_lost_database(self) -> None:
+        """The store recreated a removed database: stop the workers writing to the old one
+        and record every job this server knew (running, queued) as failed in the new one."""
+        self._db_lost.clear()
+        self._note_fault(
+            f"the job database {self.store.path.name} was removed while the server ran; a new"
+            " empty database was created and the jobs it held are lost"
+        )
+        for job_id, proc in list(self._procs.items()):
+            if proc.is_alive():
+                proc.terminate()
+            proc.join(10.0)
+            del self._procs[job_id]
+            _remove(staging_dir(self.figures_dir, job_id))
+            self.store.record_lost(job_id, self._kind_of.pop(job_id, "unknown"), "running")
+        for job_id in list(self._queue):
+            if self.store.head(job_id) is None:
+                self._queue.remove(job_id)
+                self.store.record_lost(job_id, self._kind_of.pop(job_id, "unknown"), "queued")
+
+    def _cycle(self) -> list[Any]:
+        """One dispatcher step under the lock; the sentinels to wait on (empty: idle)."""
+        for job_id, error in list(self._unsettled.items()):
+            self._settle(job_id, error)
+        self.store._check_identity()  # a removed database is noticed even when idle
+        if self._db_lost.is_set():
+            self._handle_lost_database()
+        self._reap()
+        while self._queue and len(self._procs) < self.workers:
+            job_id = self._queue[0]
+            try:
+                self._launch(job_id)
+            except (StoreUnavailableError, sqlite3.Error):
+                raise  # the job stays queued; retried next cycle
+            except Exception as exc:  # a broken job must not stop the dispatcher
+                log.exception("could not start job %s", job_id)
+                self._queue.popleft()
+                self._settle(job_id, f"could not start a worker process: {describe_error(exc)}")
+                continue
+            self._queue.popleft()
+        return [p.sentinel for p in self._procs.values()]
 
     def _loop(self) -> None:
+        pause = self.poll_s
         while True:
             with self._lock:
                 if self._stopping:
                     return
-                self._reap()
-                while self._queue and len(self._procs) < self.workers:
-                    job_id = self._queue.popleft()
-                    try:
-                        self._launch(job_id)
-                    except Exception as exc:  # a broken job must not stop the dispatcher
-                        log.exception("could not start job %s", job_id)
-                        self.store.fail(job_id, f"could not start a worker process: {exc}")
-                sentinels = [p.sentinel for p in self._procs.values()]
+                try:
+                    sentinels = self._cycle()
+                    pause = self.poll_s
+                except Exception as exc:  # the dispatcher never dies: note, back off, go on
+                    self._note_fault(f"job dispatcher: {describe_error(exc)}")
+                    pause = min(2 * pause, 2.0)
+                    self._lock.wait(pause)
+                    continue
                 if not sentinels:
                     self._lock.wait(self.poll_s * 4)
                     continue

@@ -8,49 +8,71 @@ one-line message and exit status 2 (no traceback).
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib
 import json
+import math
 import sys
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
 
 from ris_planner.errors import RisPlannerError
+from ris_planner.io_json import format_validation_error, read_json_object, validation_problems
 from ris_planner.scenario import PRESET_NAMES, Scenario, load_scenario
 
 EXIT_INPUT_ERROR = 2
 
+__all__ = [
+    "EXIT_INPUT_ERROR",
+    "finite_float",
+    "format_validation_error",
+    "main",
+    "read_json_object",
+    "validation_problems",
+]
 
-def validation_problems(exc: ValidationError) -> list[str]:
-    """One ``field.path: message`` per problem (``ris.1.position: ...``)."""
-    return [
-        f"{'.'.join(str(p) for p in err['loc']) or '(document)'}: {err['msg']}"
-        for err in exc.errors()
-    ]
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number (``inf``/``nan`` refused with a message)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
 
 
-def format_validation_error(exc: ValidationError) -> str:
-    """One line per problem, naming the field path."""
-    return "invalid document:\n  " + "\n  ".join(validation_problems(exc))
+def positive_finite_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    value = finite_float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
+def int_in(low: int, high: int) -> Callable[[str], int]:
+    """argparse type: an integer within [low, high]."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected an integer in [{low}, {high}], got {value}")
+        return value
+
+    parse.__name__ = f"integer in [{low}, {high}]"
+    return parse
 
 
 def add_document_arguments(parser: argparse.ArgumentParser) -> None:
     """``FILE`` or ``--preset NAME``, shared by commands that read a scenario document."""
     parser.add_argument("file", nargs="?", help="scenario JSON document ('-' for stdin)")
     parser.add_argument("--preset", choices=PRESET_NAMES, help="use a shipped preset instead")
-
-
-def read_json_object(path: str | Path) -> dict[str, Any]:
-    """A JSON object from a file (``-`` = stdin), with input errors as :class:`RisPlannerError`."""
-    text = sys.stdin.read() if str(path) == "-" else Path(path).read_text()
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise RisPlannerError(f"{path}: not valid JSON ({exc})") from None
-    if not isinstance(doc, dict):
-        raise RisPlannerError(f"{path}: the document must be a JSON object")
-    return doc
 
 
 def read_document(args: argparse.Namespace) -> dict[str, Any]:
@@ -76,8 +98,12 @@ def read_scenario(args: argparse.Namespace) -> Scenario:
 
 
 def print_json(obj: Any) -> None:
-    json.dump(obj, sys.stdout, indent=2, allow_nan=False)
-    sys.stdout.write("\n")
+    """The result document on stdout (serialised first, so a failure prints nothing)."""
+    text = json.dumps(obj, indent=2, allow_nan=False)
+    if sys.stdout is None or sys.stdout.closed:
+        raise RisPlannerError("standard output is closed")
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
 
 
 def _cmd_bounds(args: argparse.Namespace) -> int:
@@ -102,15 +128,39 @@ def _add_core(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_schema)
 
 
+def _cmd_serve(args: argparse.Namespace) -> int:
+    # the web service is loaded only when this command runs: the package never imports it
+    serve: Callable[[argparse.Namespace], int] = importlib.import_module("api.cli").run_serve
+    return serve(args)
+
+
+def _add_serve(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "serve",
+        help="run the REST service (settings from RIS_PLANNER_* environment variables)",
+    )
+    p.add_argument("--host", default="127.0.0.1", help="interface to listen on (default 127.0.0.1)")
+    p.add_argument("--port", type=int_in(1, 65535), default=8000, help="TCP port (default 8000)")
+    p.add_argument("--db", help="SQLite job database (overrides RIS_PLANNER_DB)")
+    p.add_argument(
+        "--workers",
+        type=int_in(1, 64),
+        help="job worker processes, 1–64 (overrides RIS_PLANNER_WORKERS)",
+    )
+    p.add_argument(
+        "--log-level", default="info", choices=["critical", "error", "warning", "info", "debug"]
+    )
+    p.set_defaults(func=_cmd_serve)
+
+
 def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
     """Every feature's ``add_cli``: one line per feature (imported here, not at module load)."""
-    from api.cli import add_cli as api_cli
     from ris_planner.estimation.cli import add_cli as estimation_cli
     from ris_planner.io.cli import add_cli as import_cli
     from ris_planner.planning.cli import add_cli as plan_cli
     from ris_planner.power.cli import add_cli as power_cli
 
-    return [_add_core, power_cli, plan_cli, estimation_cli, import_cli, api_cli]
+    return [_add_core, power_cli, plan_cli, estimation_cli, import_cli, _add_serve]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -124,18 +174,42 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _say(message: str) -> None:
+    """One line on stderr (nothing when stderr itself is closed)."""
+    stream = sys.stderr
+    if stream is not None and not stream.closed:
+        with contextlib.suppress(OSError, ValueError):
+            print(message, file=stream)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; every input error ends with one line on stderr and exit status 2."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error (2, argparse printed one line)
+        return int(exc.code) if isinstance(exc.code, int) else EXIT_INPUT_ERROR
     try:
         status: int = args.func(args)
     except ValidationError as exc:
-        print(format_validation_error(exc), file=sys.stderr)
+        _say(format_validation_error(exc))
         return EXIT_INPUT_ERROR
     except BrokenPipeError:  # output piped into `head` and closed early (before OSError)
         return 0
+    except RecursionError:
+        _say("error: the document is nested too deeply")
+        return EXIT_INPUT_ERROR
+    except MemoryError:
+        _say("error: out of memory; the input needs more memory than this process may use")
+        return EXIT_INPUT_ERROR
     except (RisPlannerError, ValueError, OSError) as exc:  # bad input, unusable path
-        print(f"error: {exc}", file=sys.stderr)
+        _say(f"error: {exc}")
+        return EXIT_INPUT_ERROR
+    except KeyboardInterrupt:
+        _say("interrupted")
+        return 130
+    except Exception as exc:  # a last line of defence: one message, never a traceback
+        _say(f"error: cannot process this input ({type(exc).__name__}: {exc})")
         return EXIT_INPUT_ERROR
     return status
 

@@ -58,7 +58,7 @@ def finite_point(value: list[float], what: str) -> list[float]:
 class DocumentModel(BaseModel):
     """Base of every JSON document model: unknown fields are errors, instances are frozen."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
 
 def field_error(

@@ -15,3 +15,13 @@ class LimitExceededError(RisPlannerError):
     def __init__(self, message: str, limit: int | None = None) -> None:
         super().__init__(message)
         self.limit = limit
+
+
+class DocumentFieldError(RisPlannerError):
+    """A rule of the document that names one field (``field`` is its dotted path, e.g.
+    ``codebook.kind``; the service lists it in the 422 body's ``fields``)."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.reason = message

@@ -53,7 +53,29 @@ def sleeping_job(document: dict[str, Any], progress: ProgressCallback, out_dir: 
     return JobOutput({"slept": True})
 
 
+def hogging_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
+    """Allocates ``mb`` MiB at once (beyond a small job memory budget)."""
+    import numpy as np
+
+    block = np.ones(int(document["mb"]) << 17)  # 8 B each
+    return JobOutput({"sum": float(block.sum())})
+
+
+def figure_then_sleep_job(
+    document: dict[str, Any], progress: ProgressCallback, out_dir: Path
+) -> JobOutput:
+    """Writes a figure file, then sleeps (cancelled meanwhile: no figure may remain)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "partial.png").write_bytes(b"\x89PNG partial")
+    for _ in range(600):
+        time.sleep(0.05)
+        progress(0.5, "sleeping")
+    return JobOutput({}, {"partial": out_dir / "partial.png"})
+
+
 TEST_KINDS = {
+    "hog": hogging_job,
+    "figure_sleep": figure_then_sleep_job,
     "count": counting_job,
     "fail": failing_job,
     "crash": crashing_job,

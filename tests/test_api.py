@@ -70,10 +70,22 @@ def test_bounds_validation_error_names_field_path(tmp_path: Path) -> None:
     assert "Traceback" not in r.text
 
 
+@pytest.mark.parametrize("path", ["/v1/bounds", "/v1/plans", "/v1/power-allocations"])
+def test_malformed_bodies_are_400(tmp_path: Path, path: str) -> None:
+    """Text that is not JSON, or JSON nested deeper than any document, is a malformed request
+    (400, listed in the OpenAPI document); valid JSON of the wrong shape is a 422."""
+    headers = {"content-type": "application/json"}
+    with api_client(tmp_path) as client:
+        for content in (b"{not json", b"[" * 5000 + b"]" * 5000):
+            r = client.post(path, content=content, headers=headers)
+            assert r.status_code == 400 and r.json()["error"] == "bad_request", r.text
+        ops = client.get("/openapi.json").json()["paths"][path]
+        assert "400" in ops["post"]["responses"]
+
+
 @pytest.mark.parametrize(
     ("content", "headers"),
     [
-        (b"{not json", {"content-type": "application/json"}),
         (b"[1, 2]", {"content-type": "application/json"}),
         (b"", {"content-type": "application/json"}),
     ],
@@ -234,7 +246,9 @@ def test_health_reports_database_failure_as_503(tmp_path: Path) -> None:
     with api_client(tmp_path) as client:
         client.app.state.store.path = tmp_path  # a folder: SQLite cannot open it
         r = client.get("/healthz")
-    assert r.status_code == 503 and r.json()["status"].startswith("database error")
+    body = r.json()
+    assert r.status_code == 503 and body["status"] == "unavailable"
+    assert body["reason"].startswith("the job database does not answer")
 
 
 def test_settings_from_environment_and_bad_values(

@@ -226,3 +226,63 @@ def test_second_server_on_the_same_database_is_refused(tmp_path: Path) -> None:
             pass
     with api_client(tmp_path) as client:  # released at shutdown
         assert client.get("/healthz").status_code == 200
+
+
+def test_job_beyond_its_memory_budget_fails_with_a_message(tmp_path: Path) -> None:
+    with api_client(tmp_path, kinds=TEST_KINDS, workers=1, job_memory_mb=256) as client:
+        job_id = submit(client, "hog", {"mb": 2048})
+        view = wait_for(client, job_id, ("succeeded", "failed"))
+        assert view["status"] == "failed" and "out of memory" in view["error"], view
+        ok = wait_for(client, submit(client, "hog", {"mb": 16}), ("succeeded", "failed"))
+        assert ok["status"] == "succeeded", ok["error"]
+
+
+def test_cancelled_job_leaves_no_partial_figures(tmp_path: Path) -> None:
+    with api_client(tmp_path, kinds=TEST_KINDS, workers=1) as client:
+        job_id = submit(client, "figure_sleep", {})
+        data = client.app.state.settings.figures_dir
+        deadline = time.monotonic() + 30
+        while not any(data.glob("**/partial.png")):
+            assert time.monotonic() < deadline, "the job never wrote its figure"
+            time.sleep(0.05)
+        assert client.delete(f"/v1/jobs/{job_id}").status_code == 200
+        view = wait_for(client, job_id, ("cancelled",))
+        deadline = time.monotonic() + 10
+        while any(data.glob("**/partial.png")):
+            assert time.monotonic() < deadline, "partial figures remain"
+            time.sleep(0.05)
+        assert view["figures"] == {}
+
+
+def test_job_messages_carry_no_server_paths() -> None:
+    from api.worker import describe_error, redact_paths
+
+    err = describe_error(PermissionError(13, "Permission denied", "/srv/ris/data/jobs.db"))
+    assert "/srv" not in err and "jobs.db" in err
+    assert redact_paths("cannot read /home/u/maps/a.csv (x)") == "cannot read a.csv (x)"
+    assert redact_paths("ratio 1/2 and 0.5/s") == "ratio 1/2 and 0.5/s"
+
+
+def test_database_lock_is_on_the_file_not_the_path(tmp_path: Path) -> None:
+    """Two spellings of one database file (a symlink, a relative path) are the same database."""
+    import os
+
+    from api.store import DatabaseInUseError, server_lock
+
+    db = tmp_path / "real" / "jobs.db"
+    link = tmp_path / "link.db"
+    db.parent.mkdir()
+    JobStore(db)
+    link.symlink_to(db)
+    with server_lock(db):
+        with pytest.raises(DatabaseInUseError, match="one server per"), server_lock(link):
+            pass
+        cwd = os.getcwd()
+        try:
+            os.chdir(db.parent)
+            with pytest.raises(DatabaseInUseError), server_lock(Path("./jobs.db")):
+                pass
+        finally:
+            os.chdir(cwd)
+    with server_lock(link):  # released
+        pass

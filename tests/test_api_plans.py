@@ -70,11 +70,11 @@ def test_plan_errors(tmp_path: Path) -> None:
     with api_client(tmp_path, workers=1) as client:
         r = client.post("/v1/plans", json=small_plan_doc(ris_count=[0]))
         assert r.status_code == 422 and r.json()["fields"][0]["field"].startswith("ris_count")
-        # more RISs than candidate sites: an engine refusal, the job fails with the rule
+        # more RISs than candidate sites: refused at submission (the job's own check, shared)
         r = client.post("/v1/plans", json=small_plan_doc(ris_count=[9]))
-        assert r.status_code == 202
-        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=60)
-        assert view["status"] == "failed" and "exceeds the 5 candidate sites" in view["error"]
+        assert r.status_code == 422 and "exceeds the 5 candidate sites" in r.json()["message"]
+        assert r.json()["fields"][0]["field"] == "ris_count"
+        assert client.get("/v1/jobs").json()["total"] == 0
         presets = client.get("/v1/presets").json()
         assert [p["name"] for p in presets["plans"]] == ["fig10-anchors", "junction", "hall"]
 

@@ -118,7 +118,9 @@ class TestValidatePlan:
         with api_client(tmp_path, workers=1) as client:
             r = client.post("/v1/plans/validate", json=small_plan_doc(ris_count=[7]))
             assert r.status_code == 422
-            assert r.json()["message"] == "ris_count 7 exceeds the 5 candidate sites"
+            body = r.json()
+            assert body["message"] == "ris_count: ris_count 7 exceeds the 5 candidate sites"
+            assert [f["field"] for f in body["fields"]] == ["ris_count"]
             big = small_plan_doc(pairs="all", max_pairs=100)
             r = client.post("/v1/plans/validate", json=big)
             assert r.status_code == 413 and "max_pairs" in r.json()["message"]

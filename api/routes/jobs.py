@@ -34,12 +34,32 @@ NOT_FOUND: dict[int | str, dict[str, Any]] = {
 }
 
 
+JOB_LINKS: dict[int | str, dict[str, Any]] = {
+    202: {
+        "description": "The queued job; its URL is in the Location header",
+        "links": {
+            "GetJob": {
+                "operationId": "get_job_v1_jobs__job_id__get",
+                "parameters": {"job_id": "$response.body#/id"},
+                "description": "Status and result of the job",
+            },
+            "CancelJob": {
+                "operationId": "cancel_job_v1_jobs__job_id__delete",
+                "parameters": {"job_id": "$response.body#/id"},
+                "description": "Cancel the job",
+            },
+        },
+    }
+}
+"""OpenAPI links of a 202 job answer (clients and stateful testers follow them)."""
+
+
 def submit_job(
     kind: str, document: dict[str, Any], store: JobStore, runner: JobRunner
 ) -> JSONResponse:
     """Store a queued job, hand it to the runner, answer 202 with its view and Location."""
     job = store.create(kind, document)
-    runner.submit(job.id)
+    runner.submit(job.id, kind)
     view = JobView.of(job)
     return JSONResponse(
         view.model_dump(mode="json"), status_code=202, headers={"Location": view.url}

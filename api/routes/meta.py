@@ -12,8 +12,8 @@ from fastapi.responses import JSONResponse
 from api.deps import get_runner, get_settings, get_store
 from api.models import Health, Preset, PresetList
 from api.settings import Settings
-from api.store import JobStore
-from api.worker import JobRunner
+from api.store import JobStore, StoreUnavailableError
+from api.worker import JobRunner, describe_error
 from ris_planner.planning import PLAN_PRESET_NAMES, plan_preset
 from ris_planner.scenario import PRESET_NAMES, preset_document
 
@@ -32,12 +32,20 @@ def healthz(
     runner: Annotated[JobRunner, Depends(get_runner)],
     settings: Annotated[Settings, Depends(get_settings)],
 ) -> JSONResponse:
+    """``ok``; ``degraded`` (200) with the ``reason`` after a fault the service recovered from
+    (within the last 5 minutes: a locked or removed database, a dispatcher error); 503 while
+    the job database does not answer (one attempt, no retries: the answer comes at once)."""
+    reason = runner.health()
     try:
-        counts, status, code = store.counts(), "ok", 200
-    except sqlite3.Error as exc:
-        counts, status, code = {}, f"database error: {exc}", 503
+        counts, status, code = store.counts(retry=False), "ok", 200
+    except (sqlite3.Error, StoreUnavailableError) as exc:
+        counts, status, code = {}, "unavailable", 503
+        reason = f"the job database does not answer ({describe_error(exc)})"
+    if status == "ok" and reason is not None:
+        status = "degraded"
     body = Health(
         status=status,
+        reason=reason,
         version=version("ris_planner"),
         workers=settings.workers,
         running=runner.running(),

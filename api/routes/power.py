@@ -12,13 +12,14 @@ from api.deps import get_runner, get_settings, get_store
 from api.errors import TOO_LARGE_RESPONSE
 from api.limits import check_layout_beams_size, check_scenario_size
 from api.models import JobView, power_examples
-from api.routes.jobs import submit_job
+from api.routes.jobs import JOB_LINKS, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
 from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.power.options import Objective, Solver
 from ris_planner.scenario import Scenario
+from ris_planner.validation import power_check
 
 router = APIRouter(tags=["jobs"])
 
@@ -40,7 +41,7 @@ PowerDocument = Annotated[
     "/power-allocations",
     status_code=202,
     response_model=JobView,
-    responses=TOO_LARGE_RESPONSE,
+    responses={**TOO_LARGE_RESPONSE, **JOB_LINKS},
     summary="Start a power-allocation job (ris-planner power)",
 )
 def post_power(
@@ -67,11 +68,14 @@ def post_power(
     the best γ_P for DIR+DER codebooks, the SDP allocation, each objective re-evaluated by the
     bounds code), or for a layout + UE maps document the beam report of
     ``ris_planner.planning.beam_design.run_layout_beams`` (``objective`` and ``solver`` come
-    from the document then). Engine or solver failures end the job as failed with a message."""
+    from the document then). The checks of ``ris-planner power`` run here (422 naming the
+    field, 413 naming the limit); engine or solver failures end the job as failed with a
+    message."""
     if isinstance(body, LayoutBeamsDocument):
         check_layout_beams_size(body, settings)
         return submit_job("power", {"layout": body.model_dump(mode="json")}, store, runner)
     check_scenario_size(body, settings)
+    power_check(body, objective, settings.job_memory_mb)  # ris-planner power's checks
     document = {
         "scenario": body.model_dump(mode="json"),
         "objective": objective,

@@ -8,6 +8,7 @@ cost uses the paths present for the true pair, as the estimator does.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +22,7 @@ from ris_planner.estimation.channel_estimation import ChannelEstimate
 from ris_planner.estimation.pipeline import present_weights
 from ris_planner.estimation.position_estimation import candidate_costs, channel_model
 from ris_planner.estimation.signal import ris_arrays
+from ris_planner.limits import count
 from ris_planner.scenario import Scenario
 
 FloatArray = NDArray[np.float64]
@@ -109,7 +111,7 @@ def cost_map(
     extent : (xmin, xmax, ymin, ymax) [m]; default the box around the RISs and the UEs with
     a 1 m margin. step_m > 0 is the grid step.
     """
-    if not step_m > 0:
+    if not (step_m > 0 and math.isfinite(step_m)):
         raise RisPlannerError(f"step_m must be > 0, got {step_m}")
     tx_a = scenario.tx_array[0] if tx is None else np.asarray(tx, dtype=float).reshape(3)
     rx_a = scenario.rx_array[0] if rx is None else np.asarray(rx, dtype=float).reshape(3)
@@ -122,12 +124,14 @@ def cost_map(
     xmin, xmax, ymin, ymax = extent
     if not (xmax >= xmin and ymax >= ymin):
         raise RisPlannerError(f"the map area is empty: extent = {list(extent)} needs max ≥ min")
-    x = np.asarray(xmin + step_m * np.arange(int(np.floor((xmax - xmin) / step_m + 1e-9)) + 1))
-    y = np.asarray(ymin + step_m * np.arange(int(np.floor((ymax - ymin) / step_m + 1e-9)) + 1))
-    if x.size * y.size > MAX_MAP_POINTS:
+    # the counts first (overflow-safe), the arrays only within the limit
+    nx, ny = count((xmax - xmin) / step_m + 1e-9) + 1, count((ymax - ymin) / step_m + 1e-9) + 1
+    if nx * ny > MAX_MAP_POINTS:
         raise LimitExceededError(
-            f"{x.size * y.size} map points exceed the limit {MAX_MAP_POINTS}; use a larger step"
+            f"{nx * ny} map points exceed the limit {MAX_MAP_POINTS}; use a larger step"
         )
+    x = np.asarray(xmin + step_m * np.arange(nx))
+    y = np.asarray(ymin + step_m * np.arange(ny))
     gx, gy = np.meshgrid(x, y, indexing="ij")
     cand = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, tx_a[2])], axis=-1)
     channel = noise_free_channel(scenario, tx_a, rx_a)

@@ -8,7 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ris_planner.cli import add_document_arguments, print_json, read_document
+from ris_planner.cli import (
+    add_document_arguments,
+    finite_float,
+    int_in,
+    positive_finite_float,
+    print_json,
+    read_document,
+)
 from ris_planner.errors import RisPlannerError
 from ris_planner.progress import ProgressBar
 
@@ -29,7 +36,16 @@ def _floats(text: str, what: str, count: int | None = None) -> list[float]:
 def _simulation_document(args: argparse.Namespace) -> dict[str, object]:
     doc = read_document(args)
     sim: dict[str, object] = dict(doc) if "scenario" in doc else {"scenario": doc}
+    for key, part in (
+        ("scenario", sim["scenario"]),
+        ("estimator", sim.get("estimator", {})),
+        ("multipath", sim.get("multipath", {})),
+    ):
+        if not isinstance(part, dict):
+            raise RisPlannerError(f"{key}: must be a JSON object")
     scenario = dict(sim["scenario"])  # type: ignore[call-overload]
+    if not isinstance(scenario.get("system", {}), dict):
+        raise RisPlannerError("scenario.system: must be a JSON object")
     if args.noise_figure_db is not None:
         scenario["system"] = dict(scenario.get("system", {})) | {
             "noise_figure_db": args.noise_figure_db
@@ -141,9 +157,11 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     add_document_arguments(p)
     p.add_argument("--runs", type=_positive_int, default=100, help="realisations per power")
     p.add_argument("--powers-dbm", default="20,30", help="comma-separated transmit powers")
-    p.add_argument("--seed", type=int, default=0, help="seed of phases, SPs and noise")
+    p.add_argument(
+        "--seed", type=int_in(0, 2**63 - 1), default=0, help="seed of phases, SPs and noise"
+    )
     p.add_argument("--out", help="directory for errors.csv and PNG figures")
-    p.add_argument("--noise-figure-db", type=float, help="override system.noise_figure_db")
+    p.add_argument("--noise-figure-db", type=finite_float, help="override system.noise_figure_db")
     p.add_argument("--sigma", choices=["identity", "crb"], help="Σ of the position MLE")
     p.set_defaults(func=_cmd_simulate)
     p = sub.add_parser(
@@ -154,7 +172,7 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rx", help="true RX X,Y,Z (default: the document's rx)")
     p.add_argument("--tx", help="true TX X,Y,Z (default: the document's tx)")
     p.add_argument("--extent", help="XMIN,XMAX,YMIN,YMAX of the map [m]")
-    p.add_argument("--step", type=float, default=0.05, help="grid step [m]")
+    p.add_argument("--step", type=positive_finite_float, default=0.05, help="grid step [m]")
     p.add_argument("--minima", type=_positive_int, default=5, help="local minima to list")
     p.add_argument("--out", help="PNG file of the map")
     p.set_defaults(func=_cmd_blind_area)

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ris_planner.cli import int_in
 from ris_planner.errors import RisPlannerError
 
 
@@ -85,7 +86,9 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         help="output folder (plan.json, PNGs, plan.geojson, heatmap.tif, points.csv)",
     )
     p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786)")
-    p.add_argument("--workers", type=int, default=None, help="local worker processes")
+    p.add_argument(
+        "--workers", type=int_in(1, 256), default=None, help="local worker processes (1–256)"
+    )
     p.add_argument(
         "--beams",
         action="store_true",

@@ -18,8 +18,10 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from ris_planner.limits import MAX_CACHE_ENTRIES as MAX_CACHE_ENTRIES  # re-exported
+from ris_planner.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS
 from ris_planner.obstacles import Environment, Prism
-from ris_planner.power.options import MAX_DESIGN_POSITIONS, Solver
+from ris_planner.power.options import Solver
 from ris_planner.scenario import (
     RIS,
     DocumentModel,
@@ -30,19 +32,11 @@ from ris_planner.scenario import (
     finite_point,
 )
 
-MAX_MAP_POINTS = 1_000_000
-"""A UE map may expand to at most this many points (grids and roads are checked before they
-are built)."""
-
 MAX_PAIRS_LIMIT = 500_000
 """The largest ``max_pairs`` a document may set (memory: a cached site holds 28 floats per pair)."""
 
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
-
-MAX_CACHE_ENTRIES = 4_000_000
-"""Candidate sites × pairs limit: the site cache holds 28 float64 per entry (≈ 0.9 GB here, and
-each local worker process holds a copy)."""
 
 
 Range = Annotated[
@@ -65,7 +59,19 @@ def range_count(r: list[float], what: str) -> int:
         raise ValueError(f"{what}: step must be > 0, got {step}")
     if stop < start:
         raise ValueError(f"{what}: stop {stop} is below start {start}")
-    return math.floor((stop - start) / step + 1e-9) + 1
+    ratio = (stop - start) / step
+    if not math.isfinite(ratio) or ratio > MAX_MAP_POINTS:
+        return MAX_MAP_POINTS + 1  # above the limit however far (no float overflow)
+    return math.floor(ratio + 1e-9) + 1
+
+
+def finite_weights(v: list[float], what: str) -> list[float]:
+    """Relative weights: finite and ≥ 0 (they are scaled by their largest before any sum, so
+    1e308 or 1e-320 are fine; a map without a positive weight is refused when it is built)."""
+    arr = np.asarray(v, dtype=float)
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise ValueError(f"{what} must be finite and ≥ 0")
+    return v
 
 
 class GridMap(DocumentModel):
@@ -86,6 +92,11 @@ class GridMap(DocumentModel):
         if n > MAX_MAP_POINTS:
             raise ValueError(f"grid.{info.field_name} has {n} values (limit {MAX_MAP_POINTS})")
         return v
+
+    @field_validator("weights")
+    @classmethod
+    def _check_grid_weights(cls, v: list[float] | None) -> list[float] | None:
+        return None if v is None else finite_weights(v, "grid.weights")
 
     @model_validator(mode="after")
     def _check_size(self) -> GridMap:
@@ -130,7 +141,9 @@ class UEMap(DocumentModel):
     weights: list[float] | None = Field(
         None, description="Relative weights of ``points`` (default all 1)"
     )
-    roads: list[Road] | None = Field(None, description="Roads sampled on a lattice")
+    roads: list[Road] | None = Field(
+        None, min_length=1, description="Roads sampled on a lattice (at least one if given)"
+    )
     csv_text: str | None = Field(
         None,
         max_length=50_000_000,
@@ -142,14 +155,17 @@ class UEMap(DocumentModel):
     def _check_points(cls, v: list[list[float]] | None) -> list[list[float]] | None:
         return None if v is None else [finite_point(p, "map point") for p in v]
 
+    @field_validator("csv_text")
+    @classmethod
+    def _check_csv(cls, v: str | None) -> str | None:
+        if v is not None and not v.strip().partition("\n")[2].strip():
+            raise ValueError("csv_text needs a header row (x, y, z[, weight]) and at least one row")
+        return v
+
     @field_validator("weights")
     @classmethod
     def _check_weights(cls, v: list[float] | None) -> list[float] | None:
-        if v is not None:
-            arr = np.asarray(v, dtype=float)
-            if not np.all(np.isfinite(arr)) or np.any(arr < 0):
-                raise ValueError("weights must be finite and ≥ 0")
-        return v
+        return None if v is None else finite_weights(v, "weights")
 
     @model_validator(mode="after")
     def _check_sources(self) -> UEMap:
@@ -306,15 +322,19 @@ class RISDefaults(DocumentModel):
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
     cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
     spacing_m: float | None = Field(
-        None, gt=0, allow_inf_nan=False, description="Element spacing [m]; default λ/2"
+        None,
+        gt=0,
+        le=1000,
+        allow_inf_nan=False,
+        description="Element spacing [m], at most 1 km (the scenario's rule); default λ/2",
     )
     max_angle_deg: float = Field(
         90.0,
         gt=0,
         le=180,
         allow_inf_nan=False,
-        description="Field of view (with an environment): a UE is served only when the angle"
-        " between the RIS normal and the direction to it is strictly below this [deg]",
+        description="Field of view: a UE is served only when the angle between the RIS normal"
+        " and the direction to it is strictly below this [deg] (90 = the front half-space)",
     )
     pattern_exponent: float = Field(
         0.0,

@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.limits import MAX_MAP_POINTS
 from ris_planner.planning.document import (
-    MAX_MAP_POINTS,
     GridMap,
     PairSample,
     PairsSpec,
@@ -148,6 +148,11 @@ class PairSet:
         return int(self.weights.shape[0])
 
 
+def unit_scaled(weights: FloatArray) -> FloatArray:
+    """Relative weights divided by their largest: in [0, 1], the largest exactly 1."""
+    return weights / weights.max()
+
+
 def unordered_directions(spec: PairsSpec, metric: str, known: tuple[str, ...]) -> str:
     """How unordered pairs count both directions (half the weight each):
 
@@ -194,8 +199,17 @@ def build_pairs(
     keep = np.linalg.norm(tx - rx, axis=-1) >= MIN_UE_RIS_DISTANCE_M
     if not np.any(keep):
         raise RisPlannerError("no TX–RX pair with distinct positions")
-    w = tx_map.weights[it[keep]] * rx_map.weights[ir[keep]]
-    return PairSet(tx[keep], rx[keep], w / w.sum(), it[keep], ir[keep])
+    # relative weights scaled by their largest (into (0, 1]) before any product or sum, so
+    # neither overflows however large (1e308) or small (1e-320) the document's numbers are
+    w = unit_scaled(tx_map.weights)[it[keep]] * unit_scaled(rx_map.weights)[ir[keep]]
+    w = w / w.max() if w.max() > 0 else w
+    total = w.sum()
+    if not (np.isfinite(total) and total > 0):
+        raise RisPlannerError(
+            "pair weights underflow: the TX and RX map weights span too many orders of"
+            " magnitude (their products are 0); use weights within 1e-150 of each other"
+        )
+    return PairSet(tx[keep], rx[keep], w / total, it[keep], ir[keep])
 
 
 def canonical_unordered(
@@ -218,7 +232,8 @@ def canonical_unordered(
 
 def _sample_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairSample) -> PairSet:
     rng = np.random.default_rng(spec.seed)
-    pt, pr = tx_map.weights / tx_map.weights.sum(), rx_map.weights / rx_map.weights.sum()
+    pt, pr = unit_scaled(tx_map.weights), unit_scaled(rx_map.weights)
+    pt, pr = pt / pt.sum(), pr / pr.sum()
     it = np.empty(0, dtype=int)
     ir = np.empty(0, dtype=int)
     for _ in range(100):  # redraw pairs whose positions coincide

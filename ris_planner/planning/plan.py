@@ -15,6 +15,7 @@ from ris_planner.bounds import compute_bounds
 from ris_planner.environment import Scene, ris_serves
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.fim import Radio
+from ris_planner.limits import HEATMAP_MAX_PAIRS, MAX_CACHE_ENTRIES
 from ris_planner.planning.beam_design import (
     BeamReport,
     evaluate_layout_beams,
@@ -22,7 +23,7 @@ from ris_planner.planning.beam_design import (
     objective_on_pairs,
     served_pairs,
 )
-from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
+from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import (
     PairSet,
@@ -55,7 +56,6 @@ FloatArray = NDArray[np.float64]
 
 REPORT_QUANTILES = (0.5, 0.9, 0.95)
 CDF_POINTS = 101
-HEATMAP_MAX_PAIRS = 200_000
 RANDOM_CODEBOOK_SEEDS = 5
 """Seeds (0 … 4) of the ``random`` codebooks that re-evaluate each count's best layout beside
 the expected-random objective the search used (``by_count[i]["random_codebook"]``): enough for
@@ -64,8 +64,6 @@ RANDOM_CODEBOOK_MAX_PAIRS = 20_000
 """Above this many pairs the random-codebook re-evaluation uses a seeded sample of this many
 pairs drawn ∝ weight (with replacement, equal weights: an unbiased estimate), and reports the
 expected-random objective on the same sample beside it."""
-"""TX–RX pairs the heatmap evaluates (about a second with expected_random): beyond it each RX
-point is evaluated against a seeded weighted sample of the TX map."""
 REASON_NO_TX = "no TX point of the heatmap differs from this RX point"
 
 
@@ -180,6 +178,11 @@ class PlanResult:
         vals = weighted_quantile(metric[None, :], self.metric_weights, probs)[0]
         return {"probability": [float(p) for p in probs], "bound_m": [_num(v) for v in vals]}
 
+    def heatmap_index(self) -> NDArray[np.int_]:
+        """Map indices of the RX points the heatmap and ``points`` evaluate
+        (:func:`heatmap_rx_index`: all of them up to :data:`HEATMAP_MAX_PAIRS`)."""
+        return heatmap_rx_index(len(self.rx_map.points))
+
     def heatmap_tx(self) -> tuple[FloatArray, FloatArray]:
         """(TX points [T, 3], weights [T]) every RX map point is evaluated against: the document's
         fixed ``heatmap_tx``, else the whole TX map – a seeded weighted sample of it when
@@ -188,7 +191,7 @@ class PlanResult:
         if doc.heatmap_tx is not None:
             return np.asarray(doc.heatmap_tx, dtype=float)[None], np.ones(1)
         tx_pts, tx_w = self.tx_map.points, self.tx_map.weights
-        max_tx = max(1, HEATMAP_MAX_PAIRS // len(self.rx_map.points))
+        max_tx = max(1, HEATMAP_MAX_PAIRS // len(self.heatmap_index()))
         if len(tx_pts) > max_tx:
             rng = np.random.default_rng(0)
             pick = rng.choice(len(tx_pts), max_tx, replace=False, p=tx_w / tx_w.sum())
@@ -207,7 +210,7 @@ class PlanResult:
         if cached is not None:
             return cached
         doc = self.document
-        pts = self.rx_map.points  # [M, 3]
+        pts = self.rx_map.points[self.heatmap_index()]  # [M, 3]
         tx_pts, tx_w = self.heatmap_tx()  # [T, 3], [T]
         n_tx, n_rx = len(tx_pts), len(pts)
         tx = np.repeat(tx_pts, n_rx, axis=0)  # [T·M, 3], TX-major
@@ -244,7 +247,7 @@ class PlanResult:
         """(RX points [M, 3], bound [M], layout) for the best layout of the largest count: the
         :meth:`rx_field` of that layout (NaN where no TX point differs from the RX point)."""
         layout = self.counts[-1].ranked[0][0]
-        return self.rx_map.points, self.rx_field(layout).bound, layout
+        return self.rx_map.points[self.heatmap_index()], self.rx_field(layout).bound, layout
 
     def warnings(self) -> list[str]:
         """Expected-random optimism per RIS count, grating lobes of the candidate RISs, the
@@ -357,7 +360,9 @@ def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
     """Validate a plan document, expand its sites and maps, build its pairs and check every limit
     that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
     cache) – a dry run: raises what ``run_plan`` would raise, computes no bound."""
-    doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
+    from ris_planner.validation import validate_plan
+
+    doc = validate_plan(document)  # the CLI's and the service's checks, sizes before work
     # the fields of view apply in free space too (an empty scene); obstacles where given
     scene = Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
@@ -379,6 +384,16 @@ def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
             f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
         )
     return PlanInputs(doc, sites, tx_map, rx_map, pairs, scene, dropped, directions)
+
+
+def heatmap_rx_index(n_points: int) -> NDArray[np.int_]:
+    """Map indices of the RX points the heatmap and the per-point results evaluate: all of them
+    up to :data:`HEATMAP_MAX_PAIRS`, else a seeded uniform sample of that many (map order
+    kept), so the heatmap's pairs never exceed the limit whatever the map's size."""
+    if n_points <= HEATMAP_MAX_PAIRS:
+        return np.arange(n_points)
+    rng = np.random.default_rng(0)
+    return np.sort(rng.choice(n_points, HEATMAP_MAX_PAIRS, replace=False))
 
 
 def run_plan(

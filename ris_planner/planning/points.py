@@ -37,7 +37,8 @@ def _num(x: float) -> float | None:
 
 
 def points_json(result: PlanResult) -> list[dict[str, Any]]:
-    """``plan.json["points"]``: one entry per RX map point, in map order.
+    """``plan.json["points"]``: one entry per RX map point the heatmap evaluates (all of them up
+    to ``HEATMAP_MAX_PAIRS``, :meth:`PlanResult.heatmap_index`), in map order.
 
     ``{"index", "position": [x, y, z], "weight", "bound_m": {"2": v | null, …},
     "serving": {"2": [site indices], …}, "reason": {"2": null | str, …}}``, keyed by RIS count
@@ -47,14 +48,14 @@ def points_json(result: PlanResult) -> list[dict[str, Any]]:
     pm = result.rx_map
     return [
         {
-            "index": m,
-            "position": [float(v) for v in pm.points[m]],
-            "weight": float(pm.weights[m]),
+            "index": int(i),
+            "position": [float(v) for v in pm.points[i]],
+            "weight": float(pm.weights[i]),
             "bound_m": {k: _num(f.bound[m]) for k, f in fields.items()},
             "serving": {k: [int(s) for s in f.serving[m]] for k, f in fields.items()},
             "reason": {k: f.reason[m] for k, f in fields.items()},
         }
-        for m in range(len(pm.points))
+        for m, i in enumerate(result.heatmap_index())
     ]
 
 
@@ -137,7 +138,8 @@ def heatmap_json(result: PlanResult) -> dict[str, Any]:
     heatmap figure shows (the largest)."""
     doc = result.document
     pm = result.rx_map
-    grid, cells = raster_cells(pm.points[:, :2])
+    idx = result.heatmap_index()
+    grid, cells = raster_cells(pm.points[idx, :2])
     n = int(grid["nx"]) * int(grid["ny"])
     bound: dict[str, list[list[float | None]]] = {}
     blind: dict[str, list[list[bool]]] = {}
@@ -145,7 +147,8 @@ def heatmap_json(result: PlanResult) -> dict[str, Any]:
     for cr in result.counts:
         key = str(cr.ris_count)
         f = result.rx_field(cr.ranked[0][0])
-        med = cell_medians(cells, f.bound, pm.weights, n).reshape(int(grid["ny"]), int(grid["nx"]))
+        med = cell_medians(cells, f.bound, pm.weights[idx], n)
+        med = med.reshape(int(grid["ny"]), int(grid["nx"]))
         bound[key] = [[_num(v) for v in row] for row in med]
         blind[key] = [[bool(v) for v in row] for row in np.isposinf(med)]
         sites[key] = [int(s) for s in f.layout]

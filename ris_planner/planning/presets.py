@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ris_planner.errors import RisPlannerError
+from ris_planner.io_json import read_json_object
 
 PLAN_PRESET_NAMES = ("fig10-anchors", "junction", "hall")
 """``fig10-anchors``: the four Fig. 10 anchor sites over the Fig. 10 pairs, 2–4 RISs;
@@ -47,7 +48,5 @@ def inline_csv(doc: dict[str, Any], base_dir: Path) -> dict[str, Any]:
 def load_plan_file(path: str | Path) -> dict[str, Any]:
     """A plan document from a JSON file (``-`` = stdin), CSV maps inlined (relative to the
     file, or to the working directory for stdin)."""
-    from ris_planner.cli import read_json_object
-
     doc = read_json_object(path)
     return inline_csv(doc, Path.cwd() if str(path) == "-" else Path(path).parent)

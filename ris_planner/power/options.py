@@ -12,6 +12,3 @@ OBJECTIVES: tuple[Objective, ...] = get_args(Objective)
 Solver = Literal["CLARABEL", "SCS"]
 """SDP solvers (through cvxpy)."""
 SOLVERS: tuple[Solver, ...] = get_args(Solver)
-
-MAX_DESIGN_POSITIONS = 256
-"""Positions (LMIs) of one SDP; the solve time grows about linearly with them."""

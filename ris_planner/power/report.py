@@ -18,9 +18,10 @@ from numpy.typing import NDArray
 from ris_planner.beams import codebook_block
 from ris_planner.bounds import ComplexArray, compute_bounds, first_block_profiles
 from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.limits import MAX_DESIGN_BEAMS, MAX_DESIGN_POSITIONS
 from ris_planner.power.gamma import GammaSearch, search_gamma_p
 from ris_planner.power.information import beam_information
-from ris_planner.power.options import MAX_DESIGN_POSITIONS, OBJECTIVES, Objective
+from ris_planner.power.options import Objective
 from ris_planner.power.sdp import (
     SdpResult,
     mean_trace_bound,
@@ -31,15 +32,10 @@ from ris_planner.progress import ProgressCallback, no_progress
 from ris_planner.scenario import (
     DirectionalCodebook,
     DirectionalDerivativeCodebook,
-    ExpectedRandomCodebook,
     Scenario,
-    load_scenario,
 )
 
 FloatArray = NDArray[np.float64]
-
-MAX_DESIGN_BEAMS = 4096
-"""First-block beams (SDP variables)."""
 
 
 def design_objective(
@@ -139,14 +135,9 @@ def run_power(
     solver: str = "CLARABEL",
 ) -> PowerResult:
     """Uniform power, the best γ_P (DIR+DER only) and the SDP allocation for a scenario."""
-    sc = load_scenario(scenario)
-    if objective not in OBJECTIVES:
-        raise RisPlannerError(f"objective must be one of {', '.join(OBJECTIVES)}")
-    if isinstance(sc.codebook, ExpectedRandomCodebook):
-        raise RisPlannerError(
-            "power allocation needs concrete beams; codebook 'expected_random' has none"
-            " (use 'random', 'explicit', 'directional' or 'directional_derivative')"
-        )
+    from ris_planner.validation import validate_power
+
+    sc = validate_power(scenario, objective)  # the CLI's and the service's checks, sizes first
     progress(0.0, "beams")
     beam_types = None
     if isinstance(sc.codebook, DirectionalCodebook | DirectionalDerivativeCodebook):

@@ -1,0 +1,106 @@
+"""Reading JSON documents and formatting input errors: shared by the command line, the engine's
+file readers (plan presets) and the service's job workers, so none of them imports another's
+front end.
+
+Every reader turns what can go wrong with untrusted input into :class:`RisPlannerError` with one
+line: not JSON, not an object, nested deeper than :data:`MAX_JSON_DEPTH` (``RecursionError``
+otherwise), a closed stdin, bytes that are not UTF-8.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from ris_planner.errors import RisPlannerError
+
+MAX_JSON_DEPTH = 64
+"""Deepest nesting of arrays/objects a document may have (the deepest real field, a list of
+points inside a map inside a plan, is 5 levels); deeper input is refused before validation."""
+
+
+def json_depth(value: Any) -> int:
+    """Nesting depth of a decoded JSON value (scalars 0), without recursion."""
+    deepest = 0
+    stack: list[tuple[Any, int]] = [(value, 0)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict):
+            children: Any = item.values()
+        elif isinstance(item, list):
+            children = item
+        else:
+            continue
+        depth += 1
+        if depth > MAX_JSON_DEPTH:
+            return depth
+        deepest = max(deepest, depth)
+        stack.extend((c, depth) for c in children)
+    return deepest
+
+
+def check_depth(value: Any, what: str = "document") -> None:
+    """Raise :class:`RisPlannerError` when ``value`` nests deeper than :data:`MAX_JSON_DEPTH`."""
+    if json_depth(value) > MAX_JSON_DEPTH:
+        raise RisPlannerError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels")
+
+
+def parse_json(text: str | bytes, what: str = "document") -> Any:
+    """A JSON value from text, nested at most :data:`MAX_JSON_DEPTH` deep; every failure a
+    one-line :class:`RisPlannerError`."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise RisPlannerError(f"{what}: not valid JSON ({exc})") from None
+    except UnicodeDecodeError:
+        raise RisPlannerError(f"{what}: not UTF-8 text") from None
+    except RecursionError:
+        raise RisPlannerError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels") from None
+    check_depth(value, what)
+    return value
+
+
+def parse_json_object(text: str | bytes, what: str = "document") -> dict[str, Any]:
+    """A JSON object from text, every failure a one-line :class:`RisPlannerError`."""
+    doc = parse_json(text, what)
+    if not isinstance(doc, dict):
+        raise RisPlannerError(f"{what}: the document must be a JSON object")
+    return doc
+
+
+def read_json_object(path: str | Path) -> dict[str, Any]:
+    """A JSON object from a file (``-`` = stdin), with input errors as :class:`RisPlannerError`."""
+    if str(path) == "-":
+        if sys.stdin is None or sys.stdin.closed:
+            raise RisPlannerError("-: standard input is closed")
+        text = sys.stdin.buffer.read() if hasattr(sys.stdin, "buffer") else sys.stdin.read()
+        return parse_json_object(text, "-")
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise RisPlannerError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return parse_json_object(data, str(path))
+
+
+def field_path(loc: tuple[int | str, ...] | list[int | str]) -> str:
+    """Dotted field path of a pydantic error location (``ris.1.position``)."""
+    return ".".join(str(p) for p in loc) or "(document)"
+
+
+def validation_problems(exc: ValidationError) -> list[str]:
+    """One ``field.path: message`` per problem (``ris.1.position: ...``)."""
+    return [f"{field_path(err['loc'])}: {err['msg']}" for err in exc.errors()]
+
+
+def format_validation_error(exc: ValidationError) -> str:
+    """One line per problem, naming the field path."""
+    return "invalid document:\n  " + "\n  ".join(validation_problems(exc))
+
+
+def one_line_validation_error(exc: ValidationError) -> str:
+    """The problems of a validation error on one line (job messages)."""
+    return "invalid document: " + "; ".join(validation_problems(exc))

@@ -1,0 +1,325 @@
+"""Sizes that drive a run's memory and time, computed from the document before anything is
+built, and the one check against their limits (README "Limits").
+
+:func:`estimate_plan` / :func:`estimate_power` read only the validated document (arithmetic on
+its numbers: no site, map point or pair is created) and return :class:`Sizes`;
+:func:`check_sizes` raises :class:`LimitExceededError` naming the first quantity above its
+limit, or the memory estimate above the job's budget (``RIS_PLANNER_JOB_MEMORY_MB``). The
+command line and the service call the same functions (:mod:`ris_planner.validation`), so a
+document the service accepts is one the job can run.
+
+The per-item byte costs below are the arrays each stage holds at its peak (float64, with the
+temporaries of building them), rounded up; Python objects (sites, memo entries) are measured
+sizes on CPython 3.11.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+from ris_planner.errors import LimitExceededError, RisPlannerError
+
+if TYPE_CHECKING:  # the documents import this module's limits
+    from ris_planner.planning.document import PlanDocument, Road, UEMap, Wall
+    from ris_planner.scenario import Scenario
+
+JOB_MEMORY_MB_DEFAULT = 6144
+"""Memory budget of one job [MiB]: the 24 GiB machine runs two job workers beside the server
+and the operating system (2 × 6 GiB + headroom)."""
+
+JOB_MEMORY_ENV = "RIS_PLANNER_JOB_MEMORY_MB"
+"""Environment variable with the budget (the service's setting; the CLI reads it too)."""
+
+MAX_SITES = 100_000
+"""Candidate sites: explicit candidates + Σ over walls of (length/spacing)·heights·tilts."""
+MAX_MAP_POINTS = 1_000_000
+"""Points of one UE map (grid + points + road lattice + CSV rows)."""
+MAX_CACHE_ENTRIES = 4_000_000
+"""Candidate sites × pairs held in the site cache (28 float64 per entry)."""
+MAX_SEARCH_LAYOUTS = 2_000_000
+"""Layouts a greedy search may score and memoise: (1 + seeds + restarts) starts × max_rounds
+rounds × L·(S − L) swaps per round, summed over the RIS counts (the worst case)."""
+MAX_DESIGN_POSITIONS = 256
+"""Positions (LMIs) of one power SDP; the solve time grows about linearly with them."""
+MAX_DESIGN_BEAMS = 4096
+"""First-block beams G̃ of a power SDP (its variables)."""
+MAX_POWER_TERMS = 65_536
+"""Beams × design positions of a power SDP: its per-beam, per-position 7×7 information and
+the solver's copy of it (a 4096 × 256 problem needs tens of GB in the solver)."""
+MAX_BEAM_ELEMENTS = 50_000_000
+"""Σ_ℓ beams × design positions × elements N_ℓ: the complex steering products of the beam
+information."""
+
+# peak bytes per item (see the module docstring)
+BYTES_PER_MAP_POINT = 160
+BYTES_PER_PAIR = 200
+BYTES_PER_SITE = 4_000
+BYTES_PER_CACHE_ENTRY = 480
+BYTES_PER_LAYOUT = 250
+BYTES_PER_HEATMAP_ELEMENT = 16
+"""Heatmap: per pair, RIS and element (``compute_bounds`` of 50 000 pairs with 5 RISs of 100
+elements peaks at 360 MB, about 10.5 B per pair·element; 16 B with margin)."""
+BYTES_PER_POWER_TERM = 8 * 49 * 24
+"""Power: per beam and position, the 7×7 information and the conic solver's copies."""
+BYTES_PER_BEAM_ELEMENT = 48
+CSV_BYTES_PER_ROW_PARSED = 250
+BASE_BYTES = 300 << 20
+"""Imported modules and the interpreter of a worker (not counted against the budget's work)."""
+
+
+@dataclass(frozen=True)
+class Sizes:
+    """Every size-driving quantity of one run (0 where it does not apply)."""
+
+    sites: int = 0
+    tx_points: int = 0
+    rx_points: int = 0
+    pairs: int = 0
+    cache_entries: int = 0
+    heatmap_pairs: int = 0
+    search_layouts: int = 0
+    design_beams: int = 0
+    design_positions: int = 0
+    power_terms: int = 0
+    beam_elements: int = 0
+    memory_bytes: int = 0
+
+    def to_json(self) -> dict[str, int]:
+        return asdict(self)
+
+
+LIMITS: dict[str, tuple[int, str, str, str]] = {
+    "sites": (
+        MAX_SITES,
+        "candidate sites",
+        "candidate-site",
+        "use fewer walls, heights or tilts, or a larger spacing_m",
+    ),
+    "tx_points": (MAX_MAP_POINTS, "tx_map points", "map-point", "use a coarser tx_map"),
+    "rx_points": (MAX_MAP_POINTS, "rx_map points", "map-point", "use a coarser rx_map"),
+    "cache_entries": (
+        MAX_CACHE_ENTRIES,
+        "sites × pairs",
+        "site-cache",
+        "sample fewer pairs or use fewer candidates",
+    ),
+    "search_layouts": (
+        MAX_SEARCH_LAYOUTS,
+        "greedy layouts (starts × rounds × swaps)",
+        "search",
+        "use fewer search.restarts or search.max_rounds, or fewer sites",
+    ),
+    "design_beams": (MAX_DESIGN_BEAMS, "beams", "design-beam", "use fewer transmissions"),
+    "design_positions": (
+        MAX_DESIGN_POSITIONS,
+        "design positions",
+        "design-position",
+        "use fewer pairs or prior samples",
+    ),
+    "power_terms": (
+        MAX_POWER_TERMS,
+        "beams × design positions",
+        "power-SDP",
+        "use fewer transmissions, pairs or prior samples",
+    ),
+    "beam_elements": (
+        MAX_BEAM_ELEMENTS,
+        "beams × positions × elements",
+        "beam-information",
+        "use smaller RISs, fewer beams or fewer positions",
+    ),
+}
+"""Quantity → (limit, what is counted, the limit's name, how to get below it); ``pairs`` is
+checked against the document's own ``max_pairs``."""
+
+
+def job_memory_mb() -> int:
+    """The memory budget [MiB] from ``RIS_PLANNER_JOB_MEMORY_MB`` (default
+    :data:`JOB_MEMORY_MB_DEFAULT`)."""
+    text = os.environ.get(JOB_MEMORY_ENV)
+    if text is None or text.strip() == "":
+        return JOB_MEMORY_MB_DEFAULT
+    try:
+        value = int(text)
+    except ValueError:
+        raise RisPlannerError(f"{JOB_MEMORY_ENV} must be an integer (MiB), got {text!r}") from None
+    if value < 64:
+        raise RisPlannerError(f"{JOB_MEMORY_ENV} must be ≥ 64 MiB, got {value}")
+    return value
+
+
+def check_sizes(sizes: Sizes, *, max_pairs: int | None = None, memory_mb: int | None) -> None:
+    """Raise :class:`LimitExceededError` naming the first quantity above its limit (the limit
+    and how to get below it in the message), then the memory estimate against ``memory_mb``
+    (None: no budget)."""
+    values = sizes.to_json()
+    if max_pairs is not None and sizes.pairs > max_pairs:
+        raise LimitExceededError(
+            f"the document gives {sizes.pairs} TX–RX pairs, above max_pairs = {max_pairs}; use"
+            ' "pairs": {"sample": N, "seed": S} or coarser maps',
+            max_pairs,
+        )
+    for name, (limit, what, label, hint) in LIMITS.items():
+        if values[name] > limit:
+            raise LimitExceededError(
+                f"{values[name]} {what} exceed the {label} limit of {limit} ({name}); {hint}",
+                limit,
+            )
+    if memory_mb is not None and sizes.memory_bytes > memory_mb << 20:
+        need = math.ceil(sizes.memory_bytes / (1 << 20))
+        raise LimitExceededError(
+            f"the run needs an estimated {need} MiB, above the job memory budget of"
+            f" {memory_mb} MiB ({JOB_MEMORY_ENV}); reduce pairs, sites or map sizes",
+            memory_mb,
+        )
+
+
+def count(value: float) -> int:
+    """A non-negative count from a float expression (inf/NaN → a count above every limit)."""
+    if not math.isfinite(value) or value > 1e18:
+        return 10**18
+    return max(0, math.floor(value))
+
+
+HEATMAP_MAX_PAIRS = 200_000
+"""TX–RX pairs the plan's heatmap evaluates: at most this many RX points (a seeded sample of a
+larger RX map) against a seeded weighted sample of the TX map."""
+
+
+def _rounded(value: float) -> int:
+    """``round(value)`` of a non-negative ratio, overflow-safe (as :func:`count`)."""
+    return count(value) if not math.isfinite(value) or value > 1e18 else round(value)
+
+
+def _wall_sites(wall: Wall) -> int:
+    """Sites of one wall, as :func:`ris_planner.planning.sites.wall_poses` lays them out."""
+    if wall.rectangle is not None:
+        x0, y0, x1, y1 = wall.rectangle
+        lengths = [x1 - x0, y1 - y0, x1 - x0, y1 - y0]
+    else:
+        assert wall.start is not None and wall.end is not None
+        lengths = [math.hypot(wall.end[0] - wall.start[0], wall.end[1] - wall.start[1])]
+    along = sum(max(1, _rounded(length / wall.spacing_m)) for length in lengths)
+    return along * len(wall.heights_m) * len(wall.tilts_rad)
+
+
+def _road_points(road: Road) -> int:
+    """Lattice points of one road, as :func:`ris_planner.planning.maps.road_points` samples."""
+    lateral = 2 * count(road.width_m / 2 / road.step_m + 1e-9) + 1
+    total, any_segment = 0, False
+    for a, b in zip(road.points, road.points[1:], strict=False):
+        length = math.hypot(b[0] - a[0], b[1] - a[1])
+        if length == 0:
+            continue
+        any_segment = True
+        total += count(math.ceil(length / road.step_m - 1e-9)) * lateral
+    return total + (lateral if any_segment else 1)
+
+
+def _csv_rows(text: str) -> int:
+    """An upper bound on the data rows of CSV text (its lines after the header)."""
+    return max(0, text.count("\n") + 1 - 1)
+
+
+def map_points(spec: UEMap) -> int:
+    """Points of a UE map before any is built (zero-weight points included)."""
+    from ris_planner.planning.document import range_count
+
+    n = 0
+    if spec.grid is not None:
+        g = spec.grid
+        n += range_count(g.x, "x") * range_count(g.y, "y") * range_count(g.z, "z")
+    n += len(spec.points or [])
+    n += sum(_road_points(r) for r in spec.roads or [])
+    if spec.csv_text is not None:
+        n += _csv_rows(spec.csv_text)
+    return n
+
+
+def plan_sites(doc: PlanDocument) -> int:
+    """Candidate sites: explicit candidates and every wall's sites."""
+    return len(doc.candidates) + sum(_wall_sites(w) for w in doc.walls)
+
+
+def _search_layouts(doc: PlanDocument, sites: int) -> int:
+    """Layouts the searches may score, summed over the RIS counts (the worst case)."""
+    total = 0
+    for i, n_ris in enumerate(doc.ris_count):
+        spec = doc.search
+        layouts = math.comb(sites, n_ris) if sites >= n_ris else 0
+        if spec.method == "exhaustive" or (
+            spec.method == "auto" and layouts <= spec.max_exhaustive
+        ):
+            total += min(layouts, spec.max_exhaustive)
+            continue
+        starts = 1 + i + spec.restarts  # greedy, seeds (smaller counts), random restarts
+        total += starts * (spec.max_rounds * n_ris * max(0, sites - n_ris) + n_ris * sites)
+    return total
+
+
+def estimate_plan(doc: PlanDocument) -> Sizes:
+    """Every size of a plan run from its validated document (nothing is built)."""
+    sites = plan_sites(doc)
+    n_t, n_r = map_points(doc.tx_map), map_points(doc.rx_map)
+    pairs_spec = doc.pairs
+    if isinstance(pairs_spec, str):
+        pairs = n_t * (n_t - 1) // 2 if pairs_spec == "unordered" else n_t * n_r
+    else:
+        pairs = pairs_spec.sample
+    heat_rx = min(n_r, HEATMAP_MAX_PAIRS)
+    heat_tx = 1 if doc.heatmap_tx is not None else min(n_t, max(1, HEATMAP_MAX_PAIRS // heat_rx))
+    heatmap = heat_rx * heat_tx
+    cache = sites * pairs
+    layouts = _search_layouts(doc, sites)
+    elements = doc.ris.rows * doc.ris.cols
+    csv_rows = sum(_csv_rows(m.csv_text or "") for m in (doc.tx_map, doc.rx_map))
+    memory = (
+        BASE_BYTES
+        + (n_t + n_r) * BYTES_PER_MAP_POINT
+        + csv_rows * CSV_BYTES_PER_ROW_PARSED
+        + min(pairs, doc.max_pairs) * BYTES_PER_PAIR
+        + sites * BYTES_PER_SITE
+        + min(cache, MAX_CACHE_ENTRIES) * BYTES_PER_CACHE_ENTRY
+        + min(layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT
+        + heatmap * max(doc.ris_count) * elements * BYTES_PER_HEATMAP_ELEMENT
+    )
+    return Sizes(
+        sites=sites,
+        tx_points=n_t,
+        rx_points=n_r,
+        pairs=pairs,
+        cache_entries=cache,
+        heatmap_pairs=heatmap,
+        search_layouts=layouts,
+        memory_bytes=memory,
+    )
+
+
+def estimate_power(scenario: Scenario) -> Sizes:
+    """The sizes of a power allocation (``ris-planner power``) from its validated scenario:
+    G̃ beams, the design positions (prior samples of a DIR/DIR+DER codebook, else the pairs)
+    and the elements of each RIS."""
+    from ris_planner.codebooks import block_length
+
+    g_tilde = block_length(scenario.system.transmissions, len(scenario.ris))
+    prior = getattr(scenario.codebook, "prior", None)
+    if prior is not None:
+        per_sample = int(getattr(scenario.codebook, "beams_per_sample", 1))
+        positions = prior.samples if prior.samples is not None else max(1, g_tilde // per_sample)
+    else:
+        positions = int(scenario.tx_array.shape[0])
+    elements = sum(r.elements for r in scenario.ris)
+    terms = g_tilde * positions
+    products = terms * elements
+    memory = BASE_BYTES + terms * BYTES_PER_POWER_TERM + products * BYTES_PER_BEAM_ELEMENT
+    return Sizes(
+        pairs=int(scenario.tx_array.shape[0]),
+        design_beams=g_tilde,
+        design_positions=positions,
+        power_terms=terms,
+        beam_elements=products,
+        memory_bytes=memory,
+    )

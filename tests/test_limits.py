@@ -1,0 +1,212 @@
+"""Every size-driving quantity is computed from the document and refused before anything is
+built: each document below would need gigabytes (or hours); under a 1.5 GiB address-space cap
+each is refused within a second with its limit named, by the CLI and by the service."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from api_helpers import api_client
+from test_api_plans import small_plan_doc
+
+from ris_planner import preset_document
+from ris_planner.limits import HEATMAP_MAX_PAIRS, estimate_plan
+from ris_planner.planning import PlanDocument
+from ris_planner.planning.plan import heatmap_rx_index
+
+MEMORY_CAP_MB = 1536
+"""Address-space cap of the refusing process (imports need ~1 GiB of address space)."""
+REFUSAL_S = 1.0
+"""Each refusal, timed inside the capped process (after its imports)."""
+
+
+def ring(n: int) -> list[dict[str, Any]]:
+    return [
+        {
+            "position": [5 * math.cos(2 * math.pi * k / n), 5 * math.sin(2 * math.pi * k / n), 2.0],
+            "orientation": [2 * math.pi * k / n + math.pi, 0.0, 0.0],
+        }
+        for k in range(n)
+    ]
+
+
+def power_doc(transmissions: int, pairs: int, rows: int = 10, **codebook: Any) -> dict[str, Any]:
+    doc = preset_document("2-ris-L")
+    doc["system"] = dict(doc["system"]) | {"transmissions": transmissions}
+    doc["ris"] = [dict(r) | {"rows": rows, "cols": rows} for r in doc["ris"]]
+    rng = np.random.default_rng(0)
+    doc["tx"] = rng.uniform(-3, 3, (pairs, 3)).round(3).tolist()
+    doc["rx"] = (rng.uniform(-3, 3, (pairs, 3)) + np.array([0, 0, 0.5])).round(3).tolist()
+    doc["codebook"] = codebook or {"kind": "random", "seed": 1}
+    return doc
+
+
+GRID = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0, 1]}}
+CASES: dict[str, tuple[str, dict[str, Any], str]] = {
+    # quantity: (command, document, text of the refusal)
+    "sites": (
+        "plan",
+        small_plan_doc(
+            candidates=[],
+            walls=[
+                {
+                    "start": [0, 0],
+                    "end": [1000, 0],
+                    "spacing_m": 0.001,
+                    "heights_m": [2 + 0.01 * i for i in range(100)],
+                    "tilts_rad": [0.01 * i for i in range(100)],
+                }
+            ],
+        ),
+        "candidate-site limit",
+    ),
+    "road points": (
+        "plan",
+        small_plan_doc(
+            tx_map={"roads": [{"points": [[0, 0], [1e-5, 0]], "width_m": 10, "step_m": 1e-7}]}
+        ),
+        "map-point limit",
+    ),
+    "grid points": (
+        "plan",
+        small_plan_doc(tx_map={"grid": {"x": [0, 1000, 1e-6], "y": [0, 0, 1], "z": [0, 0, 1]}}),
+        "limit",
+    ),
+    "csv rows": (
+        "plan",
+        small_plan_doc(tx_map={"csv_text": "x,y,z\n" + "1,2,0\n" * 1_000_001}),
+        "map-point limit",
+    ),
+    "pairs": (
+        "plan",
+        small_plan_doc(
+            pairs="all", tx_map={"grid": {"x": [0, 100, 1], "y": [0, 100, 1], "z": [0, 0, 1]}}
+        ),
+        "max_pairs",
+    ),
+    "cache entries": (
+        "plan",
+        small_plan_doc(candidates=ring(500), pairs={"sample": 10000, "seed": 1}, max_pairs=10000),
+        "site-cache limit",
+    ),
+    "greedy layouts": (
+        "plan",
+        small_plan_doc(
+            candidates=ring(60),
+            ris_count=[4],
+            search={"method": "greedy", "restarts": 1000, "max_rounds": 10000},
+        ),
+        "search limit",
+    ),
+    "memory budget": (
+        "plan",
+        small_plan_doc(candidates=ring(400), pairs={"sample": 9000, "seed": 1}, max_pairs=9000),
+        "job memory budget",
+    ),
+    "power beams × positions": ("power", power_doc(4096 * 3, 256), "power-SDP limit"),
+    "power beams × positions × elements": (
+        "power",
+        power_doc(256 * 3, 200, rows=400),
+        "beam-information limit",
+    ),
+    "power design positions": (
+        "power",
+        power_doc(3000, 1, kind="directional", prior={"sigma_m": 0.1, "samples": 1000, "seed": 0}),
+        "design-position limit",
+    ),
+}
+ENV_BUDGET_MB = {"memory budget": 600}
+
+REFUSER = r"""
+import io, json, resource, sys, time
+from contextlib import redirect_stderr
+cap = int(sys.argv[1]) << 20
+resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+from ris_planner.cli import main
+import ris_planner.planning, ris_planner.validation, ris_planner.power.report  # before the clock
+out = {}
+for name, (command, doc, budget) in json.load(sys.stdin).items():
+    import os
+    os.environ["RIS_PLANNER_JOB_MEMORY_MB"] = str(budget)
+    sys.stdin = io.TextIOWrapper(io.BytesIO(json.dumps(doc).encode()))
+    err = io.StringIO()
+    t0 = time.perf_counter()
+    with redirect_stderr(err):
+        code = main([command, "-"])
+    out[name] = {"code": code, "seconds": time.perf_counter() - t0, "stderr": err.getvalue()}
+print(json.dumps(out))
+"""
+
+
+@pytest.fixture(scope="module")
+def refusals() -> dict[str, dict[str, Any]]:
+    """Every case run by the CLI in one process under the address-space cap."""
+    cases = {
+        name: (command, doc, ENV_BUDGET_MB.get(name, 6144))
+        for name, (command, doc, _) in CASES.items()
+    }
+    env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"}
+    proc = subprocess.run(
+        [sys.executable, "-c", REFUSER, str(MEMORY_CAP_MB)],
+        input=json.dumps(cases),
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+        cwd=Path(__file__).parent.parent,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result: dict[str, dict[str, Any]] = json.loads(proc.stdout)
+    return result
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_each_quantity_is_refused_before_it_is_built(
+    refusals: dict[str, dict[str, Any]], name: str
+) -> None:
+    got = refusals[name]
+    assert got["code"] == 2, got
+    assert CASES[name][2] in got["stderr"], got["stderr"]
+    assert "Traceback" not in got["stderr"] and "MemoryError" not in got["stderr"]
+    assert got["seconds"] < REFUSAL_S, got
+
+
+def test_the_service_refuses_at_submission_with_the_limit(tmp_path: Path) -> None:
+    with api_client(tmp_path, workers=1) as client:
+        r = client.post("/v1/plans", json=CASES["sites"][1])
+        assert r.status_code == 413 and r.json()["limit"] == 100_000
+        assert "candidate-site limit" in r.json()["message"]
+        r = client.post("/v1/power-allocations", json=CASES["power beams × positions"][1])
+        assert r.status_code == 413 and "power-SDP limit" in r.json()["message"]
+        assert client.get("/v1/jobs").json()["total"] == 0  # nothing was queued
+
+
+def test_heatmap_respects_its_pair_limit_for_a_million_point_map() -> None:
+    big = {"grid": {"x": [0, 999, 1], "y": [0, 999, 1], "z": [0, 0, 1]}}
+    doc = PlanDocument.model_validate(small_plan_doc(rx_map=big))
+    sizes = estimate_plan(doc)
+    assert sizes.rx_points == 1_000_000 and sizes.heatmap_pairs <= HEATMAP_MAX_PAIRS
+    a, b = heatmap_rx_index(1_000_000), heatmap_rx_index(1_000_000)
+    assert len(a) == HEATMAP_MAX_PAIRS and np.array_equal(a, b)  # reproducible
+    assert np.all(np.diff(a) > 0)  # map order kept
+    np.testing.assert_array_equal(heatmap_rx_index(1000), np.arange(1000))
+
+
+def test_extreme_relative_weights_give_finite_normalised_pair_weights() -> None:
+    from ris_planner.planning.maps import PointMap, build_pairs
+
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    for scale in (1e308, 1e-320):
+        m = PointMap(pts, np.array([scale, scale, scale / 2]))
+        pairs = build_pairs(m, m, "all", 100)
+        assert np.all(np.isfinite(pairs.weights)) and math.isclose(pairs.weights.sum(), 1.0)
+        # a pair's weight ∝ w_T·w_R: the (0, 1) pair weighs twice the (0, 2) pair
+        w = dict(zip(zip(pairs.tx_index, pairs.rx_index, strict=True), pairs.weights, strict=True))
+        assert math.isclose(w[(0, 1)], 2 * w[(0, 2)], rel_tol=1e-12)
