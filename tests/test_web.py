@@ -309,7 +309,9 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     )
     # downloads: plan.json and every file of the job
     links = pg.locator("#downloads a")
-    assert links.all_inner_texts() == ["plan.json", "topview", "heatmap", "cdf"]
+    names = links.all_inner_texts()  # PNG figures, then the GIS files (GeoJSON, GeoTIFF, CSV)
+    assert names[:4] == ["plan.json", "topview", "heatmap", "cdf"]
+    assert {"geojson", "geotiff", "points_csv"} <= set(names[4:])
     with pg.expect_download() as dl:
         links.first.click()
     saved = json.loads(Path(dl.value.path()).read_text())
