@@ -12,6 +12,9 @@ from numpy.typing import NDArray
 
 from ris_planner.bounds import compute_bounds
 from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.planning.certificates import Certificate, relaxation_certificate
+from ris_planner.planning.constraints import Feasibility, build_feasibility
+from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
 from ris_planner.planning.document import MAX_CACHE_ENTRIES, PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import PairSet, PointMap, build_map, build_pairs
@@ -54,6 +57,9 @@ class CountResult:
     outcome: SearchOutcome
     ranked: list[tuple[Layout, float]]
     best_metric: FloatArray
+    certificate: Certificate | None = None
+    n_ties: int = 1
+    ties: tuple[tuple[Layout, float], ...] = ()
 
 
 @dataclass
@@ -68,6 +74,8 @@ class PlanResult:
     scorer: Scorer
     counts: list[CountResult]
     timing: dict[str, float]
+    feasibility: Feasibility | None = None
+    infeasible_counts: tuple[int, ...] = ()
 
     @property
     def cache(self) -> SiteCache:
@@ -76,6 +84,12 @@ class PlanResult:
     def layout_metric(self, layout: Layout) -> FloatArray:
         """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``)."""
         return self.scorer.metric(np.array([layout], dtype=int))[0]
+
+    def layout_cost(self, layout: Layout) -> float:
+        """Total cost of a layout (0 without a cost model)."""
+        if self.feasibility is None:
+            return 0.0
+        return float(self.feasibility.layout_cost(np.array([layout], dtype=int))[0])
 
     def layout_stats(self, layout: Layout) -> dict[str, Any]:
         metric = self.layout_metric(layout)[None, :]
@@ -90,6 +104,11 @@ class PlanResult:
             "quantiles_m": {
                 f"{q:g}": _num(v) for q, v in zip(REPORT_QUANTILES, quant, strict=True)
             },
+            # a quantile is null only when it is itself a blind (infinite) value
+            "quantiles_blind": [
+                f"{q:g}" for q, v in zip(REPORT_QUANTILES, quant, strict=True) if np.isinf(v)
+            ],
+            "cost": self.layout_cost(layout),
             "mean_m": _num(float((metric[0] * w).sum())),
             "blind_fraction": _fraction(w, ~np.isfinite(metric[0])),
             "near_field_fraction": _fraction(w, ~far),
@@ -174,6 +193,7 @@ class PlanResult:
                         for lay, loss in cr.ranked
                     ],
                     "cdf": self.cdf(cr.best_metric),
+                    **self._decision_fields(cr),
                 }
             )
         top.sort(key=lambda t: (t[0], t[1], t[2]))
@@ -197,7 +217,84 @@ class PlanResult:
             "rx_points": len(self.rx_map.points),
             "known": list(doc.known),
             "timing_s": self.timing,
+            **self._decision_json(),
         }
+
+    # --- decisions (issue 14): certificates, ties, targets, cost ------------------------------
+
+    def _decision_fields(self, cr: CountResult) -> dict[str, Any]:
+        """by_count additions: the certificate and gap, the ties."""
+        obj = self.document.objective
+        best_loss = cr.ranked[0][1]
+        cert = None
+        if cr.certificate is not None:
+            c = cr.certificate
+            gap = 0.0 if c.exact or best_loss == c.loss_bound else best_loss - c.loss_bound
+            cert = {
+                "objective_bound": _num(objective_from_loss(obj, c.loss_bound)),
+                "bound_side": "upper" if obj.kind == "coverage" else "lower",
+                "gap": _num(gap),
+                "relative_gap": _num(gap / abs(c.loss_bound))
+                if c.loss_bound not in (0.0,) and np.isfinite(c.loss_bound)
+                else (0.0 if gap == 0 else None),
+                "exact": bool(c.exact or gap == 0),
+                "method": c.method,
+            }
+        return {
+            "certificate": cert,
+            "ties": {
+                "tolerance_rel": self.document.search.tie_rtol,
+                "count": cr.n_ties,
+                "tied": cr.n_ties > 1,
+                "layouts": [
+                    {"sites": [int(s) for s in lay], "objective": _num(objective_from_loss(obj, v))}
+                    for lay, v in cr.ties
+                ],
+            },
+        }
+
+    def _decision_json(self) -> dict[str, Any]:
+        """Top-level additions: ``decision`` (with a target), ``pareto``, ``infeasible_counts``."""
+        doc = self.document
+        obj = doc.objective
+        cost_model = self.feasibility is not None and bool(np.any(self.feasibility.cost > 0))
+        points = [
+            (self.layout_cost(lay) if cost_model else float(len(lay)), loss, lay)
+            for cr in self.counts
+            for lay, loss in cr.ranked
+        ]
+        out: dict[str, Any] = {
+            "pareto": {
+                "cost_unit": "cost" if cost_model else "ris_count",
+                "points": [
+                    {
+                        "cost": c,
+                        "ris_count": len(lay),
+                        "sites": [int(s) for s in lay],
+                        "objective": _num(objective_from_loss(obj, loss)),
+                    }
+                    for c, loss, lay in pareto(points)
+                ],
+            },
+            "infeasible_counts": list(self.infeasible_counts),
+        }
+        if obj.target is not None:
+            answers = [
+                CountAnswer(
+                    cr.ris_count,
+                    cr.ranked[0][1],
+                    cr.ranked[0][0],
+                    self.layout_cost(cr.ranked[0][0]),
+                    cr.certificate,
+                )
+                for cr in self.counts
+            ] + [CountAnswer(c, None, None, 0.0, None) for c in self.infeasible_counts]
+            answers.sort(key=lambda a: a.ris_count)
+            searched = [a.ris_count for a in answers]
+            out["decision"] = decision_json(
+                obj, answers, max(searched) if searched else 0, doc.target_mode
+            )
+        return out
 
 
 def run_plan(
@@ -210,10 +307,13 @@ def run_plan(
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
     t0 = time.perf_counter()
     sites = expand_sites(doc)
-    if max(doc.ris_count) > len(sites):
-        raise RisPlannerError(
-            f"ris_count {max(doc.ris_count)} exceeds the {len(sites)} candidate sites"
-        )
+    wanted = doc.max_counts
+    if doc.ris_count is None:  # target mode up to max_ris: at most every candidate
+        wanted = [c for c in wanted if c <= len(sites)]
+    elif max(wanted) > len(sites):
+        raise RisPlannerError(f"ris_count {max(wanted)} exceeds the {len(sites)} candidate sites")
+    feasibility = build_feasibility(sites, doc.constraints, doc.cost)
+    wanted = [c for c in wanted if c >= len(feasibility.required)]
     tx_map = build_map(doc.tx_map, "tx_map")
     rx_map = build_map(doc.rx_map, "rx_map")
     pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs)
@@ -232,10 +332,12 @@ def run_plan(
     ex = LocalExecutor() if executor is None else executor
     counts: list[CountResult] = []
     # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
-    effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in doc.ris_count]
+    effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in wanted]
     done = 0.0
+    infeasible: list[int] = []
+    t_cert = 0.0
     try:
-        for c, e in zip(doc.ris_count, effort, strict=True):
+        for c, e in zip(wanted, effort, strict=True):
             base = done
 
             def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
@@ -243,15 +345,50 @@ def run_plan(
 
             # the best layouts of the smaller counts seed the greedy search
             seeds = tuple(cr.ranked[0][0] for cr in counts)
-            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds)
+            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds, feasibility)
+            done += e
+            if outcome.evaluated == 0:  # no layout satisfies the constraints
+                infeasible.append(c)
+                continue
             ranked = outcome.ranked(doc.search.top_k)
             best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
-            counts.append(CountResult(c, outcome, ranked, best_metric))
-            done += e
+            t1 = time.perf_counter()
+            cert = count_certificate(
+                scorer, c, outcome, feasibility, doc.search.certificate_iterations
+            )
+            t_cert += time.perf_counter() - t1
+            n_ties, tied = ties(outcome, doc.search.tie_rtol)
+            counts.append(CountResult(c, outcome, ranked, best_metric, cert, n_ties, tuple(tied)))
+            target = doc.objective.target
+            if (
+                doc.target_mode
+                and target is not None
+                and target.met(objective_from_loss(doc.objective, ranked[0][1]))
+            ):
+                break
     finally:
         if own:
             ex.close()
-    t_search = time.perf_counter() - t0 - t_cache
+    if not counts:
+        raise RisPlannerError(
+            f"no layout of {wanted} RISs satisfies the constraints (mounting points,"
+            " min_separation_m, require/exclude, budget)"
+        )
+    t_search = time.perf_counter() - t0 - t_cache - t_cert
     progress(1.0, "done")
-    timing = {"cache": t_cache, "search": t_search}
-    return PlanResult(doc, sites, tx_map, rx_map, pairs, scorer, counts, timing)
+    timing = {"cache": t_cache, "search": t_search, "certificate": t_cert}
+    return PlanResult(
+        doc, sites, tx_map, rx_map, pairs, scorer, counts, timing, feasibility, tuple(infeasible)
+    )
+
+
+def count_certificate(
+    scorer: Scorer, n_ris: int, outcome: SearchOutcome, feasible: Feasibility, iterations: int
+) -> Certificate | None:
+    """The optimum itself after an exhaustive search, else the relaxation bound (``None`` with
+    zero iterations)."""
+    if outcome.method == "exhaustive":
+        return Certificate(float(outcome.losses.min()), exact=True, method="exhaustive")
+    if iterations == 0:
+        return None
+    return relaxation_certificate(scorer, n_ris, feasible, iterations)

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from ris_planner.errors import LimitExceededError
 from ris_planner.ldl import packed_index
+from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.executor import Executor
 from ris_planner.planning.objectives import Scorer, score_chunk
@@ -83,20 +84,36 @@ def evaluate(
     return np.concatenate(executor.map(score_chunk, scorer, chunks, done))
 
 
-def exhaustive(
-    scorer: Scorer,
-    n_sites: int,
-    n_ris: int,
-    executor: Executor,
-    on_fraction: Callable[[float], None] | None = None,
-) -> SearchOutcome:
+def all_layouts(n_sites: int, n_ris: int) -> IntArray:
+    """Every layout [C(S, L), L] of n_ris among n_sites, lexicographic."""
     total = math.comb(n_sites, n_ris)
     flat = np.fromiter(
         itertools.chain.from_iterable(itertools.combinations(range(n_sites), n_ris)),
         dtype=int,
         count=total * n_ris,
     )
-    layouts = flat.reshape(total, n_ris)
+    return flat.reshape(total, n_ris)
+
+
+def exhaustive(
+    scorer: Scorer,
+    n_sites: int,
+    n_ris: int,
+    executor: Executor,
+    on_fraction: Callable[[float], None] | None = None,
+    feasible: Feasibility | None = None,
+    layouts: IntArray | None = None,
+) -> SearchOutcome:
+    """Every layout (every feasible one under ``feasible``; ``layouts`` when already
+    enumerated)."""
+    if layouts is None:
+        if feasible is None or feasible.trivial:
+            layouts = all_layouts(n_sites, n_ris)
+        else:
+            enum = feasible.enumerate(n_ris, math.comb(n_sites, n_ris))
+            assert enum is not None  # the limit is the unconstrained count
+            layouts = enum
+    total = int(layouts.shape[0])
     losses = evaluate(scorer, layouts, executor, on_fraction)
     return SearchOutcome(layouts, losses, method="exhaustive", total_layouts=total)
 
@@ -119,13 +136,22 @@ def greedy(
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
     seeds: tuple[Layout, ...] = (),
+    feasible: Feasibility | None = None,
 ) -> SearchOutcome:
     """Greedy forward selection (ties → the stronger site), then best-improvement swaps until
     no swap improves or ``max_rounds``; also from each smaller ``seeds`` layout (e.g. the best
     layout of the previous RIS count) completed greedily, and from ``restarts`` seeded random
-    layouts."""
+    layouts. Under ``feasible`` every step stays inside the feasible layouts (required sites
+    start every layout and are never swapped out)."""
     memo: dict[Layout, float] = {}
     strength = site_strength(scorer)
+    cons = None if feasible is None or feasible.trivial else feasible
+
+    def allowed(cands: list[Layout]) -> list[Layout]:
+        if cons is None or not cands:
+            return cands
+        ok = cons.ok(np.array(cands, dtype=int))
+        return [c for c, g in zip(cands, ok, strict=True) if g]
 
     def score(cands: list[Layout]) -> list[float]:
         new = [c for c in dict.fromkeys(cands) if c not in memo]
@@ -134,12 +160,17 @@ def greedy(
             memo.update(zip(new, (float(v) for v in vals), strict=True))
         return [memo[c] for c in cands]
 
-    def complete(partial: Layout) -> Layout:
+    def complete(partial: Layout) -> Layout | None:
         """Greedy forward selection from a partial layout; intermediate (smaller) layouts are
         scored on their own, ties (e.g. all underdetermined) go to the stronger site."""
         cur = list(partial)
         while len(cur) < n_ris:
-            rest = [s for s in range(n_sites) if s not in cur]
+            if cons is None:
+                rest = [s for s in range(n_sites) if s not in cur]
+            else:
+                rest = [int(s) for s in np.flatnonzero(cons.compatible(cur))]
+                if not rest:
+                    return None
             cand = np.array([sorted([*cur, s]) for s in rest], dtype=int)
             if len(cur) + 1 == n_ris:
                 vals = np.array(score([tuple(int(x) for x in c) for c in cand]))
@@ -149,23 +180,33 @@ def greedy(
             cur.append(rest[int(key[0])])
         return tuple(sorted(cur))
 
-    starts: list[Layout] = [complete(())]
+    first = complete(tuple(cons.required) if cons is not None else ())
+    starts: list[Layout] = [] if first is None else [first]
     for partial in seeds:
-        if len(partial) < n_ris:
-            starts.append(complete(tuple(partial)))
+        if len(partial) < n_ris and (cons is None or allowed([tuple(partial)])):
+            done = complete(tuple(partial))
+            if done is not None:
+                starts.append(done)
     rng = np.random.default_rng(spec.seed)
     for _ in range(spec.restarts):
-        starts.append(tuple(sorted(int(x) for x in rng.choice(n_sites, n_ris, replace=False))))
+        if cons is None:
+            starts.append(tuple(sorted(int(x) for x in rng.choice(n_sites, n_ris, replace=False))))
+        else:
+            drawn = cons.random_layout(n_ris, rng)
+            if drawn is not None:
+                starts.append(drawn)
     for i, start in enumerate(starts):
         layout = start
         best = score([layout])[0]
         for _ in range(spec.max_rounds):
-            neigh = [
-                tuple(sorted((*(x for x in layout if x != out_s), in_s)))
-                for out_s in layout
-                for in_s in range(n_sites)
-                if in_s not in layout
-            ]
+            neigh = allowed(
+                [
+                    tuple(sorted((*(x for x in layout if x != out_s), in_s)))
+                    for out_s in layout
+                    for in_s in range(n_sites)
+                    if in_s not in layout
+                ]
+            )
             if not neigh:
                 break
             nvals = score(neigh)
@@ -191,10 +232,18 @@ def search(
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
     seeds: tuple[Layout, ...] = (),
+    feasible: Feasibility | None = None,
 ) -> SearchOutcome:
-    """The search the spec asks for (``auto``: exhaustive within ``max_exhaustive``); greedy
-    also starts from the ``seeds`` (smaller layouts, completed greedily)."""
+    """The search the spec asks for (``auto``: exhaustive within ``max_exhaustive`` feasible
+    layouts); greedy also starts from the ``seeds`` (smaller layouts, completed greedily)."""
     total = math.comb(n_sites, n_ris)
+    layouts = None
+    if feasible is not None and not feasible.trivial and spec.method != "greedy":
+        total = feasible.count_upper(n_ris)
+        if total > spec.max_exhaustive:  # the feasible ones may still fit: count them
+            layouts = feasible.enumerate(n_ris, spec.max_exhaustive)
+            if layouts is not None:
+                total = int(layouts.shape[0])
     method = spec.method
     if method == "auto":
         method = "exhaustive" if total <= spec.max_exhaustive else "greedy"
@@ -204,5 +253,8 @@ def search(
                 f"{total} layouts of {n_ris} among {n_sites} sites exceed"
                 f" search.max_exhaustive = {spec.max_exhaustive}; use method 'greedy' or 'auto'"
             )
-        return exhaustive(scorer, n_sites, n_ris, executor, on_fraction)
-    return greedy(scorer, n_sites, n_ris, spec, executor, on_fraction, seeds)
+        return exhaustive(scorer, n_sites, n_ris, executor, on_fraction, feasible, layouts)
+    out = greedy(scorer, n_sites, n_ris, spec, executor, on_fraction, seeds, feasible)
+    if feasible is not None and not feasible.trivial:
+        out.total_layouts = feasible.count_upper(n_ris)
+    return out

@@ -17,6 +17,7 @@ class Site:
 
     ris: RIS
     name: str
+    cost: float = 0.0
 
 
 def wall_poses(wall: Wall) -> list[tuple[list[float], list[float], str]]:
@@ -66,17 +67,17 @@ def _ris(position: list[float], orientation: list[float], grid: RISDefaults) -> 
 def expand_sites(doc: PlanDocument) -> list[Site]:
     """Explicit candidates first (input order), then each wall's sites (wall order)."""
     sites = [
-        Site(_ris(c.position, c.orientation, doc.ris), c.name or f"candidate {i}")
+        Site(_ris(c.position, c.orientation, doc.ris), c.name or f"candidate {i}", c.cost)
         for i, c in enumerate(doc.candidates)
     ]
     for w_i, wall in enumerate(doc.walls):
         for pos, ori, label in wall_poses(wall):
-            sites.append(Site(_ris(pos, ori, doc.ris), f"wall {w_i} {label}"))
+            sites.append(Site(_ris(pos, ori, doc.ris), f"wall {w_i} {label}", wall.cost))
     return sites
 
 
 def candidate_json(site: Site) -> dict[str, object]:
     """A site as the JSON of a :class:`Candidate` plus its label."""
     return Candidate(
-        position=site.ris.position, orientation=site.ris.orientation, name=site.name
+        position=site.ris.position, orientation=site.ris.orientation, name=site.name, cost=site.cost
     ).model_dump()
