@@ -14,10 +14,14 @@ from ris_planner.progress import ProgressCallback
 def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
     """``ris-planner plan``: a plan document → plan.json content and the figures ``topview``,
     ``heatmap``, ``cdf``. The search runs serially inside this worker process (parallelism
-    comes from the service's job workers)."""
-    from ris_planner.planning import SerialExecutor, run_plan, write_figures
+    comes from the service's job workers), or on the Dask cluster of
+    ``RIS_PLANNER_DASK_SCHEDULER``."""
+    from api.settings import Settings
+    from ris_planner.planning import DaskExecutor, Executor, SerialExecutor, run_plan, write_figures
 
-    with SerialExecutor() as executor:
+    address = Settings().dask_scheduler
+    executor: Executor = DaskExecutor(address) if address else SerialExecutor()
+    with executor:
         result = run_plan(document, progress, executor)
     figures = write_figures(result, out_dir)
     return JobOutput(result.to_json(), figures)

@@ -13,6 +13,7 @@ RIS_PLANNER_MAX_ARRAY_ELEMENTS 20000000                 largest engine array of 
 RIS_PLANNER_MAX_WORK     1000000000                     Σ_ℓ 3·G̃·N_ℓ·pairs products of a request
 RIS_PLANNER_MAX_BODY_BYTES 10000000                     request body limit [bytes]
 RIS_PLANNER_API_KEY      (unset: no authentication)     key required in ``X-API-Key`` on /v1
+RIS_PLANNER_DASK_SCHEDULER (unset: in the job worker)   Dask scheduler (tcp://host:8786) for plans
 ======================== ============================== =========================================
 """
 
@@ -61,6 +62,11 @@ class Settings(BaseSettings):
     )
     max_body_bytes: int = Field(10_000_000, ge=1024, description="Request body limit [bytes]")
     api_key: SecretStr | None = Field(None, description="If set, /v1 routes require this key")
+    dask_scheduler: str | None = Field(
+        None,
+        pattern=r"^(tcp|tls|inproc|ucx)://\S+$",
+        description="Dask scheduler address; plan jobs send their layout search there",
+    )
 
     @property
     def figures_dir(self) -> Path:

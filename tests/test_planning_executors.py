@@ -5,6 +5,7 @@ does not depend on the chunking)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -41,7 +42,7 @@ def test_dask_local_cluster_gives_identical_ranking() -> None:
             threads_per_worker=1,
             processes=True,
             host="127.0.0.1",
-            dashboard_address=None,
+            dashboard_address="127.0.0.1:0",
         ) as cluster,
         DaskExecutor(distributed.Client(cluster)) as ex,
     ):
@@ -62,3 +63,50 @@ def test_local_process_pool_gives_identical_losses(monkeypatch: pytest.MonkeyPat
     for a, b in zip(serial.counts, pooled.counts, strict=True):
         np.testing.assert_array_equal(a.outcome.layouts, b.outcome.layouts)
         np.testing.assert_array_equal(a.outcome.losses, b.outcome.losses)
+
+
+def test_cluster_tasks_carry_only_their_site_block() -> None:
+    from ris_planner.planning.search import all_layouts, block_tasks, evaluate
+
+    doc = small_plan()
+    doc["candidates"] = doc["candidates"] * 2  # type: ignore[operator]
+    doc["constraints"] = {"exclusive_mounts": False}
+    result = run_plan({**doc, "ris_count": [2]}, executor=SerialExecutor())
+    scorer = result.scorer
+    layouts = all_layouts(scorer.cache.n_sites, 3)
+    tasks, rows = block_tasks(scorer, layouts, n_blocks=7)
+    assert max(t[0].cache.n_sites for t in tasks) <= 3 * 2  # ≤ L blocks of 2 sites
+    assert sorted(np.concatenate(rows).tolist()) == list(range(len(layouts)))
+    ref = evaluate(scorer, layouts, SerialExecutor())
+    got = np.empty(len(layouts))
+    for (sub, local), r in zip(tasks, rows, strict=True):
+        got[r] = sub.loss(local)
+    np.testing.assert_array_equal(got, ref)  # bit for bit
+
+
+def test_service_setting_sends_plan_jobs_to_dask(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    distributed = pytest.importorskip("distributed")
+    from pydantic import ValidationError
+
+    from api.kinds import plan_job
+    from api.settings import Settings
+
+    with pytest.raises(ValidationError, match="dask_scheduler"):
+        Settings(dask_scheduler="not a url")
+    doc = small_plan()
+    local = run_plan(doc, executor=SerialExecutor()).to_json()
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+    ) as cluster:
+        monkeypatch.setenv("RIS_PLANNER_DASK_SCHEDULER", cluster.scheduler_address)
+        out = plan_job(doc, lambda f, m: None, tmp_path)
+        prefixes = set(cluster.scheduler.task_prefixes)
+    assert "score_task" in prefixes  # the layouts were scored on the cluster
+    assert out.result["layouts"] == local["layouts"]
+    assert out.result["by_count"][1]["sites"] == local["by_count"][1]["sites"]

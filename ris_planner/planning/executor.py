@@ -48,6 +48,8 @@ class Executor(ABC):
     """Runs ``fn(shared, chunk)`` for every chunk and returns the results in chunk order."""
 
     workers: int = 1
+    site_blocks: bool = False
+    """Whether tasks should carry their own site block instead of a shared whole cache."""
 
     @abstractmethod
     def map(
@@ -151,7 +153,11 @@ class LocalExecutor(Executor):
 
 class DaskExecutor(Executor):
     """Dask distributed: ``address`` of a running scheduler (``tcp://host:8786``) or an
-    existing ``distributed.Client``. ``shared`` is scattered to every worker once."""
+    existing ``distributed.Client``. ``shared`` is scattered to every worker once; the layout
+    search sends tasks that carry only their site block (:func:`planning.search.block_tasks`),
+    so no worker needs the whole site cache."""
+
+    site_blocks = True
 
     def __init__(self, address: Any) -> None:
         from distributed import Client

@@ -6,7 +6,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,16 +61,66 @@ class SearchOutcome:
         }
 
 
+SITE_BLOCKS = 8
+"""Site blocks of a cluster search: a task carries the blocks its layouts use (≤ L of 8)."""
+
+
+def block_tasks(
+    scorer: Scorer, layouts: IntArray, n_blocks: int = SITE_BLOCKS
+) -> tuple[list[tuple[Scorer, IntArray]], list[IntArray]]:
+    """Tasks that each carry only their site block: layouts [B, L] grouped by the set of site
+    blocks they touch, each group scored by a :class:`Scorer` over the cache of those blocks'
+    sites (layouts renumbered, order kept, so the arithmetic is the full cache's). Returns the
+    tasks and, for each, the rows of ``layouts`` it scores."""
+    n_sites = scorer.cache.n_sites
+    size = max(1, math.ceil(n_sites / n_blocks))
+    blk = layouts // size  # [B, L] block of each site (sorted layouts: sorted blocks)
+    keys, inverse = np.unique(blk, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
+    tasks: list[tuple[Scorer, IntArray]] = []
+    rows_of: list[IntArray] = []
+    for g, key in enumerate(keys):
+        rows = np.flatnonzero(inverse == g)
+        sites = np.concatenate(
+            [np.arange(b * size, min(n_sites, (b + 1) * size)) for b in np.unique(key)]
+        )
+        sub = replace(scorer, cache=scorer.cache.subset(sites))
+        local = np.searchsorted(sites, layouts[rows])  # [b, L] indices into the block
+        for c0 in range(0, rows.size, per):
+            tasks.append((sub, local[c0 : c0 + per]))
+            rows_of.append(rows[c0 : c0 + per])
+    return tasks, rows_of
+
+
+def score_task(_shared: object, task: tuple[Scorer, IntArray]) -> FloatArray:
+    """Executor task carrying its own site block: losses of its layouts."""
+    sub, local = task
+    return sub.loss(local)
+
+
 def evaluate(
     scorer: Scorer,
     layouts: IntArray,
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
 ) -> FloatArray:
-    """Losses of layouts [B, L], split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations."""
+    """Losses of layouts [B, L], split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations
+    (on a cluster, :func:`block_tasks`: each task carries only its site block)."""
     b = layouts.shape[0]
     if b == 0:
         return np.empty(0)
+    if executor.site_blocks:
+        tasks, rows_of = block_tasks(scorer, layouts)
+        out = np.empty(b)
+
+        def done_t(n: int) -> None:
+            if on_fraction is not None:
+                on_fraction(n / len(tasks))
+
+        for rows, vals in zip(rows_of, executor.map(score_task, None, tasks, done_t), strict=True):
+            out[rows] = vals
+        return out
     per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
     n_chunks = math.ceil(b / per)
     if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk

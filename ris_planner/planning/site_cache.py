@@ -25,6 +25,7 @@ from ris_planner.progress import ProgressCallback, no_progress
 from ris_planner.scenario import SystemParams
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int_]
 
 N_STATES = 7
 N_PACKED = N_STATES * (N_STATES + 1) // 2
@@ -49,6 +50,14 @@ class SiteCache:
     @property
     def n_pairs(self) -> int:
         return int(self.packed.shape[2])
+
+    def subset(self, sites: IntArray) -> SiteCache:
+        """The cache of the given sites only (ascending indices; a task's site block). Every
+        per-site field is sliced here, so a sub-cache scores its layouts exactly as the full
+        one does."""
+        return SiteCache(
+            self.packed[:, sites], self.los, self.degenerate[sites], self.far_field[sites]
+        )
 
 
 def build_site_cache(
