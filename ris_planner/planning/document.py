@@ -330,6 +330,64 @@ class CostSpec(DocumentModel):
     )
 
 
+MAX_SWEEP_VALUES = 16
+"""Sweep values per plan (each runs the whole plan once more)."""
+
+
+class Sweep(DocumentModel):
+    """One parameter varied over the same candidates and pairs; each value runs the plan once
+    more with that value (the document's own value is the base run). Give exactly one list."""
+
+    tx_power_dbm: list[float] | None = Field(
+        None, min_length=1, max_length=MAX_SWEEP_VALUES, description="Transmit powers [dBm]"
+    )
+    noise_figure_db: list[float] | None = Field(
+        None, min_length=1, max_length=MAX_SWEEP_VALUES, description="Noise figures [dB]"
+    )
+    ris_size: list[Annotated[list[int], Field(min_length=2, max_length=2)]] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_SWEEP_VALUES,
+        description="RIS element grids [rows, cols] (each 1–512)",
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> Sweep:
+        given = [k for k in ("tx_power_dbm", "noise_figure_db", "ris_size") if getattr(self, k)]
+        if len(given) != 1:
+            raise ValueError(
+                "sweep: give exactly one of tx_power_dbm, noise_figure_db, ris_size"
+                f" (got {given or 'none'})"
+            )
+        for v in self.tx_power_dbm or []:
+            if not (-100 <= v <= 100):
+                raise ValueError(f"sweep.tx_power_dbm {v} is outside [-100, 100] dBm")
+        for v in self.noise_figure_db or []:
+            if not (0 <= v <= 100):
+                raise ValueError(f"sweep.noise_figure_db {v} is outside [0, 100] dB")
+        for rc in self.ris_size or []:
+            if not all(1 <= x <= 512 for x in rc):
+                raise ValueError(f"sweep.ris_size {rc}: rows and cols must be 1–512")
+        return self
+
+    @property
+    def parameter(self) -> str:
+        return next(k for k in ("tx_power_dbm", "noise_figure_db", "ris_size") if getattr(self, k))
+
+    @property
+    def values(self) -> list[Any]:
+        return list(getattr(self, self.parameter))
+
+    def apply(self, doc: dict[str, Any], value: Any) -> dict[str, Any]:
+        """The plan document (a JSON dict, without ``sweep``) with this sweep value set."""
+        out = {k: v for k, v in doc.items() if k != "sweep"}
+        if self.parameter == "ris_size":
+            out["ris"] = {**out.get("ris", {}), "rows": value[0], "cols": value[1]}
+        else:
+            out["system"] = {**out.get("system", {}), self.parameter: value}
+        return out
+
+
 # ---------------------------------------------------------------------------------------------
 
 
@@ -459,6 +517,9 @@ class PlanDocument(DocumentModel):
         default_factory=Constraints, description="Allowed layouts (mounting points, spacing …)"
     )
     cost: CostSpec = Field(default_factory=CostSpec, description="Layout cost model")
+    sweep: Sweep | None = Field(
+        None, description="Run the plan again for each value of one parameter (one table)"
+    )
     codebook: PlanCodebook = Field(
         default_factory=PlanCodebook, description="Codebook (expected_random, unitless)"
     )

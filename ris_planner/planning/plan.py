@@ -76,6 +76,7 @@ class PlanResult:
     timing: dict[str, float]
     feasibility: Feasibility | None = None
     infeasible_counts: tuple[int, ...] = ()
+    sweep: dict[str, Any] | None = None
 
     @property
     def cache(self) -> SiteCache:
@@ -253,6 +254,28 @@ class PlanResult:
             },
         }
 
+    def summary_rows(self, value: Any) -> list[dict[str, Any]]:
+        """One row per searched count for the sweep table: value, count, layout, objective,
+        certificate gap, cost (and whether the target is met)."""
+        obj = self.document.objective
+        rows = []
+        for cr in self.counts:
+            lay, loss = cr.ranked[0]
+            fields = self._decision_fields(cr)["certificate"]
+            val = objective_from_loss(obj, loss)
+            rows.append(
+                {
+                    "value": value,
+                    "ris_count": cr.ris_count,
+                    "sites": [int(s) for s in lay],
+                    "objective": _num(val),
+                    "gap": None if fields is None else fields["gap"],
+                    "cost": self.layout_cost(lay),
+                    "target_met": None if obj.target is None else obj.target.met(val),
+                }
+            )
+        return rows
+
     def _decision_json(self) -> dict[str, Any]:
         """Top-level additions: ``decision`` (with a target), ``pareto``, ``infeasible_counts``."""
         doc = self.document
@@ -278,6 +301,8 @@ class PlanResult:
             },
             "infeasible_counts": list(self.infeasible_counts),
         }
+        if self.sweep is not None:
+            out["sweep"] = self.sweep
         if obj.target is not None:
             answers = [
                 CountAnswer(
@@ -305,6 +330,8 @@ def run_plan(
     """Run a plan document: build maps and pairs, cache every site's information, search each
     RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
+    if doc.sweep is not None:
+        return _run_sweep(doc, progress, executor)
     t0 = time.perf_counter()
     sites = expand_sites(doc)
     wanted = doc.max_counts
@@ -392,3 +419,37 @@ def count_certificate(
     if iterations == 0:
         return None
     return relaxation_certificate(scorer, n_ris, feasible, iterations)
+
+
+def _run_sweep(
+    doc: PlanDocument, progress: ProgressCallback, executor: Executor | None
+) -> PlanResult:
+    """The base plan (the document's own values) and one more plan per sweep value over the
+    same candidates and pairs; ``result.sweep`` holds one table of every run's counts."""
+    assert doc.sweep is not None
+    sweep = doc.sweep
+    raw = doc.model_dump(mode="json")
+    own = executor is None
+    ex = LocalExecutor() if executor is None else executor
+    n_runs = 1 + len(sweep.values)
+    try:
+        base_raw = {k: v for k, v in raw.items() if k != "sweep"}
+        base = run_plan(base_raw, lambda f, m: progress(f / n_runs, f"base: {m}"), ex)
+        if sweep.parameter == "ris_size":
+            base_value: Any = [doc.ris.rows, doc.ris.cols]
+        else:
+            base_value = getattr(doc.system, sweep.parameter)
+        rows = [dict(r, base=True) for r in base.summary_rows(base_value)]
+        for i, value in enumerate(sweep.values, start=1):
+
+            def sub_progress(f: float, m: str, i: int = i, value: Any = value) -> None:
+                progress((i + f) / n_runs, f"{sweep.parameter}={value}: {m}")
+
+            sub = run_plan(sweep.apply(raw, value), sub_progress, ex)
+            rows += [dict(r, base=False) for r in sub.summary_rows(value)]
+    finally:
+        if own:
+            ex.close()
+    base.document = doc
+    base.sweep = {"parameter": sweep.parameter, "values": sweep.values, "table": rows}
+    return base
