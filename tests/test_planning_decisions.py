@@ -352,3 +352,13 @@ def test_sweep_table_matches_separate_runs_and_power_scaling(tmp_path: Path) -> 
     rows = small.to_json()["sweep"]["table"]
     assert rows[0]["value"] == [10, 10] and rows[1]["value"] == [4, 4]
     assert rows[1]["objective"] >= rows[0]["objective"]  # fewer elements: less information
+
+
+def test_large_count_with_constraints_is_exhaustive_over_the_feasible_layouts() -> None:
+    # 5 of 6 with one excluded: one layout, though the partial layouts of 1–3 sites outnumber it
+    plan = run_plan(
+        plan_doc(ris_count=[5], constraints={"exclude": [0]}), executor=SerialExecutor()
+    ).to_json()
+    entry = plan["by_count"][0]
+    assert entry["sites"] == [1, 2, 3, 4, 5] and entry["layouts_total"] == 1
+    assert entry["method"] == "exhaustive" and entry["certificate"]["exact"]

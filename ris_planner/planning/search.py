@@ -28,6 +28,8 @@ measured 8–16 M matrices/s, so transfer and scheduling stay a small fraction."
 
 Layout = tuple[int, ...]
 
+NO_LIMIT = 2**62
+
 
 @dataclass
 class SearchOutcome:
@@ -160,8 +162,10 @@ def exhaustive(
         if feasible is None or feasible.trivial:
             layouts = all_layouts(n_sites, n_ris)
         else:
-            enum = feasible.enumerate(n_ris, math.comb(n_sites, n_ris))
-            assert enum is not None  # the limit is the unconstrained count
+            # no limit: the caller checked the feasible count (partial layouts of a large L
+            # may outnumber the complete ones)
+            enum = feasible.enumerate(n_ris, NO_LIMIT)
+            assert enum is not None
             layouts = enum
     total = int(layouts.shape[0])
     losses = evaluate(scorer, layouts, executor, on_fraction)
