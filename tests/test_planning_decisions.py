@@ -362,3 +362,35 @@ def test_large_count_with_constraints_is_exhaustive_over_the_feasible_layouts() 
     entry = plan["by_count"][0]
     assert entry["sites"] == [1, 2, 3, 4, 5] and entry["layouts_total"] == 1
     assert entry["method"] == "exhaustive" and entry["certificate"]["exact"]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_search_never_worse_than_todays_greedy(seed: int) -> None:
+    from old_search import old_greedy
+
+    doc = random_instance(seed + 20, n=9)
+    doc["search"] = {"method": "greedy", "restarts": 1, "seed": seed}
+    d, sites, _, scorer = setup(doc)
+    feas = build_feasibility(sites, d.constraints.model_copy(update={"exclusive_mounts": False}),
+                             d.cost)  # fmt: skip
+    for n_ris in (2, 3, 4):
+        old = old_greedy(scorer, len(sites), n_ris, d.search, SerialExecutor())
+        new = greedy(scorer, len(sites), n_ris, d.search, SerialExecutor(), feasible=feas)
+        assert new.ranked(1)[0][1] <= old.ranked(1)[0][1]
+
+
+def test_certificate_with_exclusive_mounting_points_is_valid_and_tighter() -> None:
+    doc = wall_doc(ris_count=[2], objective={"kind": "quantile", "metric": "rx", "q": 0.6})
+    d, sites, _, scorer = setup(doc)
+    feas = build_feasibility(sites, d.constraints, d.cost)  # 4 sites per mounting point
+    loose = unconstrained(len(sites))
+    for n_ris in (2, 3):
+        lb_tight = pair_lower_bounds(scorer, n_ris, feas, 30)
+        lb_loose = pair_lower_bounds(scorer, n_ris, loose, 30)
+        feasible = feas.enumerate(n_ris, 10**6)
+        assert feasible is not None
+        best_per_pair = scorer.metric(feasible).min(axis=0)
+        assert np.all(lb_tight <= best_per_pair)  # valid over the feasible layouts
+        assert np.mean(lb_tight) >= np.mean(lb_loose)  # the spot constraint tightens it
+        ex = exhaustive(scorer, len(sites), n_ris, SerialExecutor(), feasible=feas)
+        assert relaxation_certificate(scorer, n_ris, feas, 30).loss_bound <= ex.losses.min()

@@ -9,15 +9,17 @@ Relaxation (Joshi & Boyd, "Sensor selection via convex optimisation", 2009): wit
 (the matrix inverse is operator-convex), and every layout is a vertex of the relaxed set, so
 min_z f_p ≤ min_S f_p(S). Frank–Wolfe on f_p gives, at every iterate, the lower bound
 f_p(z) + min_v ∇f_p(z)·(v − z) ≤ min_z f_p (convexity; v a vertex: the L most negative
-gradient entries). F̃ = F + ε·Diag(F) (:data:`RIDGE`) only adds information, so the bound
+gradient entries; with exclusive mounting points Σ_spot z ≤ 1 as well, v one best site of each
+of the L best spots). F̃ = F + ε·Diag(F) (:data:`RIDGE`) only adds information, so the bound
 stays valid while every inversion stays well conditioned.
 
 Then lb_p ≤ m_p(S) for every S, and every objective is monotone in each pair's metric
 (coverage: non-increasing; mean of min(m, cap) and weighted quantiles: non-decreasing), so
 objective(lb) bounds the optimum: ≥ it for coverage, ≤ it for mean_capped and quantile. Pairs
 that are blind (``inf``) in every layout only make the optimum worse, so a finite lb_p is still
-valid. Constraints other than ``require``/``exclude`` (mounting points, separation, budget)
-are dropped by the relaxation, which again only widens the set.
+valid. ``require``/``exclude`` and cliques of mutually exclusive sites (one mounting point) are
+kept; other constraints (separation, budget) are dropped by the relaxation, which only widens
+the set.
 """
 
 from __future__ import annotations
@@ -65,11 +67,16 @@ def _frank_wolfe(
     n: int,
     rows: list[int],
     iterations: int,
+    groups: NDArray[np.int_],
 ) -> FloatArray:
     """[P] lower bound on min over z of Σ_{t∈rows} [K(z)⁻¹]_tt (the module docstring).
 
     packed : [E, S, P] site information; base : [E, P] fixed part (LOS + required sites);
-    free : [S] sites z may use; k : Σ z."""
+    free : [S] sites z may use; k : Σ z; groups : [S] group of each site (Σ_group z ≤ 1: the
+    sites of one mounting point)."""
+    n_groups = int(groups.max()) + 1
+    order = np.argsort(groups, kind="stable")
+    starts = np.searchsorted(groups[order], np.arange(n_groups))
     e_n, _, p = packed.shape
     idx = packed_index(n)
     ii = np.array([i for i in range(n) for j in range(i + 1)])
@@ -105,10 +112,7 @@ def _frank_wolfe(
             mp = (m[:, ii, jj] * offdiag * ridge).T  # [E, b]
             grad = -np.einsum("esb,eb->sb", blk, mp)  # [S, b] ∂f/∂z_s
             grad[~free] = np.inf
-            # the vertex minimising grad·v: the k most negative free entries
-            pick = np.argpartition(grad, k - 1, axis=0)[:k]  # [k, b]
-            v = np.zeros_like(z)
-            np.put_along_axis(v, pick, 1.0, axis=0)
+            v = _vertex(grad, k, groups, order, starts, n_groups)
             g_fin = np.where(free[:, None], grad, 0.0)
             lower = f + (g_fin * (v - z)).sum(axis=0)
             good = np.isfinite(lower)
@@ -118,6 +122,55 @@ def _frank_wolfe(
                 z = (1 - gamma) * z + gamma * v
         out[sl] = best
     return out
+
+
+def _vertex(
+    grad: FloatArray,
+    k: int,
+    groups: NDArray[np.int_],
+    order: NDArray[np.int_],
+    starts: NDArray[np.int_],
+    n_groups: int,
+) -> FloatArray:
+    """[S, b] the vertex v minimising grad·v over {0 ≤ z, Σ_group z ≤ 1, Σ z = k}: the k groups
+    with the most negative best entry, one (their best) site each."""
+    if n_groups == grad.shape[0]:  # singletons: the k most negative entries
+        pick = np.argpartition(grad, k - 1, axis=0)[:k]  # [k, b]
+        v = np.zeros_like(grad)
+        np.put_along_axis(v, pick, 1.0, axis=0)
+        return v
+    g_sorted = grad[order]  # [S, b] grouped
+    gmin = np.minimum.reduceat(g_sorted, starts, axis=0)  # [G, b]
+    pick = np.argpartition(gmin, k - 1, axis=0)[:k]  # [k, b] chosen groups
+    chosen = np.zeros(gmin.shape, dtype=bool)
+    np.put_along_axis(chosen, pick, True, axis=0)
+    g_of = groups[order]
+    hit = chosen[g_of] & (g_sorted == gmin[g_of])  # [S, b] best sites of chosen groups
+    count = np.cumsum(hit, axis=0)
+    before = np.concatenate([np.zeros((1, hit.shape[1]), dtype=count.dtype), count])[starts]
+    hit &= (count - before[g_of]) == 1  # the first best site of each group only
+    v = np.zeros_like(grad)
+    v[order] = hit
+    return v
+
+
+def exclusive_groups(feasible: Feasibility, free: NDArray[np.bool_]) -> NDArray[np.int_]:
+    """[S] group ids for Σ_group z ≤ 1: connected components of the conflict graph among the
+    free sites that are cliques (every two members conflict, so a feasible layout holds at most
+    one); other sites are their own group, which only loosens the relaxation."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    conf = feasible.conflict & free[:, None] & free[None, :]
+    _, comp = connected_components(csr_matrix(conf), directed=False)
+    groups = np.arange(len(comp))
+    for c in np.unique(comp):
+        members = np.flatnonzero(comp == c)
+        sub = conf[np.ix_(members, members)]
+        if len(members) > 1 and sub.sum() == len(members) * (len(members) - 1):
+            groups[members] = members[0]
+    _, dense = np.unique(groups, return_inverse=True)
+    return np.asarray(dense.reshape(-1), dtype=int)
 
 
 def pair_lower_bounds(
@@ -136,7 +189,10 @@ def pair_lower_bounds(
         return np.asarray(scorer.metric(np.array([sorted(req)], dtype=int))[0])
     free = feasible.allowed.copy()
     free[req] = False
-    if int(free.sum()) < k:
+    if req:  # sites in conflict with a required one are in no feasible layout
+        free &= ~np.any(feasible.conflict[req], axis=0)
+    groups = exclusive_groups(feasible, free)
+    if len(np.unique(groups[free])) < k:
         return np.full(p, np.inf)  # no layout at all
     base = np.zeros((packed.shape[0], p)) if los is None else los.copy()
     for r in req:
@@ -146,7 +202,7 @@ def pair_lower_bounds(
     for rows in (tx, rx):
         if not rows:
             continue
-        tr = _frank_wolfe(packed, base, free, k, n, rows, iterations)
+        tr = _frank_wolfe(packed, base, free, k, n, rows, iterations, groups)
         lb = np.sqrt(np.maximum(tr, 0.0)) * (1.0 - CERT_SAFETY)
         out = lb if out is None else np.maximum(out, lb)  # max(PEB_T, PEB_R) ≥ each
     assert out is not None

@@ -49,6 +49,12 @@ def _num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
+def _relative(gap: float, bound: float) -> float | None:
+    """gap / |bound| (``None`` where undefined: an infinite gap or a zero or infinite bound)."""
+    ok = np.isfinite(gap) and np.isfinite(bound) and bound != 0
+    return float(gap / abs(bound)) if ok else None
+
+
 @dataclass
 class CountResult:
     """The search for one RIS count and the metric of its best layout per pair."""
@@ -235,9 +241,7 @@ class PlanResult:
                 "objective_bound": _num(objective_from_loss(obj, c.loss_bound)),
                 "bound_side": "upper" if obj.kind == "coverage" else "lower",
                 "gap": _num(gap),
-                "relative_gap": _num(gap / abs(c.loss_bound))
-                if c.loss_bound not in (0.0,) and np.isfinite(c.loss_bound)
-                else (0.0 if gap == 0 else None),
+                "relative_gap": 0.0 if gap == 0 else _relative(gap, c.loss_bound),
                 "exact": bool(c.exact or gap == 0),
                 "method": c.method,
             }
