@@ -21,14 +21,17 @@ UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade s
 from __future__ import annotations
 
 import argparse
+import math
+import sys
 import time
 import tracemalloc
+from pathlib import Path
 from typing import Any
 
 from ris_planner.planning import DaskExecutor, PlanDocument, SerialExecutor, run_plan
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer
-from ris_planner.planning.search import Layout, search
+from ris_planner.planning.search import Layout, exhaustive
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites
 
@@ -95,6 +98,10 @@ def city_doc(blocks: int, n_pairs: int, counts: list[int]) -> dict[str, Any]:
     }
 
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from old_search import old_greedy  # noqa: E402  (today's greedy, kept verbatim)
+
+
 def todays_search(doc: PlanDocument) -> tuple[dict[int, tuple[Layout, float, int]], float, int]:
     """Today's search on the same problem: best (layout, loss, evaluated) per count, time,
     memory peak [B]."""
@@ -108,7 +115,11 @@ def todays_search(doc: PlanDocument) -> tuple[dict[int, tuple[Layout, float, int
     seeds: list[Layout] = []
     assert doc.ris_count is not None
     for c in doc.ris_count:
-        res = search(scorer, len(sites), c, doc.search, SerialExecutor(), None, tuple(seeds))
+        ex = SerialExecutor()
+        if math.comb(len(sites), c) <= doc.search.max_exhaustive:
+            res = exhaustive(scorer, len(sites), c, ex)
+        else:
+            res = old_greedy(scorer, len(sites), c, doc.search, ex, None, tuple(seeds))
         lay, loss = res.ranked(1)[0]
         out[c] = (lay, loss, res.evaluated)
         seeds.append(lay)

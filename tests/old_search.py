@@ -1,5 +1,6 @@
-"""Today's (pre-issue-14) greedy search, kept verbatim as the reference the new search must
-never lose to on the same input (tests/test_planning_decisions.py)."""
+"""Today's (pre-issue-14) greedy search and its chunking, kept verbatim: the reference the new
+search must never lose to on the same input (tests/test_planning_decisions.py) and the
+baseline of benchmarks/bench_search.py."""
 
 from __future__ import annotations
 
@@ -10,8 +11,38 @@ import numpy as np
 
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.executor import Executor
-from ris_planner.planning.objectives import Scorer
-from ris_planner.planning.search import Layout, SearchOutcome, evaluate, site_strength
+from ris_planner.planning.objectives import Scorer, score_chunk
+from ris_planner.planning.search import (
+    CHUNK_MATRICES,
+    FloatArray,
+    IntArray,
+    Layout,
+    SearchOutcome,
+    site_strength,
+)
+
+
+def old_evaluate(
+    scorer: Scorer,
+    layouts: IntArray,
+    executor: Executor,
+    on_fraction: Callable[[float], None] | None = None,
+) -> FloatArray:
+    """Losses of layouts [B, L], split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations."""
+    b = layouts.shape[0]
+    if b == 0:
+        return np.empty(0)
+    per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
+    n_chunks = math.ceil(b / per)
+    if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk
+        n_chunks = min(b, math.ceil(n_chunks / executor.workers) * executor.workers)
+    chunks = np.array_split(layouts, n_chunks)  # n_chunks ≤ b: none is empty
+
+    def done(n: int) -> None:
+        if on_fraction is not None:
+            on_fraction(n / len(chunks))
+
+    return np.concatenate(executor.map(score_chunk, scorer, chunks, done))
 
 
 def old_greedy(
@@ -33,7 +64,7 @@ def old_greedy(
     def score(cands: list[Layout]) -> list[float]:
         new = [c for c in dict.fromkeys(cands) if c not in memo]
         if new:
-            vals = evaluate(scorer, np.array(new, dtype=int), executor)
+            vals = old_evaluate(scorer, np.array(new, dtype=int), executor)
             memo.update(zip(new, (float(v) for v in vals), strict=True))
         return [memo[c] for c in cands]
 
@@ -47,7 +78,7 @@ def old_greedy(
             if len(cur) + 1 == n_ris:
                 vals = np.array(score([tuple(int(x) for x in c) for c in cand]))
             else:
-                vals = evaluate(scorer, cand, executor)
+                vals = old_evaluate(scorer, cand, executor)
             key = np.lexsort((-strength[rest], vals))
             cur.append(rest[int(key[0])])
         return tuple(sorted(cur))

@@ -377,6 +377,8 @@ def test_search_never_worse_than_todays_greedy(seed: int) -> None:
         old = old_greedy(scorer, len(sites), n_ris, d.search, SerialExecutor())
         new = greedy(scorer, len(sites), n_ris, d.search, SerialExecutor(), feasible=feas)
         assert new.ranked(1)[0][1] <= old.ranked(1)[0][1]
+        # without constraints it is today's search, starts run in lockstep: same layouts
+        assert new.as_dict() == old.as_dict()
 
 
 def test_certificate_with_exclusive_mounting_points_is_valid_and_tighter() -> None:

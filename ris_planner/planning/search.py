@@ -63,6 +63,11 @@ class SearchOutcome:
         }
 
 
+MIN_TASK_MATRICES = 500_000
+"""A batch below one chunk is still split over the workers when each part holds at least this
+many layout × pair evaluations (≈ 50 ms: far above a task's scheduling cost; the site cache is
+already on every worker)."""
+
 SITE_BLOCKS = 8
 """Site blocks of a cluster search: a task carries the blocks its layouts use (≤ L of 8)."""
 
@@ -127,6 +132,8 @@ def evaluate(
     n_chunks = math.ceil(b / per)
     if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk
         n_chunks = min(b, math.ceil(n_chunks / executor.workers) * executor.workers)
+    elif b * scorer.cache.n_pairs >= executor.workers * MIN_TASK_MATRICES:
+        n_chunks = min(b, executor.workers)  # one chunk per worker (a greedy round)
     chunks = np.array_split(layouts, n_chunks)  # n_chunks ≤ b: none is empty
 
     def done(n: int) -> None:
@@ -249,27 +256,41 @@ def greedy(
             drawn = cons.random_layout(n_ris, rng)
             if drawn is not None:
                 starts.append(drawn)
-    for i, start in enumerate(starts):
-        layout = start
-        best = score([layout])[0]
-        for _ in range(spec.max_rounds):
-            neigh = allowed(
+    # every start's swap rounds run in lockstep: one evaluation call per round for all active
+    # starts (bigger batches for the workers); each start's path is the one it takes alone
+    vals0 = score(starts)
+    cur = list(zip(starts, vals0, strict=True))
+    active = list(range(len(starts)))
+    n_done = 0
+    for _ in range(spec.max_rounds):
+        if not active:
+            break
+        neighs = {
+            i: allowed(
                 [
-                    tuple(sorted((*(x for x in layout if x != out_s), in_s)))
-                    for out_s in layout
+                    tuple(sorted((*(x for x in cur[i][0] if x != out_s), in_s)))
+                    for out_s in cur[i][0]
                     for in_s in range(n_sites)
-                    if in_s not in layout
+                    if in_s not in cur[i][0]
                 ]
             )
-            if not neigh:
-                break
-            nvals = score(neigh)
-            j = min(range(len(neigh)), key=lambda k: (nvals[k], neigh[k]))
-            if not nvals[j] < best:
-                break
-            layout, best = neigh[j], nvals[j]
-        if on_fraction is not None:
-            on_fraction((i + 1) / len(starts))
+            for i in active
+        }
+        score([c for i in active for c in neighs[i]])
+        still = []
+        for i in active:
+            neigh = neighs[i]
+            if neigh:
+                nvals = [memo[c] for c in neigh]
+                j = min(range(len(neigh)), key=lambda k: (nvals[k], neigh[k]))
+                if nvals[j] < cur[i][1]:
+                    cur[i] = (neigh[j], nvals[j])
+                    still.append(i)
+                    continue
+            n_done += 1
+            if on_fraction is not None:
+                on_fraction(n_done / len(starts))
+        active = still
     return SearchOutcome(
         np.array(list(memo), dtype=int).reshape(len(memo), n_ris),
         np.array(list(memo.values())),
