@@ -166,6 +166,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
 def write_sweep_figure(result: PlanResult, path: Path) -> Path:
     """Objective vs RIS count, one line per sweep value (the base run dashed)."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     assert result.sweep is not None
     sweep = result.sweep
@@ -182,6 +183,7 @@ def write_sweep_figure(result: PlanResult, path: Path) -> Path:
         label = f"{sweep['parameter']} = {value}" + (" (document)" if base else "")
         ax.plot(xs, ys, "--o" if base else "-o", label=label)
     obj = result.document.objective
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("RIS count")
     ax.set_ylabel(
         f"{obj.kind} of {_metric_label(result)}" + ("" if obj.kind == "coverage" else " [m]")
