@@ -94,9 +94,10 @@ def _frank_wolfe(
         b = blk.shape[2]
         z = np.where(free, k / n_free, 0.0)[:, None] * np.ones((1, b))  # [S, b]
         best = np.zeros(b)
+        a_free = np.einsum("esb,sb->eb", blk, z)  # [E, b] Σ z_s F_s, then updated in place
         for t in range(iterations + 1):
             # [E, b] relaxed FIM K̃(z), then [b, n, n] scaled to unit diagonal
-            a = (base[:, sl] + np.einsum("esb,sb->eb", blk, z)) * ridge[:, None]
+            a = (base[:, sl] + a_free) * ridge[:, None]
             mat = np.empty((b, n, n))
             mat[:, ii, jj] = a.T
             mat[:, jj, ii] = a.T
@@ -120,6 +121,10 @@ def _frank_wolfe(
             if t < iterations:
                 gamma = 2.0 / (t + 2.0)
                 z = (1 - gamma) * z + gamma * v
+                # Σ_s v_s F_s gathers the k chosen sites only (no pass over all S)
+                pick = np.argpartition(-v, k - 1, axis=0)[:k]  # [k, b]
+                vert = np.take_along_axis(blk, pick[None, :, :], axis=1).sum(axis=1)  # [E, b]
+                a_free = (1 - gamma) * a_free + gamma * vert
         out[sl] = best
     return out
 
