@@ -11,7 +11,8 @@ For each case, in the same run:
   identical answer and throughput per worker.
 
     python benchmarks/bench_search.py [--case hall|city|both] [--dask]
-        [--city-blocks 4] [--city-pairs 50000] [--counts 2 3 4]
+        [--city-blocks 4] [--city-pairs 50000] [--counts 2 3 4] [--hall-pairs 6400]
+    python benchmarks/bench_search.py --greedy-workers 2 --counts 3 [--hall-pairs 2000]
 
 Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
 UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
@@ -28,15 +29,17 @@ import tracemalloc
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ris_planner.planning import DaskExecutor, PlanDocument, SerialExecutor, run_plan
 from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.objectives import Scorer
+from ris_planner.planning.objectives import Scorer, score_chunk
 from ris_planner.planning.search import Layout, exhaustive
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites
 
 
-def hall_doc(counts: list[int]) -> dict[str, Any]:
+def hall_doc(counts: list[int], n_pairs: int = 6400) -> dict[str, Any]:
     """The 40 × 25 m hall: 4 inward walls × 26 spots … 156 candidates, 6400 pairs."""
     corners = ([0, 0], [40, 0], [40, 25], [0, 25])
     walls = [
@@ -55,7 +58,7 @@ def hall_doc(counts: list[int]) -> dict[str, Any]:
         "walls": walls,
         "tx_map": grid,
         "rx_map": grid,
-        "pairs": {"sample": 6400, "seed": 0},
+        "pairs": {"sample": n_pairs, "seed": 0},
         "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
         "ris_count": counts,
     }
@@ -201,6 +204,37 @@ def report(name: str, raw: dict[str, Any], dask: bool) -> None:
         )
 
 
+def greedy_workers(raw: dict[str, Any], workers: int) -> None:
+    """Today's greedy and the new one (starts in lockstep, rounds split over the workers) with
+    the same LocalExecutor: same layouts, wall time of each."""
+    from old_search import old_greedy as today
+
+    from ris_planner.planning import LocalExecutor
+    from ris_planner.planning.search import greedy
+
+    doc = PlanDocument.model_validate(raw)
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    scorer = Scorer(build_site_cache(doc.system, sites, pairs), pairs.weights, doc.objective, ())
+    assert doc.ris_count is not None
+    with LocalExecutor(workers) as ex:
+        warm = [np.array([[0, 1, 2]]), np.array([[0, 1, 3]])]
+        ex.map(score_chunk, scorer, warm)  # start the pool (and ship the cache) before timing
+        for c in doc.ris_count:
+            t0 = time.perf_counter()
+            old = today(scorer, len(sites), c, doc.search, ex)
+            t_old = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            new = greedy(scorer, len(sites), c, doc.search, ex)
+            t_new = time.perf_counter() - t0
+            same = old.as_dict() == new.as_dict()
+            print(
+                f"greedy L={c}, {workers} workers, {pairs.size} pairs: today {t_old:.1f} s,"
+                f" now {t_new:.1f} s ({t_old / t_new:.2f}×), {new.evaluated} layouts,"
+                f" identical outcome {same}"
+            )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", choices=["hall", "city", "both"], default="hall")
@@ -208,9 +242,20 @@ def main() -> None:
     ap.add_argument("--city-blocks", type=int, default=4)
     ap.add_argument("--city-pairs", type=int, default=50_000)
     ap.add_argument("--dask", action="store_true")
+    ap.add_argument("--hall-pairs", type=int, default=6400)
+    ap.add_argument(
+        "--greedy-workers",
+        type=int,
+        default=0,
+        help="only compare today's and the new greedy on the hall with N local workers",
+    )
     args = ap.parse_args()
+    if args.greedy_workers:
+        raw = hall_doc(args.counts or [3], args.hall_pairs)
+        greedy_workers({**raw, "search": {"method": "greedy"}}, args.greedy_workers)
+        return
     if args.case in ("hall", "both"):
-        report("hall 40 × 25 m", hall_doc(args.counts or [2, 3, 4]), args.dask)
+        report("hall 40 × 25 m", hall_doc(args.counts or [2, 3, 4], args.hall_pairs), args.dask)
     if args.case in ("city", "both"):
         raw = city_doc(args.city_blocks, args.city_pairs, args.counts or [2, 3, 4, 5, 6])
         n = len(expand_sites(PlanDocument.model_validate(raw)))

@@ -144,8 +144,6 @@ def pareto(points: list[tuple[float, float, Layout]]) -> list[tuple[float, float
     other is at most as costly and strictly better, or strictly cheaper and as good."""
     out: list[tuple[float, float, Layout]] = []
     for cost, loss, lay in sorted(points, key=lambda t: (t[0], t[1], len(t[2]), t[2])):
-        if not out or loss < out[-1][1]:
-            if out and cost == out[-1][0]:
-                continue  # same cost, the first (better) one is kept
+        if not out or loss < out[-1][1]:  # sorted: an equal cost has a loss ≥ the kept one
             out.append((cost, loss, lay))
     return out
