@@ -66,22 +66,40 @@ def test_local_process_pool_gives_identical_losses(monkeypatch: pytest.MonkeyPat
 
 
 def test_cluster_tasks_carry_only_their_site_block() -> None:
-    from ris_planner.planning.search import all_layouts, block_tasks, evaluate
+    from ris_planner.planning.search import all_layouts, evaluate
+
+    class Recording(SerialExecutor):
+        """Serial, but asks for site-block tasks and records what each task carries."""
+
+        site_blocks = True
+
+        def __init__(self) -> None:
+            self.tasks: list[object] = []
+            self.shared: list[object] = []
+
+        def share(self, obj: object) -> object:
+            self.shared.append(obj)
+            return obj
+
+        def map(self, fn, shared, chunks, on_done=None):  # type: ignore[no-untyped-def]
+            self.tasks += list(chunks)
+            return super().map(fn, shared, chunks, on_done)
 
     doc = small_plan()
-    doc["candidates"] = doc["candidates"] * 2  # type: ignore[operator]
+    doc["candidates"] = doc["candidates"] * 3  # type: ignore[operator]
     doc["constraints"] = {"exclusive_mounts": False}
     result = run_plan({**doc, "ris_count": [2]}, executor=SerialExecutor())
-    scorer = result.scorer
+    scorer = result.scorer  # 21 sites: 7 blocks of ⌈21 / 8⌉ = 3
     layouts = all_layouts(scorer.cache.n_sites, 3)
-    tasks, rows = block_tasks(scorer, layouts, n_blocks=7)
-    assert max(t[0].cache.n_sites for t in tasks) <= 3 * 2  # ≤ L blocks of 2 sites
-    assert sorted(np.concatenate(rows).tolist()) == list(range(len(layouts)))
-    ref = evaluate(scorer, layouts, SerialExecutor())
-    got = np.empty(len(layouts))
-    for (sub, local), r in zip(tasks, rows, strict=True):
-        got[r] = sub.loss(local)
-    np.testing.assert_array_equal(got, ref)  # bit for bit
+    ex = Recording()
+    got = evaluate(scorer, layouts, ex)
+    np.testing.assert_array_equal(got, evaluate(scorer, layouts, SerialExecutor()))  # bit for bit
+    assert len(ex.shared) == 7 + 1  # every block and the base shared once
+    for _, parts, local in ex.tasks:  # type: ignore[misc]
+        assert len(parts) <= 3 and sum(p.n_sites for p in parts) <= 9
+        assert local.max() < sum(p.n_sites for p in parts)
+    evaluate(scorer, layouts[:50], ex)
+    assert len(ex.shared) == 8  # the blocks are reused for the same scorer
 
 
 def test_service_setting_sends_plan_jobs_to_dask(
@@ -107,6 +125,6 @@ def test_service_setting_sends_plan_jobs_to_dask(
         monkeypatch.setenv("RIS_PLANNER_DASK_SCHEDULER", cluster.scheduler_address)
         out = plan_job(doc, lambda f, m: None, tmp_path)
         prefixes = set(cluster.scheduler.task_prefixes)
-    assert "score_task" in prefixes  # the layouts were scored on the cluster
+    assert "score_block_task" in prefixes  # the layouts were scored on the cluster
     assert out.result["layouts"] == local["layouts"]
     assert out.result["by_count"][1]["sites"] == local["by_count"][1]["sites"]

@@ -6,7 +6,8 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,7 +18,7 @@ from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.executor import Executor
 from ris_planner.planning.objectives import Scorer, score_chunk
-from ris_planner.planning.site_cache import N_STATES
+from ris_planner.planning.site_cache import N_STATES, SiteCache
 
 IntArray = NDArray[np.int_]
 FloatArray = NDArray[np.float64]
@@ -72,38 +73,59 @@ SITE_BLOCKS = 8
 """Site blocks of a cluster search: a task carries the blocks its layouts use (≤ L of 8)."""
 
 
-def block_tasks(
-    scorer: Scorer, layouts: IntArray, n_blocks: int = SITE_BLOCKS
-) -> tuple[list[tuple[Scorer, IntArray]], list[IntArray]]:
-    """Tasks that each carry only their site block: layouts [B, L] grouped by the set of site
-    blocks they touch, each group scored by a :class:`Scorer` over the cache of those blocks'
-    sites (layouts renumbered, order kept, so the arithmetic is the full cache's). Returns the
-    tasks and, for each, the rows of ``layouts`` it scores."""
+def score_block_task(_shared: object, task: tuple[Any, list[SiteCache], IntArray]) -> FloatArray:
+    """Executor task: the losses of layouts over the concatenated site blocks it carries."""
+    (weights, objective, known), parts, local = task
+    return Scorer(SiteCache.concat(parts), weights, objective, known).loss(local)
+
+
+def _evaluate_blocks(
+    scorer: Scorer,
+    layouts: IntArray,
+    executor: Executor,
+    on_fraction: Callable[[float], None] | None,
+    n_blocks: int = SITE_BLOCKS,
+) -> FloatArray:
+    """:func:`evaluate` on a cluster: tasks carry handles of only their ≤ L site blocks (each
+    block sent once per executor), scores bit-identical to the whole cache's."""
     n_sites = scorer.cache.n_sites
     size = max(1, math.ceil(n_sites / n_blocks))
-    blk = layouts // size  # [B, L] block of each site (sorted layouts: sorted blocks)
+    # the executor keeps the handles of the current scorer's base and blocks (each sent once)
+    memo = executor.block_memo
+    if memo is None or memo[0] is not scorer:
+        executor.release()  # the previous scorer's blocks
+        blocks = [
+            executor.share(scorer.cache.subset(np.arange(s0, min(n_sites, s0 + size))))
+            for s0 in range(0, n_sites, size)
+        ]
+        base = executor.share((scorer.weights, scorer.objective, scorer.known))
+        memo = executor.block_memo = (scorer, base, blocks)
+    _, base, blocks = memo
+    blk = layouts // size  # [B, L] block of each site
     keys, inverse = np.unique(blk, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
     per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
-    tasks: list[tuple[Scorer, IntArray]] = []
+    tasks: list[tuple[Any, list[Any], IntArray]] = []
     rows_of: list[IntArray] = []
     for g, key in enumerate(keys):
         rows = np.flatnonzero(inverse == g)
-        sites = np.concatenate(
-            [np.arange(b * size, min(n_sites, (b + 1) * size)) for b in np.unique(key)]
-        )
-        sub = replace(scorer, cache=scorer.cache.subset(sites))
-        local = np.searchsorted(sites, layouts[rows])  # [b, L] indices into the block
+        used = np.unique(key)
+        sites = np.concatenate([np.arange(b * size, min(n_sites, (b + 1) * size)) for b in used])
+        local = np.searchsorted(sites, layouts[rows])
         for c0 in range(0, rows.size, per):
-            tasks.append((sub, local[c0 : c0 + per]))
+            tasks.append((base, [blocks[int(b)] for b in used], local[c0 : c0 + per]))
             rows_of.append(rows[c0 : c0 + per])
-    return tasks, rows_of
+    out = np.empty(layouts.shape[0])
 
+    def done_t(n: int) -> None:
+        if on_fraction is not None:
+            on_fraction(n / len(tasks))
 
-def score_task(_shared: object, task: tuple[Scorer, IntArray]) -> FloatArray:
-    """Executor task carrying its own site block: losses of its layouts."""
-    sub, local = task
-    return sub.loss(local)
+    for rows, vals in zip(
+        rows_of, executor.map(score_block_task, None, tasks, done_t), strict=True
+    ):
+        out[rows] = vals
+    return out
 
 
 def evaluate(
@@ -113,21 +135,12 @@ def evaluate(
     on_fraction: Callable[[float], None] | None = None,
 ) -> FloatArray:
     """Losses of layouts [B, L], split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations
-    (on a cluster, :func:`block_tasks`: each task carries only its site block)."""
+    (on a cluster, :func:`_evaluate_blocks`: each task carries only its site blocks)."""
     b = layouts.shape[0]
     if b == 0:
         return np.empty(0)
     if executor.site_blocks:
-        tasks, rows_of = block_tasks(scorer, layouts)
-        out = np.empty(b)
-
-        def done_t(n: int) -> None:
-            if on_fraction is not None:
-                on_fraction(n / len(tasks))
-
-        for rows, vals in zip(rows_of, executor.map(score_task, None, tasks, done_t), strict=True):
-            out[rows] = vals
-        return out
+        return _evaluate_blocks(scorer, layouts, executor, on_fraction)
     per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
     n_chunks = math.ceil(b / per)
     if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk

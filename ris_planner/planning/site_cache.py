@@ -51,6 +51,17 @@ class SiteCache:
     def n_pairs(self) -> int:
         return int(self.packed.shape[2])
 
+    @staticmethod
+    def concat(parts: list[SiteCache]) -> SiteCache:
+        """The sites of several sub-caches of one cache, in order (the inverse of
+        :meth:`subset` over consecutive blocks)."""
+        return SiteCache(
+            np.concatenate([c.packed for c in parts], axis=1),
+            parts[0].los,
+            np.concatenate([c.degenerate for c in parts]),
+            np.concatenate([c.far_field for c in parts]),
+        )
+
     def subset(self, sites: IntArray) -> SiteCache:
         """The cache of the given sites only (ascending indices; a task's site block). Every
         per-site field is sliced here, so a sub-cache scores its layouts exactly as the full
