@@ -16,11 +16,14 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     ``heatmap``, ``cdf`` (PNG) and, with the GIS extra, the files ``geojson`` (plan.geojson),
     ``geotiff`` (heatmap.tif) and ``points_csv`` (points.csv) of ``ris-planner plan --out``.
     The search runs serially inside this worker process (parallelism comes from the service's
-    job workers)."""
+    job workers), or on the Dask cluster of ``RIS_PLANNER_DASK_SCHEDULER``."""
+    from api.settings import Settings
     from ris_planner.io import MissingExtraError
-    from ris_planner.planning import SerialExecutor, run_plan, write_figures
+    from ris_planner.planning import DaskExecutor, Executor, SerialExecutor, run_plan, write_figures
 
-    with SerialExecutor() as executor:
+    address = Settings().dask_scheduler
+    executor: Executor = DaskExecutor(address) if address else SerialExecutor()
+    with executor:
         result = run_plan(document, progress, executor)
     figures = write_figures(result, out_dir)
     plan = result.to_json()

@@ -16,6 +16,7 @@ RIS_PLANNER_API_KEY      (unset: no authentication)     key required in ``X-API-
 RIS_PLANNER_DB_BUSY_TIMEOUT_S 10                        SQLite lock wait per attempt [s]
 RIS_PLANNER_DB_RETRY_S   60                             retries of a failing store call [s]
 RIS_PLANNER_JOB_MEMORY_MB 4096                          memory budget of one job worker [MiB]
+RIS_PLANNER_DASK_SCHEDULER (unset: in the job worker)   Dask scheduler (tcp://host:8786) for plans
 ======================== ============================== =========================================
 """
 
@@ -86,6 +87,11 @@ class Settings(BaseSettings):
         " document must fit it (413 otherwise) and the worker's address space is capped at it",
     )
     api_key: SecretStr | None = Field(None, description="If set, /v1 routes require this key")
+    dask_scheduler: str | None = Field(
+        None,
+        pattern=r"^(tcp|tls|inproc|ucx)://\S+$",
+        description="Dask scheduler address; plan jobs send their layout search there",
+    )
 
     @property
     def figures_dir(self) -> Path:

@@ -240,14 +240,23 @@ def map_points(spec: UEMap) -> int:
 
 
 def plan_sites(doc: PlanDocument) -> int:
-    """Candidate sites: explicit candidates and every wall's sites."""
-    return len(doc.candidates) + sum(_wall_sites(w) for w in doc.walls)
+    """Candidate sites: explicit candidates, every wall's sites and every facade's (each
+    footprint edge of a named prism is a wall)."""
+    from ris_planner.planning.sites import facade_walls
+
+    facades = sum(
+        _wall_sites(w)
+        for fac, prisms in zip(doc.facades, doc.facade_prisms(), strict=True)
+        for _, prism in prisms
+        for w in facade_walls(fac, prism)
+    )
+    return len(doc.candidates) + sum(_wall_sites(w) for w in doc.walls) + facades
 
 
 def _search_layouts(doc: PlanDocument, sites: int) -> int:
     """Layouts the searches may score, summed over the RIS counts (the worst case)."""
     total = 0
-    for i, n_ris in enumerate(doc.ris_count):
+    for i, n_ris in enumerate(c for c in doc.max_counts if c <= sites):
         spec = doc.search
         layouts = math.comb(sites, n_ris) if sites >= n_ris else 0
         if spec.method == "exhaustive" or (
@@ -284,7 +293,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         + sites * BYTES_PER_SITE
         + min(cache, MAX_CACHE_ENTRIES) * BYTES_PER_CACHE_ENTRY
         + min(layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT
-        + heatmap * max(doc.ris_count) * elements * BYTES_PER_HEATMAP_ELEMENT
+        + heatmap * min(max(doc.max_counts), max(sites, 1)) * elements * BYTES_PER_HEATMAP_ELEMENT
     )
     return Sizes(
         sites=sites,

@@ -41,7 +41,7 @@ def validate_plan(
 def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
     """The cross-field and size rules of a validated plan document; its sizes."""
     sites = plan_sites(doc)
-    if max(doc.ris_count) > sites:
+    if doc.ris_count is not None and max(doc.ris_count) > sites:
         raise DocumentFieldError(
             "ris_count",
             f"ris_count {max(doc.ris_count)} exceeds the {sites} candidate sites",

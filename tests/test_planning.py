@@ -15,6 +15,7 @@ from pydantic import ValidationError
 
 from ris_planner.bounds import compute_bounds
 from ris_planner.cli import main
+from ris_planner.environment import Scene
 from ris_planner.errors import LimitExceededError, RisPlannerError
 from ris_planner.geometry import rotation_matrix
 from ris_planner.paper import fig10_pairs
@@ -37,6 +38,7 @@ from ris_planner.planning.objectives import (
 from ris_planner.planning.search import SearchOutcome, exhaustive, greedy
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites, wall_poses
+from ris_planner.planning.visibility import pair_visibility
 from ris_planner.scenario import Scenario, load_scenario, preset_document
 
 GRID = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
@@ -76,7 +78,9 @@ def setup(doc: dict[str, Any]) -> tuple[PlanDocument, Any, Any, Scorer]:
     d = PlanDocument.model_validate(doc)
     sites = expand_sites(d)
     pairs = build_pairs(build_map(d.tx_map, "tx"), build_map(d.rx_map, "rx"), d.pairs, d.max_pairs)
-    cache = build_site_cache(d.system, sites, pairs, known=tuple(d.known))
+    # the plan's visibility rules: fields of view (and obstacles) per (point, site)
+    vis = pair_visibility(Scene.from_environment(d.environment), sites, pairs, d.system.los)
+    cache = build_site_cache(d.system, sites, pairs, visibility=vis, known=tuple(d.known))
     return d, sites, pairs, Scorer(cache, pairs.weights, d.objective, tuple(d.known))
 
 

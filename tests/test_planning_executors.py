@@ -5,6 +5,7 @@ does not depend on the chunking)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -41,7 +42,7 @@ def test_dask_local_cluster_gives_identical_ranking() -> None:
             threads_per_worker=1,
             processes=True,
             host="127.0.0.1",
-            dashboard_address=None,
+            dashboard_address="127.0.0.1:0",
         ) as cluster,
         DaskExecutor(distributed.Client(cluster)) as ex,
     ):
@@ -62,3 +63,68 @@ def test_local_process_pool_gives_identical_losses(monkeypatch: pytest.MonkeyPat
     for a, b in zip(serial.counts, pooled.counts, strict=True):
         np.testing.assert_array_equal(a.outcome.layouts, b.outcome.layouts)
         np.testing.assert_array_equal(a.outcome.losses, b.outcome.losses)
+
+
+def test_cluster_tasks_carry_only_their_site_block() -> None:
+    from ris_planner.planning.search import all_layouts, evaluate
+
+    class Recording(SerialExecutor):
+        """Serial, but asks for site-block tasks and records what each task carries."""
+
+        site_blocks = True
+
+        def __init__(self) -> None:
+            self.tasks: list[object] = []
+            self.shared: list[object] = []
+
+        def share(self, obj: object) -> object:
+            self.shared.append(obj)
+            return obj
+
+        def map(self, fn, shared, chunks, on_done=None):  # type: ignore[no-untyped-def]
+            self.tasks += list(chunks)
+            return super().map(fn, shared, chunks, on_done)
+
+    doc = small_plan()
+    doc["candidates"] = doc["candidates"] * 3  # type: ignore[operator]
+    doc["constraints"] = {"exclusive_mounts": False}
+    result = run_plan({**doc, "ris_count": [2]}, executor=SerialExecutor())
+    scorer = result.scorer  # 21 sites: 7 blocks of ⌈21 / 8⌉ = 3
+    layouts = all_layouts(scorer.cache.n_sites, 3)
+    ex = Recording()
+    got = evaluate(scorer, layouts, ex)
+    np.testing.assert_array_equal(got, evaluate(scorer, layouts, SerialExecutor()))  # bit for bit
+    assert len(ex.shared) == 7 + 1  # every block and the base shared once
+    for _, parts, local in ex.tasks:  # type: ignore[misc]
+        assert len(parts) <= 3 and sum(p.n_sites for p in parts) <= 9
+        assert local.max() < sum(p.n_sites for p in parts)
+    evaluate(scorer, layouts[:50], ex)
+    assert len(ex.shared) == 8  # the blocks are reused for the same scorer
+
+
+def test_service_setting_sends_plan_jobs_to_dask(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    distributed = pytest.importorskip("distributed")
+    from pydantic import ValidationError
+
+    from api.kinds import plan_job
+    from api.settings import Settings
+
+    with pytest.raises(ValidationError, match="dask_scheduler"):
+        Settings(dask_scheduler="not a url")
+    doc = small_plan()
+    local = run_plan(doc, executor=SerialExecutor()).to_json()
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+    ) as cluster:
+        monkeypatch.setenv("RIS_PLANNER_DASK_SCHEDULER", cluster.scheduler_address)
+        out = plan_job(doc, lambda f, m: None, tmp_path)
+        prefixes = set(cluster.scheduler.task_prefixes)
+    assert "score_block_task" in prefixes  # the layouts were scored on the cluster
+    assert out.result["layouts"] == local["layouts"]
+    assert out.result["by_count"][1]["sites"] == local["by_count"][1]["sites"]

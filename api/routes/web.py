@@ -106,7 +106,7 @@ def validate_plan(
     inputs = prepare_plan(document)
     n_sites = len(inputs.sites)
     search = inputs.document.search
-    layouts = {str(c): math.comb(n_sites, c) for c in inputs.document.ris_count}
+    layouts = {str(c): math.comb(n_sites, c) for c in inputs.counts}
     methods = {
         c: search.method
         if search.method != "auto"

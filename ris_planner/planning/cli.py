@@ -44,6 +44,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
             f"{entry['ris_count']} RIS: sites {entry['sites']} objective {entry['objective']}"
             f" ({entry['method']}, {entry['layouts_evaluated']}/{entry['layouts_total']} layouts)"
         )
+    if "decision" in plan:
+        print(f"decision: {plan['decision']['message']}")
     return 0
 
 

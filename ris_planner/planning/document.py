@@ -200,6 +200,9 @@ class Candidate(DocumentModel):
         Field(min_length=3, max_length=3, description="Euler [yaw, pitch, roll] in radians"),
     ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     name: str | None = Field(None, max_length=200, description="Label used in reports")
+    cost: float = Field(
+        0.0, ge=0, allow_inf_nan=False, description="Cost of using this site (any unit)"
+    )
 
     @model_validator(mode="after")
     def _check_pose(self) -> Candidate:
@@ -234,6 +237,9 @@ class Wall(DocumentModel):
         min_length=1,
         max_length=100,
         description="Downward tilts (pitch) to try at each site [rad]",
+    )
+    cost: float = Field(
+        0.0, ge=0, allow_inf_nan=False, description="Cost of using each site of this wall"
     )
 
     @model_validator(mode="after")
@@ -345,6 +351,136 @@ class RISDefaults(DocumentModel):
     )
 
 
+# --- decisions: targets, constraints and cost (issue 14) -----------------------------------
+
+SAME_SPOT_M = 0.01
+"""Candidates whose centres lie within this horizontal (x, y) distance share one mounting point
+(heights and tilts of one spot): 1 cm, far below any sensible site spacing and far above the
+rounding of expanded wall coordinates."""
+
+
+class Target(DocumentModel):
+    """A requirement on the objective: ``min`` (coverage: the fraction must be ≥ it) or ``max``
+    (mean_capped / quantile: the bound in metres must be ≤ it)."""
+
+    min: float | None = Field(None, ge=0, allow_inf_nan=False, description="Lower limit")
+    max: float | None = Field(None, gt=0, allow_inf_nan=False, description="Upper limit [m]")
+
+    def met(self, value: float) -> bool:
+        """Whether an objective value meets the target (``inf`` never meets a ``max``)."""
+        if self.min is not None:
+            return value >= self.min
+        assert self.max is not None
+        return value <= self.max
+
+
+class Constraints(DocumentModel):
+    """Which layouts are allowed. Candidate indices are those of the plan's candidate list
+    (explicit candidates first, then each wall's sites, as in plan.json ``candidates``)."""
+
+    exclusive_mounts: bool = Field(
+        True,
+        description="Candidates sharing a mounting point (x, y within same_spot_m: heights or"
+        " tilts of one spot) are mutually exclusive",
+    )
+    same_spot_m: float = Field(
+        SAME_SPOT_M, ge=0, le=100, allow_inf_nan=False, description="Same-spot distance [m]"
+    )
+    min_separation_m: float = Field(
+        0.0, ge=0, le=1e6, allow_inf_nan=False, description="Least 3-D distance between RISs [m]"
+    )
+    require: list[int] = Field(
+        default_factory=list, max_length=16, description="Candidates every layout must use"
+    )
+    exclude: list[int] = Field(
+        default_factory=list, max_length=100_000, description="Candidates never used"
+    )
+    budget: float | None = Field(
+        None, ge=0, allow_inf_nan=False, description="Largest total cost of a layout"
+    )
+
+    @model_validator(mode="after")
+    def _check_sets(self) -> Constraints:
+        both = set(self.require) & set(self.exclude)
+        if both:
+            raise ValueError(f"constraints: candidates {sorted(both)} are required and excluded")
+        if any(i < 0 for i in [*self.require, *self.exclude]):
+            raise ValueError("constraints: candidate indices must be ≥ 0")
+        if len(set(self.require)) != len(self.require):
+            raise ValueError("constraints.require lists a candidate twice")
+        return self
+
+
+class CostSpec(DocumentModel):
+    """Layout cost = Σ over its RISs of (site cost + per_ris + per_element · rows · cols)."""
+
+    per_ris: float = Field(0.0, ge=0, allow_inf_nan=False, description="Cost of each RIS")
+    per_element: float = Field(
+        0.0, ge=0, allow_inf_nan=False, description="Cost per RIS element (per-size cost)"
+    )
+
+
+MAX_SWEEP_VALUES = 16
+"""Sweep values per plan (each runs the whole plan once more)."""
+
+
+class Sweep(DocumentModel):
+    """One parameter varied over the same candidates and pairs; each value runs the plan once
+    more with that value (the document's own value is the base run). Give exactly one list."""
+
+    tx_power_dbm: list[float] | None = Field(
+        None, min_length=1, max_length=MAX_SWEEP_VALUES, description="Transmit powers [dBm]"
+    )
+    noise_figure_db: list[float] | None = Field(
+        None, min_length=1, max_length=MAX_SWEEP_VALUES, description="Noise figures [dB]"
+    )
+    ris_size: list[Annotated[list[int], Field(min_length=2, max_length=2)]] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_SWEEP_VALUES,
+        description="RIS element grids [rows, cols] (each 1–512)",
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> Sweep:
+        given = [k for k in ("tx_power_dbm", "noise_figure_db", "ris_size") if getattr(self, k)]
+        if len(given) != 1:
+            raise ValueError(
+                "sweep: give exactly one of tx_power_dbm, noise_figure_db, ris_size"
+                f" (got {given or 'none'})"
+            )
+        for v in self.tx_power_dbm or []:
+            if not (-100 <= v <= 100):
+                raise ValueError(f"sweep.tx_power_dbm {v} is outside [-100, 100] dBm")
+        for v in self.noise_figure_db or []:
+            if not (0 <= v <= 100):
+                raise ValueError(f"sweep.noise_figure_db {v} is outside [0, 100] dB")
+        for rc in self.ris_size or []:
+            if not all(1 <= x <= 512 for x in rc):
+                raise ValueError(f"sweep.ris_size {rc}: rows and cols must be 1–512")
+        return self
+
+    @property
+    def parameter(self) -> str:
+        return next(k for k in ("tx_power_dbm", "noise_figure_db", "ris_size") if getattr(self, k))
+
+    @property
+    def values(self) -> list[Any]:
+        return list(getattr(self, self.parameter))
+
+    def apply(self, doc: dict[str, Any], value: Any) -> dict[str, Any]:
+        """The plan document (a JSON dict, without ``sweep``) with this sweep value set."""
+        out = {k: v for k, v in doc.items() if k != "sweep"}
+        if self.parameter == "ris_size":
+            out["ris"] = {**out.get("ris", {}), "rows": value[0], "cols": value[1]}
+        else:
+            out["system"] = {**out.get("system", {}), self.parameter: value}
+        return out
+
+
+# ---------------------------------------------------------------------------------------------
+
+
 class Objective(DocumentModel):
     """What a layout is scored on, over the weighted pairs. ``metric``: ``rx`` (PEB_R), ``tx``
     (PEB_T) or ``max`` (max(PEB_T, PEB_R)), in metres. Blind spots (infinite bounds) fail:
@@ -364,13 +500,38 @@ class Objective(DocumentModel):
     q: float | None = Field(
         None, gt=0, lt=1, allow_inf_nan=False, description="quantile: probability in (0, 1)"
     )
+    target: Target | None = Field(
+        None,
+        description="A requirement on the objective's value: the plan answers the smallest RIS"
+        " count that meets it (coverage: {'min': fraction}; mean_capped, quantile: {'max': m})",
+    )
 
     @model_validator(mode="after")
     def _check_params(self) -> Objective:
         need = {"coverage": "threshold_m", "mean_capped": "cap_m", "quantile": "q"}[self.kind]
         if getattr(self, need) is None:
             raise ValueError(f"objective kind {self.kind!r} needs {need}")
+        if self.target is not None:
+            if self.kind == "coverage":
+                if self.target.min is None or self.target.max is not None:
+                    raise ValueError("a coverage target is {'min': fraction in [0, 1]}")
+                if self.target.min > 1:
+                    raise ValueError(f"target.min {self.target.min} is a fraction ≤ 1")
+            elif self.target.max is None or self.target.min is not None:
+                raise ValueError(f"a {self.kind} target is {{'max': bound in metres}}")
         return self
+
+
+TIE_RTOL = 1e-3
+"""Default tie tolerance (relative to the best objective): differences below 0.1 % are far
+inside the spread a different pair sample or map resolution gives, so such layouts are listed
+as ties rather than ranked apart."""
+
+
+CERTIFICATE_ITERATIONS = 20
+"""Default Frank–Wolfe iterations of the relaxation bound: on the hall benchmark the bound at
+40 iterations is within 2 % of the one at 20 (fraction of pairs proven uncoverable 0.317 vs
+0.311 at L = 2), at twice the time (≈ 0.3 s per iteration for 156 sites × 6400 pairs)."""
 
 
 class SearchSpec(DocumentModel):
@@ -388,6 +549,20 @@ class SearchSpec(DocumentModel):
         3, ge=0, le=1000, description="Greedy: random starting layouts besides the greedy one"
     )
     max_rounds: int = Field(50, ge=1, le=10000, description="Greedy: maximum swap rounds per start")
+    tie_rtol: float = Field(
+        TIE_RTOL,
+        ge=0,
+        le=1,
+        allow_inf_nan=False,
+        description="Layouts whose objective lies within tie_rtol·|best| of the best tie",
+    )
+    certificate_iterations: int = Field(
+        CERTIFICATE_ITERATIONS,
+        ge=0,
+        le=10_000,
+        description="Frank–Wolfe iterations of the per-pair relaxation bound (0: no bound"
+        " unless the search is exhaustive)",
+    )
 
 
 class BeamsSpec(DocumentModel):
@@ -457,8 +632,25 @@ class PlanDocument(DocumentModel):
         description="Limit on the number of evaluated pairs (use pairs.sample beyond it)",
     )
     objective: Objective = Field(description="The objective scored over the weighted pairs")
-    ris_count: list[int] = Field(
-        min_length=1, max_length=16, description="RIS counts L to compare (e.g. [2, 3, 4])"
+    ris_count: list[int] | None = Field(
+        None,
+        min_length=1,
+        max_length=16,
+        description="RIS counts L to compare (e.g. [2, 3, 4]); may be omitted with a target",
+    )
+    mode: Literal["compare", "target"] | None = Field(
+        None,
+        description="compare: search the listed ris_count; target: search 1, 2, … up to"
+        " max_ris and stop at the smallest count that meets objective.target (default: target"
+        " when ris_count is omitted)",
+    )
+    max_ris: int = Field(6, ge=1, le=16, description="target mode: the largest RIS count searched")
+    constraints: Constraints = Field(
+        default_factory=Constraints, description="Allowed layouts (mounting points, spacing …)"
+    )
+    cost: CostSpec = Field(default_factory=CostSpec, description="Layout cost model")
+    sweep: Sweep | None = Field(
+        None, description="Run the plan again for each value of one parameter (one table)"
     )
     codebook: PlanCodebook = Field(
         default_factory=PlanCodebook, description="Codebook (expected_random, unitless)"
@@ -484,7 +676,9 @@ class PlanDocument(DocumentModel):
 
     @field_validator("ris_count")
     @classmethod
-    def _check_counts(cls, v: list[int]) -> list[int]:
+    def _check_counts(cls, v: list[int] | None) -> list[int] | None:
+        if v is None:
+            return v
         if any(c < 1 for c in v):
             raise ValueError(f"ris_count entries must be ≥ 1, got {v}")
         if len(set(v)) != len(v):
@@ -520,13 +714,36 @@ class PlanDocument(DocumentModel):
             )
         if self.pairs == "unordered" and self.tx_map != self.rx_map:
             raise ValueError("pairs 'unordered' needs tx_map and rx_map to be the same map")
-        for c in self.ris_count:
+        if self.ris_count is None and self.objective.target is None:
+            raise ValueError("give ris_count, or objective.target to search for the count")
+        if self.target_mode and self.objective.target is None:
+            raise ValueError("mode 'target' needs objective.target")
+        if len(self.constraints.require) > self.max_counts[-1]:
+            raise ValueError(
+                f"constraints.require names {len(self.constraints.require)} candidates, more"
+                f" than the largest RIS count {self.max_counts[-1]}"
+            )
+        for c in self.max_counts:
             if c + 1 > self.system.transmissions:
                 raise ValueError(
                     f"ris_count {c} needs at least L+1 = {c + 1} transmissions (G ="
                     f" {self.system.transmissions})"
                 )
         return self
+
+    @property
+    def target_mode(self) -> bool:
+        """Whether the plan stops at the smallest count meeting the target (``mode``; default:
+        target when ``ris_count`` is omitted)."""
+        return self.mode == "target" or (self.mode is None and self.ris_count is None)
+
+    @property
+    def max_counts(self) -> list[int]:
+        """Every RIS count the plan may search: the listed ``ris_count``, else 1 … ``max_ris``
+        (target mode stops at the first count that meets the target)."""
+        if self.ris_count is not None:
+            return list(self.ris_count)
+        return list(range(1, self.max_ris + 1))
 
     def facade_prisms(self) -> list[list[tuple[int, Prism]]]:
         """Per entry of ``facades``: (obstacle index, prism) of each name in ``of``; raises a

@@ -48,6 +48,19 @@ class Executor(ABC):
     """Runs ``fn(shared, chunk)`` for every chunk and returns the results in chunk order."""
 
     workers: int = 1
+    site_blocks: bool = False
+    """Whether tasks should carry their own site block instead of a shared whole cache."""
+
+    block_memo: Any = None
+    """The search's handles of the current scorer's site blocks (set by the search)."""
+
+    def share(self, obj: Any) -> Any:
+        """A handle tasks may carry instead of ``obj`` (a cluster sends ``obj`` once)."""
+        return obj
+
+    def release(self) -> None:
+        """Forget every :meth:`share` handle (and the search's block memo)."""
+        self.block_memo = None
 
     @abstractmethod
     def map(
@@ -151,7 +164,11 @@ class LocalExecutor(Executor):
 
 class DaskExecutor(Executor):
     """Dask distributed: ``address`` of a running scheduler (``tcp://host:8786``) or an
-    existing ``distributed.Client``. ``shared`` is scattered to every worker once."""
+    existing ``distributed.Client``. ``shared`` is scattered to every worker once; the layout
+    search sends tasks that carry only their site blocks (``planning.search._evaluate_blocks``),
+    so no worker needs the whole site cache."""
+
+    site_blocks = True
 
     def __init__(self, address: Any) -> None:
         from distributed import Client
@@ -161,6 +178,14 @@ class DaskExecutor(Executor):
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         self._shared: Any = None
         self._future: Any = None
+        self._handles: dict[int, tuple[Any, Any]] = {}
+
+    def share(self, obj: Any) -> Any:
+        """A future of ``obj`` scattered once (to one worker; Dask moves it where needed)."""
+        key = id(obj)
+        if key not in self._handles or self._handles[key][0] is not obj:
+            self._handles[key] = (obj, self.client.scatter(obj))
+        return self._handles[key][1]
 
     def map(
         self,
@@ -183,7 +208,12 @@ class DaskExecutor(Executor):
                 on_done(n)
         return out
 
+    def release(self) -> None:
+        self._handles.clear()
+        self.block_memo = None
+
     def close(self) -> None:
+        self.release()
         if self._own:
             self.client.close()
             self._own = False

@@ -95,6 +95,12 @@ class Scorer:
         los = None if self.cache.los is None else self.cache.los[src]
         return self.cache.packed[src], los
 
+    @property
+    def selected_packed(self) -> tuple[FloatArray, FloatArray | None]:
+        """(site information [E, S, P], LOS [E, P] or ``None``) on the kept states, packed in
+        :func:`ris_planner.ldl.packed_index` order (the certificates' relaxation reads it)."""
+        return self._selected
+
     def metric(self, layouts: IntArray) -> FloatArray:
         """[B, P] metric bound (m) of each layout [B, L] and pair ([B, 2P] with ``mirror``);
         ``inf`` for blind spots.

@@ -23,6 +23,9 @@ from ris_planner.planning.beam_design import (
     objective_on_pairs,
     served_pairs,
 )
+from ris_planner.planning.certificates import Certificate, relaxation_certificate
+from ris_planner.planning.constraints import Feasibility, build_feasibility
+from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
 from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import (
@@ -76,6 +79,12 @@ def _num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
+def _relative(gap: float, bound: float) -> float | None:
+    """gap / |bound| (``None`` where undefined: an infinite gap or a zero or infinite bound)."""
+    ok = np.isfinite(gap) and np.isfinite(bound) and bound != 0
+    return float(gap / abs(bound)) if ok else None
+
+
 def _dominant_reason(
     reason: NDArray[np.object_], weights: FloatArray, blind: NDArray[np.bool_]
 ) -> list[str | None]:
@@ -118,6 +127,9 @@ class CountResult:
     ranked: list[tuple[Layout, float]]
     best_metric: FloatArray
     random_codebook: dict[str, Any] | None = None
+    certificate: Certificate | None = None
+    n_ties: int = 1
+    ties: tuple[tuple[Layout, float], ...] = ()
 
 
 @dataclass
@@ -139,6 +151,9 @@ class PlanResult:
     beams: dict[Layout, BeamReport] = field(default_factory=dict)
     """Beam designs per evaluated layout (``document.beams``): the best of each count first."""
     _rx_fields: dict[Layout, RxField] = field(default_factory=dict, repr=False)
+    feasibility: Feasibility | None = None
+    infeasible_counts: tuple[int, ...] = ()
+    sweep: dict[str, Any] | None = None
 
     @property
     def cache(self) -> SiteCache:
@@ -154,6 +169,12 @@ class PlanResult:
         [2P] for mirrored unordered pairs (weights: :attr:`metric_weights`)."""
         return self.scorer.metric(np.array([layout], dtype=int))[0]
 
+    def layout_cost(self, layout: Layout) -> float:
+        """Total cost of a layout (0 without a cost model)."""
+        if self.feasibility is None:
+            return 0.0
+        return float(self.feasibility.layout_cost(np.array([layout], dtype=int))[0])
+
     def layout_stats(self, layout: Layout) -> dict[str, Any]:
         metric = self.layout_metric(layout)[None, :]
         w = self.metric_weights
@@ -167,6 +188,11 @@ class PlanResult:
             "quantiles_m": {
                 f"{q:g}": _num(v) for q, v in zip(REPORT_QUANTILES, quant, strict=True)
             },
+            # a quantile is null only when it is itself a blind (infinite) value
+            "quantiles_blind": [
+                f"{q:g}" for q, v in zip(REPORT_QUANTILES, quant, strict=True) if np.isinf(v)
+            ],
+            "cost": self.layout_cost(layout),
             "mean_m": _num(float((metric[0] * w).sum())),
             "blind_fraction": _fraction(w, ~np.isfinite(metric[0])),
             "near_field_fraction": _fraction(self.pairs.weights, ~far),
@@ -255,7 +281,8 @@ class PlanResult:
         (almost) no pair."""
         doc = self.document
         out: list[str | None] = [
-            advice.expected_random_warning(doc.system.transmissions, c) for c in doc.ris_count
+            advice.expected_random_warning(doc.system.transmissions, cr.ris_count)
+            for cr in self.counts
         ]
         wavelength = Radio.from_system(doc.system).wavelength
         out += advice.spacing_warnings([self.sites[0].ris], wavelength, ["the candidate RIS"])
@@ -298,6 +325,7 @@ class PlanResult:
                     "cdf": self.cdf(cr.best_metric),
                     **({"beams": self.beams[best_lay].to_json()} if best_lay in self.beams else {}),
                     "random_codebook": cr.random_codebook,
+                    **self._decision_fields(cr),
                 }
             )
         top.sort(key=lambda t: (t[0], t[1], t[2]))
@@ -326,7 +354,106 @@ class PlanResult:
             "timing_s": self.timing,
             "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
+            **self._decision_json(),
         }
+
+    # --- decisions (issue 14): certificates, ties, targets, cost ------------------------------
+
+    def _decision_fields(self, cr: CountResult) -> dict[str, Any]:
+        """by_count additions: the certificate and gap, the ties."""
+        obj = self.document.objective
+        best_loss = cr.ranked[0][1]
+        cert = None
+        if cr.certificate is not None:
+            c = cr.certificate
+            gap = 0.0 if c.exact or best_loss == c.loss_bound else best_loss - c.loss_bound
+            cert = {
+                "objective_bound": _num(objective_from_loss(obj, c.loss_bound)),
+                "bound_side": "upper" if obj.kind == "coverage" else "lower",
+                "gap": _num(gap),
+                "relative_gap": 0.0 if gap == 0 else _relative(gap, c.loss_bound),
+                "exact": bool(c.exact or gap == 0),
+                "method": c.method,
+            }
+        return {
+            "certificate": cert,
+            "ties": {
+                "tolerance_rel": self.document.search.tie_rtol,
+                "count": cr.n_ties,
+                "tied": cr.n_ties > 1,
+                "layouts": [
+                    {"sites": [int(s) for s in lay], "objective": _num(objective_from_loss(obj, v))}
+                    for lay, v in cr.ties
+                ],
+            },
+        }
+
+    def summary_rows(self, value: Any) -> list[dict[str, Any]]:
+        """One row per searched count for the sweep table: value, count, layout, objective,
+        certificate gap, cost (and whether the target is met)."""
+        obj = self.document.objective
+        rows = []
+        for cr in self.counts:
+            lay, loss = cr.ranked[0]
+            fields = self._decision_fields(cr)["certificate"]
+            val = objective_from_loss(obj, loss)
+            rows.append(
+                {
+                    "value": value,
+                    "ris_count": cr.ris_count,
+                    "sites": [int(s) for s in lay],
+                    "objective": _num(val),
+                    "gap": None if fields is None else fields["gap"],
+                    "cost": self.layout_cost(lay),
+                    "target_met": None if obj.target is None else obj.target.met(val),
+                }
+            )
+        return rows
+
+    def _decision_json(self) -> dict[str, Any]:
+        """Top-level additions: ``decision`` (with a target), ``pareto``, ``infeasible_counts``."""
+        doc = self.document
+        obj = doc.objective
+        cost_model = self.feasibility is not None and bool(np.any(self.feasibility.cost > 0))
+        points = [
+            (self.layout_cost(lay) if cost_model else float(len(lay)), loss, lay)
+            for cr in self.counts
+            for lay, loss in cr.ranked
+        ]
+        out: dict[str, Any] = {
+            "pareto": {
+                "cost_unit": "cost" if cost_model else "ris_count",
+                "points": [
+                    {
+                        "cost": c,
+                        "ris_count": len(lay),
+                        "sites": [int(s) for s in lay],
+                        "objective": _num(objective_from_loss(obj, loss)),
+                    }
+                    for c, loss, lay in pareto(points)
+                ],
+            },
+            "infeasible_counts": list(self.infeasible_counts),
+        }
+        if self.sweep is not None:
+            out["sweep"] = self.sweep
+        if obj.target is not None:
+            answers = [
+                CountAnswer(
+                    cr.ris_count,
+                    cr.ranked[0][1],
+                    cr.ranked[0][0],
+                    self.layout_cost(cr.ranked[0][0]),
+                    cr.certificate,
+                )
+                for cr in self.counts
+            ] + [CountAnswer(c, None, None, 0.0, None) for c in self.infeasible_counts]
+            answers.sort(key=lambda a: a.ris_count)
+            searched = [a.ris_count for a in answers]
+            out["decision"] = decision_json(
+                obj, answers, max(searched) if searched else 0, doc.target_mode
+            )
+        return out
 
     def beams_json(self) -> dict[str, Any]:
         """``plan.json["beams"]``: the settings and every evaluated layout's report."""
@@ -354,22 +481,35 @@ class PlanInputs:
     """UE map points dropped inside prisms, per map."""
     directions: str
     """How unordered pairs count both directions (:func:`maps.unordered_directions`)."""
+    counts: list[int]
+    """The RIS counts to search (``ris_count``, or 1 … ``max_ris`` in target mode)."""
+    feasibility: Feasibility
+    """Constraints and costs of the candidate sites."""
+
+
+def validate_document(document: PlanDocument | dict[str, Any]) -> PlanDocument:
+    """The plan document with the CLI's and the service's checks, sizes before work
+    (:func:`ris_planner.validation.validate_plan`)."""
+    from ris_planner.validation import validate_plan
+
+    return validate_plan(document)
 
 
 def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
     """Validate a plan document, expand its sites and maps, build its pairs and check every limit
     that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
     cache) – a dry run: raises what ``run_plan`` would raise, computes no bound."""
-    from ris_planner.validation import validate_plan
-
-    doc = validate_plan(document)  # the CLI's and the service's checks, sizes before work
+    doc = validate_document(document)
     # the fields of view apply in free space too (an empty scene); obstacles where given
     scene = Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
-    if max(doc.ris_count) > len(sites):
-        raise RisPlannerError(
-            f"ris_count {max(doc.ris_count)} exceeds the {len(sites)} candidate sites"
-        )
+    wanted = doc.max_counts
+    if doc.ris_count is None:  # target mode up to max_ris: at most every candidate
+        wanted = [c for c in wanted if c <= len(sites)]
+    elif max(wanted) > len(sites):
+        raise RisPlannerError(f"ris_count {max(wanted)} exceeds the {len(sites)} candidate sites")
+    feasibility = build_feasibility(sites, doc.constraints, doc.cost)
+    wanted = [c for c in wanted if c >= len(feasibility.required)]
     tx_map = build_map(doc.tx_map, "tx_map")
     rx_map = build_map(doc.rx_map, "rx_map")
     dropped = {"tx": 0, "rx": 0}
@@ -383,7 +523,9 @@ def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
             f"{len(sites)} sites × {pairs.size} pairs exceed the site-cache limit of"
             f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
         )
-    return PlanInputs(doc, sites, tx_map, rx_map, pairs, scene, dropped, directions)
+    return PlanInputs(
+        doc, sites, tx_map, rx_map, pairs, scene, dropped, directions, wanted, feasibility
+    )
 
 
 def heatmap_rx_index(n_points: int) -> NDArray[np.int_]:
@@ -403,16 +545,14 @@ def run_plan(
 ) -> PlanResult:
     """Run a plan document: build maps and pairs, cache every site's information, search each
     RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+    doc = validate_document(document)
+    if doc.sweep is not None:
+        return _run_sweep(doc, progress, executor)
     t0 = time.perf_counter()
-    inputs = prepare_plan(document)
-    doc, sites, tx_map, rx_map, pairs = (
-        inputs.document,
-        inputs.sites,
-        inputs.tx_map,
-        inputs.rx_map,
-        inputs.pairs,
-    )
+    inputs = prepare_plan(doc)
+    sites, tx_map, rx_map, pairs = inputs.sites, inputs.tx_map, inputs.rx_map, inputs.pairs
     scene, dropped, directions = inputs.scene, inputs.dropped, inputs.directions
+    wanted, feasibility = inputs.counts, inputs.feasibility
     progress(0.0, "caching site information")
     t_vis = time.perf_counter()
     visibility = pair_visibility(scene, sites, pairs, doc.system.los)
@@ -434,11 +574,13 @@ def run_plan(
     ex = LocalExecutor() if executor is None else executor
     counts: list[CountResult] = []
     # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
-    effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in doc.ris_count]
+    effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in wanted]
     share = 0.75 if doc.beams is None else 0.7  # of the progress bar
     done = 0.0
+    infeasible: list[int] = []
+    t_cert = 0.0
     try:
-        for c, e in zip(doc.ris_count, effort, strict=True):
+        for c, e in zip(wanted, effort, strict=True):
             base = done
 
             def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
@@ -446,15 +588,46 @@ def run_plan(
 
             # the best layouts of the smaller counts seed the greedy search
             seeds = tuple(cr.ranked[0][0] for cr in counts)
-            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds)
+            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds, feasibility)
+            done += e
+            if outcome.evaluated == 0:  # no layout satisfies the constraints
+                infeasible.append(c)
+                continue
             ranked = outcome.ranked(doc.search.top_k)
             best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
-            counts.append(CountResult(c, outcome, ranked, best_metric))
-            done += e
+            t1 = time.perf_counter()
+            cert = count_certificate(
+                scorer, c, outcome, feasibility, doc.search.certificate_iterations
+            )
+            t_cert += time.perf_counter() - t1
+            n_ties, tied = ties(outcome, doc.search.tie_rtol)
+            counts.append(
+                CountResult(
+                    c,
+                    outcome,
+                    ranked,
+                    best_metric,
+                    certificate=cert,
+                    n_ties=n_ties,
+                    ties=tuple(tied),
+                )
+            )
+            target = doc.objective.target
+            if (
+                doc.target_mode
+                and target is not None
+                and target.met(objective_from_loss(doc.objective, ranked[0][1]))
+            ):
+                break
     finally:
         if own:
             ex.close()
-    t_search = time.perf_counter() - t0 - t_cache
+    if not counts:
+        raise RisPlannerError(
+            f"no layout of {wanted} RISs satisfies the constraints (mounting points,"
+            " min_separation_m, require/exclude, budget)"
+        )
+    t_search = time.perf_counter() - t0 - t_cache - t_cert
     t1 = time.perf_counter()
     mirror = directions == "mirror"
     for cr in counts:
@@ -462,11 +635,24 @@ def run_plan(
     timing = {
         "cache": t_cache,
         "search": t_search,
+        "certificate": t_cert,
         "visibility": t_vis,
         "random_codebook": time.perf_counter() - t1,
     }
     result = PlanResult(
-        doc, sites, tx_map, rx_map, pairs, scorer, counts, timing, scene, dropped, warnings
+        doc,
+        sites,
+        tx_map,
+        rx_map,
+        pairs,
+        scorer,
+        counts,
+        timing,
+        scene=scene,
+        dropped_points=dropped,
+        site_warnings=warnings,
+        feasibility=feasibility,
+        infeasible_counts=tuple(infeasible),
     )
     if doc.beams is not None:
         t1 = time.perf_counter()
@@ -474,6 +660,54 @@ def run_plan(
         timing["beams"] = time.perf_counter() - t1
     progress(1.0, "done")
     return result
+
+
+def count_certificate(
+    scorer: Scorer, n_ris: int, outcome: SearchOutcome, feasible: Feasibility, iterations: int
+) -> Certificate | None:
+    """The optimum itself after an exhaustive search, else the relaxation bound (``None`` with
+    zero iterations)."""
+    if outcome.method == "exhaustive":
+        return Certificate(float(outcome.losses.min()), exact=True, method="exhaustive")
+    if iterations == 0 or scorer.mirror:
+        # the per-pair relaxation bounds one direction's metric; unordered pairs counted both
+        # ways (mirror) have no relaxation bound yet
+        return None
+    return relaxation_certificate(scorer, n_ris, feasible, iterations)
+
+
+def _run_sweep(
+    doc: PlanDocument, progress: ProgressCallback, executor: Executor | None
+) -> PlanResult:
+    """The base plan (the document's own values) and one more plan per sweep value over the
+    same candidates and pairs; ``result.sweep`` holds one table of every run's counts."""
+    assert doc.sweep is not None
+    sweep = doc.sweep
+    raw = doc.model_dump(mode="json")
+    own = executor is None
+    ex = LocalExecutor() if executor is None else executor
+    n_runs = 1 + len(sweep.values)
+    try:
+        base_raw = {k: v for k, v in raw.items() if k != "sweep"}
+        base = run_plan(base_raw, lambda f, m: progress(f / n_runs, f"base: {m}"), ex)
+        if sweep.parameter == "ris_size":
+            base_value: Any = [doc.ris.rows, doc.ris.cols]
+        else:
+            base_value = getattr(doc.system, sweep.parameter)
+        rows = [dict(r, base=True) for r in base.summary_rows(base_value)]
+        for i, value in enumerate(sweep.values, start=1):
+
+            def sub_progress(f: float, m: str, i: int = i, value: Any = value) -> None:
+                progress((i + f) / n_runs, f"{sweep.parameter}={value}: {m}")
+
+            sub = run_plan(sweep.apply(raw, value), sub_progress, ex)
+            rows += [dict(r, base=False) for r in sub.summary_rows(value)]
+    finally:
+        if own:
+            ex.close()
+    base.document = doc
+    base.sweep = {"parameter": sweep.parameter, "values": sweep.values, "table": rows}
+    return base
 
 
 def _drop_points(

@@ -20,6 +20,9 @@ from ris_planner.obstacles import Environment, Prism
 from ris_planner.planning.plan import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")
+SWEEP_FIGURE = "sweep"
+"""Written besides :data:`FIGURE_NAMES` when the plan has a sweep: objective vs RIS count,
+one line per sweep value."""
 
 RASTER_MAX_CELLS = 400
 """Heatmap raster cells per axis at most (the cell grows beyond it)."""
@@ -275,6 +278,8 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(paths["cdf"], dpi=110)
+    if result.sweep is not None:
+        paths[SWEEP_FIGURE] = write_sweep_figure(result, out_dir / f"{SWEEP_FIGURE}.png")
     plt.close(fig)
     if result.beams:
         paths["beams"] = write_beams_figure(result, out_dir / "beams.png")
@@ -321,6 +326,43 @@ def write_beams_figure(result: PlanResult, path: Path) -> Path:
     ax.set_title("Beam designs re-evaluated on all pairs", fontsize=10)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_sweep_figure(result: PlanResult, path: Path) -> Path:
+    """Objective vs RIS count, one line per sweep value (the base run dashed)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+
+    assert result.sweep is not None
+    sweep = result.sweep
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    keys: list[tuple[str, bool]] = []
+    for row in sweep["table"]:
+        k = (str(row["value"]), bool(row["base"]))
+        if k not in keys:
+            keys.append(k)
+    for value, base in keys:
+        rows = [r for r in sweep["table"] if str(r["value"]) == value and r["base"] == base]
+        xs = [r["ris_count"] for r in rows]
+        ys = [np.nan if r["objective"] is None else r["objective"] for r in rows]
+        label = f"{sweep['parameter']} = {value}" + (" (document)" if base else "")
+        ax.plot(xs, ys, "--o" if base else "-o", label=label)
+    obj = result.document.objective
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("RIS count")
+    ax.set_ylabel(
+        f"{obj.kind} of {_metric_label(result)}" + ("" if obj.kind == "coverage" else " [m]")
+    )
+    if obj.target is not None:
+        level = obj.target.min if obj.target.min is not None else obj.target.max
+        assert level is not None
+        ax.axhline(level, color="k", lw=0.8, ls=":", label="target")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -7,16 +7,18 @@ import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.errors import LimitExceededError
 from ris_planner.ldl import packed_index
+from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.executor import Executor
 from ris_planner.planning.objectives import Scorer, score_chunk
-from ris_planner.planning.site_cache import N_STATES
+from ris_planner.planning.site_cache import N_STATES, SiteCache
 
 IntArray = NDArray[np.int_]
 FloatArray = NDArray[np.float64]
@@ -26,6 +28,8 @@ CHUNK_MATRICES = 8_000_000
 measured 8–16 M matrices/s, so transfer and scheduling stay a small fraction."""
 
 Layout = tuple[int, ...]
+
+NO_LIMIT = 2**62
 
 
 @dataclass
@@ -60,20 +64,89 @@ class SearchOutcome:
         }
 
 
+MIN_TASK_MATRICES = 500_000
+"""A batch below one chunk is still split over the workers when each part holds at least this
+many layout × pair evaluations (≈ 50 ms: far above a task's scheduling cost; the site cache is
+already on every worker)."""
+
+SITE_BLOCKS = 8
+"""Site blocks of a cluster search: a task carries the blocks its layouts use (≤ L of 8)."""
+
+
+def score_block_task(_shared: object, task: tuple[Any, list[SiteCache], IntArray]) -> FloatArray:
+    """Executor task: the losses of layouts over the concatenated site blocks it carries."""
+    (weights, objective, known), parts, local = task
+    return Scorer(SiteCache.concat(parts), weights, objective, known).loss(local)
+
+
+def _evaluate_blocks(
+    scorer: Scorer,
+    layouts: IntArray,
+    executor: Executor,
+    on_fraction: Callable[[float], None] | None,
+    n_blocks: int = SITE_BLOCKS,
+) -> FloatArray:
+    """:func:`evaluate` on a cluster: tasks carry handles of only their ≤ L site blocks (each
+    block sent once per executor), scores bit-identical to the whole cache's."""
+    n_sites = scorer.cache.n_sites
+    size = max(1, math.ceil(n_sites / n_blocks))
+    # the executor keeps the handles of the current scorer's base and blocks (each sent once)
+    memo = executor.block_memo
+    if memo is None or memo[0] is not scorer:
+        executor.release()  # the previous scorer's blocks
+        blocks = [
+            executor.share(scorer.cache.subset(np.arange(s0, min(n_sites, s0 + size))))
+            for s0 in range(0, n_sites, size)
+        ]
+        base = executor.share((scorer.weights, scorer.objective, scorer.known))
+        memo = executor.block_memo = (scorer, base, blocks)
+    _, base, blocks = memo
+    blk = layouts // size  # [B, L] block of each site
+    keys, inverse = np.unique(blk, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
+    tasks: list[tuple[Any, list[Any], IntArray]] = []
+    rows_of: list[IntArray] = []
+    for g, key in enumerate(keys):
+        rows = np.flatnonzero(inverse == g)
+        used = np.unique(key)
+        sites = np.concatenate([np.arange(b * size, min(n_sites, (b + 1) * size)) for b in used])
+        local = np.searchsorted(sites, layouts[rows])
+        for c0 in range(0, rows.size, per):
+            tasks.append((base, [blocks[int(b)] for b in used], local[c0 : c0 + per]))
+            rows_of.append(rows[c0 : c0 + per])
+    out = np.empty(layouts.shape[0])
+
+    def done_t(n: int) -> None:
+        if on_fraction is not None:
+            on_fraction(n / len(tasks))
+
+    for rows, vals in zip(
+        rows_of, executor.map(score_block_task, None, tasks, done_t), strict=True
+    ):
+        out[rows] = vals
+    return out
+
+
 def evaluate(
     scorer: Scorer,
     layouts: IntArray,
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
 ) -> FloatArray:
-    """Losses of layouts [B, L], split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations."""
+    """Losses of layouts [B, L], split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations
+    (on a cluster, :func:`_evaluate_blocks`: each task carries only its site blocks)."""
     b = layouts.shape[0]
     if b == 0:
         return np.empty(0)
+    if executor.site_blocks:
+        return _evaluate_blocks(scorer, layouts, executor, on_fraction)
     per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
     n_chunks = math.ceil(b / per)
     if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk
         n_chunks = min(b, math.ceil(n_chunks / executor.workers) * executor.workers)
+    elif b * scorer.cache.n_pairs >= executor.workers * MIN_TASK_MATRICES:
+        n_chunks = min(b, executor.workers)  # one chunk per worker (a greedy round)
     chunks = np.array_split(layouts, n_chunks)  # n_chunks ≤ b: none is empty
 
     def done(n: int) -> None:
@@ -83,20 +156,38 @@ def evaluate(
     return np.concatenate(executor.map(score_chunk, scorer, chunks, done))
 
 
-def exhaustive(
-    scorer: Scorer,
-    n_sites: int,
-    n_ris: int,
-    executor: Executor,
-    on_fraction: Callable[[float], None] | None = None,
-) -> SearchOutcome:
+def all_layouts(n_sites: int, n_ris: int) -> IntArray:
+    """Every layout [C(S, L), L] of n_ris among n_sites, lexicographic."""
     total = math.comb(n_sites, n_ris)
     flat = np.fromiter(
         itertools.chain.from_iterable(itertools.combinations(range(n_sites), n_ris)),
         dtype=int,
         count=total * n_ris,
     )
-    layouts = flat.reshape(total, n_ris)
+    return flat.reshape(total, n_ris)
+
+
+def exhaustive(
+    scorer: Scorer,
+    n_sites: int,
+    n_ris: int,
+    executor: Executor,
+    on_fraction: Callable[[float], None] | None = None,
+    feasible: Feasibility | None = None,
+    layouts: IntArray | None = None,
+) -> SearchOutcome:
+    """Every layout (every feasible one under ``feasible``; ``layouts`` when already
+    enumerated)."""
+    if layouts is None:
+        if feasible is None or feasible.trivial:
+            layouts = all_layouts(n_sites, n_ris)
+        else:
+            # no limit: the caller checked the feasible count (partial layouts of a large L
+            # may outnumber the complete ones)
+            enum = feasible.enumerate(n_ris, NO_LIMIT)
+            assert enum is not None
+            layouts = enum
+    total = int(layouts.shape[0])
     losses = evaluate(scorer, layouts, executor, on_fraction)
     return SearchOutcome(layouts, losses, method="exhaustive", total_layouts=total)
 
@@ -119,13 +210,22 @@ def greedy(
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
     seeds: tuple[Layout, ...] = (),
+    feasible: Feasibility | None = None,
 ) -> SearchOutcome:
     """Greedy forward selection (ties → the stronger site), then best-improvement swaps until
     no swap improves or ``max_rounds``; also from each smaller ``seeds`` layout (e.g. the best
     layout of the previous RIS count) completed greedily, and from ``restarts`` seeded random
-    layouts."""
+    layouts. Under ``feasible`` every step stays inside the feasible layouts (required sites
+    start every layout and are never swapped out)."""
     memo: dict[Layout, float] = {}
     strength = site_strength(scorer)
+    cons = None if feasible is None or feasible.trivial else feasible
+
+    def allowed(cands: list[Layout]) -> list[Layout]:
+        if cons is None or not cands:
+            return cands
+        ok = cons.ok(np.array(cands, dtype=int))
+        return [c for c, g in zip(cands, ok, strict=True) if g]
 
     def score(cands: list[Layout]) -> list[float]:
         new = [c for c in dict.fromkeys(cands) if c not in memo]
@@ -134,12 +234,17 @@ def greedy(
             memo.update(zip(new, (float(v) for v in vals), strict=True))
         return [memo[c] for c in cands]
 
-    def complete(partial: Layout) -> Layout:
+    def complete(partial: Layout) -> Layout | None:
         """Greedy forward selection from a partial layout; intermediate (smaller) layouts are
         scored on their own, ties (e.g. all underdetermined) go to the stronger site."""
         cur = list(partial)
         while len(cur) < n_ris:
-            rest = [s for s in range(n_sites) if s not in cur]
+            if cons is None:
+                rest = [s for s in range(n_sites) if s not in cur]
+            else:
+                rest = [int(s) for s in np.flatnonzero(cons.compatible(cur))]
+                if not rest:
+                    return None
             cand = np.array([sorted([*cur, s]) for s in rest], dtype=int)
             if len(cur) + 1 == n_ris:
                 vals = np.array(score([tuple(int(x) for x in c) for c in cand]))
@@ -149,32 +254,56 @@ def greedy(
             cur.append(rest[int(key[0])])
         return tuple(sorted(cur))
 
-    starts: list[Layout] = [complete(())]
+    first = complete(tuple(cons.required) if cons is not None else ())
+    starts: list[Layout] = [] if first is None else [first]
     for partial in seeds:
-        if len(partial) < n_ris:
-            starts.append(complete(tuple(partial)))
+        if len(partial) < n_ris and (cons is None or allowed([tuple(partial)])):
+            done = complete(tuple(partial))
+            if done is not None:
+                starts.append(done)
     rng = np.random.default_rng(spec.seed)
     for _ in range(spec.restarts):
-        starts.append(tuple(sorted(int(x) for x in rng.choice(n_sites, n_ris, replace=False))))
-    for i, start in enumerate(starts):
-        layout = start
-        best = score([layout])[0]
-        for _ in range(spec.max_rounds):
-            neigh = [
-                tuple(sorted((*(x for x in layout if x != out_s), in_s)))
-                for out_s in layout
-                for in_s in range(n_sites)
-                if in_s not in layout
-            ]
-            if not neigh:
-                break
-            nvals = score(neigh)
-            j = min(range(len(neigh)), key=lambda k: (nvals[k], neigh[k]))
-            if not nvals[j] < best:
-                break
-            layout, best = neigh[j], nvals[j]
-        if on_fraction is not None:
-            on_fraction((i + 1) / len(starts))
+        if cons is None:
+            starts.append(tuple(sorted(int(x) for x in rng.choice(n_sites, n_ris, replace=False))))
+        else:
+            drawn = cons.random_layout(n_ris, rng)
+            if drawn is not None:
+                starts.append(drawn)
+    # every start's swap rounds run in lockstep: one evaluation call per round for all active
+    # starts (bigger batches for the workers); each start's path is the one it takes alone
+    vals0 = score(starts)
+    cur = list(zip(starts, vals0, strict=True))
+    active = list(range(len(starts)))
+    n_done = 0
+    for _ in range(spec.max_rounds):
+        if not active:
+            break
+        neighs = {
+            i: allowed(
+                [
+                    tuple(sorted((*(x for x in cur[i][0] if x != out_s), in_s)))
+                    for out_s in cur[i][0]
+                    for in_s in range(n_sites)
+                    if in_s not in cur[i][0]
+                ]
+            )
+            for i in active
+        }
+        score([c for i in active for c in neighs[i]])
+        still = []
+        for i in active:
+            neigh = neighs[i]
+            if neigh:
+                nvals = [memo[c] for c in neigh]
+                j = min(range(len(neigh)), key=lambda k: (nvals[k], neigh[k]))
+                if nvals[j] < cur[i][1]:
+                    cur[i] = (neigh[j], nvals[j])
+                    still.append(i)
+                    continue
+            n_done += 1
+            if on_fraction is not None:
+                on_fraction(n_done / len(starts))
+        active = still
     return SearchOutcome(
         np.array(list(memo), dtype=int).reshape(len(memo), n_ris),
         np.array(list(memo.values())),
@@ -191,10 +320,18 @@ def search(
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
     seeds: tuple[Layout, ...] = (),
+    feasible: Feasibility | None = None,
 ) -> SearchOutcome:
-    """The search the spec asks for (``auto``: exhaustive within ``max_exhaustive``); greedy
-    also starts from the ``seeds`` (smaller layouts, completed greedily)."""
+    """The search the spec asks for (``auto``: exhaustive within ``max_exhaustive`` feasible
+    layouts); greedy also starts from the ``seeds`` (smaller layouts, completed greedily)."""
     total = math.comb(n_sites, n_ris)
+    layouts = None
+    if feasible is not None and not feasible.trivial and spec.method != "greedy":
+        total = feasible.count_upper(n_ris)
+        if total > spec.max_exhaustive:  # the feasible ones may still fit: count them
+            layouts = feasible.enumerate(n_ris, spec.max_exhaustive)
+            if layouts is not None:
+                total = int(layouts.shape[0])
     method = spec.method
     if method == "auto":
         method = "exhaustive" if total <= spec.max_exhaustive else "greedy"
@@ -204,5 +341,8 @@ def search(
                 f"{total} layouts of {n_ris} among {n_sites} sites exceed"
                 f" search.max_exhaustive = {spec.max_exhaustive}; use method 'greedy' or 'auto'"
             )
-        return exhaustive(scorer, n_sites, n_ris, executor, on_fraction)
-    return greedy(scorer, n_sites, n_ris, spec, executor, on_fraction, seeds)
+        return exhaustive(scorer, n_sites, n_ris, executor, on_fraction, feasible, layouts)
+    out = greedy(scorer, n_sites, n_ris, spec, executor, on_fraction, seeds, feasible)
+    if feasible is not None and not feasible.trivial:
+        out.total_layouts = feasible.count_upper(n_ris)
+    return out

@@ -44,6 +44,7 @@ from ris_planner.progress import ProgressCallback, no_progress
 from ris_planner.scenario import KnownPart, SystemParams, Wavefront
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int_]
 
 N_STATES = 7
 N_PACKED = N_STATES * (N_STATES + 1) // 2
@@ -82,6 +83,42 @@ class SiteCache:
     @property
     def n_pairs(self) -> int:
         return int(self.packed.shape[2])
+
+    @staticmethod
+    def concat(parts: list[SiteCache]) -> SiteCache:
+        """The sites of several sub-caches of one cache, in order (the inverse of
+        :meth:`subset` over consecutive blocks)."""
+        first = parts[0]
+        present = None if first.present is None else np.concatenate([c.present for c in parts])
+        return SiteCache(
+            np.concatenate([c.packed for c in parts], axis=1),
+            first.los,
+            np.concatenate([c.degenerate for c in parts]),
+            np.concatenate([c.far_field for c in parts]),
+            np.concatenate([c.factor for c in parts]),
+            first.los_factor,
+            first.los_referenced,
+            first.wavefront,
+            present,
+            first.los_present,
+        )
+
+    def subset(self, sites: IntArray) -> SiteCache:
+        """The cache of the given sites only (ascending indices; a task's site block). Every
+        per-site field is sliced here, so a sub-cache scores its layouts exactly as the full
+        one does."""
+        return SiteCache(
+            self.packed[:, sites],
+            self.los,
+            self.degenerate[sites],
+            self.far_field[sites],
+            self.factor[sites],
+            self.los_factor,
+            self.los_referenced,
+            self.wavefront,
+            None if self.present is None else self.present[sites],
+            self.los_present,
+        )
 
 
 def mask_absent(packed: FloatArray, present: NDArray[np.bool_]) -> None:

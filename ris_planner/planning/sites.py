@@ -20,6 +20,7 @@ class Site:
 
     ris: RIS
     name: str
+    cost: float = 0.0
 
 
 def wall_poses(wall: Wall) -> list[tuple[list[float], list[float], str]]:
@@ -107,25 +108,24 @@ def expand_sites(doc: PlanDocument) -> list[Site]:
     """Explicit candidates first (input order), then each wall's sites (wall order), then each
     facade entry's sites (prisms in ``of`` order, edges in footprint order)."""
     sites = [
-        Site(_ris(c.position, c.orientation, doc.ris), c.name or f"candidate {i}")
+        Site(_ris(c.position, c.orientation, doc.ris), c.name or f"candidate {i}", c.cost)
         for i, c in enumerate(doc.candidates)
     ]
     for w_i, wall in enumerate(doc.walls):
         for pos, ori, label in wall_poses(wall):
-            sites.append(Site(_ris(pos, ori, doc.ris), f"wall {w_i} {label}"))
+            sites.append(Site(_ris(pos, ori, doc.ris), f"wall {w_i} {label}", wall.cost))
     for f_i, (fac, prisms) in enumerate(zip(doc.facades, doc.facade_prisms(), strict=True)):
         for ob_i, prism in prisms:
             name = prism.name or f"obstacle {ob_i}"
             for e_i, wall in enumerate(facade_walls(fac, prism)):
                 for pos, ori, label in wall_poses(wall):
-                    sites.append(
-                        Site(_ris(pos, ori, doc.ris), f"facades {f_i} {name} edge {e_i} {label}")
-                    )
+                    label = f"facades {f_i} {name} edge {e_i} {label}"
+                    sites.append(Site(_ris(pos, ori, doc.ris), label, wall.cost))
     return sites
 
 
 def candidate_json(site: Site) -> dict[str, object]:
     """A site as the JSON of a :class:`Candidate` plus its label."""
     return Candidate(
-        position=site.ris.position, orientation=site.ris.orientation, name=site.name
+        position=site.ris.position, orientation=site.ris.orientation, name=site.name, cost=site.cost
     ).model_dump()

@@ -1,0 +1,269 @@
+"""Placement-search benchmark (issue 14): a synthetic hall and a synthetic city block grid.
+
+For each case, in the same run:
+* today's search (``search.search`` without constraints or certificates, the best layout of
+  each smaller count seeding the next, as ``run_plan`` did before the decisions work);
+* the plan as it runs now on the same problem (``exclusive_mounts`` off: the same layouts are
+  allowed), with its certificates: time, memory peak (tracemalloc, in-process), layouts
+  evaluated, the certified gap, and whether it returns today's best layouts;
+* the default plan (shared mounting points exclusive);
+* optionally (``--dask``) the same plan on a Dask LocalCluster with 2 workers on 127.0.0.1:
+  identical answer and throughput per worker.
+
+    python benchmarks/bench_search.py [--case hall|city|both] [--dask]
+        [--city-blocks 4] [--city-pairs 50000] [--counts 2 3 4] [--hall-pairs 6400]
+    python benchmarks/bench_search.py --greedy-workers 2 --counts 3 [--hall-pairs 2000]
+
+Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
+UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
+10 m at 2 heights, ≥ 500 with ``--city-blocks 4``), UEs on the streets.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ris_planner.planning import DaskExecutor, PlanDocument, SerialExecutor, run_plan
+from ris_planner.planning.maps import build_map, build_pairs
+from ris_planner.planning.objectives import Scorer, score_chunk
+from ris_planner.planning.search import Layout, exhaustive
+from ris_planner.planning.site_cache import build_site_cache
+from ris_planner.planning.sites import expand_sites
+
+
+def hall_doc(counts: list[int], n_pairs: int = 6400) -> dict[str, Any]:
+    """The 40 × 25 m hall: 4 inward walls × 26 spots … 156 candidates, 6400 pairs."""
+    corners = ([0, 0], [40, 0], [40, 25], [0, 25])
+    walls = [
+        {
+            "start": corners[i],
+            "end": corners[(i + 1) % 4],
+            "side": "left",  # counter-clockwise corners: left is inside
+            "heights_m": [3, 5, 7],
+            "spacing_m": 5,
+            "tilts_rad": [0.0, 0.35],
+        }
+        for i in range(4)
+    ]
+    grid = {"grid": {"x": [2, 38, 2], "y": [2, 23, 2], "z": [1.5, 1.5, 1]}}
+    return {
+        "walls": walls,
+        "tx_map": grid,
+        "rx_map": grid,
+        "pairs": {"sample": n_pairs, "seed": 0},
+        "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
+        "ris_count": counts,
+    }
+
+
+def city_doc(blocks: int, n_pairs: int, counts: list[int]) -> dict[str, Any]:
+    """blocks × blocks square buildings (40 m, streets 20 m wide) with facade sites every 10 m
+    at 2 heights; UEs on a 4 m street lattice."""
+    pitch, size = 60.0, 40.0
+    walls = []
+    for i in range(blocks):
+        for j in range(blocks):
+            x0, y0 = i * pitch, j * pitch
+            walls.append(
+                {
+                    "rectangle": [x0, y0, x0 + size, y0 + size],
+                    "heights_m": [4, 8],
+                    "spacing_m": 10,
+                    "tilts_rad": [0.2],
+                }
+            )
+    span = blocks * pitch - (pitch - size)
+    roads = [
+        {"points": [[-10, k * pitch - 10], [span + 10, k * pitch - 10]], "width_m": 8, "step_m": 4}
+        for k in range(blocks + 1)
+    ] + [
+        {"points": [[k * pitch - 10, -10], [k * pitch - 10, span + 10]], "width_m": 8, "step_m": 4}
+        for k in range(blocks + 1)
+    ]
+    ue = {"roads": roads}
+    return {
+        "walls": walls,
+        "tx_map": ue,
+        "rx_map": ue,
+        "pairs": {"sample": n_pairs, "seed": 0},
+        "max_pairs": max(n_pairs, 20_000),
+        "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 2.0},
+        "ris_count": counts,
+        "search": {"restarts": 1},
+    }
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from old_search import old_greedy  # noqa: E402  (today's greedy, kept verbatim)
+
+
+def todays_search(doc: PlanDocument) -> tuple[dict[int, tuple[Layout, float, int]], float, int]:
+    """Today's search on the same problem: best (layout, loss, evaluated) per count, time,
+    memory peak [B]."""
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    cache = build_site_cache(doc.system, sites, pairs)
+    scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+    out: dict[int, tuple[Layout, float, int]] = {}
+    seeds: list[Layout] = []
+    assert doc.ris_count is not None
+    for c in doc.ris_count:
+        ex = SerialExecutor()
+        if math.comb(len(sites), c) <= doc.search.max_exhaustive:
+            res = exhaustive(scorer, len(sites), c, ex)
+        else:
+            res = old_greedy(scorer, len(sites), c, doc.search, ex, None, tuple(seeds))
+        lay, loss = res.ranked(1)[0]
+        out[c] = (lay, loss, res.evaluated)
+        seeds.append(lay)
+    dt = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return out, dt, peak
+
+
+def timed_plan(raw: dict[str, Any], executor: Any) -> tuple[Any, float, int]:
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    res = run_plan(raw, executor=executor)
+    dt = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return res, dt, peak
+
+
+def report(name: str, raw: dict[str, Any], dask: bool) -> None:
+    raw_same = {**raw, "constraints": {"exclusive_mounts": False}}
+    doc = PlanDocument.model_validate(raw_same)
+    n_sites = len(expand_sites(doc))
+    print(f"\n== {name}: {n_sites} candidates, counts {doc.ris_count}")
+    today, t_today, m_today = todays_search(doc)
+    print(f"today's search: {t_today:.1f} s, peak {m_today / 2**20:.0f} MiB")
+    res, t_new, m_new = timed_plan(raw_same, SerialExecutor())
+    print(
+        f"plan now (same layouts allowed): {t_new:.1f} s (cache {res.timing['cache']:.1f},"
+        f" search {res.timing['search']:.1f}, certificates {res.timing['certificate']:.1f}),"
+        f" peak {m_new / 2**20:.0f} MiB, {res.pairs.size} pairs"
+    )
+    plan = res.to_json()
+    for entry in plan["by_count"]:
+        c = entry["ris_count"]
+        lay, loss, ev = today[c]
+        cert = entry["certificate"] or {}
+        same = tuple(entry["sites"]) == lay
+        old = -loss if doc.objective.kind == "coverage" else loss
+        print(
+            f"  L={c}: {entry['method']:10s} evaluated {entry['layouts_evaluated']:7d}"
+            f" (today {ev:7d}) of {entry['layouts_total']:10d}; objective"
+            f" {entry['objective']} (today {old:.6g},"
+            f" same layout: {same}); bound {cert.get('objective_bound')} gap {cert.get('gap')}"
+            f" exact {cert.get('exact')}; ties {entry['ties']['count']}"
+        )
+    res_x, t_x, m_x = timed_plan(raw, SerialExecutor())
+    print(f"default plan (exclusive mounting points): {t_x:.1f} s, peak {m_x / 2**20:.0f} MiB")
+    for entry in res_x.to_json()["by_count"]:
+        cert = entry["certificate"] or {}
+        print(
+            f"  L={entry['ris_count']}: sites {entry['sites']} objective {entry['objective']}"
+            f" gap {cert.get('gap')} ({entry['layouts_evaluated']} layouts)"
+        )
+    if dask:
+        import distributed
+
+        with (
+            distributed.LocalCluster(
+                n_workers=2,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address="127.0.0.1:0",
+            ) as cluster,
+            DaskExecutor(distributed.Client(cluster)) as ex,
+        ):
+            t0 = time.perf_counter()
+            remote = run_plan(raw_same, executor=ex)
+            t_d = time.perf_counter() - t0 - remote.timing["cache"] - remote.timing["certificate"]
+            ex.client.close()
+        same = remote.to_json()["layouts"] == plan["layouts"]
+        n_eval = sum(cr.outcome.evaluated for cr in remote.counts)
+        rate = n_eval * remote.pairs.size / t_d / 2
+        print(
+            f"dask LocalCluster (2 workers, 127.0.0.1): identical answer {same}; search"
+            f" {t_d:.1f} s vs {res.timing['search']:.1f} s in-process;"
+            f" {rate / 1e6:.2f} M layout-pairs/s per worker"
+        )
+
+
+def greedy_workers(raw: dict[str, Any], workers: int) -> None:
+    """Today's greedy and the new one (starts in lockstep, rounds split over the workers) with
+    the same LocalExecutor: same layouts, wall time of each."""
+    from old_search import old_greedy as today
+
+    from ris_planner.planning import LocalExecutor
+    from ris_planner.planning.search import greedy
+
+    doc = PlanDocument.model_validate(raw)
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    scorer = Scorer(build_site_cache(doc.system, sites, pairs), pairs.weights, doc.objective, ())
+    assert doc.ris_count is not None
+    with LocalExecutor(workers) as ex:
+        warm = [np.array([[0, 1, 2]]), np.array([[0, 1, 3]])]
+        ex.map(score_chunk, scorer, warm)  # start the pool (and ship the cache) before timing
+        for c in doc.ris_count:
+            t0 = time.perf_counter()
+            old = today(scorer, len(sites), c, doc.search, ex)
+            t_old = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            new = greedy(scorer, len(sites), c, doc.search, ex)
+            t_new = time.perf_counter() - t0
+            same = old.as_dict() == new.as_dict()
+            print(
+                f"greedy L={c}, {workers} workers, {pairs.size} pairs: today {t_old:.1f} s,"
+                f" now {t_new:.1f} s ({t_old / t_new:.2f}×), {new.evaluated} layouts,"
+                f" identical outcome {same}"
+            )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", choices=["hall", "city", "both"], default="hall")
+    ap.add_argument("--counts", type=int, nargs="+", default=None)
+    ap.add_argument("--city-blocks", type=int, default=4)
+    ap.add_argument("--city-pairs", type=int, default=50_000)
+    ap.add_argument("--dask", action="store_true")
+    ap.add_argument("--hall-pairs", type=int, default=6400)
+    ap.add_argument(
+        "--greedy-workers",
+        type=int,
+        default=0,
+        help="only compare today's and the new greedy on the hall with N local workers",
+    )
+    args = ap.parse_args()
+    if args.greedy_workers:
+        raw = hall_doc(args.counts or [3], args.hall_pairs)
+        greedy_workers({**raw, "search": {"method": "greedy"}}, args.greedy_workers)
+        return
+    if args.case in ("hall", "both"):
+        report("hall 40 × 25 m", hall_doc(args.counts or [2, 3, 4], args.hall_pairs), args.dask)
+    if args.case in ("city", "both"):
+        raw = city_doc(args.city_blocks, args.city_pairs, args.counts or [2, 3, 4, 5, 6])
+        n = len(expand_sites(PlanDocument.model_validate(raw)))
+        entries = n * args.city_pairs
+        print(f"\ncity: {n} candidates × {args.city_pairs} pairs = {entries:.3g} cache entries"
+              f" ({entries * 28 * 8 / 2**30:.1f} GiB of float64)")  # fmt: skip
+        report(f"city {args.city_blocks}×{args.city_blocks} blocks", raw, args.dask)
+
+
+if __name__ == "__main__":
+    main()
