@@ -60,7 +60,7 @@ def main() -> None:
     stages["DIR / DIR+DER design"] = time.perf_counter() - t
     scenario = layout_scenario(plan.system, ris, list(plan.known), env)
     metric = result.layout_metric(lay)
-    pick = design_positions(pairs.weights, np.isfinite(metric), args.positions, 0)
+    pick = design_positions(pairs.weights, np.isfinite(metric[: pairs.size]), args.positions, 0)
     tx, rx = pairs.tx[pick], pairs.rx[pick]
     t = time.perf_counter()
     info = beam_information(scenario, tx, rx, beams.derivative)
@@ -79,7 +79,13 @@ def main() -> None:
     stages["SDP"] = time.perf_counter() - t
     t = time.perf_counter()
     report = evaluate_layout_beams(
-        scenario, pairs, plan.objective, metric, served, positions=args.positions
+        scenario,
+        pairs,
+        plan.objective,
+        metric,
+        served,
+        positions=args.positions,
+        mirror=result.scorer.mirror,
     )
     stages["whole evaluate_layout_beams"] = time.perf_counter() - t
     for name, secs in stages.items():
