@@ -120,25 +120,10 @@ class SystemParams(DocumentModel):
         )
 
 
-class RIS(DocumentModel):
-    """One RIS: pose and element grid (DESIGN.md conventions).
+class RISGrid(DocumentModel):
+    """The element grid, field of view and pattern of a RIS: the fields a scenario's ``ris[i]``
+    and a plan document's shared ``ris`` have in common (DESIGN.md conventions)."""
 
-    R = Rz(yaw)·Ry(pitch)·Rx(roll); the RIS faces its local +x axis; elements on the local
-    y–z plane, ``rows`` along z and ``cols`` along y; element n = r·cols + c.
-    """
-
-    position: Point3
-    orientation: Annotated[
-        list[float],
-        Field(
-            min_length=3,
-            max_length=3,
-            description="Euler [yaw, pitch, roll] in radians, each within ±4π",
-            json_schema_extra={
-                "items": {"type": "number", "minimum": -4 * math.pi, "maximum": 4 * math.pi}
-            },
-        ),
-    ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
     cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
     spacing_m: float | None = Field(
@@ -166,6 +151,35 @@ class RIS(DocumentModel):
         " (cos θ_T · cos θ_R)^q, θ the angles to the normal (0 = isotropic, the paper's model)",
     )
 
+    @property
+    def elements(self) -> int:
+        return self.rows * self.cols
+
+    def element_spacing(self, wavelength: float) -> float:
+        """Element spacing d [m]: ``spacing_m``, default λ/2."""
+        return wavelength / 2 if self.spacing_m is None else self.spacing_m
+
+
+class RIS(RISGrid):
+    """One RIS: pose and element grid (DESIGN.md conventions).
+
+    R = Rz(yaw)·Ry(pitch)·Rx(roll); the RIS faces its local +x axis; elements on the local
+    y–z plane, ``rows`` along z and ``cols`` along y; element n = r·cols + c.
+    """
+
+    position: Point3
+    orientation: Annotated[
+        list[float],
+        Field(
+            min_length=3,
+            max_length=3,
+            description="Euler [yaw, pitch, roll] in radians, each within ±4π",
+            json_schema_extra={
+                "items": {"type": "number", "minimum": -4 * math.pi, "maximum": 4 * math.pi}
+            },
+        ),
+    ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+
     @field_validator("position")
     @classmethod
     def _check_position(cls, v: list[float]) -> list[float]:
@@ -178,14 +192,6 @@ class RIS(DocumentModel):
         if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > 4 * math.pi):
             raise ValueError(f"orientation must be finite radians within ±4π, got {v}")
         return [float(x) for x in arr]
-
-    @property
-    def elements(self) -> int:
-        return self.rows * self.cols
-
-    def element_spacing(self, wavelength: float) -> float:
-        """Element spacing d [m]: ``spacing_m``, default λ/2."""
-        return wavelength / 2 if self.spacing_m is None else self.spacing_m
 
 
 class RandomCodebook(DocumentModel):

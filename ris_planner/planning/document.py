@@ -27,6 +27,7 @@ from ris_planner.scenario import (
     DocumentModel,
     KnownPart,
     Point3,
+    RISGrid,
     Scenario,
     SystemParams,
     finite_point,
@@ -321,34 +322,9 @@ class PlanCodebook(DocumentModel):
     )
 
 
-class RISDefaults(DocumentModel):
+class RISDefaults(RISGrid):
     """The element grid, field of view and pattern of every candidate RIS (the scenario
-    document's per-RIS fields of the same names)."""
-
-    rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
-    cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
-    spacing_m: float | None = Field(
-        None,
-        gt=0,
-        le=1000,
-        allow_inf_nan=False,
-        description="Element spacing [m], at most 1 km (the scenario's rule); default λ/2",
-    )
-    max_angle_deg: float = Field(
-        90.0,
-        gt=0,
-        le=180,
-        allow_inf_nan=False,
-        description="Field of view: a UE is served only when the angle between the RIS normal"
-        " and the direction to it is strictly below this [deg] (90 = the front half-space)",
-    )
-    pattern_exponent: float = Field(
-        0.0,
-        ge=0,
-        le=100,
-        allow_inf_nan=False,
-        description="q: the path gain is multiplied by (cos θ_T · cos θ_R)^q (0 = isotropic)",
-    )
+    document's per-RIS fields of the same names, :class:`~ris_planner.scenario.RISGrid`)."""
 
 
 # --- decisions: targets, constraints and cost (issue 14) -----------------------------------

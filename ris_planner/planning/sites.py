@@ -93,15 +93,8 @@ def facade_walls(facades: Facades, prism: Prism) -> list[Wall]:
 
 
 def _ris(position: list[float], orientation: list[float], grid: RISDefaults) -> RIS:
-    return RIS(
-        position=position,
-        orientation=orientation,
-        rows=grid.rows,
-        cols=grid.cols,
-        spacing_m=grid.spacing_m,
-        max_angle_deg=grid.max_angle_deg,
-        pattern_exponent=grid.pattern_exponent,
-    )
+    # every RISGrid field of the plan's shared ``ris`` (one list: the model itself)
+    return RIS(position=position, orientation=orientation, **grid.model_dump())
 
 
 def expand_sites(doc: PlanDocument) -> list[Site]:
