@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from conftest import bounds_rtol
 from pydantic import ValidationError
+from test_planning import ring
 
 from ris_planner.bounds import compute_bounds, kept_states
 from ris_planner.environment import Scene, los_clear, ris_serves
@@ -66,20 +67,6 @@ OBSTACLES: list[dict[str, Any]] = [
         "height_m": 2.5,
     },
 ]
-
-
-def ring(n: int, radius: float = 4.5, tilt: float = math.pi / 6) -> list[dict[str, Any]]:
-    """n candidates on a circle, facing the centre, 2–3 m high."""
-    out = []
-    for k in range(n):
-        phi = 2 * math.pi * k / n + 0.1
-        out.append(
-            {
-                "position": [radius * math.cos(phi), radius * math.sin(phi), 2.0 + (k % 2)],
-                "orientation": [phi + math.pi, tilt, 0.0],
-            }
-        )
-    return out
 
 
 def env_doc(**over: Any) -> dict[str, Any]:
