@@ -516,20 +516,21 @@ def bounds_from_paths(
     paths: list[PathInfo],
     known: list[KnownPart] | tuple[KnownPart, ...],
     n_observations: int | None,
-    present: NDArray[np.bool_] | None = None,
+    present: NDArray[np.bool_],
+    state_fim: FloatArray,
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
     """PEB_T, PEB_R, CEB and reasons from the paths' equivalent FIMs and Jacobians (the one
     inversion of :func:`compute_bounds` and the planning scorer).
 
-    ``present`` [P, n_paths]: paths missing for a pair contribute nothing.
+    ``present`` [P, n_paths]: paths missing for a pair contribute nothing; ``state_fim``
+    [P, 7, 7] is :func:`masked_state_information` of ``paths`` (the reported FIM), inverted
+    as it is unless the LOS-referenced clock applies (then the referenced paths' sum is).
     """
     clock = None
+    f = state_fim
     if paths and paths[0].name == "los" and uses_los_reference(True, known):
         paths, clock = los_referenced(paths)
-    infos = [p.state_information() for p in paths]
-    if present is not None:
-        infos = [f * present[:, k, None, None] for k, f in enumerate(infos)]
-    f = np.sum(infos, axis=0)
+        f = masked_state_information(paths, present)
     return bounds_from_state_fim(f, known, n_observations, path_factor_rows(paths, present), clock)
 
 
@@ -635,7 +636,7 @@ def compute_bounds(
     f = masked_state_information(paths, mask)  # on [p_T, p_R, B], as reported
     system = scenario.system
     n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
-    peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask)
+    peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask, f)
     if system.wavefront == "planar":
         chan = channel_bounds(paths)
         mask_channel_bounds(chan, presence)
