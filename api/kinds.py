@@ -12,28 +12,22 @@ from ris_planner.progress import ProgressCallback
 
 
 def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
-    """``ris-planner plan``: a plan document → plan.json content and the figures ``topview``,
-    ``heatmap``, ``cdf`` (PNG) and, with the GIS extra, the files ``geojson`` (plan.geojson),
-    ``geotiff`` (heatmap.tif) and ``points_csv`` (points.csv) of ``ris-planner plan --out``.
-    The search runs serially inside this worker process (parallelism comes from the service's
-    job workers), or on the Dask cluster of ``RIS_PLANNER_DASK_SCHEDULER``."""
+    """``ris-planner plan``: a plan document (local metres or with a geographic ``frame``) →
+    plan.json content and the figures ``topview``, ``heatmap``, ``cdf`` (PNG) and, with the
+    GIS extra, the files ``geojson`` (plan.geojson), ``geotiff`` (heatmap.tif) and
+    ``points_csv`` (points.csv) of ``ris-planner plan --out`` – the same function writes both
+    (:func:`ris_planner.io.geoplan.plan_document`). The search runs serially inside this
+    worker process (parallelism comes from the service's job workers), or on the Dask cluster
+    of ``RIS_PLANNER_DASK_SCHEDULER``."""
     from api.settings import Settings
-    from ris_planner.io import MissingExtraError
-    from ris_planner.planning import DaskExecutor, Executor, SerialExecutor, run_plan, write_figures
+    from ris_planner.io.geoplan import plan_document
+    from ris_planner.planning import DaskExecutor, Executor, SerialExecutor
 
     address = Settings().dask_scheduler
     executor: Executor = DaskExecutor(address) if address else SerialExecutor()
     with executor:
-        result = run_plan(document, progress, executor)
-    figures = write_figures(result, out_dir)
-    plan = result.to_json()
-    try:
-        from ris_planner.io.export import plan_outputs
-
-        figures.update(plan_outputs(result, plan, document, out_dir))
-    except MissingExtraError:  # the service runs without the GIS files
-        pass
-    return JobOutput(plan, figures)
+        done = plan_document(document, out_dir, progress, executor)
+    return JobOutput(done.plan, done.files)
 
 
 def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:

@@ -15,6 +15,7 @@ from fastapi import Depends, FastAPI
 from threadpoolctl import threadpool_limits
 
 from api.deps import require_api_key
+from api.documents import install_document_schemas
 from api.errors import (
     V1_ERROR_RESPONSES,
     ApiKeyMiddleware,
@@ -95,6 +96,7 @@ def create_app(
     routers = (web.router, bounds.router, plans.router, power.router, events.router, jobs.router)
     for router in (*routers, meta.router):
         app.include_router(router, prefix="/v1", dependencies=v1, responses=V1_ERROR_RESPONSES)
+    install_document_schemas(app)
     return app
 
 
