@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.errors import DocumentFieldError
-from ris_planner.io import require
+from ris_planner.io import MissingExtraError, require
 
 FloatArray = NDArray[np.float64]
 
@@ -299,6 +299,8 @@ def _convert(frame: Frame, items: list[tuple[str, list[float]]]) -> FloatArray:
             raise _far_error(items[k][0], items[k][1], float(arc[k]), frame)
     try:
         return frame.from_source(src)
+    except MissingExtraError:
+        raise
     except Exception as exc:  # pyproj.exceptions.ProjError: a point the CRS cannot convert
         raise DocumentFieldError(
             "frame.crs", f"coordinates outside the area of {frame.source_crs} ({exc})"
