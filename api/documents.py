@@ -22,6 +22,8 @@ from ris_planner.errors import RisPlannerError
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io_json import parse_json
 from ris_planner.planning import PlanDocument
+from ris_planner.planning.document import LayoutBeamsDocument
+from ris_planner.scenario import Scenario
 from ris_planner.validation import plan_check
 
 
@@ -49,15 +51,23 @@ class GeoDocument(BaseModel):
     frame: GeoFrame = Field(description="The frame of the document's coordinates")
 
 
-DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (PlanDocument, GeoDocument)
+DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (
+    PlanDocument,
+    Scenario,
+    LayoutBeamsDocument,
+    GeoDocument,
+)
 """Models the request bodies of :func:`document_body` refer to (added to the OpenAPI
 components by :func:`install_document_schemas`)."""
 
 
-def document_body(schema: str, description: str, examples: dict[str, Any]) -> dict[str, Any]:
+def document_body(
+    schema: str | tuple[str, ...], description: str, examples: dict[str, Any]
+) -> dict[str, Any]:
     """The ``openapi_extra`` of a route that reads a document itself: the local document
-    (``#/components/schemas/{schema}``) or a :class:`GeoDocument`."""
-    refs = [{"$ref": f"#/components/schemas/{name}"} for name in (schema, "GeoDocument")]
+    (``#/components/schemas/{schema}``, or one of several) or a :class:`GeoDocument`."""
+    names = (schema,) if isinstance(schema, str) else schema
+    refs = [{"$ref": f"#/components/schemas/{name}"} for name in (*names, "GeoDocument")]
     return {
         "requestBody": {
             "required": True,

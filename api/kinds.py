@@ -32,16 +32,18 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
 
 def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
     """``ris-planner power``: {"scenario": …, "objective": …, "solver": …} → PowerResult JSON,
-    or {"layout": …} (a layout + UE maps document) → the beam report."""
+    or {"layout": …} (a layout + UE maps document) → the beam report; either document in
+    local metres or with a geographic ``frame`` (converted first, as at submission)."""
+    from ris_planner.io.frames import to_local
     from ris_planner.power import run_power
 
     if "layout" in document:
         from ris_planner.planning.beam_design import run_layout_beams
 
-        return JobOutput(run_layout_beams(document["layout"], progress))
+        return JobOutput(run_layout_beams(to_local(document["layout"])[0], progress))
 
     result = run_power(
-        document["scenario"],
+        to_local(document["scenario"])[0],
         progress,
         objective=document["objective"],
         solver=document["solver"],

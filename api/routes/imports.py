@@ -132,15 +132,30 @@ async def post_import(
             description="Frame origin LON,LAT[,H] (default: the features' bounding-box centre)",
         ),
     ] = None,
-    metres_per_level: Annotated[float, Query(gt=0, le=100)] = METRES_PER_LEVEL,
+    metres_per_level: Annotated[
+        float, Query(gt=0, le=100, description="Storey height for building:levels [m]")
+    ] = METRES_PER_LEVEL,
     default_height: Annotated[
         float, Query(gt=0, le=1000, description="Height of a building with no height [m]")
     ] = DEFAULT_BUILDING_HEIGHT_M,
-    road_step: Annotated[float, Query(gt=0, le=1000)] = DEFAULT_ROAD_STEP_M,
-    ue_height: Annotated[float, Query(ge=0, le=1000)] = DEFAULT_UE_HEIGHT_M,
-    density_key: Annotated[str, Query(min_length=1, max_length=100)] = "density",
-    area_step: Annotated[float, Query(gt=0, le=1000)] = DEFAULT_AREA_STEP_M,
-    site_spacing: Annotated[float, Query(gt=0, le=1000)] = DEFAULT_SITE_SPACING_M,
+    road_step: Annotated[
+        float, Query(gt=0, le=1000, description="UE sampling step along and across roads [m]")
+    ] = DEFAULT_ROAD_STEP_M,
+    ue_height: Annotated[
+        float, Query(ge=0, le=1000, description="Height of imported UE positions [m]")
+    ] = DEFAULT_UE_HEIGHT_M,
+    density_key: Annotated[
+        str,
+        Query(min_length=1, max_length=100, description="Property of UE density polygons"),
+    ] = "density",
+    area_step: Annotated[
+        float,
+        Query(gt=0, le=1000, description="Grid step inside density areas (DXF: the UE grid) [m]"),
+    ] = DEFAULT_AREA_STEP_M,
+    site_spacing: Annotated[
+        float,
+        Query(gt=0, le=1000, description="Site spacing along imported mounting lines [m]"),
+    ] = DEFAULT_SITE_SPACING_M,
     highways: Annotated[
         str | None, Query(max_length=1000, description="Road classes, comma-separated")
     ] = None,

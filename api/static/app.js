@@ -801,6 +801,9 @@
     return state.plan.objective.kind === "coverage" ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} m`;
   }
 
+  /** File type of a job's non-PNG files by name (ris_planner.io.export.GIS_FILES). */
+  const FILE_KINDS = { geojson: "geojson", geotiff: "tif", points_csv: "csv" };
+
   /** Download links: plan.json and every file the job lists (figures, and any other files). */
   function jobFiles(view) {
     const out = [];
@@ -811,7 +814,7 @@
       const ext = ((url.split("?")[0].match(/\.([A-Za-z0-9]+)$/) || [])[1] || (name.match(/\.([A-Za-z0-9]+)$/) || [])[1] || kind || "file").toUpperCase();
       out.push({ name: typeof ref === "object" && ref.name ? ref.name : name, url, ext });
     };
-    for (const [name, ref] of Object.entries(view.figures || {})) add(name, ref, "png");
+    for (const [name, ref] of Object.entries(view.figures || {})) add(name, ref, FILE_KINDS[name] || "png");
     const files = view.files || {};
     if (Array.isArray(files)) files.forEach((f, i) => add(f.name || `file ${i + 1}`, f, null));
     else for (const [name, ref] of Object.entries(files)) add(name, ref, null);

@@ -36,11 +36,12 @@ IMPORT_FORMATS = ("geojson", "osm", "sites", "dxf")
 PLAN_DEFAULTS: dict[str, Any] = {
     "pairs": {"sample": 1000, "seed": 1},
     "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
-    "ris_count": [1, 2],
+    "ris_count": [2, 3],
     "known": ["height"],
 }
 """Fields of a plan document made by :func:`plan_from_import` (the planner's to edit): 1000
-sampled TX–RX pairs, coverage Pr(PEB_R ≤ 1 m), 1 and 2 RISs, UE heights known (street or
+sampled TX–RX pairs, coverage Pr(PEB_R ≤ 1 m), 2 and 3 RISs (one RIS leaves both UEs
+unlocated), UE heights known (street or
 floor level)."""
 
 MAX_DXF_GRID_POINTS = 10_000
