@@ -193,7 +193,11 @@ def helsinki_site(sites: int = 6) -> dict[str, Any]:
     return {"type": "FeatureCollection", "features": site["features"] + points}
 
 
-def test_import_geojson_gives_a_plan_document(server: str) -> None:
+def test_import_geojson_gives_a_plan_document(
+    server: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ris_planner.cli import main
+
     body = json.dumps(helsinki_site()).encode()
     r = httpx.post(
         f"{server}/v1/import?highways=residential",
@@ -212,6 +216,11 @@ def test_import_geojson_gives_a_plan_document(server: str) -> None:
     assert preview.status_code == 200, preview.text
     assert preview.json()["sites"] == 6 and len(preview.json()["obstacles"]) == 29
     assert preview.json()["tx_points"] == 278  # plan_helsinki.py's street points
+    # the command line with the same options writes the same document
+    src = tmp_path / "site.geojson"
+    src.write_bytes(body)
+    assert main(["import", "geojson", str(src), "--plan", "--highways", "residential"]) == 0
+    assert json.loads(capsys.readouterr().out) == doc
 
 
 def test_import_osm_xml(server: str) -> None:

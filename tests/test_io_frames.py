@@ -279,6 +279,29 @@ def test_bounds_cli_takes_a_geographic_scenario(
     assert answers[1]["peb_tx_m"] == pytest.approx(answers[0]["peb_tx_m"], rel=1e-6)
 
 
+def test_power_cli_takes_a_geographic_scenario(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ris_planner.cli import main
+    from ris_planner.scenario import preset_document
+
+    local = preset_document("paper-table1")
+    local["codebook"] = {"kind": "directional_derivative", "prior": {"sigma_m": 0.1, "samples": 4}}
+    frame = Frame((24.949, 60.1655, 0.0))
+    geo = copy.deepcopy(local) | {"frame": {"origin": list(frame.origin)}}
+    for ris in geo["ris"]:
+        ris["position"] = frame.to_geographic(np.array([ris["position"]]))[0].tolist()
+    for key in ("tx", "rx"):
+        geo[key] = frame.to_geographic(np.array([local[key]], dtype=float))[0].tolist()
+    answers = []
+    for doc in (local, geo):
+        path = tmp_path / "scenario.json"
+        path.write_text(json.dumps(doc))
+        assert main(["power", str(path), "--objective", "sum"]) == 0
+        answers.append(json.loads(capsys.readouterr().out))
+    assert answers[1]["sdp"]["objective"] == pytest.approx(answers[0]["sdp"]["objective"], rel=1e-6)
+
+
 def test_missing_extra_message() -> None:
     from ris_planner.io import MissingExtraError, require
 
