@@ -18,7 +18,7 @@ from pydantic import BaseModel, Field
 
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
 from ris_planner.errors import RisPlannerError
-from ris_planner.io.dxf_import import UNIT_NAMES, parse_layer_spec
+from ris_planner.io.dxf_import import parse_layer_spec
 from ris_planner.io.geojson_import import (
     DEFAULT_AREA_STEP_M,
     DEFAULT_BUILDING_HEIGHT_M,
@@ -175,7 +175,6 @@ async def post_import(
     naming the feature (invalid geometry, lat/lon swapped, a site without azimuth), the layer
     (a DXF without the chosen layers) or the option; 413 above the body limit; 501 on a server
     without the GIS extra."""
-    assert set(UNIT_NAMES) == {"mm", "cm", "m", "in", "ft"}
     body = await request.body()
     options = ImportOptions(
         metres_per_level=metres_per_level,
