@@ -262,6 +262,8 @@ def test_import_dxf(server: str, tmp_path: Path) -> None:
     # layers that the drawing does not have: a 422 naming them
     r = httpx.post(f"{server}/v1/import?format=dxf&layer=DOORS=wall:2", content=body, timeout=60)
     assert r.status_code == 422 and "'DOORS' not in the drawing" in r.json()["message"]
+    r = httpx.post(f"{server}/v1/import?format=dxf", content=body, timeout=60)
+    assert r.status_code == 422 and "no layers chosen" in r.json()["message"]
     r = httpx.post(f"{server}/v1/import?format=dxf", content=b"0\nSECTION\nnonsense", timeout=60)
     assert r.status_code == 422 and "request body" in r.json()["message"]
 

@@ -55,9 +55,9 @@ def parse_origin(text: str | None) -> tuple[float, ...] | None:
     try:
         vals = tuple(float(v) for v in text.split(","))
     except ValueError:
-        raise RisPlannerError(f"--origin {text!r}: expected LON,LAT[,H] numbers") from None
+        raise RisPlannerError(f"origin {text!r}: expected LON,LAT[,H] numbers") from None
     if len(vals) not in (2, 3) or not all(math.isfinite(v) for v in vals):
-        raise RisPlannerError(f"--origin {text!r}: expected LON,LAT[,H] finite numbers")
+        raise RisPlannerError(f"origin {text!r}: expected LON,LAT[,H] finite numbers")
     return vals
 
 
