@@ -9,6 +9,8 @@ a readable ``message``, the offending ``fields`` (validation) and the ``limit`` 
 * body larger than ``max_body_bytes`` → 413 with the limit; :class:`LimitExceededError` (too
   many pairs, layouts, …) → 413; other :class:`RisPlannerError` and plain ``ValueError`` from
   the engine (input it cannot work with, as the CLI treats it) → 422;
+* a feature of the GIS extra on a server without it (:class:`MissingExtraError`) → 501 with
+  what to install;
 * unknown job or figure → 404; cancelling a finished job → 409; missing/wrong API key → 401;
   unknown route 404, wrong method 405;
 * anything else → 500 with an error id and no traceback (the traceback goes to the log).
@@ -31,6 +33,7 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
+from ris_planner.io import MissingExtraError
 
 log = logging.getLogger("api")
 
@@ -93,6 +96,15 @@ TOO_LARGE_RESPONSE: dict[int | str, dict[str, Any]] = {
 }
 """``responses=`` entry of the routes that take a document."""
 
+GIS_EXTRA_RESPONSE: dict[int | str, dict[str, Any]] = {
+    501: {
+        "model": ErrorBody,
+        "description": "The request needs the GIS extra, which this server lacks (a geographic"
+        " frame, an import): the message says what to install",
+    },
+}
+"""``responses=`` entry of the routes that may need the GIS libraries."""
+
 
 def error_response(
     status: int,
@@ -149,6 +161,7 @@ _HTTP_CODES = {
     409: "conflict",
     413: "too_large",
     415: "unsupported_media_type",
+    501: "not_implemented",
 }
 
 
@@ -166,6 +179,11 @@ async def _on_validation(request: Request, exc: Exception) -> JSONResponse:
 async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, LimitExceededError)
     return error_response(413, "too_large", str(exc), limit=exc.limit)
+
+
+async def _on_missing_extra(request: Request, exc: Exception) -> JSONResponse:
+    """A feature of the optional GIS extra on a server without it: not the client's fault."""
+    return error_response(501, "not_implemented", f"this server cannot do that: {exc}")
 
 
 async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
@@ -234,6 +252,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _on_validation)
     app.add_exception_handler(ValidationError, _on_validation)
     app.add_exception_handler(LimitExceededError, _on_limit)
+    app.add_exception_handler(MissingExtraError, _on_missing_extra)
     app.add_exception_handler(ValueError, _on_engine_error)  # RisPlannerError and the engine's
     app.add_exception_handler(JobNotFoundError, _on_not_found)
     app.add_exception_handler(JobConflictError, _on_conflict)

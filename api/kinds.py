@@ -12,42 +12,38 @@ from ris_planner.progress import ProgressCallback
 
 
 def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
-    """``ris-planner plan``: a plan document → plan.json content and the figures ``topview``,
-    ``heatmap``, ``cdf`` (PNG) and, with the GIS extra, the files ``geojson`` (plan.geojson),
-    ``geotiff`` (heatmap.tif) and ``points_csv`` (points.csv) of ``ris-planner plan --out``.
-    The search runs serially inside this worker process (parallelism comes from the service's
-    job workers), or on the Dask cluster of ``RIS_PLANNER_DASK_SCHEDULER``."""
+    """``ris-planner plan``: a plan document (local metres or with a geographic ``frame``) →
+    plan.json content and the figures ``topview``, ``heatmap``, ``cdf`` (PNG) and, with the
+    GIS extra, the files ``geojson`` (plan.geojson), ``geotiff`` (heatmap.tif) and
+    ``points_csv`` (points.csv) of ``ris-planner plan --out`` – the same function writes both
+    (:func:`ris_planner.io.geoplan.plan_document`). The search runs serially inside this
+    worker process (parallelism comes from the service's job workers), or on the Dask cluster
+    of ``RIS_PLANNER_DASK_SCHEDULER``."""
     from api.settings import Settings
-    from ris_planner.io import MissingExtraError
-    from ris_planner.planning import DaskExecutor, Executor, SerialExecutor, run_plan, write_figures
+    from ris_planner.io.geoplan import plan_document
+    from ris_planner.planning import DaskExecutor, Executor, SerialExecutor
 
     address = Settings().dask_scheduler
     executor: Executor = DaskExecutor(address) if address else SerialExecutor()
     with executor:
-        result = run_plan(document, progress, executor)
-    figures = write_figures(result, out_dir)
-    plan = result.to_json()
-    try:
-        from ris_planner.io.export import plan_outputs
-
-        figures.update(plan_outputs(result, plan, document, out_dir))
-    except MissingExtraError:  # the service runs without the GIS files
-        pass
-    return JobOutput(plan, figures)
+        done = plan_document(document, out_dir, progress, executor)
+    return JobOutput(done.plan, done.files)
 
 
 def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
     """``ris-planner power``: {"scenario": …, "objective": …, "solver": …} → PowerResult JSON,
-    or {"layout": …} (a layout + UE maps document) → the beam report."""
+    or {"layout": …} (a layout + UE maps document) → the beam report; either document in
+    local metres or with a geographic ``frame`` (converted first, as at submission)."""
+    from ris_planner.io.frames import to_local
     from ris_planner.power import run_power
 
     if "layout" in document:
         from ris_planner.planning.beam_design import run_layout_beams
 
-        return JobOutput(run_layout_beams(document["layout"], progress))
+        return JobOutput(run_layout_beams(to_local(document["layout"])[0], progress))
 
     result = run_power(
-        document["scenario"],
+        to_local(document["scenario"])[0],
         progress,
         objective=document["objective"],
         solver=document["solver"],

@@ -31,10 +31,14 @@ def check_scenario_size(scenario: Scenario, settings: Settings) -> None:
 
 def check_layout_beams_size(document: LayoutBeamsDocument, settings: Settings) -> None:
     """The limits of a layout + UE-map power allocation: its pairs are evaluated by the bounds
-    engine once per beam design (the maps are validated and expanded first; their own size
-    limits hold there)."""
+    engine once per beam design (the maps' point counts are checked against their limit
+    before they are expanded, :func:`ris_planner.limits.map_points`)."""
+    from ris_planner.limits import Sizes, check_sizes, map_points
     from ris_planner.planning.maps import build_map, build_pairs
 
+    # the maps' sizes before any is built (a road step of 5e-324 would build forever)
+    sizes = Sizes(tx_points=map_points(document.tx_map), rx_points=map_points(document.rx_map))
+    check_sizes(sizes, memory_mb=None)
     tx_map = build_map(document.tx_map, "tx_map")
     rx_map = build_map(document.rx_map, "rx_map")
     pairs = build_pairs(tx_map, rx_map, document.pairs, document.max_pairs)

@@ -15,6 +15,7 @@ from fastapi import Depends, FastAPI
 from threadpoolctl import threadpool_limits
 
 from api.deps import require_api_key
+from api.documents import install_document_schemas
 from api.errors import (
     V1_ERROR_RESPONSES,
     ApiKeyMiddleware,
@@ -22,7 +23,7 @@ from api.errors import (
     install_error_handlers,
 )
 from api.kinds import JOB_KINDS
-from api.routes import bounds, events, jobs, meta, plans, power, web
+from api.routes import bounds, events, imports, jobs, meta, plans, power, web
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
@@ -92,9 +93,18 @@ def create_app(
     app.include_router(meta.health_router)
     web.install_web(app)
     v1 = [Depends(require_api_key)]
-    routers = (web.router, bounds.router, plans.router, power.router, events.router, jobs.router)
+    routers = (
+        web.router,
+        bounds.router,
+        plans.router,
+        power.router,
+        imports.router,
+        events.router,
+        jobs.router,
+    )
     for router in (*routers, meta.router):
         app.include_router(router, prefix="/v1", dependencies=v1, responses=V1_ERROR_RESPONSES)
+    install_document_schemas(app)
     return app
 
 

@@ -89,12 +89,9 @@ def read_document(args: argparse.Namespace) -> dict[str, Any]:
 def read_scenario(args: argparse.Namespace) -> Scenario:
     """The scenario of ``FILE`` / ``--preset``; a document with a geographic ``frame`` is
     converted to local metres first (:func:`ris_planner.io.frames.to_local`)."""
-    doc = read_document(args)
-    if "frame" in doc:
-        from ris_planner.io.frames import to_local
+    from ris_planner.io.frames import to_local
 
-        doc = to_local(doc)[0]
-    return load_scenario(doc)
+    return load_scenario(to_local(read_document(args))[0])
 
 
 def print_json(obj: Any) -> None:

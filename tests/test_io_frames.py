@@ -279,9 +279,55 @@ def test_bounds_cli_takes_a_geographic_scenario(
     assert answers[1]["peb_tx_m"] == pytest.approx(answers[0]["peb_tx_m"], rel=1e-6)
 
 
+def test_power_cli_takes_a_geographic_scenario(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ris_planner.cli import main
+    from ris_planner.scenario import preset_document
+
+    local = preset_document("paper-table1")
+    local["codebook"] = {"kind": "directional_derivative", "prior": {"sigma_m": 0.1, "samples": 4}}
+    frame = Frame((24.949, 60.1655, 0.0))
+    geo = copy.deepcopy(local) | {"frame": {"origin": list(frame.origin)}}
+    for ris in geo["ris"]:
+        ris["position"] = frame.to_geographic(np.array([ris["position"]]))[0].tolist()
+    for key in ("tx", "rx"):
+        geo[key] = frame.to_geographic(np.array([local[key]], dtype=float))[0].tolist()
+    answers = []
+    for doc in (local, geo):
+        path = tmp_path / "scenario.json"
+        path.write_text(json.dumps(doc))
+        assert main(["power", str(path), "--objective", "sum"]) == 0
+        answers.append(json.loads(capsys.readouterr().out))
+    assert answers[1]["sdp"]["objective"] == pytest.approx(answers[0]["sdp"]["objective"], rel=1e-6)
+
+
 def test_missing_extra_message() -> None:
     from ris_planner.io import MissingExtraError, require
 
     with pytest.raises(MissingExtraError, match=r"pip install 'ris_planner\[gis\]'"):
         require("ris_planner_no_such_gis_library")
     assert issubclass(MissingExtraError, RisPlannerError)  # CLI: exit 2, REST: 4xx
+
+
+GREAT_CIRCLE_RTOL = 6e-3
+"""The pre-check's sphere (mean radius) is within 0.6 % of WGS84 geodesics at any latitude
+(the ellipsoid's radii of curvature span 6335–6400 km)."""
+
+
+@pytest.mark.parametrize("origin", [(24.949, 60.1655, 0.0), (-70.6, -33.45, 0.0), (0.0, 0.0, 0.0)])
+def test_far_point_precheck_against_geodesics(origin: tuple[float, float, float]) -> None:
+    """The great-circle distance that refuses far points before projecting (the tmerc frame is
+    undefined 90° from its meridian) against pyproj's geodesics; a point on the far side of the
+    Earth is refused naming its field, not a projection error."""
+    from ris_planner.io.frames import _great_circle_m
+
+    rng = np.random.default_rng(7)
+    ll = np.column_stack([rng.uniform(-180, 180, 200), rng.uniform(-80, 80, 200)])
+    _, _, want = GEOD.inv(np.full(200, origin[0]), np.full(200, origin[1]), ll[:, 0], ll[:, 1])
+    got = _great_circle_m(ll, origin)
+    assert np.allclose(got, want, rtol=GREAT_CIRCLE_RTOL, atol=1.0)
+    antipode = [origin[0] - 180 if origin[0] > 0 else origin[0] + 180, -origin[1], 0.0]
+    doc = {"frame": {"origin": list(origin)}, "rx": antipode}
+    with pytest.raises(RisPlannerError, match=r"^rx: .* lies 200\d\d km from the frame origin"):
+        to_local(doc)

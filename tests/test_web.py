@@ -438,6 +438,102 @@ def test_obstacles_drawn_to_scale(page: tuple[Page, Console], server: str, shots
     shots.take(pg, "08-obstacles")
 
 
+SITE_ORIGIN = (24.9400, 60.1650)
+"""Where the browser test's small GeoJSON site lies (central Helsinki)."""
+
+
+def small_site(bowtie: bool = False) -> dict[str, Any]:
+    """A GeoJSON site written here: two buildings (one with levels, one with the default
+    height), a residential street between them and three mounting points facing it; with
+    ``bowtie`` the first building's outline crosses itself."""
+    lon0, lat0 = SITE_ORIGIN
+    dlon, dlat = 1 / 55_600, 1 / 111_200  # ≈ 1 m at 60° N
+
+    def ring(x0: float, y0: float, x1: float, y1: float) -> list[list[float]]:
+        pts = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+        if bowtie:
+            pts = [(x0, y0), (x1, y1), (x1, y0), (x0, y1)]
+        return [[lon0 + x * dlon, lat0 + y * dlat] for x, y in [*pts, pts[0]]]
+
+    def feature(geom: dict[str, Any], **props: Any) -> dict[str, Any]:
+        return {"type": "Feature", "properties": props, "geometry": geom}
+
+    def point(x: float, y: float) -> dict[str, Any]:
+        return {"type": "Point", "coordinates": [lon0 + x * dlon, lat0 + y * dlat]}
+
+    street = [[lon0 - 30 * dlon, lat0], [lon0 + 30 * dlon, lat0]]
+    return {
+        "type": "FeatureCollection",
+        "features": [
+            feature(
+                {"type": "Polygon", "coordinates": [ring(-20, 8, 0, 20)]},
+                building="yes",
+                **{"building:levels": 4, "name": "North block"},
+            ),
+            feature({"type": "Polygon", "coordinates": [ring(0, -22, 25, -8)]}, building="yes"),
+            feature({"type": "LineString", "coordinates": street}, highway="residential"),
+            feature(point(-10, 7.9), azimuth_deg=180, height=6, tilt_deg=10, name="N1"),
+            feature(point(12, -7.9), azimuth_deg=0, height=5, tilt_deg=10, name="S1"),
+            feature(point(24, -7.9), azimuth_deg=0, height=5, tilt_deg=10, name="S2"),
+        ],
+    }
+
+
+def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: Shots) -> None:
+    """Upload a GeoJSON site: POST /v1/import turns it into a plan document in WGS84; the page
+    draws its buildings, street points and mounting sites in local metres, validates it, plans
+    it; a broken outline is a message next to the file input."""
+    pg, console = page
+    console.allow(r"status of 422")  # the broken file's answer
+    open_page(pg, server)
+    expect(pg.locator("#geojson-box")).to_be_visible()  # the server's OpenAPI lists /v1/import
+    site = {"name": "block.geojson", "mimeType": "application/geo+json"}
+    pg.set_input_files(
+        "#upload-geojson", files=[site | {"buffer": json.dumps(small_site()).encode()}]
+    )
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 3 candidate sites", timeout=WAIT_MS
+    )
+    expect(pg.locator("#doc-name")).to_contain_text("block.geojson (imported)")
+    expect(pg.locator("#doc-name")).to_contain_text("geographic frame")
+    report = pg.locator("#import-report")
+    expect(report).to_contain_text("2 buildings")
+    expect(report).to_contain_text("3 candidate sites")
+    expect(report).to_contain_text("1 building(s) given the default height")
+    expect(pg.locator("polygon.prism")).to_have_count(2)
+    assert pg.locator("#candidates .site").count() == 3
+    doc = pg.evaluate("window.risPlanner.state.doc")
+    assert doc["frame"]["origin"][:2] == pytest.approx(SITE_ORIGIN, abs=1e-3)
+    n_points = pg.evaluate("window.risPlanner.state.preview.rx_map.total")
+    assert pg.locator(".ue-map circle").count() == n_points > 0
+    # drawn in local metres: the 20 m × 12 m north block at the map's scale
+    k = pg.evaluate("window.risPlanner.state.view.k")
+    north = pg.locator("polygon.prism").first
+    xy = [[float(v) for v in p.split(",")] for p in (north.get_attribute("points") or "").split()]
+    width = max(p[0] for p in xy) - min(p[0] for p in xy)
+    assert width == pytest.approx(20 * k, rel=0.01)  # 1/55 600 ° ≈ 1.000 m at 60.165° N
+    shots.take(pg, "09-imported-site")
+    # a plan of the imported (geographic) document runs as a job
+    pg.click("#submit")
+    expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=WAIT_MS)
+    expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
+    job_id = pg.evaluate("window.risPlanner.state.job.id")
+    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    assert view["request"]["frame"] == doc["frame"] and "frame" in view["result"]
+    assert "geojson" in view["figures"]
+    link = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
+    assert (link.get_attribute("download") or "").endswith(".geojson")
+    shots.take(pg, "10-imported-site-planned")
+    # a broken outline: the server's message next to the input, the document unchanged
+    broken = site | {"name": "broken.geojson", "buffer": json.dumps(small_site(True)).encode()}
+    pg.set_input_files("#upload-geojson", files=[broken])
+    err = pg.locator("#err-upload-geojson")
+    expect(err).to_contain_text("broken.geojson: feature 0 (name 'North block'): invalid outline")
+    assert pg.locator("#upload-geojson").get_attribute("aria-invalid") == "true"
+    expect(pg.locator("#doc-name")).to_contain_text("block.geojson (imported)")
+    shots.take(pg, "11-import-error")
+
+
 def test_api_docs_work_offline(browser: Browser, server: str, shots: Shots) -> None:
     """Every request of /docs and /redoc stays on the server (others would be aborted)."""
     context = browser.new_context(viewport={"width": 1280, "height": 900})

@@ -10,40 +10,33 @@ from typing import Annotated, Any
 
 import anyio
 from fastapi import APIRouter, Depends, Request
-from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from api.deps import get_settings
-from api.errors import TOO_LARGE_RESPONSE, MalformedBodyError
+from api.documents import document_body, json_document
+from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.limits import check_scenario_size
 from api.models import BoundsResponse, scenario_examples
 from api.settings import Settings
 from ris_planner.bounds import compute_bounds
-from ris_planner.errors import RisPlannerError
-from ris_planner.io_json import parse_json
+from ris_planner.io.frames import to_local
 from ris_planner.scenario import Scenario
 
 router = APIRouter(tags=["bounds"])
 
-SCENARIO_BODY: dict[str, Any] = {
-    "requestBody": {
-        "required": True,
-        "description": "The scenario document (DESIGN.md)",
-        "content": {
-            "application/json": {
-                "schema": {"$ref": "#/components/schemas/Scenario"},
-                "examples": scenario_examples(),
-            }
-        },
-    }
-}
+SCENARIO_BODY = document_body(
+    "Scenario",
+    'The scenario document (DESIGN.md), in local metres or with a geographic "frame" (WGS84'
+    " lon/lat or a projected CRS; converted to local metres first)",
+    scenario_examples(),
+)
 """The body's OpenAPI entry (the route reads the body itself, off the event loop)."""
 
 
 @router.post(
     "/bounds",
     response_model=BoundsResponse,
-    responses=TOO_LARGE_RESPONSE,
+    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE},
     summary="Bounds of one TX–RX pair or a batch of pairs",
     openapi_extra=SCENARIO_BODY,
 )
@@ -60,15 +53,9 @@ async def post_bounds(
 
 
 def _bounds_json(body: bytes, settings: Settings) -> dict[str, Any]:
-    """Parse (400 for text that is not JSON), validate (422), check the size (413), compute."""
-    if not body.strip():
-        raise RequestValidationError(
-            [{"type": "missing", "loc": ("body",), "msg": "Field required"}]
-        )
-    try:
-        document = parse_json(body, "request body")
-    except RisPlannerError as exc:
-        raise MalformedBodyError(str(exc)) from None
-    scenario = Scenario.model_validate(document)
+    """Parse (400 for text that is not JSON), convert from a frame, validate (422), check the
+    size (413), compute."""
+    local, _ = to_local(json_document(body))
+    scenario = Scenario.model_validate(local)
     check_scenario_size(scenario, settings)
     return compute_bounds(scenario).to_json(batch=scenario.is_batch)

@@ -1,48 +1,68 @@
-"""``POST /v1/plans``: RIS placement search and RIS-count comparison as a job."""
+"""``POST /v1/plans``: RIS placement search and RIS-count comparison as a job.
+
+The body is read here (not declared to FastAPI) so that a document with a geographic
+``frame`` is converted to local metres before validation (:mod:`api.documents`); parsing,
+conversion and validation run in a worker thread, off the event loop.
+"""
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Depends
+import anyio
+from fastapi import APIRouter, Depends, Request
 from fastapi.responses import JSONResponse
 
 from api.deps import get_runner, get_settings, get_store
-from api.errors import TOO_LARGE_RESPONSE
+from api.documents import document_body, json_document, local_plan
+from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.models import JobView, plan_examples
 from api.routes.jobs import JOB_LINKS, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
-from ris_planner.planning import PlanDocument
-from ris_planner.validation import plan_check
 
 router = APIRouter(tags=["jobs"])
+
+PLAN_BODY = document_body(
+    "PlanDocument",
+    "The plan document (UE maps inline: grid, points or csv_text), in local metres or with a"
+    ' geographic "frame" (WGS84 lon/lat or a projected CRS; converted to local metres first)',
+    plan_examples(),
+)
 
 
 @router.post(
     "/plans",
     status_code=202,
     response_model=JobView,
-    responses={**TOO_LARGE_RESPONSE, **JOB_LINKS},
+    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE, **JOB_LINKS},
     summary="Start a placement-planning job (ris-planner plan)",
+    openapi_extra=PLAN_BODY,
 )
-def post_plan(
-    document: Annotated[
-        PlanDocument,
-        Body(
-            description="The plan document (UE maps inline: grid, points or csv_text)",
-            openapi_examples=plan_examples(),
-        ),
-    ],
+async def post_plan(
+    request: Request,
     store: Annotated[JobStore, Depends(get_store)],
     runner: Annotated[JobRunner, Depends(get_runner)],
     settings: Annotated[Settings, Depends(get_settings)],
 ) -> JSONResponse:
     """202 with the queued job. Its result is the ``plan.json`` of ``ris-planner plan`` (ranked
-    layouts per RIS count, coverage and CDF figures of merit) and its figures are ``topview``,
-    ``heatmap`` and ``cdf`` (PNG). The checks of ``ris-planner plan`` run here, before the job
-    is queued (:func:`ris_planner.validation.plan_check`): 422 naming the field, 413 naming the
-    limit (sites, map points, pairs, sites × pairs, search layouts, the job memory budget)."""
-    plan_check(document, settings.job_memory_mb)
-    return submit_job("plan", document.model_dump(mode="json"), store, runner)
+    layouts per RIS count, coverage and CDF figures of merit; ``frame`` for a geographic
+    document) and its figures are ``topview``, ``heatmap`` and ``cdf`` (PNG) with the files
+    ``geojson``, ``geotiff``, ``points_csv`` (WGS84 / the frame's CRS for a geographic
+    document). The checks of ``ris-planner plan`` run here, on the document converted from its
+    frame, before the job is queued (:func:`ris_planner.validation.plan_check`): 422 naming the
+    field, 413 naming the limit (sites, map points, pairs, sites × pairs, search layouts, the
+    job memory budget), 501 for a frame on a server without the GIS extra. The job keeps the
+    document as sent (a geographic one in its own coordinates)."""
+    body = await request.body()
+    return await anyio.to_thread.run_sync(_submit_plan, body, store, runner, settings)
+
+
+def _submit_plan(
+    body: bytes, store: JobStore, runner: JobRunner, settings: Settings
+) -> JSONResponse:
+    document = json_document(body)
+    plan, frame = local_plan(document, settings.job_memory_mb)
+    stored = document if frame is not None else plan.model_dump(mode="json")
+    return submit_job("plan", stored, store, runner)

@@ -4,18 +4,21 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Depends, Query
+import anyio
+from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import JSONResponse
-from pydantic import Discriminator, Tag
+from pydantic import Discriminator, Tag, TypeAdapter
 
 from api.deps import get_runner, get_settings, get_store
-from api.errors import TOO_LARGE_RESPONSE
+from api.documents import document_body, json_document
+from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.limits import check_layout_beams_size, check_scenario_size
 from api.models import JobView, power_examples
 from api.routes.jobs import JOB_LINKS, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
+from ris_planner.io.frames import to_local
 from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.power.options import Objective, Solver
 from ris_planner.scenario import Scenario
@@ -37,24 +40,28 @@ PowerDocument = Annotated[
 ]
 
 
+POWER_ADAPTER: TypeAdapter[Scenario | LayoutBeamsDocument] = TypeAdapter(PowerDocument)
+
+POWER_BODY = document_body(
+    ("Scenario", "LayoutBeamsDocument"),
+    "A scenario document (its codebook gives the beams, not expected_random), or a layout + UE"
+    " maps document (`ris`, `tx_map`, `rx_map`, `objective`, `beams`): beams designed from the"
+    " maps, each design re-evaluated on the maps' pairs; in local metres or with a geographic"
+    ' "frame" (converted to local metres first)',
+    power_examples(),
+)
+
+
 @router.post(
     "/power-allocations",
     status_code=202,
     response_model=JobView,
-    responses={**TOO_LARGE_RESPONSE, **JOB_LINKS},
+    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE, **JOB_LINKS},
     summary="Start a power-allocation job (ris-planner power)",
+    openapi_extra=POWER_BODY,
 )
-def post_power(
-    body: Annotated[
-        PowerDocument,
-        Body(
-            description="A scenario document (its codebook gives the beams, not"
-            " expected_random), or a layout + UE maps document (`ris`, `tx_map`, `rx_map`,"
-            " `objective`, `beams`): beams designed from the maps, each design re-evaluated on"
-            " the maps' pairs",
-            openapi_examples=power_examples(),
-        ),
-    ],
+async def post_power(
+    request: Request,
     store: Annotated[JobStore, Depends(get_store)],
     runner: Annotated[JobRunner, Depends(get_runner)],
     settings: Annotated[Settings, Depends(get_settings)],
@@ -68,17 +75,27 @@ def post_power(
     the best γ_P for DIR+DER codebooks, the SDP allocation, each objective re-evaluated by the
     bounds code), or for a layout + UE maps document the beam report of
     ``ris_planner.planning.beam_design.run_layout_beams`` (``objective`` and ``solver`` come
-    from the document then). The checks of ``ris-planner power`` run here (422 naming the
-    field, 413 naming the limit); engine or solver failures end the job as failed with a
-    message."""
-    if isinstance(body, LayoutBeamsDocument):
-        check_layout_beams_size(body, settings)
-        return submit_job("power", {"layout": body.model_dump(mode="json")}, store, runner)
-    check_scenario_size(body, settings)
-    power_check(body, objective, settings.job_memory_mb)  # ris-planner power's checks
-    document = {
-        "scenario": body.model_dump(mode="json"),
-        "objective": objective,
-        "solver": solver,
-    }
-    return submit_job("power", document, store, runner)
+    from the document then). The checks of ``ris-planner power`` run here, on the document
+    converted from its frame (422 naming the field, 413 naming the limit, 501 for a frame
+    without the GIS extra); engine or solver failures end the job as failed with a message.
+    The job keeps a geographic document as sent."""
+    body = await request.body()
+
+    def submit() -> JSONResponse:
+        document = json_document(body)
+        local, frame = to_local(document)
+        parsed = POWER_ADAPTER.validate_python(local)
+        if isinstance(parsed, LayoutBeamsDocument):
+            check_layout_beams_size(parsed, settings)
+            layout = document if frame is not None else parsed.model_dump(mode="json")
+            return submit_job("power", {"layout": layout}, store, runner)
+        check_scenario_size(parsed, settings)
+        power_check(parsed, objective, settings.job_memory_mb)  # ris-planner power's checks
+        job = {
+            "scenario": document if frame is not None else parsed.model_dump(mode="json"),
+            "objective": objective,
+            "solver": solver,
+        }
+        return submit_job("power", job, store, runner)
+
+    return await anyio.to_thread.run_sync(submit)

@@ -15,8 +15,9 @@ import math
 from pathlib import Path
 from typing import Annotated, Any
 
+import anyio
 import numpy as np
-from fastapi import APIRouter, Body, FastAPI
+from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.openapi.docs import (
     get_redoc_html,
     get_swagger_ui_html,
@@ -26,9 +27,11 @@ from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
 
-from api.errors import TOO_LARGE_RESPONSE
+from api.deps import get_settings
+from api.documents import document_body, json_document, local_plan
+from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.models import plan_examples
-from ris_planner.planning import PlanDocument
+from api.settings import Settings
 from ris_planner.planning.maps import PointMap
 from ris_planner.planning.plan import prepare_plan
 from ris_planner.planning.sites import candidate_json
@@ -73,6 +76,16 @@ class PlanPreview(BaseModel):
     )
     tx_map: MapPreview = Field(description="The TX map's points (every stride-th)")
     rx_map: MapPreview = Field(description="The RX map's points (every stride-th)")
+    obstacles: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description="environment.obstacles in the local metres the job works in (a geographic"
+        " document's converted from its frame)",
+    )
+    frame: dict[str, Any] | None = Field(
+        None,
+        description="A geographic document's frame: origin [lon, lat, h] and local_crs (the"
+        " local transverse Mercator frame of every position above); null for local documents",
+    )
 
 
 def _map_preview(pm: PointMap) -> MapPreview:
@@ -89,20 +102,28 @@ def _map_preview(pm: PointMap) -> MapPreview:
 @router.post(
     "/plans/validate",
     response_model=PlanPreview,
-    responses=TOO_LARGE_RESPONSE,
+    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE},
     summary="Check a plan document without starting a job (dry run of POST /v1/plans)",
+    openapi_extra=document_body(
+        "PlanDocument",
+        "The plan document, as for POST /v1/plans (local metres or a geographic frame)",
+        plan_examples(),
+    ),
 )
-def validate_plan(
-    document: Annotated[
-        PlanDocument,
-        Body(
-            description="The plan document, as for POST /v1/plans", openapi_examples=plan_examples()
-        ),
-    ],
+async def validate_plan(
+    request: Request, settings: Annotated[Settings, Depends(get_settings)]
 ) -> PlanPreview:
-    """The validation of ``POST /v1/plans`` (422 with the field paths) plus the checks the job
-    makes before it computes anything (RIS counts against the sites, pair and site-cache limits:
-    422 / 413); nothing is queued. The answer previews the expanded sites and maps."""
+    """The validation of ``POST /v1/plans`` (a geographic document converted from its frame
+    first; 422 with the field paths, 413 naming the limit, 501 without the GIS extra) plus the
+    checks the job makes before it computes anything (RIS counts against the sites, pair and
+    site-cache limits: 422 / 413); nothing is queued. The answer previews the expanded sites,
+    maps and obstacles in local metres, with the document's frame."""
+    body = await request.body()
+    return await anyio.to_thread.run_sync(_preview, body, settings)
+
+
+def _preview(body: bytes, settings: Settings) -> PlanPreview:
+    document, frame = local_plan(json_document(body), settings.job_memory_mb)
     inputs = prepare_plan(document)
     n_sites = len(inputs.sites)
     search = inputs.document.search
@@ -113,6 +134,7 @@ def validate_plan(
         else ("exhaustive" if n <= search.max_exhaustive else "greedy")
         for c, n in layouts.items()
     }
+    env = inputs.document.environment
     return PlanPreview(
         valid=True,
         sites=n_sites,
@@ -124,6 +146,8 @@ def validate_plan(
         candidates=[{"index": i, **candidate_json(s)} for i, s in enumerate(inputs.sites)],
         tx_map=_map_preview(inputs.tx_map),
         rx_map=_map_preview(inputs.rx_map),
+        obstacles=[] if env is None else env.model_dump(mode="json")["obstacles"],
+        frame=None if frame is None else frame.describe(),
     )
 
 

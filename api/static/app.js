@@ -127,6 +127,9 @@
     if (opts.json !== undefined) {
       init.headers["Content-Type"] = "application/json";
       init.body = JSON.stringify(opts.json);
+    } else if (opts.body !== undefined) {
+      init.headers["Content-Type"] = opts.contentType || "application/octet-stream";
+      init.body = opts.body;
     }
     let resp;
     try {
@@ -205,7 +208,11 @@
     state.doc = doc;
     state.docName = name;
     state.preview = null;
-    $("doc-name").textContent = `Document: ${name}` + (doc && doc.description ? ` – ${doc.description}` : "");
+    const fr = doc && doc.frame;
+    const where = fr && Array.isArray(fr.origin)
+      ? ` · geographic frame at ${fr.origin.slice(0, 2).map((v) => fmtNum(Number(v), 7)).join(", ")}: drawn in local metres east/north of it`
+      : fr ? " · geographic frame: drawn in local metres" : "";
+    $("doc-name").textContent = `Document: ${name}` + (doc && doc.description ? ` – ${doc.description}` : "") + where;
     fillForm();
     clearErrors();
   }
@@ -435,24 +442,59 @@
     validate();
   }
 
-  /** GeoJSON import hook: only shown when the server's OpenAPI lists a matching POST path. */
+  /** Site import (POST /v1/import, shown when the server's OpenAPI lists it): the file's raw
+   * bytes with its format; the answer's plan document goes into the editor, its report below. */
+  const IMPORT_FORMATS = { geojson: "geojson", json: "geojson", osm: "osm", xml: "osm", dxf: "dxf" };
+  const IMPORT_MEDIA = { geojson: "application/geo+json", osm: "application/xml", dxf: "application/octet-stream" };
+
+  function describeImport(report) {
+    if (!report) return "";
+    const parts = [];
+    for (const [k, label] of [["buildings", "buildings"], ["prisms", "prisms"], ["roads", "roads"], ["areas", "density areas"],
+      ["candidates", "candidate sites"], ["walls", "walls"], ["skipped", "features skipped"]]) {
+      if (report[k]) parts.push(`${report[k]} ${label}`);
+    }
+    if (Array.isArray(report.default_height) && report.default_height.length) {
+      parts.push(`${report.default_height.length} building(s) given the default height`);
+    }
+    const notes = (report.notes || []).join(" ");
+    return `Imported (${report.format}): ${parts.join(", ") || "nothing usable"}.` + (notes ? ` ${notes}` : "") +
+      ((report.defaults_applied || []).length ? ` Defaults: ${report.defaults_applied.join("; ")}.` : "");
+  }
+
   async function importGeojson() {
-    const got = await readFile($("upload-geojson"), "err-upload-geojson");
-    if (!got || !state.importPath) return;
+    const input = $("upload-geojson");
+    const file = input.files && input.files[0];
+    $("err-upload-geojson").textContent = "";
+    $("import-report").textContent = "";
+    input.removeAttribute("aria-invalid");
+    if (!file || !state.importPath) return;
+    const ext = ((file.name.match(/\.([A-Za-z0-9]+)$/) || [])[1] || "").toLowerCase();
+    const fmt = IMPORT_FORMATS[ext] || "geojson";
+    const params = new URLSearchParams({ format: fmt });
+    if (fmt === "dxf") {
+      for (const spec of $("import-layers").value.split(/[\s,;]+/).filter(Boolean)) params.append("layer", spec);
+    }
     try {
-      const body = await api(state.importPath, { method: "POST", json: got.json });
+      const bytes = await file.arrayBuffer();
+      const body = await api(`${state.importPath}?${params}`, { method: "POST", body: bytes, contentType: IMPORT_MEDIA[fmt] });
       const doc = body && body.document ? body.document : body;
       if (!doc || typeof doc !== "object") throw new ApiError(422, { message: "the import answered no plan document" });
       state.plan = null;
+      state.job = null;
       $("results").hidden = true;
-      setDocument(doc, `${got.name} (imported)`);
+      setDocument(doc, `${file.name} (imported)`);
+      $("import-report").textContent = describeImport(body.report);
       drawAll();
       validate();
     } catch (err) {
+      if (err && err.name === "AbortError") return;
+      input.setAttribute("aria-invalid", "true");
       const fields = err.body && Array.isArray(err.body.fields) ? err.body.fields : [];
-      $("err-upload-geojson").textContent = fields.length
-        ? fields.map((f) => `${f.field}: ${f.message}`).join("; ")
-        : err.message;
+      const named = fields.filter((f) => f.field && f.field !== "(document)");
+      $("err-upload-geojson").textContent = `${file.name}: ` + (named.length
+        ? named.map((f) => `${f.field}: ${f.message}`).join("; ")
+        : err.message);
     }
   }
 
@@ -759,6 +801,9 @@
     return state.plan.objective.kind === "coverage" ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} m`;
   }
 
+  /** File type of a job's non-PNG files by name (ris_planner.io.export.GIS_FILES). */
+  const FILE_KINDS = { geojson: "geojson", geotiff: "tif", points_csv: "csv" };
+
   /** Download links: plan.json and every file the job lists (figures, and any other files). */
   function jobFiles(view) {
     const out = [];
@@ -769,7 +814,7 @@
       const ext = ((url.split("?")[0].match(/\.([A-Za-z0-9]+)$/) || [])[1] || (name.match(/\.([A-Za-z0-9]+)$/) || [])[1] || kind || "file").toUpperCase();
       out.push({ name: typeof ref === "object" && ref.name ? ref.name : name, url, ext });
     };
-    for (const [name, ref] of Object.entries(view.figures || {})) add(name, ref, "png");
+    for (const [name, ref] of Object.entries(view.figures || {})) add(name, ref, FILE_KINDS[name] || "png");
     const files = view.files || {};
     if (Array.isArray(files)) files.forEach((f, i) => add(f.name || `file ${i + 1}`, f, null));
     else for (const [name, ref] of Object.entries(files)) add(name, ref, null);
@@ -911,7 +956,13 @@
     return [1, 3, 5].map((o) => Math.round(c(a, o) + f * (c(b, o) - c(a, o))));
   }
 
+  /** A document in geographic coordinates (its positions are lon/lat or CRS metres). */
+  const geographic = () => Boolean(state.doc && state.doc.frame);
+
   function obstacles() {
+    // the validation preview has them in the local metres of the job (a frame converted)
+    if (state.preview && Array.isArray(state.preview.obstacles)) return state.preview.obstacles;
+    if (geographic()) return [];
     const env = state.doc && state.doc.environment;
     return env && Array.isArray(env.obstacles) ? env.obstacles : [];
   }
@@ -919,6 +970,7 @@
     if (state.plan && Array.isArray(state.plan.candidates)) return state.plan.candidates;
     if (state.preview) return state.preview.candidates;
     // not validated (yet): the document's explicit candidates (walls expand on the server)
+    if (geographic()) return [];
     const own = state.doc && Array.isArray(state.doc.candidates) ? state.doc.candidates : [];
     return own.filter((c) => c && Array.isArray(c.position) && c.position.length === 3)
       .map((c, i) => ({ index: i, position: c.position, orientation: c.orientation || [0, 0, 0], name: c.name }));

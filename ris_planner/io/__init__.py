@@ -8,6 +8,10 @@ this package).
   → weighted UE points, mounting points / lines → candidates (GeoJSON and ``.osm`` XML).
 * :mod:`ris_planner.io.dxf_import` – DXF floor plans → walls and prisms.
 * :mod:`ris_planner.io.export` – ``plan.geojson``, ``heatmap.tif``, ``points.csv``.
+* :mod:`ris_planner.io.geoplan` – a document as given → plan.json, PNGs and GIS files (the one
+  path of ``ris-planner plan --out`` and the service's plan jobs).
+* :mod:`ris_planner.io.site_import` – a file's bytes → an import fragment or a starting plan
+  document (``ris-planner import`` and ``POST /v1/import``).
 
 The GIS libraries (pyproj, shapely, rasterio, ezdxf) are the optional extra ``gis``
 (``pip install 'ris_planner[gis]'``); :func:`require` turns a missing one into a clear error.

@@ -15,55 +15,51 @@ from typing import Any
 from ris_planner.errors import RisPlannerError
 
 
-def _origin(text: str | None) -> tuple[float, ...] | None:
-    if text is None:
-        return None
+def _read_bytes(path: str) -> bytes:
+    if path == "-":
+        if sys.stdin is None or sys.stdin.closed:
+            raise RisPlannerError("-: standard input is closed")
+        return sys.stdin.buffer.read()
     try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise RisPlannerError(f"--origin {text!r}: expected LON,LAT[,H] numbers") from None
-    if len(vals) not in (2, 3):
-        raise RisPlannerError(f"--origin {text!r}: expected LON,LAT[,H]")
-    return vals
+        return Path(path).read_bytes()
+    except OSError as exc:
+        raise RisPlannerError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def options_of(args: argparse.Namespace) -> Any:
+    """The :class:`ImportOptions` of the command's arguments."""
+    from ris_planner.io.geojson_import import ImportOptions
+
+    return ImportOptions(
+        metres_per_level=args.metres_per_level,
+        default_height_m=args.default_height,
+        road_step_m=args.road_step,
+        ue_height_m=args.ue_height,
+        density_key=args.density_key,
+        area_step_m=args.area_step,
+        site_spacing_m=args.site_spacing,
+        highways=tuple(args.highways.split(",")) if args.highways else None,
+    )
 
 
 def _cmd_import(args: argparse.Namespace) -> int:
-    from ris_planner.cli import read_json_object
+    from ris_planner.io.dxf_import import parse_layer_spec
+    from ris_planner.io.site_import import import_data, parse_origin, plan_from_import
 
-    summary: dict[str, Any]
-    if args.format == "dxf":
-        from ris_planner.io.dxf_import import import_dxf, parse_layer_spec
-
-        layers = dict(parse_layer_spec(s) for s in args.layer or [])
-        fragment, summary = import_dxf(args.file, layers, args.units)
-    else:
-        from ris_planner.io.geojson_import import (
-            ImportOptions,
-            import_features,
-            import_sites,
-            osm_xml_features,
-        )
-
-        opts = ImportOptions(
-            metres_per_level=args.metres_per_level,
-            default_height_m=args.default_height,
-            road_step_m=args.road_step,
-            ue_height_m=args.ue_height,
-            density_key=args.density_key,
-            area_step_m=args.area_step,
-            site_spacing_m=args.site_spacing,
-            highways=tuple(args.highways.split(",")) if args.highways else None,
-        )
-        notes: list[str] = []
-        if args.format == "osm":
-            collection, osm_summary = osm_xml_features(args.file)
-            notes = osm_summary.notes
-        else:
-            collection = read_json_object(args.file)
-        run = import_sites if args.format == "sites" else import_features
-        fragment, s = run(collection, _origin(args.origin), opts)
-        s.notes = notes + s.notes
-        summary = s.to_json()
+    opts = options_of(args)
+    layers = dict(parse_layer_spec(s) for s in args.layer or [])
+    fragment, summary = import_data(
+        _read_bytes(args.file),
+        args.format,
+        opts,
+        parse_origin(args.origin),
+        layers,
+        args.units,
+        what=args.file,
+    )
+    if args.plan:
+        fragment, report = plan_from_import(fragment, args.format, summary, opts)
+        summary = report.to_json()
     text = json.dumps(fragment, indent=1, allow_nan=False)
     if args.out:
         Path(args.out).write_text(text + "\n")
@@ -92,11 +88,18 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "format",
         choices=("geojson", "osm", "sites", "dxf"),
-        help="geojson: buildings/roads/density areas; osm: the same from .osm XML; sites:"
-        " mounting points/lines → candidates/walls; dxf: floor plan layers → walls/prisms",
+        help="geojson: buildings/roads/density areas (Points with azimuth_deg: mounting"
+        " sites); osm: the same from .osm XML; sites: mounting points/lines →"
+        " candidates/walls; dxf: floor plan layers → walls/prisms",
     )
-    p.add_argument("file", help="input file ('-' for stdin with geojson/sites)")
+    p.add_argument("file", help="input file ('-' for stdin)")
     p.add_argument("--out", help="write the fragment here instead of stdout")
+    p.add_argument(
+        "--plan",
+        action="store_true",
+        help="write a starting plan document (UE map as tx_map/rx_map, candidates, the"
+        " defaults of ris_planner.io.site_import.PLAN_DEFAULTS) instead of the fragment",
+    )
     p.add_argument("--origin", help="frame origin LON,LAT[,H] (default: bounding-box centre)")
     p.add_argument("--metres-per-level", type=float, default=METRES_PER_LEVEL)
     p.add_argument("--default-height", type=float, default=DEFAULT_BUILDING_HEIGHT_M)

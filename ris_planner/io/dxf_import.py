@@ -46,14 +46,14 @@ def parse_layer_spec(text: str) -> tuple[str, LayerSpec]:
     parts = rest.split(":")
     if not sep or not name or len(parts) not in (2, 3) or parts[0] not in ("wall", "prism"):
         raise RisPlannerError(
-            f"--layer {text!r}: expected LAYER=wall:HEIGHT_M or LAYER=prism:HEIGHT_M[:BASE_M]"
+            f"layer {text!r}: expected LAYER=wall:HEIGHT_M or LAYER=prism:HEIGHT_M[:BASE_M]"
         )
     try:
         nums = [float(p) for p in parts[1:]]
     except ValueError:
-        raise RisPlannerError(f"--layer {text!r}: heights must be numbers (metres)") from None
+        raise RisPlannerError(f"layer {text!r}: heights must be numbers (metres)") from None
     if not nums[0] > 0 or (len(nums) == 3 and nums[1] < 0):
-        raise RisPlannerError(f"--layer {text!r}: height must be > 0 and base ≥ 0")
+        raise RisPlannerError(f"layer {text!r}: height must be > 0 and base ≥ 0")
     kind: Literal["wall", "prism"] = "wall" if parts[0] == "wall" else "prism"
     return name, LayerSpec(kind, nums[0], nums[1] if len(nums) == 2 else 0.0)
 
@@ -67,7 +67,10 @@ def import_dxf(
     metres, summary). ``units`` (``mm``, ``cm``, ``m``, ``in``, ``ft``) overrides $INSUNITS."""
     ezdxf = require("ezdxf")
     if not layers:
-        raise RisPlannerError("no layers chosen: give --layer NAME=wall:HEIGHT (or prism:…)")
+        raise RisPlannerError(
+            "no layers chosen: give NAME=wall:HEIGHT or NAME=prism:HEIGHT[:BASE] (--layer on the"
+            " command line, ?layer= over REST)"
+        )
     if isinstance(source, str | Path):
         try:
             doc = ezdxf.readfile(str(source))

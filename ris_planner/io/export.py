@@ -201,7 +201,7 @@ def plan_geojson(
     if frame is None:
         fc["ris_planner_frame"] = "local metres (no geographic frame): x east, y north"
     else:
-        fc["ris_planner_frame"] = {"origin": list(frame.origin), "local_crs": frame.proj4}
+        fc["ris_planner_frame"] = frame.describe()
     return fc
 
 

@@ -29,15 +29,15 @@ from __future__ import annotations
 import copy
 import functools
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.errors import RisPlannerError
-from ris_planner.io import require
+from ris_planner.errors import DocumentFieldError
+from ris_planner.io import MissingExtraError, require
 
 FloatArray = NDArray[np.float64]
 
@@ -113,10 +113,13 @@ def _numbers(value: Any, n: tuple[int, ...], where: str) -> list[float]:
         or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
     ):
         want = " or ".join(str(k) for k in n)
-        raise RisPlannerError(f"{where}: expected {want} numbers, got {value!r}")
-    out = [float(v) for v in value]
+        raise DocumentFieldError(where, f"expected {want} numbers, got {value!r}")
+    try:
+        out = [float(v) for v in value]
+    except OverflowError:
+        out = [math.inf]
     if not all(math.isfinite(v) for v in out):
-        raise RisPlannerError(f"{where}: coordinates must be finite, got {value!r}")
+        raise DocumentFieldError(where, f"coordinates must be finite, got {value!r}")
     return out
 
 
@@ -181,37 +184,49 @@ class Frame:
         """The ``frame`` of a WGS84 document with this origin."""
         return {"origin": list(self.origin)}
 
+    def describe(self) -> dict[str, Any]:
+        """The frame of a result: ``{"origin": [lon, lat, h], "local_crs": proj4}`` (the
+        ``frame`` of ``plan.json`` and ``ris_planner_frame`` of ``plan.geojson``)."""
+        return {"origin": list(self.origin), "local_crs": self.proj4}
+
 
 def parse_frame(spec: Any, doc: dict[str, Any] | None = None) -> Frame:
     """The :class:`Frame` of a document's ``frame`` value (``doc`` supplies the points whose
     bounding box centres a projected-CRS frame without ``origin``)."""
     if not isinstance(spec, dict) or not set(spec) <= {"origin", "crs"} or not spec:
-        raise RisPlannerError(
-            'frame: expected {"origin": [lon, lat, h]} or {"crs": "EPSG:…"[, "origin": [x, y, h]]},'
-            f" got {spec!r}"
+        raise DocumentFieldError(
+            "frame",
+            'expected {"origin": [lon, lat, h]} or {"crs": "EPSG:…"[, "origin": [x, y, h]]},'
+            f" got {spec!r}",
         )
     crs = spec.get("crs")
     if crs is None:
         if "origin" not in spec:
-            raise RisPlannerError("frame: give origin [lon, lat, h] (WGS84) or a crs")
+            raise DocumentFieldError("frame", "give origin [lon, lat, h] (WGS84) or a crs")
         lon, lat, *h = _numbers(spec["origin"], (2, 3), "frame.origin")
         if not (-180 <= lon <= 180 and -90 <= lat <= 90):
-            raise RisPlannerError(
-                f"frame.origin: [lon, lat] = [{lon}, {lat}] is not a WGS84 position (lon within"
-                " ±180°, lat within ±90°; GeoJSON order is lon, lat)"
+            raise DocumentFieldError(
+                "frame.origin",
+                f"[lon, lat] = [{lon}, {lat}] is not a WGS84 position (lon within ±180°, lat"
+                " within ±90°; GeoJSON order is lon, lat)",
             )
         if abs(lat) > 84:
-            raise RisPlannerError(f"frame.origin: latitude {lat} is beyond ±84° (polar sites)")
+            raise DocumentFieldError("frame.origin", f"latitude {lat} is beyond ±84° (polar sites)")
         return Frame((lon, lat, h[0] if h else 0.0))
     pyproj = require("pyproj")
+    if not isinstance(crs, str) or not crs.strip() or len(crs) > MAX_CRS_CHARS:
+        raise DocumentFieldError(
+            "frame.crs", f'expected a CRS name such as "EPSG:32635", got {crs!r}'
+        )
     try:
         src = pyproj.CRS.from_user_input(crs)
     except pyproj.exceptions.CRSError as exc:
-        raise RisPlannerError(f"frame.crs: unknown CRS {crs!r} ({exc})") from None
+        raise DocumentFieldError("frame.crs", f"unknown CRS {crs!r} ({exc})") from None
     if not src.is_projected:
-        raise RisPlannerError(
-            f"frame.crs: {crs!r} is not a projected CRS in metres; for lon/lat give"
-            ' {"origin": [lon, lat, h]}'
+        raise DocumentFieldError(
+            "frame.crs",
+            f"{crs!r} is not a projected CRS in metres; for lon/lat give"
+            ' {"origin": [lon, lat, h]}',
         )
     if "origin" in spec:
         x0, y0, *h = _numbers(spec["origin"], (2, 3), "frame.origin")
@@ -225,42 +240,91 @@ def parse_frame(spec: Any, doc: dict[str, Any] | None = None) -> Frame:
             dtype=float,
         ).reshape(-1, 2)
         if len(pts) == 0:
-            raise RisPlannerError("frame: no coordinates to centre the frame on; give origin")
+            raise DocumentFieldError("frame", "no coordinates to centre the frame on; give origin")
         x0, y0 = (np.round((pts.min(axis=0) + pts.max(axis=0)) / 2)).tolist()
         h = []
     t = pyproj.Transformer.from_crs(src, WGS84, always_xy=True)
-    lon, lat = t.transform(x0, y0, errcheck=True)
+    try:
+        lon, lat = t.transform(x0, y0, errcheck=True)
+    except pyproj.exceptions.ProjError as exc:
+        raise DocumentFieldError(
+            "frame.origin", f"[{x0}, {y0}] is not a position of {crs!r} ({exc})"
+        ) from None
     return Frame((float(lon), float(lat), h[0] if h else 0.0), src.to_string())
 
 
-def _converter(frame: Frame) -> Callable[[list[tuple[str, list[float]]]], FloatArray]:
+EARTH_RADIUS_M = 6_371_008.8
+"""Mean Earth radius (IUGG) of the great-circle pre-check of :func:`to_local`."""
+
+MAX_CRS_CHARS = 2000
+"""Longest ``frame.crs`` text accepted (an EPSG code, a PROJ string or WKT)."""
+
+
+def _great_circle_m(lonlat: FloatArray, origin: tuple[float, float, float]) -> FloatArray:
+    """Haversine distances [N] of WGS84 [lon, lat] [N, 2] from the origin (sphere of
+    :data:`EARTH_RADIUS_M`; 0.5 % from the ellipsoid, enough to refuse far points before the
+    projection, which is undefined 90° from its meridian)."""
+    lon, lat = np.radians(lonlat[:, 0]), np.radians(lonlat[:, 1])
+    lon0, lat0 = math.radians(origin[0]), math.radians(origin[1])
+    a = np.sin((lat - lat0) / 2) ** 2 + math.cos(lat0) * np.cos(lat) * np.sin((lon - lon0) / 2) ** 2
+    return 2 * EARTH_RADIUS_M * np.arcsin(np.sqrt(np.clip(a, 0.0, 1.0)))
+
+
+def _far_error(where: str, v: list[float], dist_m: float, frame: Frame) -> DocumentFieldError:
+    return DocumentFieldError(
+        where,
+        f"{v[:2]} lies {dist_m / 1000:.0f} km from the frame origin {list(frame.origin[:2])}"
+        f" (limit {MAX_FRAME_RADIUS_M / 1000:g} km): lat/lon swapped (GeoJSON order is"
+        " [lon, lat]) or the wrong CRS?",
+    )
+
+
+def _convert(frame: Frame, items: list[tuple[str, list[float]]]) -> FloatArray:
+    """Source x, y of each (field, point) → local x, y [N, 2]; a field whose point is no
+    position or lies beyond :data:`MAX_FRAME_RADIUS_M` is named in the error."""
+    src = np.array([v[:2] for _, v in items], dtype=float)
     if frame.source_crs == WGS84:
+        for where, v in items:
+            lon, lat = v[0], v[1]
+            if not (-180 <= lon <= 180 and -90 <= lat <= 90):
+                raise DocumentFieldError(
+                    where,
+                    f"[{lon}, {lat}] is not [lon, lat] in degrees (lon within ±180, lat"
+                    " within ±90)",
+                )
+        arc = _great_circle_m(src, frame.origin)
+        far = arc > 2 * MAX_FRAME_RADIUS_M  # certainly too far: refused before projecting
+        if np.any(far):
+            k = int(np.argmax(far))
+            raise _far_error(items[k][0], items[k][1], float(arc[k]), frame)
+    try:
+        return frame.from_source(src)
+    except MissingExtraError:
+        raise
+    except Exception as exc:  # pyproj.exceptions.ProjError: a point the CRS cannot convert
+        raise DocumentFieldError(
+            "frame.crs", f"coordinates outside the area of {frame.source_crs} ({exc})"
+        ) from None
 
-        def conv(items: list[tuple[str, list[float]]]) -> FloatArray:
-            for where, v in items:
-                lon, lat = v[0], v[1]
-                if not (-180 <= lon <= 180 and -90 <= lat <= 90):
-                    raise RisPlannerError(
-                        f"{where}: [{lon}, {lat}] is not [lon, lat] in degrees (lon within ±180,"
-                        " lat within ±90)"
-                    )
-            return frame.from_source(np.array([v[:2] for _, v in items]))
 
-        return conv
-    return lambda items: frame.from_source(np.array([v[:2] for _, v in items]))
-
-
-def to_local(document: dict[str, Any]) -> tuple[dict[str, Any], Frame | None]:
+def to_local(document: Any) -> tuple[Any, Frame | None]:
     """(the document in local metres without ``frame``, its :class:`Frame`), or the document
-    unchanged and ``None`` when it has no ``frame``.
+    unchanged and ``None`` when it has no ``frame`` (or is no JSON object: the document model
+    then says what is wrong).
 
-    Raises :class:`RisPlannerError` naming the field of a point that is not a coordinate pair,
-    lies outside ±180°/±90° or farther than :data:`MAX_FRAME_RADIUS_M` from the origin (lat/lon
-    swapped, a wrong CRS), and for a UE ``grid`` or ``csv_text`` (not regular in metres in a
-    geographic frame: give points or roads). A ``rectangle`` wall becomes its four segment
-    walls (outward facing), since its sides are no longer axis-aligned.
+    The one boundary of geographic documents: ``ris-planner bounds/plan``, the service's
+    routes that take a document (``POST /v1/bounds``, ``/v1/plans``, ``/v1/plans/validate``,
+    ``/v1/power-allocations``) and its plan jobs all convert here, before validation and the
+    size limits (which therefore apply to the converted document).
+
+    Raises :class:`~ris_planner.errors.DocumentFieldError` naming the field (its dotted path) of
+    a bad ``frame``, of a point that is not a coordinate pair, lies outside ±180°/±90° or
+    farther than :data:`MAX_FRAME_RADIUS_M` from the origin (lat/lon swapped, a wrong CRS), and
+    of a UE ``grid`` or ``csv_text`` (not regular in metres in a geographic frame: give points
+    or roads); :class:`~ris_planner.io.MissingExtraError` without pyproj. A ``rectangle`` wall
+    becomes its four segment walls (outward facing), since its sides are no longer axis-aligned.
     """
-    if "frame" not in document:
+    if not isinstance(document, dict) or "frame" not in document:
         return document, None
     frame = parse_frame(document["frame"], document)
     doc = copy.deepcopy({k: v for k, v in document.items() if k != "frame"})
@@ -269,45 +333,44 @@ def to_local(document: dict[str, Any]) -> tuple[dict[str, Any], Frame | None]:
         if isinstance(spec, dict):
             for bad in ("grid", "csv_text", "csv"):
                 if spec.get(bad) is not None:
-                    raise RisPlannerError(
-                        f"{m}.{bad}: not supported in a document with a frame (a grid in"
-                        " geographic coordinates is not regular in metres); give points,"
-                        " roads or an imported area (ris-planner import)"
+                    raise DocumentFieldError(
+                        f"{m}.{bad}",
+                        "not supported in a document with a frame (a grid in geographic"
+                        " coordinates is not regular in metres); give points, roads or an"
+                        " imported area (ris-planner import)",
                     )
     if isinstance(doc.get("walls"), list):
-        doc["walls"] = [w for wall in doc["walls"] for w in _split_rectangle(wall)]
+        doc["walls"] = [
+            w for i, wall in enumerate(doc["walls"]) for w in _split_rectangle(wall, f"walls.{i}")
+        ]
     horizontal: list[tuple[str, Any, Any, list[float]]] = []
     for where, holder, key, kind in _iter_fields(doc):
         value = holder[key]
         if kind == "z":
             if isinstance(value, int | float) and not isinstance(value, bool):
-                holder[key] = float(value) - frame.origin[2]
+                holder[key] = _numbers([value], (1,), where)[0] - frame.origin[2]
             continue
         v = _numbers(value, (3,) if kind == "p3" else (2,), where)
         horizontal.append((where, holder, key, v))
     if horizontal:
-        xy = _converter(frame)([(w, v) for w, _, _, v in horizontal])
+        xy = _convert(frame, [(w, v) for w, _, _, v in horizontal])
         dist = np.hypot(xy[:, 0], xy[:, 1])
-        far = dist > MAX_FRAME_RADIUS_M
+        far = ~(dist <= MAX_FRAME_RADIUS_M)  # NaN too
         if np.any(far):
             k = int(np.argmax(far))
             where, _, _, v = horizontal[k]
-            raise RisPlannerError(
-                f"{where}: {v[:2]} lies {dist[k] / 1000:.0f} km from the frame origin"
-                f" {list(frame.origin[:2])} (limit {MAX_FRAME_RADIUS_M / 1000:g} km): lat/lon"
-                " swapped (GeoJSON order is [lon, lat]) or the wrong CRS?"
-            )
+            raise _far_error(where, v, float(dist[k]), frame)
         for (_, holder, key, v), (x, y) in zip(horizontal, xy, strict=True):
             holder[key] = [float(x), float(y)] + ([v[2] - frame.origin[2]] if len(v) == 3 else [])
     return doc, frame
 
 
-def _split_rectangle(wall: Any) -> list[Any]:
+def _split_rectangle(wall: Any, where: str) -> list[Any]:
     """A ``rectangle`` wall [x_min, y_min, x_max, y_max] → four segment walls whose ``right``
     normal faces outward (counter-clockwise corners, as :func:`planning.sites.wall_poses`)."""
     if not isinstance(wall, dict) or wall.get("rectangle") is None:
         return [wall]
-    x0, y0, x1, y1 = _numbers(wall["rectangle"], (4,), "walls.rectangle")
+    x0, y0, x1, y1 = _numbers(wall["rectangle"], (4,), f"{where}.rectangle")
     corners = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
     rest = {k: v for k, v in wall.items() if k != "rectangle"}
     return [

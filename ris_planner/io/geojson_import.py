@@ -45,7 +45,7 @@ import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -563,23 +563,27 @@ def import_sites(
     return fragment, summary
 
 
-def osm_xml_features(source: str | Path) -> tuple[dict[str, Any], ImportSummary]:
-    """An ``.osm`` XML file → a GeoJSON FeatureCollection (building ways → Polygons,
-    building multipolygon relations → MultiPolygons of their closed outer ways, highway ways →
-    LineStrings), tags as properties, ids ``way/N`` / ``relation/N``."""
+def osm_xml_features(
+    source: str | Path | IO[bytes], name: str | None = None
+) -> tuple[dict[str, Any], ImportSummary]:
+    """An ``.osm`` XML file (a path or a binary stream; ``name`` labels it in errors, default
+    the path) → a GeoJSON FeatureCollection (building ways → Polygons, building multipolygon
+    relations → MultiPolygons of their closed outer ways, highway ways → LineStrings), tags as
+    properties, ids ``way/N`` / ``relation/N``."""
     summary = ImportSummary()
+    what = name if name is not None else str(source)
     try:
         root = ET.parse(source).getroot()
     except (ET.ParseError, OSError) as exc:
-        raise RisPlannerError(f"{source}: not a readable OSM XML file ({exc})") from None
+        raise RisPlannerError(f"{what}: not a readable OSM XML file ({exc})") from None
     if root.tag != "osm":
-        raise RisPlannerError(f"{source}: not OSM XML (root element <{root.tag}>)")
+        raise RisPlannerError(f"{what}: not OSM XML (root element <{root.tag}>)")
     nodes: dict[str, list[float]] = {}
     for n in root.iter("node"):
         try:
             nodes[n.attrib["id"]] = [float(n.attrib["lon"]), float(n.attrib["lat"])]
         except (KeyError, ValueError):
-            raise RisPlannerError(f"{source}: node {n.attrib.get('id')} has no lon/lat") from None
+            raise RisPlannerError(f"{what}: node {n.attrib.get('id')} has no lon/lat") from None
     ways: dict[str, tuple[list[list[float]], dict[str, str]]] = {}
     missing = 0
     for w in root.iter("way"):
@@ -588,7 +592,7 @@ def osm_xml_features(source: str | Path) -> tuple[dict[str, Any], ImportSummary]
             missing += 1
             continue
         tags = {t.attrib["k"]: t.attrib.get("v", "") for t in w.iter("tag") if "k" in t.attrib}
-        ways[w.attrib["id"]] = ([nodes[r] for r in refs], tags)
+        ways[w.attrib.get("id", "?")] = ([nodes[r] for r in refs], tags)
     if missing:
         summary.notes.append(f"{missing} way(s) reference nodes outside the file: skipped")
     features: list[dict[str, Any]] = []

@@ -5,17 +5,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from ris_planner.cli import int_in
 from ris_planner.errors import RisPlannerError
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    from ris_planner.io.geoplan import plan_document
     from ris_planner.planning.executor import DaskExecutor, Executor, LocalExecutor
-    from ris_planner.planning.plan import run_plan
     from ris_planner.planning.presets import load_plan_file, plan_preset
-    from ris_planner.planning.report import write_figures, write_plan_json
+    from ris_planner.planning.report import write_plan_json
     from ris_planner.progress import ProgressBar
 
     if (args.file is None) == (args.preset is None):
@@ -23,21 +22,18 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     doc = plan_preset(args.preset) if args.preset is not None else load_plan_file(args.file)
     if args.beams and doc.get("beams") is None:
         doc = {**doc, "beams": {}}  # the default beam settings (PlanDocument.beams)
-    local, frame = _local_document(doc)
     executor: Executor = (
         DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
     )
-    with executor:
-        result = run_plan(local, ProgressBar("plan"), executor)
     out = Path(args.out)
-    plan = result.to_json()
-    if frame is not None:
-        plan["frame"] = {"origin": list(frame.origin), "local_crs": frame.proj4}
+    with executor:  # the document is converted from its frame there (ris_planner.io.frames)
+        done = plan_document(doc, out, ProgressBar("plan"), executor)
+    plan = done.plan
     plan_path = write_plan_json(plan, out)
-    figures = write_figures(result, out)
-    figures.update(_gis_files(result, plan, doc, out))
+    if done.note is not None:
+        print(f"note: GIS files skipped: {done.note}", file=sys.stderr)
     print(f"wrote {plan_path}", file=sys.stderr)
-    for p in figures.values():
+    for p in done.files.values():
         print(f"wrote {p}", file=sys.stderr)
     for entry in plan["by_count"]:
         print(
@@ -47,32 +43,6 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if "decision" in plan:
         print(f"decision: {plan['decision']['message']}")
     return 0
-
-
-def _local_document(doc: dict[str, Any]) -> tuple[dict[str, Any], Any]:
-    """The document in local metres and its frame (``ris_planner.io.frames``; only a document
-    with a ``frame`` needs the GIS extra)."""
-    if "frame" not in doc:
-        return doc, None
-    from ris_planner.io.frames import to_local
-
-    return to_local(doc)
-
-
-def _gis_files(
-    result: Any, plan: dict[str, Any], doc: dict[str, Any], out: Path
-) -> dict[str, Path]:
-    """plan.geojson, heatmap.tif, points.csv (``ris_planner.io.export``); skipped with a note
-    when the GIS extra is not installed."""
-    from ris_planner.io import MissingExtraError
-
-    try:
-        from ris_planner.io.export import plan_outputs
-
-        return plan_outputs(result, plan, doc, out)
-    except MissingExtraError as exc:
-        print(f"note: GIS files skipped: {exc}", file=sys.stderr)
-        return {}
 
 
 def add_cli(sub: argparse._SubParsersAction) -> None:

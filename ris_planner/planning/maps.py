@@ -53,7 +53,12 @@ def road_points(road: Road) -> PointMap:
     (segment starts included, the last vertex too) at lateral offsets k·step within
     ±width/2 (symmetric about the centre line), all at ``height_m``."""
     verts = np.asarray(road.points, dtype=float)
-    n_lat = int(np.floor(road.width_m / 2 / road.step_m + 1e-9))
+    half = road.width_m / 2 / road.step_m  # lateral samples each side (inf for a 5e-324 step)
+    if not half <= MAX_MAP_POINTS:
+        raise LimitExceededError(
+            f"road width_m / step_m gives more than {MAX_MAP_POINTS} lateral samples; raise step_m"
+        )
+    n_lat = int(np.floor(half + 1e-9))
     lateral = road.step_m * np.arange(-n_lat, n_lat + 1)
     pts: list[FloatArray] = []
     normal = None  # of the last segment with a length: the end vertex's lateral direction

@@ -10,10 +10,11 @@ from ris_planner.progress import ProgressBar
 
 
 def _cmd_power(args: argparse.Namespace) -> int:
+    from ris_planner.io.frames import to_local
     from ris_planner.power.report import run_power  # loads cvxpy: only when the command runs
 
     result = run_power(
-        read_document(args),
+        to_local(read_document(args))[0],  # a geographic frame → local metres
         progress=ProgressBar("power") if args.progress else lambda f, m: None,
         objective=args.objective,
         solver=args.solver,

@@ -1,0 +1,120 @@
+"""Documents in request bodies: read the raw body, convert a geographic ``frame`` to local
+metres (:func:`ris_planner.io.frames.to_local`, the one boundary the command line uses too),
+then validate – so every route that takes a document takes it in local metres or in WGS84 /
+projected coordinates alike.
+
+The routes read their bodies themselves (FastAPI would validate the body model before any
+conversion and refuse ``frame``); their OpenAPI request bodies are :func:`document_body`:
+the local document's schema, or any object with a ``frame`` (:class:`GeoFrame`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.exceptions import RequestValidationError
+from pydantic import BaseModel, ConfigDict, Field
+from pydantic.json_schema import models_json_schema
+
+from api.errors import MalformedBodyError
+from ris_planner.errors import RisPlannerError
+from ris_planner.io.frames import Frame, to_local
+from ris_planner.io_json import parse_json
+from ris_planner.planning import PlanDocument
+from ris_planner.planning.document import LayoutBeamsDocument
+from ris_planner.scenario import Scenario
+from ris_planner.validation import plan_check
+
+
+class GeoFrame(BaseModel):
+    """A document's geographic frame (README "Real sites and GIS"): WGS84 ``origin`` [lon, lat,
+    h] – the document's coordinates are then [lon, lat(, h)] – or a projected ``crs`` (its
+    coordinates in that CRS's metres; ``origin`` in the same CRS, default the bounding-box
+    centre)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    origin: list[float] | None = Field(
+        None, min_length=2, max_length=3, description="[lon, lat(, h)] (or [E, N(, h)] with crs)"
+    )
+    crs: str | None = Field(None, description="A projected CRS, e.g. 'EPSG:32635' (UTM 35N)")
+
+
+class GeoDocument(BaseModel):
+    """The same document in geographic coordinates: every field as in the local document,
+    positions in the frame's coordinates; converted to local metres before validation (the
+    field paths of a 422 are those of the document)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    frame: GeoFrame = Field(description="The frame of the document's coordinates")
+
+
+DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (
+    PlanDocument,
+    Scenario,
+    LayoutBeamsDocument,
+    GeoDocument,
+)
+"""Models the request bodies of :func:`document_body` refer to (added to the OpenAPI
+components by :func:`install_document_schemas`)."""
+
+
+def document_body(
+    schema: str | tuple[str, ...], description: str, examples: dict[str, Any]
+) -> dict[str, Any]:
+    """The ``openapi_extra`` of a route that reads a document itself: the local document
+    (``#/components/schemas/{schema}``, or one of several) or a :class:`GeoDocument`."""
+    names = (schema,) if isinstance(schema, str) else schema
+    refs = [{"$ref": f"#/components/schemas/{name}"} for name in (*names, "GeoDocument")]
+    return {
+        "requestBody": {
+            "required": True,
+            "description": description,
+            "content": {"application/json": {"schema": {"anyOf": refs}, "examples": examples}},
+        }
+    }
+
+
+def install_document_schemas(app: FastAPI) -> None:
+    """Add :data:`DOCUMENT_MODELS` (and the models they use) to ``app``'s OpenAPI components."""
+    generate = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            schema = generate()
+            _, defs = models_json_schema(
+                [(m, "validation") for m in DOCUMENT_MODELS],
+                ref_template="#/components/schemas/{model}",
+            )
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
+            for name, definition in defs.get("$defs", {}).items():
+                components.setdefault(name, definition)
+        return app.openapi_schema or {}
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
+def json_document(body: bytes) -> Any:
+    """The JSON value of a request body: 422 ``body: Field required`` when empty, 400 when it is
+    not JSON (the shapes FastAPI gives a declared body)."""
+    if not body.strip():
+        raise RequestValidationError(
+            [{"type": "missing", "loc": ("body",), "msg": "Field required"}]
+        )
+    try:
+        return parse_json(body, "request body")
+    except RisPlannerError as exc:
+        raise MalformedBodyError(str(exc)) from None
+
+
+def local_plan(document: Any, memory_mb: int) -> tuple[PlanDocument, Frame | None]:
+    """A plan document as sent → (the validated local document, its frame): converted at the
+    boundary, validated (422 naming the field), sizes checked against their limits and the
+    job memory budget (413) – :func:`ris_planner.validation.plan_check`, as ``ris-planner
+    plan`` and the job itself."""
+    local, frame = to_local(document)
+    plan = PlanDocument.model_validate(local)
+    plan_check(plan, memory_mb)
+    return plan, frame

@@ -1,0 +1,60 @@
+"""A plan document as given – local metres or a geographic ``frame`` – → ``plan.json``, the PNG
+figures and the GIS files: the one path of ``ris-planner plan --out`` and of the service's plan
+jobs, so both write the same files for the same document.
+
+The document is converted once (:func:`~ris_planner.io.frames.to_local`), planned in local
+metres, and its ``plan.json`` gains ``"frame": {"origin": [lon, lat, h], "local_crs": proj4}``
+when it had a frame; ``plan.geojson`` / ``heatmap.tif`` / ``points.csv`` are written from the
+document as given (WGS84 with a frame, :func:`~ris_planner.io.export.plan_outputs`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ris_planner.io import MissingExtraError
+from ris_planner.io.frames import to_local
+from ris_planner.progress import ProgressCallback, no_progress
+
+
+@dataclass(frozen=True)
+class PlanFiles:
+    """What :func:`plan_document` produced."""
+
+    plan: dict[str, Any]
+    """The ``plan.json`` content (:meth:`PlanResult.to_json`, plus ``frame``)."""
+    files: dict[str, Path]
+    """Figure / file name → path: ``topview``, ``heatmap``, ``cdf`` (PNG) and, with the GIS
+    extra, ``geojson``, ``geotiff``, ``points_csv``."""
+    note: str | None = None
+    """Why the GIS files were skipped (the GIS extra is missing), else None."""
+
+
+def plan_document(
+    document: dict[str, Any],
+    out_dir: Path,
+    progress: ProgressCallback = no_progress,
+    executor: Any = None,
+) -> PlanFiles:
+    """Convert, plan (:func:`~ris_planner.planning.plan.run_plan` with ``executor``), write
+    the figures and GIS files into ``out_dir``; ``plan.json`` itself is the caller's to write
+    (the command line writes it, a job stores it as its result)."""
+    from ris_planner.planning.plan import run_plan
+    from ris_planner.planning.report import write_figures
+
+    local, frame = to_local(document)
+    result = run_plan(local, progress, executor)
+    plan = result.to_json()
+    if frame is not None:
+        plan["frame"] = frame.describe()
+    files = write_figures(result, out_dir)
+    note = None
+    try:
+        from ris_planner.io.export import plan_outputs
+
+        files.update(plan_outputs(result, plan, document, out_dir))
+    except MissingExtraError as exc:
+        note = str(exc)
+    return PlanFiles(plan, files, note)
