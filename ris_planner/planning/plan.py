@@ -669,9 +669,7 @@ def count_certificate(
     zero iterations)."""
     if outcome.method == "exhaustive":
         return Certificate(float(outcome.losses.min()), exact=True, method="exhaustive")
-    if iterations == 0 or scorer.mirror:
-        # the per-pair relaxation bounds one direction's metric; unordered pairs counted both
-        # ways (mirror) have no relaxation bound yet
+    if iterations == 0:
         return None
     return relaxation_certificate(scorer, n_ris, feasible, iterations)
 
