@@ -23,6 +23,12 @@ from ris_planner.planning.beam_design import (
     objective_on_pairs,
     served_pairs,
 )
+from ris_planner.planning.branch_bound import (
+    BNB_MIN_WORK,
+    BNB_WORK_FACTOR,
+    BranchBoundOutcome,
+    branch_and_bound,
+)
 from ris_planner.planning.certificates import Certificate, relaxation_certificate
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
@@ -130,6 +136,8 @@ class CountResult:
     certificate: Certificate | None = None
     n_ties: int = 1
     ties: tuple[tuple[Layout, float], ...] = ()
+    branch_and_bound: dict[str, Any] | None = None
+    """What the branch-and-bound after a greedy search did (``None``: not run)."""
 
 
 @dataclass
@@ -377,6 +385,7 @@ class PlanResult:
             }
         return {
             "certificate": cert,
+            "branch_and_bound": cr.branch_and_bound,
             "ties": {
                 "tolerance_rel": self.document.search.tie_rtol,
                 "count": cr.n_ties,
@@ -578,7 +587,7 @@ def run_plan(
     share = 0.75 if doc.beams is None else 0.7  # of the progress bar
     done = 0.0
     infeasible: list[int] = []
-    t_cert = 0.0
+    t_cert = t_bnb = 0.0
     try:
         for c, e in zip(wanted, effort, strict=True):
             base = done
@@ -593,13 +602,29 @@ def run_plan(
             if outcome.evaluated == 0:  # no layout satisfies the constraints
                 infeasible.append(c)
                 continue
+            t1 = time.perf_counter()
+            bnb = None
+            if outcome.method == "greedy" and doc.search.method == "auto":
+                # where exhaustive search is out of reach: branch-and-bound from greedy's best
+                bnb = branch_and_bound(
+                    scorer,
+                    c,
+                    feasibility,
+                    outcome,
+                    ex,
+                    max(1, doc.search.certificate_iterations),
+                    max_work=max(BNB_MIN_WORK, BNB_WORK_FACTOR * outcome.evaluated),
+                )
+                outcome = bnb.outcome
+                cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
+                t_bnb += time.perf_counter() - t1
+            else:
+                cert = count_certificate(
+                    scorer, c, outcome, feasibility, doc.search.certificate_iterations
+                )
+                t_cert += time.perf_counter() - t1
             ranked = outcome.ranked(doc.search.top_k)
             best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
-            t1 = time.perf_counter()
-            cert = count_certificate(
-                scorer, c, outcome, feasibility, doc.search.certificate_iterations
-            )
-            t_cert += time.perf_counter() - t1
             n_ties, tied = ties(outcome, doc.search.tie_rtol)
             counts.append(
                 CountResult(
@@ -610,6 +635,7 @@ def run_plan(
                     certificate=cert,
                     n_ties=n_ties,
                     ties=tuple(tied),
+                    branch_and_bound=None if bnb is None else bnb.to_json(),
                 )
             )
             target = doc.objective.target
@@ -627,7 +653,7 @@ def run_plan(
             f"no layout of {wanted} RISs satisfies the constraints (mounting points,"
             " min_separation_m, require/exclude, budget)"
         )
-    t_search = time.perf_counter() - t0 - t_cache - t_cert
+    t_search = time.perf_counter() - t0 - t_cache - t_cert - t_bnb
     t1 = time.perf_counter()
     mirror = directions == "mirror"
     for cr in counts:
@@ -636,6 +662,7 @@ def run_plan(
         "cache": t_cache,
         "search": t_search,
         "certificate": t_cert,
+        "branch_and_bound": t_bnb,
         "visibility": t_vis,
         "random_codebook": time.perf_counter() - t1,
     }
@@ -660,6 +687,15 @@ def run_plan(
         timing["beams"] = time.perf_counter() - t1
     progress(1.0, "done")
     return result
+
+
+def bnb_certificate(bnb: BranchBoundOutcome) -> Certificate:
+    """The certificate a branch-and-bound gives: the optimum when it finished, else the
+    smallest bound left open (the root relaxation's when it stopped at the root)."""
+    if bnb.finished:
+        return Certificate(bnb.loss_bound, exact=True, method="branch_and_bound")
+    method = "branch_and_bound_open_nodes" if bnb.nodes > 1 else "frank_wolfe_pair_relaxation"
+    return Certificate(bnb.loss_bound, exact=False, method=method)
 
 
 def count_certificate(
