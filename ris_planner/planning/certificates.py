@@ -101,11 +101,16 @@ def _frank_wolfe(
     sites of one mounting point). A pair stops iterating once its bound can no longer change
     the objective: f(z) ≤ settle[0] (the bound stays ≤ f(z) whatever follows), lower ≥
     settle[1] (bounds only rise), or its duality gap ≤ :data:`FW_GAP_RTOL`; ``tangent`` keeps
-    the tangent of each pair's best iterate (:class:`RowRelaxation`)."""
-    n_groups = int(groups.max()) + 1
-    order = np.argsort(groups, kind="stable")
-    starts = np.searchsorted(groups[order], np.arange(n_groups))
+    the tangent of each pair's best iterate (:class:`RowRelaxation`; zero gradient on the
+    sites z may not use). Only the free sites enter the iterations."""
+    sel = np.flatnonzero(free)  # [F] the sites z may use
+    _, dense = np.unique(groups[sel], return_inverse=True)
+    grp = np.asarray(dense.reshape(-1), dtype=int)  # [F] their groups, 0 … G − 1
+    n_groups = int(grp.max()) + 1
+    order = np.argsort(grp, kind="stable")
+    starts = np.searchsorted(grp[order], np.arange(n_groups))
     e_n, n_sites, p = packed.shape
+    n_free = sel.size
     idx = packed_index(n)
     ii = np.array([i for i in range(n) for j in range(i + 1)])
     jj = np.array([j for i in range(n) for j in range(i + 1)])
@@ -114,16 +119,15 @@ def _frank_wolfe(
     offdiag[ii != jj] = 2.0  # <M, F> over a symmetric pair of entries
     ridge = np.ones(e_n)
     ridge[diag_e] += RIDGE
-    n_free = int(free.sum())
     out = np.zeros(p)
     const = np.zeros(p) if tangent else None
     grads = np.zeros((n_sites, p)) if tangent else None
+    diag = np.arange(n)
     for p0 in range(0, p, PAIR_BLOCK):
-        cols_all = np.arange(p0, min(p, p0 + PAIR_BLOCK))
-        act = cols_all  # the pairs still iterating
-        blk = packed[:, :, act]  # [E, S, b]
+        act = np.arange(p0, min(p, p0 + PAIR_BLOCK))  # the pairs still iterating
+        blk = packed[:, sel, p0 : act[-1] + 1]  # [E, F, b]
         bse = base[:, act]
-        z = np.where(free, k / n_free, 0.0)[:, None] * np.ones((1, act.size))  # [S, b]
+        z = np.full((n_free, act.size), k / n_free)  # [F, b]
         best = np.zeros(act.size)
         a_free = np.einsum("esb,sb->eb", blk, z)  # [E, b] Σ z_s F_s, then updated in place
         for t in range(iterations + 1):
@@ -133,41 +137,41 @@ def _frank_wolfe(
             mat = np.empty((b, n, n))
             mat[:, ii, jj] = a.T
             mat[:, jj, ii] = a.T
-            d = np.sqrt(mat[:, np.arange(n), np.arange(n)])  # [b, n]
+            d = np.sqrt(mat[:, diag, diag])  # [b, n]
             blank = d <= 0  # a state no site informs: adding e_i e_iᵀ only lowers the bound
             d[blank] = 1.0
             scaled = mat / d[:, :, None] / d[:, None, :]
-            scaled[:, np.arange(n), np.arange(n)] += blank
+            scaled[:, diag, diag] += blank
             inv = np.linalg.inv(scaled) / d[:, :, None] / d[:, None, :]  # [b, n, n] K̃⁻¹
             f = inv[:, rows, rows].sum(axis=1)  # [b]
             cols = inv[:, :, rows]  # [b, n, |T|]
             m = np.einsum("bit,bjt->bij", cols, cols)  # [b, n, n] K̃⁻¹ E_T K̃⁻¹
             mp = (m[:, ii, jj] * offdiag * ridge).T  # [E, b]
-            grad = -np.einsum("esb,eb->sb", blk, mp)  # [S, b] ∂f/∂z_s
-            grad[~free] = np.inf
-            v = _vertex(grad, k, groups, order, starts, n_groups)
-            g_fin = np.where(free[:, None], grad, 0.0)
-            lower = f + (g_fin * (v - z)).sum(axis=0)
+            grad = -np.einsum("esb,eb->sb", blk, mp)  # [F, b] ∂f/∂z_s
+            pick = _vertex(grad, k, grp, order, starts, n_groups)  # [k, b] the vertex's sites
+            g_v = np.take_along_axis(grad, pick, axis=0).sum(axis=0)  # [b] ∇f·v
+            g_z = (grad * z).sum(axis=0)  # [b] ∇f·z
+            lower = f + g_v - g_z
             good = np.isfinite(lower) & (lower > best)
             best[good] = lower[good]
             if tangent:
                 assert const is not None and grads is not None
                 tc = act[good]
-                grads[:, tc] = g_fin[:, good]
-                const[tc] = f[good] - (g_fin[:, good] * z[:, good]).sum(axis=0)
+                grads[np.ix_(sel, tc)] = grad[:, good]
+                const[tc] = f[good] - g_z[good]
             out[act] = best
             if t == iterations:
                 break
             go = (f > settle[0]) & (best < settle[1]) & (f - best > FW_GAP_RTOL * f)
             if not go.all():  # drop the settled pairs from the block
                 act, blk, bse, z, best = act[go], blk[:, :, go], bse[:, go], z[:, go], best[go]
-                a_free, v = a_free[:, go], v[:, go]
+                a_free, pick = a_free[:, go], pick[:, go]
                 if act.size == 0:
                     break
             gamma = 2.0 / (t + 2.0)
-            z = (1 - gamma) * z + gamma * v
-            # Σ_s v_s F_s gathers the k chosen sites only (no pass over all S)
-            pick = np.argpartition(-v, k - 1, axis=0)[:k]  # [k, b]
+            z *= 1 - gamma
+            np.put_along_axis(z, pick, np.take_along_axis(z, pick, axis=0) + gamma, axis=0)
+            # Σ_s v_s F_s gathers the k chosen sites only (no pass over all sites)
             vert = np.take_along_axis(blk, pick[None, :, :], axis=1).sum(axis=1)  # [E, b]
             a_free = (1 - gamma) * a_free + gamma * vert
     return RowRelaxation(out, const, grads)
@@ -180,27 +184,29 @@ def _vertex(
     order: NDArray[np.int_],
     starts: NDArray[np.int_],
     n_groups: int,
-) -> FloatArray:
-    """[S, b] the vertex v minimising grad·v over {0 ≤ z, Σ_group z ≤ 1, Σ z = k}: the k groups
-    with the most negative best entry, one (their best) site each."""
+) -> NDArray[np.int_]:
+    """[k, b] the sites of the vertex v minimising grad·v over {0 ≤ z, Σ_group z ≤ 1,
+    Σ z = k} per column: the k groups with the most negative best entry, their best site."""
     if n_groups == grad.shape[0]:  # singletons: the k most negative entries
-        pick = np.argpartition(grad, k - 1, axis=0)[:k]  # [k, b]
-        v = np.zeros_like(grad)
-        np.put_along_axis(v, pick, 1.0, axis=0)
-        return v
-    g_sorted = grad[order]  # [S, b] grouped
+        if k == 1:
+            return np.argmin(grad, axis=0)[None, :]
+        return np.argpartition(grad, k - 1, axis=0)[:k]
+    g_sorted = grad[order]  # [F, b] grouped
     gmin = np.minimum.reduceat(g_sorted, starts, axis=0)  # [G, b]
-    pick = np.argpartition(gmin, k - 1, axis=0)[:k]  # [k, b] chosen groups
-    chosen = np.zeros(gmin.shape, dtype=bool)
-    np.put_along_axis(chosen, pick, True, axis=0)
+    chosen = np.argpartition(gmin, k - 1, axis=0)[:k] if k < n_groups else None  # [k, b]
+    # the best site of each group: the first minimum within the group's run of rows
     g_of = groups[order]
-    hit = chosen[g_of] & (g_sorted == gmin[g_of])  # [S, b] best sites of chosen groups
+    hit = g_sorted == gmin[g_of]  # [F, b]
+    first = np.zeros_like(hit)
     count = np.cumsum(hit, axis=0)
     before = np.concatenate([np.zeros((1, hit.shape[1]), dtype=count.dtype), count])[starts]
-    hit &= (count - before[g_of]) == 1  # the first best site of each group only
-    v = np.zeros_like(grad)
-    v[order] = hit
-    return v
+    first = hit & ((count - before[g_of]) == 1)
+    rows_of = np.empty((n_groups, grad.shape[1]), dtype=int)  # [G, b] best site per group
+    r, c = np.nonzero(first)
+    rows_of[g_of[r], c] = order[r]
+    if chosen is None:
+        return rows_of
+    return np.take_along_axis(rows_of, chosen, axis=0)
 
 
 def exclusive_groups(feasible: Feasibility, free: NDArray[np.bool_]) -> NDArray[np.int_]:
