@@ -16,17 +16,27 @@ so the objective of these per-pair bounds bounds every layout of the subtree.
 
 Best-first order (lowest bound first), incumbent = the greedy search's best. A node whose
 bound is above the incumbent's loss is pruned (a bound equal to it is expanded, so ties with
-a lexicographically smaller layout are found as exhaustive search finds them). Nodes whose
-children are leaves score all their leaves in one batch. The search stops at
-``max_nodes`` expansions or ``max_leaves`` scored layouts; unfinished, the smallest bound left
-open (or the incumbent) is still a valid bound on the optimum – never below the root's, so
-an unfinished search still tightens the certificate.
+a lexicographically smaller layout are found as exhaustive search finds them). A popped inner
+node is bounded again by its own subtree's relaxation (P in the base, k − |P| sites from R:
+the same Frank–Wolfe, valid for the same reasons, and far tighter than the root's tangents),
+and its children get bounds from that relaxation's tangents; a node whose children are leaves
+bounds each leaf that way (with many leaves) and scores the survivors in one batch. The
+search stops at ``max_nodes`` expansions, ``max_leaves`` scored layouts or ``max_work``
+layout scorings (:func:`node_work`); unfinished, the smallest bound left open (or the
+incumbent) is still a valid bound on the optimum – never below the root's. A search whose
+:func:`estimated_work` exceeds ``max_work`` is not begun.
+
+Where it pays (measured, README): random instances of 10–24 candidates finish, exact, after
+scoring 30–75 % of the layouts; on the 156-candidate hall (coverage) the subtree bounds stay
+near the root's (0.985 → 0.977 at L = 3 after 200 nodes) and a finish would need ≈ C(156, 2)
+node relaxations, so the plan does not begin it there.
 """
 
 from __future__ import annotations
 
 import heapq
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,8 +67,10 @@ BNB_WORK_FACTOR = 2.0
 well it finishes inside that; where they do not it stops, and the plan costs at most 3× the
 greedy search."""
 
-BNB_MIN_WORK = 5000
-"""…but at least this many layout scorings (small instances, whose greedy search is short)."""
+BNB_MIN_WORK = 20_000
+"""…but at least this many layout scorings (small instances, whose greedy search is short).
+Before it starts, :func:`estimated_work` is checked against the budget: a search that cannot
+finish is not begun (the plan then takes the plain relaxation certificate)."""
 
 BNB_NODE_ITERATIONS = 10
 """Frank–Wolfe iterations of a node's own relaxation (the root uses the document's
@@ -129,6 +141,14 @@ def node_work(iterations: int, n_rest: int) -> float:
     return iterations * (1.0 + n_rest / 2.0)
 
 
+def estimated_work(n_free: int, k: int, iterations: int) -> float:
+    """A-priori cost of a search that prunes only at the leaves (as measured on small
+    instances: the inner nodes' bounds rarely fall above the incumbent): every node of depth
+    1 … k − 1 relaxed once, at the average |R| = n_free / 2."""
+    nodes = sum(math.comb(n_free, d) for d in range(1, k))
+    return nodes * node_work(iterations, n_free // 2)
+
+
 def _subtree(
     problem: SubsetProblem, packed: FloatArray, partial: tuple[int, ...], rest: IntArray
 ) -> SubsetProblem:
@@ -181,6 +201,11 @@ def branch_and_bound(
     assert isinstance(problem, SubsetProblem)
     packed, _ = scorer.selected_packed
     node_iter = min(iterations, BNB_NODE_ITERATIONS)
+    if max_work is not None:
+        need = estimated_work(int(problem.free.sum()), problem.k, node_iter)
+        if need > max_work:
+            why = f"does not pay: ≈ {need:.3g} layout scorings estimated > budget {max_work:.3g}"
+            return result(False, -np.inf, 0, 0, -np.inf, why)
     relax = row_relaxations(scorer, problem, iterations, settle=False, tangent=True)
     root = _relaxed_loss(scorer, relax)
     free = np.flatnonzero(problem.free)

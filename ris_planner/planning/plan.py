@@ -621,6 +621,12 @@ def run_plan(
                 outcome = bnb.outcome
                 cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
                 t_bnb += time.perf_counter() - t1
+                if bnb.nodes == 0 and not bnb.finished:  # not begun: it would not pay
+                    t1 = time.perf_counter()
+                    cert = count_certificate(
+                        scorer, c, outcome, feasibility, doc.search.certificate_iterations
+                    )
+                    t_cert += time.perf_counter() - t1
             else:
                 cert = count_certificate(
                     scorer, c, outcome, feasibility, doc.search.certificate_iterations
