@@ -463,6 +463,9 @@ def test_branch_and_bound_equals_exhaustive(seed: int) -> None:
         assert bb.loss_bound == ex.losses.min()
         assert bb.root_bound <= ex.losses.min()
         assert bb.leaves + gr.evaluated <= ex.evaluated + gr.evaluated
+        skip = branch_and_bound(scorer, n_ris, feas, gr, SerialExecutor(), 20, max_work=10.0)
+        assert not skip.finished and skip.nodes == 0 and skip.reason.startswith("does not pay")
+        assert skip.outcome.ranked(1)[0] == gr.ranked(1)[0]
         cut = branch_and_bound(scorer, n_ris, feas, gr, SerialExecutor(), 20, max_nodes=3)
         assert cut.root_bound <= cut.loss_bound <= ex.losses.min()
         if not cut.finished:
