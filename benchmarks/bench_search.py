@@ -31,12 +31,14 @@ from typing import Any
 
 import numpy as np
 
+from ris_planner.environment import Scene
 from ris_planner.planning import DaskExecutor, PlanDocument, SerialExecutor, run_plan
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer, score_chunk
 from ris_planner.planning.search import Layout, exhaustive
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites
+from ris_planner.planning.visibility import pair_visibility
 
 
 def hall_doc(counts: list[int], n_pairs: int = 6400) -> dict[str, Any]:
@@ -114,7 +116,10 @@ def todays_search(doc: PlanDocument) -> tuple[dict[int, tuple[Layout, float, int
     t0 = time.perf_counter()
     sites = expand_sites(doc)
     pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
-    cache = build_site_cache(doc.system, sites, pairs)
+    # the plan's fields of view (and obstacles), as run_plan applied them before issue 14
+    scene = Scene.from_environment(doc.environment)
+    vis = pair_visibility(scene, sites, pairs, doc.system.los)
+    cache = build_site_cache(doc.system, sites, pairs, visibility=vis, known=tuple(doc.known))
     scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
     out: dict[int, tuple[Layout, float, int]] = {}
     seeds: list[Layout] = []
