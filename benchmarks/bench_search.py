@@ -31,12 +31,14 @@ from typing import Any
 
 import numpy as np
 
+from ris_planner.environment import Scene
 from ris_planner.planning import DaskExecutor, PlanDocument, SerialExecutor, run_plan
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer, score_chunk
 from ris_planner.planning.search import Layout, exhaustive
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites
+from ris_planner.planning.visibility import pair_visibility
 
 
 def hall_doc(counts: list[int], n_pairs: int = 6400) -> dict[str, Any]:
@@ -97,7 +99,9 @@ def city_doc(blocks: int, n_pairs: int, counts: list[int]) -> dict[str, Any]:
         "max_pairs": max(n_pairs, 20_000),
         "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 2.0},
         "ris_count": counts,
-        "search": {"restarts": 1},
+        # 40 rounds: the limit's worst case (starts × rounds × swaps, summed over L = 2 … 6 at
+        # 512 sites) stays below MAX_SEARCH_LAYOUTS; the searches converge in far fewer
+        "search": {"restarts": 1, "max_rounds": 40},
     }
 
 
@@ -112,7 +116,10 @@ def todays_search(doc: PlanDocument) -> tuple[dict[int, tuple[Layout, float, int
     t0 = time.perf_counter()
     sites = expand_sites(doc)
     pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
-    cache = build_site_cache(doc.system, sites, pairs)
+    # the plan's fields of view (and obstacles), as run_plan applied them before issue 14
+    scene = Scene.from_environment(doc.environment)
+    vis = pair_visibility(scene, sites, pairs, doc.system.los)
+    cache = build_site_cache(doc.system, sites, pairs, visibility=vis, known=tuple(doc.known))
     scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
     out: dict[int, tuple[Layout, float, int]] = {}
     seeds: list[Layout] = []
@@ -151,8 +158,9 @@ def report(name: str, raw: dict[str, Any], dask: bool) -> None:
     print(f"today's search: {t_today:.1f} s, peak {m_today / 2**20:.0f} MiB")
     res, t_new, m_new = timed_plan(raw_same, SerialExecutor())
     print(
-        f"plan now (same layouts allowed): {t_new:.1f} s (cache {res.timing['cache']:.1f},"
-        f" search {res.timing['search']:.1f}, certificates {res.timing['certificate']:.1f}),"
+        f"plan now (same layouts allowed): {t_new:.1f} s ("
+        + ", ".join(f"{k} {v:.1f}" for k, v in res.timing.items())
+        + "),"
         f" peak {m_new / 2**20:.0f} MiB, {res.pairs.size} pairs"
     )
     plan = res.to_json()
@@ -167,7 +175,8 @@ def report(name: str, raw: dict[str, Any], dask: bool) -> None:
             f" (today {ev:7d}) of {entry['layouts_total']:10d}; objective"
             f" {entry['objective']} (today {old:.6g},"
             f" same layout: {same}); bound {cert.get('objective_bound')} gap {cert.get('gap')}"
-            f" exact {cert.get('exact')}; ties {entry['ties']['count']}"
+            f" exact {cert.get('exact')}; ties {entry['ties']['count']};"
+            f" B&B {entry['branch_and_bound']}"
         )
     res_x, t_x, m_x = timed_plan(raw, SerialExecutor())
     print(f"default plan (exclusive mounting points): {t_x:.1f} s, peak {m_x / 2**20:.0f} MiB")
@@ -235,6 +244,35 @@ def greedy_workers(raw: dict[str, Any], workers: int) -> None:
             )
 
 
+def branch_and_bound_instances(n_sites: int, seeds: int) -> None:
+    """Random instances of the tests (ring of candidates, 120 pairs, the four objectives):
+    exhaustive search against greedy + branch-and-bound, both timed in this run."""
+    from test_planning_decisions import random_instance, setup
+
+    from ris_planner.planning.branch_bound import branch_and_bound
+    from ris_planner.planning.constraints import unconstrained
+    from ris_planner.planning.search import greedy
+
+    for seed in range(seeds):
+        d, sites, _, scorer = setup(random_instance(seed, n=n_sites))
+        feas = unconstrained(len(sites))
+        for n_ris in (3, 4):
+            t0 = time.perf_counter()
+            ex = exhaustive(scorer, len(sites), n_ris, SerialExecutor())
+            t_ex = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            gr = greedy(scorer, len(sites), n_ris, d.search, SerialExecutor())
+            bb = branch_and_bound(scorer, n_ris, feas, gr, SerialExecutor(), 20)
+            t_bb = time.perf_counter() - t0
+            same = bb.outcome.ranked(1)[0] == ex.ranked(1)[0]
+            print(
+                f"seed {seed} {d.objective.kind:11s} L={n_ris}: exhaustive {ex.evaluated} layouts"
+                f" {t_ex:.2f} s; greedy {gr.evaluated} + B&B {bb.leaves} layouts, {bb.nodes}"
+                f" nodes, {t_bb:.2f} s; finished {bb.finished}, same best {same},"
+                f" root bound {bb.root_bound:.4g} → {bb.loss_bound:.4g}"
+            )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", choices=["hall", "city", "both"], default="hall")
@@ -249,7 +287,18 @@ def main() -> None:
         default=0,
         help="only compare today's and the new greedy on the hall with N local workers",
     )
+    ap.add_argument(
+        "--bnb-instances",
+        type=int,
+        default=0,
+        help="only compare exhaustive search and greedy + branch-and-bound on N random"
+        " instances of --bnb-sites candidates",
+    )
+    ap.add_argument("--bnb-sites", type=int, default=16)
     args = ap.parse_args()
+    if args.bnb_instances:
+        branch_and_bound_instances(args.bnb_sites, args.bnb_instances)
+        return
     if args.greedy_workers:
         raw = hall_doc(args.counts or [3], args.hall_pairs)
         greedy_workers({**raw, "search": {"method": "greedy"}}, args.greedy_workers)

@@ -16,11 +16,12 @@ from test_planning import plan_doc, setup
 
 from ris_planner.errors import RisPlannerError
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan, write_figures
+from ris_planner.planning.branch_bound import branch_and_bound
 from ris_planner.planning.certificates import pair_lower_bounds, relaxation_certificate
 from ris_planner.planning.constraints import Feasibility, build_feasibility, unconstrained
 from ris_planner.planning.decisions import pareto
 from ris_planner.planning.document import CostSpec
-from ris_planner.planning.objectives import objective_from_loss
+from ris_planner.planning.objectives import Scorer, loss_from_metric, objective_from_loss
 from ris_planner.planning.search import all_layouts, exhaustive, greedy
 
 OBJECTIVES: list[dict[str, Any]] = [
@@ -396,3 +397,95 @@ def test_certificate_with_exclusive_mounting_points_is_valid_and_tighter() -> No
         assert np.mean(lb_tight) >= np.mean(lb_loose)  # the spot constraint tightens it
         ex = exhaustive(scorer, len(sites), n_ris, SerialExecutor(), feasible=feas)
         assert relaxation_certificate(scorer, n_ris, feas, 30).loss_bound <= ex.losses.min()
+
+
+@pytest.mark.parametrize(("seed", "metric"), [(0, "rx"), (1, "tx"), (2, "rx")])
+def test_mirrored_pairs_get_a_bound_per_column(seed: int, metric: str) -> None:
+    """Unordered pairs counted both ways: every one of the 2P columns (this direction, then
+    the reverse) is bounded by the relaxation of its own rows, and the certificate bounds the
+    exhaustive optimum of the mirrored loss."""
+    doc = random_instance(seed)
+    doc["objective"] = {**OBJECTIVES[seed % 3], "metric": metric}
+    doc["known"] = []
+    d, sites, _, plain = setup(doc)
+    scorer = Scorer(plain.cache, plain.weights, d.objective, (), mirror=True)
+    feas = unconstrained(len(sites))
+    for n_ris in (2, 3):
+        layouts = all_layouts(len(sites), n_ris)
+        metric_all = scorer.metric(layouts)  # [N, 2P]
+        lb = pair_lower_bounds(scorer, n_ris, feas, 40)
+        assert lb.shape == (2 * plain.cache.n_pairs,)
+        assert np.all(lb <= metric_all.min(axis=0))
+        finite = np.isfinite(metric_all.min(axis=0))
+        assert np.all(np.isfinite(lb[finite]))  # both column blocks get a real bound
+        best = float(scorer.loss(layouts).min())
+        assert relaxation_certificate(scorer, n_ris, feas, 40).loss_bound <= best
+        # the reverse block is the relaxation of the other rows: not a copy of the first
+        p = plain.cache.n_pairs
+        if finite.any():
+            assert not np.allclose(lb[:p], lb[p:])
+    assert finite.any()  # L = 3 has finite metrics in every instance here
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_settled_pairs_give_the_same_objective_bound(seed: int) -> None:
+    """Stopping a pair once its bound cannot move the objective changes no certificate."""
+    _, sites, _, scorer = setup(random_instance(seed))
+    feas = unconstrained(len(sites))
+    for n_ris in (2, 3):
+        full = pair_lower_bounds(scorer, n_ris, feas, 30)
+        short = pair_lower_bounds(scorer, n_ris, feas, 30, settle=True)
+        assert np.all(short <= full * (1 + 1e-12))  # stopped early: never above
+        obj, w = scorer.objective, scorer.metric_weights
+        a = loss_from_metric(obj, full[None], w)[0]
+        b = loss_from_metric(obj, short[None], w)[0]
+        if obj.kind == "quantile":
+            assert b <= a  # the duality-gap stop only
+        else:
+            assert b == a
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_branch_and_bound_equals_exhaustive(seed: int) -> None:
+    """From greedy's best, branch-and-bound finishes on small instances with exhaustive
+    search's best layout (ties: the same lexicographic choice); unfinished (a small node
+    budget) its bound stays ≤ the optimum and ≥ the root relaxation."""
+    d, sites, _, scorer = setup(random_instance(seed, n=10))
+    if seed % 2:  # unordered-style mirrored columns
+        scorer = Scorer(scorer.cache, scorer.weights, d.objective, scorer.known, mirror=True)
+    feas = unconstrained(len(sites))
+    for n_ris in (3, 4):
+        ex = exhaustive(scorer, len(sites), n_ris, SerialExecutor())
+        gr = greedy(scorer, len(sites), n_ris, d.search, SerialExecutor())
+        bb = branch_and_bound(scorer, n_ris, feas, gr, SerialExecutor(), 20)
+        assert bb.finished and bb.outcome.method == "branch_and_bound"
+        assert bb.outcome.ranked(1)[0] == ex.ranked(1)[0]
+        assert bb.loss_bound == ex.losses.min()
+        assert bb.root_bound <= ex.losses.min()
+        assert bb.leaves + gr.evaluated <= ex.evaluated + gr.evaluated
+        skip = branch_and_bound(scorer, n_ris, feas, gr, SerialExecutor(), 20, max_work=10.0)
+        assert not skip.finished and skip.nodes == 0 and skip.reason.startswith("does not pay")
+        assert skip.outcome.ranked(1)[0] == gr.ranked(1)[0]
+        cut = branch_and_bound(scorer, n_ris, feas, gr, SerialExecutor(), 20, max_nodes=3)
+        assert cut.root_bound <= cut.loss_bound <= ex.losses.min()
+        if not cut.finished:
+            assert cut.outcome.method == "greedy" and cut.reason == "budget"
+
+
+def test_branch_and_bound_with_exclusive_mounting_points_in_a_plan() -> None:
+    """auto search beyond max_exhaustive: greedy, then branch-and-bound to the feasible
+    optimum (exact, gap 0) – the brute-force optimum over the feasible layouts."""
+    doc = wall_doc(ris_count=[3], objective={"kind": "quantile", "metric": "rx", "q": 0.6},
+                   search={"max_exhaustive": 50, "restarts": 1})  # fmt: skip
+    res = run_plan(doc, executor=SerialExecutor())
+    entry = res.to_json()["by_count"][0]
+    d, sites, _, scorer = setup(doc)
+    feas = build_feasibility(sites, d.constraints, d.cost)
+    layouts = feas.enumerate(3, 10**6)
+    assert layouts is not None and len(layouts) > 50
+    ref = exhaustive(scorer, len(sites), 3, SerialExecutor(), feasible=feas, layouts=layouts)
+    assert tuple(entry["sites"]) == ref.ranked(1)[0][0]
+    assert entry["method"] == "branch_and_bound" and entry["branch_and_bound"]["finished"]
+    assert entry["certificate"]["exact"] and entry["certificate"]["gap"] == 0
+    assert entry["certificate"]["method"] == "branch_and_bound"
+    assert np.all(feas.ok(res.counts[0].outcome.layouts))

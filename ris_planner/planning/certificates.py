@@ -17,7 +17,10 @@ Then lb_p ≤ m_p(S) for every S, and every objective is monotone in each pair's
 (coverage: non-increasing; mean of min(m, cap) and weighted quantiles: non-decreasing), so
 objective(lb) bounds the optimum: ≥ it for coverage, ≤ it for mean_capped and quantile. Pairs
 that are blind (``inf``) in every layout only make the optimum worse, so a finite lb_p is still
-valid. ``require``/``exclude`` and cliques of mutually exclusive sites (one mounting point) are
+valid. Unordered pairs counted in both directions (``Scorer.mirror``) have 2P metric columns;
+the reverse direction's PEB_R is this direction's PEB_T, a trace of the same K_p(S)⁻¹ over the
+TX rows, so every column gets the relaxation of its own rows (:func:`metric_columns`).
+``require``/``exclude`` and cliques of mutually exclusive sites (one mounting point) are
 kept; other constraints (separation, budget) are dropped by the relaxation, which only widens
 the set.
 """
@@ -59,6 +62,26 @@ class Certificate:
     method: str
 
 
+FW_GAP_RTOL = 1e-4
+"""A pair's Frank–Wolfe stops once its duality gap f(z) − lower ≤ this · f(z): the bound is
+then within 0.01 % of the relaxed optimum, which no further iteration can exceed."""
+
+
+@dataclass
+class RowRelaxation:
+    """The relaxation of one metric column's trace Σ_{t∈rows} [K⁻¹]_tt for every pair.
+
+    lower : [P] the best Frank–Wolfe lower bound on min_z f_p(z);
+    const, grad : the tangent of the iterate that gave it (``None`` unless asked for):
+    f̃_p(z) ≥ const_p + Σ_s grad[s, p] z_s for every z in the box (convexity), so a layout C
+    (an indicator vertex) has f_p(C) ≥ const_p + Σ_{s∈C} grad[s, p] – the bound the
+    branch-and-bound search (:mod:`ris_planner.planning.branch_bound`) evaluates per subtree."""
+
+    lower: FloatArray
+    const: FloatArray | None = None
+    grad: FloatArray | None = None
+
+
 def _frank_wolfe(
     packed: FloatArray,
     base: FloatArray,
@@ -68,16 +91,26 @@ def _frank_wolfe(
     rows: list[int],
     iterations: int,
     groups: NDArray[np.int_],
-) -> FloatArray:
-    """[P] lower bound on min over z of Σ_{t∈rows} [K(z)⁻¹]_tt (the module docstring).
+    settle: tuple[float, float] = (-np.inf, np.inf),
+    tangent: bool = False,
+) -> RowRelaxation:
+    """Lower bounds on min over z of Σ_{t∈rows} [K(z)⁻¹]_tt per pair (the module docstring).
 
     packed : [E, S, P] site information; base : [E, P] fixed part (LOS + required sites);
     free : [S] sites z may use; k : Σ z; groups : [S] group of each site (Σ_group z ≤ 1: the
-    sites of one mounting point)."""
-    n_groups = int(groups.max()) + 1
-    order = np.argsort(groups, kind="stable")
-    starts = np.searchsorted(groups[order], np.arange(n_groups))
-    e_n, _, p = packed.shape
+    sites of one mounting point). A pair stops iterating once its bound can no longer change
+    the objective: f(z) ≤ settle[0] (the bound stays ≤ f(z) whatever follows), lower ≥
+    settle[1] (bounds only rise), or its duality gap ≤ :data:`FW_GAP_RTOL`; ``tangent`` keeps
+    the tangent of each pair's best iterate (:class:`RowRelaxation`; zero gradient on the
+    sites z may not use). Only the free sites enter the iterations."""
+    sel = np.flatnonzero(free)  # [F] the sites z may use
+    _, dense = np.unique(groups[sel], return_inverse=True)
+    grp = np.asarray(dense.reshape(-1), dtype=int)  # [F] their groups, 0 … G − 1
+    n_groups = int(grp.max()) + 1
+    order = np.argsort(grp, kind="stable")
+    starts = np.searchsorted(grp[order], np.arange(n_groups))
+    e_n, n_sites, p = packed.shape
+    n_free = sel.size
     idx = packed_index(n)
     ii = np.array([i for i in range(n) for j in range(i + 1)])
     jj = np.array([j for i in range(n) for j in range(i + 1)])
@@ -86,47 +119,62 @@ def _frank_wolfe(
     offdiag[ii != jj] = 2.0  # <M, F> over a symmetric pair of entries
     ridge = np.ones(e_n)
     ridge[diag_e] += RIDGE
-    n_free = int(free.sum())
     out = np.zeros(p)
+    const = np.zeros(p) if tangent else None
+    grads = np.zeros((n_sites, p)) if tangent else None
+    diag = np.arange(n)
     for p0 in range(0, p, PAIR_BLOCK):
-        sl = slice(p0, min(p, p0 + PAIR_BLOCK))
-        blk = packed[:, :, sl]  # [E, S, b]
-        b = blk.shape[2]
-        z = np.where(free, k / n_free, 0.0)[:, None] * np.ones((1, b))  # [S, b]
-        best = np.zeros(b)
+        act = np.arange(p0, min(p, p0 + PAIR_BLOCK))  # the pairs still iterating
+        blk = packed[:, sel, p0 : act[-1] + 1]  # [E, F, b]
+        bse = base[:, act]
+        z = np.full((n_free, act.size), k / n_free)  # [F, b]
+        best = np.zeros(act.size)
         a_free = np.einsum("esb,sb->eb", blk, z)  # [E, b] Σ z_s F_s, then updated in place
         for t in range(iterations + 1):
+            b = act.size
             # [E, b] relaxed FIM K̃(z), then [b, n, n] scaled to unit diagonal
-            a = (base[:, sl] + a_free) * ridge[:, None]
+            a = (bse + a_free) * ridge[:, None]
             mat = np.empty((b, n, n))
             mat[:, ii, jj] = a.T
             mat[:, jj, ii] = a.T
-            d = np.sqrt(mat[:, np.arange(n), np.arange(n)])  # [b, n]
+            d = np.sqrt(mat[:, diag, diag])  # [b, n]
             blank = d <= 0  # a state no site informs: adding e_i e_iᵀ only lowers the bound
             d[blank] = 1.0
             scaled = mat / d[:, :, None] / d[:, None, :]
-            scaled[:, np.arange(n), np.arange(n)] += blank
+            scaled[:, diag, diag] += blank
             inv = np.linalg.inv(scaled) / d[:, :, None] / d[:, None, :]  # [b, n, n] K̃⁻¹
             f = inv[:, rows, rows].sum(axis=1)  # [b]
             cols = inv[:, :, rows]  # [b, n, |T|]
             m = np.einsum("bit,bjt->bij", cols, cols)  # [b, n, n] K̃⁻¹ E_T K̃⁻¹
             mp = (m[:, ii, jj] * offdiag * ridge).T  # [E, b]
-            grad = -np.einsum("esb,eb->sb", blk, mp)  # [S, b] ∂f/∂z_s
-            grad[~free] = np.inf
-            v = _vertex(grad, k, groups, order, starts, n_groups)
-            g_fin = np.where(free[:, None], grad, 0.0)
-            lower = f + (g_fin * (v - z)).sum(axis=0)
-            good = np.isfinite(lower)
-            best[good] = np.maximum(best[good], lower[good])
-            if t < iterations:
-                gamma = 2.0 / (t + 2.0)
-                z = (1 - gamma) * z + gamma * v
-                # Σ_s v_s F_s gathers the k chosen sites only (no pass over all S)
-                pick = np.argpartition(-v, k - 1, axis=0)[:k]  # [k, b]
-                vert = np.take_along_axis(blk, pick[None, :, :], axis=1).sum(axis=1)  # [E, b]
-                a_free = (1 - gamma) * a_free + gamma * vert
-        out[sl] = best
-    return out
+            grad = -np.einsum("esb,eb->sb", blk, mp)  # [F, b] ∂f/∂z_s
+            pick = _vertex(grad, k, grp, order, starts, n_groups)  # [k, b] the vertex's sites
+            g_v = np.take_along_axis(grad, pick, axis=0).sum(axis=0)  # [b] ∇f·v
+            g_z = (grad * z).sum(axis=0)  # [b] ∇f·z
+            lower = f + g_v - g_z
+            good = np.isfinite(lower) & (lower > best)
+            best[good] = lower[good]
+            if tangent:
+                assert const is not None and grads is not None
+                tc = act[good]
+                grads[np.ix_(sel, tc)] = grad[:, good]
+                const[tc] = f[good] - g_z[good]
+            out[act] = best
+            if t == iterations:
+                break
+            go = (f > settle[0]) & (best < settle[1]) & (f - best > FW_GAP_RTOL * f)
+            if not go.all():  # drop the settled pairs from the block
+                act, blk, bse, z, best = act[go], blk[:, :, go], bse[:, go], z[:, go], best[go]
+                a_free, pick = a_free[:, go], pick[:, go]
+                if act.size == 0:
+                    break
+            gamma = 2.0 / (t + 2.0)
+            z *= 1 - gamma
+            np.put_along_axis(z, pick, np.take_along_axis(z, pick, axis=0) + gamma, axis=0)
+            # Σ_s v_s F_s gathers the k chosen sites only (no pass over all sites)
+            vert = np.take_along_axis(blk, pick[None, :, :], axis=1).sum(axis=1)  # [E, b]
+            a_free = (1 - gamma) * a_free + gamma * vert
+    return RowRelaxation(out, const, grads)
 
 
 def _vertex(
@@ -136,27 +184,29 @@ def _vertex(
     order: NDArray[np.int_],
     starts: NDArray[np.int_],
     n_groups: int,
-) -> FloatArray:
-    """[S, b] the vertex v minimising grad·v over {0 ≤ z, Σ_group z ≤ 1, Σ z = k}: the k groups
-    with the most negative best entry, one (their best) site each."""
+) -> NDArray[np.int_]:
+    """[k, b] the sites of the vertex v minimising grad·v over {0 ≤ z, Σ_group z ≤ 1,
+    Σ z = k} per column: the k groups with the most negative best entry, their best site."""
     if n_groups == grad.shape[0]:  # singletons: the k most negative entries
-        pick = np.argpartition(grad, k - 1, axis=0)[:k]  # [k, b]
-        v = np.zeros_like(grad)
-        np.put_along_axis(v, pick, 1.0, axis=0)
-        return v
-    g_sorted = grad[order]  # [S, b] grouped
+        if k == 1:
+            return np.argmin(grad, axis=0)[None, :]
+        return np.argpartition(grad, k - 1, axis=0)[:k]
+    g_sorted = grad[order]  # [F, b] grouped
     gmin = np.minimum.reduceat(g_sorted, starts, axis=0)  # [G, b]
-    pick = np.argpartition(gmin, k - 1, axis=0)[:k]  # [k, b] chosen groups
-    chosen = np.zeros(gmin.shape, dtype=bool)
-    np.put_along_axis(chosen, pick, True, axis=0)
+    chosen = np.argpartition(gmin, k - 1, axis=0)[:k] if k < n_groups else None  # [k, b]
+    # the best site of each group: the first minimum within the group's run of rows
     g_of = groups[order]
-    hit = chosen[g_of] & (g_sorted == gmin[g_of])  # [S, b] best sites of chosen groups
+    hit = g_sorted == gmin[g_of]  # [F, b]
+    first = np.zeros_like(hit)
     count = np.cumsum(hit, axis=0)
     before = np.concatenate([np.zeros((1, hit.shape[1]), dtype=count.dtype), count])[starts]
-    hit &= (count - before[g_of]) == 1  # the first best site of each group only
-    v = np.zeros_like(grad)
-    v[order] = hit
-    return v
+    first = hit & ((count - before[g_of]) == 1)
+    rows_of = np.empty((n_groups, grad.shape[1]), dtype=int)  # [G, b] best site per group
+    r, c = np.nonzero(first)
+    rows_of[g_of[r], c] = order[r]
+    if chosen is None:
+        return rows_of
+    return np.take_along_axis(rows_of, chosen, axis=0)
 
 
 def exclusive_groups(feasible: Feasibility, free: NDArray[np.bool_]) -> NDArray[np.int_]:
@@ -178,47 +228,145 @@ def exclusive_groups(feasible: Feasibility, free: NDArray[np.bool_]) -> NDArray[
     return np.asarray(dense.reshape(-1), dtype=int)
 
 
-def pair_lower_bounds(
-    scorer: Scorer, n_ris: int, feasible: Feasibility, iterations: int
-) -> FloatArray:
-    """[P] lb_p ≤ the metric of pair p in every feasible layout of n_ris sites (``inf`` when
-    every such layout is blind for the pair, as an underdetermined count is)."""
-    keep, tx, rx = scorer.states
+@dataclass
+class SubsetProblem:
+    """The relaxation's data for the feasible layouts of one count (``None`` fields: no layout
+    has a finite metric, see :func:`subset_problem`)."""
+
+    free: NDArray[np.bool_]
+    """[S] sites a layout may add to the required ones."""
+    k: int
+    """Sites to add."""
+    base: FloatArray
+    """[E, P] LOS + the required sites' information."""
+    groups: NDArray[np.int_]
+    """[S] exclusive groups (:func:`exclusive_groups`)."""
+
+
+def subset_problem(scorer: Scorer, n_ris: int, feasible: Feasibility) -> SubsetProblem | str:
+    """The relaxation's data, or why every metric of this count is ``inf`` (``"blind"``: too
+    few observations for the unknown states; ``"none"``: no feasible layout) or ``"single"``
+    (only the required sites: one layout)."""
+    keep, _, _ = scorer.states
     packed, los = scorer.selected_packed
-    p = scorer.cache.n_pairs
     n_obs = n_observations(n_ris, los is not None, scorer.cache.wavefront)
     if n_obs is not None and n_obs < len(keep):
-        return np.full(p, np.inf)  # every layout of this count is underdetermined: all inf
+        return "blind"  # every layout of this count is underdetermined
     req = list(feasible.required)
     k = n_ris - len(req)
-    if k == 0:  # one layout: its own metric
-        return np.asarray(scorer.metric(np.array([sorted(req)], dtype=int))[0])
+    if k == 0:
+        return "single"
     free = feasible.allowed.copy()
     free[req] = False
     if req:  # sites in conflict with a required one are in no feasible layout
         free &= ~np.any(feasible.conflict[req], axis=0)
     groups = exclusive_groups(feasible, free)
     if len(np.unique(groups[free])) < k:
-        return np.full(p, np.inf)  # no layout at all
+        return "none"
+    p = scorer.cache.n_pairs
     base = np.zeros((packed.shape[0], p)) if los is None else los.copy()
     for r in req:
         base += packed[:, r]
-    n = len(keep)
-    out = None
-    for rows in (tx, rx):
-        if not rows:
-            continue
-        tr = _frank_wolfe(packed, base, free, k, n, rows, iterations, groups)
-        lb = np.sqrt(np.maximum(tr, 0.0)) * (1.0 - CERT_SAFETY)
-        out = lb if out is None else np.maximum(out, lb)  # max(PEB_T, PEB_R) ≥ each
-    assert out is not None
-    return out
+    return SubsetProblem(free, k, base, groups)
+
+
+def metric_columns(scorer: Scorer) -> list[tuple[list[int], int]]:
+    """(rows of the kept states, metric column block) for every trace the metric takes a
+    square root of: block 0 holds this direction's P columns, block 1 the reverse direction's
+    (``mirror``: the reverse direction's PEB_R is this direction's PEB_T, so its column is
+    the relaxation of the TX rows of the same K_p). The metric of a column is the maximum of
+    its traces' square roots (metric ``max``: PEB_T and PEB_R)."""
+    _, tx, rx = scorer.states
+    if scorer.mirror:
+        first, second = (rx, tx) if scorer.objective.metric == "rx" else (tx, rx)
+        return [(first, 0), (second, 1)]
+    return [(rows, 0) for rows in (tx, rx) if rows]
+
+
+def settle_limits(scorer: Scorer) -> tuple[float, float]:
+    """Trace values beyond which a pair's bound no longer moves the objective of the bounds:
+    coverage at threshold θ counts lb ≤ θ, so a relaxed value f(z) ≤ θ² stays counted and a
+    bound with √lower·(1 − safety) > θ stays uncounted; mean_capped counts min(lb, cap), so a
+    bound ≥ cap is final. Quantiles use every value (no limit)."""
+    obj = scorer.objective
+    if obj.kind == "coverage":
+        assert obj.threshold_m is not None
+        return obj.threshold_m**2, (obj.threshold_m / (1.0 - CERT_SAFETY)) ** 2 * (1 + 1e-12)
+    if obj.kind == "mean_capped":
+        assert obj.cap_m is not None
+        return -np.inf, (obj.cap_m / (1.0 - CERT_SAFETY)) ** 2 * (1 + 1e-12)
+    return -np.inf, np.inf
+
+
+def to_metric(trace_bound: FloatArray) -> FloatArray:
+    """A metric bound from a trace bound: √ with the :data:`CERT_SAFETY` margin."""
+    return np.sqrt(np.maximum(trace_bound, 0.0)) * (1.0 - CERT_SAFETY)
+
+
+def row_relaxations(
+    scorer: Scorer,
+    problem: SubsetProblem,
+    iterations: int,
+    *,
+    settle: bool = True,
+    tangent: bool = False,
+) -> list[RowRelaxation]:
+    """One Frank–Wolfe relaxation per :func:`metric_columns` entry (``settle``: stop pairs
+    whose bound cannot move the objective, :func:`settle_limits`)."""
+    keep, _, _ = scorer.states
+    packed, _ = scorer.selected_packed
+    limits = settle_limits(scorer) if settle else (-np.inf, np.inf)
+    return [
+        _frank_wolfe(
+            packed,
+            problem.base,
+            problem.free,
+            problem.k,
+            len(keep),
+            rows,
+            iterations,
+            problem.groups,
+            limits,
+            tangent,
+        )
+        for rows, _ in metric_columns(scorer)
+    ]
+
+
+def combine_columns(scorer: Scorer, traces: list[FloatArray]) -> FloatArray:
+    """[..., P] or [..., 2P] (mirror) metric bounds from one trace bound per
+    :func:`metric_columns` entry: each column the maximum of its traces' metric bounds
+    (max(PEB_T, PEB_R) ≥ each)."""
+    blocks: dict[int, FloatArray] = {}
+    for (_, col), tr in zip(metric_columns(scorer), traces, strict=True):
+        lb = to_metric(tr)
+        blocks[col] = lb if col not in blocks else np.maximum(blocks[col], lb)
+    return np.concatenate([blocks[c] for c in sorted(blocks)], axis=-1)
+
+
+def pair_lower_bounds(
+    scorer: Scorer, n_ris: int, feasible: Feasibility, iterations: int, settle: bool = False
+) -> FloatArray:
+    """[P] lb_p ≤ the metric of pair p in every feasible layout of n_ris sites (``inf`` when
+    every such layout is blind for the pair, as an underdetermined count is); [2P] with
+    ``mirror``, in the columns of :meth:`Scorer.metric` (this direction, then the reverse).
+    ``settle`` stops pairs early once their bound cannot change the objective (the objective of
+    the bounds is the same; the bounds themselves may be lower)."""
+    width = scorer.cache.n_pairs * (2 if scorer.mirror else 1)
+    problem = subset_problem(scorer, n_ris, feasible)
+    if problem == "single":  # one layout: its own metric
+        return np.asarray(scorer.metric(np.array([sorted(feasible.required)], dtype=int))[0])
+    if isinstance(problem, str):
+        return np.full(width, np.inf)
+    relax = row_relaxations(scorer, problem, iterations, settle=settle)
+    return combine_columns(scorer, [r.lower for r in relax])
 
 
 def relaxation_certificate(
     scorer: Scorer, n_ris: int, feasible: Feasibility, iterations: int
 ) -> Certificate:
-    """The relaxation bound on the best loss of n_ris RISs (module docstring)."""
-    lb = pair_lower_bounds(scorer, n_ris, feasible, iterations)
-    loss = float(loss_from_metric(scorer.objective, lb[None, :], scorer.weights)[0])
+    """The relaxation bound on the best loss of n_ris RISs (module docstring); pairs stop
+    iterating once their bound cannot change the objective (:func:`settle_limits`)."""
+    lb = pair_lower_bounds(scorer, n_ris, feasible, iterations, settle=True)
+    loss = float(loss_from_metric(scorer.objective, lb[None, :], scorer.metric_weights)[0])
     return Certificate(loss, exact=False, method="frank_wolfe_pair_relaxation")

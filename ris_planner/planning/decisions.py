@@ -35,7 +35,7 @@ def ties(outcome: SearchOutcome, rtol: float) -> tuple[int, list[tuple[Layout, f
         return 0, []
     best = float(outcome.losses.min())
     tol = tie_tolerance(best, rtol)
-    n = int(np.sum(outcome.losses <= best + tol)) if math.isfinite(best) else outcome.evaluated
+    n = int(np.sum(outcome.losses <= best + tol)) if math.isfinite(best) else outcome.losses.size
     return n, outcome.ranked(min(n, MAX_TIES_LISTED))
 
 
