@@ -371,16 +371,20 @@ def present_path_mask(paths: Sequence[PathInfo], presence: dict[str, BoolArray])
 
 def masked_state_information(paths: Sequence[PathInfo], mask: BoolArray) -> FloatArray:
     """Σ over present paths of J^T Ĩ J, [P, 7, 7]: a missing path's contribution is exactly
-    zero (mask : [P, len(paths)] from :func:`present_path_mask`)."""
-    return np.asarray(
-        np.sum(
-            [
-                np.where(mask[:, k, None, None], p.state_information(), 0.0)
-                for k, p in enumerate(paths)
-            ],
-            axis=0,
-        )
-    )
+    zero (mask : [P, len(paths)] from :func:`present_path_mask`). Summed in path order, one
+    path after the other (the rounding of a sum over a stacked leading axis)."""
+    total: FloatArray | None = None
+    for k, p in enumerate(paths):
+        part = p.state_information()
+        if not np.all(mask[:, k]):
+            part = np.where(mask[:, k, None, None], part, 0.0)
+        if total is None:
+            total = part
+        else:
+            total += part
+    if total is None:
+        return np.zeros((mask.shape[0], 7, 7))
+    return total
 
 
 def underdetermined_pairs(
@@ -451,9 +455,14 @@ def bounds_from_state_fim(
         diag = np.full((n_pairs, keep.size), np.inf)
     else:
         rows = factors if factors is not None else _factors_of_fim(f)
+        memo: dict[bytes, FloatArray] = {}
 
         def kept_rows(idx: NDArray[np.int_]) -> FloatArray:
-            return rows(idx)[:, :, keep]
+            # the diagonal and the clock route ask for the same slow pairs: factor them once
+            key = idx.tobytes()
+            if key not in memo:
+                memo[key] = rows(idx)[:, :, keep]
+            return memo[key]
 
         f_kept = ldl.pack(f[:, keep][:, :, keep])
         d, _ = crb.crb_diagonal(f_kept, keep.size, kept_rows)
@@ -490,20 +499,28 @@ def los_referenced(paths: list[PathInfo]) -> tuple[list[PathInfo], FloatArray]:
     [p_T, p_R, B] has a strong direction that is not a coordinate and its scaled condition
     number is huge (median 2e7 over the Fig. 10 planning pairs); on s' the LOS row is e_B' and
     the median is 250 (``examples/crb_accuracy.py``). A linear change of variables: the CRB of
-    the positions is unchanged, J' = J T with T = I except T[6, :6] = −∇d_TR. ``paths[0]``
-    must be the LOS path.
+    the positions is unchanged, J' = J T with T = I except T[6, :6] = −∇d_TR
+    (:func:`to_los_reference`). ``paths[0]`` must be the LOS path.
     """
-    los = paths[0]
-    # [P, 6] ∇d_TR w.r.t. [p_T, p_R]
-    grad = los.jacobian[:, 0, :6]
-    out = []
-    for p in paths:
-        jac = p.jacobian.copy()
-        jac[:, :, :6] -= p.jacobian[:, :, 6:7] * grad[:, None, :]
-        out.append(PathInfo(p.name, p.efim, jac))
+    grad = los_gradient(paths[0])
+    out = [to_los_reference(p, grad) for p in paths]
     out[0].jacobian[:, 0, :6] = 0.0  # exactly e_B'
     clock = np.concatenate([-grad, np.ones((grad.shape[0], 1))], axis=1)
     return out, clock
+
+
+def los_gradient(los: PathInfo) -> FloatArray:
+    """∇d_TR w.r.t. [p_T, p_R], [P, 6]: the LOS path's Jacobian row (a view of it)."""
+    return los.jacobian[:, 0, :6]
+
+
+def to_los_reference(path: PathInfo, grad: FloatArray, *, in_place: bool = False) -> PathInfo:
+    """One path on the LOS-referenced coordinates of :func:`los_referenced`: J' = J T, i.e.
+    J'[:, :, :6] = J[:, :, :6] − J[:, :, 6] ∇d_TRᵀ (grad [P, 6] from :func:`los_gradient`).
+    ``in_place`` changes the path's own Jacobian (for a path nobody else holds)."""
+    jac = path.jacobian if in_place else path.jacobian.copy()
+    jac[:, :, :6] -= jac[:, :, 6:7] * grad[:, None, :]
+    return PathInfo(path.name, path.efim, jac)
 
 
 def uses_los_reference(los: bool, known: list[KnownPart] | tuple[KnownPart, ...]) -> bool:
