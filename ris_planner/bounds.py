@@ -16,7 +16,7 @@ time-orthogonal profiles (Γ from the layout's RIS count) do not change.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -99,6 +99,11 @@ class PathInfo:
     name: str
     efim: FloatArray
     jacobian: FloatArray
+    unit_root: FloatArray | None = None
+    """[m, m] rows R with RᵀR = Ĩ(1) when Ĩ = α² Ĩ(1) for every pair (the expected-random
+    planar EFIM at unit gain, one matrix per RIS); ``None`` otherwise."""
+    gain: FloatArray | None = None
+    """[P] α of ``unit_root`` (Ĩ = α² RᵀR)."""
 
     def state_information(self) -> FloatArray:
         """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]."""
@@ -107,7 +112,12 @@ class PathInfo:
 
     def factor(self, pairs: NDArray[np.int_] | slice = slice(None)) -> FloatArray:
         """Square-root rows [p, m, 7] of :meth:`state_information` for the given pairs
-        (:func:`ris_planner.crb.path_factor`)."""
+        (:func:`ris_planner.crb.path_factor`): α·R·J from the one unit root when the EFIM is
+        α² Ĩ(1), else from each pair's EFIM."""
+        if self.unit_root is not None and self.gain is not None:
+            return np.asarray(
+                self.gain[pairs, None, None] * (self.unit_root @ self.jacobian[pairs])
+            )
         return crb.path_factor(self.efim[pairs], self.jacobian[pairs])
 
 
@@ -261,15 +271,22 @@ def ris_path_information(
         q = fim.transmission_gram_expected(pos, radio.wavelength, block_count * weights.sum())
         unit = fim.eliminate_nuisance(fim.ris_path_fim(q, np.ones(1), radio), 3)
         efim = alpha[:, None, None] ** 2 * unit
+        # its square root once (R = diag(√w) Vᵀ of the unit EFIM), α·R per pair
+        root = crb.path_factor(unit, np.eye(3)[None])[0]
+        return PathInfo(name, efim, jacobian, root, alpha), _far_field(ris, geo, radio)
     else:
         t = fim.transmission_vectors(profile, pos, geo.xi, geo.zeta, radio.wavelength)
         q = block_count * fim.transmission_gram(t, weights)
         efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 3)
+    return PathInfo(name, efim, jacobian), _far_field(ris, geo, radio)
+
+
+def _far_field(ris: RIS, geo: geometry.RisPathGeometry, radio: fim.Radio) -> BoolArray:
+    """[P] d_T d_R/(d_T + d_R) ≥ 2D²/λ (footnote 3)."""
     limit = geometry.fraunhofer_distance(
         ris.rows, ris.cols, ris.element_spacing(radio.wavelength), radio.wavelength
     )
-    far = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
-    return PathInfo(name, efim, jacobian), far
+    return np.asarray(geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit)
 
 
 def beam_weights(
@@ -514,13 +531,12 @@ def los_gradient(los: PathInfo) -> FloatArray:
     return los.jacobian[:, 0, :6]
 
 
-def to_los_reference(path: PathInfo, grad: FloatArray, *, in_place: bool = False) -> PathInfo:
+def to_los_reference(path: PathInfo, grad: FloatArray) -> PathInfo:
     """One path on the LOS-referenced coordinates of :func:`los_referenced`: J' = J T, i.e.
-    J'[:, :, :6] = J[:, :, :6] − J[:, :, 6] ∇d_TRᵀ (grad [P, 6] from :func:`los_gradient`).
-    ``in_place`` changes the path's own Jacobian (for a path nobody else holds)."""
-    jac = path.jacobian if in_place else path.jacobian.copy()
+    J'[:, :, :6] = J[:, :, :6] − J[:, :, 6] ∇d_TRᵀ (grad [P, 6] from :func:`los_gradient`)."""
+    jac = path.jacobian.copy()
     jac[:, :, :6] -= jac[:, :, 6:7] * grad[:, None, :]
-    return PathInfo(path.name, path.efim, jac)
+    return replace(path, jacobian=jac)
 
 
 def uses_los_reference(los: bool, known: list[KnownPart] | tuple[KnownPart, ...]) -> bool:

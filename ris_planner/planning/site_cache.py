@@ -188,7 +188,7 @@ def build_site_cache(
             )
             if referenced:
                 assert grad is not None
-                info = to_los_reference(info, grad if sel is None else grad[sel], in_place=True)
+                info = to_los_reference(info, grad if sel is None else grad[sel])
             if sel is None:
                 packed[:, s] = pack(info.state_information())
                 factor[s] = info.factor()
