@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import advice, beams, codebooks, crb, fim, geometry, ldl, spherical
+from ris_planner import advice, beams, blas, codebooks, crb, fim, geometry, ldl, spherical
 from ris_planner.environment import Scene, path_presence, pattern_factor
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
@@ -650,8 +650,21 @@ def compute_bounds(
 
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
     With ``scenario.environment`` only the paths present for a pair contribute
-    (:func:`scenario_path_presence`, :func:`masked_state_information`).
+    (:func:`scenario_path_presence`, :func:`masked_state_information`). BLAS runs on one
+    thread meanwhile (:mod:`ris_planner.blas`).
     """
+    with blas.one_blas_thread():
+        return _compute_bounds(scenario, tx, rx, profiles, beam_powers, known)
+
+
+def _compute_bounds(
+    scenario: Scenario,
+    tx: ArrayLike | None,
+    rx: ArrayLike | None,
+    profiles: list[ComplexArray] | str | None,
+    beam_powers: ArrayLike | None,
+    known: list[KnownPart] | None,
+) -> BoundsResult:
     tx_a = scenario.tx_array if tx is None else np.atleast_2d(np.asarray(tx, dtype=float))
     rx_a = scenario.rx_array if rx is None else np.atleast_2d(np.asarray(rx, dtype=float))
     if tx_a.shape != rx_a.shape or tx_a.ndim != 2 or tx_a.shape[1] != 3:

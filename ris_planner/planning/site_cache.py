@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import fim
+from ris_planner.blas import one_blas_thread
 from ris_planner.bounds import (
     los_gradient,
     los_path_information,
@@ -150,7 +151,20 @@ def build_site_cache(
 ) -> SiteCache:
     """LOS once and every candidate RIS path once, each as packed 7×7 information per pair
     (on the coordinates ``compute_bounds`` uses for ``known``, see :class:`SiteCache`); with
-    ``visibility`` absent paths carry zero information."""
+    ``visibility`` absent paths carry zero information. One BLAS thread, as
+    ``compute_bounds`` (:mod:`ris_planner.blas`)."""
+    with one_blas_thread():
+        return _build_site_cache(system, sites, pairs, progress, visibility, known)
+
+
+def _build_site_cache(
+    system: SystemParams,
+    sites: list[Site],
+    pairs: PairSet,
+    progress: ProgressCallback,
+    visibility: Visibility | None,
+    known: list[KnownPart] | tuple[KnownPart, ...],
+) -> SiteCache:
     radio = fim.Radio.from_system(system)
     g = system.transmissions
     ones = np.ones(g)  # Γ·G̃ = G: with Γ = 1 and G̃ = G the weights sum to the same G
