@@ -106,7 +106,14 @@ class PathInfo:
     """[P] α of ``unit_root`` (Ĩ = α² RᵀR)."""
 
     def state_information(self) -> FloatArray:
-        """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]."""
+        """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]. With one
+        channel parameter (the LOS path) the products have one term each, (J_i Ĩ) J_j, formed
+        elementwise: the matrix product's single rounded product per entry, without a small
+        matrix product per pair."""
+        if self.efim.shape[-1] == 1:
+            # [P, 7] J_i Ĩ, then [P, 7, 7] (J_i Ĩ) J_j
+            left = self.jacobian[:, 0, :] * self.efim[:, 0, :]
+            return np.asarray(left[:, :, None] * self.jacobian[:, 0, None, :])
         # [P, 7, 7]
         return np.asarray(self.jacobian.transpose(0, 2, 1) @ self.efim @ self.jacobian)
 

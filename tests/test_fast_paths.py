@@ -238,3 +238,15 @@ def test_one_blas_thread_limits_and_restores() -> None:
         one = compute_bounds(sc)
     np.testing.assert_array_equal(two.fim, one.fim)
     np.testing.assert_array_equal(two.peb_rx, one.peb_rx)
+
+
+def test_los_state_information_equals_the_matrix_product_bit_for_bit() -> None:
+    """One channel parameter: (J_i Ĩ) J_j elementwise is the product's one rounded term."""
+    sc = load_scenario(_preset("2-ris-L"))
+    rng = np.random.default_rng(9)
+    tx = rng.uniform([-3, -3, 0], [3, 3, 0.5], (300, 3))
+    rx = rng.uniform([-3, -3, 0], [3, 3, 0.5], (300, 3))
+    paths, _ = path_information(sc, tx, rx, None, None)
+    for los in (paths[0], los_referenced(paths)[0][0]):
+        want = los.jacobian.transpose(0, 2, 1) @ los.efim @ los.jacobian
+        np.testing.assert_array_equal(los.state_information(), want)
