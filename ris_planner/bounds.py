@@ -612,8 +612,8 @@ def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
 def ue_on_ris(tx: FloatArray, rx: FloatArray, position: ArrayLike) -> NDArray[np.bool_]:
     """[P] pairs with a UE within MIN_UE_RIS_DISTANCE_M of the RIS at ``position``."""
     p = np.asarray(position, dtype=float)
-    near_tx = np.linalg.norm(tx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M
-    return np.asarray(near_tx | (np.linalg.norm(rx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M))
+    near_tx = geometry.norms(tx - p) < MIN_UE_RIS_DISTANCE_M
+    return np.asarray(near_tx | (geometry.norms(rx - p) < MIN_UE_RIS_DISTANCE_M))
 
 
 def stand_ins(

@@ -13,7 +13,7 @@ import pytest
 from test_environment_bounds import site_doc
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from ris_planner import blas, crb, fim, ldl, preset_document
+from ris_planner import blas, crb, fim, geometry, ldl, preset_document
 from ris_planner.bounds import (
     compute_bounds,
     kept_states,
@@ -250,3 +250,12 @@ def test_los_state_information_equals_the_matrix_product_bit_for_bit() -> None:
     for los in (paths[0], los_referenced(paths)[0][0]):
         want = los.jacobian.transpose(0, 2, 1) @ los.efim @ los.jacobian
         np.testing.assert_array_equal(los.state_information(), want)
+
+
+def test_norms_equal_numpy_norm_bit_for_bit() -> None:
+    rng = np.random.default_rng(10)
+    for scale in (1e-6, 1.0, 1e4):
+        v = rng.normal(size=(5000, 3)) * scale * np.exp(rng.normal(size=(5000, 3)))
+        np.testing.assert_array_equal(geometry.norms(v), np.linalg.norm(v, axis=-1))
+    v3 = rng.normal(size=(4, 6, 3))
+    np.testing.assert_array_equal(geometry.norms(v3), np.linalg.norm(v3, axis=-1))
