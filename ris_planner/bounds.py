@@ -479,6 +479,7 @@ def bounds_from_state_fim(
         diag = np.full((n_pairs, keep.size), np.inf)
     else:
         rows = factors if factors is not None else _factors_of_fim(f)
+        everything = keep.size == f.shape[-1]  # nothing known: F as it is
         memo: dict[bytes, FloatArray] = {}
 
         def kept_rows(idx: NDArray[np.int_]) -> FloatArray:
@@ -488,7 +489,7 @@ def bounds_from_state_fim(
                 memo[key] = rows(idx)[:, :, keep]
             return memo[key]
 
-        f_kept = ldl.pack(f[:, keep][:, :, keep])
+        f_kept = ldl.pack(f if everything else f[:, keep][:, :, keep])
         d, _ = crb.crb_diagonal(f_kept, keep.size, kept_rows)
         diag = d.T
         if clock is not None and 6 in keep:
