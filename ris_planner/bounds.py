@@ -499,7 +499,11 @@ def bounds_from_state_fim(
         cols = [i for i, k in enumerate(keep) if k in PART_STATES[name]]
         if not cols:
             return None
-        return np.asarray(np.sqrt(diag[:, cols].sum(axis=1)))
+        # Σ over the part's states, added left to right (a row sum's order) column by column
+        total = diag[:, cols[0]].copy()
+        for c in cols[1:]:
+            total += diag[:, c]
+        return np.asarray(np.sqrt(total))
 
     bounds = {name: part(name) for name in PART_STATES}
     peb_rx = bounds["rx"]
