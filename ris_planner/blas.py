@@ -40,10 +40,13 @@ def _controller() -> ThreadpoolController:
 def one_blas_thread() -> Iterator[None]:
     """Run the block with BLAS limited to one thread (module docstring)."""
     with _LOCK:
-        if _HOLDERS[0] == 0:
-            ctl = _controller()
-            busy = any(lib.num_threads > 1 for lib in ctl.lib_controllers)
-            _RESTORE[0] = ctl.limit(limits=1) if busy else None
+        ctl = _controller()
+        if any(lib.num_threads > 1 for lib in ctl.lib_controllers):
+            # the first to find threads keeps what to restore (a later raise of the count by
+            # someone else while holders run is limited again, and restored to the first)
+            limiter = ctl.limit(limits=1)
+            if _RESTORE[0] is None:
+                _RESTORE[0] = limiter
         _HOLDERS[0] += 1
     try:
         yield

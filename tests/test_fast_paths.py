@@ -4,6 +4,9 @@ named tolerance (the unit-root square-root factor)."""
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -11,9 +14,9 @@ import mpmath
 import numpy as np
 import pytest
 from test_environment_bounds import site_doc
-from threadpoolctl import threadpool_info, threadpool_limits
+from threadpoolctl import threadpool_limits
 
-from ris_planner import blas, crb, fim, geometry, ldl, preset_document
+from ris_planner import crb, fim, geometry, ldl, preset_document
 from ris_planner.bounds import (
     compute_bounds,
     kept_states,
@@ -218,26 +221,37 @@ def test_unit_root_factor_is_a_square_root_of_the_path_information(
         np.testing.assert_array_equal(p.factor(sub), a[sub])
 
 
-def test_one_blas_thread_limits_and_restores() -> None:
-    """numpy's BLAS (the one the engine's products use; other BLAS copies a process may load
-    later, e.g. scipy's, are not the limiter's business)."""
-    mine = {lib.filepath for lib in blas._controller().lib_controllers}
-    assert mine, "numpy's BLAS is visible to threadpoolctl"
-
-    def threads() -> list[int]:
-        return [i["num_threads"] for i in threadpool_info() if i["filepath"] in mine]
-
-    with threadpool_limits(limits=2, user_api="blas"):
-        before = threads()
+LIMITER_CHECK = """
+import json
+from threadpoolctl import threadpool_info, threadpool_limits
+from ris_planner import blas
+mine = {lib.filepath for lib in blas._controller().lib_controllers}
+def threads():
+    return [i["num_threads"] for i in threadpool_info() if i["filepath"] in mine]
+with threadpool_limits(limits=2, user_api="blas"):
+    before = threads()
+    with blas.one_blas_thread():
         with blas.one_blas_thread():
-            with blas.one_blas_thread():  # nested holders share the limit
-                inner = threads()
-            still = threads()
-        after = threads()
-    assert 2 in before  # a threaded BLAS to limit (some copies, e.g. scs's, are single-threaded)
+            inner = threads()
+        still = threads()
+    after = threads()
+print(json.dumps([before, inner, still, after]))
+"""
+
+
+def test_one_blas_thread_limits_and_restores() -> None:
+    """In a fresh process (no other holder; numpy's BLAS only): one thread inside, nested
+    holders share the limit, the count is restored after."""
+    out = subprocess.run(
+        [sys.executable, "-c", LIMITER_CHECK], check=True, capture_output=True, text=True
+    )
+    before, inner, still, after = json.loads(out.stdout.strip().splitlines()[-1])
+    assert 2 in before  # a threaded BLAS to limit
     assert set(inner) == {1} and set(still) == {1}
     assert after == before
-    # the bounds do not depend on the caller's thread count
+
+
+def test_bounds_do_not_depend_on_the_callers_blas_threads() -> None:
     sc = load_scenario(_preset("2-ris-L") | {"codebook": {"kind": "random", "seed": 0}})
     with threadpool_limits(limits=2, user_api="blas"):
         two = compute_bounds(sc)
