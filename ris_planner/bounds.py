@@ -16,13 +16,13 @@ time-orthogonal profiles (Γ from the layout's RIS count) do not change.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import advice, beams, codebooks, crb, fim, geometry, ldl, spherical
+from ris_planner import advice, beams, blas, codebooks, crb, fim, geometry, ldl, spherical
 from ris_planner.environment import Scene, path_presence, pattern_factor
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
@@ -99,15 +99,32 @@ class PathInfo:
     name: str
     efim: FloatArray
     jacobian: FloatArray
+    unit_root: FloatArray | None = None
+    """[m, m] rows R with RᵀR = Ĩ(1) when Ĩ = α² Ĩ(1) for every pair (the expected-random
+    planar EFIM at unit gain, one matrix per RIS); ``None`` otherwise."""
+    gain: FloatArray | None = None
+    """[P] α of ``unit_root`` (Ĩ = α² RᵀR)."""
 
     def state_information(self) -> FloatArray:
-        """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]."""
+        """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]. With one
+        channel parameter (the LOS path) the products have one term each, (J_i Ĩ) J_j, formed
+        elementwise: the matrix product's single rounded product per entry, without a small
+        matrix product per pair."""
+        if self.efim.shape[-1] == 1:
+            # [P, 7] J_i Ĩ, then [P, 7, 7] (J_i Ĩ) J_j
+            left = self.jacobian[:, 0, :] * self.efim[:, 0, :]
+            return np.asarray(left[:, :, None] * self.jacobian[:, 0, None, :])
         # [P, 7, 7]
         return np.asarray(self.jacobian.transpose(0, 2, 1) @ self.efim @ self.jacobian)
 
     def factor(self, pairs: NDArray[np.int_] | slice = slice(None)) -> FloatArray:
         """Square-root rows [p, m, 7] of :meth:`state_information` for the given pairs
-        (:func:`ris_planner.crb.path_factor`)."""
+        (:func:`ris_planner.crb.path_factor`): α·R·J from the one unit root when the EFIM is
+        α² Ĩ(1), else from each pair's EFIM."""
+        if self.unit_root is not None and self.gain is not None:
+            return np.asarray(
+                self.gain[pairs, None, None] * (self.unit_root @ self.jacobian[pairs])
+            )
         return crb.path_factor(self.efim[pairs], self.jacobian[pairs])
 
 
@@ -261,15 +278,22 @@ def ris_path_information(
         q = fim.transmission_gram_expected(pos, radio.wavelength, block_count * weights.sum())
         unit = fim.eliminate_nuisance(fim.ris_path_fim(q, np.ones(1), radio), 3)
         efim = alpha[:, None, None] ** 2 * unit
+        # its square root once (R = diag(√w) Vᵀ of the unit EFIM), α·R per pair
+        root = crb.path_factor(unit, np.eye(3)[None])[0]
+        return PathInfo(name, efim, jacobian, root, alpha), _far_field(ris, geo, radio)
     else:
         t = fim.transmission_vectors(profile, pos, geo.xi, geo.zeta, radio.wavelength)
         q = block_count * fim.transmission_gram(t, weights)
         efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 3)
+    return PathInfo(name, efim, jacobian), _far_field(ris, geo, radio)
+
+
+def _far_field(ris: RIS, geo: geometry.RisPathGeometry, radio: fim.Radio) -> BoolArray:
+    """[P] d_T d_R/(d_T + d_R) ≥ 2D²/λ (footnote 3)."""
     limit = geometry.fraunhofer_distance(
         ris.rows, ris.cols, ris.element_spacing(radio.wavelength), radio.wavelength
     )
-    far = geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit
-    return PathInfo(name, efim, jacobian), far
+    return np.asarray(geo.d_tx * geo.d_rx / (geo.d_tx + geo.d_rx) >= limit)
 
 
 def beam_weights(
@@ -371,16 +395,20 @@ def present_path_mask(paths: Sequence[PathInfo], presence: dict[str, BoolArray])
 
 def masked_state_information(paths: Sequence[PathInfo], mask: BoolArray) -> FloatArray:
     """Σ over present paths of J^T Ĩ J, [P, 7, 7]: a missing path's contribution is exactly
-    zero (mask : [P, len(paths)] from :func:`present_path_mask`)."""
-    return np.asarray(
-        np.sum(
-            [
-                np.where(mask[:, k, None, None], p.state_information(), 0.0)
-                for k, p in enumerate(paths)
-            ],
-            axis=0,
-        )
-    )
+    zero (mask : [P, len(paths)] from :func:`present_path_mask`). Summed in path order, one
+    path after the other (the rounding of a sum over a stacked leading axis)."""
+    total: FloatArray | None = None
+    for k, p in enumerate(paths):
+        part = p.state_information()
+        if not np.all(mask[:, k]):
+            part = np.where(mask[:, k, None, None], part, 0.0)
+        if total is None:
+            total = part
+        else:
+            total += part
+    if total is None:
+        return np.zeros((mask.shape[0], 7, 7))
+    return total
 
 
 def underdetermined_pairs(
@@ -451,11 +479,17 @@ def bounds_from_state_fim(
         diag = np.full((n_pairs, keep.size), np.inf)
     else:
         rows = factors if factors is not None else _factors_of_fim(f)
+        everything = keep.size == f.shape[-1]  # nothing known: F as it is
+        memo: dict[bytes, FloatArray] = {}
 
         def kept_rows(idx: NDArray[np.int_]) -> FloatArray:
-            return rows(idx)[:, :, keep]
+            # the diagonal and the clock route ask for the same slow pairs: factor them once
+            key = idx.tobytes()
+            if key not in memo:
+                memo[key] = rows(idx)[:, :, keep]
+            return memo[key]
 
-        f_kept = ldl.pack(f[:, keep][:, :, keep])
+        f_kept = ldl.pack(f if everything else f[:, keep][:, :, keep])
         d, _ = crb.crb_diagonal(f_kept, keep.size, kept_rows)
         diag = d.T
         if clock is not None and 6 in keep:
@@ -465,7 +499,11 @@ def bounds_from_state_fim(
         cols = [i for i, k in enumerate(keep) if k in PART_STATES[name]]
         if not cols:
             return None
-        return np.asarray(np.sqrt(diag[:, cols].sum(axis=1)))
+        # Σ over the part's states, added left to right (a row sum's order) column by column
+        total = diag[:, cols[0]].copy()
+        for c in cols[1:]:
+            total += diag[:, c]
+        return np.asarray(np.sqrt(total))
 
     bounds = {name: part(name) for name in PART_STATES}
     peb_rx = bounds["rx"]
@@ -490,20 +528,27 @@ def los_referenced(paths: list[PathInfo]) -> tuple[list[PathInfo], FloatArray]:
     [p_T, p_R, B] has a strong direction that is not a coordinate and its scaled condition
     number is huge (median 2e7 over the Fig. 10 planning pairs); on s' the LOS row is e_B' and
     the median is 250 (``examples/crb_accuracy.py``). A linear change of variables: the CRB of
-    the positions is unchanged, J' = J T with T = I except T[6, :6] = −∇d_TR. ``paths[0]``
-    must be the LOS path.
+    the positions is unchanged, J' = J T with T = I except T[6, :6] = −∇d_TR
+    (:func:`to_los_reference`). ``paths[0]`` must be the LOS path.
     """
-    los = paths[0]
-    # [P, 6] ∇d_TR w.r.t. [p_T, p_R]
-    grad = los.jacobian[:, 0, :6]
-    out = []
-    for p in paths:
-        jac = p.jacobian.copy()
-        jac[:, :, :6] -= p.jacobian[:, :, 6:7] * grad[:, None, :]
-        out.append(PathInfo(p.name, p.efim, jac))
+    grad = los_gradient(paths[0])
+    out = [to_los_reference(p, grad) for p in paths]
     out[0].jacobian[:, 0, :6] = 0.0  # exactly e_B'
     clock = np.concatenate([-grad, np.ones((grad.shape[0], 1))], axis=1)
     return out, clock
+
+
+def los_gradient(los: PathInfo) -> FloatArray:
+    """∇d_TR w.r.t. [p_T, p_R], [P, 6]: the LOS path's Jacobian row (a view of it)."""
+    return los.jacobian[:, 0, :6]
+
+
+def to_los_reference(path: PathInfo, grad: FloatArray) -> PathInfo:
+    """One path on the LOS-referenced coordinates of :func:`los_referenced`: J' = J T, i.e.
+    J'[:, :, :6] = J[:, :, :6] − J[:, :, 6] ∇d_TRᵀ (grad [P, 6] from :func:`los_gradient`)."""
+    jac = path.jacobian.copy()
+    jac[:, :, :6] -= jac[:, :, 6:7] * grad[:, None, :]
+    return replace(path, jacobian=jac)
 
 
 def uses_los_reference(los: bool, known: list[KnownPart] | tuple[KnownPart, ...]) -> bool:
@@ -572,8 +617,8 @@ def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
 def ue_on_ris(tx: FloatArray, rx: FloatArray, position: ArrayLike) -> NDArray[np.bool_]:
     """[P] pairs with a UE within MIN_UE_RIS_DISTANCE_M of the RIS at ``position``."""
     p = np.asarray(position, dtype=float)
-    near_tx = np.linalg.norm(tx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M
-    return np.asarray(near_tx | (np.linalg.norm(rx - p, axis=-1) < MIN_UE_RIS_DISTANCE_M))
+    near_tx = geometry.norms(tx - p) < MIN_UE_RIS_DISTANCE_M
+    return np.asarray(near_tx | (geometry.norms(rx - p) < MIN_UE_RIS_DISTANCE_M))
 
 
 def stand_ins(
@@ -617,8 +662,21 @@ def compute_bounds(
 
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
     With ``scenario.environment`` only the paths present for a pair contribute
-    (:func:`scenario_path_presence`, :func:`masked_state_information`).
+    (:func:`scenario_path_presence`, :func:`masked_state_information`). BLAS runs on one
+    thread meanwhile (:mod:`ris_planner.blas`).
     """
+    with blas.one_blas_thread():
+        return _compute_bounds(scenario, tx, rx, profiles, beam_powers, known)
+
+
+def _compute_bounds(
+    scenario: Scenario,
+    tx: ArrayLike | None,
+    rx: ArrayLike | None,
+    profiles: list[ComplexArray] | str | None,
+    beam_powers: ArrayLike | None,
+    known: list[KnownPart] | None,
+) -> BoundsResult:
     tx_a = scenario.tx_array if tx is None else np.atleast_2d(np.asarray(tx, dtype=float))
     rx_a = scenario.rx_array if rx is None else np.atleast_2d(np.asarray(rx, dtype=float))
     if tx_a.shape != rx_a.shape or tx_a.ndim != 2 or tx_a.shape[1] != 3:

@@ -172,20 +172,35 @@ def crb_diagonal(
     return diag, rank_deficient
 
 
+def quadratic_form(inv_packed: FloatArray, n: int, w: FloatArray) -> FloatArray:
+    """Σ_i Σ_j w_i (F⁻¹)_ij w_j [N] from packed inverses [n(n+1)/2, N] (:func:`ldl.inverse_from`)
+    and w [N, n], summed term by term in row-major (i, j) order, each term (w_i·(F⁻¹)_ij)·w_j:
+    the rounding of the entry-by-entry loop, in three array operations and one reduction.
+    Pairs with ``inf`` inverses (singular) give ``inf`` or NaN, silently."""
+    order = ldl.packed_index(n)
+    slots = np.array([[order[i, j] for j in range(n)] for i in range(n)]).ravel()
+    wt = w.T  # [n, N]
+    rows = np.repeat(np.arange(n), n)
+    cols = np.tile(np.arange(n), n)
+    with np.errstate(invalid="ignore", over="ignore"):
+        # [n², N] terms in (i, j) order, summed in that order (a reduction over the leading
+        # axis accumulates sequentially)
+        terms = wt[rows] * inv_packed[slots]
+        terms *= wt[cols]
+        return np.asarray(np.add.reduce(terms, axis=0))
+
+
 def crb_quadratic(
     f_packed: FloatArray, n: int, factor_rows: Callable[[IntArray], FloatArray], w: FloatArray
 ) -> FloatArray:
     """wᵀ F⁻¹ w [N] for combinations w [N, n] of the states, by the same hybrid route as
-    :func:`crb_diagonal` (``inf`` where wᵀs is not identifiable)."""
+    :func:`crb_diagonal` (``inf`` where wᵀs is not identifiable): the packed LDLᵀ inverse and
+    :func:`quadratic_form` on the fast path, :func:`sqrt_crb_quadratic` elsewhere."""
     inv, singular = ldl.inverse_from(f_packed, n)
     idx = ldl.packed_index(n)
     diag = np.stack([inv[idx[i, i]] for i in range(n)])
     trace = _trace_scaled_inverse(f_packed, n, diag)
-    out = np.zeros(f_packed.shape[1])
-    ok = ~singular
-    for i in range(n):
-        for j in range(n):
-            out[ok] += w[ok, i] * inv[idx[i, j]][ok] * w[ok, j]
+    out = quadratic_form(inv, n, w)
     slow = np.flatnonzero(singular | ~(trace <= FAST_TRACE_LIMIT))
     if slow.size:
         out[slow] = sqrt_crb_quadratic(factor_rows(slow), w[slow])

@@ -119,16 +119,23 @@ def transmission_vectors(
     y, z = positions[:, 1], positions[:, 2]
     # [3G̃, N] derivative-weighted profiles
     w3 = np.concatenate([profiles * (1j * k * y), profiles * (1j * k * z), profiles], axis=0)
-    # [N, P] steering vectors a_R(ξ, ζ) of eq. RIS_equivalent_gain_xi_zeta
-    a = np.exp(1j * k * (np.outer(y, xi) + np.outer(z, zeta)))
+    # [N, P] steering vectors a_R(ξ, ζ) of eq. RIS_equivalent_gain_xi_zeta: exp(j·k(yξ + zζ)),
+    # built in place (the same roundings as exp(1j * k * (outer + outer)))
+    phase = np.multiply.outer(y, xi)
+    phase += np.multiply.outer(z, zeta)
+    a = np.zeros(phase.shape, dtype=complex)
+    np.multiply(phase, k, out=a.imag)
+    np.exp(a, out=a)
     g = profiles.shape[0]
     # [3, G̃, P] -> [P, G̃, 3]
     return np.asarray((w3 @ a).reshape(3, g, -1).transpose(2, 1, 0))
 
 
 def transmission_gram(t: ComplexArray, weights: FloatArray) -> ComplexArray:
-    """Q = Σ_g w_g conj(t_g) t_g^T, [P, 3, 3]; t : [P, G', 3], weights : [G'] (= δ_g²)."""
-    return np.asarray(np.conj(t).transpose(0, 2, 1) @ (t * weights[None, :, None]))
+    """Q = Σ_g w_g conj(t_g) t_g^T, [P, 3, 3]; t : [P, G', 3], weights : [G'] (= δ_g²).
+    Uniform unit weights skip the (exact) multiplication by 1."""
+    weighted = t if np.all(weights == 1.0) else t * weights[None, :, None]
+    return np.asarray(np.conj(t).transpose(0, 2, 1) @ weighted)
 
 
 def ris_path_fim(q: ComplexArray, alpha: FloatArray, radio: Radio) -> FloatArray:

@@ -115,6 +115,14 @@ class RisPathGeometry:
         return jac
 
 
+def norms(v: FloatArray) -> FloatArray:
+    """Euclidean lengths of 3-vectors v [..., 3]: √((x² + y²) + z²), the roundings of
+    ``np.linalg.norm(v, axis=-1)`` (a reduction over a length-3 axis adds in that order) in
+    three array operations instead of a reduction per vector."""
+    s = v * v
+    return np.asarray(np.sqrt(s[..., 0] + s[..., 1] + s[..., 2]))
+
+
 def ris_path_geometry(
     tx: FloatArray, rx: FloatArray, ris_position: ArrayLike, ris_orientation: ArrayLike
 ) -> RisPathGeometry:
@@ -126,7 +134,7 @@ def ris_path_geometry(
     p = np.asarray(ris_position, dtype=float)
     # [P, 3] global offsets RIS -> UE
     v_tx, v_rx = tx - p, rx - p
-    d_tx, d_rx = np.linalg.norm(v_tx, axis=-1), np.linalg.norm(v_rx, axis=-1)
+    d_tx, d_rx = norms(v_tx), norms(v_rx)
     u_tx, u_rx = v_tx / d_tx[:, None], v_rx / d_rx[:, None]
     # [P, 3] local direction vectors t = R^T u
     return RisPathGeometry(
@@ -147,7 +155,7 @@ def angles(t: FloatArray) -> FloatArray:
 
 def los_distance(tx: FloatArray, rx: FloatArray) -> FloatArray:
     """d0 = ‖p_T − p_R‖ [m], [P]."""
-    return np.asarray(np.linalg.norm(tx - rx, axis=-1))
+    return norms(tx - rx)
 
 
 def los_gain(d0: FloatArray, wavelength: float) -> FloatArray:

@@ -27,12 +27,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner import fim
+from ris_planner.blas import one_blas_thread
 from ris_planner.bounds import (
-    PathInfo,
+    los_gradient,
     los_path_information,
     los_referenced,
     ris_path_information,
     stand_ins,
+    to_los_reference,
     ue_on_ris,
     uses_los_reference,
 )
@@ -126,6 +128,18 @@ def mask_absent(packed: FloatArray, present: NDArray[np.bool_]) -> None:
     packed[:, ~present] = 0.0
 
 
+def _present_pairs(
+    visibility: Visibility | None, site: int, wavefront: Wavefront
+) -> IntArray | None:
+    """The pairs a site's path exists for, when some do not (``None``: evaluate every pair).
+    The spherical expected Gram takes one product over the distinct UE positions, whose
+    blocking depends on how many there are, so it always sees every pair."""
+    if visibility is None or wavefront == "spherical":
+        return None
+    present = visibility.present[site]
+    return None if bool(np.all(present)) else np.flatnonzero(present)
+
+
 def build_site_cache(
     system: SystemParams,
     sites: list[Site],
@@ -137,19 +151,29 @@ def build_site_cache(
 ) -> SiteCache:
     """LOS once and every candidate RIS path once, each as packed 7×7 information per pair
     (on the coordinates ``compute_bounds`` uses for ``known``, see :class:`SiteCache`); with
-    ``visibility`` absent paths carry zero information."""
+    ``visibility`` absent paths carry zero information. One BLAS thread, as
+    ``compute_bounds`` (:mod:`ris_planner.blas`)."""
+    with one_blas_thread():
+        return _build_site_cache(system, sites, pairs, progress, visibility, known)
+
+
+def _build_site_cache(
+    system: SystemParams,
+    sites: list[Site],
+    pairs: PairSet,
+    progress: ProgressCallback,
+    visibility: Visibility | None,
+    known: list[KnownPart] | tuple[KnownPart, ...],
+) -> SiteCache:
     radio = fim.Radio.from_system(system)
     g = system.transmissions
     ones = np.ones(g)  # Γ·G̃ = G: with Γ = 1 and G̃ = G the weights sum to the same G
     tx, rx = pairs.tx, pairs.rx
-    los = los_factor = None
+    los = los_factor = grad = None
     referenced = uses_los_reference(system.los, known)
-
-    def on_states(info: PathInfo) -> PathInfo:
-        return los_referenced([los_info, info])[0][1] if referenced else info
-
     if system.los:
         los_info = los_path_information(tx, rx, radio, float(g))
+        grad = los_gradient(los_info).copy()
         los_states = los_referenced([los_info])[0][0] if referenced else los_info
         los, los_factor = pack(los_states.state_information()), los_states.factor()
         if visibility is not None and visibility.los is not None:
@@ -163,17 +187,35 @@ def build_site_cache(
     for s, site in enumerate(sites):
         bad = ue_on_ris(tx, rx, site.ris.position)
         t, r = stand_ins(tx, rx, bad)  # as compute_bounds: bounds of these pairs become inf
-        # the gain carries the pattern factor (bounds.ris_path_gain), as in compute_bounds
-        info, far[s] = ris_path_information(
-            site.ris, t, r, radio, None, 1, ones, wavefront=system.wavefront
-        )
-        info = on_states(info)
-        packed[:, s] = pack(info.state_information())
-        factor[s] = info.factor()
-        if visibility is not None:
+        # an absent path carries exactly zero information: evaluate the present pairs only
+        # (every per-pair quantity is computed pair by pair, so the values are the same)
+        sel = _present_pairs(visibility, s, system.wavefront)
+        if sel is not None:
+            t, r = t[sel], r[sel]
+            packed[:, s] = 0.0
+            factor[s] = 0.0
+            far[s] = True  # an absent path has no near-field issue
+        if t.shape[0]:
+            # the gain carries the pattern factor (bounds.ris_path_gain), as in compute_bounds
+            info, far_s = ris_path_information(
+                site.ris, t, r, radio, None, 1, ones, wavefront=system.wavefront
+            )
+            if referenced:
+                assert grad is not None
+                info = to_los_reference(info, grad if sel is None else grad[sel])
+            if sel is None:
+                packed[:, s] = pack(info.state_information())
+                factor[s] = info.factor()
+                far[s] = far_s
+            else:
+                packed[:, s, sel] = pack(info.state_information())
+                factor[s, sel] = info.factor()
+                far[s, sel] = far_s
+        if visibility is not None and sel is None and not np.all(visibility.present[s]):
+            # (spherical: every pair evaluated, the absent ones zeroed)
             mask_absent(packed[:, s], visibility.present[s])
             factor[s][~visibility.present[s]] = 0.0
-            far[s] |= ~visibility.present[s]  # an absent path has no near-field issue
+            far[s] |= ~visibility.present[s]
         degenerate[s] = bad
         far[s] &= ~bad
         progress((s + 1) / len(sites), f"site {s + 1}/{len(sites)}")
