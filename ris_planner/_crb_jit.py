@@ -243,8 +243,10 @@ def inverse_diagonal(
 @njit(cache=True, nogil=True, error_model="numpy")
 def _jacobi_one(u: FloatArray, v: FloatArray, s: FloatArray) -> None:
     """One-sided Jacobi on the columns of u [r, k] (overwritten by U·Σ), v [k, k] := V,
-    s [k] := Σ, unsorted."""
+    s [k] := Σ, unsorted. Pair (i, j) is rotated unless ⟨u_i, u_j⟩² ≤ JACOBI_TOL²‖u_i‖²‖u_j‖²
+    (the squared test: no square roots per pair)."""
     r, k = u.shape
+    tol2 = JACOBI_TOL * JACOBI_TOL
     for i in range(k):
         for j in range(k):
             v[i, j] = 1.0 if i == j else 0.0
@@ -261,7 +263,7 @@ def _jacobi_one(u: FloatArray, v: FloatArray, s: FloatArray) -> None:
                     alpha += ui * ui
                     beta += uj * uj
                     gamma += ui * uj
-                if gamma == 0.0 or abs(gamma) <= JACOBI_TOL * math.sqrt(alpha) * math.sqrt(beta):
+                if gamma * gamma <= tol2 * alpha * beta:
                     continue
                 rotated = True
                 zeta = (beta - alpha) / (2.0 * gamma)
@@ -291,21 +293,145 @@ def _jacobi_one(u: FloatArray, v: FloatArray, s: FloatArray) -> None:
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def svd_jacobi(a: FloatArray, s_out: FloatArray, vt_out: FloatArray) -> None:
+def svd_jacobi(a: FloatArray, s_out: FloatArray, vt_out: FloatArray, n_tasks: int) -> None:
     """Singular values s_out [N, k] (descending) and Vᵀ vt_out [N, k, k] (row j = the right
     singular vector of s_j, as ``numpy.linalg.svd``) of each a [N, r, k]; any r ≥ 1."""
-    size, k = a.shape[0], a.shape[2]
-    for m in prange(size):
-        u = a[m].copy()
+    size, r, k = a.shape
+    n_tasks = min(size, max(1, n_tasks))
+    for task in prange(n_tasks):
+        u = np.empty((r, k))
         v = np.empty((k, k))
         s = np.empty(k)
-        _jacobi_one(u, v, s)
-        order = np.argsort(-s, kind="mergesort")
+        for m in range(task * size // n_tasks, (task + 1) * size // n_tasks):
+            u[:, :] = a[m]
+            _jacobi_one(u, v, s)
+            used = np.zeros(k, dtype=np.bool_)
+            for j in range(k):  # selection by descending σ (stable: the first of equals)
+                best = -1
+                for c in range(k):
+                    if not used[c] and (best < 0 or s[c] > s[best]):
+                        best = c
+                used[best] = True
+                s_out[m, j] = s[best]
+                for i in range(k):
+                    vt_out[m, j, i] = v[i, best]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _qr_inverse_rows(u: FloatArray, rinv: FloatArray, work: FloatArray) -> float:
+    """Householder QR of u [r, k] (r ≥ k, overwritten) and R⁻¹ into rinv [k, k] (upper);
+    returns ‖R⁻¹‖_F, or ``inf`` when a diagonal entry of R is zero. work : [r] scratch."""
+    r, k = u.shape
+    for j in range(k):
+        norm2 = 0.0
+        for x in range(j, r):
+            norm2 += u[x, j] * u[x, j]
+        norm = math.sqrt(norm2)
+        if norm == 0.0:
+            return math.inf
+        alpha = -norm if u[j, j] >= 0.0 else norm  # R_jj; v = u_j − alpha e_j
+        for x in range(j, r):
+            work[x] = u[x, j]
+        work[j] -= alpha
+        vnorm2 = norm2 - u[j, j] * u[j, j] + work[j] * work[j]
+        u[j, j] = alpha
+        for x in range(j + 1, r):
+            u[x, j] = 0.0
+        if vnorm2 > 0.0:
+            for c in range(j + 1, k):
+                dot = 0.0
+                for x in range(j, r):
+                    dot += work[x] * u[x, c]
+                f = 2.0 * dot / vnorm2
+                for x in range(j, r):
+                    u[x, c] -= f * work[x]
+    fro2 = 0.0
+    for i in range(k - 1, -1, -1):  # back substitution, row by row of R⁻¹
         for j in range(k):
-            o = order[j]
-            s_out[m, j] = s[o]
+            rinv[i, j] = 0.0
+        rinv[i, i] = 1.0 / u[i, i]
+        for j in range(i + 1, k):
+            acc = 0.0
+            for c in range(i + 1, j + 1):
+                acc += u[i, c] * rinv[c, j]
+            rinv[i, j] = -acc / u[i, i]
+        for j in range(i, k):
+            fro2 += rinv[i, j] * rinv[i, j]
+    return math.sqrt(fro2)
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def sqrt_diagonal(
+    a: FloatArray,
+    sv_rtol: float,
+    leak_tol: float,
+    qr_margin: float,
+    diag: FloatArray,
+    deficient: BoolArray,
+    n_tasks: int,
+) -> None:
+    """The CRB diagonal diag [N, k] (``inf`` where not identifiable) and rank_deficient [N]
+    of square-root factors a [N, r, k] by the rule of :func:`ris_planner.crb.sqrt_crb_diagonal`
+    (its docstring): a certified QR where no singular value can be near the null-space
+    threshold, the Jacobi SVD and the leak rule elsewhere."""
+    size, r, k = a.shape
+    n_tasks = min(size, max(1, n_tasks))
+    for task in prange(n_tasks):
+        u = np.empty((r, k))
+        v = np.empty((k, k))
+        s = np.empty(k)
+        rinv = np.empty((k, k))
+        work = np.empty(r)
+        scale = np.empty(k)
+        zero = np.empty(k, dtype=np.bool_)
+        for m in range(task * size // n_tasks, (task + 1) * size // n_tasks):
+            any_zero = False
             for i in range(k):
-                vt_out[m, j, i] = v[i, o]
+                acc = 0.0
+                for x in range(r):
+                    acc += a[m, x, i] * a[m, x, i]
+                sc = math.sqrt(acc)
+                zero[i] = not (sc > 0.0)
+                any_zero |= zero[i]
+                scale[i] = 1.0 if zero[i] else sc
+            if r >= k and not any_zero:
+                for x in range(r):
+                    for i in range(k):
+                        u[x, i] = a[m, x, i] / scale[i]
+                fro = _qr_inverse_rows(u, rinv, work)
+                # σ_min(Â) ≥ 1/‖R⁻¹‖_F and σ_max(Â) ≤ ‖Â‖_F = √k (unit columns)
+                if qr_margin * sv_rtol * math.sqrt(k) * fro < 1.0:
+                    for i in range(k):
+                        acc = 0.0
+                        for j in range(i, k):
+                            acc += rinv[i, j] * rinv[i, j]
+                        diag[m, i] = acc / (scale[i] * scale[i])
+                    deficient[m] = False
+                    continue
+            for x in range(r):
+                for i in range(k):
+                    u[x, i] = a[m, x, i] / scale[i]
+            _jacobi_one(u, v, s)
+            s_max = 0.0
+            for j in range(k):
+                s_max = max(s_max, s[j])
+            deficient[m] = False
+            for j in range(k):
+                if s[j] <= sv_rtol * s_max or not (s_max > 0.0):
+                    deficient[m] = True
+            for i in range(k):
+                acc = 0.0
+                leak = 0.0
+                for j in range(k):
+                    v2 = v[i, j] * v[i, j]
+                    if s[j] <= sv_rtol * s_max or not (s_max > 0.0):
+                        leak += v2
+                    else:
+                        acc += v2 / (s[j] * s[j])
+                if leak <= leak_tol * leak_tol and not zero[i]:
+                    diag[m, i] = acc / (scale[i] * scale[i])
+                else:
+                    diag[m, i] = math.inf
 
 
 # ----- the planning scorer ---------------------------------------------------------------
@@ -458,3 +584,35 @@ def _score_chunk(
                 else:
                     out[b, p] = v1
                     out[b, n_pairs + p] = _peb(diag, second, q)
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def gather_factor_rows(
+    factor: FloatArray,
+    los_factor: FloatArray,
+    layouts: IntArray,
+    idx: IntArray,
+    keep: IntArray,
+    out: FloatArray,
+) -> None:
+    """The stacked square-root rows out [N, r, k] of the flattened (layout, pair) indices idx
+    [N] (``Scorer._factor_rows``: LOS, then the layout's sites in column order, the kept
+    states' columns): factor [S, P, m, 7], los_factor [P, 1, 7] or shape (0, 0, 0)."""
+    n_p, m = factor.shape[1], factor.shape[2]
+    n_l = layouts.shape[1]
+    has_los = los_factor.shape[0] > 0
+    k = keep.shape[0]
+    for t in prange(idx.shape[0]):
+        b = idx[t] // n_p
+        p = idx[t] % n_p
+        row = 0
+        if has_los:
+            for i in range(k):
+                out[t, 0, i] = los_factor[p, 0, keep[i]]
+            row = 1
+        for col in range(n_l):
+            s = layouts[b, col]
+            for x in range(m):
+                for i in range(k):
+                    out[t, row + x, i] = factor[s, p, x, keep[i]]
+            row += m

@@ -184,7 +184,7 @@ class Scorer:
             score_layouts(layouts=lay, out=block, route=route[:nb], n_tasks=n_tasks(), **args)
             slow = np.flatnonzero(route[:nb])
             if slow.size:
-                diag, _ = sqrt_crb_diagonal(self._factor_rows(lay)(slow))
+                diag, _ = sqrt_crb_diagonal(self._gathered_rows(lay, slow))
                 b, pair = np.divmod(slow, p)
                 if self.mirror:
                     both = self._mirrored(diag.T, tx, rx, 1)[0]
@@ -233,6 +233,26 @@ class Scorer:
             if under is not None:
                 block[np.tile(under, block.shape[1] // p)] = np.inf
             out[b0 : b0 + nb] = block
+        return out
+
+    def _gathered_rows(self, lay: IntArray, idx: IntArray) -> FloatArray:
+        """``self._factor_rows(lay)(idx)`` by the compiled gather (the same values)."""
+        from ris_planner._crb_jit import gather_factor_rows
+
+        keep, _, _ = self.states
+        cache = self.cache
+        m = cache.factor.shape[2]
+        los = cache.los_factor
+        r = lay.shape[1] * m + (0 if los is None else 1)
+        out = np.empty((idx.size, r, len(keep)))
+        gather_factor_rows(
+            cache.factor,
+            np.zeros((0, 0, 0)) if los is None else los,
+            lay,
+            idx.astype(np.int64),
+            np.array(keep, dtype=np.int64),
+            out,
+        )
         return out
 
     def _factor_rows(self, lay: IntArray) -> Callable[[IntArray], FloatArray]:
