@@ -292,29 +292,29 @@ def _jacobi_one(u: FloatArray, v: FloatArray, s: FloatArray) -> None:
         s[j] = math.sqrt(acc)
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def svd_jacobi(a: FloatArray, s_out: FloatArray, vt_out: FloatArray, n_tasks: int) -> None:
+@njit(cache=True, nogil=True, error_model="numpy")
+def svd_jacobi(a: FloatArray, s_out: FloatArray, vt_out: FloatArray) -> None:
     """Singular values s_out [N, k] (descending) and Vᵀ vt_out [N, k, k] (row j = the right
-    singular vector of s_j, as ``numpy.linalg.svd``) of each a [N, r, k]; any r ≥ 1."""
+    singular vector of s_j, as ``numpy.linalg.svd``) of each a [N, r, k]; any r ≥ 1. Serial:
+    only the CEB's combination (``crb.sqrt_crb_quadratic``) and the tests call it, on few
+    pairs (a parallel kernel takes several times longer to compile)."""
     size, r, k = a.shape
-    n_tasks = min(size, max(1, n_tasks))
-    for task in prange(n_tasks):
-        u = np.empty((r, k))
-        v = np.empty((k, k))
-        s = np.empty(k)
-        for m in range(task * size // n_tasks, (task + 1) * size // n_tasks):
-            u[:, :] = a[m]
-            _jacobi_one(u, v, s)
-            used = np.zeros(k, dtype=np.bool_)
-            for j in range(k):  # selection by descending σ (stable: the first of equals)
-                best = -1
-                for c in range(k):
-                    if not used[c] and (best < 0 or s[c] > s[best]):
-                        best = c
-                used[best] = True
-                s_out[m, j] = s[best]
-                for i in range(k):
-                    vt_out[m, j, i] = v[i, best]
+    u = np.empty((r, k))
+    v = np.empty((k, k))
+    s = np.empty(k)
+    for m in range(size):
+        u[:, :] = a[m]
+        _jacobi_one(u, v, s)
+        used = np.zeros(k, dtype=np.bool_)
+        for j in range(k):  # selection by descending σ (stable: the first of equals)
+            best = -1
+            for c in range(k):
+                if not used[c] and (best < 0 or s[c] > s[best]):
+                    best = c
+            used[best] = True
+            s_out[m, j] = s[best]
+            for i in range(k):
+                vt_out[m, j, i] = v[i, best]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -448,7 +448,7 @@ def _peb(diag: FloatArray, rows: IntArray, q: int) -> float:
     return math.sqrt(acc)
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def to_blocks(packed: FloatArray, src: IntArray) -> FloatArray:
     """The kept entries src [E] of packed [28, S, P] as pair blocks [⌈P/CHUNK⌉, S, E, CHUNK]
     (zeros past P): one block holds every site's entries of CHUNK pairs contiguously."""
@@ -456,7 +456,7 @@ def to_blocks(packed: FloatArray, src: IntArray) -> FloatArray:
     e_n = src.shape[0]
     n_chunks = (n_p + CHUNK - 1) // CHUNK
     out = np.zeros((n_chunks, n_s, e_n, CHUNK))
-    for s in prange(n_s):
+    for s in range(n_s):
         for e in range(e_n):
             row = src[e]
             for p in range(n_p):
@@ -586,7 +586,7 @@ def _score_chunk(
                     out[b, n_pairs + p] = _peb(diag, second, q)
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def gather_factor_rows(
     factor: FloatArray,
     los_factor: FloatArray,
@@ -602,7 +602,7 @@ def gather_factor_rows(
     n_l = layouts.shape[1]
     has_los = los_factor.shape[0] > 0
     k = keep.shape[0]
-    for t in prange(idx.shape[0]):
+    for t in range(idx.shape[0]):
         b = idx[t] // n_p
         p = idx[t] % n_p
         row = 0

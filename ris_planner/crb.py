@@ -111,7 +111,7 @@ def svd(a: FloatArray) -> tuple[FloatArray, FloatArray]:
     s = np.empty((size, k))
     vt = np.empty((size, k, k))
     if size:
-        _crb_jit.svd_jacobi(np.ascontiguousarray(a, dtype=np.float64), s, vt, _crb_jit.n_tasks())
+        _crb_jit.svd_jacobi(np.ascontiguousarray(a, dtype=np.float64), s, vt)
     return s, vt
 
 
