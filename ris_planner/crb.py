@@ -20,6 +20,12 @@ numbers bit for bit):
    generalised inverse of F, and every generalised inverse gives the CRB of an estimable
    state). A non-identifiable state is ``inf``. So a null direction that involves only the
    clock or the TX does not hide a determined PEB_R.
+
+Both steps are compiled (:mod:`ris_planner._crb_jit`, numba): the LDLᵀ from
+:data:`JIT_MIN_MATRICES` on, with exactly the bits of :mod:`ris_planner.ldl`; the square-root
+step always (:func:`sqrt_crb_diagonal`: a certified QR where no singular value can be near the
+threshold, the one-sided Jacobi SVD elsewhere), so ``compute_bounds`` and the planning scorer
+take the same arithmetic for every pair.
 """
 
 from __future__ import annotations

@@ -1,11 +1,14 @@
 """Objectives over weighted pairs and the batched layout score.
 
 Scoring a batch of layouts: LOS + Σ cached site matrices on the packed entries of the unknown
-states (one gather-and-add per RIS over all entries × layouts × pairs), then the core's hybrid
-inversion (:func:`ris_planner.crb.crb_diagonal`: one batched LDLᵀ, and the square-root route
-over the cached per-site factors for the ill-conditioned combinations) giving the CRB diagonal.
-Known parts (``clock``, ``height``, ``tx``) remove their rows before inversion, as
-:func:`ris_planner.bounds.bounds_from_state_fim` does.
+states, then the core's hybrid inversion (:func:`ris_planner.crb.crb_diagonal`: the batched
+LDLᵀ, and the square-root route over the cached per-site factors for the ill-conditioned
+combinations) giving the CRB diagonal. :meth:`Scorer.metric` does the sum, the LDLᵀ, the trace
+test and the metric in one compiled pass per (layout, pair)
+(:func:`ris_planner._crb_jit.score_layouts`, the same operations as the numpy route of
+:meth:`Scorer.metric_reference`, so the same bits) and sends only the flagged pairs that are
+not ``inf`` anyway on to the square-root route. Known parts (``clock``, ``height``, ``tx``)
+remove their rows before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
 
 With an environment the cache's per-pair presence masks make a pair ``inf`` in a layout where
 its present paths give fewer geometric channel parameters than unknown states
