@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -129,6 +130,10 @@ def test_cached_score_equals_compute_bounds(known: list[str], metric: str, los: 
         np.testing.assert_array_equal(m, ref)  # bit for bit compute_bounds
         ref_loss = loss_from_metric(d.objective, ref[None], pairs.weights)[0]
         assert scorer.loss(np.array([lay]))[0] == pytest.approx(ref_loss, rel=RTOL)
+    # a pickled scorer (what a worker receives) leaves its pair blocks behind, scores the same
+    sent = pickle.loads(pickle.dumps(scorer))
+    assert "_kernel_inputs" in vars(scorer) and "_kernel_inputs" not in vars(sent)
+    np.testing.assert_array_equal(sent.metric(np.array(layouts[:4])), got)
     if not los:  # 2 RISs without LOS: 6 channel parameters for 7 states
         assert np.all(np.isinf(scorer.metric(np.array([(0, 1)]))))
 

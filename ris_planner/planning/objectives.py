@@ -66,6 +66,14 @@ class Scorer:
     known: tuple[KnownPart, ...]
     mirror: bool = False
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the per-process caches (the pair blocks of :meth:`metric` and the
+        selected entries): a worker builds its own instead of receiving copies."""
+        state = dict(self.__dict__)
+        state.pop("_kernel_inputs", None)
+        state.pop("_selected", None)
+        return state
+
     def __post_init__(self) -> None:
         if self.cache.los_referenced != uses_los_reference(self.cache.los is not None, self.known):
             raise ValueError(
