@@ -20,12 +20,18 @@ numbers bit for bit):
    generalised inverse of F, and every generalised inverse gives the CRB of an estimable
    state). A non-identifiable state is ``inf``. So a null direction that involves only the
    clock or the TX does not hide a determined PEB_R.
+
+Both steps are compiled (:mod:`ris_planner._crb_jit`, numba): the LDLᵀ from
+:data:`JIT_MIN_MATRICES` on, with exactly the bits of :mod:`ris_planner.ldl`; the square-root
+step always (:func:`sqrt_crb_diagonal`: a certified QR where no singular value can be near the
+threshold, the one-sided Jacobi SVD elsewhere), so ``compute_bounds`` and the planning scorer
+take the same arithmetic for every pair.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +41,11 @@ from ris_planner import ldl
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int_]
+Engine = Literal["auto", "numba", "numpy"]
+
+JIT_MIN_MATRICES = 100_000
+"""``crb_diagonal`` runs the compiled LDLᵀ from this many matrices on (below, numpy's takes
+≤ 25 ms, less than importing numba; both give the same bits)."""
 
 FAST_TRACE_LIMIT = 1e8
 """The LDLᵀ of F is used when trace(F̂⁻¹) ≤ this. Rounding F̂'s entries (sums of PSD terms,
@@ -55,6 +66,12 @@ NULL_LEAK_TOL = 1e-6
 """A state is identifiable when its component in the numerical null space, ‖V[i, null]‖, is
 ≤ this. Float64 null vectors are accurate to ~ε·σ_max/σ_gap ≤ 2.2e-7 when the kept singular
 values are ≥ SINGULAR_SV_RTOL·σ_max, so an exactly orthogonal state reads ≤ 2.2e-7."""
+
+
+QR_CERT_MARGIN = 2.0
+"""Safety factor of the QR certificate of :func:`sqrt_crb_diagonal`: the computed ‖R⁻¹‖_F
+carries ≤ ~ε·cond(Â) ≤ 2.2e-7 relative rounding where the certificate applies (cond(Â) ≤
+1e9/√k), so a factor 2 keeps every certified σ_min twice above the threshold."""
 
 
 def path_factor(efim: FloatArray, jacobian: FloatArray) -> FloatArray:
@@ -90,15 +107,36 @@ class _SqrtSVD(NamedTuple):
     vt: FloatArray  # [N, k, k] Vᵀ
 
 
+def svd(a: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(singular values [N, k], descending; Vᵀ [N, k, k]) of a [N, r, k]: the compiled
+    one-sided Jacobi SVD (:func:`ris_planner._crb_jit.svd_jacobi`), per matrix independent of
+    the batch, so ``compute_bounds`` and the scorer agree bit for bit on every pair."""
+    from ris_planner import _crb_jit
+
+    size, _, k = a.shape
+    s = np.empty((size, k))
+    vt = np.empty((size, k, k))
+    if size:
+        _crb_jit.svd_jacobi(np.ascontiguousarray(a, dtype=np.float64), s, vt)
+    return s, vt
+
+
+def svd_lapack(a: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`svd` by LAPACK (``numpy.linalg.svd``; the route before the compiled one): the
+    tests' and benchmarks' reference. Pads r < k with zero rows to get the full V."""
+    size, r, k = a.shape
+    if r < k:
+        a = np.concatenate([a, np.zeros((size, k - r, k))], axis=1)
+    _, s, vt = np.linalg.svd(a, full_matrices=False)
+    return s, vt
+
+
 def _sqrt_svd(a: FloatArray) -> _SqrtSVD:
-    n, r, k = a.shape
-    if r < k:  # pad with zero rows so the SVD returns the full V
-        a = np.concatenate([a, np.zeros((n, k - r, k))], axis=1)
     # [N, k] column norms = sqrt(F_ii)
     scale = np.sqrt(np.einsum("nrk,nrk->nk", a, a))
     zero = ~(scale > 0.0)
     safe = np.where(zero, 1.0, scale)
-    _, s, vt = np.linalg.svd(a / safe[:, None, :], full_matrices=False)
+    s, vt = svd(a / safe[:, None, :])
     # [N, k]: null-space singular values (all of them when Â = 0)
     null = s <= SINGULAR_SV_RTOL * s[:, :1]
     null |= ~(s[:, :1] > 0.0)
@@ -111,8 +149,35 @@ def sqrt_crb_diagonal(a: FloatArray) -> tuple[FloatArray, BoolArray]:
     """diag of the CRB from square-root factors a [N, r, k] (F = aᵀa on k states).
 
     Returns (diag [N, k], ``inf`` for states that are not identifiable; rank_deficient [N],
-    the pairs whose information has a numerical null space). See the module docstring.
+    the pairs whose information has a numerical null space). See the module docstring; the
+    compiled kernel (:func:`ris_planner._crb_jit.sqrt_diagonal`) first tries the Householder
+    QR Â = QR: σ_min(Â) ≥ 1/‖R⁻¹‖_F and σ_max(Â) ≤ ‖Â‖_F = √k (unit columns), so where
+    :data:`QR_CERT_MARGIN` · SINGULAR_SV_RTOL · √k · ‖R⁻¹‖_F < 1 no singular value can reach the
+    null-space threshold, every state is identifiable and diag = Σ_j (R⁻¹)_ij² / ‖A_:,i‖² –
+    the SVD's answer, with the same ε·cond(Â) accuracy (both backward stable on Â), at a
+    tenth of the cost. Elsewhere the Jacobi SVD and the leak rule decide.
     """
+    from ris_planner import _crb_jit
+
+    size, _, k = a.shape
+    diag = np.empty((size, k))
+    deficient = np.zeros(size, dtype=bool)
+    if size:
+        _crb_jit.sqrt_diagonal(
+            np.ascontiguousarray(a, dtype=np.float64),
+            SINGULAR_SV_RTOL,
+            NULL_LEAK_TOL,
+            QR_CERT_MARGIN,
+            diag,
+            deficient,
+            _crb_jit.n_tasks(),
+        )
+    return diag, deficient
+
+
+def sqrt_crb_diagonal_svd(a: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """:func:`sqrt_crb_diagonal` through :func:`_sqrt_svd` in numpy on :func:`svd` (every pair
+    by the SVD, no QR shortcut): the tests' reference for the compiled rule."""
     d = _sqrt_svd(a)
     v2 = np.square(d.vt)  # [N, j, i] = V_ij²
     diag = np.einsum("nj,nji->ni", d.inv_s2, v2) / np.square(d.scale)
@@ -151,8 +216,32 @@ def _trace_scaled_inverse(f_packed: FloatArray, n: int, diag: FloatArray) -> Flo
     return np.asarray(trace)
 
 
+def fast_diagonal(
+    f_packed: FloatArray, n: int, engine: Engine = "auto"
+) -> tuple[FloatArray, BoolArray, FloatArray]:
+    """(diag(F⁻¹) [n, N] with ``inf`` where singular, singular [N], trace(F̂⁻¹) [N]) of packed
+    matrices [n(n+1)/2, N] by the scaled LDLᵀ: numpy (:mod:`ris_planner.ldl`) or the compiled
+    twin (:func:`ris_planner._crb_jit.inverse_diagonal`), the same bits either way;
+    ``"auto"`` compiles from :data:`JIT_MIN_MATRICES` on."""
+    size = f_packed.shape[1]
+    if engine == "numba" or (engine == "auto" and size >= JIT_MIN_MATRICES):
+        from ris_planner import _crb_jit
+
+        diag = np.empty((n, size))
+        trace = np.empty(size)
+        singular = np.empty(size, dtype=bool)
+        f = np.ascontiguousarray(f_packed, dtype=np.float64)
+        _crb_jit.inverse_diagonal(f, n, diag, trace, singular, _crb_jit.n_tasks())
+        return diag, singular, trace
+    diag, singular = ldl.inverse_diagonal_from(f_packed, n, 0)
+    return diag, singular, _trace_scaled_inverse(f_packed, n, diag)
+
+
 def crb_diagonal(
-    f_packed: FloatArray, n: int, factor_rows: Callable[[IntArray], FloatArray]
+    f_packed: FloatArray,
+    n: int,
+    factor_rows: Callable[[IntArray], FloatArray],
+    engine: Engine = "auto",
 ) -> tuple[FloatArray, BoolArray]:
     """diag of the CRB of N state FIMs on n unknown states, batch last (the hybrid route of
     the module docstring).
@@ -160,10 +249,9 @@ def crb_diagonal(
     f_packed : [n(n+1)/2, N] packed F restricted to the unknown states (:func:`ldl.pack`);
     factor_rows(idx) : the square-root factors [len(idx), r, n] of the pairs idx (called
     once, for the pairs the fast path does not settle). Returns (diag [n, N] with ``inf`` for
-    non-identifiable states, rank_deficient [N]).
+    non-identifiable states, rank_deficient [N]). ``engine``: the LDLᵀ's (:func:`fast_diagonal`).
     """
-    diag, singular = ldl.inverse_diagonal_from(f_packed, n, 0)
-    trace = _trace_scaled_inverse(f_packed, n, diag)
+    diag, singular, trace = fast_diagonal(f_packed, n, engine)
     slow = np.flatnonzero(singular | ~(trace <= FAST_TRACE_LIMIT))
     rank_deficient = np.zeros(f_packed.shape[1], dtype=bool)
     if slow.size:

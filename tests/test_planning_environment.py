@@ -179,6 +179,8 @@ def test_cached_score_equals_per_pair_reference(known: list[str], metric: str, l
         assert res.cache.los_present is not None and not np.all(res.cache.los_present)
     layouts = [(0, 1), (2, 5), (0, 1, 2), (1, 3, 6), (0, 2, 4, 6), (1, 2, 5, 7)]
     n_under = n_finite = 0
+    both = np.array([lay for lay in layouts if len(lay) == 3])  # kernel vs numpy route
+    np.testing.assert_array_equal(res.scorer.metric(both), res.scorer.metric_reference(both))
     for lay in layouts:
         got = res.scorer.metric(np.array([lay]))[0]
         ref = per_pair_metric(d, sites, pairs.tx, pairs.rx, lay)
@@ -263,6 +265,7 @@ def test_unordered_pairs_count_both_directions_and_map_order_does_not_matter() -
         explicit = Scorer(cache, both.weights, d.objective, ())
         layouts = np.array([lay, (0, 3, 5), (1, 2, 6)])
         np.testing.assert_allclose(mirrored.loss(layouts), explicit.loss(layouts), rtol=MIRROR_RTOL)
+        np.testing.assert_array_equal(mirrored.metric(layouts), mirrored.metric_reference(layouts))
     # a known TX breaks the symmetry: both directions are listed
     known = run_plan({**base, "known": ["tx"]}, executor=SerialExecutor())
     assert not known.scorer.mirror and known.pairs.size == 2 * res.pairs.size

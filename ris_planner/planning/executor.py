@@ -25,6 +25,7 @@ BLAS_THREAD_VARS = (
     "MKL_NUM_THREADS",
     "VECLIB_MAXIMUM_THREADS",
     "NUMEXPR_NUM_THREADS",
+    "NUMBA_NUM_THREADS",  # the compiled scorer's threads (ris_planner._crb_jit)
 )
 
 

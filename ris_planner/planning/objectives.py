@@ -1,11 +1,14 @@
 """Objectives over weighted pairs and the batched layout score.
 
 Scoring a batch of layouts: LOS + Σ cached site matrices on the packed entries of the unknown
-states (one gather-and-add per RIS over all entries × layouts × pairs), then the core's hybrid
-inversion (:func:`ris_planner.crb.crb_diagonal`: one batched LDLᵀ, and the square-root route
-over the cached per-site factors for the ill-conditioned combinations) giving the CRB diagonal.
-Known parts (``clock``, ``height``, ``tx``) remove their rows before inversion, as
-:func:`ris_planner.bounds.bounds_from_state_fim` does.
+states, then the core's hybrid inversion (:func:`ris_planner.crb.crb_diagonal`: the batched
+LDLᵀ, and the square-root route over the cached per-site factors for the ill-conditioned
+combinations) giving the CRB diagonal. :meth:`Scorer.metric` does the sum, the LDLᵀ, the trace
+test and the metric in one compiled pass per (layout, pair)
+(:func:`ris_planner._crb_jit.score_layouts`, the same operations as the numpy route of
+:meth:`Scorer.metric_reference`, so the same bits) and sends only the flagged pairs that are
+not ``inf`` anyway on to the square-root route. Known parts (``clock``, ``height``, ``tx``)
+remove their rows before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
 
 With an environment the cache's per-pair presence masks make a pair ``inf`` in a layout where
 its present paths give fewer geometric channel parameters than unknown states
@@ -23,12 +26,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.bounds import kept_states, n_observations, uses_los_reference
-from ris_planner.crb import crb_diagonal
+from ris_planner.crb import FAST_TRACE_LIMIT, crb_diagonal, sqrt_crb_diagonal
 from ris_planner.ldl import packed_index
 from ris_planner.planning.document import Objective
 from ris_planner.planning.site_cache import N_STATES, SiteCache
@@ -39,9 +43,14 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
 
 BATCH_MATRICES = 24_576
-"""Matrices per inner vector operation: large enough to amortise numpy's per-call overhead,
-small enough that the ~60 working vectors stay in cache (measured on the 2-core dev machine:
-7–10 M matrices/s at 16–32 k, 5.7 M/s at 131 k)."""
+"""Matrices per inner vector operation of :meth:`Scorer.metric_reference`: large enough to
+amortise numpy's per-call overhead, small enough that the ~60 working vectors stay in cache
+(measured on the 2-core dev machine: 7–10 M matrices/s at 16–32 k, 5.7 M/s at 131 k)."""
+
+KERNEL_MATRICES = 1 << 21
+"""(layout, pair) combinations per call of the compiled kernel: bounds the square-root
+route's gathered factor rows (≤ a few % of them, ~40 MB at 7 × 7) and the route flags
+(1 byte each); the kernel itself streams over pair blocks whatever the size."""
 
 TX_STATES = (0, 1, 2)
 RX_STATES = (3, 4, 5)
@@ -56,6 +65,14 @@ class Scorer:
     objective: Objective
     known: tuple[KnownPart, ...]
     mirror: bool = False
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the per-process caches (the pair blocks of :meth:`metric` and the
+        selected entries): a worker builds its own instead of receiving copies."""
+        state = dict(self.__dict__)
+        state.pop("_kernel_inputs", None)
+        state.pop("_selected", None)
+        return state
 
     def __post_init__(self) -> None:
         if self.cache.los_referenced != uses_los_reference(self.cache.los is not None, self.known):
@@ -101,12 +118,96 @@ class Scorer:
         :func:`ris_planner.ldl.packed_index` order (the certificates' relaxation reads it)."""
         return self._selected
 
+    @cached_property
+    def _kernel_inputs(self) -> dict[str, Any]:
+        """The compiled score's fixed arguments (:func:`ris_planner._crb_jit.score_layouts`):
+        the kept entries as pair blocks (a copy of E/28 of the cache's packed information, made
+        once per scorer and process), masks as uint8, the metric's rows."""
+        from ris_planner._crb_jit import to_blocks
+
+        keep, tx, rx = self.states
+        n = len(keep)
+        src_idx = packed_index(N_STATES)
+        src = np.array(
+            [src_idx[keep[i], keep[j]] for i in range(n) for j in range(i + 1)], dtype=np.int64
+        )
+        cache = self.cache
+        none = np.zeros((0, 0), dtype=np.uint8)
+        deg = cache.degenerate.view(np.uint8) if np.any(cache.degenerate) else none
+        present, need = none, np.zeros(0, dtype=np.int64)
+        if cache.present is not None and cache.wavefront != "spherical":
+            present = np.ascontiguousarray(cache.present).view(np.uint8)
+            los_n = 0 if cache.los_present is None else cache.los_present.astype(np.int64)
+            # RIS paths a pair needs: ceil((n − LOS present) / 3) (see underdetermined)
+            need = np.broadcast_to(-((los_n - n) // 3), (cache.n_pairs,)).astype(np.int64)
+        if self.mirror:
+            rows = (rx, tx) if self.objective.metric == "rx" else (tx, rx)
+            mode = 2
+        elif tx and rx:
+            rows, mode = (tx, rx), 1
+        else:
+            rows, mode = (tx or rx, tx or rx), 0
+        los = np.zeros((0, 0, 0))
+        if cache.los is not None:
+            los = to_blocks(np.ascontiguousarray(cache.los[:, None, :]), src)[:, 0]
+        return {
+            "blocks": to_blocks(cache.packed, src),
+            "los": np.ascontiguousarray(los),
+            "n_pairs": cache.n_pairs,
+            "n": n,
+            "trace_limit": FAST_TRACE_LIMIT,
+            "first": np.array(rows[0], dtype=np.int64),
+            "second": np.array(rows[1], dtype=np.int64),
+            "mode": mode,
+            "degenerate": deg,
+            "present": present,
+            "need": need,
+        }
+
     def metric(self, layouts: IntArray) -> FloatArray:
         """[B, P] metric bound (m) of each layout [B, L] and pair ([B, 2P] with ``mirror``);
         ``inf`` for blind spots.
 
         Bit for bit what ``compute_bounds`` gives for the layout (same FIM sum, LOS first, same
-        square-root factors, and the core's inversion, :func:`ris_planner.crb.crb_diagonal`)."""
+        square-root factors, and the core's inversion, :func:`ris_planner.crb.crb_diagonal`):
+        the compiled kernel (:func:`ris_planner._crb_jit.score_layouts`) sums, factors and scores
+        each (layout, pair) in one pass; the pairs it flags go to the square-root route
+        (:func:`ris_planner.crb.sqrt_crb_diagonal`). :meth:`metric_reference` is the same score
+        in numpy (identical bits; tested)."""
+        from ris_planner._crb_jit import n_tasks, score_layouts
+
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
+        b_all, n_ris = layouts.shape
+        p = self.cache.n_pairs
+        out = np.empty((b_all, 2 * p if self.mirror else p))
+        keep, tx, rx = self.states
+        n_obs = n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
+        if n_obs is not None and n_obs < len(keep):  # as compute_bounds
+            out[:] = np.inf
+            return out
+        args = self._kernel_inputs
+        step = max(1, KERNEL_MATRICES // p)
+        route = np.empty((min(step, b_all), p), dtype=np.uint8)
+        for b0 in range(0, b_all, step):
+            lay = np.ascontiguousarray(layouts[b0 : b0 + step])
+            nb = lay.shape[0]
+            block = out[b0 : b0 + nb]
+            score_layouts(layouts=lay, out=block, route=route[:nb], n_tasks=n_tasks(), **args)
+            slow = np.flatnonzero(route[:nb])
+            if slow.size:
+                diag, _ = sqrt_crb_diagonal(self._gathered_rows(lay, slow))
+                b, pair = np.divmod(slow, p)
+                if self.mirror:
+                    both = self._mirrored(diag.T, tx, rx, 1)[0]
+                    block[b, pair], block[b, p + pair] = both[: slow.size], both[slow.size :]
+                else:
+                    block[b, pair] = self._bound(diag.T, tx, rx)
+        return out
+
+    def metric_reference(self, layouts: IntArray) -> FloatArray:
+        """:meth:`metric` in numpy: the gather-and-add of [E, nb, P] blocks, the batched LDLᵀ of
+        :mod:`ris_planner.ldl` through :func:`ris_planner.crb.crb_diagonal`, and the masks
+        applied afterwards (the route before the compiled kernel; the same bits)."""
         layouts = np.atleast_2d(np.asarray(layouts, dtype=int))
         b_all, n_ris = layouts.shape
         p = self.cache.n_pairs
@@ -130,7 +231,9 @@ class Scorer:
                 np.add(los[:, None, :], a, out=a)
             for col in range(1, n_ris):
                 a += packed[:, lay[:, col]]
-            diag, _ = crb_diagonal(a.reshape(len(packed), nb * p), n, self._factor_rows(lay))
+            diag, _ = crb_diagonal(
+                a.reshape(len(packed), nb * p), n, self._factor_rows(lay), engine="numpy"
+            )
             if self.mirror:
                 block = self._mirrored(diag, tx, rx, nb)
             else:
@@ -141,6 +244,26 @@ class Scorer:
             if under is not None:
                 block[np.tile(under, block.shape[1] // p)] = np.inf
             out[b0 : b0 + nb] = block
+        return out
+
+    def _gathered_rows(self, lay: IntArray, idx: IntArray) -> FloatArray:
+        """``self._factor_rows(lay)(idx)`` by the compiled gather (the same values)."""
+        from ris_planner._crb_jit import gather_factor_rows
+
+        keep, _, _ = self.states
+        cache = self.cache
+        m = cache.factor.shape[2]
+        los = cache.los_factor
+        r = lay.shape[1] * m + (0 if los is None else 1)
+        out = np.empty((idx.size, r, len(keep)))
+        gather_factor_rows(
+            cache.factor,
+            np.zeros((0, 0, 0)) if los is None else los,
+            lay,
+            idx.astype(np.int64),
+            np.array(keep, dtype=np.int64),
+            out,
+        )
         return out
 
     def _factor_rows(self, lay: IntArray) -> Callable[[IntArray], FloatArray]:
