@@ -164,6 +164,22 @@ class Scorer:
             "need": need,
         }
 
+    def _start(
+        self, layouts: IntArray, dtype: type[np.integer]
+    ) -> tuple[IntArray, FloatArray, bool]:
+        """(layouts [B, L] as ``dtype``, the metric array [B, P] or [B, 2P], blind): blind when
+        the layout-wide count of :func:`ris_planner.bounds.n_observations` leaves every pair
+        underdetermined (the metric is then all ``inf``, as ``compute_bounds`` reports)."""
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=dtype))
+        b_all, n_ris = layouts.shape
+        p = self.cache.n_pairs
+        out = np.empty((b_all, 2 * p if self.mirror else p))
+        n_obs = n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
+        blind = n_obs is not None and n_obs < len(self.states[0])
+        if blind:
+            out[:] = np.inf
+        return layouts, out, blind
+
     def metric(self, layouts: IntArray) -> FloatArray:
         """[B, P] metric bound (m) of each layout [B, L] and pair ([B, 2P] with ``mirror``);
         ``inf`` for blind spots.
@@ -176,15 +192,11 @@ class Scorer:
         in numpy (identical bits; tested)."""
         from ris_planner._crb_jit import n_tasks, score_layouts
 
-        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
-        b_all, n_ris = layouts.shape
-        p = self.cache.n_pairs
-        out = np.empty((b_all, 2 * p if self.mirror else p))
-        keep, tx, rx = self.states
-        n_obs = n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
-        if n_obs is not None and n_obs < len(keep):  # as compute_bounds
-            out[:] = np.inf
+        layouts, out, blind = self._start(layouts, np.int64)
+        if blind:
             return out
+        b_all, p = layouts.shape[0], self.cache.n_pairs
+        _, tx, rx = self.states
         args = self._kernel_inputs
         step = max(1, KERNEL_MATRICES // p)
         route = np.empty((min(step, b_all), p), dtype=np.uint8)
@@ -208,15 +220,11 @@ class Scorer:
         """:meth:`metric` in numpy: the gather-and-add of [E, nb, P] blocks, the batched LDLᵀ of
         :mod:`ris_planner.ldl` through :func:`ris_planner.crb.crb_diagonal`, and the masks
         applied afterwards (the route before the compiled kernel; the same bits)."""
-        layouts = np.atleast_2d(np.asarray(layouts, dtype=int))
-        b_all, n_ris = layouts.shape
-        p = self.cache.n_pairs
-        out = np.empty((b_all, 2 * p if self.mirror else p))
-        keep, tx, rx = self.states
-        n_obs = n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
-        if n_obs is not None and n_obs < len(keep):  # as compute_bounds
-            out[:] = np.inf
+        layouts, out, blind = self._start(layouts, np.int_)
+        if blind:
             return out
+        (b_all, n_ris), p = layouts.shape, self.cache.n_pairs
+        keep, tx, rx = self.states
         n = len(keep)
         packed, los = self._selected
         step = max(1, BATCH_MATRICES // p)
