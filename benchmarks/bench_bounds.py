@@ -13,12 +13,12 @@ run: ``bench_speed_ab.py``.
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from timing import median_time  # the script's folder is on sys.path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
@@ -29,16 +29,6 @@ from ris_planner.bounds import first_block_profiles
 from ris_planner.paper import fig10_pairs
 
 LAYOUTS = ("2-ris-L", "2-ris-P", "3-ris", "4-ris")
-
-
-def median_time(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
-    fn()  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def naive_seconds_per_pair(layout: str, n_pairs: int) -> float:

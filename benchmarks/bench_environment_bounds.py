@@ -13,26 +13,14 @@ the array API scores them), median wall time of each, the share of the visibilit
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from timing import median_time  # the script's folder is on sys.path
 
 from ris_planner import compute_bounds, load_scenario, preset_document
 from ris_planner.bounds import scenario_path_presence
 from ris_planner.paper import fig10_pairs
-
-
-def median_time(fn: Callable[[], Any], repeats: int) -> float:
-    fn()  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def pillars(n: int, rng: np.random.Generator, keep_clear: np.ndarray) -> list[dict[str, Any]]:

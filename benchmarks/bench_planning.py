@@ -52,6 +52,20 @@ def square_candidates(n: int = 30, half: float = 4.0) -> list[dict[str, Any]]:
     return out
 
 
+def square_plan() -> dict[str, Any]:
+    """The planning benchmark's document: the 30 :func:`square_candidates`, 3 RISs, unordered
+    pairs of a 1 m grid whose pairs are the 4753 Fig. 10 pairs, mean PEB_R capped at 1 m."""
+    grid = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
+    return {
+        "candidates": square_candidates(),
+        "tx_map": grid,
+        "rx_map": grid,
+        "pairs": "unordered",
+        "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
+        "ris_count": [3],
+    }
+
+
 def junction(workers: int, n_layouts: int = 1000) -> None:
     """The junction plan with and without its environment, and the fixed-layout scorer cost."""
     doc = plan_preset("junction")
@@ -95,17 +109,7 @@ def main() -> None:
     ap.add_argument("--naive-layouts", type=int, default=40)
     ap.add_argument("--skip-junction", action="store_true")
     args = ap.parse_args()
-    grid = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
-    doc = PlanDocument.model_validate(
-        {
-            "candidates": square_candidates(),
-            "tx_map": grid,
-            "rx_map": grid,
-            "pairs": "unordered",
-            "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
-            "ris_count": [3],
-        }
-    )
+    doc = PlanDocument.model_validate(square_plan())
     sites = expand_sites(doc)
     pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**5)
     tx_ref, _ = fig10_pairs()

@@ -26,7 +26,7 @@ from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
-from bench_planning import square_candidates  # the script's folder is on sys.path
+from bench_planning import square_plan  # the script's folder is on sys.path
 from bench_search import hall_doc
 
 from ris_planner import crb
@@ -118,17 +118,7 @@ def hall(n_layouts: int, plan: bool) -> None:
 
 
 def exhaustive_case() -> None:
-    grid = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
-    scorer = scorer_of(
-        {
-            "candidates": square_candidates(),
-            "tx_map": grid,
-            "rx_map": grid,
-            "pairs": "unordered",
-            "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
-            "ris_count": [3],
-        }
-    )
+    scorer = scorer_of(square_plan())
     n = scorer.cache.n_sites
     scorer.metric(np.array([[0, 1, 2]]))
     t_new, new = timed(lambda: exhaustive(scorer, n, 3, SerialExecutor()))

@@ -14,26 +14,16 @@ for the planar ``random`` layout.
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
 from typing import Any
 
 import numpy as np
+from timing import median_time  # the script's folder is on sys.path
 
 from ris_planner import compute_bounds, load_scenario, preset_document
 from ris_planner.paper import fig10_pairs
 
 LAYOUTS = ("2-ris-L", "2-ris-P", "3-ris", "4-ris")
-
-
-def median_time(fn: Any, repeats: int) -> float:
-    fn()  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def spherical_doc(layout: str) -> dict[str, Any]:

@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from bench_planning import square_candidates
+from bench_planning import square_plan
 
 from ris_planner import crb, ldl
 from ris_planner.planning import PlanDocument
@@ -41,17 +41,7 @@ def main() -> None:
     ap.add_argument("--layouts", type=int, default=100)
     ap.add_argument("--sample", type=int, default=20000)
     args = ap.parse_args()
-    grid = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
-    doc = PlanDocument.model_validate(
-        {
-            "candidates": square_candidates(),
-            "tx_map": grid,
-            "rx_map": grid,
-            "pairs": "unordered",
-            "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
-            "ris_count": [3],
-        }
-    )
+    doc = PlanDocument.model_validate(square_plan())
     sites = expand_sites(doc)
     pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**5)
     plain = build_site_cache(doc.system, sites, pairs, known=("clock",))  # plain coordinates
