@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cache, cached_property
 from typing import Any
 
 import numpy as np
@@ -153,11 +154,17 @@ class BoundsResult:
     reason: NDArray[np.object_]
     channel: dict[str, dict[str, FloatArray]]
     far_field: NDArray[np.bool_]
-    fim: FloatArray
+    fim_source: Callable[[], FloatArray] = field(repr=False, compare=False)
+    """Computes :attr:`fim` when it is first read (most callers never read it)."""
     known: tuple[KnownPart, ...] = field(default=())
     paths_present: dict[str, BoolArray] = field(default_factory=dict)
     warnings: tuple[str, ...] = field(default=())
     wavefront: Wavefront = "planar"
+
+    @cached_property
+    def fim(self) -> FloatArray:
+        """[P, 7, 7] information on [p_T, p_R, B] (gains eliminated, nothing known removed)."""
+        return self.fim_source()
 
     @property
     def n_pairs(self) -> int:
@@ -282,9 +289,10 @@ def ris_path_information(
         root = crb.path_factor(unit, np.eye(3)[None])[0]
         return PathInfo(name, efim, jacobian, root, alpha), _far_field(ris, geo, radio)
     else:
-        t = fim.transmission_vectors(profile, pos, geo.xi, geo.zeta, radio.wavelength)
-        q = block_count * fim.transmission_gram(t, weights)
-        efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 3)
+        gram = fim.planar_transmission_gram(
+            profile, pos, geo.xi, geo.zeta, radio.wavelength, weights
+        )
+        efim = fim.eliminate_nuisance(fim.ris_path_fim(block_count * gram, alpha, radio), 3)
     return PathInfo(name, efim, jacobian), _far_field(ris, geo, radio)
 
 
@@ -562,20 +570,22 @@ def bounds_from_paths(
     known: list[KnownPart] | tuple[KnownPart, ...],
     n_observations: int | None,
     present: NDArray[np.bool_],
-    state_fim: FloatArray,
+    state_fim: Callable[[], FloatArray],
 ) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
     """PEB_T, PEB_R, CEB and reasons from the paths' equivalent FIMs and Jacobians (the one
     inversion of :func:`compute_bounds` and the planning scorer).
 
-    ``present`` [P, n_paths]: paths missing for a pair contribute nothing; ``state_fim``
+    ``present`` [P, n_paths]: paths missing for a pair contribute nothing; ``state_fim()``
     [P, 7, 7] is :func:`masked_state_information` of ``paths`` (the reported FIM), inverted
-    as it is unless the LOS-referenced clock applies (then the referenced paths' sum is).
+    as it is unless the LOS-referenced clock applies (then the referenced paths' sum is, and
+    ``state_fim`` is not called).
     """
     clock = None
-    f = state_fim
     if paths and paths[0].name == "los" and uses_los_reference(True, known):
         paths, clock = los_referenced(paths)
         f = masked_state_information(paths, present)
+    else:
+        f = state_fim()
     return bounds_from_state_fim(f, known, n_observations, path_factor_rows(paths, present), clock)
 
 
@@ -691,10 +701,15 @@ def _compute_bounds(
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     mask = present_path_mask(paths, presence)
-    f = masked_state_information(paths, mask)  # on [p_T, p_R, B], as reported
+
+    @cache
+    def state_fim() -> FloatArray:  # on [p_T, p_R, B], as reported: once, when first needed
+        with blas.one_blas_thread():
+            return masked_state_information(paths, mask)
+
     system = scenario.system
     n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
-    peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask, f)
+    peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask, state_fim)
     if system.wavefront == "planar":
         chan = channel_bounds(paths)
         mask_channel_bounds(chan, presence)
@@ -726,7 +741,7 @@ def _compute_bounds(
         reason=reason,
         channel=chan,
         far_field=far,
-        fim=f,
+        fim_source=state_fim,
         known=known_t,
         paths_present=presence,
         warnings=tuple(bounds_warnings(scenario, expected=prof is None, far=far)),

@@ -296,7 +296,8 @@ def test_free_space_results_unchanged() -> None:
     UEs all around RISs with a 180° field of view, DIR codebook, a degenerate pair) and two
     noise-free simulated signals against the values computed before bounds and simulator knew
     of the environment (tests/data/free_space_reference.json, written by
-    tests/free_space_cases.py at 0cb7c82): FIMs, channel bounds and signals bit for bit, the
+    tests/free_space_cases.py at 0cb7c82, rewritten once for a rounding-only change of the
+    profile codebooks' products, see there): FIMs, channel bounds and signals bit for bit, the
     PEBs and CEB to their conditioning (BOUND_KEYS); ``paths_present`` and ``warnings`` are the
     new keys."""
     ref = json.loads(REFERENCE.read_text())
@@ -307,6 +308,8 @@ def test_free_space_results_unchanged() -> None:
         present = js.pop("paths_present")
         js.pop("warnings")
         want = dict(ref["bounds"][name]["json"])
+        for new_key in ("paths_present", "warnings"):  # checked below / not in the 0cb7c82 file
+            want.pop(new_key, None)
         for key in BOUND_KEYS:
             got_v, want_v = js.pop(key), want.pop(key)
             if want_v is None:

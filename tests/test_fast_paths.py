@@ -46,6 +46,8 @@ FACTOR_GRAM_RTOL = 1e-13
 EFIM: their Grams AᵀA agree to a few roundings of entries of size ≤ √(F_ii F_jj) (entries
 compared on that scale)."""
 
+EPS = float(np.finfo(float).eps)
+
 QUADRATIC_MP_RTOL = 1e-9
 """wᵀF⁻¹w on the fast path (trace(F̂⁻¹) ≤ 5e5 here) against 40 digits: the LDLᵀ's error is
 ≲ ε·cond(F̂) ≤ 7ε·trace(F̂⁻¹) ≤ 8e-10."""
@@ -159,10 +161,77 @@ def test_masked_sum_and_transmission_products_equal_the_old_ones_bit_for_bit() -
     pos = np.column_stack([np.zeros(36), rng.uniform(-0.05, 0.05, (36, 2))])
     xi, zeta = rng.uniform(-1.5, 1.5, (2, 50))
     t = fim.transmission_vectors(prof, pos, xi, zeta, 0.01)
+    assert fim.grid_axes(pos) is None  # scattered elements: the element-by-element route
     np.testing.assert_array_equal(t, old_transmission_vectors(prof, pos, xi, zeta, 0.01))
+
+
+def gram_atol(t: Any, weights: Any) -> Any:
+    """|ΔQ_ij| of two summation orders over g of w_g conj(t_ig) t_jg: each sum of G' products
+    is within G'·ε·Σ_g w_g |t_ig||t_jg| ≤ G'·ε·√(Q_ii Q_jj) of the exact value (Cauchy–Schwarz);
+    twice that between two orders, [P, m, m]."""
+    d = np.sqrt(np.einsum("pgm,g->pm", np.abs(t) ** 2, weights))
+    return 2 * t.shape[1] * EPS * d[:, :, None] * d[:, None, :]
+
+
+def test_transmission_gram_by_rows_against_the_matrix_product() -> None:
+    """The Gram formed entry by entry (sums over g along the pairs) against the old batched
+    product, to the summation-order bound of :func:`gram_atol`; exactly Hermitian."""
+    rng = np.random.default_rng(3)
+    t = rng.normal(size=(50, 24, 3)) + 1j * rng.normal(size=(50, 24, 3))
+    t[:, :, 0] *= 1e3  # columns of very different size (∂ξ ≫ the response)
     for weights in (np.ones(24), rng.uniform(0.2, 2.0, 24)):
+        got = fim.transmission_gram(t, weights)
         old = np.conj(t).transpose(0, 2, 1) @ (t * weights[None, :, None])
-        np.testing.assert_array_equal(fim.transmission_gram(t, weights), old)
+        assert np.all(np.abs(got - old) <= gram_atol(t, weights))
+        np.testing.assert_array_equal(got, np.conj(got).transpose(0, 2, 1))
+        assert np.all(got.imag[:, [0, 1, 2], [0, 1, 2]] == 0.0)
+
+
+def test_separable_steering_vectors_against_the_element_by_element_route() -> None:
+    """On a rows × cols grid a_R,n = e^{jk z_r ζ} e^{jk y_c ξ} (two exponentials per row and
+    column) against e^{jk(y_n ξ + z_n ζ)} per element: the phases differ by their roundings,
+    ≤ 4ε(1 + |φ|) with |φ| ≤ k(|y||ξ| + |z||ζ|), so each t_g moves by at most that times
+    Σ_n |w_gn| plus the product's own N·ε·Σ_n |w_gn| (w the derivative-weighted profile rows).
+    A wrong element order would move t by O(|t|)."""
+    rng = np.random.default_rng(5)
+    lam, rows, cols = 0.01, 7, 9
+    pos = geometry.element_positions(rows, cols, 0.4 * lam)
+    axes = fim.grid_axes(pos)
+    assert axes is not None
+    np.testing.assert_array_equal(axes[0], pos[:cols, 1])
+    np.testing.assert_array_equal(axes[1], pos[::cols, 2])
+    prof = np.exp(1j * rng.uniform(0, 2 * np.pi, (16, rows * cols)))
+    xi, zeta = rng.uniform(-1.9, 1.9, (2, 1100))  # > one block of STEERING_CHUNK pairs
+    got = fim.transmission_vectors(prof, pos, xi, zeta, lam)
+    want = old_transmission_vectors(prof, pos, xi, zeta, lam)
+    k = 2 * np.pi / lam
+    y, z = pos[:, 1], pos[:, 2]
+    w3 = np.concatenate([prof * (1j * k * y), prof * (1j * k * z), prof], axis=0)
+    phase_max = k * (np.abs(y).max() * np.abs(xi) + np.abs(z).max() * np.abs(zeta))  # [P]
+    row_sum = np.abs(w3).sum(axis=1).reshape(3, 16).T  # [G̃, 3]
+    atol = ((4 * EPS * (1 + phase_max) + rows * cols * EPS)[:, None, None]) * row_sum[None]
+    assert np.all(np.abs(got - want) <= atol)
+    assert np.max(np.abs(got - want)) > 0  # the separable route was taken
+    # a permuted grid is not a row-major grid: the element-by-element route, bit for bit
+    perm = rng.permutation(rows * cols)
+    assert fim.grid_axes(pos[perm]) is None
+    np.testing.assert_array_equal(
+        fim.transmission_vectors(prof[:, perm], pos[perm], xi, zeta, lam),
+        old_transmission_vectors(prof[:, perm], pos[perm], xi, zeta, lam),
+    )
+
+
+def test_planar_transmission_gram_equals_the_gram_of_the_vectors() -> None:
+    """The block-by-block Gram of the bounds equals the Gram of the whole batch bit for bit."""
+    rng = np.random.default_rng(6)
+    pos = geometry.element_positions(6, 5, 0.005)
+    prof = np.exp(1j * rng.uniform(0, 2 * np.pi, (12, 30)))
+    xi, zeta = rng.uniform(-1, 1, (2, 1300))
+    weights = rng.uniform(0.5, 1.5, 12)
+    np.testing.assert_array_equal(
+        fim.planar_transmission_gram(prof, pos, xi, zeta, 0.01, weights),
+        fim.transmission_gram(fim.transmission_vectors(prof, pos, xi, zeta, 0.01), weights),
+    )
 
 
 @pytest.mark.parametrize("known", [(), ("clock",)])
