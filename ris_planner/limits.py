@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from ris_planner.errors import LimitExceededError, RisPlannerError
 
@@ -37,8 +37,19 @@ MAX_SITES = 100_000
 """Candidate sites: explicit candidates + Σ over walls of (length/spacing)·heights·tilts."""
 MAX_MAP_POINTS = 1_000_000
 """Points of one UE map (grid + points + road lattice + CSV rows)."""
-MAX_CACHE_ENTRIES = 4_000_000
-"""Candidate sites × pairs held in the site cache (28 float64 per entry)."""
+CACHE_MEMORY_MB_DEFAULT = 3072
+"""Site-cache budget [MiB] (``RIS_PLANNER_CACHE_MEMORY_MB``): the cache's block storage of
+28 entries per site-pair (:mod:`ris_planner.planning.site_cache`) is float64 up to it and
+float32 above it (half the bytes; the plan then re-scores its finalists exactly in float64);
+a cache that does not fit even as float32 is refused before anything is built. 3 GiB is half
+the job budget: the hall (156 × 6400 pairs, 224 MB) stays float64, a city block grid of 500
+candidates × 50 000 pairs (5.6 GB as float64) runs as float32 (2.8 GB)."""
+
+CACHE_MEMORY_ENV = "RIS_PLANNER_CACHE_MEMORY_MB"
+"""Environment variable with the site-cache budget (the service's setting; the CLI reads it)."""
+
+CACHE_ENTRY_BYTES = {"float64": 28 * 8, "float32": 28 * 4}
+"""Bytes per site-pair of the cache's block storage in each precision."""
 MAX_SEARCH_LAYOUTS = 2_000_000
 """Layouts a greedy search may score and memoise: (1 + seeds + restarts) starts × max_rounds
 rounds × L·(S − L) swaps per round, summed over the RIS counts (the worst case)."""
@@ -57,7 +68,8 @@ information."""
 BYTES_PER_MAP_POINT = 160
 BYTES_PER_PAIR = 200
 BYTES_PER_SITE = 4_000
-BYTES_PER_CACHE_ENTRY = 480
+BYTES_PER_CACHE_MASKS = 3
+"""Per site-pair, beside the block storage: the degenerate, far-field and presence masks."""
 BYTES_PER_LAYOUT = 250
 BYTES_PER_HEATMAP_ELEMENT = 16
 """Heatmap: per pair, RIS and element (``compute_bounds`` of 50 000 pairs with 5 RISs of 100
@@ -100,12 +112,6 @@ LIMITS: dict[str, tuple[int, str, str, str]] = {
     ),
     "tx_points": (MAX_MAP_POINTS, "tx_map points", "map-point", "use a coarser tx_map"),
     "rx_points": (MAX_MAP_POINTS, "rx_map points", "map-point", "use a coarser rx_map"),
-    "cache_entries": (
-        MAX_CACHE_ENTRIES,
-        "sites × pairs",
-        "site-cache",
-        "sample fewer pairs or use fewer candidates",
-    ),
     "search_layouts": (
         MAX_SEARCH_LAYOUTS,
         "greedy layouts (starts × rounds × swaps)",
@@ -134,6 +140,42 @@ LIMITS: dict[str, tuple[int, str, str, str]] = {
 }
 """Quantity → (limit, what is counted, the limit's name, how to get below it); ``pairs`` is
 checked against the document's own ``max_pairs``."""
+
+
+def cache_memory_mb() -> int:
+    """The site-cache budget [MiB] from ``RIS_PLANNER_CACHE_MEMORY_MB`` (default
+    :data:`CACHE_MEMORY_MB_DEFAULT`)."""
+    text = os.environ.get(CACHE_MEMORY_ENV)
+    if text is None or text.strip() == "":
+        return CACHE_MEMORY_MB_DEFAULT
+    try:
+        value = int(text)
+    except ValueError:
+        raise RisPlannerError(
+            f"{CACHE_MEMORY_ENV} must be an integer (MiB), got {text!r}"
+        ) from None
+    if value < 1:
+        raise RisPlannerError(f"{CACHE_MEMORY_ENV} must be ≥ 1 MiB, got {value}")
+    return value
+
+
+def cache_storage(entries: int, budget_mb: int | None = None) -> Literal["float64", "float32"]:
+    """The site cache's storage for ``entries`` site-pairs: float64 when its block storage fits
+    the budget (default :func:`cache_memory_mb`), else float32; raises
+    :class:`LimitExceededError` naming the budget when not even float32 fits."""
+    budget_mb = cache_memory_mb() if budget_mb is None else budget_mb
+    budget = budget_mb << 20
+    if entries * CACHE_ENTRY_BYTES["float64"] <= budget:
+        return "float64"
+    if entries * CACHE_ENTRY_BYTES["float32"] <= budget:
+        return "float32"
+    need = math.ceil(entries * CACHE_ENTRY_BYTES["float32"] / (1 << 20))
+    raise LimitExceededError(
+        f"{entries} sites × pairs need {need} MiB of site cache even as float32, above the"
+        f" site-cache budget of {budget_mb} MiB ({CACHE_MEMORY_ENV}); sample fewer pairs or use"
+        " fewer candidates",
+        budget_mb,
+    )
 
 
 def job_memory_mb() -> int:
@@ -168,6 +210,7 @@ def check_sizes(sizes: Sizes, *, max_pairs: int | None = None, memory_mb: int | 
                 f"{values[name]} {what} exceed the {label} limit of {limit} ({name}); {hint}",
                 limit,
             )
+    cache_storage(sizes.cache_entries)
     if memory_mb is not None and sizes.memory_bytes > memory_mb << 20:
         need = math.ceil(sizes.memory_bytes / (1 << 20))
         raise LimitExceededError(
@@ -269,6 +312,17 @@ def _search_layouts(doc: PlanDocument, sites: int) -> int:
     return total
 
 
+def cache_bytes(entries: int) -> int:
+    """Peak bytes of a site cache of ``entries`` site-pairs: its block storage in the chosen
+    precision twice (the parent's, and the copy the worker pool maps) and the masks; 0 when
+    it does not fit (:func:`check_sizes` refuses it by its own budget)."""
+    try:
+        storage = cache_storage(entries)
+    except LimitExceededError:
+        return 0
+    return entries * (2 * CACHE_ENTRY_BYTES[storage] + BYTES_PER_CACHE_MASKS)
+
+
 def estimate_plan(doc: PlanDocument) -> Sizes:
     """Every size of a plan run from its validated document (nothing is built)."""
     sites = plan_sites(doc)
@@ -291,7 +345,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         + csv_rows * CSV_BYTES_PER_ROW_PARSED
         + min(pairs, doc.max_pairs) * BYTES_PER_PAIR
         + sites * BYTES_PER_SITE
-        + min(cache, MAX_CACHE_ENTRIES) * BYTES_PER_CACHE_ENTRY
+        + cache_bytes(cache)
         + min(layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT
         + heatmap * min(max(doc.max_counts), max(sites, 1)) * elements * BYTES_PER_HEATMAP_ELEMENT
     )
