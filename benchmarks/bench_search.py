@@ -234,7 +234,7 @@ def storage_check(raw: dict[str, Any], n_layouts: int) -> None:
     """float32 against float64 storage on the same problem: the scores of n_layouts random
     layouts per count (max relative error, same inf pattern) and the plan's answers (best
     layouts, objectives) with the cache budget set just below float64's storage."""
-    from ris_planner.limits import CACHE_MEMORY_ENV
+    from ris_planner.limits import CACHE_MEMORY_ENV, CacheLayout
     from ris_planner.planning.search import all_layouts
 
     doc = PlanDocument.model_validate(raw)
@@ -245,8 +245,9 @@ def storage_check(raw: dict[str, Any], n_layouts: int) -> None:
     scorers = {}
     for storage in ("float64", "float32"):
         t0 = time.perf_counter()
+        layout = CacheLayout(storage, False)
         cache = build_site_cache(
-            doc.system, sites, pairs, visibility=vis, known=known, storage=storage
+            doc.system, sites, pairs, visibility=vis, known=known, layout=layout
         )
         scorers[storage] = Scorer(cache, pairs.weights, doc.objective, known)
         print(
@@ -269,17 +270,21 @@ def storage_check(raw: dict[str, Any], n_layouts: int) -> None:
             f" {np.max(np.abs(l32 - l64)):.2e}; same best of the sample"
             f" {int(np.argmin(l64)) == int(np.argmin(l32))}"
         )
-    need = scorers["float64"].cache.blocks.nbytes >> 20
+    blocks = scorers["float64"].cache.blocks.nbytes >> 20
     answers = {}
-    for storage, budget in (("float64", None), ("float32", str(need - 1))):
-        if budget is not None:
-            os.environ[CACHE_MEMORY_ENV] = budget
+    tiers = (("float64", None), ("float64, rows recomputed", blocks + 1), ("float32", blocks - 1))
+    for name, budget in tiers:
+        if budget is not None:  # the budget just above / below float64's block storage
+            os.environ[CACHE_MEMORY_ENV] = str(budget)
         res, dt, _ = timed_plan(raw, SerialExecutor())
         os.environ.pop(CACHE_MEMORY_ENV, None)
-        assert res.cache.storage == storage
-        answers[storage] = res.to_json()["by_count"]
-        print(f"plan with {storage} storage: {dt:.1f} s")
-    for a, b in zip(answers["float64"], answers["float32"], strict=True):
+        answers[name] = res.to_json()["by_count"]
+        print(f"plan with {name} ({res.to_json()['site_cache']}): {dt:.1f} s {res.timing}")
+    for a, r, b in zip(*answers.values(), strict=True):
+        print(
+            f"  L={a['ris_count']}: rows recomputed: same top layouts and objectives"
+            f" {a['top_layouts'] == r['top_layouts']}"
+        )
         print(
             f"  L={a['ris_count']}: float64 {a['sites']} {a['objective']}, float32"
             f" {b['sites']} {b['objective']}; same top layouts and objectives"

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 from ris_planner.errors import LimitExceededError, RisPlannerError
 
@@ -38,18 +38,38 @@ MAX_SITES = 100_000
 MAX_MAP_POINTS = 1_000_000
 """Points of one UE map (grid + points + road lattice + CSV rows)."""
 CACHE_MEMORY_MB_DEFAULT = 3072
-"""Site-cache budget [MiB] (``RIS_PLANNER_CACHE_MEMORY_MB``): the cache's block storage of
-28 entries per site-pair (:mod:`ris_planner.planning.site_cache`) is float64 up to it and
-float32 above it (half the bytes; the plan then re-scores its finalists exactly in float64);
-a cache that does not fit even as float32 is refused before anything is built. 3 GiB is half
-the job budget: the hall (156 × 6400 pairs, 224 MB) stays float64, a city block grid of 500
-candidates × 50 000 pairs (5.6 GB as float64) runs as float32 (2.8 GB)."""
+"""Site-cache budget [MiB] (``RIS_PLANNER_CACHE_MEMORY_MB``) for the cache's block storage of 28
+entries per site-pair and its square-root rows (:mod:`ris_planner.planning.site_cache`); the
+first layout of :func:`cache_layout` that fits is used: float64 with the rows stored, float64
+with the rows recomputed on demand (planar), float32 (half the bytes; the plan then re-scores
+its finalists exactly in float64). A cache that does not fit even as float32 is refused before
+anything is built. 3 GiB is half the job budget: the hall (156 × 6400 pairs, 392 MB with its
+rows) stays as before, a city block grid of 512 candidates × 50 000 pairs (5.7 GB as float64
+without rows) runs as float32 (2.9 GB)."""
 
 CACHE_MEMORY_ENV = "RIS_PLANNER_CACHE_MEMORY_MB"
 """Environment variable with the site-cache budget (the service's setting; the CLI reads it)."""
 
 CACHE_ENTRY_BYTES = {"float64": 28 * 8, "float32": 28 * 4}
 """Bytes per site-pair of the cache's block storage in each precision."""
+
+CACHE_ROW_BYTES = {"planar": 3 * 7 * 8, "spherical": 7 * 7 * 8}
+"""Bytes per site-pair of the stored square-root rows (float64; spherical ones are always
+stored: their expected Gram takes a product over all UE positions)."""
+
+
+class CacheLayout(NamedTuple):
+    """How the site cache is held: the block storage's precision, and whether the square-root
+    rows are stored (else recomputed for the few pairs that need them)."""
+
+    storage: Literal["float64", "float32"]
+    rows: bool
+
+    def bytes(self, entries: int, wavefront: str = "planar") -> int:
+        per = CACHE_ENTRY_BYTES[self.storage] + (CACHE_ROW_BYTES[wavefront] if self.rows else 0)
+        return entries * per
+
+
 MAX_SEARCH_LAYOUTS = 2_000_000
 """Layouts a greedy search may score and memoise: (1 + seeds + restarts) starts × max_rounds
 rounds × L·(S − L) swaps per round, summed over the RIS counts (the worst case)."""
@@ -159,17 +179,22 @@ def cache_memory_mb() -> int:
     return value
 
 
-def cache_storage(entries: int, budget_mb: int | None = None) -> Literal["float64", "float32"]:
-    """The site cache's storage for ``entries`` site-pairs: float64 when its block storage fits
-    the budget (default :func:`cache_memory_mb`), else float32; raises
-    :class:`LimitExceededError` naming the budget when not even float32 fits."""
+def cache_layout(
+    entries: int, wavefront: str = "planar", budget_mb: int | None = None
+) -> CacheLayout:
+    """The site cache's layout for ``entries`` site-pairs: the first of float64 with rows,
+    float64 without rows (planar), float32 (without rows; spherical: with) whose bytes fit the
+    budget (default :func:`cache_memory_mb`); raises :class:`LimitExceededError` naming the
+    budget when none does."""
     budget_mb = cache_memory_mb() if budget_mb is None else budget_mb
-    budget = budget_mb << 20
-    if entries * CACHE_ENTRY_BYTES["float64"] <= budget:
-        return "float64"
-    if entries * CACHE_ENTRY_BYTES["float32"] <= budget:
-        return "float32"
-    need = math.ceil(entries * CACHE_ENTRY_BYTES["float32"] / (1 << 20))
+    spherical = wavefront == "spherical"
+    tiers = [CacheLayout("float64", True)]
+    tiers += [CacheLayout("float32", True)] if spherical else [CacheLayout("float64", False)]
+    tiers += [] if spherical else [CacheLayout("float32", False)]
+    for tier in tiers:
+        if tier.bytes(entries, wavefront) <= budget_mb << 20:
+            return tier
+    need = math.ceil(tiers[-1].bytes(entries, wavefront) / (1 << 20))
     raise LimitExceededError(
         f"{entries} sites × pairs need {need} MiB of site cache even as float32, above the"
         f" site-cache budget of {budget_mb} MiB ({CACHE_MEMORY_ENV}); sample fewer pairs or use"
@@ -210,7 +235,7 @@ def check_sizes(sizes: Sizes, *, max_pairs: int | None = None, memory_mb: int | 
                 f"{values[name]} {what} exceed the {label} limit of {limit} ({name}); {hint}",
                 limit,
             )
-    cache_storage(sizes.cache_entries)
+    cache_layout(sizes.cache_entries)  # (planar; run_plan checks the spherical rows too)
     if memory_mb is not None and sizes.memory_bytes > memory_mb << 20:
         need = math.ceil(sizes.memory_bytes / (1 << 20))
         raise LimitExceededError(
@@ -312,15 +337,15 @@ def _search_layouts(doc: PlanDocument, sites: int) -> int:
     return total
 
 
-def cache_bytes(entries: int) -> int:
-    """Peak bytes of a site cache of ``entries`` site-pairs: its block storage in the chosen
-    precision twice (the parent's, and the copy the worker pool maps) and the masks; 0 when
-    it does not fit (:func:`check_sizes` refuses it by its own budget)."""
+def cache_bytes(entries: int, wavefront: str = "planar") -> int:
+    """Peak bytes of a site cache of ``entries`` site-pairs: its :func:`cache_layout` twice
+    (the parent's, and the copy the worker pool maps) and the masks; 0 when it does not fit
+    (:func:`check_sizes` refuses it by its own budget)."""
     try:
-        storage = cache_storage(entries)
+        layout = cache_layout(entries, wavefront)
     except LimitExceededError:
         return 0
-    return entries * (2 * CACHE_ENTRY_BYTES[storage] + BYTES_PER_CACHE_MASKS)
+    return 2 * layout.bytes(entries, wavefront) + entries * BYTES_PER_CACHE_MASKS
 
 
 def estimate_plan(doc: PlanDocument) -> Sizes:
@@ -345,7 +370,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         + csv_rows * CSV_BYTES_PER_ROW_PARSED
         + min(pairs, doc.max_pairs) * BYTES_PER_PAIR
         + sites * BYTES_PER_SITE
-        + cache_bytes(cache)
+        + cache_bytes(cache, doc.system.wavefront)
         + min(layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT
         + heatmap * min(max(doc.max_counts), max(sites, 1)) * elements * BYTES_PER_HEATMAP_ELEMENT
     )

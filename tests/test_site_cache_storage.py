@@ -22,6 +22,7 @@ from ris_planner.bounds import (
 )
 from ris_planner.environment import Scene
 from ris_planner.ldl import unpack
+from ris_planner.limits import CacheLayout
 from ris_planner.planning import SerialExecutor, run_plan
 from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.maps import build_map, build_pairs
@@ -72,8 +73,10 @@ def test_rows_on_demand_equal_the_full_evaluation(known: tuple[str, ...]) -> Non
     sites = expand_sites(d)[::5]
     pairs = build_pairs(build_map(d.tx_map, "tx"), build_map(d.rx_map, "rx"), d.pairs, 10**6)
     vis = pair_visibility(Scene.from_environment(d.environment), sites, pairs, d.system.los)
-    cache = build_site_cache(d.system, sites, pairs, visibility=vis, known=known)  # type: ignore[arg-type]
-    assert cache.factor is None  # planar: not stored
+    layout = CacheLayout("float64", rows=False)
+    cache = build_site_cache(d.system, sites, pairs, visibility=vis, known=known, layout=layout)  # type: ignore[arg-type]
+    stored = build_site_cache(d.system, sites, pairs, visibility=vis, known=known)  # type: ignore[arg-type]
+    assert cache.factor is None and stored.factor is not None
     radio = fim.Radio.from_system(d.system)
     grad = los_gradient(los_path_information(pairs.tx, pairs.rx, radio, 1.0))
     rng = np.random.default_rng(0)
@@ -88,6 +91,7 @@ def test_rows_on_demand_equal_the_full_evaluation(known: tuple[str, ...]) -> Non
         pick = np.sort(rng.choice(pairs.size, 11, replace=False))
         got = cache.factor_rows(np.full(pick.size, s), pick)
         np.testing.assert_array_equal(got, full[pick])
+        np.testing.assert_array_equal(stored.factor[s], full)  # type: ignore[index]
 
 
 def _scaled_trace(cache_packed: np.ndarray, los: np.ndarray | None, lay: np.ndarray) -> Any:
@@ -111,7 +115,9 @@ def test_float32_storage_within_its_rounding_bound_and_same_decisions() -> None:
     pairs = build_pairs(build_map(d.tx_map, "tx"), build_map(d.rx_map, "rx"), d.pairs, 10**6)
     known = tuple(d.known)
     c64 = build_site_cache(d.system, sites, pairs, known=known)
-    c32 = build_site_cache(d.system, sites, pairs, known=known, storage="float32")
+    c32 = build_site_cache(
+        d.system, sites, pairs, known=known, layout=CacheLayout("float32", False)
+    )
     assert c32.storage == "float32" and c32.blocks.nbytes * 2 == c64.blocks.nbytes
     s64 = Scorer(c64, pairs.weights, d.objective, known)
     s32 = Scorer(c32, pairs.weights, d.objective, known)
@@ -135,7 +141,9 @@ def test_exact_metric_of_a_float32_cache_is_compute_bounds() -> None:
     d = PlanDocument.model_validate(_doc(known=["height"]))
     sites = expand_sites(d)
     pairs = build_pairs(build_map(d.tx_map, "tx"), build_map(d.rx_map, "rx"), d.pairs, 10**6)
-    c32 = build_site_cache(d.system, sites, pairs, known=("height",), storage="float32")
+    c32 = build_site_cache(
+        d.system, sites, pairs, known=("height",), layout=CacheLayout("float32", False)
+    )
     s32 = Scorer(c32, pairs.weights, d.objective, ("height",))
     layouts = np.array([(0, 2, 5), (1, 3, 6), (2, 3, 4)])
     got = s32.exact_metric(layouts)
@@ -156,14 +164,30 @@ def test_exact_metric_of_a_float32_cache_is_compute_bounds() -> None:
 def test_plan_above_the_float64_budget_reports_float32_with_exact_finalists(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """20 sites × 300 pairs: 1.3 MiB as float64, 0.6 MiB as float32 – a 1 MiB budget stores
-    float32; the plan names it and reports the float64 plan's layouts and exact objectives."""
+    """20 sites × 300 pairs: 2.2 MiB as float64 with rows, 1.3 MiB without, 0.7 MiB as
+    float32. A 2 MiB budget recomputes the rows: the same plan bit for bit; a 1 MiB budget
+    stores float32: the plan names it and reports the float64 plan's layouts and exact
+    objectives."""
     doc = _doc(20, ris_count=[2, 3], search={"method": "exhaustive", "top_k": 4})
     ref = run_plan(doc, executor=SerialExecutor()).to_json()
+    assert ref["site_cache"]["storage"] == "float64" and ref["site_cache"]["rows_stored"]
+    monkeypatch.setenv("RIS_PLANNER_CACHE_MEMORY_MB", "2")
+    rows = run_plan(doc, executor=SerialExecutor()).to_json()
+    assert rows["site_cache"] == {
+        "storage": "float64",
+        "rows_stored": False,
+        "bytes": 5 * 20 * 28 * 64 * 8,
+    }
+    assert {k: v for k, v in rows.items() if k not in ("timing_s", "site_cache")} == {
+        k: v for k, v in ref.items() if k not in ("timing_s", "site_cache")
+    }
     monkeypatch.setenv("RIS_PLANNER_CACHE_MEMORY_MB", "1")
     got = run_plan(doc, executor=SerialExecutor()).to_json()
-    assert ref["site_cache"]["storage"] == "float64"
-    assert got["site_cache"] == {"storage": "float32", "bytes": ref["site_cache"]["bytes"] // 2}
+    assert got["site_cache"] == {
+        "storage": "float32",
+        "rows_stored": False,
+        "bytes": 5 * 20 * 28 * 64 * 4,
+    }
     for a, b in zip(ref["by_count"], got["by_count"], strict=True):
         assert a["top_layouts"] == b["top_layouts"]  # same layouts, exact objectives
         assert a["objective"] == b["objective"] and a["quantiles_m"] == b["quantiles_m"]

@@ -15,7 +15,7 @@ from ris_planner.bounds import compute_bounds
 from ris_planner.environment import Scene, ris_serves
 from ris_planner.errors import RisPlannerError
 from ris_planner.fim import Radio
-from ris_planner.limits import HEATMAP_MAX_PAIRS, cache_storage
+from ris_planner.limits import HEATMAP_MAX_PAIRS, cache_layout
 from ris_planner.planning.beam_design import (
     BeamReport,
     evaluate_layout_beams,
@@ -367,7 +367,8 @@ class PlanResult:
             "timing_s": self.timing,
             "site_cache": {
                 "storage": self.cache.storage,
-                "bytes": int(self.cache.blocks.nbytes),
+                "rows_stored": self.cache.factor is not None,
+                "bytes": self.cache.nbytes,
             },
             "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
@@ -536,7 +537,7 @@ def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
         tx_map, dropped["tx"], rx_map, dropped["rx"] = _drop_points(scene, doc, tx_map, rx_map)
     directions = unordered_directions(doc.pairs, doc.objective.metric, tuple(doc.known))
     pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs, directions == "explicit")
-    cache_storage(len(sites) * pairs.size)  # the site-cache budget, before any work
+    cache_layout(len(sites) * pairs.size, doc.system.wavefront)  # the budget, before any work
     return PlanInputs(
         doc, sites, tx_map, rx_map, pairs, scene, dropped, directions, wanted, feasibility
     )
@@ -579,7 +580,7 @@ def run_plan(
         lambda f, m: progress(0.2 * f, f"cache: {m}"),
         visibility,
         known=tuple(doc.known),
-        storage=cache_storage(len(sites) * pairs.size),
+        layout=cache_layout(len(sites) * pairs.size, doc.system.wavefront),
     )
     t_cache = time.perf_counter() - t0
     scorer = Scorer(

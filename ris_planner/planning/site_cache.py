@@ -15,12 +15,12 @@ geometric channel parameters per layout (DESIGN.md: fewer than the unknown state
 The RIS pattern factor (cos θ_T cos θ_R)^q is in the path gain
 (:func:`ris_planner.bounds.ris_path_gain`).
 Storage (issue 14, memory): the site information is held once, in the pair blocks the compiled
-scorer reads (no per-process re-layout), as float64 or – above the cache budget
-(:func:`ris_planner.limits.cache_storage`) – float32, whose finalists the plan re-scores
-exactly on a float64 cache of just their sites. The square-root rows
-(:func:`ris_planner.crb.path_factor`) from which the scorer recomputes the few ill-conditioned
-(layout, pair) combinations (:func:`ris_planner.crb.crb_diagonal`) are not stored for the
-planar wavefront: :class:`SiteSource` recomputes them for just those pairs, with the same bits.
+scorer reads (no per-process re-layout). The square-root rows (:func:`ris_planner.crb.
+path_factor`) from which the scorer recomputes the few ill-conditioned (layout, pair)
+combinations (:func:`ris_planner.crb.crb_diagonal`) are stored while they fit the cache budget
+(:func:`ris_planner.limits.cache_layout`); above it :class:`SiteSource` recomputes them for just
+those pairs (planar), with the same bits, and further above the blocks are float32, whose
+finalists the plan re-scores exactly on a float64 cache of just their sites.
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ from ris_planner.bounds import (
     uses_los_reference,
 )
 from ris_planner.ldl import pack
+from ris_planner.limits import CacheLayout
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.planning.visibility import Visibility
@@ -55,6 +56,9 @@ IntArray = NDArray[np.int_]
 
 N_STATES = 7
 N_PACKED = N_STATES * (N_STATES + 1) // 2
+
+FULL = CacheLayout("float64", rows=True)
+"""The default layout: float64 blocks and the square-root rows stored."""
 
 
 CHUNK = 64
@@ -136,10 +140,11 @@ class SiteCache:
     degenerate : [S, P] a UE within 1 mm of the site (the pair is a blind spot there);
     far_field : [S, P] d_T d_R/(d_T + d_R) ≥ 2D²/λ for the site (footnote 3), or the path
     is absent;
-    factor : [S, P, 7, 7] square-root rows of each site's RIS path (F_site = factorᵀ factor),
-    zero where the path is absent – stored for the spherical wavefront only (its expected Gram
-    takes a product over all UE positions, so a subset of pairs would not give the same
-    bits); ``None``: planar, :attr:`source` recomputes them (:meth:`factor_rows`);
+    factor : [S, P, m, 7] square-root rows of each site's RIS path (F_site = factorᵀ factor;
+    m = 3 planar, 7 spherical), zero where the path is absent; always stored for the
+    spherical wavefront (its expected Gram takes a product over all UE positions, so a subset
+    of pairs would not give the same bits); ``None``: planar above the budget's first tier,
+    :attr:`source` recomputes them (:meth:`factor_rows`);
     los_factor : [P, 1, 7] the LOS path's (``None`` when the system has no LOS);
     los_referenced : the states are [p_T, p_R, B + d_TR] (:func:`ris_planner.bounds.
     los_referenced`, used with the LOS and an unknown clock, as ``compute_bounds`` does);
@@ -162,6 +167,11 @@ class SiteCache:
     @property
     def n_sites(self) -> int:
         return int(self.blocks.shape[1])
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the block storage and the stored rows."""
+        return int(self.blocks.nbytes + (0 if self.factor is None else self.factor.nbytes))
 
     @property
     def storage(self) -> Storage:
@@ -305,16 +315,17 @@ def build_site_cache(
     visibility: Visibility | None = None,
     *,
     known: list[KnownPart] | tuple[KnownPart, ...] = (),
-    storage: Storage = "float64",
+    layout: CacheLayout = FULL,
 ) -> SiteCache:
     """LOS once and every candidate RIS path once, each as packed 7×7 information per pair
     (on the coordinates ``compute_bounds`` uses for ``known``, see :class:`SiteCache`); with
-    ``visibility`` absent paths carry zero information. ``storage`` : the precision of the
+    ``visibility`` absent paths carry zero information. ``layout`` : the precision of the
     stored site information (float32 halves it; the values are float64 rounded once, the
-    LOS and the square-root rows stay float64). One BLAS thread, as ``compute_bounds``
+    LOS stays float64) and whether the square-root rows are stored (planar; spherical ones
+    always are). One BLAS thread, as ``compute_bounds``
     (:mod:`ris_planner.blas`)."""
     with one_blas_thread():
-        return _build_site_cache(system, sites, pairs, progress, visibility, known, storage)
+        return _build_site_cache(system, sites, pairs, progress, visibility, known, layout)
 
 
 def _build_site_cache(
@@ -324,7 +335,7 @@ def _build_site_cache(
     progress: ProgressCallback,
     visibility: Visibility | None,
     known: list[KnownPart] | tuple[KnownPart, ...],
-    storage: Storage,
+    layout: CacheLayout,
 ) -> SiteCache:
     radio = fim.Radio.from_system(system)
     g = system.transmissions
@@ -341,8 +352,10 @@ def _build_site_cache(
             mask_absent(los, visibility.los)
             los_factor[~visibility.los] = 0.0
     spherical = system.wavefront == "spherical"
-    blocks = np.empty((n_blocks(pairs.size), len(sites), N_PACKED, CHUNK), dtype=storage)
-    factor = np.empty((len(sites), pairs.size, N_STATES, N_STATES)) if spherical else None
+    blocks = np.empty((n_blocks(pairs.size), len(sites), N_PACKED, CHUNK), dtype=layout.storage)
+    m = N_STATES if spherical else 3
+    keep_rows = spherical or layout.rows
+    factor = np.empty((len(sites), pairs.size, m, N_STATES)) if keep_rows else None
     degenerate = np.zeros((len(sites), pairs.size), dtype=bool)
     far = np.zeros((len(sites), pairs.size), dtype=bool)
     packed = np.empty((N_PACKED, pairs.size))  # one site's, reused
@@ -370,8 +383,13 @@ def _build_site_cache(
             else:
                 packed[:, sel] = pack(info.state_information())
                 far[s, sel] = far_s
-            if factor is not None:  # spherical: every pair evaluated (sel is None)
+            if factor is not None and sel is None:
                 factor[s] = info.factor()
+            elif factor is not None:
+                factor[s] = 0.0
+                factor[s, sel] = info.factor()
+        elif factor is not None:
+            factor[s] = 0.0
         if visibility is not None and sel is None and not np.all(visibility.present[s]):
             # (spherical: every pair evaluated, the absent ones zeroed)
             mask_absent(packed, visibility.present[s])
