@@ -14,6 +14,7 @@ For each case, in the same run:
         [--city-blocks 4] [--city-pairs 50000] [--counts 2 3 4] [--hall-pairs 6400]
     python benchmarks/bench_search.py --greedy-workers 2 --counts 3 [--hall-pairs 2000]
     python benchmarks/bench_search.py --storage-check 2000 [--hall-pairs 6400]
+    python benchmarks/bench_search.py --city-memory 40 [--city-blocks 4] [--city-pairs 50000]
 
 Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
 UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
@@ -292,6 +293,57 @@ def storage_check(raw: dict[str, Any], n_layouts: int) -> None:
         )
 
 
+def city_memory(raw: dict[str, Any], n_layouts: int) -> None:
+    """The city's site cache at full size without the searches: the layout the budget picks,
+    its build time and bytes, the peak RSS, the scoring rate on it and the exact float64
+    re-score of a few layouts (what the plan does for its finalists)."""
+    from ris_planner.limits import cache_layout
+
+    doc = PlanDocument.model_validate(raw)
+    t0 = time.perf_counter()
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    vis = pair_visibility(Scene.from_environment(doc.environment), sites, pairs, doc.system.los)
+    entries = len(sites) * pairs.size
+    layout = cache_layout(entries, doc.system.wavefront)
+    t_vis = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    cache = build_site_cache(
+        doc.system, sites, pairs, visibility=vis, known=tuple(doc.known), layout=layout
+    )
+    t_cache = time.perf_counter() - t0
+    print(
+        f"city cache: {len(sites)} × {pairs.size} = {entries / 1e6:.1f} M site-pairs, {layout},"
+        f" {cache.nbytes / 2**30:.2f} GiB (before issue 14's memory item:"
+        f" {entries * 77 * 8 / 2**30:.1f} GiB, 28 + 21 float64 in the cache + 28 per process);"
+        f" maps/pairs/visibility {t_vis:.1f} s, cache {t_cache:.1f} s; peak RSS"
+        f" {peak_rss_mib():.0f} MiB"
+    )
+    scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+    rng = np.random.default_rng(0)
+    for c in (2, 4, 6):
+        lay = np.sort(
+            np.stack([rng.choice(len(sites), c, replace=False) for _ in range(n_layouts)]), axis=1
+        )
+        scorer.metric(lay[:1])
+        t0 = time.perf_counter()
+        m32 = scorer.metric(lay)
+        t_m = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        m64 = scorer.exact_metric(lay[:3])
+        t_x = time.perf_counter() - t0
+        ok = np.isfinite(m64)
+        err = np.abs(m32[:3][ok] - m64[ok]) / m64[ok]
+        print(
+            f"  L={c}: {n_layouts} layouts in {t_m:.1f} s"
+            f" ({n_layouts * pairs.size / t_m / 1e6:.2f} M layout-pairs/s);"
+            f" exact float64 re-score of 3 in {t_x:.1f} s, same inf pattern"
+            f" {bool(np.array_equal(ok, np.isfinite(m32[:3])))}, relative error of the"
+            f" stored-precision metric median {np.median(err) if err.size else 0:.1e} max"
+            f" {err.max() if err.size else 0:.1e}; peak RSS {peak_rss_mib():.0f} MiB"
+        )
+
+
 def greedy_workers(raw: dict[str, Any], workers: int) -> None:
     """Today's greedy and the new one (starts in lockstep, rounds split over the workers) with
     the same LocalExecutor: same layouts, wall time of each."""
@@ -391,7 +443,17 @@ def main() -> None:
         help="RIS_PLANNER_JOB_MEMORY_MB for the city case (the estimate counts a 200 000-pair"
         " heatmap and the worker pool's copy of the cache beside the 3 GiB cache budget)",
     )
+    ap.add_argument(
+        "--city-memory",
+        type=int,
+        default=0,
+        help="only build the city's site cache at full size and score N random layouts on it",
+    )
     args = ap.parse_args()
+    if args.city_memory:
+        raw = city_doc(args.city_blocks, args.city_pairs, [2])
+        city_memory(raw, args.city_memory)
+        return
     if args.storage_check:
         storage_check(hall_doc(args.counts or [2, 3, 4], args.hall_pairs), args.storage_check)
         return
