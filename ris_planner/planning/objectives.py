@@ -119,9 +119,7 @@ class Scorer:
         """The cache's packed entries of the kept states as float64 [E, S, P] (a copy of the
         block storage, made once per scorer and process by the numpy readers only)."""
         src = self._src
-        los = self.cache.los
-        if los is not None and src.size < los.shape[0]:
-            los = los[src]
+        _, los = self.selected_packed
         return self.cache.information(src if src.size < N_PACKED else None), los
 
     @property
