@@ -191,3 +191,9 @@ def test_plan_above_the_float64_budget_reports_float32_with_exact_finalists(
     for a, b in zip(ref["by_count"], got["by_count"], strict=True):
         assert a["top_layouts"] == b["top_layouts"]  # same layouts, exact objectives
         assert a["objective"] == b["objective"] and a["quantiles_m"] == b["quantiles_m"]
+        # exhaustive: the exact certificate is the re-scored best's value
+        assert (
+            b["certificate"]["objective_bound"]
+            == b["objective"]
+            == a["certificate"]["objective_bound"]
+        )

@@ -10,6 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ris_planner.planning.certificates import Certificate
 from ris_planner.planning.decisions import MAX_TIES_LISTED, ties
 from ris_planner.planning.objectives import Scorer
 from ris_planner.planning.search import SearchOutcome
@@ -33,3 +34,15 @@ def rescore_finalists(
             return now, int(exact.sum())
         losses[todo] = scorer.exact_loss(outcome.layouts[todo])
         exact[todo] = True
+
+
+def exact_certificate(
+    scorer: Scorer, certificate: Certificate | None, best_loss: float
+) -> Certificate | None:
+    """An exact certificate (exhaustive search, a finished branch-and-bound) of a float32
+    cache names the optimum of the float32 scores: its value is the re-scored best's exact
+    ``best_loss``, not the float32 loss it was taken from. Relaxation bounds are kept (they
+    bound the float32-rounded problem; README "Site-cache memory")."""
+    if certificate is None or not certificate.exact or scorer.cache.storage == "float64":
+        return certificate
+    return replace(certificate, loss_bound=best_loss)

@@ -34,7 +34,7 @@ from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
 from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
-from ris_planner.planning.finalists import rescore_finalists
+from ris_planner.planning.finalists import exact_certificate, rescore_finalists
 from ris_planner.planning.maps import (
     PairSet,
     PointMap,
@@ -639,6 +639,7 @@ def run_plan(
             # a float32 cache: the reported layouts re-scored in float64
             outcome, _ = rescore_finalists(scorer, outcome, doc.search.top_k, doc.search.tie_rtol)
             ranked = outcome.ranked(doc.search.top_k)
+            cert = exact_certificate(scorer, cert, ranked[0][1])
             best_metric = scorer.exact_metric(np.array([ranked[0][0]], dtype=int))[0]
             n_ties, tied = ties(outcome, doc.search.tie_rtol)
             counts.append(
