@@ -197,3 +197,11 @@ def test_plan_above_the_float64_budget_reports_float32_with_exact_finalists(
             == b["objective"]
             == a["certificate"]["objective_bound"]
         )
+
+
+def test_storage_blocks_are_the_kernels_chunks() -> None:
+    """The cache's pair blocks are the compiled kernel's chunks (it reads them in place)."""
+    from ris_planner import _crb_jit
+    from ris_planner.planning import site_cache
+
+    assert site_cache.CHUNK == _crb_jit.CHUNK
