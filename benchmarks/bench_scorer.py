@@ -95,9 +95,8 @@ def hall(n_layouts: int, plan: bool) -> None:
     blocks = scorer._kernel_inputs["blocks"]
     print(
         f"hall: {scorer.cache.n_sites} sites × {scorer.cache.n_pairs} pairs; pair blocks"
-        f" {blocks.nbytes / 2**20:.0f} MiB (cache.packed {scorer.cache.packed.nbytes / 2**20:.0f}"
-        f" MiB, factor {scorer.cache.factor.nbytes / 2**20:.0f} MiB), built in {t_blocks:.2f} s"
-        " (incl. compile or cache load)"
+        f" {blocks.nbytes / 2**20:.0f} MiB ({scorer.cache.storage}, the cache's own storage),"
+        f" kernel inputs in {t_blocks:.2f} s (incl. compile or cache load)"
     )
     rng = np.random.default_rng(0)
     for n_ris in (2, 3, 4):

@@ -13,6 +13,8 @@ For each case, in the same run:
     python benchmarks/bench_search.py [--case hall|city|both] [--dask]
         [--city-blocks 4] [--city-pairs 50000] [--counts 2 3 4] [--hall-pairs 6400]
     python benchmarks/bench_search.py --greedy-workers 2 --counts 3 [--hall-pairs 2000]
+    python benchmarks/bench_search.py --storage-check 2000 [--hall-pairs 6400]
+    python benchmarks/bench_search.py --city-memory 40 [--city-blocks 4] [--city-pairs 50000]
 
 Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
 UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
@@ -23,6 +25,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import resource
 import sys
 import time
 import tracemalloc
@@ -149,7 +153,13 @@ def timed_plan(raw: dict[str, Any], executor: Any) -> tuple[Any, float, int]:
     return res, dt, peak
 
 
-def report(name: str, raw: dict[str, Any], dask: bool) -> None:
+def peak_rss_mib() -> float:
+    """The process's peak resident set so far [MiB] (Linux: ru_maxrss in KiB; numba's and
+    numpy's buffers included, which tracemalloc does not all see)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def report(name: str, raw: dict[str, Any], dask: bool, default: bool = True) -> None:
     raw_same = {**raw, "constraints": {"exclusive_mounts": False}}
     doc = PlanDocument.model_validate(raw_same)
     n_sites = len(expand_sites(doc))
@@ -162,6 +172,13 @@ def report(name: str, raw: dict[str, Any], dask: bool) -> None:
         + ", ".join(f"{k} {v:.1f}" for k, v in res.timing.items())
         + "),"
         f" peak {m_new / 2**20:.0f} MiB, {res.pairs.size} pairs"
+    )
+    entries = res.cache.n_sites * res.pairs.size
+    print(
+        f"  site cache {res.cache.storage}, {res.cache.blocks.nbytes / 2**20:.0f} MiB (before"
+        f" issue 14's memory item: {entries * (28 + 21 + 28) * 8 / 2**20:.0f} MiB, 28 + 21"
+        " float64 per site-pair in the cache + 28 per scoring process);"
+        f" peak RSS so far {peak_rss_mib():.0f} MiB"
     )
     plan = res.to_json()
     for entry in plan["by_count"]:
@@ -178,14 +195,15 @@ def report(name: str, raw: dict[str, Any], dask: bool) -> None:
             f" exact {cert.get('exact')}; ties {entry['ties']['count']};"
             f" B&B {entry['branch_and_bound']}"
         )
-    res_x, t_x, m_x = timed_plan(raw, SerialExecutor())
-    print(f"default plan (exclusive mounting points): {t_x:.1f} s, peak {m_x / 2**20:.0f} MiB")
-    for entry in res_x.to_json()["by_count"]:
-        cert = entry["certificate"] or {}
-        print(
-            f"  L={entry['ris_count']}: sites {entry['sites']} objective {entry['objective']}"
-            f" gap {cert.get('gap')} ({entry['layouts_evaluated']} layouts)"
-        )
+    if default:
+        res_x, t_x, m_x = timed_plan(raw, SerialExecutor())
+        print(f"default plan (exclusive mounting points): {t_x:.1f} s, peak {m_x / 2**20:.0f} MiB")
+        for entry in res_x.to_json()["by_count"]:
+            cert = entry["certificate"] or {}
+            print(
+                f"  L={entry['ris_count']}: sites {entry['sites']} objective {entry['objective']}"
+                f" gap {cert.get('gap')} ({entry['layouts_evaluated']} layouts)"
+            )
     if dask:
         import distributed
 
@@ -210,6 +228,119 @@ def report(name: str, raw: dict[str, Any], dask: bool) -> None:
             f"dask LocalCluster (2 workers, 127.0.0.1): identical answer {same}; search"
             f" {t_d:.1f} s vs {res.timing['search']:.1f} s in-process;"
             f" {rate / 1e6:.2f} M layout-pairs/s per worker"
+        )
+
+
+def storage_check(raw: dict[str, Any], n_layouts: int) -> None:
+    """float32 against float64 storage on the same problem: the scores of n_layouts random
+    layouts per count (max relative error, same inf pattern) and the plan's answers (best
+    layouts, objectives) with the cache budget set just below float64's storage."""
+    from ris_planner.limits import CACHE_MEMORY_ENV, CacheLayout
+    from ris_planner.planning.search import all_layouts
+
+    doc = PlanDocument.model_validate(raw)
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    vis = pair_visibility(Scene.from_environment(doc.environment), sites, pairs, doc.system.los)
+    known = tuple(doc.known)
+    scorers = {}
+    for storage in ("float64", "float32"):
+        t0 = time.perf_counter()
+        layout = CacheLayout(storage, False)
+        cache = build_site_cache(
+            doc.system, sites, pairs, visibility=vis, known=known, layout=layout
+        )
+        scorers[storage] = Scorer(cache, pairs.weights, doc.objective, known)
+        print(
+            f"{storage}: cache {cache.blocks.nbytes / 2**20:.0f} MiB built in"
+            f" {time.perf_counter() - t0:.1f} s"
+        )
+    rng = np.random.default_rng(0)
+    assert doc.ris_count is not None
+    for c in doc.ris_count:
+        lay = all_layouts(len(sites), c)
+        lay = lay[np.sort(rng.choice(len(lay), min(n_layouts, len(lay)), replace=False))]
+        m64, m32 = scorers["float64"].metric(lay), scorers["float32"].metric(lay)
+        ok = np.isfinite(m64)
+        err = np.abs(m32[ok] - m64[ok]) / m64[ok]
+        l64, l32 = scorers["float64"].loss(lay), scorers["float32"].loss(lay)
+        print(
+            f"  L={c}: {lay.shape[0]} layouts × {pairs.size} pairs: same inf pattern"
+            f" {bool(np.array_equal(ok, np.isfinite(m32)))}, max relative error of the metric"
+            f" {err.max():.2e} (median {np.median(err):.1e}), max |Δ loss|"
+            f" {np.max(np.abs(l32 - l64)):.2e}; same best of the sample"
+            f" {int(np.argmin(l64)) == int(np.argmin(l32))}"
+        )
+    blocks = scorers["float64"].cache.blocks.nbytes >> 20
+    answers = {}
+    tiers = (("float64", None), ("float64, rows recomputed", blocks + 1), ("float32", blocks - 1))
+    for name, budget in tiers:
+        if budget is not None:  # the budget just above / below float64's block storage
+            os.environ[CACHE_MEMORY_ENV] = str(budget)
+        res, dt, _ = timed_plan(raw, SerialExecutor())
+        os.environ.pop(CACHE_MEMORY_ENV, None)
+        answers[name] = res.to_json()["by_count"]
+        print(f"plan with {name} ({res.to_json()['site_cache']}): {dt:.1f} s {res.timing}")
+    for a, r, b in zip(*answers.values(), strict=True):
+        print(
+            f"  L={a['ris_count']}: rows recomputed: same top layouts and objectives"
+            f" {a['top_layouts'] == r['top_layouts']}"
+        )
+        print(
+            f"  L={a['ris_count']}: float64 {a['sites']} {a['objective']}, float32"
+            f" {b['sites']} {b['objective']}; same top layouts and objectives"
+            f" {a['top_layouts'] == b['top_layouts']}"
+        )
+
+
+def city_memory(raw: dict[str, Any], n_layouts: int) -> None:
+    """The city's site cache at full size without the searches: the layout the budget picks,
+    its build time and bytes, the peak RSS, the scoring rate on it and the exact float64
+    re-score of a few layouts (what the plan does for its finalists)."""
+    from ris_planner.limits import cache_layout
+
+    doc = PlanDocument.model_validate(raw)
+    t0 = time.perf_counter()
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    vis = pair_visibility(Scene.from_environment(doc.environment), sites, pairs, doc.system.los)
+    entries = len(sites) * pairs.size
+    layout = cache_layout(entries, doc.system.wavefront)
+    t_vis = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    cache = build_site_cache(
+        doc.system, sites, pairs, visibility=vis, known=tuple(doc.known), layout=layout
+    )
+    t_cache = time.perf_counter() - t0
+    print(
+        f"city cache: {len(sites)} × {pairs.size} = {entries / 1e6:.1f} M site-pairs, {layout},"
+        f" {cache.nbytes / 2**30:.2f} GiB (before issue 14's memory item:"
+        f" {entries * 77 * 8 / 2**30:.1f} GiB, 28 + 21 float64 in the cache + 28 per process);"
+        f" maps/pairs/visibility {t_vis:.1f} s, cache {t_cache:.1f} s; peak RSS"
+        f" {peak_rss_mib():.0f} MiB"
+    )
+    scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+    rng = np.random.default_rng(0)
+    for c in (2, 4, 6):
+        lay = np.sort(
+            np.stack([rng.choice(len(sites), c, replace=False) for _ in range(n_layouts)]), axis=1
+        )
+        scorer.metric(lay[:1])
+        t0 = time.perf_counter()
+        m32 = scorer.metric(lay)
+        t_m = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        m64 = scorer.exact_metric(lay[:3])
+        t_x = time.perf_counter() - t0
+        ok = np.isfinite(m64)
+        err = np.abs(m32[:3][ok] - m64[ok]) / m64[ok]
+        print(
+            f"  L={c}: {n_layouts} layouts in {t_m:.1f} s"
+            f" ({n_layouts * pairs.size / t_m / 1e6:.2f} M layout-pairs/s);"
+            f" exact float64 re-score of 3 in {t_x:.1f} s, same inf pattern"
+            f" {bool(np.array_equal(ok, np.isfinite(m32[:3])))}, relative error of the"
+            f" stored-precision metric median {np.median(err) if err.size else 0:.1e} max"
+            f" {err.max() if err.size else 0:.1e}; peak RSS {peak_rss_mib():.0f} MiB"
         )
 
 
@@ -295,7 +426,37 @@ def main() -> None:
         " instances of --bnb-sites candidates",
     )
     ap.add_argument("--bnb-sites", type=int, default=16)
+    ap.add_argument(
+        "--storage-check",
+        type=int,
+        default=0,
+        help="only compare float32 and float64 site-cache storage on the hall: N random layouts"
+        " per count, and the plan with each",
+    )
+    ap.add_argument(
+        "--no-default", action="store_true", help="skip the default plan (exclusive mounts)"
+    )
+    ap.add_argument(
+        "--job-memory-mb",
+        type=int,
+        default=16384,
+        help="RIS_PLANNER_JOB_MEMORY_MB for the city case (the estimate counts a 200 000-pair"
+        " heatmap and the worker pool's copy of the cache beside the 3 GiB cache budget)",
+    )
+    ap.add_argument(
+        "--city-memory",
+        type=int,
+        default=0,
+        help="only build the city's site cache at full size and score N random layouts on it",
+    )
     args = ap.parse_args()
+    if args.city_memory:
+        raw = city_doc(args.city_blocks, args.city_pairs, [2])
+        city_memory(raw, args.city_memory)
+        return
+    if args.storage_check:
+        storage_check(hall_doc(args.counts or [2, 3, 4], args.hall_pairs), args.storage_check)
+        return
     if args.bnb_instances:
         branch_and_bound_instances(args.bnb_sites, args.bnb_instances)
         return
@@ -304,14 +465,21 @@ def main() -> None:
         greedy_workers({**raw, "search": {"method": "greedy"}}, args.greedy_workers)
         return
     if args.case in ("hall", "both"):
-        report("hall 40 × 25 m", hall_doc(args.counts or [2, 3, 4], args.hall_pairs), args.dask)
+        raw = hall_doc(args.counts or [2, 3, 4], args.hall_pairs)
+        report("hall 40 × 25 m", raw, args.dask, not args.no_default)
     if args.case in ("city", "both"):
         raw = city_doc(args.city_blocks, args.city_pairs, args.counts or [2, 3, 4, 5, 6])
         n = len(expand_sites(PlanDocument.model_validate(raw)))
         entries = n * args.city_pairs
         print(f"\ncity: {n} candidates × {args.city_pairs} pairs = {entries:.3g} cache entries"
               f" ({entries * 28 * 8 / 2**30:.1f} GiB of float64)")  # fmt: skip
-        report(f"city {args.city_blocks}×{args.city_blocks} blocks", raw, args.dask)
+        os.environ.setdefault("RIS_PLANNER_JOB_MEMORY_MB", str(args.job_memory_mb))
+        report(
+            f"city {args.city_blocks}×{args.city_blocks} blocks",
+            raw,
+            args.dask,
+            not args.no_default,
+        )
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ from bench_planning import square_plan
 from ris_planner import crb, ldl
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.site_cache import build_site_cache
+from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import expand_sites
 
 
@@ -52,9 +52,9 @@ def main() -> None:
     pick = np.random.default_rng(1).choice(n, min(args.sample, n), replace=False)
     b, p = np.divmod(pick, pairs.size)
 
-    def factor(cache: object) -> np.ndarray:
-        c = cache  # SiteCache
-        parts = [c.los_factor[p]] + [c.factor[lays[b, j], p] for j in range(3)]  # type: ignore[attr-defined]
+    def factor(c: SiteCache) -> np.ndarray:
+        assert c.los_factor is not None
+        parts = [c.los_factor[p]] + [c.factor_rows(lays[b, j], p) for j in range(3)]
         return np.concatenate(parts, axis=1)
 
     a_plain, a_ref = factor(plain), factor(ref)

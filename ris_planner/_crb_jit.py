@@ -24,8 +24,8 @@ metric, so the sums never leave the cache. The sum is the core's: LOS + RIS 1, t
 ``np.maximum`` of PEB_T and PEB_R. Pairs that are ``inf`` anyway (a UE on a chosen site, or
 fewer present channel parameters than unknown states: ``objectives.underdetermined``) are
 settled there and never sent on; the pairs the fast path does not settle are flagged for the
-square-root route, which the caller runs. It reads the cache's kept entries re-laid as pair
-blocks (:func:`to_blocks`, [⌈P/CHUNK⌉, S, E, CHUNK], built once per scorer): one block holds
+square-root route, which the caller runs. It reads the site cache's own storage, pair
+blocks [⌈P/CHUNK⌉, S, 28, CHUNK] (the kept entries through an index; no copy): one block holds
 every site's entries of CHUNK pairs contiguously (≈ 2 MB for 156 sites), so it stays in the
 cache while all the layouts of a call are scored on it, in parallel over blocks. Summing
 straight from the [28, S, P] cache, whose rows of one pair block lie 51 KB (sites) and 8 MB
@@ -467,6 +467,7 @@ def to_blocks(packed: FloatArray, src: IntArray) -> FloatArray:
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def score_layouts(
     blocks: FloatArray,
+    src: IntArray,
     los: FloatArray,
     layouts: IntArray,
     n_pairs: int,
@@ -487,13 +488,15 @@ def score_layouts(
     layouts [B, L]; route [B, P] = SLOW where the square-root route must decide (``out`` is
     left undefined there).
 
-    blocks : :func:`to_blocks` of the cache's packed information on the kept states (E
-    entries in ldl.packed_index(n) order); los : the LOS information in the same blocks
-    [⌈P/CHUNK⌉, E, CHUNK], or shape (0, 0, 0) without LOS; degenerate [S, P] or (0, 0);
-    present [S, P] with need [P] the RIS paths a pair needs, or (0, 0) without the per-pair
-    counting rule."""
+    blocks : the cache's packed information as pair blocks [⌈P/CHUNK⌉, S, 28, CHUNK]
+    (:attr:`ris_planner.planning.site_cache.SiteCache.blocks`, float64 or float32: a float32
+    entry is widened exactly to float64 before any arithmetic); src : [E] its entries of the
+    kept states in ldl.packed_index(n) order; los : the LOS information on the kept states in
+    the same blocks [⌈P/CHUNK⌉, E, CHUNK] (:func:`to_blocks`), or shape (0, 0, 0) without LOS;
+    degenerate [S, P] or (0, 0); present [S, P] with need [P] the RIS paths a pair
+    needs, or (0, 0) without the per-pair counting rule."""
     n_chunks = blocks.shape[0]
-    e_n = blocks.shape[2]
+    e_n = src.shape[0]
     n_tasks = min(n_chunks, max(1, n_tasks))
     for task in prange(n_tasks):
         a = np.empty((e_n, CHUNK))
@@ -503,7 +506,7 @@ def score_layouts(
         singular = np.empty(CHUNK, dtype=np.bool_)
         for c in range(task * n_chunks // n_tasks, (task + 1) * n_chunks // n_tasks):
             _score_chunk(
-                blocks, los, layouts, n_pairs, n, trace_limit, first, second, mode,
+                blocks, src, los, layouts, n_pairs, n, trace_limit, first, second, mode,
                 degenerate, present, need, out, route, c, a, work, diag, trace, singular,
             )  # fmt: skip
 
@@ -511,6 +514,7 @@ def score_layouts(
 @njit(cache=True, nogil=True, error_model="numpy")
 def _score_chunk(
     blocks: FloatArray,
+    src: IntArray,
     los: FloatArray,
     layouts: IntArray,
     n_pairs: int,
@@ -533,7 +537,7 @@ def _score_chunk(
 ) -> None:
     """Every layout on the pairs of block c (:func:`score_layouts`)."""
     n_b, n_l = layouts.shape
-    e_n = blocks.shape[2]
+    e_n = src.shape[0]
     has_los = los.shape[0] > 0
     has_deg = degenerate.shape[0] > 0
     has_count = present.shape[0] > 0
@@ -543,17 +547,20 @@ def _score_chunk(
         s0 = layouts[b, 0]
         if has_los:
             for e in range(e_n):
+                row = blocks[c, s0, src[e]]
                 for q in range(t):
-                    a[e, q] = los[c, e, q] + blocks[c, s0, e, q]
+                    a[e, q] = los[c, e, q] + row[q]
         else:
             for e in range(e_n):
+                row = blocks[c, s0, src[e]]
                 for q in range(t):
-                    a[e, q] = blocks[c, s0, e, q]
+                    a[e, q] = row[q]
         for col in range(1, n_l):
             s = layouts[b, col]
             for e in range(e_n):
+                row = blocks[c, s, src[e]]
                 for q in range(t):
-                    a[e, q] += blocks[c, s, e, q]
+                    a[e, q] += row[q]
         ldl_chunk(a, n, t, work, diag, trace, singular)
         for q in range(t):
             p = p0 + q
@@ -584,35 +591,3 @@ def _score_chunk(
                 else:
                     out[b, p] = v1
                     out[b, n_pairs + p] = _peb(diag, second, q)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def gather_factor_rows(
-    factor: FloatArray,
-    los_factor: FloatArray,
-    layouts: IntArray,
-    idx: IntArray,
-    keep: IntArray,
-    out: FloatArray,
-) -> None:
-    """The stacked square-root rows out [N, r, k] of the flattened (layout, pair) indices idx
-    [N] (``Scorer._factor_rows``: LOS, then the layout's sites in column order, the kept
-    states' columns): factor [S, P, m, 7], los_factor [P, 1, 7] or shape (0, 0, 0)."""
-    n_p, m = factor.shape[1], factor.shape[2]
-    n_l = layouts.shape[1]
-    has_los = los_factor.shape[0] > 0
-    k = keep.shape[0]
-    for t in range(idx.shape[0]):
-        b = idx[t] // n_p
-        p = idx[t] % n_p
-        row = 0
-        if has_los:
-            for i in range(k):
-                out[t, 0, i] = los_factor[p, 0, keep[i]]
-            row = 1
-        for col in range(n_l):
-            s = layouts[b, col]
-            for x in range(m):
-                for i in range(k):
-                    out[t, row + x, i] = factor[s, p, x, keep[i]]
-            row += m

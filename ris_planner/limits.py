@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 from ris_planner.errors import LimitExceededError, RisPlannerError
 
@@ -37,8 +37,39 @@ MAX_SITES = 100_000
 """Candidate sites: explicit candidates + Σ over walls of (length/spacing)·heights·tilts."""
 MAX_MAP_POINTS = 1_000_000
 """Points of one UE map (grid + points + road lattice + CSV rows)."""
-MAX_CACHE_ENTRIES = 4_000_000
-"""Candidate sites × pairs held in the site cache (28 float64 per entry)."""
+CACHE_MEMORY_MB_DEFAULT = 3072
+"""Site-cache budget [MiB] (``RIS_PLANNER_CACHE_MEMORY_MB``) for the cache's block storage of 28
+entries per site-pair and its square-root rows (:mod:`ris_planner.planning.site_cache`); the
+first layout of :func:`cache_layout` that fits is used: float64 with the rows stored, float64
+with the rows recomputed on demand (planar), float32 (half the bytes; the plan then re-scores
+its finalists exactly in float64). A cache that does not fit even as float32 is refused before
+anything is built. 3 GiB is half the job budget: the hall (156 × 6400 pairs, 392 MB with its
+rows) stays as before, a city block grid of 512 candidates × 50 000 pairs (5.7 GB as float64
+without rows) runs as float32 (2.9 GB)."""
+
+CACHE_MEMORY_ENV = "RIS_PLANNER_CACHE_MEMORY_MB"
+"""Environment variable with the site-cache budget (the service's setting; the CLI reads it)."""
+
+CACHE_ENTRY_BYTES = {"float64": 28 * 8, "float32": 28 * 4}
+"""Bytes per site-pair of the cache's block storage in each precision."""
+
+CACHE_ROW_BYTES = {"planar": 3 * 7 * 8, "spherical": 7 * 7 * 8}
+"""Bytes per site-pair of the stored square-root rows (float64; spherical ones are always
+stored: their expected Gram takes a product over all UE positions)."""
+
+
+class CacheLayout(NamedTuple):
+    """How the site cache is held: the block storage's precision, and whether the square-root
+    rows are stored (else recomputed for the few pairs that need them)."""
+
+    storage: Literal["float64", "float32"]
+    rows: bool
+
+    def bytes(self, entries: int, wavefront: str = "planar") -> int:
+        per = CACHE_ENTRY_BYTES[self.storage] + (CACHE_ROW_BYTES[wavefront] if self.rows else 0)
+        return entries * per
+
+
 MAX_SEARCH_LAYOUTS = 2_000_000
 """Layouts a greedy search may score and memoise: (1 + seeds + restarts) starts × max_rounds
 rounds × L·(S − L) swaps per round, summed over the RIS counts (the worst case)."""
@@ -57,7 +88,8 @@ information."""
 BYTES_PER_MAP_POINT = 160
 BYTES_PER_PAIR = 200
 BYTES_PER_SITE = 4_000
-BYTES_PER_CACHE_ENTRY = 480
+BYTES_PER_CACHE_MASKS = 3
+"""Per site-pair, beside the block storage: the degenerate, far-field and presence masks."""
 BYTES_PER_LAYOUT = 250
 BYTES_PER_HEATMAP_ELEMENT = 16
 """Heatmap: per pair, RIS and element (``compute_bounds`` of 50 000 pairs with 5 RISs of 100
@@ -100,12 +132,6 @@ LIMITS: dict[str, tuple[int, str, str, str]] = {
     ),
     "tx_points": (MAX_MAP_POINTS, "tx_map points", "map-point", "use a coarser tx_map"),
     "rx_points": (MAX_MAP_POINTS, "rx_map points", "map-point", "use a coarser rx_map"),
-    "cache_entries": (
-        MAX_CACHE_ENTRIES,
-        "sites × pairs",
-        "site-cache",
-        "sample fewer pairs or use fewer candidates",
-    ),
     "search_layouts": (
         MAX_SEARCH_LAYOUTS,
         "greedy layouts (starts × rounds × swaps)",
@@ -134,6 +160,47 @@ LIMITS: dict[str, tuple[int, str, str, str]] = {
 }
 """Quantity → (limit, what is counted, the limit's name, how to get below it); ``pairs`` is
 checked against the document's own ``max_pairs``."""
+
+
+def cache_memory_mb() -> int:
+    """The site-cache budget [MiB] from ``RIS_PLANNER_CACHE_MEMORY_MB`` (default
+    :data:`CACHE_MEMORY_MB_DEFAULT`)."""
+    text = os.environ.get(CACHE_MEMORY_ENV)
+    if text is None or text.strip() == "":
+        return CACHE_MEMORY_MB_DEFAULT
+    try:
+        value = int(text)
+    except ValueError:
+        raise RisPlannerError(
+            f"{CACHE_MEMORY_ENV} must be an integer (MiB), got {text!r}"
+        ) from None
+    if value < 1:
+        raise RisPlannerError(f"{CACHE_MEMORY_ENV} must be ≥ 1 MiB, got {value}")
+    return value
+
+
+def cache_layout(
+    entries: int, wavefront: str = "planar", budget_mb: int | None = None
+) -> CacheLayout:
+    """The site cache's layout for ``entries`` site-pairs: the first of float64 with rows,
+    float64 without rows (planar), float32 (without rows; spherical: with) whose bytes fit the
+    budget (default :func:`cache_memory_mb`); raises :class:`LimitExceededError` naming the
+    budget when none does."""
+    budget_mb = cache_memory_mb() if budget_mb is None else budget_mb
+    spherical = wavefront == "spherical"
+    tiers = [CacheLayout("float64", True)]
+    tiers += [CacheLayout("float32", True)] if spherical else [CacheLayout("float64", False)]
+    tiers += [] if spherical else [CacheLayout("float32", False)]
+    for tier in tiers:
+        if tier.bytes(entries, wavefront) <= budget_mb << 20:
+            return tier
+    need = math.ceil(tiers[-1].bytes(entries, wavefront) / (1 << 20))
+    raise LimitExceededError(
+        f"{entries} sites × pairs need {need} MiB of site cache even as float32, above the"
+        f" site-cache budget of {budget_mb} MiB ({CACHE_MEMORY_ENV}); sample fewer pairs or use"
+        " fewer candidates",
+        budget_mb,
+    )
 
 
 def job_memory_mb() -> int:
@@ -168,6 +235,7 @@ def check_sizes(sizes: Sizes, *, max_pairs: int | None = None, memory_mb: int | 
                 f"{values[name]} {what} exceed the {label} limit of {limit} ({name}); {hint}",
                 limit,
             )
+    cache_layout(sizes.cache_entries)  # (planar; run_plan checks the spherical rows too)
     if memory_mb is not None and sizes.memory_bytes > memory_mb << 20:
         need = math.ceil(sizes.memory_bytes / (1 << 20))
         raise LimitExceededError(
@@ -269,6 +337,17 @@ def _search_layouts(doc: PlanDocument, sites: int) -> int:
     return total
 
 
+def cache_bytes(entries: int, wavefront: str = "planar") -> int:
+    """Peak bytes of a site cache of ``entries`` site-pairs: its :func:`cache_layout` twice
+    (the parent's, and the copy the worker pool maps) and the masks; 0 when it does not fit
+    (:func:`check_sizes` refuses it by its own budget)."""
+    try:
+        layout = cache_layout(entries, wavefront)
+    except LimitExceededError:
+        return 0
+    return 2 * layout.bytes(entries, wavefront) + entries * BYTES_PER_CACHE_MASKS
+
+
 def estimate_plan(doc: PlanDocument) -> Sizes:
     """Every size of a plan run from its validated document (nothing is built)."""
     sites = plan_sites(doc)
@@ -291,7 +370,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         + csv_rows * CSV_BYTES_PER_ROW_PARSED
         + min(pairs, doc.max_pairs) * BYTES_PER_PAIR
         + sites * BYTES_PER_SITE
-        + min(cache, MAX_CACHE_ENTRIES) * BYTES_PER_CACHE_ENTRY
+        + cache_bytes(cache, doc.system.wavefront)
         + min(layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT
         + heatmap * min(max(doc.max_counts), max(sites, 1)) * elements * BYTES_PER_HEATMAP_ELEMENT
     )

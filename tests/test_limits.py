@@ -91,10 +91,10 @@ CASES: dict[str, tuple[str, dict[str, Any], str]] = {
         ),
         "max_pairs",
     ),
-    "cache entries": (
+    "cache entries": (  # 600 × 50 000 site-pairs: 3.1 GiB even as float32
         "plan",
-        small_plan_doc(candidates=ring(500), pairs={"sample": 10000, "seed": 1}, max_pairs=10000),
-        "site-cache limit",
+        small_plan_doc(candidates=ring(600), pairs={"sample": 50000, "seed": 1}, max_pairs=50000),
+        "site-cache budget of 3072 MiB",
     ),
     "greedy layouts": (
         "plan",

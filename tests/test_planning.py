@@ -414,7 +414,13 @@ def test_issue_document_form_is_accepted() -> None:
     assert all(0 < lay["objective"] <= 10 for lay in out["layouts"])
 
 
-def test_site_cache_limit_is_named() -> None:
-    doc = plan_doc(candidates=ring(450), pairs="all")  # 450 × 9506 pairs > 4 M
-    with pytest.raises(LimitExceededError, match="site-cache limit"):
+def test_site_cache_budget_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Above the budget even as float32: refused before any work, naming the budget and its
+    setting; a bad setting is named too."""
+    doc = plan_doc(candidates=ring(450), pairs="all")  # 450 × 9506 pairs: 456 MiB as float32
+    monkeypatch.setenv("RIS_PLANNER_CACHE_MEMORY_MB", "400")
+    with pytest.raises(LimitExceededError, match="site-cache budget of 400 MiB"):
+        run_plan(doc, executor=SerialExecutor())
+    monkeypatch.setenv("RIS_PLANNER_CACHE_MEMORY_MB", "lots")
+    with pytest.raises(RisPlannerError, match="RIS_PLANNER_CACHE_MEMORY_MB must be an integer"):
         run_plan(doc, executor=SerialExecutor())

@@ -53,6 +53,7 @@ from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.executor import Executor
 from ris_planner.planning.objectives import Scorer, loss_from_metric
 from ris_planner.planning.search import Layout, SearchOutcome, evaluate
+from ris_planner.planning.site_cache import KeptInformation
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
@@ -150,12 +151,12 @@ def estimated_work(n_free: int, k: int, iterations: int) -> float:
 
 
 def _subtree(
-    problem: SubsetProblem, packed: FloatArray, partial: tuple[int, ...], rest: IntArray
+    problem: SubsetProblem, packed: KeptInformation, partial: tuple[int, ...], rest: IntArray
 ) -> SubsetProblem:
     """The relaxation of a node's subtree: its sites P in the base, k − |P| sites from R."""
     mask = np.zeros_like(problem.free)
     mask[rest] = True
-    base = problem.base + packed[:, list(partial)].sum(axis=1)
+    base = problem.base + packed.sites(list(partial)).sum(axis=1)
     return SubsetProblem(mask, problem.k - len(partial), base, problem.groups)
 
 

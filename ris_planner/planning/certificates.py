@@ -36,6 +36,7 @@ from ris_planner.bounds import n_observations
 from ris_planner.ldl import packed_index
 from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.objectives import Scorer, loss_from_metric
+from ris_planner.planning.site_cache import KeptInformation
 
 FloatArray = NDArray[np.float64]
 
@@ -83,7 +84,7 @@ class RowRelaxation:
 
 
 def _frank_wolfe(
-    packed: FloatArray,
+    packed: KeptInformation,
     base: FloatArray,
     free: NDArray[np.bool_],
     k: int,
@@ -125,7 +126,7 @@ def _frank_wolfe(
     diag = np.arange(n)
     for p0 in range(0, p, PAIR_BLOCK):
         act = np.arange(p0, min(p, p0 + PAIR_BLOCK))  # the pairs still iterating
-        blk = packed[:, sel, p0 : act[-1] + 1]  # [E, F, b]
+        blk = packed.slab(sel, p0, int(act[-1]) + 1)  # [E, F, b]
         bse = base[:, act]
         z = np.full((n_free, act.size), k / n_free)  # [F, b]
         best = np.zeros(act.size)
@@ -266,7 +267,7 @@ def subset_problem(scorer: Scorer, n_ris: int, feasible: Feasibility) -> SubsetP
     p = scorer.cache.n_pairs
     base = np.zeros((packed.shape[0], p)) if los is None else los.copy()
     for r in req:
-        base += packed[:, r]
+        base += packed.sites([r])[:, 0]
     return SubsetProblem(free, k, base, groups)
 
 

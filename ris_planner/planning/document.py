@@ -18,7 +18,6 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ris_planner.limits import MAX_CACHE_ENTRIES as MAX_CACHE_ENTRIES  # re-exported
 from ris_planner.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS
 from ris_planner.obstacles import Environment, Prism
 from ris_planner.power.options import Solver

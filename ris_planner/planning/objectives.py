@@ -35,7 +35,7 @@ from ris_planner.bounds import kept_states, n_observations, uses_los_reference
 from ris_planner.crb import FAST_TRACE_LIMIT, crb_diagonal, sqrt_crb_diagonal
 from ris_planner.ldl import packed_index
 from ris_planner.planning.document import Objective
-from ris_planner.planning.site_cache import N_STATES, SiteCache
+from ris_planner.planning.site_cache import N_PACKED, N_STATES, KeptInformation, SiteCache
 from ris_planner.planning.visibility import BoolArray
 from ris_planner.scenario import KnownPart
 
@@ -51,6 +51,10 @@ KERNEL_MATRICES = 1 << 21
 """(layout, pair) combinations per call of the compiled kernel: bounds the square-root
 route's gathered factor rows (≤ a few % of them, ~40 MB at 7 × 7) and the route flags
 (1 byte each); the kernel itself streams over pair blocks whatever the size."""
+
+EXACT_SITES = 32
+"""Sites per float64 rebuild of :meth:`Scorer.exact_metric` (a float32 cache's finalists):
+bounds the rebuilt cache to 32 × P × 224 B (360 MB at 50 000 pairs) whatever their number."""
 
 TX_STATES = (0, 1, 2)
 RX_STATES = (3, 4, 5)
@@ -99,38 +103,46 @@ class Scorer:
             return self.weights
         return np.concatenate([self.weights, self.weights]) * 0.5
 
+    @property
+    def _src(self) -> IntArray:
+        """[E] the cache's packed entries of the kept states, in the packing order of
+        ldl.packed_index(n): (0,0), (1,0), (1,1), (2,0), … (0, 1, …, 27 when nothing is known)."""
+        keep, _, _ = self.states
+        src_idx = packed_index(N_STATES)
+        n = len(keep)
+        return np.array(
+            [src_idx[keep[i], keep[j]] for i in range(n) for j in range(i + 1)], dtype=np.int64
+        )
+
     @cached_property
     def _selected(self) -> tuple[FloatArray, FloatArray | None]:
-        """The cache's packed entries of the kept states (all of them when nothing is known)."""
-        keep, _, _ = self.states
-        n = len(keep)
-        src_idx = packed_index(N_STATES)
-        # the packing order of ldl.packed_index(n): (0,0), (1,0), (1,1), (2,0), …
-        src = [src_idx[keep[i], keep[j]] for i in range(n) for j in range(i + 1)]
-        if n == N_STATES:  # src is 0, 1, …, 27: no copy
-            return self.cache.packed, self.cache.los
-        los = None if self.cache.los is None else self.cache.los[src]
-        return self.cache.packed[src], los
+        """The cache's packed entries of the kept states as float64 [E, S, P] (a copy of the
+        block storage, made once per scorer and process by the numpy readers only)."""
+        src = self._src
+        _, los = self.selected_packed
+        return self.cache.information(src if src.size < N_PACKED else None), los
 
     @property
-    def selected_packed(self) -> tuple[FloatArray, FloatArray | None]:
-        """(site information [E, S, P], LOS [E, P] or ``None``) on the kept states, packed in
-        :func:`ris_planner.ldl.packed_index` order (the certificates' relaxation reads it)."""
-        return self._selected
+    def selected_packed(self) -> tuple[KeptInformation, FloatArray | None]:
+        """(site information on the kept states, read as float64 [E, F, P] slices, LOS [E, P]
+        or ``None``), packed in :func:`ris_planner.ldl.packed_index` order (the certificates'
+        relaxation and branch-and-bound read it)."""
+        src = self._src
+        los = self.cache.los
+        if los is not None and src.size < los.shape[0]:
+            los = los[src]
+        return KeptInformation(self.cache, src), los
 
     @cached_property
     def _kernel_inputs(self) -> dict[str, Any]:
         """The compiled score's fixed arguments (:func:`ris_planner._crb_jit.score_layouts`):
-        the kept entries as pair blocks (a copy of E/28 of the cache's packed information, made
-        once per scorer and process), masks as uint8, the metric's rows."""
+        the cache's block storage itself (no copy) with the kept entries' index, the LOS
+        information as blocks, masks as uint8, the metric's rows."""
         from ris_planner._crb_jit import to_blocks
 
         keep, tx, rx = self.states
         n = len(keep)
-        src_idx = packed_index(N_STATES)
-        src = np.array(
-            [src_idx[keep[i], keep[j]] for i in range(n) for j in range(i + 1)], dtype=np.int64
-        )
+        src = self._src
         cache = self.cache
         none = np.zeros((0, 0), dtype=np.uint8)
         deg = cache.degenerate.view(np.uint8) if np.any(cache.degenerate) else none
@@ -151,7 +163,8 @@ class Scorer:
         if cache.los is not None:
             los = to_blocks(np.ascontiguousarray(cache.los[:, None, :]), src)[:, 0]
         return {
-            "blocks": to_blocks(cache.packed, src),
+            "blocks": cache.blocks,
+            "src": src,
             "los": np.ascontiguousarray(los),
             "n_pairs": cache.n_pairs,
             "n": n,
@@ -255,35 +268,23 @@ class Scorer:
         return out
 
     def _gathered_rows(self, lay: IntArray, idx: IntArray) -> FloatArray:
-        """``self._factor_rows(lay)(idx)`` by the compiled gather (the same values)."""
-        from ris_planner._crb_jit import gather_factor_rows
-
-        keep, _, _ = self.states
-        cache = self.cache
-        m = cache.factor.shape[2]
-        los = cache.los_factor
-        r = lay.shape[1] * m + (0 if los is None else 1)
-        out = np.empty((idx.size, r, len(keep)))
-        gather_factor_rows(
-            cache.factor,
-            np.zeros((0, 0, 0)) if los is None else los,
-            lay,
-            idx.astype(np.int64),
-            np.array(keep, dtype=np.int64),
-            out,
-        )
-        return out
+        """``self._factor_rows(lay)(idx)``: the square-root rows of the flagged combinations."""
+        return self._factor_rows(lay)(idx)
 
     def _factor_rows(self, lay: IntArray) -> Callable[[IntArray], FloatArray]:
         """``factors(idx)`` over the flattened (layout, pair) index of a block: the stacked
-        square-root rows [len(idx), n_obs, kept] in the core's path order (LOS, RIS 1, …)."""
+        square-root rows [len(idx), n_obs, kept] in the core's path order (LOS, RIS 1, …),
+        the sites' rows from :meth:`SiteCache.factor_rows` (recomputed for just these pairs
+        where the cache does not store them)."""
         keep, _, _ = self.states
         cache = self.cache
 
         def rows(idx: IntArray) -> FloatArray:
             b, pair = np.divmod(idx, cache.n_pairs)
+            n_l = lay.shape[1]
+            sites = cache.factor_rows(lay[b].reshape(-1), np.repeat(pair, n_l))
             parts = [] if cache.los_factor is None else [cache.los_factor[pair]]
-            parts += [cache.factor[lay[b, col], pair] for col in range(lay.shape[1])]
+            parts.append(sites.reshape(idx.size, -1, N_STATES))  # [N, L·m, 7], column order
             return np.concatenate(parts, axis=1)[:, :, keep]
 
         return rows
@@ -310,9 +311,48 @@ class Scorer:
         first, second = (peb_r, peb_t) if self.objective.metric == "rx" else (peb_t, peb_r)
         return np.concatenate([first, second], axis=1)
 
+    def exact_metric(self, layouts: IntArray) -> FloatArray:
+        """:meth:`metric`, float64-exact whatever the cache's storage: with float32 storage
+        each group of layouts using ≤ :data:`EXACT_SITES` sites is scored on a float64 cache
+        of just those sites (:meth:`SiteSource.rebuild`, the same bits as a float64 cache of
+        every site); with float64 storage this is :meth:`metric`."""
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
+        if self.cache.storage == "float64" or layouts.shape[0] == 0:
+            return self.metric(layouts)
+        out = np.empty((layouts.shape[0], self.metric_weights.size))
+        for rows, used in site_groups(layouts, max(EXACT_SITES, layouts.shape[1])):
+            exact = Scorer(
+                self.cache.source.rebuild(used),
+                self.weights,
+                self.objective,
+                self.known,
+                self.mirror,
+            )
+            out[rows] = exact.metric(np.searchsorted(used, layouts[rows]))
+        return out
+
+    def exact_loss(self, layouts: IntArray) -> FloatArray:
+        """[B] :meth:`loss` from :meth:`exact_metric`."""
+        return loss_from_metric(self.objective, self.exact_metric(layouts), self.metric_weights)
+
     def loss(self, layouts: IntArray) -> FloatArray:
         """[B] loss (lower is better) of each layout: the objective, negated for coverage."""
         return loss_from_metric(self.objective, self.metric(layouts), self.metric_weights)
+
+
+def site_groups(layouts: IntArray, max_sites: int) -> list[tuple[IntArray, IntArray]]:
+    """(rows, their sites ascending) of consecutive layouts [B, L] whose sites together number
+    ≤ max_sites (≥ L): the groups :meth:`Scorer.exact_metric` rebuilds one at a time."""
+    groups: list[tuple[IntArray, IntArray]] = []
+    start, used = 0, np.zeros(0, dtype=np.int64)
+    for b in range(layouts.shape[0]):
+        more = np.union1d(used, layouts[b])
+        if more.size > max_sites:
+            groups.append((np.arange(start, b), used))
+            start, more = b, np.unique(layouts[b])
+        used = more
+    groups.append((np.arange(start, layouts.shape[0]), used))
+    return groups
 
 
 def underdetermined(cache: SiteCache, layouts: IntArray, n_states: int) -> BoolArray | None:

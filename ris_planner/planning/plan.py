@@ -13,9 +13,9 @@ from numpy.typing import NDArray
 from ris_planner import advice
 from ris_planner.bounds import compute_bounds
 from ris_planner.environment import Scene, ris_serves
-from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.errors import RisPlannerError
 from ris_planner.fim import Radio
-from ris_planner.limits import HEATMAP_MAX_PAIRS, MAX_CACHE_ENTRIES
+from ris_planner.limits import HEATMAP_MAX_PAIRS, cache_layout
 from ris_planner.planning.beam_design import (
     BeamReport,
     evaluate_layout_beams,
@@ -34,6 +34,7 @@ from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
 from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
+from ris_planner.planning.finalists import exact_certificate, rescore_finalists
 from ris_planner.planning.maps import (
     PairSet,
     PointMap,
@@ -177,8 +178,9 @@ class PlanResult:
 
     def layout_metric(self, layout: Layout) -> FloatArray:
         """[P] metric bound (m) of a layout (the search's own scoring, = ``compute_bounds``);
-        [2P] for mirrored unordered pairs (weights: :attr:`metric_weights`)."""
-        return self.scorer.metric(np.array([layout], dtype=int))[0]
+        [2P] for mirrored unordered pairs (weights: :attr:`metric_weights`); float64-exact
+        with a float32 cache too (:meth:`Scorer.exact_metric`)."""
+        return self.scorer.exact_metric(np.array([layout], dtype=int))[0]
 
     def layout_cost(self, layout: Layout) -> float:
         """Total cost of a layout (0 without a cost model)."""
@@ -363,6 +365,11 @@ class PlanResult:
             "points": points_json(self),
             "heatmap": heatmap_json(self),
             "timing_s": self.timing,
+            "site_cache": {
+                "storage": self.cache.storage,
+                "rows_stored": self.cache.factor is not None,
+                "bytes": self.cache.nbytes,
+            },
             "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
             **self._decision_json(),
@@ -530,11 +537,7 @@ def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
         tx_map, dropped["tx"], rx_map, dropped["rx"] = _drop_points(scene, doc, tx_map, rx_map)
     directions = unordered_directions(doc.pairs, doc.objective.metric, tuple(doc.known))
     pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs, directions == "explicit")
-    if len(sites) * pairs.size > MAX_CACHE_ENTRIES:
-        raise LimitExceededError(
-            f"{len(sites)} sites × {pairs.size} pairs exceed the site-cache limit of"
-            f" {MAX_CACHE_ENTRIES} entries; sample fewer pairs or use fewer candidates"
-        )
+    cache_layout(len(sites) * pairs.size, doc.system.wavefront)  # the budget, before any work
     return PlanInputs(
         doc, sites, tx_map, rx_map, pairs, scene, dropped, directions, wanted, feasibility
     )
@@ -577,6 +580,7 @@ def run_plan(
         lambda f, m: progress(0.2 * f, f"cache: {m}"),
         visibility,
         known=tuple(doc.known),
+        layout=cache_layout(len(sites) * pairs.size, doc.system.wavefront),
     )
     t_cache = time.perf_counter() - t0
     scorer = Scorer(
@@ -632,8 +636,11 @@ def run_plan(
                     scorer, c, outcome, feasibility, doc.search.certificate_iterations
                 )
                 t_cert += time.perf_counter() - t1
+            # a float32 cache: the reported layouts re-scored in float64
+            outcome, _ = rescore_finalists(scorer, outcome, doc.search.top_k, doc.search.tie_rtol)
             ranked = outcome.ranked(doc.search.top_k)
-            best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
+            cert = exact_certificate(scorer, cert, ranked[0][1])
+            best_metric = scorer.exact_metric(np.array([ranked[0][0]], dtype=int))[0]
             n_ties, tied = ties(outcome, doc.search.tie_rtol)
             counts.append(
                 CountResult(

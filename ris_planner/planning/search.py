@@ -46,14 +46,18 @@ class SearchOutcome:
     def evaluated(self) -> int:
         return int(self.losses.shape[0])
 
-    def ranked(self, k: int) -> list[tuple[Layout, float]]:
-        """The best k layouts, ties broken by the sites' indices (deterministic)."""
+    def ranked_index(self, k: int) -> IntArray:
+        """Rows of the best k layouts, ties broken by the sites' indices (deterministic)."""
         # np.lexsort sorts by the last key first: loss, then site 0, site 1, …
         keys = (
             *(self.layouts[:, c] for c in range(self.layouts.shape[1] - 1, -1, -1)),
             self.losses,
         )
-        order = np.lexsort(keys)[:k]
+        return np.lexsort(keys)[:k]
+
+    def ranked(self, k: int) -> list[tuple[Layout, float]]:
+        """The best k layouts, ties broken by the sites' indices (deterministic)."""
+        order = self.ranked_index(k)
         return [(tuple(int(s) for s in self.layouts[i]), float(self.losses[i])) for i in order]
 
     def as_dict(self) -> dict[Layout, float]:
@@ -198,7 +202,8 @@ def site_strength(scorer: Scorer) -> FloatArray:
     keep, tx, rx = scorer.states
     idx = packed_index(N_STATES)
     targets = [keep[i] for i in tx + rx]
-    tr = sum(scorer.cache.packed[idx[t, t]] for t in targets)
+    info = scorer.cache.information(np.array([idx[t, t] for t in targets]))  # [T, S, P]
+    tr = sum(info[k] for k in range(len(targets)))
     return np.asarray(tr @ scorer.weights)
 
 
