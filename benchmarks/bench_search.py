@@ -13,6 +13,7 @@ For each case, in the same run:
     python benchmarks/bench_search.py [--case hall|city|both] [--dask]
         [--city-blocks 4] [--city-pairs 50000] [--counts 2 3 4] [--hall-pairs 6400]
     python benchmarks/bench_search.py --greedy-workers 2 --counts 3 [--hall-pairs 2000]
+    python benchmarks/bench_search.py --pool-start 2 [--hall-pairs 6400]
 
 Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
 UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
@@ -244,6 +245,60 @@ def greedy_workers(raw: dict[str, Any], workers: int) -> None:
             )
 
 
+def memory_mib(pids: list[int]) -> tuple[float, float]:
+    """(Σ RSS, Σ PSS) of the processes in MiB: PSS counts a page shared by k processes 1/k
+    times in each, so its sum is the RAM they use together."""
+    rss = pss = 0.0
+    for pid in pids:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            key, *rest = line.split()
+            if key in ("Rss:", "Pss:"):
+                kib = float(rest[0]) / 1024
+                rss, pss = (rss + kib, pss) if key == "Rss:" else (rss, pss + kib)
+    return rss, pss
+
+
+def pool_start(raw: dict[str, Any], workers: int) -> None:
+    """The local pool with the site cache pickled to each worker (the pool initializer) and
+    with its arrays in shared memory, in the same run: time to the first scored chunk (pool
+    start, imports, the cache reaching every worker, their scorer set-up), the exhaustive L=2
+    search on the started pool, and the memory of the main process and its workers."""
+    import os
+
+    from ris_planner.planning import LocalExecutor
+    from ris_planner.planning.search import all_layouts, evaluate
+
+    doc = PlanDocument.model_validate(raw)
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    scorer = Scorer(build_site_cache(doc.system, sites, pairs), pairs.weights, doc.objective, ())
+    size = sum(a.nbytes for a in vars(scorer.cache).values() if isinstance(a, np.ndarray))
+    layouts = all_layouts(len(sites), 2)
+    print(
+        f"pool start: {len(sites)} candidates × {pairs.size} pairs, site cache"
+        f" {size / 2**20:.0f} MiB, {workers} workers, {len(os.sched_getaffinity(0))} cores"
+    )
+    print("  mode          first chunk   L=2 exhaustive        RSS sum   PSS sum (MiB)")
+    reference = None
+    for share in (False, True):
+        with LocalExecutor(workers, share_memory=share) as ex:
+            t0 = time.perf_counter()
+            ex.map(score_chunk, scorer, [layouts[i : i + 1] for i in range(workers)])
+            t_first = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            losses = evaluate(scorer, layouts, ex)
+            t_l2 = time.perf_counter() - t0
+            rss, pss = memory_mib([os.getpid(), *ex.worker_pids()])
+        if reference is None:
+            reference = losses
+        rate = layouts.shape[0] * pairs.size / t_l2
+        print(
+            f"  {'shared memory' if share else 'pickled':13s} {t_first:8.2f} s"
+            f" {t_l2:8.2f} s ({rate / 1e6:4.1f} M/s) {rss:9.0f} {pss:9.0f}"
+            f"   identical {bool(np.array_equal(losses, reference))}"
+        )
+
+
 def branch_and_bound_instances(n_sites: int, seeds: int) -> None:
     """Random instances of the tests (ring of candidates, 120 pairs, the four objectives):
     exhaustive search against greedy + branch-and-bound, both timed in this run."""
@@ -295,7 +350,17 @@ def main() -> None:
         " instances of --bnb-sites candidates",
     )
     ap.add_argument("--bnb-sites", type=int, default=16)
+    ap.add_argument(
+        "--pool-start",
+        type=int,
+        default=0,
+        help="only time the local pool's start with N workers on the hall, the site cache"
+        " pickled and shared",
+    )
     args = ap.parse_args()
+    if args.pool_start:
+        pool_start(hall_doc([2], args.hall_pairs), args.pool_start)
+        return
     if args.bnb_instances:
         branch_and_bound_instances(args.bnb_sites, args.bnb_instances)
         return

@@ -74,6 +74,16 @@ class Scorer:
         state.pop("_selected", None)
         return state
 
+    def __share_state__(self) -> dict[str, Any]:
+        """The state pickled when the arrays are shared, not copied
+        (:func:`ris_planner.planning.executor.share_pickle`): the compiled score's pair blocks
+        are built here once and go too, so the workers map them instead of each building its
+        own copy."""
+        self._kernel_inputs  # noqa: B018 - the cached property is built, then shared
+        state = dict(self.__dict__)
+        state.pop("_selected", None)
+        return state
+
     def __post_init__(self) -> None:
         if self.cache.los_referenced != uses_los_reference(self.cache.los is not None, self.known):
             raise ValueError(

@@ -562,6 +562,25 @@ def run_plan(
         return _run_sweep(doc, progress, executor)
     t0 = time.perf_counter()
     inputs = prepare_plan(doc)
+    own = executor is None
+    ex = LocalExecutor() if executor is None else executor
+    try:
+        # the workers start (and import) while this process builds the site cache
+        ex.start()
+        return _plan_with(doc, progress, ex, inputs, t0)
+    finally:
+        if own:
+            ex.close()
+
+
+def _plan_with(
+    doc: PlanDocument,
+    progress: ProgressCallback,
+    ex: Executor,
+    inputs: PlanInputs,
+    t0: float,
+) -> PlanResult:
+    """:func:`run_plan` after the inputs, on a started executor (closed by the caller)."""
     sites, tx_map, rx_map, pairs = inputs.sites, inputs.tx_map, inputs.rx_map, inputs.pairs
     scene, dropped, directions = inputs.scene, inputs.dropped, inputs.directions
     wanted, feasibility = inputs.counts, inputs.feasibility
@@ -582,8 +601,6 @@ def run_plan(
     scorer = Scorer(
         cache, pairs.weights, doc.objective, tuple(doc.known), mirror=directions == "mirror"
     )
-    own = executor is None
-    ex = LocalExecutor() if executor is None else executor
     counts: list[CountResult] = []
     # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
     effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in wanted]
@@ -591,72 +608,68 @@ def run_plan(
     done = 0.0
     infeasible: list[int] = []
     t_cert = t_bnb = 0.0
-    try:
-        for c, e in zip(wanted, effort, strict=True):
-            base = done
+    for c, e in zip(wanted, effort, strict=True):
+        base = done
 
-            def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
-                progress(0.2 + share * (base + f * e) / sum(effort), f"search L={c}")
+        def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
+            progress(0.2 + share * (base + f * e) / sum(effort), f"search L={c}")
 
-            # the best layouts of the smaller counts seed the greedy search
-            seeds = tuple(cr.ranked[0][0] for cr in counts)
-            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds, feasibility)
-            done += e
-            if outcome.losses.size == 0:  # no layout satisfies the constraints
-                infeasible.append(c)
-                continue
-            t1 = time.perf_counter()
-            bnb = None
-            if outcome.method == "greedy" and doc.search.method == "auto":
-                # where exhaustive search is out of reach: branch-and-bound from greedy's best
-                bnb = branch_and_bound(
-                    scorer,
-                    c,
-                    feasibility,
-                    outcome,
-                    ex,
-                    max(1, doc.search.certificate_iterations),
-                    max_work=max(BNB_MIN_WORK, BNB_WORK_FACTOR * outcome.evaluated),
-                )
-                outcome = bnb.outcome
-                cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
-                t_bnb += time.perf_counter() - t1
-                if bnb.nodes == 0 and not bnb.finished:  # not begun: it would not pay
-                    t1 = time.perf_counter()
-                    cert = count_certificate(
-                        scorer, c, outcome, feasibility, doc.search.certificate_iterations
-                    )
-                    t_cert += time.perf_counter() - t1
-            else:
+        # the best layouts of the smaller counts seed the greedy search
+        seeds = tuple(cr.ranked[0][0] for cr in counts)
+        outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds, feasibility)
+        done += e
+        if outcome.losses.size == 0:  # no layout satisfies the constraints
+            infeasible.append(c)
+            continue
+        t1 = time.perf_counter()
+        bnb = None
+        if outcome.method == "greedy" and doc.search.method == "auto":
+            # where exhaustive search is out of reach: branch-and-bound from greedy's best
+            bnb = branch_and_bound(
+                scorer,
+                c,
+                feasibility,
+                outcome,
+                ex,
+                max(1, doc.search.certificate_iterations),
+                max_work=max(BNB_MIN_WORK, BNB_WORK_FACTOR * outcome.evaluated),
+            )
+            outcome = bnb.outcome
+            cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
+            t_bnb += time.perf_counter() - t1
+            if bnb.nodes == 0 and not bnb.finished:  # not begun: it would not pay
+                t1 = time.perf_counter()
                 cert = count_certificate(
                     scorer, c, outcome, feasibility, doc.search.certificate_iterations
                 )
                 t_cert += time.perf_counter() - t1
-            ranked = outcome.ranked(doc.search.top_k)
-            best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
-            n_ties, tied = ties(outcome, doc.search.tie_rtol)
-            counts.append(
-                CountResult(
-                    c,
-                    outcome,
-                    ranked,
-                    best_metric,
-                    certificate=cert,
-                    n_ties=n_ties,
-                    ties=tuple(tied),
-                    branch_and_bound=None if bnb is None else bnb.to_json(),
-                )
+        else:
+            cert = count_certificate(
+                scorer, c, outcome, feasibility, doc.search.certificate_iterations
             )
-            target = doc.objective.target
-            if (
-                doc.target_mode
-                and target is not None
-                and target.met(objective_from_loss(doc.objective, ranked[0][1]))
-            ):
-                break
-    finally:
-        if own:
-            ex.close()
+            t_cert += time.perf_counter() - t1
+        ranked = outcome.ranked(doc.search.top_k)
+        best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
+        n_ties, tied = ties(outcome, doc.search.tie_rtol)
+        counts.append(
+            CountResult(
+                c,
+                outcome,
+                ranked,
+                best_metric,
+                certificate=cert,
+                n_ties=n_ties,
+                ties=tuple(tied),
+                branch_and_bound=None if bnb is None else bnb.to_json(),
+            )
+        )
+        target = doc.objective.target
+        if (
+            doc.target_mode
+            and target is not None
+            and target.met(objective_from_loss(doc.objective, ranked[0][1]))
+        ):
+            break
     if not counts:
         raise RisPlannerError(
             f"no layout of {wanted} RISs satisfies the constraints (mounting points,"
