@@ -193,7 +193,11 @@ def _attach_array(
     mm = _ATTACHED.get(name)
     if mm is None:
         path = f"/proc/{pid}/fd/{fd}"
-        if os.readlink(path) != f"/memfd:{name} (deleted)":
+        try:
+            link = os.readlink(path)
+        except OSError:
+            link = None
+        if link != f"/memfd:{name} (deleted)":
             raise RuntimeError(f"shared arrays {name} are gone (process {pid} closed them)")
         handle = os.open(path, os.O_RDONLY)
         try:
@@ -292,8 +296,8 @@ def _run_shared_task(fn: Callable[[Any, Any], Any], payload: SharedPickle, chunk
     return fn(_WORKER_SHARED["shared"], chunk)
 
 
-def _worker_pid() -> int:
-    return os.getpid()
+def _worker_ready() -> None:
+    """The warm-up task (one per worker: the pool spawns a process per task up to its size)."""
 
 
 class LocalExecutor(Executor):
@@ -314,7 +318,7 @@ class LocalExecutor(Executor):
         self._pool: ProcessPoolExecutor | None = None
         self._shared: Any = None
         self._payload: SharedPickle | None = None
-        self._warm: list[Future[int]] = []
+        self._warm: list[Future[None]] = []
 
     def _spawn(self, initializer: Callable[..., None], initargs: tuple[Any, ...]) -> None:
         with capped_blas_threads(1):
@@ -326,7 +330,7 @@ class LocalExecutor(Executor):
             )
             # start every worker now, while the thread caps are in the environment (the pool
             # spawns a process per submitted task until it has them all)
-            self._warm = [self._pool.submit(_worker_pid) for _ in range(self.workers)]
+            self._warm = [self._pool.submit(_worker_ready) for _ in range(self.workers)]
 
     def start(self) -> None:
         """Start the sharing pool's workers without waiting for them (no-op without
@@ -335,10 +339,13 @@ class LocalExecutor(Executor):
             self._spawn(_warm_worker, (WARM_MODULES,))
 
     def worker_pids(self) -> list[int]:
-        """The started workers' process ids (waits for them to start)."""
-        pids = [f.result() for f in self._warm]
-        assert self._pool is not None or not pids
-        return sorted(set(pids))
+        """The process ids of the pool's workers (none before :meth:`start` or the first
+        parallel :meth:`map`, nor after :meth:`close`); waits until they run."""
+        for f in self._warm:
+            f.result()
+        # (the pool spawns its processes as tasks arrive; it keeps them in ``_processes``)
+        processes = {} if self._pool is None else self._pool._processes
+        return sorted(int(p.pid) for p in (processes or {}).values() if p.pid is not None)
 
     def _pool_for(self, shared: Any) -> ProcessPoolExecutor:
         if self.share_memory:
