@@ -13,7 +13,7 @@ For each case, in the same run:
     python benchmarks/bench_search.py [--case hall|city|both] [--dask]
         [--city-blocks 4] [--city-pairs 50000] [--counts 2 3 4] [--hall-pairs 6400]
     python benchmarks/bench_search.py --greedy-workers 2 --counts 3 [--hall-pairs 2000]
-    python benchmarks/bench_search.py --pool-start 2 [--hall-pairs 6400]
+    python benchmarks/bench_search.py --pool-start 2 [--whole-plan] [--hall-pairs 6400]
 
 Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
 UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
@@ -258,11 +258,12 @@ def memory_mib(pids: list[int]) -> tuple[float, float]:
     return rss, pss
 
 
-def pool_start(raw: dict[str, Any], workers: int) -> None:
+def pool_start(raw: dict[str, Any], workers: int, whole: bool) -> None:
     """The local pool with the site cache pickled to each worker (the pool initializer) and
     with its arrays in shared memory, in the same run: time to the first scored chunk (pool
     start, imports, the cache reaching every worker, their scorer set-up), the exhaustive L=2
-    search on the started pool, and the memory of the main process and its workers."""
+    search on the started pool, and the memory of the main process and its workers; with
+    ``whole``, the whole hall plan both ways too."""
     import os
 
     from ris_planner.planning import LocalExecutor
@@ -297,6 +298,24 @@ def pool_start(raw: dict[str, Any], workers: int) -> None:
             f" {t_l2:8.2f} s ({rate / 1e6:4.1f} M/s) {rss:9.0f} {pss:9.0f}"
             f"   identical {bool(np.array_equal(losses, reference))}"
         )
+    if not whole:
+        return
+    plan_raw = hall_doc([2, 3, 4], pairs.size)
+    print("  the whole 2/3/4-RIS plan (run_plan: the pool started before the site cache):")
+    answers = []
+    for share in (False, True):
+        with LocalExecutor(workers, share_memory=share) as ex:
+            t0 = time.perf_counter()
+            res = run_plan(plan_raw, executor=ex)
+            total = time.perf_counter() - t0
+        answers.append(res.to_json()["layouts"])
+        objectives = " / ".join(f"{e['objective']:.4g}" for e in res.to_json()["by_count"])
+        parts = ", ".join(f"{k} {v:.1f}" for k, v in res.timing.items())
+        print(
+            f"  {'shared memory' if share else 'pickled':13s} {total:6.1f} s ({parts});"
+            f" objectives {objectives}"
+        )
+    print(f"  identical layouts {answers[0] == answers[1]}")
 
 
 def branch_and_bound_instances(n_sites: int, seeds: int) -> None:
@@ -357,9 +376,12 @@ def main() -> None:
         help="only time the local pool's start with N workers on the hall, the site cache"
         " pickled and shared",
     )
+    ap.add_argument(
+        "--whole-plan", action="store_true", help="with --pool-start: the whole plan both ways"
+    )
     args = ap.parse_args()
     if args.pool_start:
-        pool_start(hall_doc([2], args.hall_pairs), args.pool_start)
+        pool_start(hall_doc([2], args.hall_pairs), args.pool_start, args.whole_plan)
         return
     if args.bnb_instances:
         branch_and_bound_instances(args.bnb_sites, args.bnb_instances)
