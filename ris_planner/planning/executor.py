@@ -371,16 +371,25 @@ class LocalExecutor(Executor):
         if self.workers == 1 or len(chunks) <= 1:
             return SerialExecutor().map(fn, shared, chunks, on_done)
         try:
-            pool = self._pool_for(shared)
-            payload = self._payload
-            futures: dict[Future[R], int] = {
-                (
-                    pool.submit(_run_shared_task, fn, payload, c)
-                    if payload is not None
-                    else pool.submit(_run_task, fn, c)
-                ): i
-                for i, c in enumerate(chunks)
-            }
+            if shared is None:  # the tasks need no shared object: any running pool serves
+                if self._pool is None:
+                    self._pool_for(None)
+                assert self._pool is not None
+                futures: dict[Future[R], int] = {
+                    self._pool.submit(fn, None, c): i  # type: ignore[arg-type]
+                    for i, c in enumerate(chunks)
+                }
+            else:
+                pool = self._pool_for(shared)
+                payload = self._payload
+                futures = {
+                    (
+                        pool.submit(_run_shared_task, fn, payload, c)
+                        if payload is not None
+                        else pool.submit(_run_task, fn, c)
+                    ): i
+                    for i, c in enumerate(chunks)
+                }
             out: list[Any] = [None] * len(chunks)
             for n, fut in enumerate(as_completed(futures), start=1):
                 out[futures[fut]] = fut.result()

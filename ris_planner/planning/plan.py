@@ -32,7 +32,7 @@ from ris_planner.planning.branch_bound import (
 from ris_planner.planning.certificates import Certificate, relaxation_certificate
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
-from ris_planner.planning.document import PlanDocument
+from ris_planner.planning.document import Objective, PlanDocument
 from ris_planner.planning.executor import Executor, LocalExecutor
 from ris_planner.planning.maps import (
     PairSet,
@@ -59,7 +59,7 @@ from ris_planner.planning.visibility import (
     serve_warnings,
 )
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import RandomCodebook
+from ris_planner.scenario import RandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
 
@@ -678,8 +678,14 @@ def _plan_with(
     t_search = time.perf_counter() - t0 - t_cache - t_cert - t_bnb
     t1 = time.perf_counter()
     mirror = directions == "mirror"
-    for cr in counts:
-        cr.random_codebook = random_codebook_objective(doc, sites, pairs, cr.ranked[0][0], mirror)
+    # every count's codebook evaluations in one executor call (a task per layout and seed)
+    jobs = [random_codebook_tasks(doc, sites, pairs, cr.ranked[0][0], mirror) for cr in counts]
+    values = ex.map(objective_task, None, [t for job in jobs for t in job])
+    for i, cr in enumerate(counts):
+        n = len(jobs[i])
+        cr.random_codebook = random_codebook_summary(
+            values[i * n : (i + 1) * n], len(jobs[i][0][1])
+        )
     timing = {
         "cache": t_cache,
         "search": t_search,
@@ -829,6 +835,59 @@ def plan_beams(
     return out
 
 
+ObjectiveTask = tuple[Scenario, FloatArray, FloatArray, FloatArray, Objective, bool]
+"""(scenario, tx [P, 3], rx [P, 3], weights [P], objective, mirror) of :func:`objective_task`."""
+
+
+def objective_task(_shared: object, task: ObjectiveTask) -> float:
+    """Executor task: :func:`~ris_planner.planning.beam_design.objective_on_pairs`."""
+    return objective_on_pairs(*task)
+
+
+def random_codebook_tasks(
+    doc: PlanDocument,
+    sites: list[Site],
+    pairs: PairSet,
+    layout: Layout,
+    mirror: bool = False,
+    seeds: int = RANDOM_CODEBOOK_SEEDS,
+) -> list[ObjectiveTask]:
+    """The evaluations of :func:`random_codebook_objective`: the expected-random codebook, then
+    ``random`` codebooks of seeds 0 … seeds−1, on ≤ ``RANDOM_CODEBOOK_MAX_PAIRS`` sampled
+    pairs."""
+    tx, rx, w = pairs.tx, pairs.rx, pairs.weights
+    if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
+        pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
+        tx, rx = tx[pick], rx[pick]
+        w = np.full(pick.size, 1.0 / pick.size)
+    base = layout_scenario(doc.system, [sites[s].ris for s in layout], doc.known, doc.environment)
+    return [
+        (
+            base if seed < 0 else base.model_copy(update={"codebook": RandomCodebook(seed=seed)}),
+            tx,
+            rx,
+            w,
+            doc.objective,
+            mirror,
+        )
+        for seed in range(-1, seeds)
+    ]
+
+
+def random_codebook_summary(values: list[float], n_pairs: int) -> dict[str, Any]:
+    """``{"seeds", "pairs", "expected", "mean", "min", "max"}`` of the values of
+    :func:`random_codebook_tasks` (``null`` for an infinite value)."""
+    v = np.array(values[1:])
+    return {
+        "seeds": len(values) - 1,
+        "pairs": n_pairs,
+        "expected": _num(values[0]),
+        "mean": _num(float(v.mean())),
+        "min": _num(float(v.min())),
+        "max": _num(float(v.max())),
+    }
+
+
 def random_codebook_objective(
     doc: PlanDocument,
     sites: list[Site],
@@ -840,24 +899,5 @@ def random_codebook_objective(
     """The objective of ``layout`` re-evaluated with ``random`` codebooks (seeds 0 … seeds−1):
     ``{"seeds", "pairs", "expected", "mean", "min", "max"}`` (``null`` for an infinite value;
     ``expected`` is the expected-random objective on the same pairs)."""
-    tx, rx, w = pairs.tx, pairs.rx, pairs.weights
-    if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
-        pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
-        tx, rx = tx[pick], rx[pick]
-        w = np.full(pick.size, 1.0 / pick.size)
-    base = layout_scenario(doc.system, [sites[s].ris for s in layout], doc.known, doc.environment)
-    values = []
-    for seed in range(-1, seeds):
-        scenario = (
-            base if seed < 0 else base.model_copy(update={"codebook": RandomCodebook(seed=seed)})
-        )
-        values.append(objective_on_pairs(scenario, tx, rx, w, doc.objective, mirror))
-    v = np.array(values[1:])
-    return {
-        "seeds": seeds,
-        "pairs": int(tx.shape[0]),
-        "expected": _num(values[0]),
-        "mean": _num(float(v.mean())),
-        "min": _num(float(v.min())),
-        "max": _num(float(v.max())),
-    }
+    tasks = random_codebook_tasks(doc, sites, pairs, layout, mirror, seeds)
+    return random_codebook_summary([objective_task(None, t) for t in tasks], len(tasks[0][1]))
