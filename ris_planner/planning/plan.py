@@ -33,7 +33,7 @@ from ris_planner.planning.certificates import Certificate, relaxation_certificat
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
 from ris_planner.planning.document import Objective, PlanDocument
-from ris_planner.planning.executor import Executor, LocalExecutor
+from ris_planner.planning.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.planning.maps import (
     PairSet,
     PointMap,
@@ -607,7 +607,8 @@ def _plan_with(
     share = 0.75 if doc.beams is None else 0.7  # of the progress bar
     done = 0.0
     infeasible: list[int] = []
-    t_cert = t_bnb = 0.0
+    t_bnb = 0.0
+    deferred: list[tuple[int, int]] = []  # (index in counts, RIS count) of relaxation bounds
     for c, e in zip(wanted, effort, strict=True):
         base = done
 
@@ -623,6 +624,7 @@ def _plan_with(
             continue
         t1 = time.perf_counter()
         bnb = None
+        later = False
         if outcome.method == "greedy" and doc.search.method == "auto":
             # where exhaustive search is out of reach: branch-and-bound from greedy's best
             bnb = branch_and_bound(
@@ -638,16 +640,11 @@ def _plan_with(
             cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
             t_bnb += time.perf_counter() - t1
             if bnb.nodes == 0 and not bnb.finished:  # not begun: it would not pay
-                t1 = time.perf_counter()
-                cert = count_certificate(
-                    scorer, c, outcome, feasibility, doc.search.certificate_iterations
-                )
-                t_cert += time.perf_counter() - t1
+                cert, later = exact_certificate(outcome, doc.search.certificate_iterations)
         else:
-            cert = count_certificate(
-                scorer, c, outcome, feasibility, doc.search.certificate_iterations
-            )
-            t_cert += time.perf_counter() - t1
+            cert, later = exact_certificate(outcome, doc.search.certificate_iterations)
+        if later:  # the relaxation bound: computed after the search, beside the other checks
+            deferred.append((len(counts), c))
         ranked = outcome.ranked(doc.search.top_k)
         best_metric = scorer.metric(np.array([ranked[0][0]], dtype=int))[0]
         n_ties, tied = ties(outcome, doc.search.tie_rtol)
@@ -675,24 +672,33 @@ def _plan_with(
             f"no layout of {wanted} RISs satisfies the constraints (mounting points,"
             " min_separation_m, require/exclude, budget)"
         )
-    t_search = time.perf_counter() - t0 - t_cache - t_cert - t_bnb
+    t_search = time.perf_counter() - t0 - t_cache - t_bnb
     t1 = time.perf_counter()
     mirror = directions == "mirror"
-    # every count's codebook evaluations in one executor call (a task per layout and seed)
+    # the relaxation bounds and every count's codebook evaluations (a task per layout and seed)
+    # in one executor call: independent checks that keep the pool's workers busy together (on a
+    # cluster, in this process: its tasks carry site blocks, not the whole scorer)
+    iterations = doc.search.certificate_iterations
     jobs = [random_codebook_tasks(doc, sites, pairs, cr.ranked[0][0], mirror) for cr in counts]
-    values = ex.map(objective_task, None, [t for job in jobs for t in job])
+    tasks: list[PlanCheck] = [("certificate", (c, feasibility, iterations)) for _, c in deferred]
+    tasks += [("codebook", t) for job in jobs for t in job]
+    on = SerialExecutor() if ex.site_blocks else ex
+    values = on.map(plan_check_task, scorer, tasks)
+    for (i, _), bound in zip(deferred, values[: len(deferred)], strict=True):
+        assert isinstance(bound, Certificate)
+        counts[i].certificate = bound
+    codebook = [float(v) for v in values[len(deferred) :] if not isinstance(v, Certificate)]
     for i, cr in enumerate(counts):
         n = len(jobs[i])
         cr.random_codebook = random_codebook_summary(
-            values[i * n : (i + 1) * n], len(jobs[i][0][1])
+            codebook[i * n : (i + 1) * n], len(jobs[i][0][1])
         )
     timing = {
         "cache": t_cache,
         "search": t_search,
-        "certificate": t_cert,
         "branch_and_bound": t_bnb,
         "visibility": t_vis,
-        "random_codebook": time.perf_counter() - t1,
+        "checks": time.perf_counter() - t1,
     }
     result = PlanResult(
         doc,
@@ -726,16 +732,25 @@ def bnb_certificate(bnb: BranchBoundOutcome) -> Certificate:
     return Certificate(bnb.loss_bound, exact=False, method=method)
 
 
-def count_certificate(
-    scorer: Scorer, n_ris: int, outcome: SearchOutcome, feasible: Feasibility, iterations: int
-) -> Certificate | None:
-    """The optimum itself after an exhaustive search, else the relaxation bound (``None`` with
-    zero iterations)."""
+def exact_certificate(outcome: SearchOutcome, iterations: int) -> tuple[Certificate | None, bool]:
+    """(the optimum itself after an exhaustive search, else ``None``; whether the relaxation
+    bound is wanted instead – not with zero iterations)."""
     if outcome.method == "exhaustive":
-        return Certificate(float(outcome.losses.min()), exact=True, method="exhaustive")
-    if iterations == 0:
-        return None
-    return relaxation_certificate(scorer, n_ris, feasible, iterations)
+        return Certificate(float(outcome.losses.min()), exact=True, method="exhaustive"), False
+    return None, iterations > 0
+
+
+PlanCheck = tuple[str, Any]
+"""("certificate", (n_ris, feasibility, iterations)) or ("codebook", an ObjectiveTask)."""
+
+
+def plan_check_task(scorer: Scorer, task: PlanCheck) -> Certificate | float:
+    """Executor task: a relaxation bound (:func:`~ris_planner.planning.certificates.
+    relaxation_certificate`) or one codebook evaluation (:func:`objective_task`)."""
+    kind, args = task
+    if kind == "certificate":
+        return relaxation_certificate(scorer, *args)
+    return objective_task(None, args)
 
 
 def _run_sweep(
