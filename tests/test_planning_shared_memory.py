@@ -216,3 +216,29 @@ def test_an_interrupt_leaves_nothing() -> None:
         ex.map(worker_sum, shared, list(range(8)), on_done=interrupt)
     assert memfds() == [] and gone(pids)
     ex.close()
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3])
+def test_chunk_count_bounds_and_balances_the_tasks(workers: int) -> None:
+    from ris_planner.planning.search import (
+        CHUNK_MATRICES,
+        MIN_TASK_MATRICES,
+        TASKS_PER_WORKER,
+        chunk_count,
+    )
+
+    for n_layouts in (1, 2, 5, 77, 459, 2295, 11700, 123_457):
+        for n_pairs in (1, 300, 6400, 50_000):
+            n = chunk_count(n_layouts, n_pairs, workers)
+            work = n_layouts * n_pairs
+            assert 1 <= n <= n_layouts
+            # np.array_split's largest part stays within a chunk (up to one layout's pairs)
+            assert -(-n_layouts // n) * n_pairs <= CHUNK_MATRICES + n_pairs
+            if 1 < n < n_layouts:
+                assert n % workers == 0  # every worker gets as many tasks
+            if workers == 1:
+                assert n == min(n_layouts, -(-work // CHUNK_MATRICES))
+            elif work >= TASKS_PER_WORKER * workers * MIN_TASK_MATRICES:
+                assert n >= min(n_layouts, TASKS_PER_WORKER * workers)
+            elif work < workers * MIN_TASK_MATRICES:
+                assert n == 1  # too small to be worth a second task
