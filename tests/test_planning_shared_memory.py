@@ -242,3 +242,24 @@ def test_chunk_count_bounds_and_balances_the_tasks(workers: int) -> None:
                 assert n >= min(n_layouts, TASKS_PER_WORKER * workers)
             elif work < workers * MIN_TASK_MATRICES:
                 assert n == 1  # too small to be worth a second task
+
+
+def test_only_a_plan_that_splits_its_batches_starts_workers(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from ris_planner.planning.plan import needs_workers, prepare_plan
+
+    big = hall_like_plan()
+    big["pairs"] = {"sample": 3000, "seed": 0}  # 1128 layouts of 2 × 3000 pairs: 3.4 M
+    assert needs_workers(prepare_plan(big), 2000, 2)
+    assert not needs_workers(prepare_plan(big), 2000, 1)
+    small = hall_like_plan()  # ≤ 2000 layouts × 300 pairs = 0.6 M: every batch in-process
+    assert not needs_workers(prepare_plan(small), 2000, 2)
+
+    def no_pool(*args: object) -> None:
+        raise AssertionError("a small plan started a pool")
+
+    monkeypatch.setattr(LocalExecutor, "_spawn", no_pool)
+    with LocalExecutor(2) as ex:
+        run_plan(small, executor=ex)
+    run_plan(small)  # the default executor too

@@ -73,6 +73,11 @@ class Executor(ABC):
     def start(self) -> None:  # noqa: B027 - a no-op unless the executor starts workers
         """Start workers now, without waiting (the caller's own work overlaps their start)."""
 
+    @property
+    def started(self) -> bool:
+        """Whether the executor holds started local workers (tasks then cost no start-up)."""
+        return False
+
     def share(self, obj: Any) -> Any:
         """A handle tasks may carry instead of ``obj`` (a cluster sends ``obj`` once)."""
         return obj
@@ -337,6 +342,10 @@ class LocalExecutor(Executor):
         ``share_memory``, one worker, or when started)."""
         if self.share_memory and self.workers > 1 and self._pool is None:
             self._spawn(_warm_worker, (WARM_MODULES,))
+
+    @property
+    def started(self) -> bool:
+        return self._pool is not None and self.workers > 1
 
     def worker_pids(self) -> list[int]:
         """The process ids of the pool's workers (none before :meth:`start` or the first

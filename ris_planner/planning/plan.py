@@ -49,7 +49,7 @@ from ris_planner.planning.objectives import (
     weighted_quantile,
 )
 from ris_planner.planning.points import heatmap_json, points_json
-from ris_planner.planning.search import Layout, SearchOutcome, search
+from ris_planner.planning.search import MIN_TASK_MATRICES, Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
 from ris_planner.planning.visibility import (
@@ -565,12 +565,23 @@ def run_plan(
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
     try:
-        # the workers start (and import) while this process builds the site cache
-        ex.start()
+        if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
+            # the workers start (and import) while this process builds the site cache
+            ex.start()
         return _plan_with(doc, progress, ex, inputs, t0)
     finally:
         if own:
             ex.close()
+
+
+def needs_workers(inputs: PlanInputs, max_exhaustive: int, workers: int) -> bool:
+    """Whether the search will split a batch over the workers (:func:`~ris_planner.planning.
+    search.chunk_count`): some count's layouts – all of them, or ``max_exhaustive`` as many as
+    a greedy search's rounds come to at most – times the pairs reach one minimal task per
+    worker. Small plans then never start a pool (their batches run in-process)."""
+    n_sites, n_pairs = len(inputs.sites), inputs.pairs.size
+    work = max((min(math.comb(n_sites, c), max_exhaustive) for c in inputs.counts), default=0)
+    return workers > 1 and work * n_pairs >= workers * MIN_TASK_MATRICES
 
 
 def _plan_with(
@@ -676,13 +687,14 @@ def _plan_with(
     t1 = time.perf_counter()
     mirror = directions == "mirror"
     # the relaxation bounds and every count's codebook evaluations (a task per layout and seed)
-    # in one executor call: independent checks that keep the pool's workers busy together (on a
-    # cluster, in this process: its tasks carry site blocks, not the whole scorer)
+    # in one executor call: independent checks that keep the pool's workers busy together when
+    # the search started them (else, and on a cluster, whose tasks carry site blocks, not the
+    # whole scorer: in this process)
     iterations = doc.search.certificate_iterations
     jobs = [random_codebook_tasks(doc, sites, pairs, cr.ranked[0][0], mirror) for cr in counts]
     tasks: list[PlanCheck] = [("certificate", (c, feasibility, iterations)) for _, c in deferred]
     tasks += [("codebook", t) for job in jobs for t in job]
-    on = SerialExecutor() if ex.site_blocks else ex
+    on = ex if ex.started and not ex.site_blocks else SerialExecutor()
     values = on.map(plan_check_task, scorer, tasks)
     for (i, _), bound in zip(deferred, values[: len(deferred)], strict=True):
         assert isinstance(bound, Certificate)
