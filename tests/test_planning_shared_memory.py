@@ -253,7 +253,8 @@ def test_only_a_plan_that_splits_its_batches_starts_workers(
     big["pairs"] = {"sample": 3000, "seed": 0}  # 1128 layouts of 2 × 3000 pairs: 3.4 M
     assert needs_workers(prepare_plan(big), 2000, 2)
     assert not needs_workers(prepare_plan(big), 2000, 1)
-    small = hall_like_plan()  # ≤ 2000 layouts × 300 pairs = 0.6 M: every batch in-process
+    small = hall_like_plan()
+    small["pairs"] = {"sample": 100, "seed": 0}  # ≤ 2000 layouts × 100 pairs: all in-process
     assert not needs_workers(prepare_plan(small), 2000, 2)
 
     def no_pool(*args: object) -> None:

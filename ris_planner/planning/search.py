@@ -66,10 +66,11 @@ class SearchOutcome:
         }
 
 
-MIN_TASK_MATRICES = 500_000
+MIN_TASK_MATRICES = 250_000
 """A batch is split into more tasks (up to :data:`TASKS_PER_WORKER` per worker) while each
-still holds at least this many layout × pair evaluations (≈ 50 ms: far above a task's
-scheduling cost; the site cache is already on every worker)."""
+still holds at least this many layout × pair evaluations (≈ 25 ms: far above a task's
+scheduling cost of about a millisecond; the site cache is already on every worker). A greedy
+step that completes a layout (≈ S candidates × P pairs: 1 M on the hall) is split too."""
 
 TASKS_PER_WORKER = 4
 """Tasks per worker a batch is split into when it is large enough (:data:`MIN_TASK_MATRICES`):
