@@ -258,6 +258,16 @@ def memory_mib(pids: list[int]) -> tuple[float, float]:
     return rss, pss
 
 
+def cpu_seconds() -> tuple[float, float]:
+    """(this process's, its finished children's) user + system CPU seconds: a pool's workers
+    count once it is closed. Their sum over two cores bounds an idle machine's wall time from
+    below whatever the load now."""
+    import resource
+
+    own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime, kids.ru_utime + kids.ru_stime
+
+
 def pool_start(raw: dict[str, Any], workers: int, whole: bool) -> None:
     """The local pool with the site cache pickled to each worker (the pool initializer) and
     with its arrays in shared memory, in the same run: time to the first scored chunk (pool
@@ -304,16 +314,18 @@ def pool_start(raw: dict[str, Any], workers: int, whole: bool) -> None:
     print("  the whole 2/3/4-RIS plan (run_plan: the pool started before the site cache):")
     answers = []
     for share in (False, True):
+        c0 = cpu_seconds()
+        t0 = time.perf_counter()
         with LocalExecutor(workers, share_memory=share) as ex:
-            t0 = time.perf_counter()
             res = run_plan(plan_raw, executor=ex)
-            total = time.perf_counter() - t0
+        total = time.perf_counter() - t0
+        main_cpu, workers_cpu = (b - a for a, b in zip(c0, cpu_seconds(), strict=True))
         answers.append(res.to_json()["layouts"])
         objectives = " / ".join(f"{e['objective']:.4g}" for e in res.to_json()["by_count"])
         parts = ", ".join(f"{k} {v:.1f}" for k, v in res.timing.items())
         print(
             f"  {'shared memory' if share else 'pickled':13s} {total:6.1f} s ({parts});"
-            f" objectives {objectives}"
+            f" CPU main {main_cpu:.1f} s + workers {workers_cpu:.1f} s; objectives {objectives}"
         )
     print(f"  identical layouts {answers[0] == answers[1]}")
 
