@@ -264,3 +264,11 @@ def test_only_a_plan_that_splits_its_batches_starts_workers(
     with LocalExecutor(2) as ex:
         run_plan(small, executor=ex)
     run_plan(small)  # the default executor too
+
+
+def test_shared_arrays_never_closed_are_closed_with_their_object() -> None:
+    payload = share_pickle({"big": np.ones(SHARE_MIN_BYTES)})
+    assert len(memfds()) == 1
+    del payload
+    gc.collect()
+    assert memfds() == []

@@ -21,6 +21,7 @@ import multiprocessing
 import os
 import pickle
 import uuid
+import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
@@ -159,6 +160,8 @@ class SharedArrays:
         self.fd: int | None = os.memfd_create(self.name, os.MFD_CLOEXEC)
         self.size = 0
         self.pid = os.getpid()
+        # closed when this object goes, should no one call close()
+        self._finalizer = weakref.finalize(self, os.close, self.fd)
 
     def put(self, arr: np.ndarray[Any, Any]) -> tuple[Any, ...]:
         """Copy ``arr`` into the file; the arguments of :func:`_attach_array`."""
@@ -176,7 +179,7 @@ class SharedArrays:
     def close(self) -> None:
         """Drop the owner's descriptor (idempotent)."""
         if self.fd is not None:
-            os.close(self.fd)
+            self._finalizer()  # os.close(fd), once
             self.fd = None
 
 
@@ -200,11 +203,16 @@ def _attach_array(
         path = f"/proc/{pid}/fd/{fd}"
         try:
             link = os.readlink(path)
-        except OSError:
-            link = None
-        if link != f"/memfd:{name} (deleted)":
+            handle = os.open(path, os.O_RDONLY) if link == f"/memfd:{name} (deleted)" else -1
+        except FileNotFoundError:
+            handle = -1  # the owner closed it (or exited)
+        except OSError as err:
+            raise RuntimeError(
+                f"cannot open the shared arrays of process {pid} ({err}); on a system that hides"
+                " other processes' /proc entries use LocalExecutor(share_memory=False)"
+            ) from err
+        if handle < 0:
             raise RuntimeError(f"shared arrays {name} are gone (process {pid} closed them)")
-        handle = os.open(path, os.O_RDONLY)
         try:
             mm = mmap.mmap(handle, 0, flags=mmap.MAP_PRIVATE, prot=mmap.PROT_READ | mmap.PROT_WRITE)
         finally:
