@@ -15,6 +15,7 @@ For each case, in the same run:
     python benchmarks/bench_search.py --greedy-workers 2 --counts 3 [--hall-pairs 2000]
     python benchmarks/bench_search.py --storage-check 2000 [--hall-pairs 6400]
     python benchmarks/bench_search.py --city-memory 40 [--city-blocks 4] [--city-pairs 50000]
+    python benchmarks/bench_search.py --pool-start 2 [--whole-plan] [--hall-pairs 6400]
 
 Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
 UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
@@ -219,7 +220,7 @@ def report(name: str, raw: dict[str, Any], dask: bool, default: bool = True) -> 
         ):
             t0 = time.perf_counter()
             remote = run_plan(raw_same, executor=ex)
-            t_d = time.perf_counter() - t0 - remote.timing["cache"] - remote.timing["certificate"]
+            t_d = time.perf_counter() - t0 - remote.timing["cache"] - remote.timing["checks"]
             ex.client.close()
         same = remote.to_json()["layouts"] == plan["layouts"]
         n_eval = sum(cr.outcome.evaluated for cr in remote.counts)
@@ -375,6 +376,91 @@ def greedy_workers(raw: dict[str, Any], workers: int) -> None:
             )
 
 
+def memory_mib(pids: list[int]) -> tuple[float, float]:
+    """(Σ RSS, Σ PSS) of the processes in MiB: PSS counts a page shared by k processes 1/k
+    times in each, so its sum is the RAM they use together."""
+    rss = pss = 0.0
+    for pid in pids:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            key, *rest = line.split()
+            if key in ("Rss:", "Pss:"):
+                kib = float(rest[0]) / 1024
+                rss, pss = (rss + kib, pss) if key == "Rss:" else (rss, pss + kib)
+    return rss, pss
+
+
+def cpu_seconds() -> tuple[float, float]:
+    """(this process's, its finished children's) user + system CPU seconds: a pool's workers
+    count once it is closed. Their sum over two cores bounds an idle machine's wall time from
+    below whatever the load now."""
+    import resource
+
+    own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime, kids.ru_utime + kids.ru_stime
+
+
+def pool_start(raw: dict[str, Any], workers: int, whole: bool) -> None:
+    """The local pool with the site cache pickled to each worker (the pool initializer) and
+    with its arrays in shared memory, in the same run: time to the first scored chunk (pool
+    start, imports, the cache reaching every worker, their scorer set-up), the exhaustive L=2
+    search on the started pool, and the memory of the main process and its workers; with
+    ``whole``, the whole hall plan both ways too."""
+    import os
+
+    from ris_planner.planning import LocalExecutor
+    from ris_planner.planning.search import all_layouts, evaluate
+
+    doc = PlanDocument.model_validate(raw)
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    scorer = Scorer(build_site_cache(doc.system, sites, pairs), pairs.weights, doc.objective, ())
+    size = sum(a.nbytes for a in vars(scorer.cache).values() if isinstance(a, np.ndarray))
+    layouts = all_layouts(len(sites), 2)
+    print(
+        f"pool start: {len(sites)} candidates × {pairs.size} pairs, site cache"
+        f" {size / 2**20:.0f} MiB, {workers} workers, {len(os.sched_getaffinity(0))} cores"
+    )
+    print("  mode          first chunk   L=2 exhaustive        RSS sum   PSS sum (MiB)")
+    reference = None
+    for share in (False, True):
+        with LocalExecutor(workers, share_memory=share) as ex:
+            t0 = time.perf_counter()
+            ex.map(score_chunk, scorer, [layouts[i : i + 1] for i in range(workers)])
+            t_first = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            losses = evaluate(scorer, layouts, ex)
+            t_l2 = time.perf_counter() - t0
+            rss, pss = memory_mib([os.getpid(), *ex.worker_pids()])
+        if reference is None:
+            reference = losses
+        rate = layouts.shape[0] * pairs.size / t_l2
+        print(
+            f"  {'shared memory' if share else 'pickled':13s} {t_first:8.2f} s"
+            f" {t_l2:8.2f} s ({rate / 1e6:4.1f} M/s) {rss:9.0f} {pss:9.0f}"
+            f"   identical {bool(np.array_equal(losses, reference))}"
+        )
+    if not whole:
+        return
+    plan_raw = hall_doc([2, 3, 4], pairs.size)
+    print("  the whole 2/3/4-RIS plan (run_plan: the pool started before the site cache):")
+    answers = []
+    for share in (False, True):
+        c0 = cpu_seconds()
+        t0 = time.perf_counter()
+        with LocalExecutor(workers, share_memory=share) as ex:
+            res = run_plan(plan_raw, executor=ex)
+        total = time.perf_counter() - t0
+        main_cpu, workers_cpu = (b - a for a, b in zip(c0, cpu_seconds(), strict=True))
+        answers.append(res.to_json()["layouts"])
+        objectives = " / ".join(f"{e['objective']:.4g}" for e in res.to_json()["by_count"])
+        parts = ", ".join(f"{k} {v:.1f}" for k, v in res.timing.items())
+        print(
+            f"  {'shared memory' if share else 'pickled':13s} {total:6.1f} s ({parts});"
+            f" CPU main {main_cpu:.1f} s + workers {workers_cpu:.1f} s; objectives {objectives}"
+        )
+    print(f"  identical layouts {answers[0] == answers[1]}")
+
+
 def branch_and_bound_instances(n_sites: int, seeds: int) -> None:
     """Random instances of the tests (ring of candidates, 120 pairs, the four objectives):
     exhaustive search against greedy + branch-and-bound, both timed in this run."""
@@ -449,7 +535,20 @@ def main() -> None:
         default=0,
         help="only build the city's site cache at full size and score N random layouts on it",
     )
+    ap.add_argument(
+        "--pool-start",
+        type=int,
+        default=0,
+        help="only time the local pool's start with N workers on the hall, the site cache"
+        " pickled and shared",
+    )
+    ap.add_argument(
+        "--whole-plan", action="store_true", help="with --pool-start: the whole plan both ways"
+    )
     args = ap.parse_args()
+    if args.pool_start:
+        pool_start(hall_doc([2], args.hall_pairs), args.pool_start, args.whole_plan)
+        return
     if args.city_memory:
         raw = city_doc(args.city_blocks, args.city_pairs, [2])
         city_memory(raw, args.city_memory)

@@ -71,10 +71,20 @@ class Scorer:
     mirror: bool = False
 
     def __getstate__(self) -> dict[str, Any]:
-        """Pickled without the per-process caches (the pair blocks of :meth:`metric` and the
-        selected entries): a worker builds its own instead of receiving copies."""
+        """Pickled without the per-process caches (the compiled score's inputs and the numpy
+        readers' float64 copy of the selected entries): a worker builds its own."""
         state = dict(self.__dict__)
         state.pop("_kernel_inputs", None)
+        state.pop("_selected", None)
+        return state
+
+    def __share_state__(self) -> dict[str, Any]:
+        """The state pickled when the arrays are shared, not copied
+        (:func:`ris_planner.planning.executor.share_pickle`): the compiled score's inputs (the
+        cache's block storage, referenced, and their small LOS blocks and masks) are built here
+        once and go too, so the workers map them instead of each building its own."""
+        self._kernel_inputs  # noqa: B018 - the cached property is built, then shared
+        state = dict(self.__dict__)
         state.pop("_selected", None)
         return state
 

@@ -32,8 +32,8 @@ from ris_planner.planning.branch_bound import (
 from ris_planner.planning.certificates import Certificate, relaxation_certificate
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
-from ris_planner.planning.document import PlanDocument
-from ris_planner.planning.executor import Executor, LocalExecutor
+from ris_planner.planning.document import Objective, PlanDocument
+from ris_planner.planning.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.planning.finalists import exact_certificate, rescore_finalists
 from ris_planner.planning.maps import (
     PairSet,
@@ -50,7 +50,7 @@ from ris_planner.planning.objectives import (
     weighted_quantile,
 )
 from ris_planner.planning.points import heatmap_json, points_json
-from ris_planner.planning.search import Layout, SearchOutcome, search
+from ris_planner.planning.search import MIN_TASK_MATRICES, Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
 from ris_planner.planning.visibility import (
@@ -60,7 +60,7 @@ from ris_planner.planning.visibility import (
     serve_warnings,
 )
 from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import RandomCodebook
+from ris_planner.scenario import RandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
 
@@ -565,6 +565,36 @@ def run_plan(
         return _run_sweep(doc, progress, executor)
     t0 = time.perf_counter()
     inputs = prepare_plan(doc)
+    own = executor is None
+    ex = LocalExecutor() if executor is None else executor
+    try:
+        if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
+            # the workers start (and import) while this process builds the site cache
+            ex.start()
+        return _plan_with(doc, progress, ex, inputs, t0)
+    finally:
+        if own:
+            ex.close()
+
+
+def needs_workers(inputs: PlanInputs, max_exhaustive: int, workers: int) -> bool:
+    """Whether the search will split a batch over the workers (:func:`~ris_planner.planning.
+    search.chunk_count`): some count's layouts – all of them, or ``max_exhaustive`` as many as
+    a greedy search's rounds come to at most – times the pairs reach one minimal task per
+    worker. Small plans then never start a pool (their batches run in-process)."""
+    n_sites, n_pairs = len(inputs.sites), inputs.pairs.size
+    work = max((min(math.comb(n_sites, c), max_exhaustive) for c in inputs.counts), default=0)
+    return workers > 1 and work * n_pairs >= workers * MIN_TASK_MATRICES
+
+
+def _plan_with(
+    doc: PlanDocument,
+    progress: ProgressCallback,
+    ex: Executor,
+    inputs: PlanInputs,
+    t0: float,
+) -> PlanResult:
+    """:func:`run_plan` after the inputs, on a started executor (closed by the caller)."""
     sites, tx_map, rx_map, pairs = inputs.sites, inputs.tx_map, inputs.rx_map, inputs.pairs
     scene, dropped, directions = inputs.scene, inputs.dropped, inputs.directions
     wanted, feasibility = inputs.counts, inputs.feasibility
@@ -586,101 +616,108 @@ def run_plan(
     scorer = Scorer(
         cache, pairs.weights, doc.objective, tuple(doc.known), mirror=directions == "mirror"
     )
-    own = executor is None
-    ex = LocalExecutor() if executor is None else executor
     counts: list[CountResult] = []
     # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
     effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in wanted]
     share = 0.75 if doc.beams is None else 0.7  # of the progress bar
     done = 0.0
     infeasible: list[int] = []
-    t_cert = t_bnb = 0.0
-    try:
-        for c, e in zip(wanted, effort, strict=True):
-            base = done
+    t_bnb = 0.0
+    deferred: list[tuple[int, int]] = []  # (index in counts, RIS count) of relaxation bounds
+    for c, e in zip(wanted, effort, strict=True):
+        base = done
 
-            def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
-                progress(0.2 + share * (base + f * e) / sum(effort), f"search L={c}")
+        def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
+            progress(0.2 + share * (base + f * e) / sum(effort), f"search L={c}")
 
-            # the best layouts of the smaller counts seed the greedy search
-            seeds = tuple(cr.ranked[0][0] for cr in counts)
-            outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds, feasibility)
-            done += e
-            if outcome.losses.size == 0:  # no layout satisfies the constraints
-                infeasible.append(c)
-                continue
-            t1 = time.perf_counter()
-            bnb = None
-            if outcome.method == "greedy" and doc.search.method == "auto":
-                # where exhaustive search is out of reach: branch-and-bound from greedy's best
-                bnb = branch_and_bound(
-                    scorer,
-                    c,
-                    feasibility,
-                    outcome,
-                    ex,
-                    max(1, doc.search.certificate_iterations),
-                    max_work=max(BNB_MIN_WORK, BNB_WORK_FACTOR * outcome.evaluated),
-                )
-                outcome = bnb.outcome
-                cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
-                t_bnb += time.perf_counter() - t1
-                if bnb.nodes == 0 and not bnb.finished:  # not begun: it would not pay
-                    t1 = time.perf_counter()
-                    cert = count_certificate(
-                        scorer, c, outcome, feasibility, doc.search.certificate_iterations
-                    )
-                    t_cert += time.perf_counter() - t1
-            else:
-                cert = count_certificate(
-                    scorer, c, outcome, feasibility, doc.search.certificate_iterations
-                )
-                t_cert += time.perf_counter() - t1
-            # a float32 cache: the reported layouts re-scored in float64
-            outcome, _ = rescore_finalists(scorer, outcome, doc.search.top_k, doc.search.tie_rtol)
-            ranked = outcome.ranked(doc.search.top_k)
-            cert = exact_certificate(scorer, cert, ranked[0][1])
-            best_metric = scorer.exact_metric(np.array([ranked[0][0]], dtype=int))[0]
-            n_ties, tied = ties(outcome, doc.search.tie_rtol)
-            counts.append(
-                CountResult(
-                    c,
-                    outcome,
-                    ranked,
-                    best_metric,
-                    certificate=cert,
-                    n_ties=n_ties,
-                    ties=tuple(tied),
-                    branch_and_bound=None if bnb is None else bnb.to_json(),
-                )
+        # the best layouts of the smaller counts seed the greedy search
+        seeds = tuple(cr.ranked[0][0] for cr in counts)
+        outcome = search(scorer, len(sites), c, doc.search, ex, on_fraction, seeds, feasibility)
+        done += e
+        if outcome.losses.size == 0:  # no layout satisfies the constraints
+            infeasible.append(c)
+            continue
+        t1 = time.perf_counter()
+        bnb = None
+        later = False
+        if outcome.method == "greedy" and doc.search.method == "auto":
+            # where exhaustive search is out of reach: branch-and-bound from greedy's best
+            bnb = branch_and_bound(
+                scorer,
+                c,
+                feasibility,
+                outcome,
+                ex,
+                max(1, doc.search.certificate_iterations),
+                max_work=max(BNB_MIN_WORK, BNB_WORK_FACTOR * outcome.evaluated),
             )
-            target = doc.objective.target
-            if (
-                doc.target_mode
-                and target is not None
-                and target.met(objective_from_loss(doc.objective, ranked[0][1]))
-            ):
-                break
-    finally:
-        if own:
-            ex.close()
+            outcome = bnb.outcome
+            cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
+            t_bnb += time.perf_counter() - t1
+            if bnb.nodes == 0 and not bnb.finished:  # not begun: it would not pay
+                cert, later = search_certificate(outcome, doc.search.certificate_iterations)
+        else:
+            cert, later = search_certificate(outcome, doc.search.certificate_iterations)
+        if later:  # the relaxation bound: computed after the search, beside the other checks
+            deferred.append((len(counts), c))
+        # a float32 cache: the reported layouts re-scored in float64
+        outcome, _ = rescore_finalists(scorer, outcome, doc.search.top_k, doc.search.tie_rtol)
+        ranked = outcome.ranked(doc.search.top_k)
+        cert = exact_certificate(scorer, cert, ranked[0][1])
+        best_metric = scorer.exact_metric(np.array([ranked[0][0]], dtype=int))[0]
+        n_ties, tied = ties(outcome, doc.search.tie_rtol)
+        counts.append(
+            CountResult(
+                c,
+                outcome,
+                ranked,
+                best_metric,
+                certificate=cert,
+                n_ties=n_ties,
+                ties=tuple(tied),
+                branch_and_bound=None if bnb is None else bnb.to_json(),
+            )
+        )
+        target = doc.objective.target
+        if (
+            doc.target_mode
+            and target is not None
+            and target.met(objective_from_loss(doc.objective, ranked[0][1]))
+        ):
+            break
     if not counts:
         raise RisPlannerError(
             f"no layout of {wanted} RISs satisfies the constraints (mounting points,"
             " min_separation_m, require/exclude, budget)"
         )
-    t_search = time.perf_counter() - t0 - t_cache - t_cert - t_bnb
+    t_search = time.perf_counter() - t0 - t_cache - t_bnb
     t1 = time.perf_counter()
     mirror = directions == "mirror"
-    for cr in counts:
-        cr.random_codebook = random_codebook_objective(doc, sites, pairs, cr.ranked[0][0], mirror)
+    # the relaxation bounds and every count's codebook evaluations (a task per layout and seed)
+    # in one executor call: independent checks that keep the pool's workers busy together when
+    # the search started them (else, and on a cluster, whose tasks carry site blocks, not the
+    # whole scorer: in this process)
+    iterations = doc.search.certificate_iterations
+    jobs = [random_codebook_tasks(doc, sites, pairs, cr.ranked[0][0], mirror) for cr in counts]
+    tasks: list[PlanCheck] = [("certificate", (c, feasibility, iterations)) for _, c in deferred]
+    tasks += [("codebook", t) for job in jobs for t in job]
+    on = ex if ex.started and not ex.site_blocks else SerialExecutor()
+    values = on.map(plan_check_task, scorer, tasks)
+    for (i, _), bound in zip(deferred, values[: len(deferred)], strict=True):
+        assert isinstance(bound, Certificate)
+        counts[i].certificate = bound
+    codebook = [float(v) for v in values[len(deferred) :] if not isinstance(v, Certificate)]
+    for i, cr in enumerate(counts):
+        n = len(jobs[i])
+        cr.random_codebook = random_codebook_summary(
+            codebook[i * n : (i + 1) * n], len(jobs[i][0][1])
+        )
     timing = {
         "cache": t_cache,
         "search": t_search,
-        "certificate": t_cert,
         "branch_and_bound": t_bnb,
         "visibility": t_vis,
-        "random_codebook": time.perf_counter() - t1,
+        "checks": time.perf_counter() - t1,
     }
     result = PlanResult(
         doc,
@@ -714,16 +751,25 @@ def bnb_certificate(bnb: BranchBoundOutcome) -> Certificate:
     return Certificate(bnb.loss_bound, exact=False, method=method)
 
 
-def count_certificate(
-    scorer: Scorer, n_ris: int, outcome: SearchOutcome, feasible: Feasibility, iterations: int
-) -> Certificate | None:
-    """The optimum itself after an exhaustive search, else the relaxation bound (``None`` with
-    zero iterations)."""
+def search_certificate(outcome: SearchOutcome, iterations: int) -> tuple[Certificate | None, bool]:
+    """(the optimum itself after an exhaustive search, else ``None``; whether the relaxation
+    bound is wanted instead – not with zero iterations)."""
     if outcome.method == "exhaustive":
-        return Certificate(float(outcome.losses.min()), exact=True, method="exhaustive")
-    if iterations == 0:
-        return None
-    return relaxation_certificate(scorer, n_ris, feasible, iterations)
+        return Certificate(float(outcome.losses.min()), exact=True, method="exhaustive"), False
+    return None, iterations > 0
+
+
+PlanCheck = tuple[str, Any]
+"""("certificate", (n_ris, feasibility, iterations)) or ("codebook", an ObjectiveTask)."""
+
+
+def plan_check_task(scorer: Scorer, task: PlanCheck) -> Certificate | float:
+    """Executor task: a relaxation bound (:func:`~ris_planner.planning.certificates.
+    relaxation_certificate`) or one codebook evaluation (:func:`objective_task`)."""
+    kind, args = task
+    if kind == "certificate":
+        return relaxation_certificate(scorer, *args)
+    return objective_task(None, args)
 
 
 def _run_sweep(
@@ -823,6 +869,59 @@ def plan_beams(
     return out
 
 
+ObjectiveTask = tuple[Scenario, FloatArray, FloatArray, FloatArray, Objective, bool]
+"""(scenario, tx [P, 3], rx [P, 3], weights [P], objective, mirror) of :func:`objective_task`."""
+
+
+def objective_task(_shared: object, task: ObjectiveTask) -> float:
+    """Executor task: :func:`~ris_planner.planning.beam_design.objective_on_pairs`."""
+    return objective_on_pairs(*task)
+
+
+def random_codebook_tasks(
+    doc: PlanDocument,
+    sites: list[Site],
+    pairs: PairSet,
+    layout: Layout,
+    mirror: bool = False,
+    seeds: int = RANDOM_CODEBOOK_SEEDS,
+) -> list[ObjectiveTask]:
+    """The evaluations of :func:`random_codebook_objective`: the expected-random codebook, then
+    ``random`` codebooks of seeds 0 … seeds−1, on ≤ ``RANDOM_CODEBOOK_MAX_PAIRS`` sampled
+    pairs."""
+    tx, rx, w = pairs.tx, pairs.rx, pairs.weights
+    if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
+        pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
+        tx, rx = tx[pick], rx[pick]
+        w = np.full(pick.size, 1.0 / pick.size)
+    base = layout_scenario(doc.system, [sites[s].ris for s in layout], doc.known, doc.environment)
+    return [
+        (
+            base if seed < 0 else base.model_copy(update={"codebook": RandomCodebook(seed=seed)}),
+            tx,
+            rx,
+            w,
+            doc.objective,
+            mirror,
+        )
+        for seed in range(-1, seeds)
+    ]
+
+
+def random_codebook_summary(values: list[float], n_pairs: int) -> dict[str, Any]:
+    """``{"seeds", "pairs", "expected", "mean", "min", "max"}`` of the values of
+    :func:`random_codebook_tasks` (``null`` for an infinite value)."""
+    v = np.array(values[1:])
+    return {
+        "seeds": len(values) - 1,
+        "pairs": n_pairs,
+        "expected": _num(values[0]),
+        "mean": _num(float(v.mean())),
+        "min": _num(float(v.min())),
+        "max": _num(float(v.max())),
+    }
+
+
 def random_codebook_objective(
     doc: PlanDocument,
     sites: list[Site],
@@ -834,24 +933,5 @@ def random_codebook_objective(
     """The objective of ``layout`` re-evaluated with ``random`` codebooks (seeds 0 … seeds−1):
     ``{"seeds", "pairs", "expected", "mean", "min", "max"}`` (``null`` for an infinite value;
     ``expected`` is the expected-random objective on the same pairs)."""
-    tx, rx, w = pairs.tx, pairs.rx, pairs.weights
-    if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
-        pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
-        tx, rx = tx[pick], rx[pick]
-        w = np.full(pick.size, 1.0 / pick.size)
-    base = layout_scenario(doc.system, [sites[s].ris for s in layout], doc.known, doc.environment)
-    values = []
-    for seed in range(-1, seeds):
-        scenario = (
-            base if seed < 0 else base.model_copy(update={"codebook": RandomCodebook(seed=seed)})
-        )
-        values.append(objective_on_pairs(scenario, tx, rx, w, doc.objective, mirror))
-    v = np.array(values[1:])
-    return {
-        "seeds": seeds,
-        "pairs": int(tx.shape[0]),
-        "expected": _num(values[0]),
-        "mean": _num(float(v.mean())),
-        "min": _num(float(v.min())),
-        "max": _num(float(v.max())),
-    }
+    tasks = random_codebook_tasks(doc, sites, pairs, layout, mirror, seeds)
+    return random_codebook_summary([objective_task(None, t) for t in tasks], len(tasks[0][1]))

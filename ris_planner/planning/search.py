@@ -23,9 +23,11 @@ from ris_planner.planning.site_cache import N_STATES, SiteCache
 IntArray = NDArray[np.int_]
 FloatArray = NDArray[np.float64]
 
-CHUNK_MATRICES = 8_000_000
-"""Layout × pair evaluations per executor task: about a second of work on one core at the
-measured 8–16 M matrices/s, so transfer and scheduling stay a small fraction."""
+CHUNK_MATRICES = 4_000_000
+"""Layout × pair evaluations per executor task at most: ≈ 0.3–0.5 s of work on one core at
+the measured 8–13 M matrices/s, so transfer and scheduling (a task carries its layouts and a
+few-KB handle of the shared scorer) stay a small fraction while the last task of a call leaves
+the other workers idle for a fraction of a second only."""
 
 Layout = tuple[int, ...]
 
@@ -68,10 +70,16 @@ class SearchOutcome:
         }
 
 
-MIN_TASK_MATRICES = 500_000
-"""A batch below one chunk is still split over the workers when each part holds at least this
-many layout × pair evaluations (≈ 50 ms: far above a task's scheduling cost; the site cache is
-already on every worker)."""
+MIN_TASK_MATRICES = 250_000
+"""A batch is split into more tasks (up to :data:`TASKS_PER_WORKER` per worker) while each
+still holds at least this many layout × pair evaluations (≈ 25 ms: far above a task's
+scheduling cost of about a millisecond; the site cache is already on every worker). A greedy
+step that completes a layout (≈ S candidates × P pairs: 1 M on the hall) is split too."""
+
+TASKS_PER_WORKER = 4
+"""Tasks per worker a batch is split into when it is large enough (:data:`MIN_TASK_MATRICES`):
+a task's cost varies with its share of ill-conditioned pairs (the square-root route), and
+several tasks per worker even that out."""
 
 SITE_BLOCKS = 8
 """Site blocks of a cluster search: a task carries the blocks its layouts use (≤ L of 8)."""
@@ -132,6 +140,20 @@ def _evaluate_blocks(
     return out
 
 
+def chunk_count(n_layouts: int, n_pairs: int, workers: int) -> int:
+    """Tasks for a batch of layouts: none above :data:`CHUNK_MATRICES` evaluations, up to
+    :data:`TASKS_PER_WORKER` per worker while each keeps ≥ :data:`MIN_TASK_MATRICES`, and a
+    multiple of the workers when there are several (each worker gets as many); ≤ n_layouts."""
+    work = n_layouts * max(1, n_pairs)
+    balance = 1
+    if workers > 1 and work >= workers * MIN_TASK_MATRICES:
+        balance = min(TASKS_PER_WORKER * workers, work // MIN_TASK_MATRICES)
+    n = max(math.ceil(work / CHUNK_MATRICES), balance)
+    if n > 1:
+        n = math.ceil(n / workers) * workers
+    return max(1, min(n_layouts, n))
+
+
 def evaluate(
     scorer: Scorer,
     layouts: IntArray,
@@ -145,12 +167,7 @@ def evaluate(
         return np.empty(0)
     if executor.site_blocks:
         return _evaluate_blocks(scorer, layouts, executor, on_fraction)
-    per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
-    n_chunks = math.ceil(b / per)
-    if n_chunks > 1:  # balance the workers: a multiple of their count, each ≳ half a chunk
-        n_chunks = min(b, math.ceil(n_chunks / executor.workers) * executor.workers)
-    elif b * scorer.cache.n_pairs >= executor.workers * MIN_TASK_MATRICES:
-        n_chunks = min(b, executor.workers)  # one chunk per worker (a greedy round)
+    n_chunks = chunk_count(b, scorer.cache.n_pairs, executor.workers)
     chunks = np.array_split(layouts, n_chunks)  # n_chunks ≤ b: none is empty
 
     def done(n: int) -> None:
