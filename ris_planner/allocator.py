@@ -1,0 +1,53 @@
+"""glibc malloc thresholds for the engine's array temporaries (set once, at import).
+
+A bounds batch makes many short-lived arrays of 0.1–10 MB (the [N, 512] steering blocks, the
+[5, 5, P] FIM products, the [P, 7, 7] sums). glibc serves an allocation above its mmap
+threshold with a fresh mapping and returns it to the system when freed, so every such
+temporary is page-faulted anew; its heuristic raises the threshold only after a freed mapping
+and trims the heap top again, so the faults keep coming. On the 2-core machine the planar
+``random`` Fig. 10 layout (4 RISs, 4753 pairs) spent ≈ 25 % of its CPU time there: 133–149
+against 101–104 ms CPU per layout with the thresholds below (alternating runs, README "Validation
+and speed of the bounds"); tests/test_allocator.py counts the page faults.
+
+The values are those the heuristic itself reaches after a freed 32 MiB array (glibc's
+``DEFAULT_MMAP_THRESHOLD_MAX`` on 64-bit, trim at twice that): at most 64 MiB of freed heap
+stays mapped for reuse. Nothing is changed when ``RIS_PLANNER_MALLOC_TUNING=0``, when the
+process was started with glibc's own ``MALLOC_MMAP_THRESHOLD_`` / ``MALLOC_TRIM_THRESHOLD_``
+(the user chose), or off glibc (no ``mallopt``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import sys
+
+M_TRIM_THRESHOLD = -1
+M_MMAP_THRESHOLD = -3
+"""glibc's ``mallopt`` parameter numbers (malloc.h)."""
+
+MMAP_THRESHOLD_BYTES = 32 << 20
+TRIM_THRESHOLD_BYTES = 64 << 20
+
+TUNING_ENV = "RIS_PLANNER_MALLOC_TUNING"
+GLIBC_ENV = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")
+
+
+def tune_malloc() -> bool:
+    """Set the thresholds (see the module docstring); whether they were set."""
+    if os.environ.get(TUNING_ENV, "1").strip() == "0":
+        return False
+    if any(k in os.environ for k in GLIBC_ENV) or not sys.platform.startswith("linux"):
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
+    mallopt.restype = ctypes.c_int
+    ok = mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES) == 1
+    return ok and mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES) == 1
+
+
+TUNED = tune_malloc()
+"""Whether this process runs with the thresholds (evaluated once, at import)."""
