@@ -162,21 +162,25 @@ LIMITS: dict[str, tuple[int, str, str, str]] = {
 checked against the document's own ``max_pairs``."""
 
 
-def cache_memory_mb() -> int:
-    """The site-cache budget [MiB] from ``RIS_PLANNER_CACHE_MEMORY_MB`` (default
-    :data:`CACHE_MEMORY_MB_DEFAULT`)."""
-    text = os.environ.get(CACHE_MEMORY_ENV)
+def env_mib(name: str, default: int, minimum: int) -> int:
+    """A budget [MiB] from the environment variable ``name`` (``default`` when unset or empty);
+    :class:`RisPlannerError` naming the variable for a non-integer or one below ``minimum``."""
+    text = os.environ.get(name)
     if text is None or text.strip() == "":
-        return CACHE_MEMORY_MB_DEFAULT
+        return default
     try:
         value = int(text)
     except ValueError:
-        raise RisPlannerError(
-            f"{CACHE_MEMORY_ENV} must be an integer (MiB), got {text!r}"
-        ) from None
-    if value < 1:
-        raise RisPlannerError(f"{CACHE_MEMORY_ENV} must be ≥ 1 MiB, got {value}")
+        raise RisPlannerError(f"{name} must be an integer (MiB), got {text!r}") from None
+    if value < minimum:
+        raise RisPlannerError(f"{name} must be ≥ {minimum} MiB, got {value}")
     return value
+
+
+def cache_memory_mb() -> int:
+    """The site-cache budget [MiB] from ``RIS_PLANNER_CACHE_MEMORY_MB`` (default
+    :data:`CACHE_MEMORY_MB_DEFAULT`)."""
+    return env_mib(CACHE_MEMORY_ENV, CACHE_MEMORY_MB_DEFAULT, 1)
 
 
 def cache_layout(
@@ -206,16 +210,7 @@ def cache_layout(
 def job_memory_mb() -> int:
     """The memory budget [MiB] from ``RIS_PLANNER_JOB_MEMORY_MB`` (default
     :data:`JOB_MEMORY_MB_DEFAULT`)."""
-    text = os.environ.get(JOB_MEMORY_ENV)
-    if text is None or text.strip() == "":
-        return JOB_MEMORY_MB_DEFAULT
-    try:
-        value = int(text)
-    except ValueError:
-        raise RisPlannerError(f"{JOB_MEMORY_ENV} must be an integer (MiB), got {text!r}") from None
-    if value < 64:
-        raise RisPlannerError(f"{JOB_MEMORY_ENV} must be ≥ 64 MiB, got {value}")
-    return value
+    return env_mib(JOB_MEMORY_ENV, JOB_MEMORY_MB_DEFAULT, 64)
 
 
 def check_sizes(sizes: Sizes, *, max_pairs: int | None = None, memory_mb: int | None) -> None:

@@ -886,9 +886,9 @@ def random_codebook_tasks(
     mirror: bool = False,
     seeds: int = RANDOM_CODEBOOK_SEEDS,
 ) -> list[ObjectiveTask]:
-    """The evaluations of :func:`random_codebook_objective`: the expected-random codebook, then
-    ``random`` codebooks of seeds 0 … seeds−1, on ≤ ``RANDOM_CODEBOOK_MAX_PAIRS`` sampled
-    pairs."""
+    """The evaluations that re-score ``layout``'s objective with other codebooks (summed up by
+    :func:`random_codebook_summary`): the expected-random codebook, then ``random`` codebooks of
+    seeds 0 … seeds−1, on ≤ ``RANDOM_CODEBOOK_MAX_PAIRS`` pairs drawn ∝ weight."""
     tx, rx, w = pairs.tx, pairs.rx, pairs.weights
     if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
         pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
@@ -920,18 +920,3 @@ def random_codebook_summary(values: list[float], n_pairs: int) -> dict[str, Any]
         "min": _num(float(v.min())),
         "max": _num(float(v.max())),
     }
-
-
-def random_codebook_objective(
-    doc: PlanDocument,
-    sites: list[Site],
-    pairs: PairSet,
-    layout: Layout,
-    mirror: bool = False,
-    seeds: int = RANDOM_CODEBOOK_SEEDS,
-) -> dict[str, Any]:
-    """The objective of ``layout`` re-evaluated with ``random`` codebooks (seeds 0 … seeds−1):
-    ``{"seeds", "pairs", "expected", "mean", "min", "max"}`` (``null`` for an infinite value;
-    ``expected`` is the expected-random objective on the same pairs)."""
-    tasks = random_codebook_tasks(doc, sites, pairs, layout, mirror, seeds)
-    return random_codebook_summary([objective_task(None, t) for t in tasks], len(tasks[0][1]))
