@@ -440,6 +440,82 @@ SLOW = 1
 """``route`` value of a (layout, pair) the square-root route must settle (else 0)."""
 
 
+SCREEN_MAX_STATES = 7
+"""Largest sub-problem of :func:`screen_chunk` (its scratch matrices)."""
+
+SCREEN_PIVOT_RTOL = 1e-8
+"""A sub-problem pivot below this fraction of its diagonal entry is not trusted: the pair is not
+screened, so the bound's rounding stays ≲ 1e-7 relative, far inside the screen margin."""
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def screen_chunk(
+    a: FloatArray, t: int, sub: IntArray, m: int, mat: FloatArray, rows: FloatArray, out: FloatArray
+) -> None:
+    """out[:t]: a lower bound on the CRB trace of the last ``m`` states of ``sub`` for the
+    packed matrices in the first t columns of a: the trace of the trailing m × m block of M⁻¹,
+    M the principal sub-matrix on the states ``sub`` (positions in the packed order, ≤ 7 of
+    them, the metric's last). Keeping fewer nuisance states can only add information (a Schur
+    complement over a subset of the others ⪰ the one over all), so the value is ≤ the full
+    CRB's trace of those states. −1 (below any limit) where M is not safely positive definite
+    (a pivot ≤ :data:`SCREEN_PIVOT_RTOL` × its diagonal entry). Vectorised over the columns
+    like :func:`ldl_chunk`; mat [7, 7, CHUNK] and rows [10, CHUNK] are scratch."""
+    k = sub.shape[0]
+    for i in range(k):
+        for j in range(i + 1):
+            r, c = (sub[i], sub[j]) if sub[i] >= sub[j] else (sub[j], sub[i])
+            src = a[_tri(r, c)]
+            dst = mat[i, j]
+            for q in range(t):
+                dst[q] = src[q]
+    pivot, acc, bad = rows[7], rows[8], rows[9]
+    for q in range(t):
+        bad[q] = 0.0
+    # LDLᵀ in place: L below the diagonal, D_j on it
+    for j in range(k):
+        for q in range(t):
+            pivot[q] = mat[j, j, q]
+        for u in range(j):
+            for q in range(t):
+                pivot[q] -= mat[j, u, q] * mat[j, u, q] * mat[u, u, q]
+        for q in range(t):
+            mjj = mat[j, j, q]
+            if not (mjj > 0.0 and pivot[q] > SCREEN_PIVOT_RTOL * mjj):
+                bad[q] = 1.0
+                pivot[q] = 1.0
+        for i in range(j + 1, k):
+            for q in range(t):
+                acc[q] = mat[i, j, q]
+            for u in range(j):
+                for q in range(t):
+                    acc[q] -= mat[i, u, q] * mat[j, u, q] * mat[u, u, q]
+            for q in range(t):
+                mat[i, j, q] = acc[q] / pivot[q]
+        for q in range(t):
+            mat[j, j, q] = pivot[q]
+    # trailing block of M⁻¹ = L22⁻ᵀ D2⁻¹ L22⁻¹: trace = Σ_r (1/d_r) Σ_col X[r, col]², with
+    # X = L22⁻¹ (unit lower), one column at a time in rows[:m]
+    o = k - m
+    for q in range(t):
+        out[q] = 0.0
+    for col in range(m):
+        for q in range(t):
+            rows[col, q] = 1.0
+            out[q] += 1.0 / mat[o + col, o + col, q]
+        for r in range(col + 1, m):
+            for q in range(t):
+                acc[q] = -mat[o + r, o + col, q]
+            for u in range(col + 1, r):
+                for q in range(t):
+                    acc[q] -= mat[o + r, o + u, q] * rows[u, q]
+            for q in range(t):
+                rows[r, q] = acc[q]
+                out[q] += acc[q] * acc[q] / mat[o + r, o + r, q]
+    for q in range(t):
+        if bad[q] != 0.0:
+            out[q] = -1.0
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _peb(diag: FloatArray, rows: IntArray, q: int) -> float:
     acc = diag[rows[0], q]
@@ -482,6 +558,9 @@ def score_layouts(
     out: FloatArray,
     route: UInt8Array,
     n_tasks: int,
+    screen: IntArray,
+    screen_m: int,
+    screen_limit: float,
 ) -> None:
     """Metric out [B, P] (mode 0: PEB of ``first``; 1: max of the PEBs of ``first`` and
     ``second``) or [B, 2P] (mode 2, mirrored: PEB of ``first``, then of ``second``) of the
@@ -494,7 +573,13 @@ def score_layouts(
     kept states in ldl.packed_index(n) order; los : the LOS information on the kept states in
     the same blocks [⌈P/CHUNK⌉, E, CHUNK] (:func:`to_blocks`), or shape (0, 0, 0) without LOS;
     degenerate [S, P] or (0, 0); present [S, P] with need [P] the RIS paths a pair
-    needs, or (0, 0) without the per-pair counting rule."""
+    needs, or (0, 0) without the per-pair counting rule.
+
+    screen, screen_m, screen_limit (mode 0 only; ``screen_limit`` ≤ 0 turns it off): the
+    positions of a sub-problem's states among the kept ones, the last ``screen_m`` the metric's
+    (:func:`screen_chunk`); a pair
+    whose sub-problem bound² exceeds ``screen_limit`` is settled with the bound (a value above
+    the coverage threshold, not the PEB) without the full factorisation."""
     n_chunks = blocks.shape[0]
     e_n = src.shape[0]
     n_tasks = min(n_chunks, max(1, n_tasks))
@@ -504,10 +589,16 @@ def score_layouts(
         diag = np.empty((n, CHUNK))
         trace = np.empty(CHUNK)
         singular = np.empty(CHUNK, dtype=np.bool_)
+        a2 = np.empty((e_n, CHUNK))
+        slot = np.empty(CHUNK, dtype=np.int64)
+        bound = np.empty(CHUNK)
+        mat = np.empty((SCREEN_MAX_STATES, SCREEN_MAX_STATES, CHUNK))
+        rows = np.empty((SCREEN_MAX_STATES + 3, CHUNK))
         for c in range(task * n_chunks // n_tasks, (task + 1) * n_chunks // n_tasks):
             _score_chunk(
                 blocks, src, los, layouts, n_pairs, n, trace_limit, first, second, mode,
                 degenerate, present, need, out, route, c, a, work, diag, trace, singular,
+                screen, screen_m, screen_limit, a2, slot, bound, mat, rows,
             )  # fmt: skip
 
 
@@ -534,6 +625,14 @@ def _score_chunk(
     diag: FloatArray,
     trace: FloatArray,
     singular: BoolArray,
+    screen: IntArray,
+    screen_m: int,
+    screen_limit: float,
+    a2: FloatArray,
+    slot: IntArray,
+    bound: FloatArray,
+    mat: FloatArray,
+    rows: FloatArray,
 ) -> None:
     """Every layout on the pairs of block c (:func:`score_layouts`)."""
     n_b, n_l = layouts.shape
@@ -561,7 +660,22 @@ def _score_chunk(
                 row = blocks[c, s, src[e]]
                 for q in range(t):
                     a[e, q] += row[q]
-        ldl_chunk(a, n, t, work, diag, trace, singular)
+        if screen_limit > 0.0:  # the pairs the sub-problem does not settle, packed to the left
+            t2 = 0
+            screen_chunk(a, t, screen, screen_m, mat, rows, bound)
+            for q in range(t):
+                if bound[q] > screen_limit:
+                    slot[q] = -1
+                else:
+                    slot[q] = t2
+                    for e in range(e_n):
+                        a2[e, t2] = a[e, q]
+                    t2 += 1
+            ldl_chunk(a2, n, t2, work, diag, trace, singular)
+        else:
+            for q in range(t):
+                slot[q] = q
+            ldl_chunk(a, n, t, work, diag, trace, singular)
         for q in range(t):
             p = p0 + q
             blind = False
@@ -575,19 +689,22 @@ def _score_chunk(
                     count += present[layouts[b, col], p]
                 blind = count < need[p]
             route[b, p] = 0
+            j = slot[q]
             if blind:
                 out[b, p] = math.inf
                 if mode == 2:
                     out[b, n_pairs + p] = math.inf
-            elif singular[q] or not (trace[q] <= trace_limit):
+            elif j < 0:  # settled by the screen: a lower bound above the threshold
+                out[b, p] = math.sqrt(bound[q])
+            elif singular[j] or not (trace[j] <= trace_limit):
                 route[b, p] = SLOW
             else:
-                v1 = _peb(diag, first, q)
+                v1 = _peb(diag, first, j)
                 if mode == 0:
                     out[b, p] = v1
                 elif mode == 1:
-                    v2 = _peb(diag, second, q)
+                    v2 = _peb(diag, second, j)
                     out[b, p] = v1 if v1 >= v2 else v2
                 else:
                     out[b, p] = v1
-                    out[b, n_pairs + p] = _peb(diag, second, q)
+                    out[b, n_pairs + p] = _peb(diag, second, j)
