@@ -577,9 +577,9 @@ def score_layouts(
 
     screen, screen_m, screen_limit (mode 0 only; ``screen_limit`` ≤ 0 turns it off): the
     positions of a sub-problem's states among the kept ones, the last ``screen_m`` the metric's
-    (:func:`screen_chunk`); a pair
-    whose sub-problem bound² exceeds ``screen_limit`` is settled with the bound (a value above
-    the coverage threshold, not the PEB) without the full factorisation."""
+    (:func:`screen_chunk`); a pair whose sub-problem bound exceeds ``screen_limit`` is settled
+    with √bound (a value above the coverage threshold, not the PEB) without the full
+    factorisation."""
     n_chunks = blocks.shape[0]
     e_n = src.shape[0]
     n_tasks = min(n_chunks, max(1, n_tasks))

@@ -17,7 +17,6 @@ nuisance gain (α, β) is eliminated by a Schur complement, leaving an equivalen
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -158,9 +157,12 @@ class _PlanarProducts:
         a_z = _unit_phasors(k * np.multiply.outer(zr, zeta))  # [rows, P']
         return (a_z[:, None, :] * a_y[None, :, :]).reshape(self.y.shape[0], xi.shape[0])
 
-    def block(self, xi: FloatArray, zeta: FloatArray, out: ComplexArray | None = None) -> Any:
-        """[3G̃, P'] products of one block (rows ∂ξ, ∂ζ, response; G̃ each)."""
-        return np.matmul(self.w3, self.steering(xi, zeta), out=out)
+    def block(
+        self, xi: FloatArray, zeta: FloatArray, out: ComplexArray | None = None
+    ) -> ComplexArray:
+        """[3G̃, P'] products of one block (rows ∂ξ, ∂ζ, response; G̃ each), in ``out`` if
+        given."""
+        return np.asarray(np.matmul(self.w3, self.steering(xi, zeta), out=out))
 
     def as_vectors(self, block: ComplexArray) -> ComplexArray:
         """[3G̃, P'] → the [P', G̃, 3] view t."""

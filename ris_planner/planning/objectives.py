@@ -205,6 +205,23 @@ class Scorer:
         nuisance = [i for i, k in enumerate(keep) if k in (other_height, 6)]
         return np.array([*nuisance, *metric_rows], dtype=np.int64)
 
+    def _observations(self, n_ris: int) -> int | None:
+        """Channel parameters of a layout of ``n_ris`` RISs and the LOS
+        (:func:`ris_planner.bounds.n_observations`; ``None`` for the spherical model)."""
+        return n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
+
+    def _screen_limit(self, n_ris: int) -> float:
+        """The coverage screen's limit on PEB² for layouts of ``n_ris`` RISs: threshold² ×
+        (1 + :data:`SCREEN_MARGIN`) at the smallest identifiable count (as many channel
+        parameters as unknown states), else 0 (off)."""
+        n_obs = self._observations(n_ris)
+        if not self._kernel_inputs["screen"].size or n_obs is None:
+            return 0.0
+        if n_obs > len(self.states[0]):
+            return 0.0
+        assert self.objective.threshold_m is not None
+        return float(self.objective.threshold_m**2 * (1 + SCREEN_MARGIN))
+
     def _start(
         self, layouts: IntArray, dtype: type[np.integer]
     ) -> tuple[IntArray, FloatArray, bool]:
@@ -215,7 +232,7 @@ class Scorer:
         b_all, n_ris = layouts.shape
         p = self.cache.n_pairs
         out = np.empty((b_all, 2 * p if self.mirror else p))
-        n_obs = n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
+        n_obs = self._observations(n_ris)
         blind = n_obs is not None and n_obs < len(self.states[0])
         if blind:
             out[:] = np.inf
@@ -245,11 +262,7 @@ class Scorer:
         b_all, p = layouts.shape[0], self.cache.n_pairs
         _, tx, rx = self.states
         args = self._kernel_inputs
-        limit = 0.0
-        n_obs = n_observations(layouts.shape[1], self.cache.los is not None, self.cache.wavefront)
-        if screen and args["screen"].size and n_obs is not None and n_obs <= len(self.states[0]):
-            assert self.objective.threshold_m is not None
-            limit = self.objective.threshold_m**2 * (1 + SCREEN_MARGIN)
+        limit = self._screen_limit(layouts.shape[1]) if screen else 0.0
         step = max(1, KERNEL_MATRICES // p)
         route = np.empty((min(step, b_all), p), dtype=np.uint8)
         for b0 in range(0, b_all, step):
