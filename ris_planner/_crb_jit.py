@@ -18,19 +18,19 @@ stop it), with the workspace in the L1 cache.
 
 **Layout score.** :func:`score_layouts` fuses, per (layout, pair), the gather-and-add of the
 cached packed information, :func:`ldl_chunk`, the fast-path test of ``crb_diagonal`` and the
-metric, so the sums never leave the cache. The sum is the core's: LOS + RIS 1, then + RIS 2,
-… in the layout's column order (``compute_bounds`` sums its paths in that order); the metric is
+metric, so the sums never leave the cache. The sum is the core's: LOS + RIS 1, then + RIS 2, …
+in the layout's column order (``compute_bounds`` sums its paths in that order); the metric is
 ``sqrt`` of the summed diagonal entries in state order (``diag[:, cols].sum(axis=1)``) and
 ``np.maximum`` of PEB_T and PEB_R. Pairs that are ``inf`` anyway (a UE on a chosen site, or
 fewer present channel parameters than unknown states: ``objectives.underdetermined``) are
-settled there and never sent on; the pairs the fast path does not settle are flagged for the
-square-root route, which the caller runs. It reads the site cache's own storage, pair
-blocks [⌈P/CHUNK⌉, S, 28, CHUNK] (the kept entries through an index; no copy): one block holds
-every site's entries of CHUNK pairs contiguously (≈ 2 MB for 156 sites), so it stays in the
-cache while all the layouts of a call are scored on it, in parallel over blocks. Summing
-straight from the [28, S, P] cache, whose rows of one pair block lie 51 KB (sites) and 8 MB
-(entries) apart, ran 3–6× slower (measured: ~110 ns per matrix for the gather alone, against
-~20 ns from the blocks).
+settled first and neither summed nor factored; the pairs the fast path does not settle are
+flagged for the square-root route, which the caller runs. It reads the site cache's own
+storage, pair blocks [⌈P/CHUNK⌉, S, 28, CHUNK] (the kept entries through an index; no copy):
+one block holds every site's entries of CHUNK pairs contiguously (≈ 2 MB for 156 sites), so it
+stays in the cache while all the layouts of a call are scored on it, in parallel over blocks.
+Summing straight from the [28, S, P] cache, whose rows of one pair block lie 51 KB (sites) and
+8 MB (entries) apart, ran 3–6× slower (measured: ~110 ns per matrix for the gather alone,
+against ~20 ns from the blocks).
 
 **Jacobi SVD.** :func:`svd_jacobi` is the one-sided (Hestenes) Jacobi method on the columns of
 each [r, k] matrix, the right rotations accumulated in V; it is the only SVD of the square-root
@@ -440,6 +440,28 @@ SLOW = 1
 """``route`` value of a (layout, pair) the square-root route must settle (else 0)."""
 
 
+BLIND, SCREENED, EXTRA, CANDIDATE, FULL = -5, -4, -3, -2, -1
+"""Kinds of a pair in :func:`_score_chunk`'s ``slot`` before it gets its column (≥ 0) in the
+factored batch: ``slot ≥ EXTRA`` selects the pairs left to factor (the full ones and the
+candidates the screen did not settle)."""
+
+SCREEN_PROBE = 512.0
+"""Extra candidates (pairs with more RIS paths than they need) a kernel task screens before it
+judges whether screening them pays."""
+
+SCREEN_KEEP = 0.9
+"""Extra candidates stay screened while at least this fraction of those screened so far were
+settled: the sub-problem costs about as much as the LDLᵀ it saves at the 50–70 % settled on the
+hall's 3–4 RISs (measured: 12 vs 14 M matrices/s), and pays in a city at 99 % settled (17 vs
+12 M/s at 6 RISs)."""
+
+SCREEN_PROBE_EVERY = 16
+"""While extras are not screened, every 16th layout of a chunk still screens them, so a task
+notices when they start to pay."""
+
+DEGENERATE_COUNT = -(1 << 40)
+"""Present-path count of a pair with a UE on a chosen site: negative after any additions."""
+
 SCREEN_MAX_STATES = 7
 """Largest sub-problem of :func:`screen_chunk` (its scratch matrices)."""
 
@@ -575,10 +597,15 @@ def score_layouts(
     degenerate [S, P] or (0, 0); present [S, P] with need [P] the RIS paths a pair
     needs, or (0, 0) without the per-pair counting rule.
 
+    Pairs that are ``inf`` (blind) are neither summed nor factored: a chunk's present pairs
+    are packed together first (the same operations per pair, so the same bits).
+
     screen, screen_m, screen_limit (mode 0 only; ``screen_limit`` ≤ 0 turns it off): the
     positions of a sub-problem's states among the kept ones, the last ``screen_m`` the metric's
-    (:func:`screen_chunk`); a pair whose sub-problem bound exceeds ``screen_limit`` is settled
-    with √bound (a value above the coverage threshold, not the PEB) without the full
+    (:func:`screen_chunk`); a candidate pair – every present pair without the counting rule,
+    else a pair with just the RIS paths it needs (its smallest identifiable count, where most
+    pairs are ill-conditioned) – whose sub-problem bound exceeds ``screen_limit`` is settled
+    with √bound (a value above the objective's threshold or cap, not the PEB) without the full
     factorisation."""
     n_chunks = blocks.shape[0]
     e_n = src.shape[0]
@@ -591,6 +618,8 @@ def score_layouts(
         singular = np.empty(CHUNK, dtype=np.bool_)
         a2 = np.empty((e_n, CHUNK))
         slot = np.empty(CHUNK, dtype=np.int64)
+        count = np.empty(CHUNK, dtype=np.int64)
+        stats = np.zeros(2)  # extra candidates screened, settled (this task)
         bound = np.empty(CHUNK)
         mat = np.empty((SCREEN_MAX_STATES, SCREEN_MAX_STATES, CHUNK))
         rows = np.empty((SCREEN_MAX_STATES + 3, CHUNK))
@@ -598,7 +627,7 @@ def score_layouts(
             _score_chunk(
                 blocks, src, los, layouts, n_pairs, n, trace_limit, first, second, mode,
                 degenerate, present, need, out, route, c, a, work, diag, trace, singular,
-                screen, screen_m, screen_limit, a2, slot, bound, mat, rows,
+                screen, screen_m, screen_limit, a2, slot, count, stats, bound, mat, rows,
             )  # fmt: skip
 
 
@@ -630,6 +659,8 @@ def _score_chunk(
     screen_limit: float,
     a2: FloatArray,
     slot: IntArray,
+    count: IntArray,
+    stats: FloatArray,
     bound: FloatArray,
     mat: FloatArray,
     rows: FloatArray,
@@ -640,9 +671,55 @@ def _score_chunk(
     has_los = los.shape[0] > 0
     has_deg = degenerate.shape[0] > 0
     has_count = present.shape[0] > 0
+    screening = screen_limit > 0.0
     p0 = c * CHUNK
     t = min(CHUNK, n_pairs - p0)
     for b in range(n_b):
+        # each pair's kind first: blind (inf, never summed or factored), a screen candidate
+        # (at its smallest identifiable count: as many present paths as it needs), an extra
+        # candidate (more paths: screened only while the screen settles nearly all of them),
+        # or full
+        for q in range(t):
+            count[q] = 0
+        if has_deg:  # a UE on a chosen site: blind (a count below zero whatever is added)
+            for col in range(n_l):
+                drow = degenerate[layouts[b, col]]
+                for q in range(t):
+                    if drow[p0 + q]:
+                        count[q] = DEGENERATE_COUNT
+        if has_count:
+            for col in range(n_l):
+                prow = present[layouts[b, col]]
+                for q in range(t):
+                    count[q] += prow[p0 + q]
+        extras = screening and (
+            stats[0] < SCREEN_PROBE
+            or stats[1] >= SCREEN_KEEP * stats[0]
+            or b % SCREEN_PROBE_EVERY == 0
+        )
+        n_live = 0
+        n_cand = 0
+        for q in range(t):
+            p = p0 + q
+            k = count[q]
+            route[b, p] = 0
+            if k < 0 or (has_count and k < need[p]):
+                slot[q] = BLIND
+                out[b, p] = math.inf
+                if mode == 2:
+                    out[b, n_pairs + p] = math.inf
+                continue
+            n_live += 1
+            if screening and (not has_count or k == need[p]):
+                slot[q] = CANDIDATE
+                n_cand += 1
+            elif extras:
+                slot[q] = EXTRA
+                n_cand += 1
+            else:
+                slot[q] = FULL
+        if n_live == 0:
+            continue
         s0 = layouts[b, 0]
         if has_los:
             for e in range(e_n):
@@ -660,43 +737,49 @@ def _score_chunk(
                 row = blocks[c, s, src[e]]
                 for q in range(t):
                     a[e, q] += row[q]
-        if screen_limit > 0.0:  # the pairs the sub-problem does not settle, packed to the left
-            t2 = 0
-            screen_chunk(a, t, screen, screen_m, mat, rows, bound)
+        n_fact = n_live
+        if n_cand > 0:  # screened in place, or the candidates packed to the left of a2
+            sa = a
+            if n_cand < t:
+                sa = a2
+                k = 0
+                for q in range(t):
+                    if slot[q] == CANDIDATE or slot[q] == EXTRA:
+                        for e in range(e_n):
+                            a2[e, k] = a[e, q]
+                        k += 1
+            screen_chunk(sa, n_cand, screen, screen_m, mat, rows, bound)
+            k = 0
             for q in range(t):
-                if bound[q] > screen_limit:
-                    slot[q] = -1
-                else:
+                if slot[q] == CANDIDATE or slot[q] == EXTRA:
+                    settled = bound[k] > screen_limit
+                    if slot[q] == EXTRA:
+                        stats[0] += 1.0
+                        stats[1] += 1.0 if settled else 0.0
+                    if settled:
+                        slot[q] = SCREENED
+                        out[b, p0 + q] = math.sqrt(bound[k])
+                        n_fact -= 1
+                    k += 1
+        if n_fact == t:  # nothing left out: factor the chunk in place
+            for q in range(t):
+                slot[q] = q
+            ldl_chunk(a, n, t, work, diag, trace, singular)
+        elif n_fact > 0:  # the pairs left to factor, packed to the left of a2
+            t2 = 0
+            for q in range(t):
+                if slot[q] >= EXTRA:
                     slot[q] = t2
                     for e in range(e_n):
                         a2[e, t2] = a[e, q]
                     t2 += 1
             ldl_chunk(a2, n, t2, work, diag, trace, singular)
-        else:
-            for q in range(t):
-                slot[q] = q
-            ldl_chunk(a, n, t, work, diag, trace, singular)
         for q in range(t):
             p = p0 + q
-            blind = False
-            if has_deg:
-                for col in range(n_l):
-                    if degenerate[layouts[b, col], p]:
-                        blind = True
-            if has_count and not blind:
-                count = 0
-                for col in range(n_l):
-                    count += present[layouts[b, col], p]
-                blind = count < need[p]
-            route[b, p] = 0
             j = slot[q]
-            if blind:
-                out[b, p] = math.inf
-                if mode == 2:
-                    out[b, n_pairs + p] = math.inf
-            elif j < 0:  # settled by the screen: a lower bound above the threshold
-                out[b, p] = math.sqrt(bound[q])
-            elif singular[j] or not (trace[j] <= trace_limit):
+            if j < 0:  # blind, or settled by the screen: a lower bound above the limit
+                continue
+            if singular[j] or not (trace[j] <= trace_limit):
                 route[b, p] = SLOW
             else:
                 v1 = _peb(diag, first, j)

@@ -1,9 +1,11 @@
-"""The coverage screen of the compiled scorer (``_crb_jit.screen_chunk``, ``Scorer.loss``): a
+"""The screen of the compiled scorer (``_crb_jit.screen_chunk``, ``Scorer.loss``): a
 sub-problem CRB is a lower bound on the full one, so screening never changes a coverage
-decision; checked against numpy inverses and against the unscreened scorer."""
+decision or a capped mean; checked against numpy inverses and against the unscreened scorer
+(which in turn equals the numpy reference, blind pairs left out of the factorisation)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -54,9 +56,9 @@ def test_screen_bound_is_the_sub_problem_crb_and_below_the_full_one() -> None:
     assert run_screen(f[:1], sub, 3)[0] == -1.0
 
 
-def hall_scorer(threshold: float) -> Scorer:
+def hall_scorer(objective: dict[str, Any]) -> Scorer:
     raw = plan_preset("hall") | {"pairs": {"sample": 300, "seed": 2}}
-    raw["objective"] = {"kind": "coverage", "metric": "rx", "threshold_m": threshold}
+    raw["objective"] = objective
     d = PlanDocument.model_validate(raw)
     sites = expand_sites(d)
     pairs = build_pairs(build_map(d.tx_map, "tx"), build_map(d.rx_map, "rx"), d.pairs, 10**6)
@@ -65,24 +67,72 @@ def hall_scorer(threshold: float) -> Scorer:
     return Scorer(cache, pairs.weights, d.objective, tuple(d.known))
 
 
+def check_screen(sc: Scorer, lays: Any, limit: float) -> float:
+    """The screened metric differs from the full one only where both exceed ``limit`` (and
+    the screened value is a lower bound; a singular FIM's ``inf`` may get a finite bound), and
+    the loss is the unscreened one exactly; returns the fraction of the pairs that are not
+    blind (``inf`` both ways) that the screen settled."""
+    full = sc.metric(lays)
+    np.testing.assert_array_equal(full, sc.metric_reference(lays))  # blind pairs left out alike
+    screened = sc.metric(lays, screen=True)
+    moved = screened != full
+    assert np.all(screened[moved] > limit) and np.all(full[moved] > limit)
+    assert np.all(screened[moved] <= full[moved])
+    np.testing.assert_array_equal(
+        sc.loss(lays), loss_from_metric(sc.objective, full, sc.metric_weights)
+    )
+    return float(moved.sum() / (np.isfinite(full) | np.isfinite(screened)).sum())
+
+
 def test_screened_losses_equal_the_full_ones() -> None:
-    """Hall preset, 2 RISs + LOS (7 channel parameters for 7 states: the screened count):
-    the screened metric differs only where it proves a pair above the threshold, and every
+    """Hall preset (fields of view: per-pair presence masks). 2 RISs + LOS is the smallest
+    identifiable count of every present pair (7 channel parameters for 7 states); at 3 RISs
+    only the pairs that see just two of them are screened. Coverage at two thresholds and
+    the capped mean: the screened metric moves only above the threshold or cap, and every
     loss is the unscreened one exactly."""
-    for threshold in (0.5, 2.0):
-        sc = hall_scorer(threshold)
+    objectives: list[tuple[dict[str, Any], float]] = [
+        ({"kind": "coverage", "metric": "rx", "threshold_m": 0.5}, 0.5),
+        ({"kind": "coverage", "metric": "rx", "threshold_m": 2.0}, 2.0),
+        ({"kind": "mean_capped", "metric": "rx", "cap_m": 1.0}, 1.0),
+    ]
+    for objective, limit in objectives:
+        sc = hall_scorer(objective)
         rng = np.random.default_rng(4)
         n = sc.cache.n_sites
         lays = np.array([np.sort(rng.choice(n, 2, replace=False)) for _ in range(300)])
-        full = sc.metric(lays)
-        screened = sc.metric(lays, screen=True)
-        moved = screened != full
-        assert moved.mean() > 0.02  # the screen is taken (9 % / 5 % here: many pairs are blind)
-        assert np.all(screened[moved] > threshold) and np.all(full[moved] > threshold)
-        assert np.all(screened[moved] <= full[moved])
-        np.testing.assert_array_equal(
-            sc.loss(lays), loss_from_metric(sc.objective, full, sc.metric_weights)
-        )
-        # 3 RISs: more parameters than states, no screen (the LDLᵀ is as cheap there)
-        lays3 = np.array([np.sort(rng.choice(n, 3, replace=False)) for _ in range(50)])
-        np.testing.assert_array_equal(sc.metric(lays3, screen=True), sc.metric(lays3))
+        # the screen is taken (5–9 % of the values here: many pairs are blind)
+        assert check_screen(sc, lays, limit) > 0.02
+        lays3 = np.array([np.sort(rng.choice(n, 3, replace=False)) for _ in range(100)])
+        assert check_screen(sc, lays3, limit) > 0.0
+
+
+def test_no_screen_for_a_quantile_or_above_the_smallest_count_in_free_space() -> None:
+    """A quantile objective is never screened (its value depends on the PEBs themselves);
+    without presence masks the screen needs the whole layout at the smallest identifiable
+    count."""
+    sc = hall_scorer({"kind": "quantile", "metric": "rx", "q": 0.9})
+    assert sc._screen_limit(2) == 0.0
+    sc = hall_scorer({"kind": "coverage", "metric": "rx", "threshold_m": 1.0})
+    assert sc._screen_limit(2) == sc._screen_limit(3) > 1.0
+    free = Scorer(
+        replace(sc.cache, present=None, los_present=None),
+        sc.weights,
+        sc.objective,
+        sc.known,
+    )
+    assert free._screen_limit(2) > 1.0 and free._screen_limit(3) == 0.0
+
+
+def test_extra_candidates_screened_while_they_settle(monkeypatch: Any) -> None:
+    """A cap far below every PEB: nearly every pair that sees more RISs than it needs is
+    settled, so the kernel keeps screening those too (``_crb_jit.SCREEN_KEEP``), and the
+    losses, computed one small kernel block at a time, are still the unscreened ones."""
+    import ris_planner.planning.objectives as objectives
+
+    sc = hall_scorer({"kind": "mean_capped", "metric": "rx", "cap_m": 0.02})
+    rng = np.random.default_rng(5)
+    n = sc.cache.n_sites
+    monkeypatch.setattr(objectives, "KERNEL_MATRICES", 7 * sc.cache.n_pairs)  # 7 layouts a call
+    for n_ris in (3, 4):
+        lays = np.array([np.sort(rng.choice(n, n_ris, replace=False)) for _ in range(60)])
+        assert check_screen(sc, lays, 0.02) > 0.95

@@ -23,7 +23,7 @@ holds 2P values – this direction's, then the reverse's – weighted by :attr:`
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -57,10 +57,11 @@ EXACT_SITES = 32
 bounds the rebuilt cache to 32 × P × 224 B (360 MB at 50 000 pairs) whatever their number."""
 
 SCREEN_MARGIN = 1e-4
-"""Relative margin on PEB² of the coverage screen: a pair is settled as uncovered only when its
-sub-problem bound exceeds threshold² × (1 + 1e-4), far above the bound's own rounding (≲ 1e-7,
-``_crb_jit.SCREEN_PIVOT_RTOL``) and the full bound's accuracy (1e-6), so no pair the full
-computation would cover is screened out (tested against :meth:`Scorer.metric`)."""
+"""Relative margin on PEB² of the screen: a pair is settled (uncovered, or at the cap) only
+when its sub-problem bound exceeds threshold² (or cap²) × (1 + 1e-4), far above the bound's own
+rounding (≲ 1e-7, ``_crb_jit.SCREEN_PIVOT_RTOL``) and the full bound's accuracy (1e-6), so no
+pair the full computation would put below it is screened out (tested against
+:meth:`Scorer.metric`)."""
 
 TX_STATES = (0, 1, 2)
 RX_STATES = (3, 4, 5)
@@ -198,8 +199,9 @@ class Scorer:
     def _screen_states(self, keep: list[int], metric_rows: list[int], mode: int) -> IntArray:
         """The coverage screen's sub-problem (:func:`ris_planner._crb_jit.screen_chunk`):
         positions among the kept states of the other UE's height and the clock, then the
-        metric's states; empty (no screen) unless a coverage objective scores one UE's PEB."""
-        if self.objective.kind != "coverage" or mode != 0:
+        metric's states; empty (no screen) unless a coverage or capped-mean objective scores
+        one UE's PEB (their losses see only whether a PEB exceeds the threshold or the cap)."""
+        if self.objective.kind not in ("coverage", "mean_capped") or mode != 0:
             return np.zeros(0, dtype=np.int64)
         other_height = 5 if self.objective.metric == "tx" else 2
         nuisance = [i for i, k in enumerate(keep) if k in (other_height, 6)]
@@ -211,42 +213,39 @@ class Scorer:
         return n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
 
     def _screen_limit(self, n_ris: int) -> float:
-        """The coverage screen's limit on PEB² for layouts of ``n_ris`` RISs: threshold² ×
-        (1 + :data:`SCREEN_MARGIN`) at the smallest identifiable count (as many channel
-        parameters as unknown states), else 0 (off)."""
+        """The screen's limit on PEB² for layouts of ``n_ris`` RISs: (threshold or cap)² ×
+        (1 + :data:`SCREEN_MARGIN`), else 0 (off). Where the cache has per-pair presence
+        masks the kernel screens each pair at its own smallest identifiable count; without
+        them the whole layout must be at it (as many channel parameters as unknown states)."""
+        args = self._kernel_inputs
         n_obs = self._observations(n_ris)
-        if not self._kernel_inputs["screen"].size or n_obs is None:
+        if not args["screen"].size or n_obs is None:
             return 0.0
-        if n_obs > len(self.states[0]):
+        if not args["present"].size and n_obs > len(self.states[0]):
             return 0.0
-        assert self.objective.threshold_m is not None
-        return float(self.objective.threshold_m**2 * (1 + SCREEN_MARGIN))
+        obj = self.objective
+        limit = obj.threshold_m if obj.kind == "coverage" else obj.cap_m
+        assert limit is not None
+        return float(limit**2 * (1 + SCREEN_MARGIN))
 
-    def _start(
-        self, layouts: IntArray, dtype: type[np.integer]
-    ) -> tuple[IntArray, FloatArray, bool]:
-        """(layouts [B, L] as ``dtype``, the metric array [B, P] or [B, 2P], blind): blind when
-        the layout-wide count of :func:`ris_planner.bounds.n_observations` leaves every pair
-        underdetermined (the metric is then all ``inf``, as ``compute_bounds`` reports)."""
-        layouts = np.atleast_2d(np.asarray(layouts, dtype=dtype))
-        b_all, n_ris = layouts.shape
-        p = self.cache.n_pairs
-        out = np.empty((b_all, 2 * p if self.mirror else p))
+    def _blind(self, n_ris: int) -> bool:
+        """Whether the layout-wide count of :func:`ris_planner.bounds.n_observations` leaves
+        every pair of an ``n_ris``-RIS layout underdetermined (its metric is then all ``inf``,
+        as ``compute_bounds`` reports)."""
         n_obs = self._observations(n_ris)
-        blind = n_obs is not None and n_obs < len(self.states[0])
-        if blind:
-            out[:] = np.inf
-        return layouts, out, blind
+        return n_obs is not None and n_obs < len(self.states[0])
 
     def metric(self, layouts: IntArray, screen: bool = False) -> FloatArray:
         """[B, P] metric bound (m) of each layout [B, L] and pair ([B, 2P] with ``mirror``);
-        ``inf`` for blind spots. With ``screen`` (a coverage objective's :meth:`loss`), at the
-        smallest identifiable RIS count (as many channel parameters as unknown states, where
-        most pairs are ill-conditioned), a pair the kernel's sub-problem bound proves above the
-        threshold × (1 + :data:`SCREEN_MARGIN`) gets that bound instead of its PEB: the same
-        coverage, without the full factorisation or the square-root route (hall, 2 RISs:
-        86 % of the pairs, 3.4× faster; at 3–4 RISs the vectorised LDLᵀ is as cheap as the
-        screen, which is then not used).
+        ``inf`` for blind spots. With ``screen`` (:meth:`loss` of a coverage or capped-mean
+        objective), a pair at its smallest identifiable count (as many channel parameters as
+        unknown states, where most pairs are ill-conditioned) that the kernel's sub-problem
+        bound proves above the threshold or cap × (1 + :data:`SCREEN_MARGIN`) gets that bound
+        instead of its PEB: the same loss, without the full factorisation or the square-root
+        route (hall, 2 RISs: 86 % of the pairs, 3.4× faster). Pairs that see more RISs than
+        they need are screened only while nearly all of those are settled (a city where
+        nearly every pair stays above the cap): otherwise the vectorised LDLᵀ is as cheap as
+        the screen (``_crb_jit.SCREEN_KEEP``).
 
         Bit for bit what ``compute_bounds`` gives for the layout (same FIM sum, LOS first, same
         square-root factors, and the core's inversion, :func:`ris_planner.crb.crb_diagonal`):
@@ -254,28 +253,43 @@ class Scorer:
         each (layout, pair) in one pass; the pairs it flags go to the square-root route
         (:func:`ris_planner.crb.sqrt_crb_diagonal`). :meth:`metric_reference` is the same score
         in numpy (identical bits; tested)."""
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
+        out = np.empty((layouts.shape[0], self.metric_weights.size))
+        for _ in self._metric_blocks(layouts, screen, out):
+            pass
+        return out
+
+    def _metric_blocks(
+        self, layouts: IntArray, screen: bool, out: FloatArray | None = None
+    ) -> Iterator[tuple[int, FloatArray]]:
+        """(first row, [nb, P] metric) of :meth:`metric` for layouts [B, L] (int64), one kernel
+        call of ≤ :data:`KERNEL_MATRICES` combinations at a time, written into ``out`` [B, P]
+        or, without it, into one reused block (:meth:`loss` never holds the whole [B, P])."""
         from ris_planner._crb_jit import n_tasks, score_layouts
 
-        layouts, out, blind = self._start(layouts, np.int64)
-        if blind:
-            return out
-        b_all, p = layouts.shape[0], self.cache.n_pairs
+        (b_all, n_ris), p = layouts.shape, self.cache.n_pairs
         _, tx, rx = self.states
-        args = self._kernel_inputs
-        limit = self._screen_limit(layouts.shape[1]) if screen else 0.0
         step = max(1, KERNEL_MATRICES // p)
-        route = np.empty((min(step, b_all), p), dtype=np.uint8)
+        reuse = out is None
+        target = np.empty((min(step, b_all), self.metric_weights.size)) if out is None else out
+        blind = self._blind(n_ris)
+        limit = self._screen_limit(n_ris) if screen and not blind else 0.0
+        route = np.empty((0 if blind else min(step, b_all), p), dtype=np.uint8)
         for b0 in range(0, b_all, step):
-            lay = np.ascontiguousarray(layouts[b0 : b0 + step])
-            nb = lay.shape[0]
-            block = out[b0 : b0 + nb]
+            nb = min(step, b_all - b0)
+            block = target[:nb] if reuse else target[b0 : b0 + nb]
+            if blind:
+                block[:] = np.inf
+                yield b0, block
+                continue
+            lay = np.ascontiguousarray(layouts[b0 : b0 + nb])
             score_layouts(
                 layouts=lay,
                 out=block,
                 route=route[:nb],
                 n_tasks=n_tasks(),
                 screen_limit=limit,
-                **args,
+                **self._kernel_inputs,
             )
             slow = np.flatnonzero(route[:nb])
             if slow.size:
@@ -286,14 +300,16 @@ class Scorer:
                     block[b, pair], block[b, p + pair] = both[: slow.size], both[slow.size :]
                 else:
                     block[b, pair] = self._bound(diag.T, tx, rx)
-        return out
+            yield b0, block
 
     def metric_reference(self, layouts: IntArray) -> FloatArray:
         """:meth:`metric` in numpy: the gather-and-add of [E, nb, P] blocks, the batched LDLᵀ of
         :mod:`ris_planner.ldl` through :func:`ris_planner.crb.crb_diagonal`, and the masks
         applied afterwards (the route before the compiled kernel; the same bits)."""
-        layouts, out, blind = self._start(layouts, np.int_)
-        if blind:
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int_))
+        out = np.empty((layouts.shape[0], self.metric_weights.size))
+        if self._blind(layouts.shape[1]):
+            out[:] = np.inf
             return out
         (b_all, n_ris), p = layouts.shape, self.cache.n_pairs
         keep, tx, rx = self.states
@@ -396,9 +412,12 @@ class Scorer:
 
     def loss(self, layouts: IntArray) -> FloatArray:
         """[B] loss (lower is better) of each layout: the objective, negated for coverage."""
-        return loss_from_metric(
-            self.objective, self.metric(layouts, screen=True), self.metric_weights
-        )
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
+        losses = np.empty(layouts.shape[0])
+        weights = self.metric_weights
+        for b0, block in self._metric_blocks(layouts, screen=True):
+            losses[b0 : b0 + block.shape[0]] = loss_from_metric(self.objective, block, weights)
+        return losses
 
 
 def site_groups(layouts: IntArray, max_sites: int) -> list[tuple[IntArray, IntArray]]:
