@@ -12,6 +12,7 @@ import pytest
 
 from ris_planner.planning import DaskExecutor, LocalExecutor, SerialExecutor, run_plan
 from ris_planner.planning import search as search_module
+from ris_planner.planning.site_cache import SiteCache
 
 
 def small_plan() -> dict[str, object]:
@@ -100,6 +101,14 @@ def test_cluster_tasks_carry_only_their_site_block() -> None:
         assert local.max() < sum(p.n_sites for p in parts)
     evaluate(scorer, layouts[:50], ex)
     assert len(ex.shared) == 8  # the blocks are reused for the same scorer
+    # a task scores on just the sites its layouts use, gathered from the blocks it carries
+    cache = scorer.cache
+    parts = [cache.subset(np.arange(0, 3)), cache.subset(np.arange(3, 6))]
+    picked = SiteCache.concat(parts, [np.array([1]), np.array([0, 2])])
+    want = cache.subset(np.array([1, 3, 5]))
+    for field in ("blocks", "degenerate", "far_field", "present"):
+        np.testing.assert_array_equal(getattr(picked, field), getattr(want, field))
+    assert picked.source.sites == want.source.sites
 
 
 def test_service_setting_sends_plan_jobs_to_dask(

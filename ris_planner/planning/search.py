@@ -86,9 +86,15 @@ SITE_BLOCKS = 8
 
 
 def score_block_task(_shared: object, task: tuple[Any, list[SiteCache], IntArray]) -> FloatArray:
-    """Executor task: the losses of layouts over the concatenated site blocks it carries."""
+    """Executor task: the losses of layouts over the site blocks it carries (indices into
+    their concatenation), scored on a cache of just the sites the layouts use (gathered once:
+    a 6-RIS swap batch uses ~70 of the ~320 sites of its blocks)."""
     (weights, objective, known), parts, local = task
-    return Scorer(SiteCache.concat(parts), weights, objective, known).loss(local)
+    used = np.unique(local)
+    start = np.cumsum([0, *(c.n_sites for c in parts)])
+    picks = [used[(used >= s0) & (used < s1)] - s0 for s0, s1 in itertools.pairwise(start)]
+    cache = SiteCache.concat(parts, picks)
+    return Scorer(cache, weights, objective, known).loss(np.searchsorted(used, local))
 
 
 def _evaluate_blocks(

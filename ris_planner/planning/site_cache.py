@@ -220,9 +220,14 @@ class SiteCache:
         return rows[inverse.reshape(-1)]
 
     @staticmethod
-    def concat(parts: list[SiteCache]) -> SiteCache:
+    def concat(parts: list[SiteCache], picks: list[IntArray] | None = None) -> SiteCache:
         """The sites of several sub-caches of one cache, in order (the inverse of
-        :meth:`subset` over consecutive blocks)."""
+        :meth:`subset` over consecutive blocks); with ``picks``, only those sites of each part
+        (ascending local indices), each gathered from its part once."""
+        if picks is not None:
+            parts = [c.subset(k) for c, k in zip(parts, picks, strict=True) if k.size]
+        if len(parts) == 1:
+            return parts[0]
         first = parts[0]
         present = None if first.present is None else np.concatenate([c.present for c in parts])
         vis = first.source.visibility
