@@ -97,8 +97,27 @@ def test_cluster_tasks_carry_only_their_site_block() -> None:
     np.testing.assert_array_equal(got, evaluate(scorer, layouts, SerialExecutor()))  # bit for bit
     assert len(ex.shared) == 7 + 1  # every block and the base shared once
     for _, parts, local in ex.tasks:  # type: ignore[misc]
-        assert len(parts) <= 3 and sum(p.n_sites for p in parts) <= 9
-        assert local.max() < sum(p.n_sites for p in parts)
+        # only blocks that hold a site of the task's layouts, ≤ size + 2L = 9 sites used
+        offsets = np.cumsum([0, *(p.n_sites for p in parts)])
+        assert local.max() < offsets[-1]
+        assert np.all(np.isin(np.arange(len(parts)), np.searchsorted(offsets, local, "right") - 1))
+        assert np.unique(local).size <= 9
+    # a swap batch (one site of a layout replaced): one task per block of the candidates,
+    # not one per block combination
+    base = np.array([0, 9, 17])
+    swaps = np.array(
+        [
+            np.sort(np.r_[np.delete(base, i), s])
+            for i in range(3)
+            for s in range(21)
+            if s not in base
+        ]
+    )
+    ex.tasks.clear()
+    np.testing.assert_array_equal(
+        evaluate(scorer, swaps, ex), evaluate(scorer, swaps, SerialExecutor())
+    )
+    assert len(ex.tasks) == 7
     evaluate(scorer, layouts[:50], ex)
     assert len(ex.shared) == 8  # the blocks are reused for the same scorer
     # a task scores on just the sites its layouts use, gathered from the blocks it carries

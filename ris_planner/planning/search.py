@@ -17,7 +17,7 @@ from ris_planner.ldl import packed_index
 from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.executor import Executor
-from ris_planner.planning.objectives import Scorer, score_chunk
+from ris_planner.planning.objectives import Scorer, score_chunk, site_groups
 from ris_planner.planning.site_cache import N_STATES, SiteCache
 
 IntArray = NDArray[np.int_]
@@ -82,7 +82,12 @@ a task's cost varies with its share of ill-conditioned pairs (the square-root ro
 several tasks per worker even that out."""
 
 SITE_BLOCKS = 8
-"""Site blocks of a cluster search: a task carries the blocks its layouts use (≤ L of 8)."""
+"""Site blocks of a cluster search: a task carries the blocks holding the sites its layouts
+use (:func:`_task_groups`), each block sent to the cluster once."""
+
+CLUSTER_TASK_MATRICES = 16_000_000
+"""Layout × pair evaluations per cluster task at most (≈ 1 s on one core): a task first gathers
+the ≲ 70 sites it uses from its blocks (~0.1 s at 50 000 pairs), which larger tasks amortise."""
 
 
 def score_block_task(_shared: object, task: tuple[Any, list[SiteCache], IntArray]) -> FloatArray:
@@ -104,8 +109,9 @@ def _evaluate_blocks(
     on_fraction: Callable[[float], None] | None,
     n_blocks: int = SITE_BLOCKS,
 ) -> FloatArray:
-    """:func:`evaluate` on a cluster: tasks carry handles of only their ≤ L site blocks (each
-    block sent once per executor), scores bit-identical to the whole cache's."""
+    """:func:`evaluate` on a cluster: tasks carry handles of only the site blocks their
+    layouts use (each block sent once per executor; layouts grouped by :func:`_task_groups`),
+    scores bit-identical to the whole cache's."""
     n_sites = scorer.cache.n_sites
     size = max(1, math.ceil(n_sites / n_blocks))
     # the executor keeps the handles of the current scorer's base and blocks (each sent once)
@@ -119,20 +125,18 @@ def _evaluate_blocks(
         base = executor.share((scorer.weights, scorer.objective, scorer.known))
         memo = executor.block_memo = (scorer, base, blocks)
     _, base, blocks = memo
-    blk = layouts // size  # [B, L] block of each site
-    keys, inverse = np.unique(blk, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    per = max(1, CHUNK_MATRICES // max(1, scorer.cache.n_pairs))
+    per = max(1, CLUSTER_TASK_MATRICES // max(1, scorer.cache.n_pairs))
     tasks: list[tuple[Any, list[Any], IntArray]] = []
     rows_of: list[IntArray] = []
-    for g, key in enumerate(keys):
-        rows = np.flatnonzero(inverse == g)
-        used = np.unique(key)
-        sites = np.concatenate([np.arange(b * size, min(n_sites, (b + 1) * size)) for b in used])
-        local = np.searchsorted(sites, layouts[rows])
-        for c0 in range(0, rows.size, per):
-            tasks.append((base, [blocks[int(b)] for b in used], local[c0 : c0 + per]))
-            rows_of.append(rows[c0 : c0 + per])
+    for group in _task_groups(layouts, n_sites, size, size + 2 * layouts.shape[1]):
+        for c0 in range(0, group.size, per):
+            rows = group[c0 : c0 + per]
+            used = np.unique(layouts[rows] // size)  # the blocks the task carries
+            ranges = [np.arange(b * size, min(n_sites, (b + 1) * size)) for b in used]
+            sites = np.concatenate(ranges)
+            local = np.searchsorted(sites, layouts[rows])
+            tasks.append((base, [blocks[int(b)] for b in used], local))
+            rows_of.append(rows)
     out = np.empty(layouts.shape[0])
 
     def done_t(n: int) -> None:
@@ -144,6 +148,26 @@ def _evaluate_blocks(
     ):
         out[rows] = vals
     return out
+
+
+def _task_groups(layouts: IntArray, n_sites: int, size: int, max_sites: int) -> list[IntArray]:
+    """Rows of layouts [B, L] in groups that use ≤ max_sites sites together (≥ L), for the
+    cluster's tasks: ordered by each layout's rarest site in the batch (a swap batch's
+    candidate: the fixed sites are in nearly every layout), so the layouts whose candidates
+    lie in one site block go together – L × size layouts on size + L sites – instead of one
+    task per block combination; a run that uses more sites is cut by
+    :func:`ris_planner.planning.objectives.site_groups`."""
+    freq = np.bincount(layouts.reshape(-1), minlength=n_sites)
+    rare = np.take_along_axis(layouts, np.argmin(freq[layouts], axis=1)[:, None], axis=1)[:, 0]
+    order = np.argsort(rare // size, kind="stable")
+    cuts = np.flatnonzero(np.diff(rare[order] // size)) + 1
+    groups: list[IntArray] = []
+    for run in np.split(order, cuts):
+        if np.unique(layouts[run]).size <= max_sites:
+            groups.append(run)
+        else:
+            groups += [run[rows] for rows, _ in site_groups(layouts[run], max_sites)]
+    return groups
 
 
 def chunk_count(n_layouts: int, n_pairs: int, workers: int) -> int:

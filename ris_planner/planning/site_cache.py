@@ -26,7 +26,7 @@ finalists the plan re-scores exactly on a float64 cache of just their sites.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -223,27 +223,36 @@ class SiteCache:
     def concat(parts: list[SiteCache], picks: list[IntArray] | None = None) -> SiteCache:
         """The sites of several sub-caches of one cache, in order (the inverse of
         :meth:`subset` over consecutive blocks); with ``picks``, only those sites of each part
-        (ascending local indices), each gathered from its part once."""
-        if picks is not None:
-            parts = [c.subset(k) for c, k in zip(parts, picks, strict=True) if k.size]
-        if len(parts) == 1:
-            return parts[0]
-        first = parts[0]
-        present = None if first.present is None else np.concatenate([c.present for c in parts])
+        (ascending local indices). The block storage is written once, a site at a time (no
+        gathered temporary: a cluster task's ~70 sites × 50 000 pairs are ~400 MB)."""
+        chosen = picks if picks is not None else [np.arange(c.n_sites) for c in parts]
+        kept = [(c, k) for c, k in zip(parts, chosen, strict=True) if k.size]
+        first = kept[0][0]
+        n_c, _, e_n, width = first.blocks.shape
+        blocks = np.empty((n_c, sum(k.size for _, k in kept), e_n, width), first.blocks.dtype)
+        j = 0
+        for c, k in kept:
+            for site in k:
+                blocks[:, j] = c.blocks[:, site]
+                j += 1
+
+        def cat(field: str) -> Any:
+            return np.concatenate([getattr(c, field)[k] for c, k in kept])
+
+        present = None if first.present is None else cat("present")
         vis = first.source.visibility
         if vis is not None:  # the cache's masks are the visibility's
             assert present is not None
             vis = Visibility(present, vis.los)
-        sites = tuple(s for c in parts for s in c.source.sites)
-        source = replace(first.source, sites=sites, visibility=vis)
+        sites = tuple(c.source.sites[int(i)] for c, k in kept for i in k)
         return SiteCache(
-            np.concatenate([c.blocks for c in parts], axis=1),
+            blocks,
             first.n_pairs,
             first.los,
-            np.concatenate([c.degenerate for c in parts]),
-            np.concatenate([c.far_field for c in parts]),
-            None if first.factor is None else np.concatenate([c.factor for c in parts]),
-            source,
+            cat("degenerate"),
+            cat("far_field"),
+            None if first.factor is None else cat("factor"),
+            replace(first.source, sites=sites, visibility=vis),
             first.los_factor,
             first.los_referenced,
             first.wavefront,
