@@ -16,6 +16,7 @@ For each case, in the same run:
     python benchmarks/bench_search.py --storage-check 2000 [--hall-pairs 6400]
     python benchmarks/bench_search.py --city-memory 40 [--city-blocks 4] [--city-pairs 50000]
     python benchmarks/bench_search.py --pool-start 2 [--whole-plan] [--hall-pairs 6400]
+    python benchmarks/bench_search.py --swap-rates [--city-pairs 50000] [--counts 2 3 4]
 
 Hall: 40 × 25 m, candidates on the 4 inner walls every 5 m at 3 heights × 2 tilts (156), a 2 m
 UE grid at 1.5 m, 6400 sampled pairs. City: a grid of square buildings (facade sites every
@@ -132,18 +133,31 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from old_search import old_greedy  # noqa: E402  (today's greedy, kept verbatim)
 
 
+def site_scorer(doc: PlanDocument, budget: bool = False) -> tuple[list[Any], Any, Scorer]:
+    """(sites, pairs, scorer) of a plan document: its candidates, sampled pairs and the site
+    cache with the plan's fields of view and obstacles – float64 with the square-root rows, as
+    before issue 14's memory item, or with ``budget`` the layout the plan's budget picks."""
+    from ris_planner.limits import cache_layout
+    from ris_planner.planning.site_cache import FULL
+
+    sites = expand_sites(doc)
+    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
+    vis = pair_visibility(Scene.from_environment(doc.environment), sites, pairs, doc.system.los)
+    entries = len(sites) * pairs.size
+    layout = cache_layout(entries, doc.system.wavefront) if budget else FULL
+    cache = build_site_cache(
+        doc.system, sites, pairs, visibility=vis, known=tuple(doc.known), layout=layout
+    )
+    return sites, pairs, Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+
+
 def todays_search(doc: PlanDocument) -> tuple[dict[int, tuple[Layout, float, int]], float, int]:
     """Today's search on the same problem: best (layout, loss, evaluated) per count, time,
     memory peak [B]."""
     tracemalloc.start()
     t0 = time.perf_counter()
-    sites = expand_sites(doc)
-    pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
     # the plan's fields of view (and obstacles), as run_plan applied them before issue 14
-    scene = Scene.from_environment(doc.environment)
-    vis = pair_visibility(scene, sites, pairs, doc.system.los)
-    cache = build_site_cache(doc.system, sites, pairs, visibility=vis, known=tuple(doc.known))
-    scorer = Scorer(cache, pairs.weights, doc.objective, tuple(doc.known))
+    sites, _, scorer = site_scorer(doc)
     out: dict[int, tuple[Layout, float, int]] = {}
     seeds: list[Layout] = []
     assert doc.ris_count is not None
@@ -363,6 +377,41 @@ def city_memory(raw: dict[str, Any], n_layouts: int) -> None:
         )
 
 
+def swap_rates(name: str, raw: dict[str, Any], counts: list[int], repeats: int = 2) -> None:
+    """Scoring rate of greedy swap batches (one random base layout and all its L × (S − L)
+    single-site swaps: what a greedy round scores) with ``Scorer.loss`` (the screen, losses
+    one kernel block at a time) against the unscreened whole-batch metric and its losses,
+    in the same run; the losses must agree bit for bit."""
+    from ris_planner.planning.objectives import loss_from_metric
+
+    doc = PlanDocument.model_validate({**raw, "constraints": {"exclusive_mounts": False}})
+    sites, pairs, sc = site_scorer(doc, budget=True)
+    print(
+        f"\n== swap batches, {name}: {len(sites)} candidates × {pairs.size} pairs,"
+        f" {sc.cache.storage} storage"
+    )
+    rng = np.random.default_rng(0)
+    for c in counts:
+        base = rng.choice(len(sites), c, replace=False)
+        others = np.setdiff1d(np.arange(len(sites)), base)
+        lays = np.array([np.sort(np.r_[np.delete(base, i), s]) for i in range(c) for s in others])
+        sc.loss(lays[:2])
+        t_new, t_ref = [], []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            new = sc.loss(lays)
+            t_new.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            ref = loss_from_metric(sc.objective, sc.metric(lays), sc.metric_weights)
+            t_ref.append(time.perf_counter() - t0)
+        work = lays.shape[0] * pairs.size / 1e6
+        print(
+            f"  L={c}: {lays.shape[0]} swaps; loss {work / min(t_new):.1f} M layout-pairs/s,"
+            f" unscreened whole-batch metric {work / min(t_ref):.1f} M/s"
+            f" ({min(t_ref) / min(t_new):.2f}×); same losses {np.array_equal(new, ref)}"
+        )
+
+
 def greedy_workers(raw: dict[str, Any], workers: int) -> None:
     """Today's greedy and the new one (starts in lockstep, rounds split over the workers) with
     the same LocalExecutor: same layouts, wall time of each."""
@@ -561,9 +610,19 @@ def main() -> None:
         " pickled and shared",
     )
     ap.add_argument(
+        "--swap-rates",
+        action="store_true",
+        help="only the scoring rate of greedy swap batches on the hall and the city",
+    )
+    ap.add_argument(
         "--whole-plan", action="store_true", help="with --pool-start: the whole plan both ways"
     )
     args = ap.parse_args()
+    if args.swap_rates:
+        swap_rates("hall", hall_doc([2], args.hall_pairs), args.counts or [2, 3, 4])
+        city = city_doc(args.city_blocks, args.city_pairs, [2])
+        swap_rates("city", city, args.counts or [2, 3, 4, 6])
+        return
     if args.pool_start:
         pool_start(hall_doc([2], args.hall_pairs), args.pool_start, args.whole_plan)
         return

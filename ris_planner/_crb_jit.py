@@ -680,44 +680,52 @@ def _score_chunk(
         # candidate (more paths: screened only while the screen settles nearly all of them),
         # or full
         for q in range(t):
-            count[q] = 0
-        if has_deg:  # a UE on a chosen site: blind (a count below zero whatever is added)
-            for col in range(n_l):
-                drow = degenerate[layouts[b, col]]
-                for q in range(t):
-                    if drow[p0 + q]:
-                        count[q] = DEGENERATE_COUNT
-        if has_count:
-            for col in range(n_l):
-                prow = present[layouts[b, col]]
-                for q in range(t):
-                    count[q] += prow[p0 + q]
-        extras = screening and (
-            stats[0] < SCREEN_PROBE
-            or stats[1] >= SCREEN_KEEP * stats[0]
-            or b % SCREEN_PROBE_EVERY == 0
-        )
-        n_live = 0
-        n_cand = 0
-        for q in range(t):
-            p = p0 + q
-            k = count[q]
-            route[b, p] = 0
-            if k < 0 or (has_count and k < need[p]):
-                slot[q] = BLIND
-                out[b, p] = math.inf
-                if mode == 2:
-                    out[b, n_pairs + p] = math.inf
-                continue
-            n_live += 1
-            if screening and (not has_count or k == need[p]):
-                slot[q] = CANDIDATE
-                n_cand += 1
-            elif extras:
-                slot[q] = EXTRA
-                n_cand += 1
-            else:
-                slot[q] = FULL
+            route[b, p0 + q] = 0
+        if not (has_deg or has_count):  # every pair is present: nothing to classify
+            n_live = t
+            n_cand = t if screening else 0
+            kind = CANDIDATE if screening else FULL
+            for q in range(t):
+                slot[q] = kind
+        else:
+            for q in range(t):
+                count[q] = 0
+            if has_deg:  # a UE on a chosen site: blind (a count below zero whatever is added)
+                for col in range(n_l):
+                    drow = degenerate[layouts[b, col]]
+                    for q in range(t):
+                        if drow[p0 + q]:
+                            count[q] = DEGENERATE_COUNT
+            if has_count:
+                for col in range(n_l):
+                    prow = present[layouts[b, col]]
+                    for q in range(t):
+                        count[q] += prow[p0 + q]
+            extras = screening and (
+                stats[0] < SCREEN_PROBE
+                or stats[1] >= SCREEN_KEEP * stats[0]
+                or b % SCREEN_PROBE_EVERY == 0
+            )
+            n_live = 0
+            n_cand = 0
+            for q in range(t):
+                p = p0 + q
+                k = count[q]
+                if k < 0 or (has_count and k < need[p]):
+                    slot[q] = BLIND
+                    out[b, p] = math.inf
+                    if mode == 2:
+                        out[b, n_pairs + p] = math.inf
+                    continue
+                n_live += 1
+                if screening and (not has_count or k == need[p]):
+                    slot[q] = CANDIDATE
+                    n_cand += 1
+                elif extras:
+                    slot[q] = EXTRA
+                    n_cand += 1
+                else:
+                    slot[q] = FULL
         if n_live == 0:
             continue
         s0 = layouts[b, 0]

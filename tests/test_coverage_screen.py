@@ -81,7 +81,7 @@ def check_screen(sc: Scorer, lays: Any, limit: float) -> float:
     np.testing.assert_array_equal(
         sc.loss(lays), loss_from_metric(sc.objective, full, sc.metric_weights)
     )
-    return float(moved.sum() / (np.isfinite(full) | np.isfinite(screened)).sum())
+    return float(moved.sum() / max(1, (np.isfinite(full) | np.isfinite(screened)).sum()))
 
 
 def test_screened_losses_equal_the_full_ones() -> None:
@@ -136,3 +136,23 @@ def test_extra_candidates_screened_while_they_settle(monkeypatch: Any) -> None:
     for n_ris in (3, 4):
         lays = np.array([np.sort(rng.choice(n, n_ris, replace=False)) for _ in range(60)])
         assert check_screen(sc, lays, 0.02) > 0.95
+
+
+def test_masks_with_every_path_present_need_no_counting() -> None:
+    """Presence masks that are all true (a hall whose walls see every UE) make the kernel skip
+    the per-pair count: the layout-wide rule says the same, so the metric still equals the
+    numpy reference, which counts every pair (``objectives.underdetermined``)."""
+    sc = hall_scorer({"kind": "coverage", "metric": "rx", "threshold_m": 1.0})
+    assert sc.cache.counts_paths  # the preset's walls hide some UEs
+    los = sc.cache.los_present
+    assert los is not None and sc.cache.present is not None
+    cache = replace(sc.cache, present=np.ones_like(sc.cache.present), los_present=np.ones_like(los))
+    full = Scorer(cache, sc.weights, sc.objective, sc.known)
+    assert not cache.counts_paths and full._kernel_inputs["present"].size == 0
+    rng = np.random.default_rng(6)
+    for n_ris in (1, 2, 3):
+        lays = np.array(
+            [np.sort(rng.choice(cache.n_sites, n_ris, replace=False)) for _ in range(40)]
+        )
+        np.testing.assert_array_equal(full.metric(lays), full.metric_reference(lays))
+        check_screen(full, lays, 1.0)

@@ -164,7 +164,8 @@ class Scorer:
         none = np.zeros((0, 0), dtype=np.uint8)
         deg = cache.degenerate.view(np.uint8) if np.any(cache.degenerate) else none
         present, need = none, np.zeros(0, dtype=np.int64)
-        if cache.present is not None and cache.wavefront != "spherical":
+        if cache.counts_paths:
+            assert cache.present is not None
             present = np.ascontiguousarray(cache.present).view(np.uint8)
             los_n = 0 if cache.los_present is None else cache.los_present.astype(np.int64)
             # RIS paths a pair needs: ceil((n − LOS present) / 3) (see underdetermined)

@@ -260,6 +260,16 @@ class SiteCache:
             first.los_present,
         )
 
+    @property
+    def counts_paths(self) -> bool:
+        """Whether a pair's present paths must be counted (``objectives.underdetermined``):
+        some RIS or LOS path is absent somewhere (planar; the spherical model has no counting
+        rule). Where every path exists the layout-wide count says the same."""
+        if self.present is None or self.wavefront == "spherical":
+            return False
+        los_all = self.los_present is None or bool(np.all(self.los_present))
+        return not (los_all and bool(np.all(self.present)))
+
     def subset(self, sites: IntArray) -> SiteCache:
         """The cache of the given sites only (ascending indices; a task's site block). Every
         per-site field is sliced here, so a sub-cache scores its layouts exactly as the full
