@@ -25,3 +25,7 @@ class DocumentFieldError(RisPlannerError):
         super().__init__(f"{field}: {message}")
         self.field = field
         self.reason = message
+
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:
+        """Pickled with its two arguments (a job process's error reaches the service whole)."""
+        return type(self), (self.field, self.reason)

@@ -277,6 +277,7 @@ def test_import_errors(server: str) -> None:
     r = httpx.post(f"{server}/v1/import?origin=24.949,60.1655", json=site, timeout=60)
     assert r.status_code == 422 and r.json()["message"].startswith(f"feature {i} (id ")
     assert "swapped" in r.json()["message"] and (name is None or name in r.json()["message"])
+    assert r.json()["fields"][0]["field"] == f"features.{i}"  # the feature's path in the body
     bowtie = [[24.94, 60.16], [24.941, 60.161], [24.941, 60.16], [24.94, 60.161], [24.94, 60.16]]
     bad = {
         "type": "FeatureCollection",
@@ -291,6 +292,7 @@ def test_import_errors(server: str) -> None:
     }
     r = httpx.post(f"{server}/v1/import", json=bad, timeout=60)
     assert r.status_code == 422 and "feature 0 (id b7): invalid outline" in r.json()["message"]
+    assert r.json()["fields"][0]["field"] == "features.0"
     for body, status in [
         (b"{not json", 422),
         (b'{"type": "FeatureCollection", "features": []}', 422),

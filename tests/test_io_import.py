@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +15,13 @@ pytest.importorskip("shapely")
 
 from ris_planner.cli import main
 from ris_planner.environment import Scene
-from ris_planner.errors import RisPlannerError
+from ris_planner.errors import DocumentFieldError, RisPlannerError
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import (
     DEFAULT_BUILDING_HEIGHT_M,
     HIGHWAY_WIDTH_M,
     METRES_PER_LEVEL,
+    FeatureError,
     ImportOptions,
     import_features,
     import_sites,
@@ -146,8 +148,15 @@ def test_imported_building_blocks_the_same_legs_as_the_metre_prism() -> None:
     ],
 )
 def test_invalid_geometries_name_the_feature(geometry: dict, match: str) -> None:
-    with pytest.raises(RisPlannerError, match=match):
+    with pytest.raises(RisPlannerError, match=match) as info:
         _import(_feature(geometry, "way/9", building="yes", highway="residential"))
+    # the feature's path for the service's 422, and an error that survives a process boundary
+    assert isinstance(info.value, FeatureError) and info.value.field == "features.0"
+    back = pickle.loads(pickle.dumps(info.value))
+    assert type(back) is FeatureError and str(back) == str(info.value)
+    assert (back.field, back.reason) == (info.value.field, info.value.reason)
+    plain = DocumentFieldError("codebook.kind", "unknown")
+    assert str(pickle.loads(pickle.dumps(plain))) == "codebook.kind: unknown"
 
 
 def test_building_top_below_base_is_an_error() -> None:

@@ -43,6 +43,8 @@ import itertools
 import math
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -50,7 +52,7 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.errors import RisPlannerError
+from ris_planner.errors import DocumentFieldError, RisPlannerError
 from ris_planner.io import require
 from ris_planner.io.frames import MAX_FRAME_RADIUS_M, Frame
 
@@ -133,6 +135,31 @@ class ImportSummary:
 
     def to_json(self) -> dict[str, Any]:
         return {k: v for k, v in self.__dict__.items() if v not in (0, [], {})}
+
+
+class FeatureError(DocumentFieldError):
+    """An error in one feature of a collection: the message names the feature (index, id,
+    name; :func:`feature_label`), ``field`` is its path in the collection (``features.3``),
+    which the service's 422 lists."""
+
+    def __init__(self, index: int, message: str) -> None:
+        super().__init__(f"features.{index}", message)
+        self.index = index
+        self.args = (message,)  # the message already names the feature
+
+    def __reduce__(self) -> tuple[type, tuple[int, str]]:  # type: ignore[override]
+        return type(self), (self.index, self.reason)
+
+
+@contextmanager
+def _feature_errors(index: int) -> Iterator[None]:
+    """Re-raise an error about feature ``index`` as a :class:`FeatureError`."""
+    try:
+        yield
+    except DocumentFieldError:
+        raise
+    except RisPlannerError as exc:
+        raise FeatureError(index, str(exc)) from None
 
 
 def feature_label(index: int, feature: Any) -> str:
@@ -357,87 +384,92 @@ def import_features(
         isinstance(f, dict) and "building" in (f.get("properties") or {}) for f in feats
     )
     for i, feat in enumerate(feats):
-        label = feature_label(i, feat)
-        if not isinstance(feat, dict) or feat.get("type") != "Feature":
-            raise RisPlannerError(f"{label}: not a GeoJSON Feature")
-        geom = feat.get("geometry")
-        props = feat.get("properties") or {}
-        if not isinstance(geom, dict):
-            raise RisPlannerError(f"{label}: no geometry (empty)")
-        kind = geom.get("type")
-        name = props.get("name") or (str(feat["id"]) if feat.get("id") is not None else None)
-        if kind in ("Polygon", "MultiPolygon"):
-            rings = _polygons(geom, label)
-            density = parse_length(props.get(opts.density_key))
-            if density is not None:
-                if density < 0:
-                    raise RisPlannerError(f"{label}: {opts.density_key} must be ≥ 0")
+        with _feature_errors(i):
+            label = feature_label(i, feat)
+            if not isinstance(feat, dict) or feat.get("type") != "Feature":
+                raise RisPlannerError(f"{label}: not a GeoJSON Feature")
+            geom = feat.get("geometry")
+            props = feat.get("properties") or {}
+            if not isinstance(geom, dict):
+                raise RisPlannerError(f"{label}: no geometry (empty)")
+            kind = geom.get("type")
+            name = props.get("name") or (str(feat["id"]) if feat.get("id") is not None else None)
+            if kind in ("Polygon", "MultiPolygon"):
+                rings = _polygons(geom, label)
+                density = parse_length(props.get(opts.density_key))
+                if density is not None:
+                    if density < 0:
+                        raise RisPlannerError(f"{label}: {opts.density_key} must be ≥ 0")
+                    for k, poly_rings in enumerate(rings):
+                        where = f"{label} polygon {k}" if len(rings) > 1 else label
+                        local = [_local(frame, r, where) for r in poly_rings]
+                        _check_outline(local[0], where)
+                        poly = shapely.Polygon(local[0], local[1:])
+                        if not poly.is_valid:
+                            raise RisPlannerError(
+                                f"{where}: invalid polygon ({shapely.is_valid_reason(poly)})"
+                            )
+                        xy, w = _area_points(poly, density, opts)
+                        ll = frame.to_geographic(xy)
+                        points += [
+                            [
+                                round(a, _COORD_DIGITS),
+                                round(b, _COORD_DIGITS),
+                                opts.ue_height_m + h0,
+                            ]
+                            for a, b in ll.tolist()
+                        ]
+                        weights += w.tolist()
+                        summary.area_points += len(xy)
+                    summary.areas += 1
+                    continue
+                if not _is_building(props, has_building_tag):
+                    summary.skipped += 1
+                    continue
+                base, height = _heights(props, opts, label, summary)
+                summary.buildings += 1
                 for k, poly_rings in enumerate(rings):
                     where = f"{label} polygon {k}" if len(rings) > 1 else label
-                    local = [_local(frame, r, where) for r in poly_rings]
-                    _check_outline(local[0], where)
-                    poly = shapely.Polygon(local[0], local[1:])
-                    if not poly.is_valid:
-                        raise RisPlannerError(
-                            f"{where}: invalid polygon ({shapely.is_valid_reason(poly)})"
-                        )
-                    xy, w = _area_points(poly, density, opts)
-                    ll = frame.to_geographic(xy)
-                    points += [
-                        [round(a, _COORD_DIGITS), round(b, _COORD_DIGITS), opts.ue_height_m + h0]
-                        for a, b in ll.tolist()
-                    ]
-                    weights += w.tolist()
-                    summary.area_points += len(xy)
-                summary.areas += 1
-                continue
-            if not _is_building(props, has_building_tag):
-                summary.skipped += 1
-                continue
-            base, height = _heights(props, opts, label, summary)
-            summary.buildings += 1
-            for k, poly_rings in enumerate(rings):
-                where = f"{label} polygon {k}" if len(rings) > 1 else label
-                _check_outline(_local(frame, poly_rings[0], where), where)
-                summary.holes_dropped += len(poly_rings) - 1
-                prism: dict[str, Any] = {
-                    "kind": "prism",
-                    "footprint": poly_rings[0],
-                    "base_m": base + h0,
-                    "height_m": height,
-                }
-                if name is not None:
-                    prism["name"] = f"{name}#{k}" if len(rings) > 1 else str(name)
-                obstacles.append(prism)
-                summary.prisms += 1
-        elif kind in ("LineString", "MultiLineString"):
-            highway = props.get("highway")
-            width = parse_length(props.get("width"))
-            if opts.highways is not None and str(highway) not in opts.highways:
-                key = f"{highway} (not chosen)"
-                summary.roads_skipped[key] = summary.roads_skipped.get(key, 0) + 1
-                continue
-            if width is None:
-                if highway is None or str(highway) not in HIGHWAY_WIDTH_M:
-                    key = str(highway) if highway is not None else "(no highway, no width)"
+                    _check_outline(_local(frame, poly_rings[0], where), where)
+                    summary.holes_dropped += len(poly_rings) - 1
+                    prism: dict[str, Any] = {
+                        "kind": "prism",
+                        "footprint": poly_rings[0],
+                        "base_m": base + h0,
+                        "height_m": height,
+                    }
+                    if name is not None:
+                        prism["name"] = f"{name}#{k}" if len(rings) > 1 else str(name)
+                    obstacles.append(prism)
+                    summary.prisms += 1
+            elif kind in ("LineString", "MultiLineString"):
+                highway = props.get("highway")
+                width = parse_length(props.get("width"))
+                if opts.highways is not None and str(highway) not in opts.highways:
+                    key = f"{highway} (not chosen)"
                     summary.roads_skipped[key] = summary.roads_skipped.get(key, 0) + 1
                     continue
-                width = HIGHWAY_WIDTH_M[str(highway)]
-            if not width > 0:
-                raise RisPlannerError(f"{label}: road width must be > 0, got {width}")
-            for line in _lines(geom, label):
-                _local(frame, line, label)
-                roads.append(
-                    {
-                        "points": line,
-                        "width_m": width,
-                        "step_m": opts.road_step_m,
-                        "height_m": opts.ue_height_m + h0,
-                    }
-                )
-            summary.roads += 1
-        else:
-            summary.skipped += 1
+                if width is None:
+                    if highway is None or str(highway) not in HIGHWAY_WIDTH_M:
+                        key = str(highway) if highway is not None else "(no highway, no width)"
+                        summary.roads_skipped[key] = summary.roads_skipped.get(key, 0) + 1
+                        continue
+                    width = HIGHWAY_WIDTH_M[str(highway)]
+                if not width > 0:
+                    raise RisPlannerError(f"{label}: road width must be > 0, got {width}")
+                for line in _lines(geom, label):
+                    _local(frame, line, label)
+                    roads.append(
+                        {
+                            "points": line,
+                            "width_m": width,
+                            "step_m": opts.road_step_m,
+                            "height_m": opts.ue_height_m + h0,
+                        }
+                    )
+                summary.roads += 1
+            else:
+                summary.skipped += 1
     if summary.holes_dropped:
         summary.notes.append(
             f"{summary.holes_dropped} inner ring(s) (courtyards) dropped: outer rings extruded"
@@ -495,66 +527,67 @@ def import_sites(
     candidates: list[dict[str, Any]] = []
     walls: list[dict[str, Any]] = []
     for i, feat in enumerate(feats):
-        label = feature_label(i, feat)
-        if not isinstance(feat, dict) or not isinstance(feat.get("geometry"), dict):
-            raise RisPlannerError(f"{label}: no geometry (empty)")
-        geom, props = feat["geometry"], feat.get("properties") or {}
-        name = props.get("name")
-        if geom.get("type") == "Point":
-            pos = _lonlat(geom.get("coordinates"), label)
-            _local(frame, [pos], label)
-            height = parse_length(props.get("height", props.get("height_m")))
-            if height is None:
-                if len(pos) < 3:
-                    raise RisPlannerError(f"{label}: give a height property or a 3-D position")
-                height = pos[2] - h0
-            az = _degrees(props, ("azimuth_deg", "orientation"), label)
-            if az is None:
-                raise RisPlannerError(
-                    f"{label}: give azimuth_deg (the compass direction the RIS faces)"
-                )
-            tilt = _degrees(props, ("tilt_deg", "tilt"), label) or 0.0
-            cand: dict[str, Any] = {
-                "position": [pos[0], pos[1], height + h0],
-                "orientation": [yaw_from_azimuth(az), math.radians(tilt), 0.0],
-            }
-            if name:
-                cand["name"] = str(name)
-            candidates.append(cand)
-            summary.candidates += 1
-        elif geom.get("type") == "LineString":
-            (line,) = _lines(geom, label)
-            _local(frame, line, label)
-            heights = props.get("heights_m")
-            if heights is None and props.get("height") is not None:
-                heights = [props["height"]]
-            hs = [parse_length(h) for h in heights] if isinstance(heights, list) else [None]
-            if not hs or any(h is None for h in hs):
-                raise RisPlannerError(f"{label}: give heights_m (a list) or height [m]")
-            tilts = props.get("tilts_deg", [props.get("tilt_deg", 0.0)])
-            ts = [parse_length(t) for t in tilts] if isinstance(tilts, list) else [None]
-            if not ts or any(t is None for t in ts):
-                raise RisPlannerError(f"{label}: tilts_deg must be a list of degrees")
-            side = props.get("side", "left")
-            if side not in ("left", "right"):
-                raise RisPlannerError(f"{label}: side must be 'left' or 'right', got {side!r}")
-            spacing = parse_length(props.get("spacing_m", opts.site_spacing_m))
-            for a, b in itertools.pairwise(line):
-                if a == b:
-                    continue
-                walls.append(
-                    {
-                        "start": a,
-                        "end": b,
-                        "side": side,
-                        "heights_m": [float(h) + h0 for h in hs if h is not None],
-                        "spacing_m": spacing,
-                        "tilts_rad": [math.radians(t) for t in ts if t is not None],
-                    }
-                )
-                summary.walls += 1
-        else:
-            summary.skipped += 1
+        with _feature_errors(i):
+            label = feature_label(i, feat)
+            if not isinstance(feat, dict) or not isinstance(feat.get("geometry"), dict):
+                raise RisPlannerError(f"{label}: no geometry (empty)")
+            geom, props = feat["geometry"], feat.get("properties") or {}
+            name = props.get("name")
+            if geom.get("type") == "Point":
+                pos = _lonlat(geom.get("coordinates"), label)
+                _local(frame, [pos], label)
+                height = parse_length(props.get("height", props.get("height_m")))
+                if height is None:
+                    if len(pos) < 3:
+                        raise RisPlannerError(f"{label}: give a height property or a 3-D position")
+                    height = pos[2] - h0
+                az = _degrees(props, ("azimuth_deg", "orientation"), label)
+                if az is None:
+                    raise RisPlannerError(
+                        f"{label}: give azimuth_deg (the compass direction the RIS faces)"
+                    )
+                tilt = _degrees(props, ("tilt_deg", "tilt"), label) or 0.0
+                cand: dict[str, Any] = {
+                    "position": [pos[0], pos[1], height + h0],
+                    "orientation": [yaw_from_azimuth(az), math.radians(tilt), 0.0],
+                }
+                if name:
+                    cand["name"] = str(name)
+                candidates.append(cand)
+                summary.candidates += 1
+            elif geom.get("type") == "LineString":
+                (line,) = _lines(geom, label)
+                _local(frame, line, label)
+                heights = props.get("heights_m")
+                if heights is None and props.get("height") is not None:
+                    heights = [props["height"]]
+                hs = [parse_length(h) for h in heights] if isinstance(heights, list) else [None]
+                if not hs or any(h is None for h in hs):
+                    raise RisPlannerError(f"{label}: give heights_m (a list) or height [m]")
+                tilts = props.get("tilts_deg", [props.get("tilt_deg", 0.0)])
+                ts = [parse_length(t) for t in tilts] if isinstance(tilts, list) else [None]
+                if not ts or any(t is None for t in ts):
+                    raise RisPlannerError(f"{label}: tilts_deg must be a list of degrees")
+                side = props.get("side", "left")
+                if side not in ("left", "right"):
+                    raise RisPlannerError(f"{label}: side must be 'left' or 'right', got {side!r}")
+                spacing = parse_length(props.get("spacing_m", opts.site_spacing_m))
+                for a, b in itertools.pairwise(line):
+                    if a == b:
+                        continue
+                    walls.append(
+                        {
+                            "start": a,
+                            "end": b,
+                            "side": side,
+                            "heights_m": [float(h) + h0 for h in hs if h is not None],
+                            "spacing_m": spacing,
+                            "tilts_rad": [math.radians(t) for t in ts if t is not None],
+                        }
+                    )
+                    summary.walls += 1
+            else:
+                summary.skipped += 1
     fragment: dict[str, Any] = {"frame": frame.to_json()}
     if candidates:
         fragment["candidates"] = candidates
