@@ -492,8 +492,10 @@
       input.setAttribute("aria-invalid", "true");
       const fields = err.body && Array.isArray(err.body.fields) ? err.body.fields : [];
       const named = fields.filter((f) => f.field && f.field !== "(document)");
+      // a feature's message names it by index, id and name: clearer than its path features.N
+      const said = (f) => (f.field.startsWith("features.") ? f.message : `${f.field}: ${f.message}`);
       $("err-upload-geojson").textContent = `${file.name}: ` + (named.length
-        ? named.map((f) => `${f.field}: ${f.message}`).join("; ")
+        ? named.map(said).join("; ")
         : err.message);
     }
   }
