@@ -26,6 +26,6 @@ class DocumentFieldError(RisPlannerError):
         self.field = field
         self.reason = message
 
-    def __reduce__(self) -> tuple[type, tuple[str, str]]:
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
         """Pickled with its two arguments (a job process's error reaches the service whole)."""
         return type(self), (self.field, self.reason)

@@ -147,7 +147,7 @@ class FeatureError(DocumentFieldError):
         self.index = index
         self.args = (message,)  # the message already names the feature
 
-    def __reduce__(self) -> tuple[type, tuple[int, str]]:  # type: ignore[override]
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
         return type(self), (self.index, self.reason)
 
 

@@ -131,11 +131,10 @@ def _evaluate_blocks(
     for group in _task_groups(layouts, n_sites, size, size + 2 * layouts.shape[1]):
         for c0 in range(0, group.size, per):
             rows = group[c0 : c0 + per]
-            used = np.unique(layouts[rows] // size)  # the blocks the task carries
-            ranges = [np.arange(b * size, min(n_sites, (b + 1) * size)) for b in used]
-            sites = np.concatenate(ranges)
-            local = np.searchsorted(sites, layouts[rows])
-            tasks.append((base, [blocks[int(b)] for b in used], local))
+            carried = np.unique(layouts[rows] // size)  # the blocks the task carries
+            ranges = [np.arange(b * size, min(n_sites, (b + 1) * size)) for b in carried]
+            local = np.searchsorted(np.concatenate(ranges), layouts[rows])
+            tasks.append((base, [blocks[int(b)] for b in carried], local))
             rows_of.append(rows)
     out = np.empty(layouts.shape[0])
 
