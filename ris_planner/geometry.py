@@ -128,7 +128,7 @@ def ris_path_geometry(
 ) -> RisPathGeometry:
     """Direction vectors, distances and rotation for one RIS (eqs. tv_T, tv_R).
 
-    tx, rx : [P, 3] UE positions [m]; ris_position : [3] [m]; ris_orientation : [3] [rad].
+    tx, rx : [P, 3] UE positions [m]; ris_position : [3], metres; ris_orientation : [3], radians.
     """
     rot = rotation_matrix(ris_orientation)
     p = np.asarray(ris_position, dtype=float)
