@@ -1,6 +1,6 @@
 """Geometry and channel parameters of section II, batched over UE pairs.
 
-Conventions (DESIGN.md): R = Rz(yaw)·Ry(pitch)·Rx(roll); a RIS faces its local +x axis; its
+Conventions (conventions.md): R = Rz(yaw)·Ry(pitch)·Rx(roll); a RIS faces its local +x axis; its
 elements lie on the local y–z plane. Every function takes arrays of UE positions with the pairs
 on the leading axis and works for one RIS at a time (L is small; the pairs are many).
 

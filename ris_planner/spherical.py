@@ -1,5 +1,5 @@
-"""Spherical-wave (exact per-element) RIS response and its transmission Gram (DESIGN.md,
-"Wavefront models").
+"""Spherical-wave (exact per-element) RIS response and its transmission Gram (docs/
+concepts/wavefront.md).
 
 Element n at global r_n = p_ℓ + R z_n responds with
 a_n = exp(jφ_n), φ_n = −(2π/λ)·[(‖p_T − r_n‖ − d_T) + (‖p_R − r_n‖ − d_R)],

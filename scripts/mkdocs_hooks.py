@@ -36,6 +36,10 @@ def _json_block(obj: Any) -> str:
     return "```json\n" + json.dumps(obj, indent=2, ensure_ascii=False) + "\n```\n"
 
 
+def _indent(text: str) -> str:
+    return "\n".join("    " + line for line in text.splitlines())
+
+
 def _cell(text: object) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
@@ -55,7 +59,7 @@ def schemas() -> str:
             f"## {title}\n\nRead by {where}. Generated from `{model.__module__}."
             f"{model.__name__}`.\n\n"
             f'??? note "JSON schema of the {title.lower()}"\n\n'
-            + "\n".join("    " + line for line in _json_block(model.model_json_schema()).splitlines())
+            + _indent(_json_block(model.model_json_schema()))
             + "\n"
         )
     return "\n".join(parts)
@@ -136,8 +140,7 @@ def settings() -> str:
 def _subparsers(parser: argparse.ArgumentParser) -> Iterator[tuple[str, argparse.ArgumentParser]]:
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
-            for name, sub in action.choices.items():
-                yield name, sub
+            yield from action.choices.items()
 
 
 def cli() -> str:
