@@ -91,7 +91,7 @@ def rest_operations() -> str:
 ENGINE_VARIABLES = (
     (
         "RIS_PLANNER_CACHE_MEMORY_MB",
-        "3072",
+        "CACHE_MEMORY_MB_DEFAULT",
         "Site-cache byte budget of a plan [MiB] (CLI and service): the first storage tier that"
         " fits is used, a plan above the last tier is refused (concepts/scoring.md).",
     ),
@@ -125,7 +125,12 @@ def settings() -> str:
         )
     service = "\n".join(rows)
     rows = ["| variable | default | meaning |", "|---|---|---|"]
-    rows += [f"| `{n}` | {d} | {_cell(m)} |" for n, d, m in ENGINE_VARIABLES]
+    from ris_planner import limits
+
+    for name, default, meaning in ENGINE_VARIABLES:
+        if default.isupper():  # a constant of ris_planner.limits
+            default = f"`{getattr(limits, default)}`"
+        rows.append(f"| `{name}` | {default} | {_cell(meaning)} |")
     return (
         "## Service (`api.settings.Settings`)\n\n"
         "Read from the environment at start-up (`ris-planner serve --db/--workers` override the"
