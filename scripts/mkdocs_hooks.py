@@ -70,15 +70,21 @@ def rest_operations() -> str:
     from api.settings import Settings
 
     spec = create_app(Settings()).openapi()
-    rows = ["| method | path | operation id | summary | responses |", "|---|---|---|---|---|"]
+    rows = [
+        "| method | path | operation id | summary | parameters | responses |",
+        "|---|---|---|---|---|---|",
+    ]
     for path, item in spec["paths"].items():
         for method, op in item.items():
             if method not in {"get", "post", "put", "patch", "delete"}:
                 continue
             codes = ", ".join(sorted(op.get("responses", {})))
+            params = [f"`{p['name']}` ({p['in']})" for p in op.get("parameters", [])]
+            if "requestBody" in op:
+                params.append("body: " + ", ".join(f"`{m}`" for m in op["requestBody"]["content"]))
             rows.append(
                 f"| `{method.upper()}` | `{path}` | `{op.get('operationId', '')}` | "
-                f"{_cell(op.get('summary', ''))} | {codes} |"
+                f"{_cell(op.get('summary', ''))} | {_cell(', '.join(params)) or '–'} | {codes} |"
             )
     info = spec["info"]
     head = (
