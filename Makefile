@@ -6,7 +6,7 @@ OUT    ?= out
 # Debian's chromium for the browser tests (tests/test_web.py); override for another binary
 CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: demo test setup lint typecheck unit portable browser-check bench clean
+.PHONY: demo test setup lint typecheck unit portable browser-check bench docs clean
 
 $(BIN)/ris-planner: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -59,10 +59,15 @@ portable: setup
 
 test: lint typecheck unit portable
 
+# the documentation site (docs/, mkdocs.yml) into site/; warnings are errors. tests/test_docs.py
+# builds it too, so `make test` checks it.
+docs: setup
+	$(BIN)/mkdocs build --strict
+
 bench: setup
 	$(BIN)/python benchmarks/bench_bounds.py
 	$(BIN)/python benchmarks/bench_planning.py
 	$(BIN)/python benchmarks/bench_api.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(OUT) site .pytest_cache .mypy_cache .ruff_cache

@@ -1,4 +1,4 @@
-"""Bounds in an environment (DESIGN.md, "Environment: obstacles, visibility, field of view"):
+"""Bounds in an environment (docs/concepts/environment.md, "The contract"):
 only the paths present for a pair contribute, checked against the sub-layout of those paths
 built by hand; a RIS facing away contributes exactly nothing; the pattern factor against a
 hand-scaled gain; free-space results bit for bit those computed before the environment
@@ -186,7 +186,7 @@ def test_environment_equals_sub_layout_with_the_layouts_profiles() -> None:
 
 def test_reason_names_the_missing_paths() -> None:
     """Table I (2 RISs + LOS, 7 observations for 7 states) with the LOS blocked by a wall
-    between the UEs: 6 < 7, inf with the DESIGN reason; the RIS paths are clear."""
+    between the UEs: 6 < 7, inf with the contract's reason; the RIS paths are clear."""
     doc = preset_document("paper-table1")
     doc["tx"], doc["rx"] = [[-2.0, -4.0, 1.0], [-2.0, -4.0, 1.0]], [[2.0, 3.0, 1.0], [2, -3, 1]]
     doc["environment"] = {
