@@ -51,6 +51,7 @@ from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
 from api.store import BUSY_TIMEOUT_S, RETRY_S, FileIdentity, JobStore, StoreUnavailableError
+from ris_planner import allocator
 from ris_planner.errors import RisPlannerError
 from ris_planner.io_json import one_line_validation_error
 from ris_planner.progress import ProgressCallback
@@ -215,6 +216,7 @@ def execute_job(
     memory_mb: int | None = None,
 ) -> None:
     """Run one job to its end state (the body of a worker process)."""
+    allocator.tune_malloc()  # a service process (ris_planner.allocator)
     _close_inherited_alive_pipe()
     set_parent_death_signal()
     if memory_mb is not None:
