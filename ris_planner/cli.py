@@ -104,11 +104,9 @@ def print_json(obj: Any) -> None:
 
 
 def _cmd_bounds(args: argparse.Namespace) -> int:
-    from ris_planner.bounds import compute_bounds
+    from ris_planner.bounds import bounds_document
 
-    scenario = read_scenario(args)
-    result = compute_bounds(scenario)
-    print_json(result.to_json(batch=scenario.is_batch))
+    print_json(bounds_document(read_scenario(args)))
     return 0
 
 

@@ -60,6 +60,7 @@ from ris_planner.planning.visibility import (
     serve_warnings,
 )
 from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.provenance import provenance
 from ris_planner.scenario import RandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
@@ -373,6 +374,7 @@ class PlanResult:
             "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
             **self._decision_json(),
+            "provenance": provenance(doc),
         }
 
     # --- decisions (issue 14): certificates, ties, targets, cost ------------------------------
