@@ -42,18 +42,21 @@ is the RIS centre's height above ``frame.origin``'s height.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, field_validator
+from pydantic import Field, ValidationError, field_validator
 
 from ris_planner.document import DocumentModel
-from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import import_features
-from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES
+from ris_planner.io_json import validation_problems
+from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES, count
 from ris_planner.obstacles import Environment, Prism
 from ris_planner.planning.document import Facades, RISDefaults, UEMap, Wall
 from ris_planner.scenario import RIS
@@ -222,21 +225,38 @@ class _Site:
     notes: list[str]
 
 
-def _maps_of(doc: dict[str, Any]) -> list[dict[str, Any]]:
-    maps = [doc[k] for k in ("ue_map", "tx_map", "rx_map") if isinstance(doc.get(k), dict)]
-    unique: list[dict[str, Any]] = []
-    for m in maps:
-        if m not in unique:
-            unique.append(m)
-    return unique
+def _maps_of(doc: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """(key, map) of the document's distinct UE maps (``ue_map``, ``tx_map``, ``rx_map``)."""
+    maps: list[tuple[str, dict[str, Any]]] = []
+    for key in ("ue_map", "tx_map", "rx_map"):
+        m = doc.get(key)
+        if isinstance(m, dict) and all(m != other for _, other in maps):
+            maps.append((key, m))
+    return maps
 
 
-def _local_map(frame_spec: Any, ue_map: dict[str, Any], what: str) -> UEMap:
-    """A UE map of the site's frame → the validated local map (points counted first)."""
+@contextmanager
+def _site_field(prefix: str, local: str) -> Iterator[None]:
+    """Errors about a part of the site named by its path in the input: ``site.<prefix>…``
+    (the local document's path ``local`` replaced by it)."""
+    try:
+        yield
+    except ValidationError as exc:
+        raise DocumentFieldError(
+            f"site.{prefix}", "; ".join(validation_problems(exc))
+        ) from None
+    except DocumentFieldError as exc:
+        where = exc.field.replace(local, prefix, 1) if exc.field.startswith(local) else exc.field
+        raise DocumentFieldError(f"site.{where}", exc.reason) from None
+
+
+def _local_map(frame_spec: Any, ue_map: dict[str, Any], key: str) -> UEMap:
+    """A UE map of the site's frame → the validated local map (its points counted first)."""
     from ris_planner.limits import Sizes, check_sizes, map_points
 
-    local, _ = to_local({"frame": frame_spec, "tx_map": ue_map})
-    spec = UEMap.model_validate(local["tx_map"])
+    with _site_field(key, "tx_map"):
+        local, _ = to_local({"frame": frame_spec, "tx_map": ue_map})
+        spec = UEMap.model_validate(local["tx_map"])
     check_sizes(Sizes(tx_points=map_points(spec)), memory_mb=None)
     return spec
 
@@ -277,8 +297,12 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
         pole_roads = _pole_roads(site, origin, options.road_classes) if "pole" in options.kinds else []
     elif "frame" in site:
         doc = site
-        pole_roads = [r for m in _maps_of(doc) for r in (m.get("roads") or [])]
-        pole_roads = [r for i, r in enumerate(pole_roads) if r not in pole_roads[:i]]
+        pole_roads = []
+        for _, m in _maps_of(doc):
+            roads = m.get("roads")
+            for r in roads if isinstance(roads, list) else []:
+                if r not in pole_roads:
+                    pole_roads.append(r)
         if "pole" in options.kinds and options.road_classes != list(DEFAULT_POLE_ROAD_CLASSES):
             notes.append(
                 "road_classes apply to a GeoJSON site only: an imported document's roads"
@@ -290,16 +314,18 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
             " frame (the output of ris-planner import)"
         )
     frame_spec = doc["frame"]
-    env_local, frame = to_local({"frame": frame_spec, "environment": doc.get("environment") or {}})
+    with _site_field("environment", "environment"):
+        env_doc = {"frame": frame_spec, "environment": doc.get("environment") or {}}
+        env_local, frame = to_local(env_doc)
+        environment = Environment.model_validate(env_local["environment"])
     assert frame is not None
-    environment = Environment.model_validate(env_local["environment"])
     maps = _maps_of(doc)
     if not maps:
         raise RisPlannerError(
             "site: no UE positions (roads or density areas; ue_map, tx_map or rx_map): a"
             " candidate is kept only where it sees one"
         )
-    parts = [build_map(_local_map(frame_spec, m, "ue_map"), "ue_map").points for m in maps]
+    parts = [build_map(_local_map(frame_spec, m, key), f"site.{key}").points for key, m in maps]
     points = np.unique(np.concatenate(parts), axis=0)
     if len(points) > MAX_MAP_POINTS:
         raise LimitExceededError(
@@ -309,7 +335,7 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
     inside = Scene.from_environment(environment).inside(points) >= 0
     roads = []
     for road in pole_roads:
-        local = _local_map(frame_spec, {"roads": [road]}, "road")
+        local = _local_map(frame_spec, {"roads": [road]}, "roads")
         assert local.roads is not None
         (r,) = local.roads
         roads.append((np.asarray(r.points, dtype=float), float(r.width_m)))
@@ -340,8 +366,8 @@ def _facade_counts(prism: Prism, options: CandidateOptions) -> NDArray[np.int_]:
     v = prism.vertices
     lengths = np.hypot(*(np.roll(v, -1, axis=0) - v).T)
     usable = lengths - 2 * options.corner_clearance_m
-    n = np.maximum(1, np.round(usable / options.spacing_m)).astype(int)
-    return np.where(usable > 0, n, 0)
+    n = np.maximum(1.0, np.round(np.minimum(usable / options.spacing_m, 1e9)))
+    return np.where(usable > 0, n, 0.0).astype(np.int64)
 
 
 def estimate_sites(site: _Site, options: CandidateOptions) -> int:
@@ -356,7 +382,7 @@ def estimate_sites(site: _Site, options: CandidateOptions) -> int:
     if "pole" in options.kinds:
         for line, _ in site.roads:
             length = float(np.hypot(*np.diff(line, axis=0).T).sum())
-            total += math.floor(length / options.pole_spacing_m + 0.5) * tilts
+            total += count(length / options.pole_spacing_m + 0.5) * tilts
     return total
 
 
@@ -439,7 +465,7 @@ def _pole_sites(
     for r, (line, width) in enumerate(site.roads):
         summary.roads += 1
         length = float(np.hypot(*np.diff(line, axis=0).T).sum())
-        n = math.floor(length / options.pole_spacing_m + 0.5)
+        n = count(length / options.pole_spacing_m + 0.5)
         if n == 0:
             short += 1
             continue
