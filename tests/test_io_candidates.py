@@ -111,7 +111,7 @@ def reference(footprint: list[list[float]], opts: CandidateOptions, top: float) 
 
 
 def _check_against_reference(footprint: list[list[float]]) -> None:
-    pts = ring((10.0, 10.0), 40.0) + [[14.0, 14.0, 1.5]]  # all around, and in the L's notch
+    pts = [*ring((10.0, 10.0), 40.0), [14.0, 14.0, 1.5]]  # all around, and in the L's notch
     fc, summary = candidate_sites(site_doc([prism(footprint)], pts), OPTIONS)
     want = reference(footprint, OPTIONS, 10.0)
     assert summary.candidates == len(want) == len(fc["features"])
@@ -270,7 +270,7 @@ def test_site_errors() -> None:
     with pytest.raises(RisPlannerError, match="expected a GeoJSON FeatureCollection"):
         candidate_sites({"type": "Feature"})
     bad = site_doc([prism(RECTANGLE)], [[50.0, 0.0, 1.5]])
-    bad["ue_map"]["points"][0] = bad["ue_map"]["points"][0][1::-1] + [1.5]  # [lat, lon]
+    bad["ue_map"]["points"][0] = [*bad["ue_map"]["points"][0][1::-1], 1.5]  # [lat, lon]
     with pytest.raises(RisPlannerError) as err:
         candidate_sites(bad)
     assert getattr(err.value, "field", "").startswith("site.ue_map.points.0")

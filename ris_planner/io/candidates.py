@@ -52,18 +52,27 @@ from numpy.typing import NDArray
 from pydantic import Field, ValidationError, field_validator
 
 from ris_planner.document import DocumentModel
+from ris_planner.environment import Scene
 from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import import_features
 from ris_planner.io_json import validation_problems
-from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES, count
+from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count, map_points
 from ris_planner.obstacles import Environment, Prism
 from ris_planner.planning.document import Facades, RISDefaults, UEMap, Wall
+from ris_planner.planning.maps import build_map
+from ris_planner.planning.sites import Site, facade_walls, wall_poses
+from ris_planner.planning.visibility import serve_matrix
 from ris_planner.scenario import RIS
 
 FloatArray = NDArray[np.float64]
 
 Kind = Literal["facade", "pole"]
+
+KINDS: tuple[Kind, ...] = ("facade", "pole")
+
+Row = tuple[list[float], float, float, str, int | None, int | None, int | None]
+"""One generated site: (position, yaw, tilt [rad], name, obstacle, facade edge, road)."""
 
 DEFAULT_POLE_ROAD_CLASSES: tuple[str, ...] = (
     "trunk",
@@ -96,7 +105,7 @@ class CandidateOptions(DocumentModel):
     """How candidate sites are laid out (module docstring; docs/guides/candidates.md)."""
 
     kinds: list[Kind] = Field(
-        default_factory=lambda: ["facade", "pole"],
+        default_factory=lambda: list(KINDS),
         min_length=1,
         max_length=2,
         description="Which sites to generate: facade (on building walls), pole (along roads)",
@@ -211,6 +220,33 @@ class _Sites:
     facade: list[int | None]
     road: list[int | None]
 
+    @classmethod
+    def of_rows(cls, rows: list[Row]) -> _Sites:
+        return cls(
+            np.array([r[0] for r in rows], dtype=float).reshape(-1, 3),
+            np.array([r[1] for r in rows], dtype=float),
+            np.array([r[2] for r in rows], dtype=float),
+            ["facade" if r[4] is not None else "pole" for r in rows],
+            _unique_names([r[3] for r in rows]),
+            [r[4] for r in rows],
+            [r[5] for r in rows],
+            [r[6] for r in rows],
+        )
+
+    def take(self, idx: NDArray[np.int_]) -> _Sites:
+        """The sites ``idx``, in that order."""
+        i = idx.tolist()
+        return _Sites(
+            self.position[idx],
+            self.yaw[idx],
+            self.tilt[idx],
+            [self.kind[k] for k in i],
+            [self.name[k] for k in i],
+            [self.obstacle[k] for k in i],
+            [self.facade[k] for k in i],
+            [self.road[k] for k in i],
+        )
+
 
 @dataclass(frozen=True)
 class _Site:
@@ -242,9 +278,7 @@ def _site_field(prefix: str, local: str) -> Iterator[None]:
     try:
         yield
     except ValidationError as exc:
-        raise DocumentFieldError(
-            f"site.{prefix}", "; ".join(validation_problems(exc))
-        ) from None
+        raise DocumentFieldError(f"site.{prefix}", "; ".join(validation_problems(exc))) from None
     except DocumentFieldError as exc:
         where = exc.field.replace(local, prefix, 1) if exc.field.startswith(local) else exc.field
         raise DocumentFieldError(f"site.{where}", exc.reason) from None
@@ -252,8 +286,6 @@ def _site_field(prefix: str, local: str) -> Iterator[None]:
 
 def _local_map(frame_spec: Any, ue_map: dict[str, Any], key: str) -> UEMap:
     """A UE map of the site's frame → the validated local map (its points counted first)."""
-    from ris_planner.limits import Sizes, check_sizes, map_points
-
     with _site_field(key, "tx_map"):
         local, _ = to_local({"frame": frame_spec, "tx_map": ue_map})
         spec = UEMap.model_validate(local["tx_map"])
@@ -261,7 +293,9 @@ def _local_map(frame_spec: Any, ue_map: dict[str, Any], key: str) -> UEMap:
     return spec
 
 
-def _pole_roads(collection: dict[str, Any], origin: tuple[float, ...], classes: list[str] | None):
+def _pole_roads(
+    collection: dict[str, Any], origin: tuple[float, ...], classes: list[str] | None
+) -> list[dict[str, Any]]:
     """The roads of a GeoJSON site that carry poles (their ``highway`` class is chosen), as an
     imported ``ue_map`` roads list in the site's frame."""
     if classes is None:
@@ -284,17 +318,16 @@ def _pole_roads(collection: dict[str, Any], origin: tuple[float, ...], classes: 
 
 def _parse_site(site: Any, options: CandidateOptions) -> _Site:
     """A GeoJSON site or an imported document → frame, prisms, UE points and pole roads."""
-    from ris_planner.environment import Scene
-    from ris_planner.planning.maps import build_map
-
     if not isinstance(site, dict):
         raise RisPlannerError("site: expected a GeoJSON FeatureCollection or an imported document")
     carried = {k: site[k] for k in ATTRIBUTION_KEYS if isinstance(site.get(k), str)}
     notes: list[str] = []
     if site.get("type") == "FeatureCollection":
-        doc, _ = import_features(site)
-        origin = tuple(doc["frame"]["origin"])
-        pole_roads = _pole_roads(site, origin, options.road_classes) if "pole" in options.kinds else []
+        with _site_field("features", "features"):
+            doc, _ = import_features(site)
+            origin = tuple(doc["frame"]["origin"])
+            wanted = "pole" in options.kinds
+            pole_roads = _pole_roads(site, origin, options.road_classes) if wanted else []
     elif "frame" in site:
         doc = site
         pole_roads = []
@@ -350,6 +383,11 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
     )
 
 
+def _label_index(label: str) -> int:
+    """12 of 'B12 (name)'."""
+    return int(label[1:].split()[0])
+
+
 def _label(environment: Environment, k: int) -> str:
     name = environment.obstacles[k].name
     return f"B{k} ({name})" if name else f"B{k}"
@@ -386,14 +424,10 @@ def estimate_sites(site: _Site, options: CandidateOptions) -> int:
     return total
 
 
-def _facade_sites(
-    site: _Site, options: CandidateOptions, summary: CandidateSummary
-) -> list[tuple[list[float], float, float, str, int | None, int | None, int | None]]:
+def _facade_sites(site: _Site, options: CandidateOptions, summary: CandidateSummary) -> list[Row]:
     """(position, yaw, tilt, name, obstacle, facade, road) of every facade site: each edge a
     :func:`facade_walls` wall, clipped by the corner clearance, laid out by :func:`wall_poses`."""
-    from ris_planner.planning.sites import facade_walls, wall_poses
-
-    out = []
+    out: list[Row] = []
     tilts = [math.radians(t) for t in options.tilts_deg]
     c = options.corner_clearance_m
     for k, ob in enumerate(site.environment.obstacles):
@@ -456,11 +490,9 @@ def _along(line: FloatArray, s: FloatArray) -> tuple[FloatArray, FloatArray]:
     return start[j] + (s - cum[j])[:, None] * t, t
 
 
-def _pole_sites(
-    site: _Site, options: CandidateOptions, summary: CandidateSummary
-) -> list[tuple[list[float], float, float, str, int | None, int | None, int | None]]:
+def _pole_sites(site: _Site, options: CandidateOptions, summary: CandidateSummary) -> list[Row]:
     """(position, yaw, tilt, name, obstacle, facade, road) of every pole (module docstring)."""
-    out = []
+    out: list[Row] = []
     short = 0
     for r, (line, width) in enumerate(site.roads):
         summary.roads += 1
@@ -469,7 +501,7 @@ def _pole_sites(
         if n == 0:
             short += 1
             continue
-        s = (np.arange(n) + 0.5) * (length / n)
+        s = np.asarray((np.arange(n) + 0.5) * (length / n), dtype=float)
         centre, t = _along(line, s)
         left = np.column_stack([-t[:, 1], t[:, 0]])
         side = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)[:, None]
@@ -491,10 +523,6 @@ def _pole_sites(
 
 def _serves(site: _Site, sites: _Sites, options: CandidateOptions) -> NDArray[np.int_]:
     """[S] UE points each site serves (field of view and a clear leg), in batches."""
-    from ris_planner.environment import Scene
-    from ris_planner.planning.sites import Site
-    from ris_planner.planning.visibility import serve_matrix
-
     grid = RISDefaults(max_angle_deg=options.max_angle_deg).model_dump()
     scene = Scene.from_environment(site.environment)
     pts = site.ue_points
@@ -576,41 +604,18 @@ def candidate_sites(
             f" the limit of {max_tests}; use a larger spacing, a coarser UE map or a smaller site",
             max_tests,
         )
-    rows = []
+    rows: list[Row] = []
     if "facade" in opts.kinds:
         rows += _facade_sites(parsed, opts, summary)
     if "pole" in opts.kinds:
         rows += _pole_sites(parsed, opts, summary)
     summary.generated = len(rows)
-    if not rows:
-        return _collection(parsed, [], np.zeros(0, dtype=int)), _finish(summary, parsed, [])
-    sites = _Sites(
-        np.array([r[0] for r in rows], dtype=float).reshape(-1, 3),
-        np.array([r[1] for r in rows], dtype=float),
-        np.array([r[2] for r in rows], dtype=float),
-        ["facade" if r[4] is not None else "pole" for r in rows],
-        _unique_names([r[3] for r in rows]),
-        [r[4] for r in rows],
-        [r[5] for r in rows],
-        [r[6] for r in rows],
-    )
-    from ris_planner.environment import Scene
-
+    sites = _Sites.of_rows(rows)
     outside = Scene.from_environment(parsed.environment).inside(sites.position) < 0
     summary.dropped_inside = int(np.count_nonzero(~outside))
     sees = np.zeros(len(rows), dtype=int)
     idx = np.nonzero(outside)[0]
-    sub = _Sites(
-        sites.position[idx],
-        sites.yaw[idx],
-        sites.tilt[idx],
-        [sites.kind[i] for i in idx],
-        [sites.name[i] for i in idx],
-        [sites.obstacle[i] for i in idx],
-        [sites.facade[i] for i in idx],
-        [sites.road[i] for i in idx],
-    )
-    sees[idx] = _serves(parsed, sub, opts)
+    sees[idx] = _serves(parsed, sites.take(idx), opts)
     seen = outside & (sees > 0)
     summary.dropped_unseen = int(np.count_nonzero(outside & (sees == 0)))
     keep = np.nonzero(seen)[0]
@@ -618,9 +623,11 @@ def candidate_sites(
         order = keep[np.argsort(-sees[keep], kind="stable")]
         keep = np.sort(order[: opts.max_candidates])
         summary.dropped_max_candidates = int(np.count_nonzero(seen)) - len(keep)
-    kept = [(i, sites) for i in keep.tolist()]
     _reasons(summary, parsed, sites, outside, sees, set(keep.tolist()))
-    return _collection(parsed, kept, sees), _finish(summary, parsed, kept)
+    kept = sites.take(keep)
+    summary.candidates = len(keep)
+    summary.by_kind = {k: kept.kind.count(k) for k in KINDS if k in kept.kind}
+    return _collection(parsed, kept, sees[keep]), summary
 
 
 def _reasons(
@@ -646,56 +653,32 @@ def _reasons(
         else:
             why = "its sites see fewer UE points than the max_candidates kept"
         summary.buildings_without_candidates[_label(site.environment, k)] = why
-
-
-def _finish(
-    summary: CandidateSummary, site: _Site, kept: list[tuple[int, _Sites]]
-) -> CandidateSummary:
-    summary.candidates = len(kept)
-    kinds: dict[str, int] = {}
-    for i, sites in kept:
-        kinds[sites.kind[i]] = kinds.get(sites.kind[i], 0) + 1
-    summary.by_kind = kinds
     summary.buildings_without_candidates = dict(
-        sorted(summary.buildings_without_candidates.items(), key=lambda kv: int(kv[0][1:].split()[0]))
+        sorted(summary.buildings_without_candidates.items(), key=lambda kv: _label_index(kv[0]))
     )
-    return summary
 
 
-def _collection(
-    site: _Site, kept: list[tuple[int, _Sites]], sees: NDArray[np.int_]
-) -> dict[str, Any]:
+def _collection(site: _Site, sites: _Sites, sees: NDArray[np.int_]) -> dict[str, Any]:
     """The FeatureCollection of the kept sites (WGS84, full float precision)."""
+    lonlath = site.frame.to_geographic(sites.position).reshape(-1, 3)
+    azimuth = azimuth_of_yaw(sites.yaw)
+    obstacles = site.environment.obstacles
     features = []
-    if kept:
-        sites = kept[0][1]
-        idx = [i for i, _ in kept]
-        pos = sites.position[idx]
-        lonlath = site.frame.to_geographic(pos)
-        azimuth = azimuth_of_yaw(sites.yaw[idx])
-        for j, i in enumerate(idx):
-            k = sites.obstacle[i]
-            props: dict[str, Any] = {
-                "name": sites.name[i],
-                "kind": sites.kind[i],
-                "azimuth_deg": float(azimuth[j]),
-                "tilt_deg": math.degrees(float(sites.tilt[i])),
-                "height_m": float(pos[j, 2]),
-                "building": None
-                if k is None
-                else (site.environment.obstacles[k].name or f"obstacle {k}"),
-                "obstacle": k,
-                "facade": sites.facade[i],
-                "road": sites.road[i],
-                "sees_points": int(sees[i]),
-            }
-            features.append(
-                {
-                    "type": "Feature",
-                    "properties": props,
-                    "geometry": {"type": "Point", "coordinates": lonlath[j].tolist()},
-                }
-            )
+    for j, k in enumerate(sites.obstacle):
+        props: dict[str, Any] = {
+            "name": sites.name[j],
+            "kind": sites.kind[j],
+            "azimuth_deg": float(azimuth[j]),
+            "tilt_deg": math.degrees(float(sites.tilt[j])),
+            "height_m": float(sites.position[j, 2]),
+            "building": None if k is None else (obstacles[k].name or f"obstacle {k}"),
+            "obstacle": k,
+            "facade": sites.facade[j],
+            "road": sites.road[j],
+            "sees_points": int(sees[j]),
+        }
+        geometry = {"type": "Point", "coordinates": lonlath[j].tolist()}
+        features.append({"type": "Feature", "properties": props, "geometry": geometry})
     return {
         "type": "FeatureCollection",
         **site.carried,

@@ -123,7 +123,11 @@ def _cmd_sites(args: argparse.Namespace) -> int:
         sys.stdout.write(text + "\n")
     s = summary.to_json()
     kinds = ", ".join(f"{n} {k}" for k, n in s["by_kind"].items()) or "none"
-    print(f"sites: {s['candidates']} candidates ({kinds}) of {s['generated']} generated", end="", file=sys.stderr)
+    print(
+        f"sites: {s['candidates']} candidates ({kinds}) of {s['generated']} generated",
+        end="",
+        file=sys.stderr,
+    )
     print(
         f"; dropped: {s['dropped_inside']} inside a building, {s['dropped_unseen']} seeing no"
         f" UE point, {s['dropped_max_candidates']} beyond max_candidates;"
@@ -170,7 +174,9 @@ def _add_sites(sub: argparse._SubParsersAction) -> None:
         help=f"kept free at both facade ends [m] ({d.corner_clearance_m:g})",
     )
     p.add_argument(
-        "--offset-m", type=finite_float, help=f"RIS centre in front of the wall [m] ({d.offset_m:g})"
+        "--offset-m",
+        type=finite_float,
+        help=f"RIS centre in front of the wall [m] ({d.offset_m:g})",
     )
     p.add_argument(
         "--max-angle-deg",
