@@ -42,6 +42,13 @@ def test_sites_of_the_helsinki_site(server: str) -> None:
     assert {k: v for k, v in answer.items() if k != "summary"} == want
     assert answer["type"] == "FeatureCollection" and answer["license"].startswith("©")
     assert summary.candidates == 200 and set(summary.by_kind) == {"facade", "pole"}
+    # the answer as it is is a sites file: POST /v1/import takes it, in the site's frame
+    r = httpx.post(f"{server}/v1/import?format=sites", json=answer, timeout=60)
+    assert r.status_code == 200, r.text
+    fragment = r.json()["fragment"]
+    assert fragment["frame"] == answer["frame"] and len(fragment["candidates"]) == 200
+    names = [c["name"] for c in fragment["candidates"]]
+    assert names == [f["properties"]["name"] for f in answer["features"]]
     # the document POST /v1/import makes of the site: the same frame, prisms, streets
     imported = httpx.post(f"{server}/v1/import", json=helsinki(), timeout=60)
     assert imported.status_code == 200, imported.text

@@ -29,7 +29,8 @@ Rules (:class:`CandidateOptions` holds every default):
 * A site is kept only when it serves at least one UE point (the map's points, outside the
   buildings): the point is within its field of view (``max_angle_deg`` from the normal) and
   the leg is not blocked (:func:`~ris_planner.planning.visibility.serve_matrix`, batched over
-  every site and point; the rules of docs/guides/environment.md). ``sees_points`` counts them.
+  every site and point; the rules of :mod:`ris_planner.environment.scene`). ``sees_points``
+  counts them.
 * Above ``max_candidates``, the sites that serve the most points are kept (ties: input order).
 
 ``azimuth_deg`` is the compass direction the RIS faces in the output's ``frame`` (the local
