@@ -231,6 +231,19 @@ def test_helsinki_no_candidate_inside_a_building() -> None:
     assert s.dropped_max_candidates == summary.candidates - 10
 
 
+def test_road_classes_choose_the_roads_with_poles() -> None:
+    _, s_streets = helsinki_candidates(kinds=["pole"], road_classes=["residential"])
+    every, s_every = helsinki_candidates(kinds=["pole"], road_classes=None)
+    assert 0 < s_streets.roads < s_every.roads and s_streets.ue_points == s_every.ue_points
+    assert 0 < s_streets.candidates <= s_every.candidates
+    # an imported document's roads carry no class: all of them carry poles, and a note says so
+    fragment, _ = import_features(json.loads((HELSINKI / "helsinki.geojson").read_text()))
+    opts = CandidateOptions(kinds=["pole"], road_classes=["residential"])
+    fc, summary = candidate_sites(fragment, opts)
+    assert summary.roads == s_every.roads and fc["features"] == every["features"]
+    assert any("road_classes apply to a GeoJSON site only" in n for n in summary.notes)
+
+
 def test_the_file_goes_into_a_plan_as_it_is(tmp_path: Path) -> None:
     """generate → ``ris-planner import sites`` (the collection's frame, no --origin) → the same
     candidates as import_sites with the origin; the plan document takes them and runs."""
@@ -296,5 +309,9 @@ def test_cli_sites(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
         assert main(["sites", src, *bad]) == 2
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and field in err, err
+    # ris-planner import sites reads the file as it is, in the site's frame
+    assert main(["import", "sites", str(out)]) == 0
+    fragment = json.loads(capsys.readouterr().out)
+    assert fragment == import_sites(fc, tuple(fc["frame"]["origin"]))[0]
     assert main(["sites", str(tmp_path / "missing.geojson")]) == 2
     assert "cannot read" in capsys.readouterr().err

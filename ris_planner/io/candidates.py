@@ -42,6 +42,7 @@ is the RIS centre's height above ``frame.origin``'s height.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -331,12 +332,12 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
             pole_roads = _pole_roads(site, origin, options.road_classes) if wanted else []
     elif "frame" in site:
         doc = site
-        pole_roads = []
+        distinct: dict[str, Any] = {}  # tx_map and rx_map of a plan document repeat the roads
         for _, m in _maps_of(doc):
             roads = m.get("roads")
             for r in roads if isinstance(roads, list) else []:
-                if r not in pole_roads:
-                    pole_roads.append(r)
+                distinct.setdefault(json.dumps(r, sort_keys=True), r)
+        pole_roads = list(distinct.values())
         if "pole" in options.kinds and options.road_classes != list(DEFAULT_POLE_ROAD_CLASSES):
             notes.append(
                 "road_classes apply to a GeoJSON site only: an imported document's roads"
@@ -368,11 +369,10 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
         )
     inside = Scene.from_environment(environment).inside(points) >= 0
     roads = []
-    for road in pole_roads:
-        local = _local_map(frame_spec, {"roads": [road]}, "roads")
+    if pole_roads:
+        local = _local_map(frame_spec, {"roads": pole_roads}, "roads")
         assert local.roads is not None
-        (r,) = local.roads
-        roads.append((np.asarray(r.points, dtype=float), float(r.width_m)))
+        roads = [(np.asarray(r.points, dtype=float), float(r.width_m)) for r in local.roads]
     return _Site(
         frame,
         environment,
