@@ -19,6 +19,7 @@ from pydantic.json_schema import models_json_schema
 
 from api.errors import MalformedBodyError
 from ris_planner.errors import RisPlannerError
+from ris_planner.io.candidates import CandidateOptions
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io_json import parse_json
 from ris_planner.planning import PlanDocument
@@ -56,6 +57,7 @@ DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (
     Scenario,
     LayoutBeamsDocument,
     GeoDocument,
+    CandidateOptions,
 )
 """Models the request bodies of :func:`document_body` refer to (added to the OpenAPI
 components by :func:`install_document_schemas`)."""

@@ -153,7 +153,7 @@ REGISTRARS: dict[str, tuple[str, ...]] = {
     "ris_planner.power.cli:add_cli": ("power",),
     "ris_planner.planning.cli:add_cli": ("plan",),
     "ris_planner.estimation.cli:add_cli": ("simulate", "blind-area"),
-    "ris_planner.io.cli:add_cli": ("import",),
+    "ris_planner.io.cli:add_cli": ("import", "sites"),
     "ris_planner.cli:_add_serve": ("serve",),
 }
 """Every feature's ``add_cli`` ("module:function") and the subcommands it registers, in help

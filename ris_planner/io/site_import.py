@@ -61,6 +61,21 @@ def parse_origin(text: str | None) -> tuple[float, ...] | None:
     return vals
 
 
+def collection_origin(collection: Any) -> tuple[float, ...] | None:
+    """The ``frame.origin`` a FeatureCollection carries as a top-level member (the candidate
+    files of ``ris-planner sites``: their azimuths are those of that frame), else ``None``."""
+    frame = collection.get("frame") if isinstance(collection, dict) else None
+    origin = frame.get("origin") if isinstance(frame, dict) else None
+    if (
+        isinstance(origin, list)
+        and len(origin) in (2, 3)
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in origin)
+        and all(math.isfinite(v) for v in origin)
+    ):
+        return tuple(float(v) for v in origin)
+    return None
+
+
 @dataclass
 class ImportReport:
     """What an import did: the parser's summary, and what :func:`plan_from_import` added."""
@@ -130,7 +145,9 @@ def import_data(
     ``geojson``: :func:`import_features`, and its Point features as mounting points
     (:func:`import_sites`: ``azimuth_deg`` and a height required), so one file can carry a
     whole site; ``sites``: :func:`import_sites`; ``osm``: :func:`osm_xml_features` then
-    :func:`import_features`; ``dxf``: :func:`import_dxf` with ``layers`` and ``units``."""
+    :func:`import_features`; ``dxf``: :func:`import_dxf` with ``layers`` and ``units``. Without
+    ``origin``, a GeoJSON collection's top-level ``frame`` (:func:`collection_origin`) gives it,
+    else the features' bounding-box centre."""
     opts = options or ImportOptions()
     if fmt == "dxf":
         return import_dxf(read_dxf(data, what), layers or {}, units)
@@ -142,6 +159,7 @@ def import_data(
         notes = osm_summary.notes
     else:
         collection = parse_json_object(data, what)
+        origin = origin if origin is not None else collection_origin(collection)
     if fmt == "sites":
         fragment, s = import_sites(collection, origin, opts)
         return fragment, s.to_json()
