@@ -131,3 +131,13 @@ def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
     for names in REGISTRARS.values():
         for name in names:
             assert name in out
+    # the table names exactly what each feature registers (a run builds only its own)
+    import argparse
+
+    from ris_planner.cli import _registrar
+
+    for path, names in REGISTRARS.items():
+        parser = argparse.ArgumentParser()
+        sub = parser.add_subparsers()
+        _registrar(path)(sub)
+        assert tuple(sub.choices) == names, path
