@@ -213,7 +213,7 @@ def test_projected_crs_frame_matches_lonlat_frame() -> None:
 @pytest.mark.parametrize(
     ("frame", "match"),
     [
-        ({"origin": [60.17, 24.95, 0]}, r"lies \d+ km from the frame origin"),  # swapped origin
+        ({"origin": [60.17, 24.95, 0]}, r"^frame\.origin: .*lies among them: lat/lon swapped\?"),
         ({"origin": [200, 10]}, "not a WGS84 position"),
         ({"crs": "EPSG:4326"}, "not a projected CRS"),
         ({"crs": "EPSG:999999"}, "unknown CRS"),
@@ -320,14 +320,14 @@ def test_far_point_precheck_against_geodesics(origin: tuple[float, float, float]
     """The great-circle distance that refuses far points before projecting (the tmerc frame is
     undefined 90° from its meridian) against pyproj's geodesics; a point on the far side of the
     Earth is refused naming its field, not a projection error."""
-    from ris_planner.io.frames import _great_circle_m
+    from ris_planner.io.frames import great_circle_m
 
     rng = np.random.default_rng(7)
     ll = np.column_stack([rng.uniform(-180, 180, 200), rng.uniform(-80, 80, 200)])
     _, _, want = GEOD.inv(np.full(200, origin[0]), np.full(200, origin[1]), ll[:, 0], ll[:, 1])
-    got = _great_circle_m(ll, origin)
+    got = great_circle_m(ll, origin)
     assert np.allclose(got, want, rtol=GREAT_CIRCLE_RTOL, atol=1.0)
     antipode = [origin[0] - 180 if origin[0] > 0 else origin[0] + 180, -origin[1], 0.0]
-    doc = {"frame": {"origin": list(origin)}, "rx": antipode}
+    doc = {"frame": {"origin": list(origin)}, "tx": list(origin), "rx": antipode}
     with pytest.raises(RisPlannerError, match=r"^rx: .* lies 200\d\d km from the frame origin"):
         to_local(doc)

@@ -63,6 +63,14 @@ SQUARE = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]]
 L_SHAPE = [[30.0, 0.0], [50.0, 0.0], [50.0, 8.0], [38.0, 8.0], [38.0, 25.0], [30.0, 25.0]]
 
 
+def _at(feature: dict) -> str:
+    """How messages write a feature's first position."""
+    coords = feature["geometry"]["coordinates"]
+    while isinstance(coords[0], list):
+        coords = coords[0]
+    return f"[{coords[0]:.6f}, {coords[1]:.6f}]"
+
+
 def _import(*features: dict, **opts: object) -> tuple[dict, object]:
     fragment, summary = import_features(_fc(*features), ORIGIN, ImportOptions(**opts))  # type: ignore[arg-type]
     return fragment, summary
@@ -84,13 +92,15 @@ def test_building_heights_levels_defaults_and_holes() -> None:
     ]
     fragment, summary = _import(*features)
     obs = fragment["environment"]["obstacles"]
-    assert [o["name"] for o in obs] == ["way/1", "way/2", "Shed", "way/4"]
+    # the courtyard building is cut into simple pieces (tests below: the hole stays open)
+    assert [o["name"] for o in obs] == ["way/1", "way/2", "Shed", "way/4#0", "way/4#1"]
     assert obs[0]["height_m"] == 21.5 and obs[0]["base_m"] == 0
     assert obs[1]["height_m"] == 5 * METRES_PER_LEVEL
     assert obs[2]["height_m"] == DEFAULT_BUILDING_HEIGHT_M
-    assert obs[3]["base_m"] == 3 and obs[3]["height_m"] == 9
-    assert summary.default_height == ["feature 2 (id way/3, name 'Shed')"]
-    assert summary.heights_from_levels == 1 and summary.holes_dropped == 1
+    assert all(o["base_m"] == 3 and o["height_m"] == 9 for o in obs[3:])
+    assert summary.default_height == ["feature 2 (id way/3, name 'Shed') at " + _at(features[2])]
+    assert summary.heights_from_levels == 1 and summary.courtyards == 1
+    assert summary.tag_problems == [] and summary.repaired == []
     assert summary.skipped == 1  # building=no
     local, _ = to_local(fragment)
     env = Environment.model_validate(local["environment"])
@@ -130,26 +140,36 @@ def test_imported_building_blocks_the_same_legs_as_the_metre_prism() -> None:
 @pytest.mark.parametrize(
     ("geometry", "match"),
     [
-        (_poly([[0, 0], [10, 10], [10, 0], [0, 10]]), "feature 0 \\(id way/9.*Self-intersection"),
+        (
+            _poly([[0, 0], [10, 10], [10, 0], [0, 10]]),
+            "feature 0 \\(id way/9\\) at \\[24.949000, 60.165500\\].*Self-intersection at"
+            " \\[24.94909\\d, 60.16554\\d\\]",
+        ),
         ({"type": "Polygon", "coordinates": []}, "feature 0 \\(id way/9.*empty"),
         (
             {"type": "Polygon", "coordinates": [_ring(SQUARE)[:-1]]},
-            "feature 0 \\(id way/9.*ring 0: ring is not closed",
+            "feature 0 \\(id way/9.*ring not closed",
         ),
         (
-            {"type": "Polygon", "coordinates": [[[p[1], p[0]] for p in _ring(SQUARE)]]},
-            "feature 0 \\(id way/9.*km from the origin.*swapped",
+            {"type": "Polygon", "coordinates": [[list(ORIGIN[:2])] * 4]},
+            "feature 0 \\(id way/9.*at least 3 distinct",
         ),
         (
             {"type": "Polygon", "coordinates": [[[200, 0], [201, 0], [201, 1], [200, 0]]]},
             "feature 0 \\(id way/9.*not a WGS84",
+        ),
+        (
+            {"type": "Polygon", "coordinates": [[[24.9, 95], [24.91, 95], [24.9, 95.1], [24.9, 95]]]},
+            "feature 0 \\(id way/9\\) at \\[24.900000, 95.000000\\].*not a WGS84.*swapped\\?",
         ),
         ({"type": "LineString", "coordinates": [[24.9, 60.1]]}, "at least 2 distinct"),
     ],
 )
 def test_invalid_geometries_name_the_feature(geometry: dict, match: str) -> None:
     with pytest.raises(RisPlannerError, match=match) as info:
-        _import(_feature(geometry, "way/9", building="yes", highway="residential"))
+        _import(
+            _feature(geometry, "way/9", building="yes", highway="residential"), invalid="error"
+        )
     # the feature's path for the service's 422, and an error that survives a process boundary
     assert isinstance(info.value, FeatureError) and info.value.field == "features.0"
     back = pickle.loads(pickle.dumps(info.value))
@@ -306,9 +326,10 @@ def test_cli_import_geojson_and_errors(tmp_path: Path, capsys: pytest.CaptureFix
     assert "import summary" in captured.err and "way/1" in captured.err
     bad = tmp_path / "bad.geojson"
     bad.write_text(json.dumps(_fc(_feature(_poly([[0, 0], [10, 10], [10, 0], [0, 10]]), "w/7"))))
-    assert main(["import", "geojson", str(bad)]) == 2
+    assert main(["import", "geojson", str(bad), "--invalid", "error"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: feature 0 (id w/7)") and err.count("\n") == 1
+    assert err.startswith("error: feature 0 (id w/7) at [") and err.count("\n") == 1
+    assert "invalid outline (Self-intersection at [" in err
 
 
 def test_helsinki_data_imports() -> None:
