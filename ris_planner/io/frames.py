@@ -139,6 +139,10 @@ class Frame:
     origin: tuple[float, float, float]
     source_crs: str = WGS84
 
+    def __post_init__(self) -> None:
+        # plain floats (a numpy scalar's repr would end up in the PROJ string)
+        object.__setattr__(self, "origin", tuple(float(v) for v in self.origin))
+
     @property
     def proj4(self) -> str:
         lon, lat, _ = self.origin

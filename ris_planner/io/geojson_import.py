@@ -771,12 +771,13 @@ def simple_pieces(poly: Any, overlap_m: float = PIECE_OVERLAP_M) -> list[Any]:
 def _footprints(
     poly: Any, frame: Frame, where: str, shapely: Any
 ) -> list[list[list[float]]]:
-    """Lon/lat footprints (open rings, 1e-9° digits) of the simple pieces of a valid local
-    polygon, each checked as a prism footprint after the round trip."""
+    """Lon/lat footprints (open rings, full float digits: the round trip to metres is exact to
+    nanometres) of the simple pieces of a valid local polygon, each checked as a prism
+    footprint after the round trip."""
     out = []
     for piece in simple_pieces(poly):
         ring = np.asarray(piece.exterior.coords)[:-1]
-        ll = np.round(frame.to_geographic(ring), _COORD_DIGITS)
+        ll = frame.to_geographic(ring)
         keep = np.any(ll != np.roll(ll, 1, axis=0), axis=1)
         ll = ll[keep]
         problem = footprint_problem(frame.from_source(ll)) if len(ll) >= 3 else "degenerate"
@@ -882,7 +883,8 @@ def import_features(
                 raise RisPlannerError(f"{label}: no geometry (empty)")
             entry = feature_entry(i, feat)
             kind = geom.get("type")
-            name = props.get("name") or (str(feat["id"]) if feat.get("id") is not None else None)
+            fid = _ident(feat)[0]
+            name = props.get("name") or (str(fid) if fid is not None else None)
             if kind in ("Polygon", "MultiPolygon"):
                 try:
                     raw_polys = _polygons(geom, label)
