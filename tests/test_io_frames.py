@@ -12,7 +12,7 @@ import pytest
 
 pyproj = pytest.importorskip("pyproj")
 
-from ris_planner.errors import RisPlannerError  # noqa: E402
+from ris_planner.errors import DocumentFieldError, RisPlannerError  # noqa: E402
 from ris_planner.io.frames import MAX_FRAME_RADIUS_M, Frame, to_local  # noqa: E402
 
 GEOD = pyproj.Geod(ellps="WGS84")
@@ -331,3 +331,27 @@ def test_far_point_precheck_against_geodesics(origin: tuple[float, float, float]
     doc = {"frame": {"origin": list(origin)}, "tx": list(origin), "rx": antipode}
     with pytest.raises(RisPlannerError, match=r"^rx: .* lies 200\d\d km from the frame origin"):
         to_local(doc)
+
+
+def test_a_swapped_origin_is_blamed_on_the_origin_not_a_point() -> None:
+    """Every point far from the origin while the origin read as [lat, lon] lies among them:
+    the origin is at fault (checked before any single point is blamed)."""
+    doc = {
+        "frame": {"origin": [60.1655, 24.949, 0.0]},
+        "candidates": [{"position": [24.9491, 60.1656, 5.0], "orientation": [0, 0, 0]}],
+        "tx_map": {"points": [[24.949, 60.1655, 1.5], [24.9495, 60.1652, 1.5]]},
+    }
+    with pytest.raises(DocumentFieldError, match=r"^frame\.origin: .*swapped\?") as info:
+        to_local(doc)
+    assert info.value.field == "frame.origin"
+    # an origin far from everything, not swapped: still the origin's fault
+    with pytest.raises(DocumentFieldError, match=r"^frame\.origin: .*the wrong origin") as info:
+        to_local(doc | {"frame": {"origin": [10.0, 50.0]}})
+    # one point swapped among good ones: that point, with "swapped?"
+    bad = doc | {"frame": {"origin": [24.949, 60.1655]}}
+    bad["tx_map"] = {"points": [[24.949, 60.1655, 1.5], [60.1652, 24.9495, 1.5]]}
+    with pytest.raises(DocumentFieldError, match=r"^tx_map\.points\.1: .*swapped\?"):
+        to_local(bad)
+    # licence fields are taken off (the exports carry them), with or without a frame
+    local, frame = to_local({"license": "ODbL", "tx": [0.0, 0.0, 0.0]})
+    assert local == {"tx": [0.0, 0.0, 0.0]} and frame is None
