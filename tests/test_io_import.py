@@ -161,7 +161,10 @@ def test_imported_building_blocks_the_same_legs_as_the_metre_prism() -> None:
             "feature 0 \\(id way/9.*not a WGS84",
         ),
         (
-            {"type": "Polygon", "coordinates": [[[24.9, 95], [24.91, 95], [24.9, 95.1], [24.9, 95]]]},
+            {
+                "type": "Polygon",
+                "coordinates": [[[24.9, 95], [24.91, 95], [24.9, 95.1], [24.9, 95]]],
+            },
             "feature 0 \\(id way/9\\) at \\[24.900000, 95.000000\\].*not a WGS84.*swapped\\?",
         ),
         ({"type": "LineString", "coordinates": [[24.9, 60.1]]}, "at least 2 distinct"),
@@ -169,9 +172,7 @@ def test_imported_building_blocks_the_same_legs_as_the_metre_prism() -> None:
 )
 def test_invalid_geometries_name_the_feature(geometry: dict, match: str) -> None:
     with pytest.raises(RisPlannerError, match=match) as info:
-        _import(
-            _feature(geometry, "way/9", building="yes", highway="residential"), invalid="error"
-        )
+        _import(_feature(geometry, "way/9", building="yes", highway="residential"), invalid="error")
     # the feature's path for the service's 422, and an error that survives a process boundary
     assert isinstance(info.value, FeatureError) and info.value.field == "features.0"
     back = pickle.loads(pickle.dumps(info.value))
@@ -467,7 +468,7 @@ def test_a_repair_that_changes_the_area_is_flagged() -> None:
     # the outline loops back over itself: its lines enclose 225 m², of which 50 m² twice
     # over; the valid (even-odd) repair keeps 175 m²
     fold = [[0, 0], [20, 0], [20, 10], [5, 10], [5, -5], [15, -5], [15, 5], [0, 5]]
-    fragment, summary = _import(_feature(_poly(fold), "way/3", building="yes"))
+    _, summary = _import(_feature(_poly(fold), "way/3", building="yes"))
     (entry,) = summary.repaired
     assert (entry["area_before_m2"], entry["area_after_m2"]) == (225, 175)
     assert "warning" in entry and "changed the enclosed area" in entry["warning"]
@@ -515,7 +516,9 @@ def _courtyard_scene(overlap_m: float | None = None) -> tuple[Scene, list[Prism]
     from ris_planner.io import geojson_import as gi
 
     if overlap_m is None:
-        fragment, summary = _import(_feature(_poly(COURTYARD, HOLE), "way/5", building="yes", height=12))
+        fragment, summary = _import(
+            _feature(_poly(COURTYARD, HOLE), "way/5", building="yes", height=12)
+        )
     else:
         saved = gi.PIECE_OVERLAP_M
         try:
@@ -578,7 +581,9 @@ def test_a_ue_area_in_a_courtyard_imports_and_plans() -> None:
         _feature(_poly(COURTYARD, HOLE), "way/1", building="yes", height="12"),
         _feature(_poly([[13, 13], [27, 13], [27, 27], [13, 27]]), "way/2", density=1),
         *(
-            _feature({"type": "Point", "coordinates": pt(x, y)}, name=f"s{k}", height=6, azimuth_deg=az)
+            _feature(
+                {"type": "Point", "coordinates": pt(x, y)}, name=f"s{k}", height=6, azimuth_deg=az
+            )
             for k, (x, y, az) in enumerate(sites)
         ),
     )
@@ -607,7 +612,9 @@ def test_a_ue_area_in_a_courtyard_imports_and_plans() -> None:
 def test_unusable_height_tags_are_reported(
     tags: dict, problem: str, used: str, height: float
 ) -> None:
-    fragment, summary = _import(_feature(_poly(SQUARE), "way/4", building="yes", name="Talo", **tags))
+    fragment, summary = _import(
+        _feature(_poly(SQUARE), "way/4", building="yes", name="Talo", **tags)
+    )
     (entry,) = summary.tag_problems
     assert (entry["id"], entry["name"], entry["tag"], entry["value"]) == (
         "way/4",
@@ -673,16 +680,22 @@ def test_random_lat_lon_swaps_are_detected() -> None:
             assert str(info.value).startswith(f"feature {k} (id way/{k}) at [")
         ratio = math.cos(math.radians(lat)) / math.cos(math.radians(lon))
         if abs(math.log(ratio)) > math.log(1.3):
-            with pytest.raises(DocumentFieldError, match=r"swapped\?.*e\.g\. feature 0 \(id way/0\)"):
+            with pytest.raises(
+                DocumentFieldError, match=r"swapped\?.*e\.g\. feature 0 \(id way/0\)"
+            ):
                 import_features(_fc(*[_swap(f) for f in feats]))
-            import_features(_fc(*[_swap(f) for f in feats]), options=ImportOptions(swap_check=False))
+            import_features(
+                _fc(*[_swap(f) for f in feats]), options=ImportOptions(swap_check=False)
+            )
             checked_file += 1
     assert checked_file >= 10
 
 
 def test_a_swapped_origin_is_blamed_on_the_origin() -> None:
     feats = _town(np.random.default_rng(2), 24.949, 60.1655, 3)
-    with pytest.raises(DocumentFieldError, match=r"read as \[lat, lon\] the origin lies among") as info:
+    with pytest.raises(
+        DocumentFieldError, match=r"read as \[lat, lon\] the origin lies among"
+    ) as info:
         import_features(_fc(*feats), (60.1655, 24.949))
     assert info.value.field == "origin"
     assert re.search(r"nearest feature, feature \d \(id way/\d\) at \[24\.9", str(info.value))
@@ -718,10 +731,12 @@ def test_licence_is_carried_from_the_input() -> None:
     assert "license" not in local and "attribution" not in local  # not the engine's
     # OSM ids and no licence of its own: the ODbL, with a note
     fragment, summary = import_features(_fc(_feature(_poly(SQUARE), "way/1", building="yes")))
-    assert fragment["license"] == OSM_LICENSE and any("OpenStreetMap ids" in n for n in summary.notes)
+    assert fragment["license"] == OSM_LICENSE and any(
+        "OpenStreetMap ids" in n for n in summary.notes
+    )
     fragment, _ = import_features(_fc(_feature(_poly(SQUARE), "b1", building="yes")))
     assert "license" not in fragment
-    with pytest.raises(DocumentFieldError, match="^license: expected a text"):
+    with pytest.raises(DocumentFieldError, match=r"^license: expected a text"):
         to_local({"license": 5, "frame": {"origin": list(ORIGIN)}})
 
 
@@ -739,7 +754,7 @@ def test_real_osm_cut_imports_with_defaults() -> None:
     assert summary.buildings == 45 and summary.courtyards == 15 and summary.prisms == 61
     assert summary.repaired == [] and summary.skipped_invalid == []  # the extract has none
     prisms = _local_prisms(fragment)
-    local, frame = to_local(fragment)
+    _, frame = to_local(fragment)
     assert frame is not None
     # every courtyard building: its pieces cover exactly the polygon less its courtyards
     by_name: dict[str, list[Prism]] = {}
@@ -768,3 +783,51 @@ def test_real_osm_cut_imports_with_defaults() -> None:
     assert entry["id"] == fc["features"][i]["properties"]["@id"] and entry["feature"] == i
     _, summary = import_features(fc, options=ImportOptions(invalid="skip"))
     assert [e["id"] for e in summary.skipped_invalid] == [entry["id"]]
+
+
+def test_unusable_density_and_width_are_reported() -> None:
+    def line(xy: list[list[float]]) -> dict:
+        return {"type": "LineString", "coordinates": FRAME.to_geographic(np.array(xy)).tolist()}
+
+    fragment, summary = _import(
+        _feature(_poly(SQUARE), "a1", density="lots"),
+        _feature(_poly(L_SHAPE), "a2", density=-1),
+        _feature(line([[0, -10], [50, -10]]), "r1", highway="residential", width="wide"),
+        _feature(line([[0, -20], [50, -20]]), "r2", width="narrow"),
+    )
+    got = [(e["id"], e["tag"], e["used"]) for e in summary.tag_problems]
+    assert got == [
+        ("a1", "density", "feature skipped"),
+        ("a2", "density", "feature skipped"),
+        ("r1", "width", "the residential default 6 m"),
+        ("r2", "width", "not a road (skipped)"),
+    ]
+    assert summary.skipped == 2 and "environment" not in fragment and summary.areas == 0
+    assert [r["width_m"] for r in fragment["ue_map"]["roads"]] == [HIGHWAY_WIDTH_M["residential"]]
+
+
+def test_osm_xml_courtyard_relation_keeps_its_inner_ring(tmp_path: Path) -> None:
+    import shapely
+
+    outer = [[0, 0], [30, 0], [30, 30], [0, 30]]
+    inner = [[10, 10], [20, 10], [20, 20], [10, 20]]
+    ll = FRAME.to_geographic(np.array(outer + inner, dtype=float))
+    nodes = "\n".join(
+        f'<node id="{i + 1}" lat="{lat!r}" lon="{lon!r}"/>'
+        for i, (lon, lat) in enumerate(ll.tolist())
+    )
+    xml = f"""<?xml version='1.0'?><osm version="0.6">{nodes}
+     <way id="1"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/></way>
+     <way id="2"><nd ref="5"/><nd ref="6"/><nd ref="7"/><nd ref="8"/><nd ref="5"/></way>
+     <relation id="9"><member type="way" ref="1" role="outer"/>
+      <member type="way" ref="2" role="inner"/>
+      <tag k="type" v="multipolygon"/><tag k="building" v="yes"/></relation></osm>"""
+    path = tmp_path / "court.osm"
+    path.write_text(xml)
+    fc, _ = osm_xml_features(path)
+    assert fc["license"] == OSM_LICENSE
+    fragment, summary = import_features(fc, ORIGIN)
+    assert summary.courtyards == 1 and fragment["license"] == OSM_LICENSE
+    got = _union(_local_prisms(fragment))
+    want = shapely.Polygon(outer, [inner])
+    assert shapely.symmetric_difference(got, want).area < AREA_TOLERANCE_M2

@@ -35,7 +35,8 @@ its ``id`` / ``@id`` / ``osm_id``, its ``name`` and the lon/lat of its first pos
   classes are skipped and counted), or with a ``width``. Width = ``width`` property, else the
   class default of :data:`HIGHWAY_WIDTH_M`; sampled every ``road_step_m`` at ``ue_height_m``.
 * UE areas: Polygons with a numeric ``density_key`` property (default ``density``, UEs per m²
-  or any relative unit): a grid of cell centres every ``area_step_m`` inside the polygon (holes
+  or any relative unit; a value that is not a number ≥ 0 is listed in ``tag_problems`` and
+  the feature skipped): a grid of cell centres every ``area_step_m`` inside the polygon (holes
   excluded), each weighing density × cell area; a polygon smaller than a cell gets one point
   of weight density × area at its representative point.
 * lat/lon swapped (:func:`check_positions`): a position whose latitude is beyond ±90° while
@@ -217,7 +218,7 @@ class FeatureError(DocumentFieldError):
         return type(self), (self.index, self.reason)
 
 
-class _OutlineProblem(RisPlannerError):
+class _OutlineError(RisPlannerError):
     """An outline that ``options.invalid`` decides about (unusable as given)."""
 
 
@@ -350,16 +351,16 @@ def _lonlat(pos: Any, label: str) -> list[float]:
 def _ring(coords: Any, label: str, notes: list[str]) -> list[list[float]]:
     """A GeoJSON linear ring → its open vertex list (consecutive repeats removed). An unclosed
     ring is closed with a note in ``notes``; fewer than 3 distinct positions is an
-    :class:`_OutlineProblem`."""
+    :class:`_OutlineError`."""
     if not isinstance(coords, list) or len(coords) == 0:
-        raise _OutlineProblem(f"{label}: empty ring")
+        raise _OutlineError(f"{label}: empty ring")
     pts = [_lonlat(p, label)[:2] for p in coords]
     if pts[0] != pts[-1]:
         notes.append(f"ring not closed (first position {pts[0]} ≠ last {pts[-1]}; RFC 7946)")
         pts = [*pts, pts[0]]
     open_pts = [p for i, p in enumerate(pts[:-1]) if i == 0 or p != pts[i - 1]]
     if len(open_pts) < 3:
-        raise _OutlineProblem(f"{label}: a ring needs at least 3 distinct positions")
+        raise _OutlineError(f"{label}: a ring needs at least 3 distinct positions")
     return open_pts
 
 
@@ -367,7 +368,7 @@ def _polygons(geom: dict[str, Any], label: str) -> list[Any]:
     """The raw polygons of a Polygon / MultiPolygon (lists of rings), or an error."""
     coords = geom.get("coordinates")
     if not isinstance(coords, list) or not coords:
-        raise _OutlineProblem(f"{label}: empty {geom.get('type')} geometry")
+        raise _OutlineError(f"{label}: empty {geom.get('type')} geometry")
     polys = coords if geom["type"] == "MultiPolygon" else [coords]
     return list(polys)
 
@@ -488,10 +489,11 @@ def _swapped_file(feats: list[Any]) -> str | None:
         geom = f.get("geometry") if isinstance(f, dict) else None
         if not isinstance(geom, dict) or geom.get("type") not in ("Polygon", "MultiPolygon"):
             continue
-        polys = geom.get("coordinates") if geom["type"] == "MultiPolygon" else [geom.get("coordinates")]
-        for poly in polys or []:
+        coords: Any = geom.get("coordinates")
+        polys: list[Any] = (coords if geom["type"] == "MultiPolygon" else [coords]) or []
+        for poly in polys if isinstance(polys, list) else []:
             try:
-                r = np.asarray(poly[0], dtype=float)[:, :2]
+                r: FloatArray = np.asarray(poly[0], dtype=np.float64)[:, :2]
             except (TypeError, ValueError, IndexError):
                 continue
             if r.ndim != 2 or len(r) < 4:
@@ -529,7 +531,12 @@ def check_positions(
     anchors: list[tuple[int, list[float]]] = []
     for i, f in enumerate(feats):
         a = _anchor(f)
-        if a is not None and all(math.isfinite(v) for v in a) and abs(a[1]) <= 90 and abs(a[0]) <= 180:
+        if (
+            a is not None
+            and all(math.isfinite(v) for v in a)
+            and abs(a[1]) <= 90
+            and abs(a[0]) <= 180
+        ):
             anchors.append((i, a))
     if anchors:
         pts = np.array([a for _, a in anchors])
@@ -613,10 +620,7 @@ def license_of(collection: Any) -> tuple[str | None, str | None, str | None]:
         feats = collection.get("features") or []
         osm = any(
             isinstance(f, dict)
-            and (
-                _OSM_ID.match(str(_ident(f)[0] or ""))
-                or "osm_id" in (f.get("properties") or {})
-            )
+            and (_OSM_ID.match(str(_ident(f)[0] or "")) or "osm_id" in (f.get("properties") or {}))
             for f in feats[:1000]
         )
         if osm:
@@ -669,17 +673,15 @@ def _heights(
         min_level = tag("building:min_level", False)
         if min_level is not None:
             base = min_level * opts.metres_per_level
-            used_base = f"building:min_level {min_level:g} × {opts.metres_per_level:g} m = {base:g} m"
+            used_base = (
+                f"building:min_level {min_level:g} × {opts.metres_per_level:g} m = {base:g} m"
+            )
         else:
             base = 0.0
             used_base = "base 0 m"
     for key, value, note in problems:
         multi = note.startswith("several values")
-        used = (
-            note
-            if multi
-            else (used_top if key in ("height", "building:levels") else used_base)
-        )
+        used = note if multi else (used_top if key in ("height", "building:levels") else used_base)
         summary.tag_problems.append(
             {**entry, "tag": key, "value": value, "problem": note, "used": used}
         )
@@ -744,7 +746,9 @@ def simple_pieces(poly: Any, overlap_m: float = PIECE_OVERLAP_M) -> list[Any]:
 
     if not poly.interiors:
         return [poly]
-    xs = np.unique(np.concatenate([np.asarray(r.coords)[:, 0] for r in [poly.exterior, *poly.interiors]]))
+    xs = np.unique(
+        np.concatenate([np.asarray(r.coords)[:, 0] for r in [poly.exterior, *poly.interiors]])
+    )
     _, y0, _, y1 = poly.bounds
     cuts = []
     for hole in poly.interiors:
@@ -768,9 +772,7 @@ def simple_pieces(poly: Any, overlap_m: float = PIECE_OVERLAP_M) -> list[Any]:
     return out
 
 
-def _footprints(
-    poly: Any, frame: Frame, where: str, shapely: Any
-) -> list[list[list[float]]]:
+def _footprints(poly: Any, frame: Frame, where: str, shapely: Any) -> list[list[list[float]]]:
     """Lon/lat footprints (open rings, full float digits: the round trip to metres is exact to
     nanometres) of the simple pieces of a valid local polygon, each checked as a prism
     footprint after the round trip."""
@@ -804,18 +806,25 @@ def _clean(
     notes: list[str] = []
     try:
         if not isinstance(raw, list) or not raw:
-            raise _OutlineProblem(f"{where}: empty polygon")
-        rings = [_ring(r, f"{where} ring {j}" if len(raw) > 1 else where, notes) for j, r in enumerate(raw)]
-    except _OutlineProblem as exc:
+            raise _OutlineError(f"{where}: empty polygon")
+        rings = [
+            _ring(r, f"{where} ring {j}" if len(raw) > 1 else where, notes)
+            for j, r in enumerate(raw)
+        ]
+    except _OutlineError as exc:
         if opts.invalid == "error":
             raise
-        summary.skipped_invalid.append({**entry, "part": where, "reason": str(exc).split(": ", 1)[-1]})
+        summary.skipped_invalid.append(
+            {**entry, "part": where, "reason": str(exc).split(": ", 1)[-1]}
+        )
         return [], False
     local = [_local(frame, r, where) for r in rings]
     poly = shapely.Polygon(local[0], local[1:])
     if poly.is_valid and not notes:
         return [poly], True
-    reasons = [*notes] + ([] if poly.is_valid else [_reason_lonlat(shapely.is_valid_reason(poly), frame)])
+    reasons = [*notes] + (
+        [] if poly.is_valid else [_reason_lonlat(shapely.is_valid_reason(poly), frame)]
+    )
     reason = "; ".join(reasons)
     if opts.invalid == "error":
         raise RisPlannerError(
@@ -888,7 +897,7 @@ def import_features(
             if kind in ("Polygon", "MultiPolygon"):
                 try:
                     raw_polys = _polygons(geom, label)
-                except _OutlineProblem as exc:
+                except _OutlineError as exc:
                     if opts.invalid == "error":
                         raise
                     summary.skipped_invalid.append({**entry, "reason": str(exc).split(": ", 1)[-1]})
@@ -896,18 +905,19 @@ def import_features(
                 density = None
                 if props.get(opts.density_key) is not None:
                     density, note = parse_tag_length(props[opts.density_key])
-                    if note is not None and density is None:
+                    if note is not None:
                         summary.tag_problems.append(
                             {
                                 **entry,
                                 "tag": opts.density_key,
                                 "value": props[opts.density_key],
                                 "problem": note,
-                                "used": "not a UE area",
+                                "used": note if density is not None else "feature skipped",
                             }
                         )
-                    elif note is not None:
-                        raise RisPlannerError(f"{label}: {opts.density_key} {note}")
+                    if density is None:
+                        summary.skipped += 1
+                        continue
                 wheres = [
                     f"{label} polygon {k}" if len(raw_polys) > 1 else label
                     for k in range(len(raw_polys))
@@ -918,7 +928,11 @@ def import_features(
                             xy, w = _area_points(poly, density, opts)
                             ll = frame.to_geographic(xy)
                             points += [
-                                [round(a, _COORD_DIGITS), round(b, _COORD_DIGITS), opts.ue_height_m + h0]
+                                [
+                                    round(a, _COORD_DIGITS),
+                                    round(b, _COORD_DIGITS),
+                                    opts.ue_height_m + h0,
+                                ]
                                 for a, b in ll.tolist()
                             ]
                             weights += w.tolist()
