@@ -601,7 +601,7 @@ def test_a_ue_area_in_a_courtyard_imports_and_plans() -> None:
     ("tags", "problem", "used", "height"),
     [
         ({"height": "tall", "building:levels": "4"}, "height", "building:levels 4 × 3 m", 12.0),
-        ({"height": "3;4"}, "height", "the largest, 4", 4.0),
+        ({"height": "3;4"}, "height", "4 (the largest value)", 4.0),
         ({"height": ""}, "height", "the default height 10 m", DEFAULT_BUILDING_HEIGHT_M),
         ({"height": "-5"}, "height", "the default height", DEFAULT_BUILDING_HEIGHT_M),
         ({"height": "nan"}, "height", "the default height", DEFAULT_BUILDING_HEIGHT_M),

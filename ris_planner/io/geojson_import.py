@@ -645,14 +645,15 @@ def _heights(
     """(base_m, height_m) of a building (module docstring rules); every tag present but not
     usable is listed in ``summary.tag_problems`` (``entry`` names the feature) with what was
     used instead."""
-    problems: list[tuple[str, Any, str]] = []
+    problems: list[tuple[str, Any, str, str]] = []
 
     def tag(key: str, positive: bool) -> float | None:
         if key not in props or props[key] is None:
             return None
         v, note = parse_tag_length(props[key], positive)
         if note is not None:
-            problems.append((key, props[key], note))
+            used = f"{v:g} (the largest value)" if v is not None else ""
+            problems.append((key, props[key], note, used))
         return v
 
     top = tag("height", True)
@@ -679,9 +680,9 @@ def _heights(
         else:
             base = 0.0
             used_base = "base 0 m"
-    for key, value, note in problems:
-        multi = note.startswith("several values")
-        used = note if multi else (used_top if key in ("height", "building:levels") else used_base)
+    for key, value, note, used in problems:
+        if not used:
+            used = used_top if key in ("height", "building:levels") else used_base
         summary.tag_problems.append(
             {**entry, "tag": key, "value": value, "problem": note, "used": used}
         )
@@ -912,7 +913,9 @@ def import_features(
                                 "tag": opts.density_key,
                                 "value": props[opts.density_key],
                                 "problem": note,
-                                "used": note if density is not None else "feature skipped",
+                                "used": f"{density:g} (the largest value)"
+                                if density is not None
+                                else "feature skipped",
                             }
                         )
                     if density is None:
