@@ -352,6 +352,11 @@ def test_a_swapped_origin_is_blamed_on_the_origin_not_a_point() -> None:
     bad["tx_map"] = {"points": [[24.949, 60.1655, 1.5], [60.1652, 24.9495, 1.5]]}
     with pytest.raises(DocumentFieldError, match=r"^tx_map\.points\.1: .*swapped\?"):
         to_local(bad)
+    # a projected frame whose origin has easting and northing swapped
+    utm = {"frame": {"crs": "EPSG:3067", "origin": [6672000, 385000]}}
+    utm |= {"tx": [385100, 6672100, 0], "rx": [385200, 6672000, 0]}
+    with pytest.raises(DocumentFieldError, match=r"^frame\.origin: .*easting/northing swapped"):
+        to_local(utm)
     # licence fields are taken off (the exports carry them), with or without a frame
     local, frame = to_local({"license": "ODbL", "tx": [0.0, 0.0, 0.0]})
     assert local == {"tx": [0.0, 0.0, 0.0]} and frame is None

@@ -277,7 +277,9 @@ def great_circle_m(lonlat: FloatArray, origin: tuple[float, float, float]) -> Fl
 
 def _far_error(where: str, v: list[float], dist_m: float, frame: Frame) -> DocumentFieldError:
     hint = "lat/lon swapped (GeoJSON order is [lon, lat]) or the wrong CRS?"
-    if frame.source_crs == WGS84 and abs(v[0]) <= 90:
+    if frame.source_crs != WGS84:
+        hint = f"easting/northing swapped or not in {frame.source_crs}?"
+    elif abs(v[0]) <= 90:
         swapped = float(great_circle_m(np.array([[v[1], v[0]]]), frame.origin)[0])
         if swapped <= MAX_FRAME_RADIUS_M:
             hint = (
@@ -310,6 +312,12 @@ def _origin_error(frame: Frame, src: FloatArray, dist_m: FloatArray) -> Document
                 f"[lon, lat] = {o}: {what}; read as [lat, lon] the origin lies"
                 " among them: lat/lon swapped? (GeoJSON order is [lon, lat])",
             )
+    if frame.source_crs != WGS84:
+        return DocumentFieldError(
+            "frame.origin",
+            f"(at lon/lat {o}) {what}: the wrong origin, easting/northing swapped or the wrong"
+            " CRS?",
+        )
     return DocumentFieldError(
         "frame.origin", f"{o}: {what}: the wrong origin, lat/lon swapped or the wrong CRS?"
     )
