@@ -50,6 +50,16 @@ class GeoDocument(BaseModel):
     model_config = ConfigDict(extra="allow")
 
     frame: GeoFrame = Field(description="The frame of the document's coordinates")
+    license: str | None = Field(
+        None,
+        max_length=2000,
+        description="Licence of the site data (an import copies it from its input, e.g."
+        " '© OpenStreetMap contributors, ODbL 1.0'); carried into plan.json, plan.geojson,"
+        " heatmap.tif and points.csv",
+    )
+    attribution: str | None = Field(
+        None, max_length=2000, description="Attribution of the site data (carried like license)"
+    )
 
 
 DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (

@@ -2,8 +2,10 @@
 ``ris-planner sites SITE.geojson …``: candidate RIS sites on its facades and along its roads
 (:mod:`ris_planner.io.candidates`, docs/guides/candidates.md).
 
-Both print their JSON on stdout or write it to ``--out``; the summary (counts, buildings given
-the default height or left without candidates, dropped holes, skipped features) goes to stderr.
+Both print their JSON on stdout or write it to ``--out``; the summary goes to stderr: for an
+import the counts, buildings given the default height, courtyards kept open, repaired and
+skipped outlines, tags that are not lengths and the licence (``docs/guides/import.md``); for
+candidates the counts per kind and the buildings left without candidates, with why.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ def options_of(args: argparse.Namespace) -> Any:
         area_step_m=args.area_step,
         site_spacing_m=args.site_spacing,
         highways=tuple(args.highways.split(",")) if args.highways else None,
+        invalid=args.invalid,
+        swap_check=not args.no_swap_check,
     )
 
 
@@ -217,6 +221,7 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         DEFAULT_ROAD_STEP_M,
         DEFAULT_SITE_SPACING_M,
         DEFAULT_UE_HEIGHT_M,
+        INVALID_POLICIES,
         METRES_PER_LEVEL,
     )
 
@@ -249,6 +254,20 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--area-step", type=float, default=DEFAULT_AREA_STEP_M)
     p.add_argument("--site-spacing", type=float, default=DEFAULT_SITE_SPACING_M)
     p.add_argument("--highways", help="road classes to import, comma-separated (default: all)")
+    p.add_argument(
+        "--invalid",
+        choices=INVALID_POLICIES,
+        default="repair",
+        help="invalid outlines (self-intersecting, unclosed, degenerate): repair them"
+        " (shapely make_valid, listed in the summary; default), skip them (listed) or stop"
+        " with an error",
+    )
+    p.add_argument(
+        "--no-swap-check",
+        action="store_true",
+        help="skip the file-wide lat/lon swap test (building corners square only when read as"
+        " [lat, lon]); the per-feature and origin checks stay",
+    )
     p.add_argument(
         "--layer",
         action="append",

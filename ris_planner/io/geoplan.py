@@ -4,8 +4,9 @@ jobs, so both write the same files for the same document.
 
 The document is converted once (:func:`~ris_planner.io.frames.to_local`), planned in local
 metres, and its ``plan.json`` gains ``"frame": {"origin": [lon, lat, h], "local_crs": proj4}``
-when it had a frame; ``plan.geojson`` / ``heatmap.tif`` / ``points.csv`` are written from the
-document as given (WGS84 with a frame, :func:`~ris_planner.io.export.plan_outputs`).
+when it had a frame, and the document's ``license`` / ``attribution``; ``plan.geojson`` /
+``heatmap.tif`` / ``points.csv`` are written from the document as given (WGS84 with a frame,
+:func:`~ris_planner.io.export.plan_outputs`, each carrying the licence).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ris_planner.io import MissingExtraError
-from ris_planner.io.frames import to_local
+from ris_planner.io.frames import license_of_document, to_local
 from ris_planner.progress import ProgressCallback, no_progress
 
 
@@ -49,6 +50,7 @@ def plan_document(
     plan = result.to_json()
     if frame is not None:
         plan["frame"] = frame.describe()
+    plan.update(license_of_document(document))
     files = write_figures(result, out_dir)
     note = None
     try:

@@ -214,7 +214,7 @@ def plan_from_import(
     opts = options or ImportOptions()
     report = ImportReport(fmt, summary)
     doc: dict[str, Any] = {"description": f"Imported site ({fmt})"}
-    for key in ("frame", "environment", "candidates", "walls"):
+    for key in ("license", "attribution", "frame", "environment", "candidates", "walls"):
         if key in fragment:
             doc[key] = copy.deepcopy(fragment[key])
     ue = fragment.get("ue_map")
