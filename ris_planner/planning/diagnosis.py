@@ -21,11 +21,14 @@ the causes are:
   :data:`CAUSE_SHARE` of the missing weight: the RIS paths are too weak. For the expected-random
   codebook a RIS path's angle information grows as (N² − N)|ρ|² and its delay information as
   N|ρ|² with N elements (:func:`ris_planner.fim.steering_gram`; |ρ| per element,
-  eq. RIS_equivalent_gain_xi_zeta), so at large N the bound falls as 1/N: the smallest square
-  grid that reaches the goal under that law is re-scored with ``compute_bounds`` and raised
-  until it verifiably does (``suggested_ris_size``). Every block of the information scales
-  with the transmit power, so the bound falls exactly as P^(−1/2)
-  (``suggested_tx_power_dbm``, also verified).
+  eq. RIS_equivalent_gain_xi_zeta), so quadrupling N divides a RIS-only bound by 2 to ≈ 4
+  (PEB ∝ N^(−a), ½ ≤ a ≤ 1; a LOS path's fixed information flattens it further). The
+  suggestion starts from the angle-dominated law (a = 1), re-scores the smallest square grid
+  that reaches the goal under it with ``compute_bounds``, and while the goal is not met
+  extrapolates with each pair's exponent measured between the last two re-scorings (a secant
+  in log–log) until it verifiably is (``suggested_ris_size``). Every block of the information
+  carries 2P/σ², so the bound falls exactly as P^(−1/2) (``suggested_tx_power_dbm``, also
+  re-scored).
 * ``geometry`` – pairs with an infinite bound (too few RIS paths reach them, degenerate
   geometry) carry at least :data:`CAUSE_SHARE` of the missing weight: neither size nor power
   helps them, more RISs or other sites do.
@@ -68,6 +71,9 @@ MAX_SIDE = 512
 VERIFY_STEPS = 8
 """Re-scorings the size suggestion may take before it gives up."""
 GROWTH = 1.1
+MIN_EXPONENT = 0.05
+"""Smallest exponent a of bound ∝ N^(−a) a suggestion extrapolates with: a LOS path (whose
+information does not grow with N) can flatten the decay far below ½ near its floor."""
 """When a predicted size does not verify, the next one is at least 10 % larger per side."""
 POWER_STEP_DB = 0.1
 """Resolution of the suggested transmit power [dB]."""
@@ -128,21 +134,38 @@ def goal_check(obj: Objective, target: Target | None) -> Callable[[FloatArray, F
 
 
 def smallest_side(
-    metric: FloatArray, n_elements: int, reaches: Callable[[FloatArray], bool]
+    metric: FloatArray,
+    n_elements: int,
+    reaches: Callable[[FloatArray], bool],
+    exponent: float | FloatArray = 1.0,
 ) -> int | None:
-    """Smallest square side n ≤ :data:`MAX_SIDE` whose predicted metric reaches the goal under
-    the large-N law: bound(n²) = bound(N₀) · N₀ / n² (``None`` when not even the largest);
-    bisection (the prediction is monotone in n)."""
-    if not reaches(metric * (n_elements / MAX_SIDE**2)):
+    """Smallest square side n ≤ :data:`MAX_SIDE` whose predicted metric reaches the goal:
+    bound(n²) = bound(N₀) · (N₀ / n²)^a per pair (a = ``exponent``: 1 is the angle-dominated
+    large-N law, ½ the delay-only one); ``None`` when not even the largest does. Bisection
+    (the prediction is monotone in n)."""
+
+    def predicted(side: int) -> FloatArray:
+        return np.asarray(metric * (n_elements / side**2) ** exponent)
+
+    if not reaches(predicted(MAX_SIDE)):
         return None
     lo, hi = 0, MAX_SIDE
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if reaches(metric * (n_elements / mid**2)):
+        if reaches(predicted(mid)):
             hi = mid
         else:
             lo = mid
     return hi
+
+
+def measured_exponent(m0: FloatArray, n0: int, m1: FloatArray, n1: int) -> FloatArray:
+    """Per pair, the exponent a of bound ∝ N^(−a) between two re-scorings (N₀ < N₁), clipped to
+    [:data:`MIN_EXPONENT`, 1] (1 where a bound is infinite in either: no information)."""
+    ok = np.isfinite(m0) & np.isfinite(m1) & (m0 > 0) & (m1 > 0)
+    a = np.ones_like(m0)
+    a[ok] = np.log(m0[ok] / m1[ok]) / math.log(n1 / n0)
+    return np.clip(a, MIN_EXPONENT, 1.0)
 
 
 def smallest_power_step(
@@ -202,9 +225,10 @@ def suggest_size(
     doc = result.document
     n_elements = doc.ris.rows * doc.ris.cols
     base = metric
+    exponent: float | FloatArray = 1.0
     tried: list[int] = []
     for _ in range(VERIFY_STEPS):
-        side = smallest_side(base, n_elements, lambda m: goal(m, weights))
+        side = smallest_side(base, n_elements, lambda m: goal(m, weights), exponent)
         if side is None:
             break
         if tried:
@@ -220,6 +244,8 @@ def suggest_size(
                 "verified_objective": value if math.isfinite(value) else None,
                 "tried_sides": tried,
             }
+        # the law measured per pair between the last two re-scorings (a secant in log–log)
+        exponent = measured_exponent(base, n_elements, verified, side * side)
         base, n_elements = verified, side * side
     return {"suggested_ris_size": None, "verified_objective": None, "tried_sides": tried}
 

@@ -522,11 +522,14 @@ def validate_document(document: PlanDocument | dict[str, Any]) -> PlanDocument:
     return validate_plan(document)
 
 
-def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
+def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False) -> PlanInputs:
     """Validate a plan document, expand its sites and maps, build its pairs and check every limit
     that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
-    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound."""
-    doc = validate_document(document)
+    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound. ``checked``:
+    the document's sizes were checked already (:func:`plan_once`)."""
+    doc = (
+        document if checked and isinstance(document, PlanDocument) else validate_document(document)
+    )
     # the fields of view apply in free space too (an empty scene); obstacles where given
     scene = Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
@@ -592,13 +595,21 @@ def run_plan(
 
 
 def plan_once(
-    document: PlanDocument | dict[str, Any], progress: ProgressCallback, ex: Executor
+    document: PlanDocument | dict[str, Any],
+    progress: ProgressCallback,
+    ex: Executor,
+    checked: bool = False,
 ) -> PlanResult:
     """One plan run on an executor (no sweep, no sizing, no diagnosis): the base of
-    :func:`run_plan`, and each run of a sweep and of the sizing question."""
-    doc = validate_document(document)
+    :func:`run_plan`, and each run of a sweep and of the sizing question. ``checked``: a
+    validated document whose sizes its parent document already checked (a sweep or sizing run:
+    :func:`ris_planner.limits.plan_runs`; it draws no heatmap, so the heatmap's memory does
+    not apply)."""
+    doc = (
+        document if checked and isinstance(document, PlanDocument) else validate_document(document)
+    )
     t0 = time.perf_counter()
-    inputs = prepare_plan(doc)
+    inputs = prepare_plan(doc, checked=checked)
     if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
         # the workers start (and import) while this process builds the site cache
         ex.start()
@@ -830,7 +841,8 @@ def sweep_rows(
 ) -> list[dict[str, Any]]:
     """The :meth:`PlanResult.summary_rows` of one sweep run: the plan document ``raw`` (a JSON
     dict) with the sweep's parameter set to ``value`` (:meth:`Sweep.apply`)."""
-    return plan_once(sweep.apply(raw, value), progress, ex).summary_rows(value)
+    sub = PlanDocument.model_validate(sweep.apply(raw, value))
+    return plan_once(sub, progress, ex, checked=True).summary_rows(value)
 
 
 def _drop_points(
