@@ -388,3 +388,32 @@ def test_heatmap_shows_useless_plans_as_such(tmp_path: Path) -> None:
     assert _colour_share(files["heatmap"], blind) > 0.05  # the square is blind
     files = write_figures(plan(GOOD), tmp_path / "good")
     assert _colour_share(files["heatmap"], blind) < 0.001
+
+
+# --- REST -------------------------------------------------------------------------------------
+
+
+def test_rest_plan_carries_sizing_and_diagnosis(tmp_path: Path) -> None:
+    """The plan document passes ``sizing`` through POST /v1/plans unchanged: the job's result
+    has the same ``sizing`` and ``diagnosis`` as run_plan here (another process: floats under
+    the tolerance rule), ``sizing`` among the figures, the schema documents it, a bad sizing
+    is a 422 naming its field."""
+    from api_helpers import api_client, wait_for
+    from tolerance import assert_close
+
+    doc = LINK | {"sizing": {"ris_sizes": SIZES[:3], "counts": [3]}}
+    with api_client(tmp_path, workers=1) as client:
+        schema = client.get("/openapi.json").json()["components"]["schemas"]
+        assert "sizing" in schema["PlanDocument"]["properties"]
+        assert "ris_sizes" in schema["Sizing"]["properties"]
+        bad = client.post("/v1/plans", json=GOOD | {"sizing": {"ris_sizes": [[600, 4]]}})
+        assert bad.status_code == 422 and "sizing" in bad.json()["fields"][0]["field"]
+        r = client.post("/v1/plans", json=doc)
+        assert r.status_code == 202
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=120)
+        assert view["status"] == "succeeded", view["error"]
+        assert "sizing" in view["figures"]
+    want = plan(doc).to_json()
+    # bounds inverted from a Fisher information: a few hundred roundings, conditioning 1e6
+    assert_close(view["result"]["sizing"], want["sizing"], ulps=256, cond=1e6)
+    assert_close(view["result"]["diagnosis"], want["diagnosis"], ulps=256, cond=1e6)
