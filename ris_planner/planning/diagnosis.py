@@ -22,13 +22,14 @@ the causes are:
   codebook a RIS path's angle information grows as (N² − N)|ρ|² and its delay information as
   N|ρ|² with N elements (:func:`ris_planner.fim.steering_gram`; |ρ| per element,
   eq. RIS_equivalent_gain_xi_zeta), so quadrupling N divides a RIS-only bound by 2 to ≈ 4
-  (PEB ∝ N^(−a), ½ ≤ a ≤ 1; a LOS path's fixed information flattens it further). The
-  suggestion starts from the angle-dominated law (a = 1), re-scores the smallest square grid
-  that reaches the goal under it with ``compute_bounds``, and while the goal is not met
-  extrapolates with each pair's exponent measured between the last two re-scorings (a secant
-  in log–log) until it verifiably is (``suggested_ris_size``). Every block of the information
-  carries 2P/σ², so the bound falls exactly as P^(−1/2) (``suggested_tx_power_dbm``, also
-  re-scored).
+  (PEB ∝ N^(−a), ½ ≤ a ≤ 1: 1 while the angle-resolved directions dominate the error, tending
+  to ½ at large N where the delay-resolved ones do; a LOS path's fixed information flattens it
+  further). The suggestion starts from the angle-limited law (a = 1, optimistic), re-scores
+  the smallest square grid that reaches the goal under it with ``compute_bounds``, and while
+  the goal is not met extrapolates with each pair's exponent measured between the last two
+  re-scorings (a secant in log–log) until it verifiably is (``suggested_ris_size``). Every
+  block of the information carries 2P/σ², so the bound falls exactly as P^(−1/2)
+  (``suggested_tx_power_dbm``, also re-scored).
 * ``geometry`` – pairs with an infinite bound (too few RIS paths reach them, degenerate
   geometry) carry at least :data:`CAUSE_SHARE` of the missing weight: neither size nor power
   helps them, more RISs or other sites do.
@@ -140,8 +141,8 @@ def smallest_side(
     exponent: float | FloatArray = 1.0,
 ) -> int | None:
     """Smallest square side n ≤ :data:`MAX_SIDE` whose predicted metric reaches the goal:
-    bound(n²) = bound(N₀) · (N₀ / n²)^a per pair (a = ``exponent``: 1 is the angle-dominated
-    large-N law, ½ the delay-only one); ``None`` when not even the largest does. Bisection
+    bound(n²) = bound(N₀) · (N₀ / n²)^a per pair (a = ``exponent``: 1 the angle-limited law,
+    ½ the delay-limited one); ``None`` when not even the largest does. Bisection
     (the prediction is monotone in n)."""
 
     def predicted(side: int) -> FloatArray:
