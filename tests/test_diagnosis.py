@@ -418,3 +418,25 @@ def test_rest_plan_carries_sizing_and_diagnosis(tmp_path: Path) -> None:
     # bounds inverted from a Fisher information: a few hundred roundings, conditioning 1e6
     assert_close(view["result"]["sizing"], want["sizing"], ulps=256, cond=1e6)
     assert_close(view["result"]["diagnosis"], want["diagnosis"], ulps=256, cond=1e6)
+
+
+@pytest.mark.parametrize(
+    "objective",
+    [
+        {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
+        {"kind": "quantile", "metric": "rx", "q": 0.5, "target": {"max": 1.0}},
+    ],
+)
+def test_link_budget_for_the_other_objectives(objective: dict[str, Any]) -> None:
+    """mean_capped serves below its cap, quantile below its target: the same link budget cause,
+    its suggested size re-scored against the same goal."""
+    result = plan(LINK | {"objective": objective})
+    d = result.diagnosis
+    assert d["level_m"] == 1.0 and d["verdict"] == "useless"
+    cause = d["causes"][0]
+    assert cause["kind"] == "link_budget"
+    n = cause["suggested_ris_size"][0]
+    metric, w = rescore(result, tuple(d["sites"]), side=n)
+    assert served_fraction(metric, w, 1.0) >= COVERAGE_FLOOR
+    if "target" in objective:  # the target is part of the goal: the median ≤ 1 m
+        assert cause["verified_objective"] <= 1.0
