@@ -440,3 +440,20 @@ def test_link_budget_for_the_other_objectives(objective: dict[str, Any]) -> None
     assert served_fraction(metric, w, 1.0) >= COVERAGE_FLOOR
     if "target" in objective:  # the target is part of the goal: the median ≤ 1 m
         assert cause["verified_objective"] <= 1.0
+
+
+def test_spherical_suggestions_are_capped_by_pairs_times_elements() -> None:
+    from types import SimpleNamespace
+
+    from ris_planner.planning.diagnosis import SPHERICAL_PAIR_ELEMENTS, largest_side
+
+    def fake(wavefront: str, pairs: int) -> Any:
+        system = SimpleNamespace(wavefront=wavefront)
+        return SimpleNamespace(
+            document=SimpleNamespace(system=system), pairs=SimpleNamespace(size=pairs)
+        )
+
+    assert largest_side(fake("planar", 500_000)) == MAX_SIDE
+    assert largest_side(fake("spherical", 100)) == MAX_SIDE
+    side = largest_side(fake("spherical", 20_000))
+    assert side**2 * 20_000 <= SPHERICAL_PAIR_ELEMENTS < (side + 1) ** 2 * 20_000

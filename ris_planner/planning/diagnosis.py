@@ -69,6 +69,11 @@ CAUSE_SHARE = 0.25
 """A cause is named when its pairs carry at least a quarter of the missing (unserved) weight."""
 MAX_SIDE = 512
 """Largest square RIS side a suggestion may name (the document's limit on rows and cols)."""
+SPHERICAL_PAIR_ELEMENTS = 50_000_000
+"""The spherical wavefront's bounds take per-element distances (memory ∝ pairs × elements):
+its size suggestions are re-scored only up to this many pairs × elements (≈ 0.8 GB), which
+caps the side at √(this / pairs). The planar model's expected-random information is closed
+form in the element grid (:func:`ris_planner.fim.steering_gram`), so it has no such cap."""
 VERIFY_STEPS = 8
 """Re-scorings the size suggestion may take before it gives up."""
 GROWTH = 1.1
@@ -139,8 +144,9 @@ def smallest_side(
     n_elements: int,
     reaches: Callable[[FloatArray], bool],
     exponent: float | FloatArray = 1.0,
+    max_side: int = MAX_SIDE,
 ) -> int | None:
-    """Smallest square side n ≤ :data:`MAX_SIDE` whose predicted metric reaches the goal:
+    """Smallest square side n ≤ ``max_side`` whose predicted metric reaches the goal:
     bound(n²) = bound(N₀) · (N₀ / n²)^a per pair (a = ``exponent``: 1 the angle-limited law,
     ½ the delay-limited one); ``None`` when not even the largest does. Bisection
     (the prediction is monotone in n)."""
@@ -148,9 +154,9 @@ def smallest_side(
     def predicted(side: int) -> FloatArray:
         return np.asarray(metric * (n_elements / side**2) ** exponent)
 
-    if not reaches(predicted(MAX_SIDE)):
+    if not reaches(predicted(max_side)):
         return None
-    lo, hi = 0, MAX_SIDE
+    lo, hi = 0, max_side
     while hi - lo > 1:
         mid = (lo + hi) // 2
         if reaches(predicted(mid)):
@@ -213,6 +219,14 @@ def rescore(
     )
 
 
+def largest_side(result: PlanResult) -> int:
+    """The largest square side a size suggestion may re-score: :data:`MAX_SIDE`, for the
+    spherical wavefront also √(:data:`SPHERICAL_PAIR_ELEMENTS` / pairs)."""
+    if result.document.system.wavefront != "spherical":
+        return MAX_SIDE
+    return max(1, min(MAX_SIDE, math.isqrt(SPHERICAL_PAIR_ELEMENTS // max(1, result.pairs.size))))
+
+
 def suggest_size(
     result: PlanResult,
     layout: Layout,
@@ -220,20 +234,22 @@ def suggest_size(
     weights: FloatArray,
     goal: Callable[[FloatArray, FloatArray], bool],
 ) -> dict[str, Any]:
-    """``{"suggested_ris_size": [n, n] | None, "verified_objective", "tried_sides"}``: the
-    large-N law's smallest side, re-scored and raised (at least :data:`GROWTH` per step,
-    from the law applied to the last re-scored metric) until the goal verifiably holds."""
+    """``{"suggested_ris_size": [n, n] | None, "verified_objective", "tried_sides",
+    "largest_side"}``: the angle-limited law's smallest side, re-scored and raised (at least
+    :data:`GROWTH` per step, extrapolating with the exponents measured between the last two
+    re-scorings) until the goal verifiably holds, up to :func:`largest_side`."""
     doc = result.document
     n_elements = doc.ris.rows * doc.ris.cols
     base = metric
     exponent: float | FloatArray = 1.0
     tried: list[int] = []
+    top = largest_side(result)
     for _ in range(VERIFY_STEPS):
-        side = smallest_side(base, n_elements, lambda m: goal(m, weights), exponent)
+        side = smallest_side(base, n_elements, lambda m: goal(m, weights), exponent, top)
         if side is None:
             break
         if tried:
-            side = max(side, min(MAX_SIDE, math.ceil(tried[-1] * GROWTH)))
+            side = max(side, min(top, math.ceil(tried[-1] * GROWTH)))
             if side <= tried[-1]:
                 break
         tried.append(side)
@@ -244,11 +260,17 @@ def suggest_size(
                 "suggested_ris_size": [side, side],
                 "verified_objective": value if math.isfinite(value) else None,
                 "tried_sides": tried,
+                "largest_side": top,
             }
         # the law measured per pair between the last two re-scorings (a secant in log–log)
         exponent = measured_exponent(base, n_elements, verified, side * side)
         base, n_elements = verified, side * side
-    return {"suggested_ris_size": None, "verified_objective": None, "tried_sides": tried}
+    return {
+        "suggested_ris_size": None,
+        "verified_objective": None,
+        "tried_sides": tried,
+        "largest_side": top,
+    }
 
 
 def suggest_power(
@@ -325,7 +347,8 @@ def diagnose(result: PlanResult) -> dict[str, Any]:
             n = size["suggested_ris_size"][0]
             parts.append(f"a {n}×{n} RIS reaches the goal (re-scored)")
         else:
-            parts.append(f"not even a {MAX_SIDE}×{MAX_SIDE} RIS reaches the goal")
+            top = size["largest_side"]
+            parts.append(f"not even a {top}×{top} RIS reaches the goal")
         if power["suggested_tx_power_dbm"] is not None:
             parts.append(
                 f"or a transmit power of {power['suggested_tx_power_dbm']:g} dBm (now"
