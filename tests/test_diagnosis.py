@@ -24,6 +24,7 @@ from ris_planner.planning.diagnosis import (
     COVERAGE_FLOOR,
     MAX_SIDE,
     SPREAD_MIN,
+    per_pair_side,
     relative_spread,
     rescore,
     served_fraction,
@@ -184,6 +185,13 @@ def test_smallest_side_and_power_step_are_the_first_reaching_by_scan() -> None:
     scan = next(k for k in range(701) if reaches(metric * 10 ** (-k * 0.1 / 20)))
     assert step == scan
     assert smallest_side(np.full(50, np.inf), 16, reaches) is None
+    # per pair: the smallest n with metric·16/n² ≤ 1, by scan; its weighted median
+    sides = [
+        next((n for n in range(1, 4000) if m * 16 / n**2 <= 1.0), None) if np.isfinite(m) else None
+        for m in metric
+    ]
+    finite = sorted(x for x in sides if x is not None)
+    assert per_pair_side(metric, w, 16, 1.0)["0.5"] == finite[24]  # 25 of 50 pairs, 5 blind last
 
 
 # --- the constructed cases ---------------------------------------------------------------------

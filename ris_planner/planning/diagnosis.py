@@ -48,7 +48,11 @@ from numpy.typing import NDArray
 
 from ris_planner.planning.beam_design import layout_scenario, metric_on_pairs
 from ris_planner.planning.document import Objective, Target
-from ris_planner.planning.objectives import objective_from_loss, objective_value
+from ris_planner.planning.objectives import (
+    objective_from_loss,
+    objective_value,
+    weighted_quantile,
+)
 
 if TYPE_CHECKING:
     from ris_planner.planning.plan import PlanResult
@@ -164,6 +168,24 @@ def smallest_side(
         else:
             lo = mid
     return hi
+
+
+PAIR_SIDE_QUANTILES = (0.5, 0.9)
+"""Weighted quantiles of the per-pair smallest side reported with a link_budget cause."""
+
+
+def per_pair_side(
+    metric: FloatArray, weights: FloatArray, n_elements: int, level: float
+) -> dict[str, int | None]:
+    """Weighted quantiles (:data:`PAIR_SIDE_QUANTILES`) over the pairs of the smallest square
+    side that brings each pair's bound to ``level`` under the angle-limited law:
+    ⌈√(N₀ · bound / level)⌉ (at least 1; ``None`` where the quantile is a blind pair)."""
+    side = np.maximum(1.0, np.ceil(np.sqrt(n_elements * metric / level)))
+    q = weighted_quantile(side[None], weights, np.array(PAIR_SIDE_QUANTILES))[0]
+    return {
+        f"{p:g}": int(v) if np.isfinite(v) else None
+        for p, v in zip(PAIR_SIDE_QUANTILES, q, strict=True)
+    }
 
 
 def measured_exponent(m0: FloatArray, n0: int, m1: FloatArray, n1: int) -> FloatArray:
@@ -360,6 +382,7 @@ def diagnose(result: PlanResult) -> dict[str, Any]:
                 "message": "; ".join(parts),
                 "pairs": int(weak.sum()),
                 "fraction": weak_w,
+                "per_pair_side": per_pair_side(metric, weights, rows * cols, level),
                 **size,
                 **power,
                 "goal": {
