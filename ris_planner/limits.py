@@ -343,6 +343,15 @@ def cache_bytes(entries: int, wavefront: str = "planar") -> int:
     return 2 * layout.bytes(entries, wavefront) + entries * BYTES_PER_CACHE_MASKS
 
 
+def plan_runs(doc: PlanDocument) -> int:
+    """Plan runs of one document: its own, and one per size of the sizing question
+    (:func:`ris_planner.planning.sizing.sizing_runs`; the runs are sequential, so they
+    multiply the searched layouts, not the memory)."""
+    from ris_planner.planning.sizing import sizing_runs
+
+    return 1 + sizing_runs(doc)
+
+
 def estimate_plan(doc: PlanDocument) -> Sizes:
     """Every size of a plan run from its validated document (nothing is built)."""
     sites = plan_sites(doc)
@@ -356,7 +365,8 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
     heat_tx = 1 if doc.heatmap_tx is not None else min(n_t, max(1, HEATMAP_MAX_PAIRS // heat_rx))
     heatmap = heat_rx * heat_tx
     cache = sites * pairs
-    layouts = _search_layouts(doc, sites)
+    per_run = _search_layouts(doc, sites)
+    layouts = per_run * plan_runs(doc)
     elements = doc.ris.rows * doc.ris.cols
     csv_rows = sum(_csv_rows(m.csv_text or "") for m in (doc.tx_map, doc.rx_map))
     memory = (
@@ -366,7 +376,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         + min(pairs, doc.max_pairs) * BYTES_PER_PAIR
         + sites * BYTES_PER_SITE
         + cache_bytes(cache, doc.system.wavefront)
-        + min(layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT
+        + min(per_run, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT
         + heatmap * min(max(doc.max_counts), max(sites, 1)) * elements * BYTES_PER_HEATMAP_ELEMENT
     )
     return Sizes(

@@ -32,7 +32,7 @@ from ris_planner.planning.branch_bound import (
 from ris_planner.planning.certificates import Certificate, relaxation_certificate
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
-from ris_planner.planning.document import Objective, PlanDocument
+from ris_planner.planning.document import Objective, PlanDocument, Sweep
 from ris_planner.planning.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.planning.finalists import exact_certificate, rescore_finalists
 from ris_planner.planning.maps import (
@@ -167,6 +167,10 @@ class PlanResult:
     feasibility: Feasibility | None = None
     infeasible_counts: tuple[int, ...] = ()
     sweep: dict[str, Any] | None = None
+    sizing: dict[str, Any] | None = None
+    """The sizing question's answer (:func:`ris_planner.planning.sizing.run_sizing`)."""
+    diagnosis: dict[str, Any] | None = None
+    """Whether the plan is useful, and why not (:func:`ris_planner.planning.diagnosis.diagnose`)."""
 
     @property
     def cache(self) -> SiteCache:
@@ -458,6 +462,10 @@ class PlanResult:
         }
         if self.sweep is not None:
             out["sweep"] = self.sweep
+        if self.sizing is not None:
+            out["sizing"] = self.sizing
+        if self.diagnosis is not None:
+            out["diagnosis"] = self.diagnosis
         if obj.target is not None:
             answers = [
                 CountAnswer(
@@ -516,11 +524,14 @@ def validate_document(document: PlanDocument | dict[str, Any]) -> PlanDocument:
     return validate_plan(document)
 
 
-def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
+def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False) -> PlanInputs:
     """Validate a plan document, expand its sites and maps, build its pairs and check every limit
     that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
-    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound."""
-    doc = validate_document(document)
+    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound. ``checked``:
+    the document's sizes were checked already (:func:`plan_once`)."""
+    doc = (
+        document if checked and isinstance(document, PlanDocument) else validate_document(document)
+    )
     # the fields of view apply in free space too (an empty scene); obstacles where given
     scene = Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
@@ -561,22 +572,50 @@ def run_plan(
     executor: Executor | None = None,
 ) -> PlanResult:
     """Run a plan document: build maps and pairs, cache every site's information, search each
-    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+    RIS count, rank; then the sizing question (``document.sizing``) and the diagnosis
+    (:mod:`ris_planner.planning.diagnosis`). ``executor`` defaults to a local process pool
+    (closed afterwards)."""
+    from ris_planner.planning.diagnosis import diagnose
+    from ris_planner.planning.sizing import run_sizing, sizing_runs
+
     doc = validate_document(document)
-    if doc.sweep is not None:
-        return _run_sweep(doc, progress, executor)
-    t0 = time.perf_counter()
-    inputs = prepare_plan(doc)
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
     try:
-        if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
-            # the workers start (and import) while this process builds the site cache
-            ex.start()
-        return _plan_with(doc, progress, ex, inputs, t0)
+        n_runs = 1 + sizing_runs(doc)
+        main = progress if n_runs == 1 else lambda f, m: progress(f / n_runs, m)
+        result = _run_sweep(doc, main, ex) if doc.sweep is not None else plan_once(doc, main, ex)
+        if doc.sizing is not None:
+            result.sizing = run_sizing(
+                doc, lambda f, m: progress((1 + f * (n_runs - 1)) / n_runs, m), ex
+            )
+        result.diagnosis = diagnose(result)
+        return result
     finally:
         if own:
             ex.close()
+
+
+def plan_once(
+    document: PlanDocument | dict[str, Any],
+    progress: ProgressCallback,
+    ex: Executor,
+    checked: bool = False,
+) -> PlanResult:
+    """One plan run on an executor (no sweep, no sizing, no diagnosis): the base of
+    :func:`run_plan`, and each run of a sweep and of the sizing question. ``checked``: a
+    validated document whose sizes its parent document already checked (a sweep or sizing run:
+    :func:`ris_planner.limits.plan_runs`; it draws no heatmap, so the heatmap's memory does
+    not apply)."""
+    doc = (
+        document if checked and isinstance(document, PlanDocument) else validate_document(document)
+    )
+    t0 = time.perf_counter()
+    inputs = prepare_plan(doc, checked=checked)
+    if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
+        # the workers start (and import) while this process builds the site cache
+        ex.start()
+    return _plan_with(doc, progress, ex, inputs, t0)
 
 
 def needs_workers(inputs: PlanInputs, max_exhaustive: int, workers: int) -> bool:
@@ -774,38 +813,38 @@ def plan_check_task(scorer: Scorer, task: PlanCheck) -> Certificate | float:
     return objective_task(None, args)
 
 
-def _run_sweep(
-    doc: PlanDocument, progress: ProgressCallback, executor: Executor | None
-) -> PlanResult:
+def _run_sweep(doc: PlanDocument, progress: ProgressCallback, ex: Executor) -> PlanResult:
     """The base plan (the document's own values) and one more plan per sweep value over the
     same candidates and pairs; ``result.sweep`` holds one table of every run's counts."""
     assert doc.sweep is not None
     sweep = doc.sweep
     raw = doc.model_dump(mode="json")
-    own = executor is None
-    ex = LocalExecutor() if executor is None else executor
     n_runs = 1 + len(sweep.values)
-    try:
-        base_raw = {k: v for k, v in raw.items() if k != "sweep"}
-        base = run_plan(base_raw, lambda f, m: progress(f / n_runs, f"base: {m}"), ex)
-        if sweep.parameter == "ris_size":
-            base_value: Any = [doc.ris.rows, doc.ris.cols]
-        else:
-            base_value = getattr(doc.system, sweep.parameter)
-        rows = [dict(r, base=True) for r in base.summary_rows(base_value)]
-        for i, value in enumerate(sweep.values, start=1):
+    base_raw = {k: v for k, v in raw.items() if k not in ("sweep", "sizing")}
+    base = plan_once(base_raw, lambda f, m: progress(f / n_runs, f"base: {m}"), ex)
+    if sweep.parameter == "ris_size":
+        base_value: Any = [doc.ris.rows, doc.ris.cols]
+    else:
+        base_value = getattr(doc.system, sweep.parameter)
+    rows = [dict(r, base=True) for r in base.summary_rows(base_value)]
+    for i, value in enumerate(sweep.values, start=1):
 
-            def sub_progress(f: float, m: str, i: int = i, value: Any = value) -> None:
-                progress((i + f) / n_runs, f"{sweep.parameter}={value}: {m}")
+        def sub_progress(f: float, m: str, i: int = i, value: Any = value) -> None:
+            progress((i + f) / n_runs, f"{sweep.parameter}={value}: {m}")
 
-            sub = run_plan(sweep.apply(raw, value), sub_progress, ex)
-            rows += [dict(r, base=False) for r in sub.summary_rows(value)]
-    finally:
-        if own:
-            ex.close()
+        rows += [dict(r, base=False) for r in sweep_rows(base_raw, sweep, value, sub_progress, ex)]
     base.document = doc
     base.sweep = {"parameter": sweep.parameter, "values": sweep.values, "table": rows}
     return base
+
+
+def sweep_rows(
+    raw: dict[str, Any], sweep: Sweep, value: Any, progress: ProgressCallback, ex: Executor
+) -> list[dict[str, Any]]:
+    """The :meth:`PlanResult.summary_rows` of one sweep run: the plan document ``raw`` (a JSON
+    dict) with the sweep's parameter set to ``value`` (:meth:`Sweep.apply`)."""
+    sub = PlanDocument.model_validate(sweep.apply(raw, value))
+    return plan_once(sub, progress, ex, checked=True).summary_rows(value)
 
 
 def _drop_points(
