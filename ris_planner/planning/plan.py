@@ -49,6 +49,7 @@ from ris_planner.planning.objectives import (
     select_metric,
     weighted_quantile,
 )
+from ris_planner.planning.physics import physics_json
 from ris_planner.planning.points import heatmap_json, points_json
 from ris_planner.planning.search import MIN_TASK_MATRICES, Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
@@ -362,6 +363,7 @@ class PlanResult:
             "tx_points": len(self.tx_map.points),
             "rx_points": len(self.rx_map.points),
             "known": list(doc.known),
+            "physics": physics_json(doc),
             "points": points_json(self),
             "heatmap": heatmap_json(self),
             "timing_s": self.timing,
