@@ -60,7 +60,8 @@ from ris_planner.planning.visibility import (
     pair_visibility,
     serve_warnings,
 )
-from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.planning.work import plan_work, search_layouts
+from ris_planner.progress import ProgressCallback, Stages, no_progress
 from ris_planner.scenario import RandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
@@ -559,14 +560,18 @@ def run_plan(
     document: PlanDocument | dict[str, Any],
     progress: ProgressCallback = no_progress,
     executor: Executor | None = None,
+    inputs: PlanInputs | None = None,
 ) -> PlanResult:
     """Run a plan document: build maps and pairs, cache every site's information, search each
-    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards);
+    ``inputs``: the document's :func:`prepare_plan` when the caller has it already. Progress
+    goes over the stages of :func:`~ris_planner.planning.work.plan_work` by their estimated
+    work, 1.0 at the end."""
     doc = validate_document(document)
     if doc.sweep is not None:
         return _run_sweep(doc, progress, executor)
     t0 = time.perf_counter()
-    inputs = prepare_plan(doc)
+    inputs = prepare_plan(doc) if inputs is None else inputs
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
     try:
@@ -600,7 +605,8 @@ def _plan_with(
     sites, tx_map, rx_map, pairs = inputs.sites, inputs.tx_map, inputs.rx_map, inputs.pairs
     scene, dropped, directions = inputs.scene, inputs.dropped, inputs.directions
     wanted, feasibility = inputs.counts, inputs.feasibility
-    progress(0.0, "caching site information")
+    stages = Stages(progress, plan_work(inputs))
+    on_cache = stages.callback("cache")
     t_vis = time.perf_counter()
     visibility = pair_visibility(scene, sites, pairs, doc.system.los)
     warnings = serve_warnings(sites, visibility.present, pairs.weights)
@@ -609,7 +615,7 @@ def _plan_with(
         doc.system,
         sites,
         pairs,
-        lambda f, m: progress(0.2 * f, f"cache: {m}"),
+        on_cache,
         visibility,
         known=tuple(doc.known),
         layout=cache_layout(len(sites) * pairs.size, doc.system.wavefront),
@@ -619,9 +625,9 @@ def _plan_with(
         cache, pairs.weights, doc.objective, tuple(doc.known), mirror=directions == "mirror"
     )
     counts: list[CountResult] = []
-    # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
-    effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in wanted]
-    share = 0.75 if doc.beams is None else 0.7  # of the progress bar
+    # search effort ∝ the layouts each count evaluates – used only for the progress fractions
+    effort = [search_layouts(inputs, c) for c in wanted]
+    on_search = stages.callback("search")
     done = 0.0
     infeasible: list[int] = []
     t_bnb = 0.0
@@ -630,7 +636,7 @@ def _plan_with(
         base = done
 
         def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
-            progress(0.2 + share * (base + f * e) / sum(effort), f"search L={c}")
+            on_search((base + f * e) / sum(effort), f"L={c}")
 
         # the best layouts of the smaller counts seed the greedy search
         seeds = tuple(cr.ranked[0][0] for cr in counts)
@@ -704,6 +710,7 @@ def _plan_with(
     tasks: list[PlanCheck] = [("certificate", (c, feasibility, iterations)) for _, c in deferred]
     tasks += [("codebook", t) for job in jobs for t in job]
     on = ex if ex.started and not ex.site_blocks else SerialExecutor()
+    stages.callback("checks")(0.0, f"{len(deferred)} relaxation bounds, {len(tasks)} tasks")
     values = on.map(plan_check_task, scorer, tasks)
     for (i, _), bound in zip(deferred, values[: len(deferred)], strict=True):
         assert isinstance(bound, Certificate)
@@ -738,10 +745,21 @@ def _plan_with(
     )
     if doc.beams is not None:
         t1 = time.perf_counter()
-        result.beams = plan_beams(result, lambda f, m: progress(0.9 + 0.1 * f, m))
+        result.beams = plan_beams(result, stages.callback("beams"))
         timing["beams"] = time.perf_counter() - t1
-    progress(1.0, "done")
+    stages.finish("done")
     return result
+
+
+def fill_fields(result: PlanResult, progress: ProgressCallback = no_progress) -> None:
+    """Compute every count's per-point bounds (:meth:`PlanResult.rx_field` of its best layout:
+    the heatmap and ``points`` of plan.json) with progress per count, so that
+    :meth:`PlanResult.to_json` finds them cached."""
+    layouts = list(dict.fromkeys(cr.ranked[0][0] for cr in result.counts))
+    for i, layout in enumerate(layouts):
+        progress(i / len(layouts), f"per-point bounds of {len(layout)} RISs")
+        result.rx_field(layout)
+    progress(1.0, "per-point bounds")
 
 
 def bnb_certificate(bnb: BranchBoundOutcome) -> Certificate:
