@@ -20,6 +20,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.preset is None):
         raise RisPlannerError("give exactly one of FILE or --preset NAME")
     doc = plan_preset(args.preset) if args.preset is not None else load_plan_file(args.file)
+    if args.nested:
+        doc = {**doc, "rollout": "nested"}
     if args.beams and doc.get("beams") is None:
         doc = {**doc, "beams": {}}  # the default beam settings (PlanDocument.beams)
     executor: Executor = (
@@ -66,5 +68,11 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="design DIR/DIR+DER beams from the UE maps and allocate power (γ_P, SDP) for the"
         " best layout of each count (the document's 'beams' settings, default ones if absent)",
+    )
+    p.add_argument(
+        "--nested",
+        action="store_true",
+        help="phased roll-out: each count's layout contains the previous count's (the"
+        " document's rollout = 'nested'; plan.json rollout gives the price of nesting)",
     )
     p.set_defaults(func=_cmd_plan)

@@ -662,6 +662,12 @@ class PlanDocument(DocumentModel):
         default_factory=list, description="Known state parts: clock, height, tx"
     )
     search: SearchSpec = Field(default_factory=SearchSpec, description="Placement search")
+    rollout: Literal["free", "nested"] = Field(
+        "free",
+        description="free: every RIS count's best layout on its own; nested: a phased"
+        " roll-out, each count's layout contains the previous count's (plan.json rollout:"
+        " nested layouts and the price of nesting; docs/guides/rollout.md)",
+    )
     beams: BeamsSpec | None = Field(
         None,
         description="Design beams from the UE maps and allocate power for the recommended"

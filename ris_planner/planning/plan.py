@@ -51,6 +51,7 @@ from ris_planner.planning.objectives import (
 )
 from ris_planner.planning.physics import physics_json
 from ris_planner.planning.points import heatmap_json, points_json
+from ris_planner.planning.rollout import plan_rollout
 from ris_planner.planning.search import MIN_TASK_MATRICES, Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
@@ -168,6 +169,8 @@ class PlanResult:
     feasibility: Feasibility | None = None
     infeasible_counts: tuple[int, ...] = ()
     sweep: dict[str, Any] | None = None
+    rollout: dict[str, Any] | None = None
+    """plan.json ``rollout`` (:func:`~ris_planner.planning.rollout.plan_rollout`)."""
 
     @property
     def cache(self) -> SiteCache:
@@ -375,6 +378,7 @@ class PlanResult:
             },
             "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
+            **({"rollout": self.rollout} if self.rollout is not None else {}),
             **self._decision_json(),
         }
 
@@ -721,7 +725,11 @@ def _plan_with(
         cr.random_codebook = random_codebook_summary(
             codebook[i * n : (i + 1) * n], len(jobs[i][0][1])
         )
+    t_roll = time.perf_counter()
+    free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
+    rollout = plan_rollout(doc.rollout, scorer, feasibility, free, doc.search)
     timing = {
+        "rollout": time.perf_counter() - t_roll,
         "cache": t_cache,
         "search": t_search,
         "branch_and_bound": t_bnb,
@@ -742,6 +750,7 @@ def _plan_with(
         site_warnings=warnings,
         feasibility=feasibility,
         infeasible_counts=tuple(infeasible),
+        rollout=rollout,
     )
     if doc.beams is not None:
         t1 = time.perf_counter()
