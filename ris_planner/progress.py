@@ -19,20 +19,24 @@ def no_progress(fraction: float, message: str) -> None:
 
 
 class ProgressBar:
-    """A text progress bar on stderr for the CLI (redraws at most every 0.1 s)."""
+    """A text progress bar on stderr for the CLI (redraws at most every 0.1 s, and always at a
+    new stage: the part of the message before its first ``:``, :class:`Stages`)."""
 
     def __init__(self, label: str, stream: TextIO | None = None, width: int = 30) -> None:
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.width = width
         self._last = 0.0
+        self._stage: str | None = None
         self._start = time.perf_counter()
 
     def __call__(self, fraction: float, message: str = "") -> None:
         now = time.perf_counter()
-        if fraction < 1.0 and now - self._last < 0.1:
+        stage = message.split(":", 1)[0]
+        if fraction < 1.0 and now - self._last < 0.1 and stage == self._stage:
             return
         self._last = now
+        self._stage = stage
         frac = min(max(fraction, 0.0), 1.0)
         filled = round(frac * self.width)
         bar = "#" * filled + "-" * (self.width - filled)

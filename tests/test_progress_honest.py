@@ -89,3 +89,17 @@ def test_plan_progress_is_honest(tmp_path: Path) -> None:
     assert t1 - calls[-1][2] < 0.05 * (t1 - t0)  # the last call is at the end
     stages = {m.split(":")[0] for _, m, _ in calls[:-1]}
     assert stages == {"plan", "fields", "report", "figures", "exports"}
+
+
+def test_progress_bar_redraws_at_a_new_stage() -> None:
+    import io
+
+    from ris_planner.progress import ProgressBar
+
+    out = io.StringIO()
+    bar = ProgressBar("plan", stream=out)
+    bar(0.1, "plan: cache")
+    bar(0.2, "plan: search")  # within 0.1 s, same stage: not drawn
+    bar(0.6, "figures")  # a new stage: drawn
+    text = out.getvalue()
+    assert "cache" in text and "search" not in text and "figures" in text
