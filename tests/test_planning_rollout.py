@@ -5,12 +5,15 @@ best superset's, and free layouts that are not nested are flagged."""
 from __future__ import annotations
 
 import itertools
+import json
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from ris_planner.cli import main
 from ris_planner.planning import SerialExecutor, run_plan
 from ris_planner.planning.rollout import extend
 from tests.tolerance import assert_close
@@ -99,3 +102,13 @@ def test_free_mode_flags_non_nested_layouts() -> None:
             # not nested, from a nested start: nesting costs something or ties
             assert rows[i]["nested_objective"] >= rows[i]["free_objective"]
     assert any(r["nested"] is False for r in rows[1:]), [r["free_layout"] for r in rows]
+
+
+def test_cli_nested_flag(tmp_path: Path, nested: Any) -> None:
+    path = tmp_path / "doc.json"
+    path.write_text(json.dumps(doc()))
+    assert main(["plan", str(path), "--nested", "--out", str(tmp_path), "--workers", "1"]) == 0
+    plan = json.loads((tmp_path / "plan.json").read_text())
+    assert plan["rollout"]["mode"] == "nested"
+    # the same chain as the document's rollout = "nested" (same process, same scorer route)
+    assert plan["rollout"]["counts"] == nested.to_json()["rollout"]["counts"]

@@ -726,6 +726,7 @@ def _plan_with(
             codebook[i * n : (i + 1) * n], len(jobs[i][0][1])
         )
     t_roll = time.perf_counter()
+    stages.callback("rollout")(0.0, doc.rollout)
     free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
     rollout = plan_rollout(doc.rollout, scorer, feasibility, free, doc.search)
     timing = {

@@ -10,6 +10,7 @@ pairs each: only their ratios matter, and they hold within about a factor 2 on t
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import TYPE_CHECKING
 
@@ -75,7 +76,7 @@ def search_layouts(inputs: PlanInputs, count: int) -> int:
 
 def plan_work(inputs: PlanInputs) -> dict[str, float]:
     """Estimated seconds of :func:`~ris_planner.planning.plan.run_plan`'s stages: ``cache``,
-    ``search``, ``checks`` and (with ``beams``) ``beams``."""
+    ``search``, ``checks``, ``rollout`` (the nested chain) and (with ``beams``) ``beams``."""
     doc = inputs.document
     n_sites, n_pairs = len(inputs.sites), inputs.pairs.size
     counts = inputs.counts
@@ -88,6 +89,13 @@ def plan_work(inputs: PlanInputs) -> dict[str, float]:
         "checks": len(counts) * CHECKS_PER_COUNT_S
         + FRANK_WOLFE_PER_SITE_PAIR_S * doc.search.certificate_iterations * n_sites * n_pairs,
     }
+    # the nested chain (planning.rollout): every superset of the previous count's layout,
+    # at most search.max_exhaustive per count (beyond it: a greedy extension, fewer)
+    chain = sum(
+        min(math.comb(n_sites - a, b - a), doc.search.max_exhaustive)
+        for a, b in itertools.pairwise(counts)
+    )
+    work["rollout"] = SEARCH_PER_LAYOUT_PAIR_S * chain * n_pairs
     if doc.beams is not None:
         work["beams"] = BEAMS_PER_LAYOUT_S * (len(counts) + len(doc.beams.layouts))
     return work
