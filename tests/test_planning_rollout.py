@@ -83,7 +83,7 @@ def test_greedy_extension_when_exhaustive_is_out_of_reach(nested: Any) -> None:
     step = extend(nested.scorer, nested.feasibility, base, 4, spec)
     assert step.method == "greedy" and step.layout is not None
     assert set(base) < set(step.layout) and len(step.layout) == 4
-    # never better than the exhaustive best superset, never worse than the greedy build's start
+    # a superset search cannot beat the exhaustive best superset
     exact = extend(nested.scorer, nested.feasibility, base, 4, nested.document.search)
     assert step.loss >= exact.loss
 
