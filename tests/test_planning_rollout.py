@@ -112,3 +112,23 @@ def test_cli_nested_flag(tmp_path: Path, nested: Any) -> None:
     assert plan["rollout"]["mode"] == "nested"
     # the same chain as the document's rollout = "nested" (same process, same scorer route)
     assert plan["rollout"]["counts"] == nested.to_json()["rollout"]["counts"]
+
+
+def test_free_mode_leaves_the_price_out_when_the_chain_is_not_cheap(
+    nested: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from ris_planner.planning import rollout
+
+    free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in nested.counts]
+    args = (nested.scorer, nested.feasibility, free, nested.document.search, 200)
+    cheap = rollout.plan_rollout("free", *args, search_work=0.0)
+    assert all(r["price"] is not None for r in cheap["counts"]) and "price_note" not in cheap
+    monkeypatch.setattr(rollout, "FREE_CHAIN_WORK", 0)
+    dear = rollout.plan_rollout("free", *args, search_work=1e9)  # 5 % of it: still cheap
+    assert dear["counts"] == cheap["counts"]
+    out = rollout.plan_rollout("free", *args, search_work=0.0)
+    assert all(r["price"] is None and "nested_layout" not in r for r in out["counts"])
+    assert "price_note" in out
+    assert [r["nested"] for r in out["counts"]] == [r["nested"] for r in cheap["counts"]]
+    # nested mode searches the chain whatever it costs
+    assert rollout.plan_rollout("nested", *args, search_work=0.0)["counts"][1]["price"] is not None

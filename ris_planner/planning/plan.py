@@ -728,7 +728,8 @@ def _plan_with(
     t_roll = time.perf_counter()
     stages.callback("rollout")(0.0, doc.rollout)
     free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
-    rollout = plan_rollout(doc.rollout, scorer, feasibility, free, doc.search)
+    searched = sum(cr.outcome.evaluated for cr in counts) * pairs.size
+    rollout = plan_rollout(doc.rollout, scorer, feasibility, free, doc.search, pairs.size, searched)
     timing = {
         "rollout": time.perf_counter() - t_roll,
         "cache": t_cache,

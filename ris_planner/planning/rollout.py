@@ -11,8 +11,9 @@ of nesting* of a count is how much worse the nested layout's objective is than t
 optimum's (``≥ 0`` when the free search is exhaustive), absolute and relative to the free
 objective. With ``rollout: "free"`` (the default) plan.json still says whether the free
 layouts happen to be nested, and gives the price when the chain is cheap: when every count's
-extension is searched exhaustively within ``search.max_exhaustive`` layouts in all
-(otherwise ``price`` is ``null`` and ``price_note`` says why).
+extension is searched exhaustively within ``search.max_exhaustive`` layouts in all and
+the chain costs at most 2 million (layout, pair) evaluations or 5 % of the free search's
+(:func:`chain_is_cheap`; otherwise ``price`` is ``null`` and ``price_note`` says why).
 """
 
 from __future__ import annotations
@@ -136,11 +137,22 @@ def nested_chain(
     return steps
 
 
-def chain_is_cheap(n_sites: int, counts: list[int], max_exhaustive: int) -> bool:
-    """Whether every extension of the chain is exhaustive and all of them together stay within
-    ``max_exhaustive`` layouts (then the free mode reports the price too)."""
+FREE_CHAIN_WORK = 2_000_000
+"""Free mode prices the nested chain when its (layout, pair) evaluations stay within this …"""
+FREE_CHAIN_SHARE = 0.05
+"""… or within this share of the free search's own (layout, pair) evaluations."""
+
+
+def chain_is_cheap(
+    n_sites: int, counts: list[int], max_exhaustive: int, n_pairs: int, search_work: float
+) -> bool:
+    """Whether the free mode searches the chain too (and so reports the price): every extension
+    exhaustive within ``max_exhaustive`` layouts in all, and their (layout, pair) evaluations
+    within :data:`FREE_CHAIN_WORK` or :data:`FREE_CHAIN_SHARE` of ``search_work`` (the free
+    search's layouts × pairs) – at most a few percent more time."""
     total = sum(extension_count(n_sites, a, b) for a, b in itertools.pairwise(counts))
-    return total <= max_exhaustive
+    budget = max(FREE_CHAIN_WORK, FREE_CHAIN_SHARE * search_work)
+    return total <= max_exhaustive and total * n_pairs <= budget
 
 
 def _num(x: float) -> float | None:
@@ -197,16 +209,19 @@ def plan_rollout(
     feasibility: Feasibility,
     free: list[tuple[int, Layout, float]],
     spec: SearchSpec,
+    n_pairs: int,
+    search_work: float,
 ) -> dict[str, Any]:
     """The ``rollout`` block of plan.json for ``mode`` (``free`` or ``nested``; module
     docstring): the nested chain is searched in nested mode, and in free mode when
-    :func:`chain_is_cheap`."""
+    :func:`chain_is_cheap` (``search_work``: the free search's layouts × pairs)."""
     counts = [c for c, _, _ in free]
-    if mode == "nested" or chain_is_cheap(feasibility.n_sites, counts, spec.max_exhaustive):
+    n = feasibility.n_sites
+    if mode == "nested" or chain_is_cheap(n, counts, spec.max_exhaustive, n_pairs, search_work):
         steps = nested_chain(scorer, feasibility, free, spec)
         return rollout_json(mode, scorer.objective, free, steps)
     note = (
-        "the nested chain's extensions exceed search.max_exhaustive layouts: set"
-        ' rollout "nested" to search it'
+        "the nested chain is not cheap next to the free search (planning.rollout."
+        'chain_is_cheap): set rollout "nested" to search it'
     )
     return rollout_json(mode, scorer.objective, free, None, note)

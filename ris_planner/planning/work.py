@@ -90,7 +90,8 @@ def plan_work(inputs: PlanInputs) -> dict[str, float]:
         + FRANK_WOLFE_PER_SITE_PAIR_S * doc.search.certificate_iterations * n_sites * n_pairs,
     }
     # the nested chain (planning.rollout): every superset of the previous count's layout,
-    # at most search.max_exhaustive per count (beyond it: a greedy extension, fewer)
+    # at most search.max_exhaustive per count (beyond it: a greedy extension, fewer); free
+    # mode searches it only when cheap, so this overestimates there at most by that little
     chain = sum(
         min(math.comb(n_sites - a, b - a), doc.search.max_exhaustive)
         for a, b in itertools.pairwise(counts)
