@@ -725,18 +725,20 @@ def _plan_with(
         cr.random_codebook = random_codebook_summary(
             codebook[i * n : (i + 1) * n], len(jobs[i][0][1])
         )
+    t_checks = time.perf_counter() - t1
     t_roll = time.perf_counter()
     stages.callback("rollout")(0.0, doc.rollout)
     free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
     searched = sum(cr.outcome.evaluated for cr in counts) * pairs.size
     rollout = plan_rollout(doc.rollout, scorer, feasibility, free, doc.search, pairs.size, searched)
+    t_roll = time.perf_counter() - t_roll
     timing = {
-        "rollout": time.perf_counter() - t_roll,
         "cache": t_cache,
         "search": t_search,
         "branch_and_bound": t_bnb,
         "visibility": t_vis,
-        "checks": time.perf_counter() - t1,
+        "checks": t_checks,
+        "rollout": t_roll,
     }
     result = PlanResult(
         doc,
