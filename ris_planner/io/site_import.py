@@ -29,6 +29,7 @@ from ris_planner.io.geojson_import import (
     osm_xml_features,
 )
 from ris_planner.io_json import parse_json_object
+from ris_planner.planning.physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 
 IMPORT_FORMATS = ("geojson", "osm", "sites", "dxf")
 """What :func:`import_data` reads."""
@@ -38,11 +39,14 @@ PLAN_DEFAULTS: dict[str, Any] = {
     "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
     "ris_count": [2, 3],
     "known": ["height"],
+    "ris": {"pattern_exponent": PLAN_PATTERN_EXPONENT, "max_angle_deg": PLAN_MAX_ANGLE_DEG},
 }
 """Fields of a plan document made by :func:`plan_from_import` (the planner's to edit): 1000
 sampled TX–RX pairs, coverage Pr(PEB_R ≤ 1 m), 2 and 3 RISs (one RIS leaves both UEs
 unlocated), UE heights known (street or
-floor level)."""
+floor level), and the plan's physical RIS element written out (the unit-cell pattern
+q = 1.5 and the 84.26° field of view of :mod:`ris_planner.planning.physics`, so the planner
+sees and may edit them; docs/concepts/planning-physics.md)."""
 
 MAX_DXF_GRID_POINTS = 10_000
 """A DXF plan's UE grid is coarsened (its step doubled) until it has at most this many points."""

@@ -34,6 +34,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.preset is None):
         raise RisPlannerError("give exactly one of FILE or --preset NAME")
     doc = plan_preset(args.preset) if args.preset is not None else load_plan_file(args.file)
+    if args.nested:
+        doc = {**doc, "rollout": "nested"}
     if args.beams and doc.get("beams") is None:
         doc = {**doc, "beams": {}}  # the default beam settings (PlanDocument.beams)
     if args.sizing and doc.get("sizing") is None:
@@ -103,5 +105,11 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help=f"exit with status {EXIT_USELESS} when the plan is diagnosed useless (the files are"
         " still written; default: a WARNING on stderr and status 0)",
+    )
+    p.add_argument(
+        "--nested",
+        action="store_true",
+        help="phased roll-out: each count's layout contains the previous count's (the"
+        " document's rollout = 'nested'; plan.json rollout gives the price of nesting)",
     )
     p.set_defaults(func=_cmd_plan)

@@ -20,6 +20,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ris_planner.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS
 from ris_planner.obstacles import Environment, Prism
+from ris_planner.planning.physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 from ris_planner.power.options import Solver
 from ris_planner.scenario import (
     RIS,
@@ -323,7 +324,34 @@ class PlanCodebook(DocumentModel):
 
 class RISDefaults(RISGrid):
     """The element grid, field of view and pattern of every candidate RIS (the scenario
-    document's per-RIS fields of the same names, :class:`~ris_planner.scenario.RISGrid`)."""
+    document's per-RIS fields of the same names, :class:`~ris_planner.scenario.RISGrid`).
+
+    Unlike a scenario's (the paper's isotropic q = 0, 90°), ``pattern_exponent`` and
+    ``max_angle_deg`` default to a physical element: the unit-cell power pattern cos³ θ of
+    Tang et al. (IEEE TWC 2021) as the amplitude exponent q = 1.5, and a field of view of
+    84.26° (:mod:`ris_planner.planning.physics`, docs/concepts/planning-physics.md). A value
+    the document gives always wins (``model_fields_set`` tells them apart)."""
+
+    max_angle_deg: float = Field(
+        PLAN_MAX_ANGLE_DEG,
+        gt=0,
+        le=180,
+        allow_inf_nan=False,
+        description="Field of view: a UE is served only when the angle between the RIS normal"
+        " and the direction to the UE is strictly below this [deg]; default 84.26 (cos θ > 0.1:"
+        " the cos³ θ unit-cell pattern 30 dB below boresight); 90 = the paper's open front"
+        " half-space",
+    )
+    pattern_exponent: float = Field(
+        PLAN_PATTERN_EXPONENT,
+        ge=0,
+        le=100,
+        allow_inf_nan=False,
+        description="q of the element pattern: the path gain |ρ| is multiplied by"
+        " (cos θ_T · cos θ_R)^q, θ the angles to the normal; default 1.5 (the unit-cell power"
+        " pattern cos³ θ of Tang et al., IEEE TWC 2021, as an amplitude exponent); 0 = the"
+        " paper's isotropic model",
+    )
 
 
 # --- decisions: targets, constraints and cost (issue 14) -----------------------------------
@@ -699,6 +727,12 @@ class PlanDocument(DocumentModel):
         default_factory=list, description="Known state parts: clock, height, tx"
     )
     search: SearchSpec = Field(default_factory=SearchSpec, description="Placement search")
+    rollout: Literal["free", "nested"] = Field(
+        "free",
+        description="free: every RIS count's best layout on its own; nested: a phased"
+        " roll-out, each count's layout contains the previous count's (plan.json rollout:"
+        " nested layouts and the price of nesting; docs/guides/rollout.md)",
+    )
     beams: BeamsSpec | None = Field(
         None,
         description="Design beams from the UE maps and allocate power for the recommended"
