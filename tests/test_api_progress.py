@@ -10,8 +10,7 @@ import time
 from pathlib import Path
 
 from api_helpers import api_client
-
-from tests.test_progress_honest import STALL_MOVE, STALL_WALL_SHARE, small_plan
+from test_progress_honest import STALL_MOVE, STALL_WALL_SHARE, small_plan
 
 
 def test_plan_job_progress_events_are_honest(tmp_path: Path) -> None:

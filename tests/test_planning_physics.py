@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tolerance import assert_close
 
 from ris_planner.bounds import compute_bounds
 from ris_planner.io.site_import import PLAN_DEFAULTS
@@ -25,7 +26,6 @@ from ris_planner.planning.physics import (
 )
 from ris_planner.planning.sites import expand_sites
 from ris_planner.scenario import RIS
-from tests.tolerance import assert_close
 
 BOUND_COND = 1e8
 """Scaled condition number of the Fisher informations of these layouts (the heatmap symmetry

@@ -12,11 +12,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tolerance import assert_close
 
 from ris_planner.cli import main
 from ris_planner.planning import SerialExecutor, run_plan
 from ris_planner.planning.rollout import extend
-from tests.tolerance import assert_close
 
 
 def ring(n: int) -> list[dict[str, Any]]:
