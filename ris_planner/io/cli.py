@@ -54,15 +54,27 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
     opts = options_of(args)
     layers = dict(parse_layer_spec(s) for s in args.layer or [])
+    origin = parse_origin(args.origin)
+    extra: dict[str, Any] | None = None
+    if args.candidates is not None:
+        # the candidates' azimuths belong to the frame they were generated in: the site is
+        # imported in that frame too (unless --origin names one)
+        extra, _ = import_data(
+            _read_bytes(args.candidates), "sites", opts, origin, what=args.candidates
+        )
+        origin = tuple(extra["frame"]["origin"]) if origin is None else origin
     fragment, summary = import_data(
         _read_bytes(args.file),
         args.format,
         opts,
-        parse_origin(args.origin),
+        origin,
         layers,
         args.units,
         what=args.file,
     )
+    if extra is not None:
+        fragment["candidates"] = [*fragment.get("candidates", []), *extra["candidates"]]
+        summary["candidates"] = len(fragment["candidates"])
     if args.plan:
         fragment, report = plan_from_import(fragment, args.format, summary, opts)
         summary = report.to_json()
@@ -244,6 +256,12 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="write a starting plan document (UE map as tx_map/rx_map, candidates, the"
         " defaults of ris_planner.io.site_import.PLAN_DEFAULTS) instead of the fragment",
+    )
+    p.add_argument(
+        "--candidates",
+        metavar="SITES.geojson",
+        help="add the candidate sites of this file (e.g. what `ris-planner sites` wrote) to the"
+        " fragment or plan; the site is imported in the candidates' frame",
     )
     p.add_argument("--origin", help="frame origin LON,LAT[,H] (default: bounding-box centre)")
     p.add_argument("--metres-per-level", type=float, default=METRES_PER_LEVEL)
