@@ -6,7 +6,7 @@ answers and jobs, ``plan.json``) carries ``"provenance": {"package": "ris_planne
 JSON – the validated document with its defaults filled in (:class:`pydantic.BaseModel`), or
 the document as given (a mapping) – with sorted keys, no whitespace and numbers in Python's
 shortest round-trip form, so the same input gives the same hash on every machine and through
-every route (docs/reference/settings.md#provenance).
+every route (docs/concepts/conventions.md, "Provenance").
 """
 
 from __future__ import annotations
