@@ -8,13 +8,8 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.bounds import (
-    REASON_DEGENERATE,
-    REASON_UNDERDETERMINED,
-    fim_inverse_diagonal,
-    invert_fim,
-)
+from ris_planner import compute_bounds, crb, ldl, load_scenario, preset_document
+from ris_planner.bounds import REASON_DEGENERATE, REASON_UNDERDETERMINED
 from ris_planner.scenario import Scenario
 
 
@@ -62,17 +57,26 @@ def test_single_ris_underdetermined() -> None:
 
 
 def test_singular_matrix_detected_never_nan() -> None:
+    """The one inversion route (crb.crb_diagonal) on hand-made FIMs: a regular one gives its
+    exact inverse diagonal; a rank-3 one whose null direction (1, −1, 0, 0) involves only
+    states 0 and 1 leaves states 2 and 3 determined (their exact bound 1); zero information
+    on one state makes only that state ``inf``. Never NaN."""
     f = np.zeros((3, 4, 4))
     f[0] = np.diag([1.0, 2.0, 3.0, 4.0])
     v = np.array([1.0, 1.0, 0.0, 0.0])
     f[1] = np.outer(v, v) + np.diag([0, 0, 1.0, 1.0])  # rank 3
     f[2] = np.diag([1.0, 0.0, 1.0, 1.0])  # zero information on one state
-    diag, singular = fim_inverse_diagonal(f)
-    assert list(singular) == [False, True, True]
-    np.testing.assert_allclose(diag[0], [1, 0.5, 1 / 3, 0.25])
-    assert np.all(np.isinf(diag[1:])) and not np.any(np.isnan(diag))
-    crb, _ = invert_fim(f[:1])
-    np.testing.assert_allclose(crb[0], np.linalg.inv(f[0]))
+
+    def rows(idx: np.ndarray) -> np.ndarray:
+        return crb.path_factor(f[idx], np.broadcast_to(np.eye(4), (idx.size, 4, 4)))
+
+    diag, deficient = crb.crb_diagonal(ldl.pack(f), 4, rows)
+    assert list(deficient) == [False, True, True]
+    np.testing.assert_allclose(diag[:, 0], [1, 0.5, 1 / 3, 0.25], rtol=1e-15)
+    assert np.all(np.isinf(diag[:2, 1])) and np.all(np.isinf(diag[1, 2]))
+    np.testing.assert_allclose(diag[2:, 1], [1.0, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(diag[[0, 2, 3], 2], [1.0, 1.0, 1.0], rtol=1e-12)
+    assert not np.any(np.isnan(diag))
 
 
 def test_degenerate_pairs_in_a_batch_get_inf_with_reason() -> None:
