@@ -38,13 +38,25 @@ ComplexArray = NDArray[np.complex128]
 class PathBlocks:
     """One path's per-beam information and its map to the state.
 
-    blocks : [P, J, m, m] F_ℓ(g̃) on the path's (channel parameters, α, β) per distinct beam
-    (an absent path: ABSENT_GAIN_INFORMATION / G̃ on its gains only); maps : [P, m, n] T_ℓ on
-    the unknown state (the kept columns).
+    blocks : [P, J, m+2, m+2] F_ℓ(g̃) on the path's (channel parameters, α, β) per distinct
+    beam (an absent path: ABSENT_GAIN_INFORMATION / G̃ on its gains only); maps : [P, m+2, n]
+    T_ℓ on the unknown state (the kept columns); name : ``"los"``, ``"ris1"``, …;
+    jacobian : [P, m, 7] ∂(channel parameters)/∂[p_T, p_R, B]; present : [P] whether the path
+    exists for the position.
     """
 
     blocks: FloatArray
     maps: FloatArray
+    name: str
+    jacobian: FloatArray
+    present: NDArray[np.bool_]
+
+    def path_info(self, group_powers: FloatArray) -> bounds.PathInfo:
+        """The path's equivalent FIM on its channel parameters at the given distinct-beam
+        powers [J] (gains eliminated, ``fim.eliminate_nuisance``) as the bounds' PathInfo."""
+        block = np.einsum("j,pjab->pab", group_powers, self.blocks)
+        m = self.jacobian.shape[1]
+        return bounds.PathInfo(self.name, fim.eliminate_nuisance(block, m), self.jacobian)
 
 
 @dataclass(frozen=True)
@@ -64,6 +76,8 @@ class BeamInformation:
     tx_index: NDArray[np.int_]
     rx_index: NDArray[np.int_]
     paths: tuple[PathBlocks, ...] = ()
+    known: tuple[KnownPart, ...] = ()
+    n_observations: int | None = None
 
     @property
     def group_sizes(self) -> NDArray[np.int_]:
@@ -90,17 +104,48 @@ class BeamInformation:
 
     def factor(self, powers: FloatArray, idx: NDArray[np.int_] | None = None) -> FloatArray:
         """Square-root factor A [len(idx), r, n] of :meth:`fim` at the positions idx (all by
-        default): AᵀA = Σ_ℓ T_ℓᵀ F_ℓ(γ) T_ℓ with the rows L_ℓᵀ T_ℓ of each path
-        (:func:`ris_planner.crb.path_factor`: eigh of the small PSD block F_ℓ(γ), negative
-        rounding eigenvalues clipped)."""
+        default): AᵀA = Σ_ℓ T_ℓᵀ F_ℓ(γ) T_ℓ with the rows L_ℓᵀ T_ℓ of each path, L_ℓ from the
+        eigendecomposition of the symmetrically scaled block D⁻¹F_ℓD⁻¹ (D = √diag F_ℓ: the
+        path's delay, angles and gains differ in scale by many orders, which an unscaled eigh
+        would not resolve), negative rounding eigenvalues clipped
+        (:func:`ris_planner.crb.path_factor`)."""
         gp = self.group_powers(powers)
         sel = np.arange(self.stack.shape[0]) if idx is None else idx
         rows = []
         for path in self.paths:
             block = np.einsum("j,pjab->pab", gp, path.blocks[sel])
-            block = 0.5 * (block + block.transpose(0, 2, 1))
-            rows.append(crb.path_factor(block, path.maps[sel]))
+            d = np.sqrt(np.diagonal(block, axis1=1, axis2=2))
+            d = np.where(d > 0, d, 1.0)
+            scaled = block / d[:, :, None] / d[:, None, :]
+            scaled = 0.5 * (scaled + scaled.transpose(0, 2, 1))
+            rows.append(crb.path_factor(scaled, path.maps[sel] * d[:, :, None]))
         return np.concatenate(rows, axis=1)
+
+    def state_bounds(
+        self, powers: FloatArray
+    ) -> tuple[FloatArray | None, FloatArray, FloatArray | None]:
+        """(PEB_T or ``None`` when known, PEB_R, CEB or ``None``) [P] at the given first-block
+        powers by the bounds' own route (:func:`ris_planner.bounds.bounds_from_paths`: each
+        path's gains eliminated, the LOS-referenced clock, per-parameter identifiability), so
+        the values are ``compute_bounds``' (a pair left with fewer channel parameters than
+        unknown states by missing paths is ``inf`` as there)."""
+        gp = self.group_powers(powers)
+        paths = [p.path_info(gp) for p in self.paths]
+        mask = np.stack([p.present for p in self.paths], axis=1)
+
+        def state_fim() -> FloatArray:
+            return bounds.masked_state_information(paths, mask)
+
+        peb_tx, peb_rx, ceb, _ = bounds.bounds_from_paths(
+            paths, self.known, self.n_observations, mask, state_fim
+        )
+        if self.n_observations is not None:
+            n_unknown = int(bounds.kept_states(self.known).size)
+            under, _ = bounds.underdetermined_pairs(paths, mask, n_unknown)
+            for arr in (peb_tx, peb_rx, ceb):
+                if arr is not None:
+                    arr[under] = np.inf
+        return peb_tx, peb_rx, ceb
 
 
 def _path_map(jacobian: FloatArray, gain_col: int, n_full: int) -> FloatArray:
@@ -176,15 +221,16 @@ def _beam_information(
     kept = bounds.kept_states(scenario.known if known is None else known)
     keep = np.concatenate([kept, np.arange(7, n_full)])
     # per path: per-beam blocks [P, G̃, m+2, m+2] and T_ℓ [P, m+2, n_full]
-    parts: list[tuple[FloatArray, FloatArray]] = []
+    parts: list[tuple[str, FloatArray, FloatArray, FloatArray]] = []
     col = 7
     if system.los:
         alpha0 = geometry.los_gain(geometry.los_distance(tx, rx), radio.wavelength)
         # every beam carries the LOS path with t_g = 1: the same block for all g̃
         block = fim.los_path_fim(float(gamma), alpha0, radio)
         blocks = np.broadcast_to(block[:, None], (n_pos, g_tilde, *block.shape[1:]))
-        t = _path_map(geometry.los_jacobian(tx, rx), col, n_full)
-        parts.append((_path_blocks(blocks, present["los"], beams_total), t))
+        jac = geometry.los_jacobian(tx, rx)
+        t = _path_map(jac, col, n_full)
+        parts.append(("los", _path_blocks(blocks, present["los"], beams_total), t, jac))
         col += 2
     for i, (ris, prof) in enumerate(zip(scenario.ris, profiles, strict=True)):
         pos = beams.ris_element_positions(ris, radio.wavelength)
@@ -205,15 +251,23 @@ def _beam_information(
             n_pos, g_tilde, m + 2, m + 2
         )
         t = _path_map(jac, col, n_full)
-        parts.append((_path_blocks(block5, present[f"ris{i + 1}"], beams_total), t))
+        name = f"ris{i + 1}"
+        parts.append((name, _path_blocks(block5, present[name], beams_total), t, jac))
         col += 2
     stack = np.zeros((n_pos, g_tilde, n_full, n_full))
-    for blocks, t in parts:
+    for _, blocks, t, _ in parts:
         stack += np.einsum("pai,pgab,pbj->pgij", t, blocks, t, optimize=True)
     stack = stack[:, :, keep][:, :, :, keep]
     stack = 0.5 * (stack + stack.transpose(0, 1, 3, 2))
-    paths = tuple(PathBlocks(blocks, np.ascontiguousarray(t[:, :, keep])) for blocks, t in parts)
+    paths = tuple(
+        PathBlocks(blocks, np.ascontiguousarray(t[:, :, keep]), name, jac, present[name])
+        for name, blocks, t, jac in parts
+    )
     pos_in_state = {int(k): i for i, k in enumerate(keep)}
     tx_index = np.array([pos_in_state[k] for k in (0, 1, 2) if k in pos_in_state], dtype=int)
     rx_index = np.array([pos_in_state[k] for k in (3, 4, 5) if k in pos_in_state], dtype=int)
-    return BeamInformation(stack, np.asarray(group).ravel(), tx_index, rx_index, paths)
+    known_t = tuple(scenario.known if known is None else known)
+    n_obs = bounds.n_observations(n_ris, system.los, system.wavefront)
+    return BeamInformation(
+        stack, np.asarray(group).ravel(), tx_index, rx_index, paths, known_t, n_obs
+    )

@@ -11,11 +11,12 @@ PEB² of eq. PEBR — one LMI per position, equivalent to the appendix's three s
 Σ_g γ_g = G̃ is ‖δ‖² = G), which keeps the time-orthogonal path separation.
 
 The CRB traces (the objective at given powers, the γ_P search's objective, the scale below)
-take the one inversion route of the bounds (:func:`ris_planner.crb.crb_diagonal` on the
-stacked FIM with the square-root factor of the per-path blocks, docs/concepts/numerics.md):
-a position is ``inf`` only where the objective's states are not identifiable, so a null
-direction of the information that involves only the clock, the TX or the gains does not
-make a position with a determined PEB_R blind, and the values equal ``compute_bounds``'.
+take the one inversion route of the bounds (:meth:`BeamInformation.state_bounds`: each path's
+block at the given powers, its gains eliminated, through
+:func:`ris_planner.bounds.bounds_from_paths`, docs/concepts/numerics.md): a position is
+``inf`` only where the objective's states are not identifiable, so a null direction of the
+information that involves only the clock or the TX does not make a position with a determined
+PEB_R blind, and the values are ``compute_bounds``' to rounding.
 
 Scaling: the FIM mixes metres with channel gains of ~1e-7, so each position's matrices are
 whitened at uniform power, S̃ = W S Wᵀ with W F(1) Wᵀ = I on the range of F(1)
@@ -40,7 +41,7 @@ import cvxpy as cp
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import crb, ldl
+from ris_planner import crb
 from ris_planner.errors import RisPlannerError
 from ris_planner.power.information import BeamInformation
 from ris_planner.power.options import SOLVERS, Objective
@@ -95,17 +96,18 @@ def objective_index(info: BeamInformation, objective: Objective) -> NDArray[np.i
 def position_traces(
     info: BeamInformation, powers: FloatArray, index: NDArray[np.int_]
 ) -> FloatArray:
-    """[P] tr([I(s_p)⁻¹]_index) at the given powers by the route of the bounds
-    (:func:`ris_planner.crb.crb_diagonal`: scaled LDLᵀ of the stacked FIM where it is well
-    conditioned, else the square-root factor of :meth:`BeamInformation.factor`); ``inf`` where
-    a state of ``index`` is not identifiable."""
-    f = info.fim(powers)
-    n = f.shape[-1]
-    diag, _ = crb.crb_diagonal(ldl.pack(f), n, lambda idx: info.factor(powers, idx))
-    total = diag[index[0]].copy()
-    for i in index[1:]:
-        total += diag[i]
-    return np.asarray(total)
+    """[P] tr([I(s_p)⁻¹]_index) at the given powers for ``index`` = :func:`objective_index`
+    (PEB_R², PEB_T² or their sum), by the route of the bounds
+    (:meth:`BeamInformation.state_bounds`: the same numbers as ``compute_bounds``); ``inf``
+    where a state of ``index`` is not identifiable."""
+    peb_tx, peb_rx, _ = info.state_bounds(powers)
+    total = np.zeros(info.stack.shape[0])
+    if np.isin(info.tx_index, index).any():
+        assert peb_tx is not None  # tx_index is empty when the TX is known
+        total += np.square(peb_tx)
+    if np.isin(info.rx_index, index).any():
+        total += np.square(peb_rx)
+    return total
 
 
 def mean_trace_bound(info: BeamInformation, powers: FloatArray, index: NDArray[np.int_]) -> float:
