@@ -5,23 +5,32 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from conftest import small_scenario_doc
+from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
+from ris_planner import ldl
 from ris_planner.beams import codebook_block, gamma_p_powers
 from ris_planner.bounds import compute_bounds, first_block_profiles
 from ris_planner.cli import main
 from ris_planner.errors import RisPlannerError
 from ris_planner.power import run_power
 from ris_planner.power.gamma import search_gamma_p
-from ris_planner.power.information import beam_information
+from ris_planner.power.information import BeamInformation, PathBlocks, _path_map, beam_information
 from ris_planner.power.report import design_objective
-from ris_planner.power.sdp import mean_trace_bound, solve_power_sdp
-from ris_planner.scenario import load_scenario, preset_document
+from ris_planner.power.sdp import (
+    mean_trace_bound,
+    objective_index,
+    position_traces,
+    solve_power_sdp,
+    whitening,
+)
+from ris_planner.scenario import Scenario, load_scenario, preset_document
 
 SOLVER_RTOL = 1e-6
 """Ordering checks SDP ≤ γ_P ≤ uniform allow the interior-point solver's relative gap
@@ -300,11 +309,9 @@ def test_degenerate_design_position_is_a_failed_status() -> None:
 STREET_TX_X = (-30.0, -36.0, -38.0, -41.0, -45.0, -80.0, -100.0)
 
 
-def street_power(known: list[str]) -> Any:
+def street_power(known: list[str]) -> Scenario:
     """tests/test_crb.py's street (two 20 × 20 RISs on one facade, TX 30–100 m down the
     street, RX at the origin: scaled cond(F) 1e11–1e15) with a random codebook, G = 48."""
-    import math
-
     return load_scenario(
         {
             "system": {"tx_power_dbm": 30, "noise_figure_db": 10, "transmissions": 48},
@@ -333,9 +340,6 @@ def test_ill_conditioned_design_positions_equal_compute_bounds(known: list[str])
     search's objective and the SDP's value re-evaluated at its powers now equal
     compute_bounds' to the bounds' accuracy (observed ≤ 3e-11), and the SDP is optimal with
     its own objective within the solver's accuracy of the re-evaluated one."""
-    from ris_planner import ldl
-    from ris_planner.power.sdp import position_traces
-    from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
     sc = street_power(known)
     tx = np.array([[x, 0.0, 0.0] for x in STREET_TX_X])
@@ -383,8 +387,6 @@ def test_position_traces_equal_compute_bounds_on_random_scenarios(
     """Random small scenarios (3 RISs, 6 positions, random powers): the power module's
     per-position CRB traces equal compute_bounds' PEB² (same profiles, powers, known parts) to
     the bounds' accuracy, ``inf`` at the same places."""
-    from ris_planner.power.sdp import objective_index, position_traces
-    from tolerance import BOUND_ACCURACY, assert_close
 
     doc = small_scenario_doc(rng, n_ris=3, los=los)
     doc["system"] = doc["system"] | {"wavefront": wavefront}
@@ -402,13 +404,11 @@ def test_position_traces_equal_compute_bounds_on_random_scenarios(
     assert_close(got, want, accuracy=BOUND_ACCURACY)
 
 
-def synthetic_clockless_information(rng: np.random.Generator, n_pos: int = 4) -> Any:
+def synthetic_clockless_information(rng: np.random.Generator, n_pos: int = 4) -> BeamInformation:
     """A BeamInformation whose clock receives no information at all (one path with 7 channel
     parameters = the states, Jacobian I with a zero clock column; two beams with random PSD
     blocks): F(γ) is singular at every power (null direction e_B) while p_T and p_R are
     determined."""
-    from ris_planner.power.information import BeamInformation, PathBlocks, _path_map
-
     jac = np.broadcast_to(np.eye(7), (n_pos, 7, 7)).copy()
     jac[:, 6, 6] = 0.0
     t = _path_map(jac, 7, 9)
@@ -426,9 +426,6 @@ def test_sdp_with_singular_information_whitens_the_range(rng: np.random.Generato
     and its value equals the independent route (the 6 × 6 information on [p_T, p_R] after
     eliminating the gains, inverted by numpy) at its powers; a brute-force scan of the one
     free power ratio finds no better allocation."""
-    from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
-
-    from ris_planner.power.sdp import whitening
 
     info = synthetic_clockless_information(rng)
     _, kept = whitening(info, np.ones(2))

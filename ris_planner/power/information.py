@@ -164,9 +164,7 @@ are decoupled from every other state (no cross terms), so any positive value lea
 position and clock CRBs unchanged while keeping the full FIM invertible for the SDP."""
 
 
-def _path_blocks(
-    blocks: FloatArray, present: NDArray[np.bool_], beams_total: int
-) -> FloatArray:
+def _path_blocks(blocks: FloatArray, present: NDArray[np.bool_], beams_total: int) -> FloatArray:
     """The path's per-beam blocks [P, J, m, m] with an absent path's replaced by
     ABSENT_GAIN_INFORMATION·I on its gains (the last two rows), split over the beams as 1/G̃
     each: Σ_g γ_g S_g then carries exactly that identity at every allocation with

@@ -151,7 +151,7 @@ def solve_power_sdp(
     """
     if solver not in SOLVERS:
         raise RisPlannerError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-    n_pos, n_groups, n, _ = info.stack.shape
+    n_pos, n_groups = info.stack.shape[:2]
     g_tilde = info.beam_group.size
     total = float(g_tilde if total_power is None else total_power)
     if not np.isfinite(total) or total <= 0:
