@@ -13,11 +13,15 @@ with F_ℓ the path's 5×5 (3×3 for LOS) block of eq. FIM_measurement built by 
 T_ℓ mapping (ξ, ζ, r, α, β) of the path to s (geometry Jacobian for ξ, ζ, r; identity for
 its own gains).
 
-Besides the summed stack (one matrix product gives I(s) at any powers for every position) the
-per-path per-beam blocks F_ℓ(g̃) and maps T_ℓ are kept, so that a square-root factor
-A(γ) = stack_ℓ L_ℓ(γ)ᵀ T_ℓ with F_ℓ(γ) = Σ_g̃ γ_g̃ F_ℓ(g̃) = L_ℓ L_ℓᵀ is available
-(:meth:`BeamInformation.factor`): the inversion then takes the one route of the bounds
-(:func:`ris_planner.crb.crb_diagonal`, docs/concepts/numerics.md), never the squared form alone.
+Besides the summed stack (one matrix product gives I(s) at any powers for every position, the
+SDP's LMI) the per-path per-beam blocks F_ℓ(g̃) and maps T_ℓ are kept:
+
+* the CRBs at given powers (:meth:`BeamInformation.state_bounds`) sum each path's blocks
+  (F_ℓ(γ) = Σ_g̃ γ_g̃ F_ℓ(g̃), one product per path), eliminate its gains and take the one
+  inversion route of the bounds (:func:`ris_planner.bounds.bounds_from_paths`,
+  docs/concepts/numerics.md), never the squared full FIM;
+* the square-root factor A(γ) = stack_ℓ L_ℓ(γ)ᵀ T_ℓ with F_ℓ(γ) = L_ℓ L_ℓᵀ
+  (:meth:`BeamInformation.factor`) whitens the SDP (:func:`ris_planner.power.sdp.whitening`).
 """
 
 from __future__ import annotations
