@@ -28,7 +28,7 @@ import numpy as np
 from ris_planner import load_scenario, preset_document
 from ris_planner.beams import codebook_block, gamma_p_powers
 from ris_planner.power.gamma import search_gamma_p
-from ris_planner.power.information import beam_information
+from ris_planner.power.information import BeamInformation, beam_information
 from ris_planner.power.report import design_objective
 from ris_planner.power.sdp import mean_trace_bound, solve_power_sdp, whitening
 
@@ -45,18 +45,19 @@ def timed(fn: Callable[[], T], repeats: int) -> tuple[float, T]:
     return statistics.median(times), out
 
 
-def naive_sdp(stack: np.ndarray, rx_index: np.ndarray) -> tuple[float, float]:
+def naive_sdp(info: BeamInformation) -> tuple[float, float]:
     """The appendix as written: per position Σ_g γ_g S_g as a Python sum and three scalar
-    LMIs [[F, e_l], [e_lᵀ, u_l]] ⪰ 0 (l = 4, 5, 6); whitened like the product (without
-    whitening Clarabel fails on this problem). Returns (objective [m²], seconds)."""
+    LMIs [[F, e_l], [e_lᵀ, u_l]] ⪰ 0 (l = 4, 5, 6), no beam merging (one S_g per slot);
+    whitened like the product (without whitening Clarabel fails on this problem). Returns
+    (objective [m²], seconds)."""
+    stack = info.stack[:, info.beam_group]
+    rx_index = info.rx_index
     n_pos, g_tilde = stack.shape[:2]
     uniform = np.ones(g_tilde)
-    f1 = np.einsum("g,pgij->pij", uniform, stack)
-    w = whitening(f1)
+    w, _ = whitening(info, uniform)  # full rank on this layout
     scaled = w[:, None] @ stack @ w[:, None].transpose(0, 1, 3, 2)
     scaled = 0.5 * (scaled + scaled.transpose(0, 1, 3, 2))
-    diag = np.stack([np.diag(np.linalg.inv(f)) for f in f1])
-    c = float(np.mean(diag[:, rx_index].sum(axis=1)))
+    c = mean_trace_bound(info, uniform, rx_index)
     gam = cp.Variable(g_tilde, nonneg=True)
     cons: list[cp.Constraint] = [cp.sum(gam) == g_tilde]
     u = cp.Variable((n_pos, 3))
@@ -129,9 +130,7 @@ def main() -> None:
     )
 
     if not args.skip_naive:
-        info_all = beam_information(sc, block.tx, block.rx, block.profiles)
-        stack = info_all.stack[:, info_all.beam_group]  # un-merged: one S_g per slot
-        obj, t_naive = naive_sdp(stack, info_all.rx_index)
+        obj, t_naive = naive_sdp(beam_information(sc, block.tx, block.rx, block.profiles))
         t_fast, fast = timed(lambda: solve_power_sdp(info), 1)
         assert fast.powers is not None and fast.objective is not None
         print(

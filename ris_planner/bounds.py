@@ -42,7 +42,6 @@ FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 BoolArray = NDArray[np.bool_]
 
-STATE_NAMES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "clock")
 REASON_UNDERDETERMINED = "underdetermined"
 REASON_SINGULAR = "singular Fisher information (blind spot): the layout cannot resolve this pair"
 REASON_DEGENERATE = "degenerate geometry: a UE coincides with a RIS or with the other UE"
@@ -67,26 +66,6 @@ def kept_states(known: list[KnownPart] | tuple[KnownPart, ...]) -> NDArray[np.in
     if "clock" in known:
         drop.add(6)
     return np.array([i for i in range(7) if i not in drop], dtype=int)
-
-
-def fim_inverse_diagonal(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """diag(F⁻¹) for a batch of symmetric FIMs, ``inf`` where singular (:mod:`ris_planner.ldl`).
-
-    f : [P, n, n]. Returns (diag [P, n], singular [P]).
-    """
-    n = f.shape[-1]
-    diag, singular = ldl.inverse_diagonal_from(ldl.pack(f), n)
-    return diag.T, singular
-
-
-def invert_fim(f: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Batched inverse (the CRB) of symmetric FIMs with singularity detection.
-
-    f : [P, n, n]. Returns (crb [P, n, n] with ``inf`` on singular pairs, singular [P]).
-    """
-    n = f.shape[-1]
-    crb, singular = ldl.inverse_from(ldl.pack(f), n)
-    return ldl.unpack(crb, n), singular
 
 
 @dataclass(frozen=True)
@@ -127,6 +106,14 @@ class PathInfo:
                 self.gain[pairs, None, None] * (self.unit_root @ self.jacobian[pairs])
             )
         return crb.path_factor(self.efim[pairs], self.jacobian[pairs])
+
+    def factor_on_channel(self, pairs: NDArray[np.int_]) -> FloatArray:
+        """Square-root rows Lᵀ [p, m, m] of the EFIM itself (LLᵀ = Ĩ): α·R from the unit root
+        when Ĩ = α² Ĩ(1), else by :func:`ris_planner.crb.path_factor` of each pair's EFIM."""
+        if self.unit_root is not None and self.gain is not None:
+            return np.asarray(self.gain[pairs, None, None] * self.unit_root)
+        m = self.efim.shape[-1]
+        return crb.path_factor(self.efim[pairs], np.broadcast_to(np.eye(m), (pairs.size, m, m)))
 
 
 @dataclass(frozen=True)
@@ -612,15 +599,20 @@ def path_factor_rows(
 
 
 def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
-    """DEB [m] and SEBs per path (eqs. DEB, SEB1, SEB2) from the equivalent FIMs."""
+    """DEB [m] and SEBs per path (eqs. DEB, SEB1, SEB2) from the equivalent FIMs, by the one
+    inversion route of the bounds (:func:`ris_planner.crb.crb_diagonal` on each path's m×m
+    EFIM with its square root L_ℓ as the factor): a parameter is ``inf`` only when it is not
+    identifiable, so a linear (one-row) RIS, whose ζ is unobservable, keeps a finite DEB and
+    SEB_ξ (docs/concepts/numerics.md)."""
     out: dict[str, dict[str, FloatArray]] = {}
     for p in paths:
-        diag, _ = fim_inverse_diagonal(p.efim)
+        m = p.efim.shape[-1]
+        diag, _ = crb.crb_diagonal(ldl.pack(p.efim), m, p.factor_on_channel)
         sd = np.sqrt(diag)
-        if p.efim.shape[1] == 1:
-            out[p.name] = {"deb_m": sd[:, 0]}
+        if m == 1:
+            out[p.name] = {"deb_m": sd[0]}
         else:
-            out[p.name] = {"deb_m": sd[:, 2], "seb_xi": sd[:, 0], "seb_zeta": sd[:, 1]}
+            out[p.name] = {"deb_m": sd[2], "seb_xi": sd[0], "seb_zeta": sd[1]}
     return out
 
 

@@ -187,6 +187,22 @@ def sqrt_crb_diagonal_svd(a: FloatArray) -> tuple[FloatArray, BoolArray]:
     return diag, np.asarray(np.any(d.null, axis=1))
 
 
+def sqrt_range_whitening(a: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """Whitening of the range of F = aᵀa for square-root factors a [N, r, k], by the SVD of
+    the column-scaled factor Â = a·D⁻¹ = U Σ Vᵀ of :func:`sqrt_crb_diagonal`'s rule.
+
+    Returns (W [N, k, k], kept [N, k]): rows j of W are Vᵀ_j D⁻¹/σ_j for the kept singular
+    values (σ_j > :data:`SINGULAR_SV_RTOL`·σ_max) and zero on the numerical null space, so
+    W_kept F W_keptᵀ = I on the kept rows. For any F' whose null space contains F's and any E
+    in range(F), (W E)ᵀ (W F' Wᵀ)⁻¹ (W E) over the kept rows equals Eᵀ F'⁻ E (any generalised
+    inverse; the CRB of the estimable Eᵀs), because W restricted to the kept rows maps
+    range(F) one-to-one onto ℝ^r.
+    """
+    d = _sqrt_svd(a)
+    w = np.sqrt(d.inv_s2)[:, :, None] * d.vt / d.scale[:, None, :]
+    return np.asarray(w), np.asarray(~d.null)
+
+
 def sqrt_crb_quadratic(a: FloatArray, w: FloatArray) -> FloatArray:
     """wᵀ F⁻ w [N] for square-root factors a [N, r, k] and combinations w [N, k] of the
     states (the CRB of wᵀs); ``inf`` where wᵀs is not identifiable (its normalised leak into

@@ -7,13 +7,14 @@ import json
 import numpy as np
 import pytest
 from pydantic import ValidationError
+from tolerance import BOUND_ACCURACY, assert_close
 
-from ris_planner import compute_bounds, load_scenario, preset_document
+from ris_planner import compute_bounds, crb, ldl, load_scenario, preset_document
 from ris_planner.bounds import (
     REASON_DEGENERATE,
     REASON_UNDERDETERMINED,
-    fim_inverse_diagonal,
-    invert_fim,
+    first_block_profiles,
+    path_information,
 )
 from ris_planner.scenario import Scenario
 
@@ -62,17 +63,26 @@ def test_single_ris_underdetermined() -> None:
 
 
 def test_singular_matrix_detected_never_nan() -> None:
+    """The one inversion route (crb.crb_diagonal) on hand-made FIMs: a regular one gives its
+    exact inverse diagonal; a rank-3 one whose null direction (1, −1, 0, 0) involves only
+    states 0 and 1 leaves states 2 and 3 determined (their exact bound 1); zero information
+    on one state makes only that state ``inf``. Never NaN."""
     f = np.zeros((3, 4, 4))
     f[0] = np.diag([1.0, 2.0, 3.0, 4.0])
     v = np.array([1.0, 1.0, 0.0, 0.0])
     f[1] = np.outer(v, v) + np.diag([0, 0, 1.0, 1.0])  # rank 3
     f[2] = np.diag([1.0, 0.0, 1.0, 1.0])  # zero information on one state
-    diag, singular = fim_inverse_diagonal(f)
-    assert list(singular) == [False, True, True]
-    np.testing.assert_allclose(diag[0], [1, 0.5, 1 / 3, 0.25])
-    assert np.all(np.isinf(diag[1:])) and not np.any(np.isnan(diag))
-    crb, _ = invert_fim(f[:1])
-    np.testing.assert_allclose(crb[0], np.linalg.inv(f[0]))
+
+    def rows(idx: np.ndarray) -> np.ndarray:
+        return crb.path_factor(f[idx], np.broadcast_to(np.eye(4), (idx.size, 4, 4)))
+
+    diag, deficient = crb.crb_diagonal(ldl.pack(f), 4, rows)
+    assert list(deficient) == [False, True, True]
+    np.testing.assert_allclose(diag[:, 0], [1, 0.5, 1 / 3, 0.25], rtol=1e-15)
+    assert np.all(np.isinf(diag[:2, 1])) and np.all(np.isinf(diag[1, 2]))
+    np.testing.assert_allclose(diag[2:, 1], [1.0, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(diag[[0, 2, 3], 2], [1.0, 1.0, 1.0], rtol=1e-12)
+    assert not np.any(np.isnan(diag))
 
 
 def test_degenerate_pairs_in_a_batch_get_inf_with_reason() -> None:
@@ -206,3 +216,48 @@ def test_batch_points_checked_at_once_naming_the_bad_point() -> None:
     doc["tx"][37] = [1.0, 2.0, 0.0]
     with pytest.raises(ValidationError, match=r"finite numbers, got \[nan, 0.0, 0.0\]"):
         Scenario.model_validate(doc)
+
+
+@pytest.mark.parametrize("codebook", [{"kind": "expected_random"}, {"kind": "random", "seed": 2}])
+def test_linear_ris_channel_bounds_keep_delay_and_xi(codebook: dict) -> None:  # type: ignore[type-arg]
+    """A one-row RIS cannot observe ζ (its array has no extent along that axis), but its delay
+    and ξ are determined: DEB and SEB_ξ are finite and equal the analytic route (the 2 × 2
+    (ξ, cτ) block of the EFIM inverted, ζ dropping out: its row and column are zero), SEB_ζ is
+    ``inf`` (``null`` in JSON). The square 10 × 10 RIS beside it keeps its three bounds."""
+    doc = table1(codebook=codebook)
+    doc["ris"][1] = doc["ris"][1] | {"rows": 1, "cols": 64}
+    sc = load_scenario(doc)
+    res = compute_bounds(sc)
+    chan = res.channel["ris2"]
+    assert np.isfinite(chan["deb_m"][0]) and np.isfinite(chan["seb_xi"][0])
+    assert np.isinf(chan["seb_zeta"][0])
+    prof = first_block_profiles(sc)
+    paths, _ = path_information(sc, sc.tx_array, sc.rx_array, prof)
+    efim = paths[2].efim[0]
+    assert np.max(np.abs(efim[1])) <= 1e-12 * np.max(np.abs(efim))
+    sub = np.linalg.inv(efim[np.ix_([0, 2], [0, 2])])
+    assert_close(chan["seb_xi"][0], np.sqrt(sub[0, 0]), accuracy=BOUND_ACCURACY)
+    assert_close(chan["deb_m"][0], np.sqrt(sub[1, 1]), accuracy=BOUND_ACCURACY)
+    for name in ("ris1", "los"):
+        assert all(np.all(np.isfinite(v)) for v in res.channel[name].values())
+    js = res.to_json(batch=False)["channel"][2]
+    assert js["path"] == "ris2" and js["seb_zeta"] is None and js["deb_m"] is not None
+
+
+def test_channel_bounds_unchanged_for_ordinary_ris(rng: np.random.Generator) -> None:
+    """Ordinary (two-dimensional) RISs: the DEB/SEBs equal the plain inverse of each path's
+    EFIM (numpy's LU, the former whole-matrix route) to the bounds' accuracy, on random
+    pairs of the Table I layout with a random and an expected-random codebook."""
+    tx, rx = rng.uniform(-4, 4, (20, 3)), rng.uniform(-4, 4, (20, 3))
+    tx[:, 2] = rx[:, 2] = 0.0
+    for codebook in ({"kind": "expected_random"}, {"kind": "random", "seed": 5}):
+        sc = load_scenario(table1(codebook=codebook))
+        res = compute_bounds(sc, tx, rx)
+        prof = first_block_profiles(sc)
+        paths, _ = path_information(sc, tx, rx, prof)
+        for p in paths:
+            want = np.sqrt(np.diagonal(np.linalg.inv(p.efim), axis1=1, axis2=2))
+            got = res.channel[p.name]
+            keys = ["deb_m"] if p.name == "los" else ["seb_xi", "seb_zeta", "deb_m"]
+            for k, key in enumerate(keys):
+                assert_close(got[key], want[:, k], accuracy=BOUND_ACCURACY)

@@ -5,23 +5,32 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from conftest import small_scenario_doc
+from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
+from ris_planner import ldl
 from ris_planner.beams import codebook_block, gamma_p_powers
 from ris_planner.bounds import compute_bounds, first_block_profiles
 from ris_planner.cli import main
 from ris_planner.errors import RisPlannerError
 from ris_planner.power import run_power
 from ris_planner.power.gamma import search_gamma_p
-from ris_planner.power.information import beam_information
+from ris_planner.power.information import BeamInformation, PathBlocks, _path_map, beam_information
 from ris_planner.power.report import design_objective
-from ris_planner.power.sdp import mean_trace_bound, solve_power_sdp
-from ris_planner.scenario import load_scenario, preset_document
+from ris_planner.power.sdp import (
+    mean_trace_bound,
+    objective_index,
+    position_traces,
+    solve_power_sdp,
+    whitening,
+)
+from ris_planner.scenario import Scenario, load_scenario, preset_document
 
 SOLVER_RTOL = 1e-6
 """Ordering checks SDP ≤ γ_P ≤ uniform allow the interior-point solver's relative gap
@@ -293,3 +302,171 @@ def test_degenerate_design_position_is_a_failed_status() -> None:
         )
     res = solve_power_sdp(info)
     assert res.status == "failed" and "non-finite" in (res.message or "")
+
+
+# ---- one inversion route: the power module's CRBs are compute_bounds' (numerics.md) ----
+
+STREET_TX_X = (-30.0, -36.0, -38.0, -41.0, -45.0, -80.0, -100.0)
+
+
+def street_power(known: list[str]) -> Scenario:
+    """tests/test_crb.py's street (two 20 × 20 RISs on one facade, TX 30–100 m down the
+    street, RX at the origin: scaled cond(F) 1e11–1e15) with a random codebook, G = 48."""
+    return load_scenario(
+        {
+            "system": {"tx_power_dbm": 30, "noise_figure_db": 10, "transmissions": 48},
+            "ris": [
+                {
+                    "position": [x, -6, 5],
+                    "orientation": [math.pi / 2, 0.2, 0],
+                    "rows": 20,
+                    "cols": 20,
+                }
+                for x in (-4.25, 4.25)
+            ],
+            "tx": [-38, 0, 0],
+            "rx": [0, 0, 0],
+            "codebook": {"kind": "random", "seed": 3},
+            "known": known,
+        }
+    )
+
+
+@pytest.mark.parametrize("known", [[], ["clock"]])
+def test_ill_conditioned_design_positions_equal_compute_bounds(known: list[str]) -> None:
+    """The street pairs as design positions. Inverting the full squared FIM (the former route)
+    declares 6 of 7 positions singular without a known clock although compute_bounds gives a
+    finite PEB_R for each; the power module's CRB traces (uniform and random powers), the γ_P
+    search's objective and the SDP's value re-evaluated at its powers now equal
+    compute_bounds' to the bounds' accuracy (observed ≤ 3e-11), and the SDP is optimal with
+    its own objective within the solver's accuracy of the re-evaluated one."""
+
+    sc = street_power(known)
+    tx = np.array([[x, 0.0, 0.0] for x in STREET_TX_X])
+    rx = np.zeros_like(tx)
+    prof = first_block_profiles(sc)
+    assert prof is not None
+    info = beam_information(sc, tx, rx, prof)
+    g = prof[0].shape[0]
+    if not known:  # the regime of the issue: the squared full-state FIM is singular
+        _, singular = ldl.inverse_diagonal_from(
+            ldl.pack(info.fim(np.ones(g))), info.stack.shape[-1]
+        )
+        assert singular.sum() >= 5
+    rng = np.random.default_rng(7)
+    for powers in (np.ones(g), rng.uniform(0.2, 2.0, g)):
+        ref = compute_bounds(sc, tx, rx, profiles=prof, beam_powers=powers).peb_rx
+        assert np.all(np.isfinite(ref))
+        assert_close(position_traces(info, powers, info.rx_index), ref**2, accuracy=BOUND_ACCURACY)
+    evaluate = design_objective(sc, tx, rx, prof, "rx")
+    types = np.arange(g) % 2  # any two beam families: the search's objective is what matters
+    found = search_gamma_p(lambda p: mean_trace_bound(info, p, info.rx_index), types)
+    assert np.isfinite(found.objective)
+    assert_close(found.objective, evaluate(found.powers), accuracy=BOUND_ACCURACY)
+    res = solve_power_sdp(info)
+    assert res.status == "optimal" and res.powers is not None and res.objective is not None
+    own = mean_trace_bound(info, res.powers, info.rx_index)
+    assert_close(own, evaluate(res.powers), accuracy=BOUND_ACCURACY)
+    assert_close(res.objective, own, accuracy=SDP_ACCURACY)
+    assert own <= mean_trace_bound(info, np.ones(g), info.rx_index) * (1 + SOLVER_RTOL)
+
+
+@pytest.mark.parametrize(
+    ("los", "wavefront", "known", "objective"),
+    [
+        (True, "planar", [], "rx"),
+        (False, "planar", [], "sum"),
+        (True, "planar", ["clock", "height"], "tx"),
+        (True, "spherical", [], "rx"),
+        (False, "planar", ["tx"], "rx"),
+    ],
+)
+def test_position_traces_equal_compute_bounds_on_random_scenarios(
+    rng: np.random.Generator, los: bool, wavefront: str, known: list[str], objective: str
+) -> None:
+    """Random small scenarios (3 RISs, 6 positions, random powers): the power module's
+    per-position CRB traces equal compute_bounds' PEB² (same profiles, powers, known parts) to
+    the bounds' accuracy, ``inf`` at the same places."""
+
+    doc = small_scenario_doc(rng, n_ris=3, los=los)
+    doc["system"] = doc["system"] | {"wavefront": wavefront}
+    doc["known"] = known
+    sc = load_scenario(doc)
+    tx, rx = rng.uniform(-3, 3, (6, 3)), rng.uniform(-3, 3, (6, 3))
+    prof = first_block_profiles(sc)
+    assert prof is not None
+    info = beam_information(sc, tx, rx, prof)
+    powers = rng.uniform(0.1, 2.0, prof[0].shape[0])
+    res = compute_bounds(sc, tx, rx, profiles=prof, beam_powers=powers)
+    parts = {"rx": [res.peb_rx], "tx": [res.peb_tx], "sum": [res.peb_tx, res.peb_rx]}[objective]
+    want = sum(np.square(p) for p in parts if p is not None)
+    got = position_traces(info, powers, objective_index(info, objective))  # type: ignore[arg-type]
+    assert_close(got, want, accuracy=BOUND_ACCURACY)
+    # the SDP's whitening factor is a square root of the stacked FIM (entries on the scale
+    # √(F_ii F_jj); worst 3.0e-15 over 120 random cases, eigh of the scaled path blocks)
+    a = info.factor(powers)
+    f = info.fim(powers)
+    d = np.sqrt(np.diagonal(f, axis1=1, axis2=2))
+    err = np.abs(a.transpose(0, 2, 1) @ a - f) / (d[:, :, None] * d[:, None, :])
+    assert np.max(err) <= 1e-12
+
+
+def synthetic_clockless_information(rng: np.random.Generator, n_pos: int = 4) -> BeamInformation:
+    """A BeamInformation whose clock receives no information at all (one path with 7 channel
+    parameters = the states, Jacobian I with a zero clock column; two beams with random PSD
+    blocks): F(γ) is singular at every power (null direction e_B) while p_T and p_R are
+    determined."""
+    jac = np.broadcast_to(np.eye(7), (n_pos, 7, 7)).copy()
+    jac[:, 6, 6] = 0.0
+    t = _path_map(jac, 7, 9)
+    roots = rng.normal(size=(n_pos, 2, 9, 9))
+    blocks = roots @ roots.transpose(0, 1, 3, 2) / 9
+    stack = np.einsum("pai,pgab,pbj->pgij", t, blocks, t)
+    stack = 0.5 * (stack + stack.transpose(0, 1, 3, 2))
+    path = PathBlocks(blocks, t, "ris1", jac, np.ones(n_pos, dtype=bool))
+    return BeamInformation(stack, np.arange(2), np.arange(3), np.arange(3, 6), (path,), (), None)
+
+
+def test_sdp_with_singular_information_whitens_the_range(rng: np.random.Generator) -> None:
+    """F(uniform) singular (the clock has no information) but the objective's p_R is
+    identifiable: the SDP whitens the range of F(uniform) (8 kept rows of 9), is optimal,
+    and its value equals the independent route (the 6 × 6 information on [p_T, p_R] after
+    eliminating the gains, inverted by numpy) at its powers; a brute-force scan of the one
+    free power ratio finds no better allocation."""
+
+    info = synthetic_clockless_information(rng)
+    _, kept = whitening(info, np.ones(2))
+    assert np.all(kept.sum(axis=1) == 8)
+
+    def exact(powers: np.ndarray) -> float:
+        f = info.fim(powers)
+        s = np.r_[0:6, 7:9]  # drop the uninformed clock, then eliminate the gains
+        f = f[:, s][:, :, s]
+        return float(np.mean(np.trace(np.linalg.inv(schur6(f))[:, 3:6, 3:6], axis1=1, axis2=2)))
+
+    res = solve_power_sdp(info)
+    assert res.status == "optimal" and res.powers is not None and res.objective is not None
+    assert_close(
+        mean_trace_bound(info, res.powers, info.rx_index),
+        exact(res.powers),
+        accuracy=BOUND_ACCURACY,
+    )
+    assert_close(res.objective, exact(res.powers), accuracy=SDP_ACCURACY)
+    scan = min(exact(np.array([a, 2.0 - a])) for a in np.linspace(0.0, 2.0, 401)[1:-1])
+    assert res.objective <= scan * (1 + SDP_ACCURACY)
+
+
+def schur6(f: np.ndarray) -> np.ndarray:
+    a, c, d = f[:, :6, :6], f[:, :6, 6:], f[:, 6:, 6:]
+    return np.asarray(a - c @ np.linalg.solve(d, c.transpose(0, 2, 1)))
+
+
+def test_sdp_reports_an_unidentifiable_objective_as_infeasible(rng: np.random.Generator) -> None:
+    """The objective's state without information at one position (the clock column of the
+    synthetic path moved to p_R's x): infeasible at every power, said at once with a reason."""
+    info = synthetic_clockless_information(rng)
+    info.paths[0].jacobian[:, 3, 3] = 0.0
+    info.paths[0].maps[:, 3, 3] = 0.0
+    res = solve_power_sdp(info)
+    assert res.status == "infeasible" and res.powers is None
+    assert "not identifiable" in (res.message or "")

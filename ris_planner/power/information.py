@@ -12,6 +12,16 @@ with F_ℓ the path's 5×5 (3×3 for LOS) block of eq. FIM_measurement built by 
 (``fim.ris_path_fim`` / ``fim.los_path_fim``) from the single beam's transmission Gram and
 T_ℓ mapping (ξ, ζ, r, α, β) of the path to s (geometry Jacobian for ξ, ζ, r; identity for
 its own gains).
+
+Besides the summed stack (one matrix product gives I(s) at any powers for every position, the
+SDP's LMI) the per-path per-beam blocks F_ℓ(g̃) and maps T_ℓ are kept:
+
+* the CRBs at given powers (:meth:`BeamInformation.state_bounds`) sum each path's blocks
+  (F_ℓ(γ) = Σ_g̃ γ_g̃ F_ℓ(g̃), one product per path), eliminate its gains and take the one
+  inversion route of the bounds (:func:`ris_planner.bounds.bounds_from_paths`,
+  docs/concepts/numerics.md), never the squared full FIM;
+* the square-root factor A(γ) = stack_ℓ L_ℓ(γ)ᵀ T_ℓ with F_ℓ(γ) = L_ℓ L_ℓᵀ
+  (:meth:`BeamInformation.factor`) whitens the SDP (:func:`ris_planner.power.sdp.whitening`).
 """
 
 from __future__ import annotations
@@ -21,11 +31,36 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import beams, bounds, codebooks, fim, geometry, spherical
+from ris_planner import beams, bounds, codebooks, crb, fim, geometry, spherical
 from ris_planner.scenario import KnownPart, Scenario
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
+
+
+@dataclass(frozen=True)
+class PathBlocks:
+    """One path's per-beam information and its map to the state.
+
+    blocks : [P, J, m+2, m+2] F_ℓ(g̃) on the path's (channel parameters, α, β) per distinct
+    beam (an absent path: ABSENT_GAIN_INFORMATION / G̃ on its gains only); maps : [P, m+2, n]
+    T_ℓ on the unknown state (the kept columns); name : ``"los"``, ``"ris1"``, …;
+    jacobian : [P, m, 7] ∂(channel parameters)/∂[p_T, p_R, B]; present : [P] whether the path
+    exists for the position.
+    """
+
+    blocks: FloatArray
+    maps: FloatArray
+    name: str
+    jacobian: FloatArray
+    present: NDArray[np.bool_]
+
+    def path_info(self, group_powers: FloatArray) -> bounds.PathInfo:
+        """The path's equivalent FIM on its channel parameters at the given distinct-beam
+        powers [J] (gains eliminated, ``fim.eliminate_nuisance``) as the bounds' PathInfo."""
+        block = np.einsum("j,pjab->pab", group_powers, self.blocks)
+        m = self.jacobian.shape[1]
+        return bounds.PathInfo(self.name, fim.eliminate_nuisance(block, m), self.jacobian)
 
 
 @dataclass(frozen=True)
@@ -36,13 +71,17 @@ class BeamInformation:
     for the J distinct beams; beam_group : [G̃] which distinct beam each first-block beam is
     (a codebook that cycles through its beams repeats them; identical beams have identical
     S, so only their total power matters); tx_index, rx_index : positions of p_T's / p_R's
-    kept entries in the state (may be empty).
+    kept entries in the state (may be empty); paths : the per-path blocks of the stack,
+    S_j = Σ_ℓ T_ℓᵀ F_ℓ(j) T_ℓ (:class:`PathBlocks`).
     """
 
     stack: FloatArray
     beam_group: NDArray[np.int_]
     tx_index: NDArray[np.int_]
     rx_index: NDArray[np.int_]
+    paths: tuple[PathBlocks, ...] = ()
+    known: tuple[KnownPart, ...] = ()
+    n_observations: int | None = None
 
     @property
     def group_sizes(self) -> NDArray[np.int_]:
@@ -67,6 +106,51 @@ class BeamInformation:
         flat = self.group_powers(powers) @ self.stack.transpose(1, 0, 2, 3).reshape(j, -1)
         return np.asarray(flat.reshape(p, n, n))
 
+    def factor(self, powers: FloatArray, idx: NDArray[np.int_] | None = None) -> FloatArray:
+        """Square-root factor A [len(idx), r, n] of :meth:`fim` at the positions idx (all by
+        default): AᵀA = Σ_ℓ T_ℓᵀ F_ℓ(γ) T_ℓ with the rows L_ℓᵀ T_ℓ of each path, L_ℓ from the
+        eigendecomposition of the symmetrically scaled block D⁻¹F_ℓD⁻¹ (D = √diag F_ℓ: the
+        path's delay, angles and gains differ in scale by many orders, which an unscaled eigh
+        would not resolve), negative rounding eigenvalues clipped
+        (:func:`ris_planner.crb.path_factor`)."""
+        gp = self.group_powers(powers)
+        sel = np.arange(self.stack.shape[0]) if idx is None else idx
+        rows = []
+        for path in self.paths:
+            block = np.einsum("j,pjab->pab", gp, path.blocks[sel])
+            d = np.sqrt(np.diagonal(block, axis1=1, axis2=2))
+            d = np.where(d > 0, d, 1.0)
+            scaled = block / d[:, :, None] / d[:, None, :]
+            scaled = 0.5 * (scaled + scaled.transpose(0, 2, 1))
+            rows.append(crb.path_factor(scaled, path.maps[sel] * d[:, :, None]))
+        return np.concatenate(rows, axis=1)
+
+    def state_bounds(
+        self, powers: FloatArray
+    ) -> tuple[FloatArray | None, FloatArray, FloatArray | None]:
+        """(PEB_T or ``None`` when known, PEB_R, CEB or ``None``) [P] at the given first-block
+        powers by the bounds' own route (:func:`ris_planner.bounds.bounds_from_paths`: each
+        path's gains eliminated, the LOS-referenced clock, per-parameter identifiability), so
+        the values are ``compute_bounds``' (a pair left with fewer channel parameters than
+        unknown states by missing paths is ``inf`` as there)."""
+        gp = self.group_powers(powers)
+        paths = [p.path_info(gp) for p in self.paths]
+        mask = np.stack([p.present for p in self.paths], axis=1)
+
+        def state_fim() -> FloatArray:
+            return bounds.masked_state_information(paths, mask)
+
+        peb_tx, peb_rx, ceb, _ = bounds.bounds_from_paths(
+            paths, self.known, self.n_observations, mask, state_fim
+        )
+        if self.n_observations is not None:
+            n_unknown = int(bounds.kept_states(self.known).size)
+            under, _ = bounds.underdetermined_pairs(paths, mask, n_unknown)
+            for arr in (peb_tx, peb_rx, ceb):
+                if arr is not None:
+                    arr[under] = np.inf
+        return peb_tx, peb_rx, ceb
+
 
 def _path_map(jacobian: FloatArray, gain_col: int, n_full: int) -> FloatArray:
     """T_ℓ [P, m+2, n_full]: geometric rows from the Jacobian [P, m, 7], gains as identity."""
@@ -84,16 +168,17 @@ are decoupled from every other state (no cross terms), so any positive value lea
 position and clock CRBs unchanged while keeping the full FIM invertible for the SDP."""
 
 
-def _decouple_absent_gains(
-    stack: FloatArray, absent: NDArray[np.bool_], col: int, beams_total: int
-) -> None:
-    """Add ABSENT_GAIN_INFORMATION·I on the gains (columns col, col+1) of the positions where
-    the path is absent, split over the beams as 1/G̃ each: Σ_g γ_g S_g then carries exactly
-    that identity at every allocation with Σ_g γ_g = G̃ (the SDP's power constraint)."""
-    if np.any(absent):
-        share = ABSENT_GAIN_INFORMATION / beams_total
-        for c in (col, col + 1):
-            stack[absent, :, c, c] += share
+def _path_blocks(blocks: FloatArray, present: NDArray[np.bool_], beams_total: int) -> FloatArray:
+    """The path's per-beam blocks [P, J, m, m] with an absent path's replaced by
+    ABSENT_GAIN_INFORMATION·I on its gains (the last two rows), split over the beams as 1/G̃
+    each: Σ_g γ_g S_g then carries exactly that identity at every allocation with
+    Σ_g γ_g = G̃ (the SDP's power constraint)."""
+    if np.all(present):
+        return blocks
+    m = blocks.shape[-1]
+    absent = np.zeros((m, m))
+    absent[m - 2, m - 2] = absent[m - 1, m - 1] = ABSENT_GAIN_INFORMATION / beams_total
+    return np.where(present[:, None, None, None], blocks, absent)
 
 
 def beam_information(
@@ -135,17 +220,19 @@ def _beam_information(
     )
     profiles = [prof[first] for prof in profiles]
     n_pos, g_tilde = tx.shape[0], first.size
-    stack = np.zeros((n_pos, g_tilde, n_full, n_full))
+    kept = bounds.kept_states(scenario.known if known is None else known)
+    keep = np.concatenate([kept, np.arange(7, n_full)])
+    # per path: per-beam blocks [P, G̃, m+2, m+2] and T_ℓ [P, m+2, n_full]
+    parts: list[tuple[str, FloatArray, FloatArray, FloatArray]] = []
     col = 7
     if system.los:
         alpha0 = geometry.los_gain(geometry.los_distance(tx, rx), radio.wavelength)
         # every beam carries the LOS path with t_g = 1: the same block for all g̃
         block = fim.los_path_fim(float(gamma), alpha0, radio)
-        t = _path_map(geometry.los_jacobian(tx, rx), col, n_full)
-        stack += np.where(present["los"][:, None, None], t.transpose(0, 2, 1) @ block @ t, 0.0)[
-            :, None
-        ]
-        _decouple_absent_gains(stack, ~present["los"], col, beams_total)
+        blocks = np.broadcast_to(block[:, None], (n_pos, g_tilde, *block.shape[1:]))
+        jac = geometry.los_jacobian(tx, rx)
+        t = _path_map(jac, col, n_full)
+        parts.append(("los", _path_blocks(blocks, present["los"], beams_total), t, jac))
         col += 2
     for i, (ris, prof) in enumerate(zip(scenario.ris, profiles, strict=True)):
         pos = beams.ris_element_positions(ris, radio.wavelength)
@@ -166,15 +253,23 @@ def _beam_information(
             n_pos, g_tilde, m + 2, m + 2
         )
         t = _path_map(jac, col, n_full)
-        contribution = np.einsum("pai,pgab,pbj->pgij", t, block5, t, optimize=True)
-        stack += np.where(present[f"ris{i + 1}"][:, None, None, None], contribution, 0.0)
-        _decouple_absent_gains(stack, ~present[f"ris{i + 1}"], col, beams_total)
+        name = f"ris{i + 1}"
+        parts.append((name, _path_blocks(block5, present[name], beams_total), t, jac))
         col += 2
-    kept = bounds.kept_states(scenario.known if known is None else known)
-    keep = np.concatenate([kept, np.arange(7, n_full)])
+    stack = np.zeros((n_pos, g_tilde, n_full, n_full))
+    for _, blocks, t, _ in parts:
+        stack += np.einsum("pai,pgab,pbj->pgij", t, blocks, t, optimize=True)
     stack = stack[:, :, keep][:, :, :, keep]
     stack = 0.5 * (stack + stack.transpose(0, 1, 3, 2))
+    paths = tuple(
+        PathBlocks(blocks, np.ascontiguousarray(t[:, :, keep]), name, jac, present[name])
+        for name, blocks, t, jac in parts
+    )
     pos_in_state = {int(k): i for i, k in enumerate(keep)}
     tx_index = np.array([pos_in_state[k] for k in (0, 1, 2) if k in pos_in_state], dtype=int)
     rx_index = np.array([pos_in_state[k] for k in (3, 4, 5) if k in pos_in_state], dtype=int)
-    return BeamInformation(stack, np.asarray(group).ravel(), tx_index, rx_index)
+    known_t = tuple(scenario.known if known is None else known)
+    n_obs = bounds.n_observations(n_ris, system.los, system.wavefront)
+    return BeamInformation(
+        stack, np.asarray(group).ravel(), tx_index, rx_index, paths, known_t, n_obs
+    )

@@ -164,8 +164,9 @@ def run_power(
     info = beam_information(sc, tx, rx, profiles)
     gamma = None
     if beam_types is not None:
-        # search on the stacked information (one [J]×[J, P·n²] product and P small inverses
-        # per γ_P; equal to compute_bounds to ~1e-10, tests/test_power.py), then re-evaluate
+        # search on the per-path beam blocks (one [J]×[J, P·m²] product per path, then the
+        # bounds' own inversion route: equal to compute_bounds to the bounds' accuracy,
+        # tests/test_power.py), then re-evaluate
         index = objective_index(info, objective)
         gamma = search_gamma_p(
             lambda p: mean_trace_bound(info, p, index),

@@ -10,10 +10,24 @@ PEB² of eq. PEBR — one LMI per position, equivalent to the appendix's three s
 Σ_ℓ u_ℓ ≤ u. The powers are those of the first-block beams, repeated over the Γ blocks (so
 Σ_g γ_g = G̃ is ‖δ‖² = G), which keeps the time-orthogonal path separation.
 
+The CRB traces (the objective at given powers, the γ_P search's objective, the scale below)
+take the one inversion route of the bounds (:meth:`BeamInformation.state_bounds`: each path's
+block at the given powers, its gains eliminated, through
+:func:`ris_planner.bounds.bounds_from_paths`, docs/concepts/numerics.md): a position is
+``inf`` only where the objective's states are not identifiable, so a null direction of the
+information that involves only the clock or the TX does not make a position with a determined
+PEB_R blind, and the values are ``compute_bounds``' to rounding.
+
 Scaling: the FIM mixes metres with channel gains of ~1e-7, so each position's matrices are
-whitened at uniform power, S̃ = W S Wᵀ with W F(1) Wᵀ = I (:func:`whitening`), and E becomes
-W E / √c with c the uniform objective; the solver then sees O(1) numbers and the objective is
-rescaled by c. All positions' FIMs come from ONE product of the [P·n², G̃] stack with γ.
+whitened at uniform power, S̃ = W S Wᵀ with W F(1) Wᵀ = I on the range of F(1)
+(:func:`whitening`, from the square-root factor), and E becomes W E / √c with c the uniform
+objective; the solver then sees O(1) numbers and the objective is rescaled by c. Where F(1)
+is singular, W keeps only its range (r < n rows): with uniform powers > 0,
+null F(1) = ∩_g null S_g ⊆ null F(γ) for every γ ≥ 0, and the objective's E lies in range
+F(1) (checked: else the SDP is ``infeasible`` at once), so the generalised Schur complement
+(Boyd & Vandenberghe §A.5.5) turns the LMI on the range into U_p ⪰ Eᵀ F(γ)⁻ E, the CRB of
+the estimable objective. All positions' FIMs come from ONE product of the [Σ_p r_p², G̃]
+whitened stack with γ.
 """
 
 from __future__ import annotations
@@ -27,12 +41,13 @@ import cvxpy as cp
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import fim_inverse_diagonal
+from ris_planner import crb
 from ris_planner.errors import RisPlannerError
 from ris_planner.power.information import BeamInformation
 from ris_planner.power.options import SOLVERS, Objective
 
 FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
 SolverStatus = Literal["optimal", "inaccurate", "infeasible", "failed"]
 
 
@@ -78,36 +93,41 @@ def objective_index(info: BeamInformation, objective: Objective) -> NDArray[np.i
     return np.asarray(idx)
 
 
+def position_traces(
+    info: BeamInformation, powers: FloatArray, index: NDArray[np.int_]
+) -> FloatArray:
+    """[P] tr([I(s_p)⁻¹]_index) at the given powers for ``index`` = :func:`objective_index`
+    (PEB_R², PEB_T² or their sum), by the route of the bounds
+    (:meth:`BeamInformation.state_bounds`: the same numbers as ``compute_bounds``); ``inf``
+    where a state of ``index`` is not identifiable."""
+    peb_tx, peb_rx, _ = info.state_bounds(powers)
+    total = np.zeros(info.stack.shape[0])
+    if np.isin(info.tx_index, index).any():
+        assert peb_tx is not None  # tx_index is empty when the TX is known
+        total += np.square(peb_tx)
+    if np.isin(info.rx_index, index).any():
+        total += np.square(peb_rx)
+    return total
+
+
 def mean_trace_bound(info: BeamInformation, powers: FloatArray, index: NDArray[np.int_]) -> float:
-    """(1/P) Σ_p tr([I(s_p)⁻¹]_index) at the given powers (``inf`` if any position is blind)."""
-    return _mean_trace(info.fim(powers), index)
+    """(1/P) Σ_p tr([I(s_p)⁻¹]_index) at the given powers (:func:`position_traces`; ``inf`` if
+    the objective's states are not identifiable at some position)."""
+    return float(np.mean(position_traces(info, powers, index)))
 
 
-def _mean_trace(f: FloatArray, index: NDArray[np.int_]) -> float:
-    """(1/P) Σ_p tr([F_p⁻¹]_index) of FIMs [P, n, n] (``inf`` if any is singular)."""
-    diag, singular = fim_inverse_diagonal(f)
-    if np.any(singular):
-        return float("inf")
-    return float(np.mean(diag[:, index].sum(axis=1)))
+def whitening(info: BeamInformation, powers: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """(W [P, n, n], kept [P, n]): W F(powers) Wᵀ = I on the kept rows, zero rows on the
+    numerical null space of F(powers) (:func:`ris_planner.crb.sqrt_range_whitening` of the
+    square-root factor, so the null space is decided by the bounds' rule).
 
-
-def whitening(f_uniform: FloatArray) -> FloatArray:
-    """W [P, n, n] with W F(uniform) Wᵀ = I (W = L⁻¹ of the Cholesky factor), or the unit-
-    diagonal scaling where F(uniform) is not positive definite (a blind position).
-
-    The LMI is congruent under diag(W, I): [[W F Wᵀ, W E], [(W E)ᵀ, U]] ⪰ 0 ⟺ the original,
-    and Eᵀ F⁻¹ E = (W E)ᵀ (W F Wᵀ)⁻¹ (W E). Diagonal scaling alone leaves cond ≈ 1e7 (the
-    clock offset and the path delays are strongly coupled), which interior-point solvers do
-    not survive; whitening makes the uniform point the identity.
+    The LMI is congruent under diag(W, I) on range(F): [[W F Wᵀ, W E], [(W E)ᵀ, U]] ⪰ 0 ⟺
+    the original restricted to the range, and Eᵀ F⁻ E = (W E)ᵀ (W F Wᵀ)⁻¹ (W E) for E in
+    range(F). Diagonal scaling alone leaves cond ≈ 1e7 (the clock offset and the path delays
+    are strongly coupled), which interior-point solvers do not survive; whitening makes the
+    uniform point the identity.
     """
-    diag = np.diagonal(f_uniform, axis1=1, axis2=2)
-    w = np.zeros_like(f_uniform)
-    for p in range(f_uniform.shape[0]):  # P small Cholesky factorisations (P ≤ a few hundred)
-        try:
-            w[p] = np.linalg.inv(np.linalg.cholesky(f_uniform[p]))
-        except np.linalg.LinAlgError:
-            w[p] = np.diag(1.0 / np.sqrt(np.where(diag[p] > 0, diag[p], 1.0)))
-    return w
+    return crb.sqrt_range_whitening(info.factor(powers))
 
 
 def _clean_powers(raw: FloatArray | None, total: float) -> FloatArray | None:
@@ -131,7 +151,7 @@ def solve_power_sdp(
     """
     if solver not in SOLVERS:
         raise RisPlannerError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-    n_pos, n_groups, n, _ = info.stack.shape
+    n_pos, n_groups = info.stack.shape[:2]
     g_tilde = info.beam_group.size
     total = float(g_tilde if total_power is None else total_power)
     if not np.isfinite(total) or total <= 0:
@@ -146,24 +166,45 @@ def solve_power_sdp(
             solver,
             "non-finite Fisher information: a design position lies on a RIS or on the other UE",
         )
-    f_uniform = info.fim(np.full(g_tilde, total / g_tilde))
-    scale_obj = _mean_trace(f_uniform, index)
-    if not np.isfinite(scale_obj):
-        scale_obj = 1.0
-    w = whitening(f_uniform)
-    # [P, J, n, n] whitened stack W S Wᵀ, flattened to [P·n·n, J]
-    scaled = w[:, None] @ info.stack @ w[:, None].transpose(0, 1, 3, 2)
+    uniform = np.full(g_tilde, total / g_tilde)
+    traces = position_traces(info, uniform, index)
+    blind = np.flatnonzero(~np.isfinite(traces))
+    if blind.size:
+        # null F(uniform) ⊆ null F(γ) for every γ ≥ 0: blind at every allocation
+        return SdpResult(
+            "infeasible",
+            None,
+            None,
+            0.0,
+            solver,
+            f"the objective's states are not identifiable at {blind.size} of {n_pos} design"
+            " positions at any power allocation (singular Fisher information)",
+        )
+    scale_obj = float(np.mean(traces))
+    w, kept = whitening(info, uniform)
+    # [P, J, n, n] whitened stack W S Wᵀ = Σ_ℓ (T_ℓ Wᵀ)ᵀ F_ℓ (T_ℓ Wᵀ) from the path blocks
+    # (never W (Σ_ℓ T_ℓᵀ F_ℓ T_ℓ) Wᵀ: forming S first loses ε·cond(S) where F(1) is ill
+    # conditioned); each position's kept rows flattened to [r_p², J] and all positions
+    # concatenated: one product with γ gives every whitened FIM
+    scaled = np.zeros_like(info.stack)
+    for path in info.paths:
+        tw = path.maps @ w.transpose(0, 2, 1)
+        scaled += np.einsum("pai,pgab,pbj->pgij", tw, path.blocks, tw, optimize=True)
     scaled = 0.5 * (scaled + scaled.transpose(0, 1, 3, 2))
-    mat = scaled.transpose(0, 2, 3, 1).reshape(n_pos * n * n, n_groups)
+    rows = [np.flatnonzero(k) for k in kept]
+    mat = np.concatenate(
+        [scaled[p][:, r][:, :, r].reshape(n_groups, -1).T for p, r in enumerate(rows)]
+    )
+    offsets = np.concatenate([[0], np.cumsum([r.size**2 for r in rows])])
     m = index.size
     # total power of each distinct beam (shared equally by its copies afterwards)
     gam = cp.Variable(n_groups, nonneg=True)
     flat = mat @ gam
     u_vars = [cp.Variable((m, m), symmetric=True) for _ in range(n_pos)]
     cons: list[cp.Constraint] = [cp.sum(gam) == total]
-    for p in range(n_pos):
-        fp = cp.reshape(flat[p * n * n : (p + 1) * n * n], (n, n), order="C")
-        e = w[p][:, index] / np.sqrt(scale_obj)
+    for p, r in enumerate(rows):
+        fp = cp.reshape(flat[offsets[p] : offsets[p + 1]], (r.size, r.size), order="C")
+        e = w[p][r][:, index] / np.sqrt(scale_obj)
         cons.append(cp.bmat([[fp, e], [e.T, u_vars[p]]]) >> 0)
     prob = cp.Problem(cp.Minimize(sum(cp.trace(u) for u in u_vars) / n_pos), cons)
     start = time.perf_counter()
