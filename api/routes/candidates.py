@@ -20,6 +20,10 @@ conversions are the service's own:
 Orientations (Euler yaw, pitch, roll in radians, yaw from local east) are the same in both:
 :func:`~ris_planner.io.frames.to_local` converts positions only. Every answer lists the
 candidates both ways, validated as plan candidates (422 naming ``local.N.field``).
+
+``POST /v1/site/preview`` draws a document that cannot be planned yet (an imported site
+before any candidate is placed): its obstacles and UE maps in local metres, as the preview of
+``POST /v1/plans/validate`` lists them.
 """
 
 from __future__ import annotations
@@ -28,15 +32,18 @@ from typing import Any
 
 import anyio
 import numpy as np
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
-from api.documents import GeoFrame
+from api.documents import GeoFrame, json_document
+from api.routes.web import MapPreview, _map_preview
 from ris_planner.errors import DocumentFieldError, RisPlannerError
 from ris_planner.io import require
 from ris_planner.io.frames import WGS84, Frame, parse_frame, to_local
 from ris_planner.io.geojson_import import import_sites
-from ris_planner.planning.document import Candidate
+from ris_planner.obstacles import Environment
+from ris_planner.planning.document import Candidate, UEMap
+from ris_planner.planning.maps import build_map
 
 router = APIRouter(tags=["import"])
 
@@ -137,7 +144,9 @@ def convert_candidates(req: CandidateConversion) -> ConvertedCandidates:
         local = _checked(_local_of(frame_json, req.document), "document")
         return ConvertedCandidates(
             local=local,
-            document=[{**c, "position": d["position"]} for c, d in zip(local, req.document)],
+            document=[
+                {**c, "position": d["position"]} for c, d in zip(local, req.document, strict=True)
+            ],
         )
     assert req.sites is not None
     try:
@@ -163,3 +172,60 @@ async def post_convert(body: CandidateConversion) -> ConvertedCandidates:
     :func:`~ris_planner.io.geojson_import.import_sites`. 422 naming the field; 501 on a server
     without the GIS extra when a frame is given."""
     return await anyio.to_thread.run_sync(convert_candidates, body)
+
+
+class SitePreview(BaseModel):
+    """What the page draws of a document before it can be planned."""
+
+    tx_map: MapPreview | None = Field(description="The TX map's points (absent: none yet)")
+    rx_map: MapPreview | None = Field(description="The RX map's points (absent: none yet)")
+    obstacles: list[dict[str, Any]] = Field(description="environment.obstacles in local metres")
+    frame: dict[str, Any] | None = Field(description="The frame (origin, local_crs), if any")
+
+
+def site_preview(document: Any) -> SitePreview:
+    """The obstacles and UE maps of a document (local or with a frame) in local metres; only
+    these fields are validated (422 naming them)."""
+    local, frame = to_local(document)
+    if not isinstance(local, dict):
+        raise DocumentFieldError("(document)", "a plan document is a JSON object")
+    maps: dict[str, MapPreview | None] = {}
+    for name in ("tx_map", "rx_map"):
+        spec = local.get(name)
+        maps[name] = (
+            None if spec is None else _map_preview(build_map(_valid(UEMap, spec, name), name))
+        )
+    env = local.get("environment")
+    obstacles = (
+        []
+        if env is None
+        else _valid(Environment, env, "environment").model_dump(mode="json")["obstacles"]
+    )
+    return SitePreview(
+        tx_map=maps["tx_map"],
+        rx_map=maps["rx_map"],
+        obstacles=obstacles,
+        frame=None if frame is None else frame.describe(),
+    )
+
+
+def _valid(model: Any, value: Any, where: str) -> Any:
+    try:
+        return model.model_validate(value)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        loc = ".".join(str(p) for p in first["loc"])
+        raise DocumentFieldError(f"{where}.{loc}" if loc else where, first["msg"]) from None
+
+
+@router.post(
+    "/site/preview",
+    response_model=SitePreview,
+    summary="Obstacles and UE maps of a plan document in local metres (no candidates needed)",
+)
+async def post_site_preview(request: Request) -> SitePreview:
+    """The parts of ``POST /v1/plans/validate``'s preview that need no candidate sites: the
+    page draws an imported site with it before any candidate is placed. 422 naming the field;
+    413 above the map-point limit; 501 for a frame without the GIS extra."""
+    body = await request.body()
+    return await anyio.to_thread.run_sync(lambda: site_preview(json_document(body)))

@@ -40,6 +40,16 @@
     wavefrontSupported: true,
     view: null, // map transform
     groups: null, // RX points grouped by x–y position
+    cands: [], // the editable candidate list, local metres: {position, orientation, name, cost}
+    candsDoc: null, // {key, list}: state.cands converted to the document's coordinates
+    previewExplicit: 0, // explicit candidates in the document the preview was made of
+    selCand: null, // index into state.cands of the candidate being edited
+    drag: null, // {index, moved} while a candidate is dragged
+    importFile: null, // the last imported file (import again with other options)
+    siteSource: null, // what POST /v1/sites gets as "site": the GeoJSON, else the import's document
+    sitesPath: null,
+    sizingSupported: false,
+    bannerKind: null, // "auth" while the banner asks for an API key
   };
 
   const $ = (id) => document.getElementById(id);
@@ -198,16 +208,33 @@
 
   // ---------------------------------------------------------------- document and form
   const FIELD_IDS = ["f-ris_count", "f-objective-kind", "f-objective-metric", "f-objective-level",
-    "f-ris-rows", "f-ris-cols", "f-power", "f-wavefront"];
+    "f-ris-rows", "f-ris-cols", "f-power", "f-wavefront", "f-known", "f-pairs-mode", "f-pairs-sample"];
+  const KNOWN_PARTS = ["clock", "height", "tx"];
+  const DEFAULT_SAMPLE = 1000; // pairs drawn when a document names no pairs and "sample" is chosen
   const LEVEL_FIELD = { coverage: "threshold_m", mean_capped: "cap_m", quantile: "q" };
   const LEVEL_LABEL = { coverage: "Coverage threshold [m]", mean_capped: "Cap on the bound [m]", quantile: "Quantile q (0–1)" };
 
   const get = (obj, path) => path.split(".").reduce((o, k) => (o && typeof o === "object" ? o[k] : undefined), obj);
 
-  function setDocument(doc, name) {
+  async function setDocument(doc, name) {
     state.doc = doc;
     state.docName = name;
     state.preview = null;
+    state.selCand = null;
+    state.candsDoc = null;
+    state.cands = [];
+    const own = doc && Array.isArray(doc.candidates) ? doc.candidates : [];
+    if (own.length && geographic()) {
+      try {
+        const conv = await api("/v1/candidates/convert", { method: "POST", json: { frame: doc.frame, document: own } });
+        state.cands = conv.local;
+        state.candsDoc = { key: JSON.stringify(conv.local), list: conv.document };
+      } catch (err) {
+        showBanner(`The document's candidates could not be read: ${err.message}`);
+      }
+    } else {
+      state.cands = own.filter((c) => c && typeof c === "object").map((c) => JSON.parse(JSON.stringify(c)));
+    }
     const fr = doc && doc.frame;
     const where = fr && Array.isArray(fr.origin)
       ? ` · geographic frame at ${fr.origin.slice(0, 2).map((v) => fmtNum(Number(v), 7)).join(", ")}: drawn in local metres east/north of it`
@@ -232,6 +259,16 @@
     const sys = doc.system || {};
     $("f-power").value = sys.tx_power_dbm === undefined ? "30" : String(sys.tx_power_dbm);
     $("f-wavefront").value = sys.wavefront || "planar";
+    const known = Array.isArray(doc.known) ? doc.known : [];
+    for (const k of KNOWN_PARTS) $(`f-known-${k}`).checked = known.includes(k);
+    const pairs = doc.pairs === undefined ? "all" : doc.pairs;
+    $("f-pairs-mode").value = typeof pairs === "string" ? pairs : "sample";
+    $("f-pairs-sample").value = pairs && typeof pairs === "object" && pairs.sample !== undefined ? String(pairs.sample) : String(DEFAULT_SAMPLE);
+    updatePairsField();
+  }
+
+  function updatePairsField() {
+    $("f-pairs-sample").disabled = $("f-pairs-mode").value !== "sample";
   }
 
   function updateLevelField() {
@@ -247,8 +284,9 @@
     return Number.isFinite(v) ? v : t; // the server names what is wrong with a non-number
   }
 
-  /** The current document with the form's values written into it (a copy). */
-  function documentFromForm() {
+  /** The current document with the form's values and the edited candidates written into it
+   * (a copy; candidates converted to the document's frame by the server). */
+  async function documentFromForm() {
     const doc = JSON.parse(JSON.stringify(state.doc || {}));
     const counts = $("f-ris_count").value.split(/[\s,;]+/).filter(Boolean)
       .map((t) => (/^[-+]?\d+$/.test(t) ? Number(t) : t));
@@ -271,7 +309,29 @@
     if (p === undefined) delete doc.system.tx_power_dbm; else doc.system.tx_power_dbm = p;
     const wf = $("f-wavefront").value;
     if (wf !== "planar" || doc.system.wavefront !== undefined) doc.system.wavefront = wf;
+    doc.known = KNOWN_PARTS.filter((k) => $(`f-known-${k}`).checked);
+    const mode = $("f-pairs-mode").value;
+    if (mode === "sample") {
+      const prev = doc.pairs && typeof doc.pairs === "object" ? doc.pairs : {};
+      const n = parseNumber($("f-pairs-sample").value);
+      doc.pairs = Object.assign({}, prev, { sample: n === undefined ? DEFAULT_SAMPLE : n });
+    } else {
+      doc.pairs = mode;
+    }
+    doc.candidates = await candidatesForDocument();
+    if (!doc.candidates.length) delete doc.candidates;
     return doc;
+  }
+
+  /** The edited candidate list in the document's coordinates (the frame's, via the server). */
+  async function candidatesForDocument() {
+    const key = JSON.stringify(state.cands);
+    if (!geographic()) return JSON.parse(key);
+    if (state.candsDoc && state.candsDoc.key === key) return state.candsDoc.list;
+    if (!state.cands.length) return [];
+    const conv = await api("/v1/candidates/convert", { method: "POST", json: { frame: state.doc.frame, local: state.cands } });
+    state.candsDoc = { key, list: conv.document };
+    return conv.document;
   }
 
   function clearErrors() {
@@ -337,12 +397,13 @@
 
   async function validate() {
     if (!state.doc) { $("validation-status").textContent = "Load a preset or upload a document first."; return null; }
-    const doc = documentFromForm();
     clearErrors();
     $("validation-status").textContent = "Validating…";
     try {
+      const doc = await documentFromForm();
       const preview = await api("/v1/plans/validate", { method: "POST", json: doc });
       state.preview = preview;
+      state.previewExplicit = Array.isArray(doc.candidates) ? doc.candidates.length : 0;
       const per = Object.entries(preview.layouts).map(([c, n]) => `${c} RIS: ${n} layouts (${preview.methods[c]})`).join("; ");
       $("validation-status").textContent =
         `Valid: ${preview.sites} candidate sites, ${preview.pairs} TX–RX pairs, ${preview.rx_points} RX points. ${per}.`;
@@ -350,7 +411,10 @@
       return doc;
     } catch (err) {
       $("validation-status").textContent = "";
-      if (err.status === 422 || err.status === 413) showErrors(err);
+      if (err.status === 422 && !state.cands.length && !(state.doc.walls || []).length && !(state.doc.facades || []).length) {
+        showErrors(err);
+        $("validation-status").textContent = "No candidate sites yet: generate them or click “add a candidate” and click the map.";
+      } else if (err.status === 422 || err.status === 413) showErrors(err);
       else showBanner(err.message);
       return null;
     }
