@@ -15,6 +15,9 @@
   const COUNT_COLOURS = ["#1f5fa8", "#c0392b", "#1e7b34", "#7b3fa0", "#b35900", "#00707a", "#8a5a00", "#444444"];
   const VIRIDIS = ["#440154", "#472d7b", "#3b528b", "#2c728e", "#21918c", "#28ae80", "#5ec962", "#addc30", "#fde725"];
   const BLIND_COLOUR = "#d7301f";
+  const BUILDING_COLOUR = "#8a939e";
+  const SELECTED_COLOUR = "#c25400";
+  const UE_OPACITY = 0.35;
   const HEALTH_BACKOFF_MS = [2000, 4000, 8000, 15000, 30000];
   const STREAM_BACKOFF_MAX_MS = 30000;
   const JOB_LIST_LIMIT = 15;
@@ -112,6 +115,8 @@
     }
   }
 
+  const AUTH_MESSAGE = "The server needs an API key: enter it under “Server API key” and try again.";
+
   function friendlyMessage(status, body) {
     if (status === 0) {
       return `The server at ${location.origin} does not answer. Check that it is running (ris-planner serve) and reachable.`;
@@ -122,7 +127,7 @@
     if (status >= 500) {
       return `The server had an internal problem (HTTP ${status})${msg ? ": " + msg : ""}. Try again; the server log has the details.`;
     }
-    if (status === 401) return "The server needs an API key: enter it under “Server API key” and try again.";
+    if (status === 401) return AUTH_MESSAGE;
     return msg || `The request failed (HTTP ${status}).`;
   }
 
@@ -154,6 +159,7 @@
     if ((resp.headers.get("content-type") || "").includes("json")) {
       try { body = await resp.json(); } catch (_) { body = null; }
     }
+    authAnswer(resp.status);
     if (!resp.ok) throw new ApiError(resp.status, body);
     return body;
   }
@@ -161,8 +167,20 @@
   function showBanner(msg) {
     $("banner-text").textContent = msg;
     $("banner").hidden = false;
+    state.bannerKind = msg === AUTH_MESSAGE ? "auth" : "other";
   }
-  function hideBanner() { $("banner").hidden = true; }
+  function hideBanner() { $("banner").hidden = true; state.bannerKind = null; }
+
+  /** The API-key banner follows the server's answers: shown on a 401, gone once a /v1 request
+   * is accepted (the key was right, or the server needs none). */
+  function authAnswer(status) {
+    if (status === 401) {
+      showBanner(AUTH_MESSAGE);
+      $("api-key-status").textContent = state.apiKey ? "The server refused this key." : "The server needs a key.";
+    } else if (status < 400 && state.bannerKind === "auth") {
+      hideBanner();
+    }
+  }
 
   function serverDown() {
     if (state.serverUp === false) return;
@@ -240,8 +258,11 @@
       ? ` · geographic frame at ${fr.origin.slice(0, 2).map((v) => fmtNum(Number(v), 7)).join(", ")}: drawn in local metres east/north of it`
       : fr ? " · geographic frame: drawn in local metres" : "";
     $("doc-name").textContent = `Document: ${name}` + (doc && doc.description ? ` – ${doc.description}` : "") + where;
+    state.sitePreview = null;
     fillForm();
     clearErrors();
+    renderCandSummary();
+    renderCandEditor();
   }
 
   function fillForm() {
@@ -360,7 +381,7 @@
   }
 
   /** Show a 422/413 answer: each field problem next to its input, the rest in a list. */
-  function showErrors(err) {
+  function showErrors(err, focus = true) {
     clearErrors();
     const body = err.body || {};
     const fields = Array.isArray(body.fields) ? body.fields : [];
@@ -392,10 +413,13 @@
       box.append(h("ul", {}, rest.map((t) => h("li", { text: t }))));
     }
     const first = document.querySelector('[aria-invalid="true"]');
-    if (first) first.focus();
+    if (first && focus) first.focus();
   }
 
-  async function validate() {
+  /** Dry run of the job (POST /v1/plans/validate); ``opts.auto`` (after a map edit): the
+   * errors are shown without moving the focus away from the map. */
+  async function validate(opts) {
+    const focus = !(opts && opts.auto);
     if (!state.doc) { $("validation-status").textContent = "Load a preset or upload a document first."; return null; }
     clearErrors();
     $("validation-status").textContent = "Validating…";
@@ -404,6 +428,7 @@
       const preview = await api("/v1/plans/validate", { method: "POST", json: doc });
       state.preview = preview;
       state.previewExplicit = Array.isArray(doc.candidates) ? doc.candidates.length : 0;
+      renderCandSummary();
       const per = Object.entries(preview.layouts).map(([c, n]) => `${c} RIS: ${n} layouts (${preview.methods[c]})`).join("; ");
       $("validation-status").textContent =
         `Valid: ${preview.sites} candidate sites, ${preview.pairs} TX–RX pairs, ${preview.rx_points} RX points. ${per}.`;
@@ -411,23 +436,36 @@
       return doc;
     } catch (err) {
       $("validation-status").textContent = "";
+      state.preview = null;
+      await loadSitePreview();
       if (err.status === 422 && !state.cands.length && !(state.doc.walls || []).length && !(state.doc.facades || []).length) {
-        showErrors(err);
+        showErrors(err, focus);
         $("validation-status").textContent = "No candidate sites yet: generate them or click “add a candidate” and click the map.";
-      } else if (err.status === 422 || err.status === 413) showErrors(err);
+      } else if (err.status === 422 || err.status === 413) showErrors(err, focus);
       else showBanner(err.message);
       return null;
     }
   }
 
-  async function submit(ev) {
-    ev.preventDefault();
+  /** Obstacles and UE maps of a document that cannot be validated yet (no candidates). */
+  async function loadSitePreview() {
+    state.sitePreview = null;
+    if (!state.doc) return;
+    try {
+      state.sitePreview = await api("/v1/site/preview", { method: "POST", json: state.doc });
+    } catch (_) { state.sitePreview = null; }
+    if (!state.plan) drawAll();
+  }
+
+  async function submit(ev, extra) {
+    if (ev) ev.preventDefault();
     if (!state.doc) { $("validation-status").textContent = "Load a preset or upload a document first."; return; }
     $("submit").disabled = true;
     try {
       // the dry run first: what the job would fail on at its start is shown at the fields now
-      const doc = await validate();
-      if (!doc) return;
+      const checked = await validate();
+      if (!checked) return;
+      const doc = Object.assign({}, checked, extra || {});
       const job = await api("/v1/plans", { method: "POST", json: doc });
       rememberLabel(job.id, describeRequest(doc, state.docName));
       state.plan = null;
@@ -460,14 +498,15 @@
     }
   }
 
-  function loadPreset() {
+  async function loadPreset() {
     const name = $("preset").value;
     const p = state.presets.find((x) => x.name === name);
     if (!p) return;
     state.plan = null;
     state.job = null;
     $("results").hidden = true;
-    setDocument(JSON.parse(JSON.stringify(p.document)), `preset ${name}`);
+    state.siteSource = null;
+    await setDocument(JSON.parse(JSON.stringify(p.document)), `preset ${name}`);
     drawAll();
     validate();
   }
@@ -501,7 +540,8 @@
     state.plan = null;
     state.job = null;
     $("results").hidden = true;
-    setDocument(got.json, got.name);
+    state.siteSource = null;
+    await setDocument(got.json, got.name);
     drawAll();
     validate();
   }
@@ -511,26 +551,106 @@
   const IMPORT_FORMATS = { geojson: "geojson", json: "geojson", osm: "osm", xml: "osm", dxf: "dxf" };
   const IMPORT_MEDIA = { geojson: "application/geo+json", osm: "application/xml", dxf: "application/octet-stream" };
 
-  function describeImport(report) {
-    if (!report) return "";
-    const parts = [];
-    for (const [k, label] of [["buildings", "buildings"], ["prisms", "prisms"], ["roads", "roads"], ["areas", "density areas"],
-      ["candidates", "candidate sites"], ["walls", "walls"], ["skipped", "features skipped"]]) {
-      if (report[k]) parts.push(`${report[k]} ${label}`);
+  const REPORT_LABELS = [
+    ["format", "Format"], ["buildings", "Buildings"], ["prisms", "Building prisms"],
+    ["heights_from_levels", "Heights from building:levels"], ["default_height", "Buildings given the default height"],
+    ["holes_dropped", "Courtyards dropped"], ["roads", "Road pieces (UE positions)"], ["roads_skipped", "Road pieces skipped"],
+    ["areas", "Density areas"], ["area_points", "Density-area points"], ["candidates", "Candidate sites"],
+    ["walls", "Mounting walls"], ["skipped", "Features skipped"], ["units_to_m", "DXF units to metres"],
+    ["ignored", "Ignored"],
+  ];
+
+  /** A report value as readable text (JSON-derived: lists joined, objects as key: value). */
+  function reportText(v) {
+    if (v === null || v === undefined) return "—";
+    if (Array.isArray(v)) return v.map(reportText).join("; ");
+    if (typeof v === "object") return Object.entries(v).map(([k, x]) => `${k}: ${reportText(x)}`).join(", ");
+    return String(v);
+  }
+
+  /** The import report as a table: counts, the defaults the plan document got, notes. */
+  function renderImportReport(report, doc) {
+    const box = clear($("import-report"));
+    if (!report) return;
+    const rows = [];
+    const seen = new Set(["notes", "defaults_applied"]);
+    for (const [k, label] of REPORT_LABELS) {
+      seen.add(k);
+      const v = report[k];
+      if (v === undefined || v === 0 || (Array.isArray(v) && !v.length)) continue;
+      if (k === "default_height" && Array.isArray(v)) {
+        rows.push([label, `${v.length}`, v.join("; ")]);
+      } else rows.push([label, reportText(v)]);
     }
-    if (Array.isArray(report.default_height) && report.default_height.length) {
-      parts.push(`${report.default_height.length} building(s) given the default height`);
+    for (const [k, v] of Object.entries(report)) if (!seen.has(k)) rows.push([k, reportText(v)]);
+    for (const d of report.defaults_applied || []) {
+      const key = (String(d).match(/^([A-Za-z_]+): /) || [])[1];
+      const value = key && doc && doc[key] !== undefined ? JSON.stringify(doc[key]) : String(d).slice(key ? key.length + 2 : 0);
+      rows.push([`Default ${key || ""}`.trim(), value]);
     }
-    const notes = (report.notes || []).join(" ");
-    return `Imported (${report.format}): ${parts.join(", ") || "nothing usable"}.` + (notes ? ` ${notes}` : "") +
-      ((report.defaults_applied || []).length ? ` Defaults: ${report.defaults_applied.join("; ")}.` : "");
+    const table = h("table", { id: "import-table" }, h("caption", { class: "sr-only", text: "Import report" }));
+    const tb = h("tbody");
+    for (const [label, value, detail] of rows) {
+      tb.append(h("tr", {}, h("th", { scope: "row", text: label }),
+        h("td", {}, value, detail ? h("details", {}, h("summary", { text: "which" }), h("span", { class: "small", text: detail })) : null)));
+    }
+    table.append(tb);
+    box.append(h("p", { class: "muted", text: `Imported (${report.format || "site"}):` }), table);
+    const notes = report.notes || [];
+    if (notes.length) box.append(h("ul", { class: "small" }, notes.map((n) => h("li", { text: String(n) }))));
+  }
+
+  /** Road classes (OSM highway values) of a GeoJSON or OSM XML file, with their counts. */
+  function roadClassesOf(text, fmt) {
+    const counts = new Map();
+    const add = (v) => { if (v) counts.set(String(v), (counts.get(String(v)) || 0) + 1); };
+    try {
+      if (fmt === "geojson") {
+        for (const f of JSON.parse(text).features || []) {
+          const g = f && f.geometry;
+          if (g && /LineString/.test(g.type || "") && f.properties) add(f.properties.highway);
+        }
+      } else if (fmt === "osm") {
+        const xml = new DOMParser().parseFromString(text, "application/xml");
+        for (const tag of xml.querySelectorAll("way > tag[k='highway']")) add(tag.getAttribute("v"));
+      }
+    } catch (_) { /* the server says what is wrong with the file */ }
+    return counts;
+  }
+
+  function renderRoadClasses(counts) {
+    const box = clear($("road-classes"));
+    if (!counts.size) { box.append(h("span", { class: "hint", text: "No roads with a highway class in this file." })); return; }
+    for (const [cls, n] of [...counts.entries()].sort((a, b) => b[1] - a[1])) {
+      const id = `road-${cls.replace(/[^A-Za-z0-9_-]/g, "_")}`;
+      box.append(h("label", { class: "inline", for: id }, h("input", { type: "checkbox", id, value: cls, checked: true, class: "road-class" }), `${cls} (${n})`));
+    }
+  }
+
+  /** The road classes chosen: null = every class (the import's default). */
+  function chosenRoadClasses() {
+    const boxes = [...document.querySelectorAll("#road-classes input.road-class")];
+    if (!boxes.length || boxes.every((b) => b.checked)) return null;
+    return boxes.filter((b) => b.checked).map((b) => b.value);
   }
 
   async function importGeojson() {
     const input = $("upload-geojson");
     const file = input.files && input.files[0];
+    if (!file) return;
+    state.importFile = file;
+    const ext = ((file.name.match(/\.([A-Za-z0-9]+)$/) || [])[1] || "").toLowerCase();
+    const fmt = IMPORT_FORMATS[ext] || "geojson";
+    if (fmt !== "dxf") renderRoadClasses(roadClassesOf(await file.text(), fmt));
+    $("reimport").disabled = false;
+    await runImport();
+  }
+
+  async function runImport() {
+    const input = $("upload-geojson");
+    const file = state.importFile;
     $("err-upload-geojson").textContent = "";
-    $("import-report").textContent = "";
+    clear($("import-report"));
     input.removeAttribute("aria-invalid");
     if (!file || !state.importPath) return;
     const ext = ((file.name.match(/\.([A-Za-z0-9]+)$/) || [])[1] || "").toLowerCase();
@@ -539,6 +659,12 @@
     if (fmt === "dxf") {
       for (const spec of $("import-layers").value.split(/[\s,;]+/).filter(Boolean)) params.append("layer", spec);
     }
+    for (const el of document.querySelectorAll("#import-options [data-param]")) {
+      const v = el.value.trim();
+      if (v && v !== el.dataset.default) params.set(el.dataset.param, el.dataset.param === "origin" ? v.replace(/\s+/g, "") : v);
+    }
+    const classes = chosenRoadClasses();
+    if (classes) params.set("highways", classes.join(",") || "none");
     try {
       const bytes = await file.arrayBuffer();
       const body = await api(`${state.importPath}?${params}`, { method: "POST", body: bytes, contentType: IMPORT_MEDIA[fmt] });
@@ -547,10 +673,11 @@
       state.plan = null;
       state.job = null;
       $("results").hidden = true;
-      setDocument(doc, `${file.name} (imported)`);
-      $("import-report").textContent = describeImport(body.report);
+      state.siteSource = fmt === "geojson" ? JSON.parse(new TextDecoder().decode(bytes)) : doc;
+      await setDocument(doc, `${file.name} (imported)`);
+      renderImportReport(body.report, doc);
       drawAll();
-      validate();
+      validate({ auto: true });
     } catch (err) {
       if (err && err.name === "AbortError") return;
       input.setAttribute("aria-invalid", "true");
@@ -570,6 +697,22 @@
       const paths = spec.paths || {};
       state.importPath = Object.keys(paths).find((p) => IMPORT_PATH.test(p) && paths[p].post) || null;
       $("geojson-box").hidden = !state.importPath;
+      // the import's documented defaults shown in its option fields
+      const params = state.importPath ? (paths[state.importPath].post.parameters || []) : [];
+      for (const el of document.querySelectorAll("#import-options [data-param]")) {
+        const prm = params.find((x) => x.name === el.dataset.param);
+        const dflt = prm && prm.schema ? prm.schema.default : undefined;
+        if (dflt !== undefined && dflt !== null) { el.value = String(dflt); el.dataset.default = String(dflt); }
+      }
+      state.sitesPath = paths["/v1/sites"] && paths["/v1/sites"].post ? "/v1/sites" : null;
+      $("generate").disabled = !state.sitesPath;
+      $("hint-gen").textContent = state.sitesPath
+        ? "Facades of the imported buildings and poles along its chosen road classes (POST /v1/sites)."
+        : "This server has no candidate generation (POST /v1/sites) yet: add candidates on the map.";
+      const planSchema = ((spec.components || {}).schemas || {}).PlanDocument;
+      state.sizingSupported = Boolean(planSchema && planSchema.properties && "sizing" in planSchema.properties);
+      $("find-size").disabled = !state.sizingSupported;
+      if (!state.sizingSupported) $("hint-find-size").textContent = "This server cannot size the RIS yet (its plan documents have no sizing).";
       const sysSchema = ((spec.components || {}).schemas || {}).SystemParams;
       state.wavefrontSupported = !sysSchema || !sysSchema.properties || "wavefront" in sysSchema.properties;
       $("hint-wavefront").textContent = state.wavefrontSupported ? "" : "This server has no wavefront option yet (planar only).";
@@ -611,6 +754,7 @@
       try {
         const resp = await fetch(`/v1/jobs/${jobId}/events`, { headers: headers(), signal: ctl.signal });
         serverUp();
+        authAnswer(resp.status);
         if (!resp.ok) {
           let body = null;
           try { body = await resp.json(); } catch (_) { body = null; }
@@ -714,6 +858,7 @@
       state.count = counts[counts.length - 1];
       state.layoutIdx = 0;
       state.selected = null;
+      if (!state.uesTouched) $("layer-ues").checked = false; // the heatmap shows; UE dots on request
       if (fromList || !state.preview) {
         try { state.preview = await api("/v1/plans/validate", { method: "POST", json: view.request }); } catch (_) { state.preview = null; }
       }
@@ -801,6 +946,8 @@
   function renderResults() {
     const plan = state.plan;
     $("results").hidden = false;
+    renderDiagnosis(plan.diagnosis);
+    renderSizing(plan.sizing);
     const metric = METRIC_LABEL[plan.objective.metric] || plan.objective.metric;
     const better = plan.objective_better === "higher" ? "higher is better" : "lower is better";
     $("results-note").textContent =
@@ -862,6 +1009,85 @@
     renderDownloads();
   }
 
+  const VERDICT_TEXT = {
+    ok: "The plan works: the objective is reachable with these candidates.",
+    weak: "Warning: the plan is weak – the RISs help little here.",
+    useless: "Warning: the plan is useless – no layout reaches the objective.",
+  };
+
+  /** A value of the diagnosis (number, list or object) as readable text. */
+  function diagText(v) {
+    if (typeof v === "number") return fmtNum(v);
+    if (v && typeof v === "object" && !Array.isArray(v)) return Object.entries(v).map(([k, x]) => `${k} ${diagText(x)}`).join(", ");
+    if (Array.isArray(v)) return v.map(diagText).join(", ");
+    return v === null || v === undefined ? "—" : String(v);
+  }
+
+  function useRisSize(rows, cols) {
+    $("f-ris-rows").value = String(rows);
+    $("f-ris-cols").value = String(cols);
+    $("validation-status").textContent = `RIS size set to ${rows} × ${cols}: submit again to plan with it.`;
+    $("f-ris-rows").focus();
+  }
+
+  /** plan.json's diagnosis: a banner by verdict (warning for weak / useless) and its causes. */
+  function renderDiagnosis(diag) {
+    const box = clear($("diagnosis"));
+    box.hidden = !diag;
+    if (!diag) return;
+    const verdict = String(diag.verdict || "");
+    box.className = "diagnosis" + (verdict === "weak" ? " warn" : verdict === "useless" ? " bad" : "");
+    box.setAttribute("role", verdict === "ok" ? "status" : "alert");
+    box.dataset.verdict = verdict;
+    box.append(h("h3", { text: VERDICT_TEXT[verdict] || `Diagnosis: ${verdict}` }));
+    const figures = ["floor", "best", "worst"].filter((k) => diag[k] !== undefined && diag[k] !== null)
+      .map((k) => `${k}: ${diagText(diag[k])}`);
+    if (figures.length) box.append(h("p", { class: "small", text: figures.join(" · ") }));
+    const causes = Array.isArray(diag.causes) ? diag.causes : [];
+    if (causes.length) {
+      box.append(h("ul", {}, causes.map((c) => {
+        const li = h("li", { "data-kind": c.kind || "" }, h("strong", { text: `${c.kind || "cause"}: ` }), String(c.message || ""));
+        if (Array.isArray(c.suggested_ris_size) && c.suggested_ris_size.length === 2) {
+          const [r, k] = c.suggested_ris_size;
+          li.append(h("button", { type: "button", class: "secondary small", onclick: () => useRisSize(r, k) }, `Use ${r} × ${k} elements`));
+        }
+        if (Array.isArray(c.candidates) && c.candidates.length) li.append(h("div", { class: "small", text: `candidates: ${diagText(c.candidates)}` }));
+        return li;
+      })));
+    }
+  }
+
+  /** plan.json's sizing: the smallest RIS size that reaches the objective, and the table. */
+  function renderSizing(sizing) {
+    const box = clear($("sizing"));
+    box.hidden = !sizing;
+    if (!sizing) return;
+    box.append(h("h3", { text: "Smallest RIS size" }));
+    const ans = sizing.answer;
+    if (ans) {
+      box.append(h("p", { id: "sizing-answer" }, h("strong", { text: `${ans.rows} × ${ans.cols} elements with ${ans.count} RIS` }),
+        ` (objective ${fmtObjective(ans.objective)})`,
+        h("button", { type: "button", class: "secondary small", onclick: () => useRisSize(ans.rows, ans.cols) }, "Use this size")));
+    } else {
+      box.append(h("p", { id: "sizing-answer", text: "No RIS size tried reaches the objective." }));
+    }
+    if (sizing.message) box.append(h("p", { class: "muted", text: String(sizing.message) }));
+    const rows = Array.isArray(sizing.table) ? sizing.table : [];
+    if (rows.length) {
+      const table = h("table", { id: "sizing-table" }, h("caption", { class: "sr-only", text: "RIS sizes tried" }),
+        h("thead", {}, h("tr", {}, ["Rows", "Columns", "RIS", "Objective", "Reaches it"].map((t) => h("th", { scope: "col", text: t })))));
+      const tb = h("tbody");
+      for (const r of rows) {
+        const isAns = ans && r.rows === ans.rows && r.cols === ans.cols && r.count === ans.count;
+        tb.append(h("tr", { class: isAns ? "answer" : null },
+          h("td", { text: String(r.rows) }), h("td", { text: String(r.cols) }), h("td", { text: String(r.count) }),
+          h("td", { text: fmtObjective(r.objective) }), h("td", { text: r.reaches ? "yes" : "no" })));
+      }
+      table.append(tb);
+      box.append(h("div", { class: "table-wrap" }, table));
+    }
+  }
+
   function fmtGain(g) {
     if (g === null || g === undefined) return "—";
     return state.plan.objective.kind === "coverage" ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} m`;
@@ -893,10 +1119,34 @@
     const blob = new Blob([JSON.stringify(state.plan, null, 1)], { type: "application/json" });
     ul.append(h("li", {}, h("a", { href: URL.createObjectURL(blob), download: `plan-${id8}.json` }, "plan.json"), " (the job's result)"));
     for (const f of jobFiles(state.job || {})) {
-      const a = h("a", { href: f.url, download: `${f.name}-${id8}.${f.ext.toLowerCase()}` }, `${f.name}`);
+      const file = f.name === "geojson" ? `plan-${id8}.geojson` : `${f.name}-${id8}.${f.ext.toLowerCase()}`;
+      const a = h("a", { href: f.url, download: file }, `${f.name}`);
       if (state.apiKey) a.addEventListener("click", (ev) => { ev.preventDefault(); downloadWithKey(f.url, a.getAttribute("download")); });
-      ul.append(h("li", {}, a, ` (${f.ext})`));
+      ul.append(h("li", {}, a, f.name === "geojson" ? " (GEOJSON: plan.geojson – chosen sites, candidates, UE results, buildings)" : ` (${f.ext})`));
     }
+    const gj = (state.job && state.job.figures) ? state.job.figures.geojson : null;
+    if (gj) {
+      const li = h("li", {}, "candidates.geojson (preparing…)");
+      ul.append(li);
+      candidatesGeojson(typeof gj === "string" ? gj : gj.url).then((fc) => {
+        const blobC = new Blob([JSON.stringify(fc, null, 1)], { type: "application/geo+json" });
+        clear(li).append(h("a", { id: "dl-candidates", href: URL.createObjectURL(blobC), download: `candidates-${id8}.geojson` }, "candidates.geojson"),
+          ` (GEOJSON: the ${fc.features.length} candidate sites as mounting points – import them again as a sites file)`);
+      }).catch((err) => { clear(li).append(`candidates.geojson: ${err.message}`); });
+    }
+  }
+
+  /** The candidate sites of a job's plan.geojson (role "candidate"): Points with azimuth_deg,
+   * tilt_deg and height_m, a sites file the import reads back. */
+  async function candidatesGeojson(url) {
+    const resp = await fetch(url, { headers: headers() });
+    if (!resp.ok) throw new ApiError(resp.status, null);
+    const fc = await resp.json();
+    const features = (fc.features || []).filter((f) => f.properties && f.properties.role === "candidate")
+      .map((f) => ({ type: "Feature", geometry: f.geometry, properties: Object.fromEntries(Object.entries(f.properties).filter(([k]) => k !== "role")) }));
+    const out = { type: "FeatureCollection", features };
+    if (fc.ris_planner_frame) out.ris_planner_frame = fc.ris_planner_frame;
+    return out;
   }
 
   async function downloadWithKey(url, name) {
@@ -1025,32 +1275,44 @@
   /** A document in geographic coordinates (its positions are lon/lat or CRS metres). */
   const geographic = () => Boolean(state.doc && state.doc.frame);
 
+  /** Local-metre previews: the validation's, else the site preview (no candidates yet). */
+  const localPreview = () => state.preview || state.sitePreview || null;
+
   function obstacles() {
-    // the validation preview has them in the local metres of the job (a frame converted)
-    if (state.preview && Array.isArray(state.preview.obstacles)) return state.preview.obstacles;
+    // the previews have them in the local metres of the job (a frame converted)
+    const pv = localPreview();
+    if (pv && Array.isArray(pv.obstacles)) return pv.obstacles;
     if (geographic()) return [];
     const env = state.doc && state.doc.environment;
     return env && Array.isArray(env.obstacles) ? env.obstacles : [];
   }
+  /** What the map draws as candidates: a shown plan's (its indices), else the edited list
+   * (editable) followed by the sites the preview expanded from walls and facades. */
   function candidates() {
     if (state.plan && Array.isArray(state.plan.candidates)) return state.plan.candidates;
-    if (state.preview) return state.preview.candidates;
-    // not validated (yet): the document's explicit candidates (walls expand on the server)
-    if (geographic()) return [];
-    const own = state.doc && Array.isArray(state.doc.candidates) ? state.doc.candidates : [];
-    return own.filter((c) => c && Array.isArray(c.position) && c.position.length === 3)
-      .map((c, i) => ({ index: i, position: c.position, orientation: c.orientation || [0, 0, 0], name: c.name }));
+    const out = state.cands.map((c, i) => ({ index: i, position: c.position, orientation: c.orientation || [0, 0, 0], name: c.name }));
+    if (state.preview) {
+      for (const c of state.preview.candidates.slice(state.previewExplicit)) out.push(Object.assign({}, c, { editable: false }));
+    }
+    out.forEach((c, i) => { c.index = i; });
+    return out;
+  }
+  /** The map's candidate i is an entry of the edited list (explicit candidates come first in
+   * the expanded sites of a preview and of a plan). */
+  const editableIndex = (c) => (c.index < state.cands.length ? c.index : null);
+  function candidatesWithEdit() {
+    return candidates().map((c) => Object.assign({}, c, { editable: editableIndex(c) !== null }));
   }
   function ueLayers() {
-    const pv = state.preview;
-    if (pv) {
+    const pv = localPreview();
+    if (pv && pv.rx_map) {
       const same = state.doc && JSON.stringify(state.doc.tx_map) === JSON.stringify(state.doc.rx_map);
-      return same
-        ? [{ name: "UE map (TX = RX)", colour: "#1f5fa8", map: pv.rx_map }]
-        : [{ name: "TX map", colour: "#1f5fa8", map: pv.tx_map }, { name: "RX map", colour: "#1e7b34", map: pv.rx_map }];
+      return same || !pv.tx_map
+        ? [{ name: "UE points (TX = RX)", colour: "#1f5fa8", map: pv.rx_map }]
+        : [{ name: "TX points", colour: "#1f5fa8", map: pv.tx_map }, { name: "RX points", colour: "#1e7b34", map: pv.rx_map }];
     }
     if (state.plan && state.plan.points) {
-      return [{ name: "RX map", colour: "#1e7b34", map: { points: state.plan.points.map((p) => p.position), weights: state.plan.points.map((p) => p.weight), total: state.plan.points.length, stride: 1 } }];
+      return [{ name: "RX points", colour: "#1e7b34", map: { points: state.plan.points.map((p) => p.position), weights: state.plan.points.map((p) => p.weight), total: state.plan.points.length, stride: 1 } }];
     }
     return [];
   }
@@ -1118,25 +1380,28 @@
     svg.append(grid, labelsG);
     // heatmap and contour
     if (state.plan && state.plan.heatmap && state.count) drawHeatmap(svg, X, Y, k);
-    // obstacles
+    // buildings and walls
     const obsG = s("g", { id: "obstacles" });
-    for (const ob of obstacles()) {
-      const top = (Number(ob.base_m) || 0) + (Number(ob.height_m) || 0);
-      const title = s("title", {}, `${ob.kind}${ob.name ? " " + ob.name : ""}: ${fmtNum(Number(ob.base_m) || 0)}–${fmtNum(top)} m high`);
-      if (ob.kind === "prism" && Array.isArray(ob.footprint)) {
-        obsG.append(s("polygon", { points: ob.footprint.map((v) => `${X(v[0])},${Y(v[1])}`).join(" "), fill: "#8a939e", "fill-opacity": 0.55, stroke: "#3b424a", "stroke-width": 1.2, class: "obstacle prism" }, title));
-      } else if (ob.kind === "wall" && ob.start && ob.end) {
-        obsG.append(s("line", { x1: X(ob.start[0]), y1: Y(ob.start[1]), x2: X(ob.end[0]), y2: Y(ob.end[1]), stroke: "#3b424a", "stroke-width": 3.5, "stroke-linecap": "round", class: "obstacle wall" }, title));
+    if ($("layer-buildings").checked) {
+      for (const ob of obstacles()) {
+        const top = (Number(ob.base_m) || 0) + (Number(ob.height_m) || 0);
+        const title = s("title", {}, `${ob.kind}${ob.name ? " " + ob.name : ""}: ${fmtNum(Number(ob.base_m) || 0)}–${fmtNum(top)} m high`);
+        if (ob.kind === "prism" && Array.isArray(ob.footprint)) {
+          obsG.append(s("polygon", { points: ob.footprint.map((v) => `${X(v[0])},${Y(v[1])}`).join(" "), fill: BUILDING_COLOUR, "fill-opacity": 0.55, stroke: "#3b424a", "stroke-width": 1.2, class: "obstacle prism" }, title));
+        } else if (ob.kind === "wall" && ob.start && ob.end) {
+          obsG.append(s("line", { x1: X(ob.start[0]), y1: Y(ob.start[1]), x2: X(ob.end[0]), y2: Y(ob.end[1]), stroke: "#3b424a", "stroke-width": 3.5, "stroke-linecap": "round", class: "obstacle wall" }, title));
+        }
       }
     }
     svg.append(obsG);
-    // UE maps
+    // UE points: small and translucent, so a heatmap under them stays readable (and off by
+    // default once a heatmap is shown)
     if ($("layer-ues").checked) {
       for (const layer of ueLayers()) {
-        const g = s("g", { class: "ue-map", "data-name": layer.name, fill: layer.colour, "fill-opacity": 0.45 });
+        const g = s("g", { class: "ue-map", "data-name": layer.name, fill: layer.colour, "fill-opacity": UE_OPACITY });
         const wmax = Math.max(...layer.map.weights, 1e-300);
         layer.map.points.forEach((p, i) => {
-          g.append(s("circle", { cx: X(p[0]).toFixed(1), cy: Y(p[1]).toFixed(1), r: (1.4 + 2.6 * Math.sqrt(layer.map.weights[i] / wmax)).toFixed(2) }));
+          g.append(s("circle", { cx: X(p[0]).toFixed(1), cy: Y(p[1]).toFixed(1), r: (0.9 + 1.6 * Math.sqrt(layer.map.weights[i] / wmax)).toFixed(2) }));
         });
         svg.append(g);
       }
@@ -1145,29 +1410,13 @@
     const chosen = new Set(shownLayout());
     const colour = state.count ? colourOf(state.count) : "#1a1a1a";
     const candG = s("g", { id: "candidates" });
-    for (const c of candidates()) {
+    for (const c of candidatesWithEdit()) {
       const isChosen = chosen.has(c.index);
       if (!isChosen && !$("layer-candidates").checked) continue;
-      const [yaw, pitch] = c.orientation || [0, 0, 0];
-      const px = X(c.position[0]);
-      const py = Y(c.position[1]);
-      const len = (isChosen ? 24 : 16) * Math.cos(pitch);
-      const ax = px + len * Math.cos(yaw) * Math.cos(0);
-      const ay = py - len * Math.sin(yaw);
-      const sz = isChosen ? 11 : 7;
-      const g = s("g", { class: isChosen ? "site chosen" : "site", "data-site": c.index });
-      g.append(s("title", {}, `Site ${c.index}${c.name ? " – " + c.name : ""}: x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m, height ${fmtNum(c.position[2])} m, facing ${fmtNum(deg(yaw), 3)}°, tilt ${fmtNum(deg(pitch), 3)}° down` +
-        (c.far_field_flag ? " (near field for part of the map)" : "")));
-      g.append(s("line", { x1: px, y1: py, x2: ax, y2: ay, stroke: isChosen ? colour : "#4d5561", "stroke-width": isChosen ? 2.5 : 1.3, "marker-end": isChosen ? "url(#arrow-chosen)" : "url(#arrow)" }));
-      g.append(s("rect", {
-        x: px - sz / 2, y: py - sz / 2, width: sz, height: sz,
-        fill: isChosen ? colour : "#ffffff", stroke: c.far_field_flag ? "#b35900" : "#1a1a1a", "stroke-width": isChosen ? 1.5 : 1.2,
-      }));
-      if (isChosen) g.append(s("text", { x: px + 8, y: py - 8, "font-size": 11, "font-weight": 700, fill: "#1a1a1a", stroke: "#ffffff", "stroke-width": 3, "paint-order": "stroke" }, `${c.index} (${fmtNum(c.position[2], 2)} m)`));
-      candG.append(g);
+      candG.append(candidateGlyph(c, isChosen, colour, X, Y));
     }
     const defs = s("defs");
-    for (const [id, col] of [["arrow", "#4d5561"], ["arrow-chosen", colour]]) {
+    for (const [id, col] of [["arrow", "#4d5561"], ["arrow-chosen", colour], ["arrow-selected", SELECTED_COLOUR]]) {
       defs.append(s("marker", { id, viewBox: "0 0 10 10", refX: 8, refY: 5, markerWidth: 6, markerHeight: 6, orient: "auto-start-reverse" },
         s("path", { d: "M0,0 L10,5 L0,10 z", fill: col })));
     }
@@ -1181,6 +1430,33 @@
       s("text", { x: bx + barM * k + 6, y: by + 4, "font-size": 11, fill: "#1a1a1a" }, `${fmtNum(barM, 3)} m`)));
     svg.append(s("g", { id: "selection" }));
     drawSelection();
+  }
+
+  /** One candidate: a square at its position and an arrow along its facing (shorter when
+   * tilted); chosen sites of the shown layout filled, the candidate being edited outlined. */
+  function candidateGlyph(c, isChosen, colour, X, Y) {
+    const [yaw, pitch] = c.orientation || [0, 0, 0];
+    const selected = c.editable && state.selCand === c.index;
+    const px = X(c.position[0]);
+    const py = Y(c.position[1]);
+    const len = (isChosen || selected ? 24 : 16) * Math.cos(pitch);
+    const ax = px + len * Math.cos(yaw);
+    const ay = py - len * Math.sin(yaw);
+    const sz = isChosen || selected ? 11 : 8;
+    const cls = ["site", isChosen ? "chosen" : "", c.editable ? "editable" : "", selected ? "selected" : ""].filter(Boolean).join(" ");
+    const g = s("g", { class: cls, "data-site": c.index });
+    const az = ((90 - deg(yaw)) % 360 + 360) % 360;
+    g.append(s("title", {}, `Site ${c.index}${c.name ? " – " + c.name : ""}: x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m, height ${fmtNum(c.position[2])} m, facing ${fmtNum(az, 3)}° from north, tilt ${fmtNum(deg(pitch), 3)}° down` +
+      (c.far_field_flag ? " (near field for part of the map)" : "")));
+    const stroke = selected ? SELECTED_COLOUR : isChosen ? colour : "#4d5561";
+    g.append(s("line", { x1: px, y1: py, x2: ax, y2: ay, stroke, "stroke-width": isChosen || selected ? 2.5 : 1.3, "marker-end": selected ? "url(#arrow-selected)" : isChosen ? "url(#arrow-chosen)" : "url(#arrow)" }));
+    if (selected) g.append(s("circle", { cx: px, cy: py, r: 10, fill: "none", stroke: SELECTED_COLOUR, "stroke-width": 2.5 }));
+    g.append(s("rect", {
+      x: px - sz / 2, y: py - sz / 2, width: sz, height: sz,
+      fill: isChosen ? colour : "#ffffff", stroke: c.far_field_flag ? "#b35900" : "#1a1a1a", "stroke-width": isChosen ? 1.5 : 1.2,
+    }));
+    if (isChosen) g.append(s("text", { x: px + 8, y: py - 8, "font-size": 11, "font-weight": 700, fill: "#1a1a1a", stroke: "#ffffff", "stroke-width": 3, "paint-order": "stroke" }, `${c.index} (${fmtNum(c.position[2], 2)} m)`));
+    return g;
   }
 
   function shownLayout() {
@@ -1278,34 +1554,49 @@
     return parts.join("");
   }
 
+  /** Legend of the map: every layer's symbol, and with a heatmap its colour bar (log scale,
+   * metres, the objective's threshold marked). */
   function drawLegend() {
     const box = clear($("legend"));
     if (!state.view) return;
-    for (const layer of ueLayers()) {
-      const note = layer.map.stride > 1 ? ` (every ${layer.map.stride}th of ${layer.map.total})` : ` (${layer.map.total} points; size ∝ weight)`;
-      box.append(h("span", {}, h("span", { class: "swatch", "data-colour": layer.colour }), layer.name + note));
+    const item = (sym, text) => box.append(h("span", { class: "item" }, sym, text));
+    if ($("layer-buildings").checked && obstacles().length) {
+      item(h("span", { class: "swatch", "data-colour": BUILDING_COLOUR }), "building (prism; ▬ wall)");
     }
-    box.append(h("span", {}, "□ → candidate site, arrow = facing (shorter when tilted)"));
-    if (obstacles().length) box.append(h("span", {}, "▩ obstacle (prism), ▬ wall"));
+    if ($("layer-ues").checked) {
+      for (const layer of ueLayers()) {
+        const note = layer.map.stride > 1 ? ` (every ${layer.map.stride}th of ${layer.map.total})` : ` (${layer.map.total}; size ∝ weight)`;
+        item(h("span", { class: "dot", "data-colour": layer.colour }), layer.name + note);
+      }
+    }
+    if ($("layer-candidates").checked && candidates().length) item(h("span", { class: "sq" }), "candidate site, arrow = facing (shorter when tilted)");
+    if (state.selCand !== null) item(h("span", { class: "sq", "data-border": SELECTED_COLOUR }), "candidate being edited");
     const plan = state.plan;
     if (plan && plan.heatmap && state.count) {
+      item(h("span", { class: "swatch", "data-colour": colourOf(state.count) }), `RIS site of the layout shown (sites ${shownLayout().join(", ")})`);
       const range = heatRange();
       const metric = METRIC_LABEL[plan.heatmap.metric] || "bound";
+      const level = plan.heatmap.threshold_m[state.count];
       if (range && $("layer-heatmap").checked) {
         const stops = VIRIDIS.map((c, i) => `${c} ${(100 * i) / (VIRIDIS.length - 1)}%`).join(", ");
-        const bar = h("span", { class: "bar", "data-gradient": stops });
+        const wrap = h("span", { class: "bar-wrap" }, h("span", { class: "bar", "data-gradient": stops }));
+        const frac = level ? (Math.log10(level) - Math.log10(range.lo)) / (Math.log10(range.hi) - Math.log10(range.lo)) : null;
+        let thrNote = "";
+        if (frac !== null && frac >= 0 && frac <= 1) wrap.append(h("span", { class: "thr", id: "colourbar-threshold", "data-left": `${(100 * frac).toFixed(1)}%`, title: `threshold ${fmtM(level)}` }));
+        else if (level) thrNote = frac < 0 ? ` (threshold ${fmtM(level)}: below every value)` : ` (threshold ${fmtM(level)}: above every value)`;
         const mid = Math.sqrt(range.lo * range.hi);
-        box.append(h("span", { class: "cb" },
-          h("span", {}, `${metric} [m], ${state.count} RIS (log scale) `, bar),
-          h("span", { class: "ticks" }, h("span", { text: fmtNum(range.lo) }), h("span", { text: fmtNum(mid) }), h("span", { text: fmtNum(range.hi) }))));
+        box.append(h("span", { class: "cb", id: "colourbar" },
+          h("span", {}, `${metric} [m] at ${state.count} RIS, log scale; ▮ = threshold${thrNote} `, wrap),
+          h("span", { class: "ticks" }, h("span", { text: `${fmtNum(range.lo)} m` }), h("span", { text: `${fmtNum(mid)} m` }), h("span", { text: `${fmtNum(range.hi)} m` }))));
       }
-      box.append(h("span", {}, h("span", { class: "swatch", "data-colour": BLIND_COLOUR }), "blind (bound ∞)"));
-      if ($("layer-contour").checked) box.append(h("span", {}, `— contour at ${plan.heatmap.threshold_label} (${fmtM(plan.heatmap.threshold_m[state.count])})`));
-      box.append(h("span", {}, h("span", { class: "swatch", "data-colour": colourOf(state.count) }), `layout shown: sites ${shownLayout().join(", ")}`));
+      item(h("span", { class: "swatch", "data-colour": BLIND_COLOUR }), "blind (bound ∞)");
+      if ($("layer-contour").checked) item(h("span", { class: "line" }), `contour at ${plan.heatmap.threshold_label} (${fmtM(level)})`);
     }
     // colours via CSSOM (the page's CSP allows no inline style attributes)
     for (const el of box.querySelectorAll("[data-colour]")) el.style.background = el.dataset.colour;
+    for (const el of box.querySelectorAll("[data-border]")) el.style.borderColor = el.dataset.border;
     for (const el of box.querySelectorAll("[data-gradient]")) el.style.background = `linear-gradient(to right, ${el.dataset.gradient})`;
+    for (const el of box.querySelectorAll("[data-left]")) el.style.left = `calc(${el.dataset.left} - 2px)`;
   }
 
   function renderSites() {
@@ -1409,7 +1700,14 @@
   }
 
   function onMapClick(ev) {
-    if (!state.view || !state.plan || !state.plan.points) return;
+    if (state.suppressClick) { state.suppressClick = false; return; }
+    if (!state.view) return;
+    if (mapMode() === "add") {
+      const { px, py, xy } = mapPoint(ev);
+      if (hitCandidate(px, py) === null) addCandidate(xy[0], xy[1]);
+      return;
+    }
+    if (!state.plan || !state.plan.points) return;
     const rect = $("map").getBoundingClientRect();
     const vb = $("map").viewBox.baseVal;
     const px = ((ev.clientX - rect.left) / rect.width) * vb.width;
@@ -1445,6 +1743,7 @@
   }
 
   function onMapKey(ev) {
+    if ((ev.key === "Delete" || ev.key === "Backspace") && state.selCand !== null) { ev.preventDefault(); removeSelected(); return; }
     const dirs = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1] };
     const dir = dirs[ev.key];
     if (!dir || !state.plan || !state.plan.points) return;
@@ -1467,6 +1766,198 @@
     if (best) selectPoint(best.members[0]);
   }
 
+  // ---------------------------------------------------------------- candidate editing
+  const wrapDeg = (a) => ((a % 360) + 360) % 360;
+  const azimuthOf = (c) => wrapDeg(90 - deg((c.orientation || [0])[0]));
+  const yawOf = (az) => { const y = ((90 - az) * Math.PI) / 180; return Math.atan2(Math.sin(y), Math.cos(y)); };
+
+  /** SVG and local-metre coordinates of a pointer event on the map. */
+  function mapPoint(ev) {
+    const rect = $("map").getBoundingClientRect();
+    const vb = $("map").viewBox.baseVal;
+    const px = ((ev.clientX - rect.left) / rect.width) * vb.width;
+    const py = ((ev.clientY - rect.top) / rect.height) * vb.height;
+    return { px, py, xy: state.view.inv(px, py) };
+  }
+
+  /** The edited candidate under the pointer (within 12 px), else null. */
+  function hitCandidate(px, py) {
+    if (!state.view || !$("layer-candidates").checked) return null;
+    let best = null;
+    let bd = 12 * 12;
+    for (const c of candidates()) {
+      const i = editableIndex(c);
+      if (i === null) continue;
+      const d = (state.view.X(c.position[0]) - px) ** 2 + (state.view.Y(c.position[1]) - py) ** 2;
+      if (d <= bd) { bd = d; best = i; }
+    }
+    return best;
+  }
+
+  /** After an edit: the document's candidates are stale, a shown plan is of another list. */
+  function candidatesEdited(note) {
+    state.candsDoc = null;
+    if (state.plan) {
+      state.plan = null;
+      state.count = null;
+      state.selected = null;
+      $("results").hidden = true;
+      $("count-picker").hidden = true;
+      $("job-status").textContent = "The candidate list changed: submit again for results (the job list keeps the earlier plan).";
+    }
+    renderCandSummary(note);
+    renderCandEditor();
+    drawAll();
+    clearTimeout(state.validateTimer);
+    state.validateTimer = setTimeout(() => validate({ auto: true }), 300);
+  }
+
+  function renderCandSummary(note) {
+    const n = state.cands.length;
+    const extra = state.preview ? state.preview.candidates.length - state.previewExplicit : 0;
+    $("cand-summary").textContent = (n ? `${n} candidate site${n === 1 ? "" : "s"} in the list` : "No candidates in the list yet")
+      + (extra > 0 ? `, plus ${extra} from walls and facades` : "") + "." + (note ? ` ${note}` : "");
+  }
+
+  function selectCandidate(i) {
+    state.selCand = i;
+    renderCandEditor();
+    drawAll();
+  }
+
+  function renderCandEditor() {
+    const i = state.selCand;
+    const c = i === null ? null : state.cands[i];
+    for (const id of ["ce-azimuth", "ce-height", "ce-tilt", "ce-left", "ce-right", "ce-remove"]) $(id).disabled = !c;
+    if (!c) {
+      $("cand-editor-title").textContent = "No candidate selected";
+      for (const id of ["ce-azimuth", "ce-height", "ce-tilt"]) $(id).value = "";
+      return;
+    }
+    $("cand-editor-title").textContent = `Candidate ${i}${c.name ? " – " + c.name : ""}`;
+    $("ce-azimuth").value = fmtNum(azimuthOf(c), 4);
+    $("ce-height").value = fmtNum(c.position[2], 4);
+    $("ce-tilt").value = fmtNum(deg((c.orientation || [0, 0])[1]), 4);
+  }
+
+  function editSelected(change) {
+    const c = state.selCand === null ? null : state.cands[state.selCand];
+    if (!c) return;
+    c.orientation = (c.orientation || [0, 0, 0]).slice();
+    c.position = c.position.slice();
+    change(c);
+    candidatesEdited();
+  }
+
+  function turnSelected(byDeg) {
+    editSelected((c) => { c.orientation[0] = yawOf(wrapDeg(azimuthOf(c) + byDeg)); });
+  }
+
+  function removeSelected() {
+    if (state.selCand === null) return;
+    const [gone] = state.cands.splice(state.selCand, 1);
+    state.selCand = null;
+    candidatesEdited(`Removed ${gone && gone.name ? gone.name : "a candidate"}.`);
+    $("map").focus();
+  }
+
+  function onEditorInput(ev) {
+    const v = Number(ev.target.value.trim());
+    if (ev.target.value.trim() === "" || !Number.isFinite(v)) { renderCandEditor(); return; }
+    if (ev.target.id === "ce-azimuth") editSelected((c) => { c.orientation[0] = yawOf(wrapDeg(v)); });
+    else if (ev.target.id === "ce-height") editSelected((c) => { c.position[2] = v; });
+    else if (ev.target.id === "ce-tilt") editSelected((c) => { c.orientation[1] = (Math.max(-90, Math.min(90, v)) * Math.PI) / 180; });
+  }
+
+  /** A new candidate at (x, y): the first generation height, 10° down, facing the nearest
+   * UE point (north when there is none). */
+  function addCandidate(x, y) {
+    const heights = $("gen-heights").value.split(/[\s,;]+/).map(Number).filter((v) => Number.isFinite(v) && v > 0);
+    let az = 0;
+    let bd = Infinity;
+    for (const layer of ueLayers()) {
+      for (const p of layer.map.points) {
+        const d = (p[0] - x) ** 2 + (p[1] - y) ** 2;
+        if (d < bd && d > 1e-6) { bd = d; az = wrapDeg(90 - deg(Math.atan2(p[1] - y, p[0] - x))); }
+      }
+    }
+    const n = state.cands.length;
+    state.cands.push({ position: [x, y, heights.length ? heights[0] : 6], orientation: [yawOf(az), (10 * Math.PI) / 180, 0], name: `added ${n + 1}` });
+    state.selCand = n;
+    candidatesEdited(`Added candidate ${n} at x ${fmtNum(x)} m, y ${fmtNum(y)} m.`);
+  }
+
+  function onMapPointerDown(ev) {
+    if (!state.view || ev.button !== 0) return;
+    const { px, py } = mapPoint(ev);
+    const hit = hitCandidate(px, py);
+    if (hit === null) return;
+    ev.preventDefault();
+    state.drag = { index: hit, moved: false, px, py };
+    $("map").setPointerCapture(ev.pointerId);
+    $("map").classList.add("dragging");
+    if (state.selCand !== hit) selectCandidate(hit);
+  }
+
+  function onMapPointerMove(ev) {
+    const d = state.drag;
+    if (!d) return;
+    const { px, py, xy } = mapPoint(ev);
+    if (!d.moved && Math.hypot(px - d.px, py - d.py) < 3) return;
+    d.moved = true;
+    const c = state.cands[d.index];
+    c.position = [xy[0], xy[1], c.position[2]];
+    drawMap();
+  }
+
+  function onMapPointerUp(ev) {
+    const d = state.drag;
+    if (!d) return;
+    state.drag = null;
+    $("map").classList.remove("dragging");
+    try { $("map").releasePointerCapture(ev.pointerId); } catch (_) { /* already released */ }
+    state.suppressClick = true; // the click that follows belongs to this press
+    if (d.moved) {
+      const c = state.cands[d.index];
+      candidatesEdited(`Moved candidate ${d.index} to x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m.`);
+    }
+  }
+
+  function mapMode() { return $("mode-add").checked ? "add" : "inspect"; }
+
+  async function generateCandidates() {
+    const err = $("err-gen");
+    err.textContent = "";
+    if (!state.sitesPath) { err.textContent = "This server cannot generate candidates (no POST /v1/sites)."; return; }
+    if (!state.siteSource || !geographic()) { err.textContent = "Import a site (GeoJSON or OSM) first: candidates are generated on its buildings and roads."; return; }
+    const nums = (id) => $(id).value.split(/[\s,;]+/).filter(Boolean).map((t) => (Number.isFinite(Number(t)) ? Number(t) : t));
+    const options = {
+      spacing_m: parseNumber($("gen-spacing").value),
+      heights_m: nums("gen-heights"),
+      kinds: ["facade", "pole"].filter((k) => $(`gen-kind-${k}`).checked),
+    };
+    const classes = chosenRoadClasses();
+    if (classes) options.road_classes = classes;
+    for (const k of Object.keys(options)) if (options[k] === undefined) delete options[k];
+    $("generate").disabled = true;
+    $("cand-summary").textContent = "Generating candidates…";
+    try {
+      const fc = await api(state.sitesPath, { method: "POST", json: { site: state.siteSource, options } });
+      const features = (fc && fc.features) || [];
+      const conv = await api("/v1/candidates/convert", { method: "POST", json: { frame: state.doc.frame, sites: { type: "FeatureCollection", features } } });
+      state.cands = $("gen-replace").checked ? conv.local : state.cands.concat(conv.local);
+      state.selCand = null;
+      const sm = fc && fc.summary ? ` (${reportText(fc.summary)})` : "";
+      candidatesEdited(`Generated ${conv.local.length}${sm}.`);
+    } catch (e) {
+      const fields = e.body && Array.isArray(e.body.fields) ? e.body.fields : [];
+      err.textContent = fields.length ? fields.map((f) => `${f.field}: ${f.message}`).join("; ") : e.message;
+      renderCandSummary();
+    } finally {
+      $("generate").disabled = !state.sitesPath;
+    }
+  }
+
   // ---------------------------------------------------------------- start
   function init() {
     $("banner-close").addEventListener("click", hideBanner);
@@ -1483,13 +1974,30 @@
       ev.preventDefault();
       state.apiKey = $("api-key").value.trim();
       sessionStorage.setItem("rp.apiKey", state.apiKey);
-      $("api-key-status").textContent = state.apiKey ? "Key set for this tab." : "No key: requests are sent without one.";
+      $("api-key-status").textContent = state.apiKey ? "Key set for this tab; checking it…" : "No key: requests are sent without one.";
+      api("/v1/jobs?limit=1").then(() => {
+        $("api-key-status").textContent = state.apiKey ? "Key accepted by the server." : "The server needs no key.";
+      }).catch(() => { /* a 401 says so in the banner and the status */ });
       loadPresets();
       refreshJobs();
     });
-    for (const id of ["layer-heatmap", "layer-contour", "layer-ues", "layer-candidates"]) $(id).addEventListener("change", drawAll);
+    for (const id of ["layer-heatmap", "layer-contour", "layer-ues", "layer-candidates", "layer-buildings"]) $(id).addEventListener("change", drawAll);
+    $("layer-ues").addEventListener("change", () => { state.uesTouched = true; });
+    $("reimport").addEventListener("click", runImport);
+    $("generate").addEventListener("click", generateCandidates);
+    $("find-size").addEventListener("click", () => submit(null, { sizing: {} }));
+    $("f-pairs-mode").addEventListener("change", updatePairsField);
+    for (const id of ["ce-azimuth", "ce-height", "ce-tilt"]) $(id).addEventListener("change", onEditorInput);
+    $("ce-left").addEventListener("click", () => turnSelected(-15));
+    $("ce-right").addEventListener("click", () => turnSelected(15));
+    $("ce-remove").addEventListener("click", removeSelected);
+    for (const id of ["mode-inspect", "mode-add"]) $(id).addEventListener("change", () => { $("map").classList.toggle("adding", mapMode() === "add"); });
     const map = $("map");
     map.addEventListener("click", onMapClick);
+    map.addEventListener("pointerdown", onMapPointerDown);
+    map.addEventListener("pointermove", onMapPointerMove);
+    map.addEventListener("pointerup", onMapPointerUp);
+    map.addEventListener("pointercancel", onMapPointerUp);
     map.addEventListener("mousemove", onMapHover);
     map.addEventListener("mouseleave", () => { $("tooltip").hidden = true; });
     map.addEventListener("keydown", onMapKey);
