@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
 from api_helpers import api_client
 from tolerance import assert_close
 
@@ -70,7 +69,7 @@ def test_sites_are_the_imports_candidates(tmp_path: Path) -> None:
     """GeoJSON mounting points → the candidates POST /v1/import makes of the same file at the
     same origin, in local metres as POST /v1/plans/validate previews them."""
     sites = json.loads((HELSINKI / "sites.geojson").read_text())
-    origin = ORIGIN[:2] + [0.0]
+    origin = [*ORIGIN[:2], 0.0]
     with api_client(tmp_path) as client:
         conv = client.post(
             "/v1/candidates/convert", json={"frame": {"origin": origin}, "sites": sites}
