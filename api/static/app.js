@@ -18,6 +18,7 @@
   const BUILDING_COLOUR = "#8a939e";
   const SELECTED_COLOUR = "#c25400";
   const UE_OPACITY = 0.35;
+  const CLICK_AFTER_PRESS_MS = 400; // a click this soon after a candidate press is that press's
   const HEALTH_BACKOFF_MS = [2000, 4000, 8000, 15000, 30000];
   const STREAM_BACKOFF_MAX_MS = 30000;
   const JOB_LIST_LIMIT = 15;
@@ -1700,13 +1701,8 @@
   }
 
   function onMapClick(ev) {
-    if (state.suppressClick) { state.suppressClick = false; return; }
-    if (!state.view) return;
-    if (mapMode() === "add") {
-      const { px, py, xy } = mapPoint(ev);
-      if (hitCandidate(px, py) === null) addCandidate(xy[0], xy[1]);
-      return;
-    }
+    // a press on a candidate (select, drag) or in "add" mode is handled by the pointer events
+    if (!state.view || mapMode() === "add" || Date.now() - (state.suppressClick || 0) < CLICK_AFTER_PRESS_MS) return;
     if (!state.plan || !state.plan.points) return;
     const rect = $("map").getBoundingClientRect();
     const vb = $("map").viewBox.baseVal;
@@ -1835,9 +1831,9 @@
       return;
     }
     $("cand-editor-title").textContent = `Candidate ${i}${c.name ? " – " + c.name : ""}`;
-    $("ce-azimuth").value = fmtNum(azimuthOf(c), 4);
-    $("ce-height").value = fmtNum(c.position[2], 4);
-    $("ce-tilt").value = fmtNum(deg((c.orientation || [0, 0])[1]), 4);
+    $("ce-azimuth").value = (Math.round(10 * azimuthOf(c)) / 10 % 360).toString();
+    $("ce-height").value = (Math.round(100 * c.position[2]) / 100).toString();
+    $("ce-tilt").value = (Math.round(10 * deg((c.orientation || [0, 0])[1])) / 10).toString();
   }
 
   function editSelected(change) {
@@ -1891,7 +1887,10 @@
     if (!state.view || ev.button !== 0) return;
     const { px, py } = mapPoint(ev);
     const hit = hitCandidate(px, py);
-    if (hit === null) return;
+    if (hit === null) {
+      state.press = mapMode() === "add" ? { px, py } : null;
+      return;
+    }
     ev.preventDefault();
     state.drag = { index: hit, moved: false, px, py };
     $("map").setPointerCapture(ev.pointerId);
@@ -1911,12 +1910,19 @@
   }
 
   function onMapPointerUp(ev) {
+    const press = state.press;
+    state.press = null;
+    if (press && ev.type === "pointerup" && mapMode() === "add") {
+      const { px, py, xy } = mapPoint(ev);
+      if (Math.hypot(px - press.px, py - press.py) < 4) addCandidate(xy[0], xy[1]);
+      return;
+    }
     const d = state.drag;
     if (!d) return;
     state.drag = null;
     $("map").classList.remove("dragging");
     try { $("map").releasePointerCapture(ev.pointerId); } catch (_) { /* already released */ }
-    state.suppressClick = true; // the click that follows belongs to this press
+    state.suppressClick = Date.now(); // a click that follows belongs to this press
     if (d.moved) {
       const c = state.cands[d.index];
       candidatesEdited(`Moved candidate ${d.index} to x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m.`);
