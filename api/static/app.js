@@ -160,7 +160,7 @@
     if ((resp.headers.get("content-type") || "").includes("json")) {
       try { body = await resp.json(); } catch (_) { body = null; }
     }
-    authAnswer(resp.status);
+    authAnswer(resp.status, path);
     if (!resp.ok) throw new ApiError(resp.status, body);
     return body;
   }
@@ -174,7 +174,8 @@
 
   /** The API-key banner follows the server's answers: shown on a 401, gone once a /v1 request
    * is accepted (the key was right, or the server needs none). */
-  function authAnswer(status) {
+  function authAnswer(status, path) {
+    if (!String(path).startsWith("/v1/")) return; // /healthz, /openapi.json need no key
     if (status === 401) {
       showBanner(AUTH_MESSAGE);
       $("api-key-status").textContent = state.apiKey ? "The server refused this key." : "The server needs a key.";
@@ -755,7 +756,7 @@
       try {
         const resp = await fetch(`/v1/jobs/${jobId}/events`, { headers: headers(), signal: ctl.signal });
         serverUp();
-        authAnswer(resp.status);
+        authAnswer(resp.status, "/v1/jobs");
         if (!resp.ok) {
           let body = null;
           try { body = await resp.json(); } catch (_) { body = null; }
@@ -1042,7 +1043,7 @@
     box.dataset.verdict = verdict;
     box.append(h("h3", { text: VERDICT_TEXT[verdict] || `Diagnosis: ${verdict}` }));
     const figures = ["floor", "best", "worst"].filter((k) => diag[k] !== undefined && diag[k] !== null)
-      .map((k) => `${k}: ${diagText(diag[k])}`);
+      .map((k) => `${k}: ${typeof diag[k] === "number" ? fmtObjective(diag[k]) : diagText(diag[k])}`);
     if (figures.length) box.append(h("p", { class: "small", text: figures.join(" · ") }));
     const causes = Array.isArray(diag.causes) ? diag.causes : [];
     if (causes.length) {
@@ -1166,8 +1167,10 @@
   // ---------------------------------------------------------------- charts
   function niceTicksLog(lo, hi) {
     const out = [];
+    // 1-2-5 per decade over up to 3 decades, else powers of ten only (labels stay apart)
+    const mantissas = Math.log10(hi / lo) > 3 ? [1] : [1, 2, 5];
     for (let e = Math.floor(Math.log10(lo)); e <= Math.ceil(Math.log10(hi)); e++) {
-      for (const m of [1, 2, 5]) {
+      for (const m of mantissas) {
         const v = m * 10 ** e;
         if (v >= lo * 0.999 && v <= hi * 1.001) out.push(v);
       }
