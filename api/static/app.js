@@ -1047,8 +1047,13 @@
     box.setAttribute("role", verdict === "ok" ? "status" : "alert");
     box.dataset.verdict = verdict;
     box.append(h("h3", { text: VERDICT_TEXT[verdict] || `Diagnosis: ${verdict}` }));
-    const figures = ["floor", "best", "worst"].filter((k) => diag[k] !== undefined && diag[k] !== null)
-      .map((k) => `${k}: ${typeof diag[k] === "number" ? fmtObjective(diag[k]) : diagText(diag[k])}`);
+    // fractions of the pair weight (served, its floor, the spread of layouts) in %, the best
+    // and worst layout's objective in the objective's unit
+    const pct = (v) => `${(100 * v).toFixed(1)} %`;
+    const FIGURES = [["served_fraction", "served", pct], ["floor", "floor", pct], ["best", "best layout", fmtObjective],
+      ["worst", "worst layout", fmtObjective], ["spread", "spread of layouts", pct]];
+    const figures = FIGURES.filter(([k]) => diag[k] !== undefined && diag[k] !== null)
+      .map(([k, label, f]) => `${label}: ${typeof diag[k] === "number" ? f(diag[k]) : diagText(diag[k])}`);
     if (figures.length) box.append(h("p", { class: "small", text: figures.join(" · ") }));
     const causes = Array.isArray(diag.causes) ? diag.causes : [];
     if (causes.length) {
