@@ -192,6 +192,11 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(pg.locator("#cand-summary")).to_contain_text("Removed added 4")
     assert pg.evaluate("window.risPlanner.state.cands.length") == 3
     expect(pg.locator("#candidates .site.editable")).to_have_count(3)
+    # without a mouse: the sites table's Edit buttons select a candidate for the editor
+    pg.click("#sites-details summary")
+    pg.get_by_role("button", name="Edit candidate 2").click()
+    expect(pg.locator("#cand-editor-title")).to_contain_text("Candidate 2")
+    expect(pg.locator("#ce-azimuth")).to_be_focused()
     pg.check("#mode-inspect")
 
     # parameters: a small, fast plan

@@ -1618,15 +1618,20 @@
     const cands = candidates();
     $("sites-details").querySelector("summary").textContent = `Candidate sites (${cands.length})`;
     if (!cands.length) return;
-    table.append(h("thead", {}, h("tr", {}, ["#", "Name", "x [m]", "y [m]", "Height [m]", "Facing [°]", "Tilt down [°]"].map((t) => h("th", { scope: "col", text: t })))));
+    table.append(h("thead", {}, h("tr", {}, ["#", "Name", "x [m]", "y [m]", "Height [m]", "Facing [° from north]", "Tilt down [°]", "Edit"].map((t) => h("th", { scope: "col", text: t })))));
     const tb = h("tbody");
     const chosen = new Set(shownLayout());
     for (const c of cands) {
       const o = c.orientation || [0, 0, 0];
-      tb.append(h("tr", { class: chosen.has(c.index) ? "current" : null },
+      const i = editableIndex(c);
+      tb.append(h("tr", { class: chosen.has(c.index) ? "current" : null, "data-site": c.index },
         h("td", { text: c.index }), h("td", { text: c.name || "" }),
         h("td", { text: fmtNum(c.position[0]) }), h("td", { text: fmtNum(c.position[1]) }), h("td", { text: fmtNum(c.position[2]) }),
-        h("td", { text: fmtNum(deg(o[0]), 3) }), h("td", { text: fmtNum(deg(o[1]), 3) })));
+        h("td", { text: fmtNum(azimuthOf(c), 4) }), h("td", { text: fmtNum(deg(o[1]), 3) }),
+        h("td", {}, i === null ? "wall/facade" : h("button", {
+          type: "button", class: "secondary small", "aria-label": `Edit candidate ${i}`,
+          onclick: () => { selectCandidate(i); $("ce-azimuth").focus(); },
+        }, "Edit"))));
     }
     table.append(tb);
   }
