@@ -23,7 +23,7 @@ from api.errors import (
     install_error_handlers,
 )
 from api.kinds import JOB_KINDS
-from api.routes import bounds, events, imports, jobs, meta, plans, power, sites, web
+from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
@@ -102,6 +102,7 @@ def create_app(
         power.router,
         imports.router,
         sites.router,
+        candidates.router,
         events.router,
         jobs.router,
     )

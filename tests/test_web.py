@@ -498,9 +498,9 @@ def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: S
     expect(pg.locator("#doc-name")).to_contain_text("block.geojson (imported)")
     expect(pg.locator("#doc-name")).to_contain_text("geographic frame")
     report = pg.locator("#import-report")
-    expect(report).to_contain_text("2 buildings")
-    expect(report).to_contain_text("3 candidate sites")
-    expect(report).to_contain_text("1 building(s) given the default height")
+    expect(report.locator("tr", has_text="Buildings").first).to_contain_text("2")
+    expect(report.locator("tr", has_text="Candidate sites")).to_contain_text("3")
+    expect(report.locator("tr", has_text="given the default height")).to_contain_text("1")
     expect(pg.locator("polygon.prism")).to_have_count(2)
     assert pg.locator("#candidates .site").count() == 3
     doc = pg.evaluate("window.risPlanner.state.doc")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import io
+import json
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -240,5 +241,5 @@ def plan_from_import(
         )
     for key, value in PLAN_DEFAULTS.items():
         doc[key] = copy.deepcopy(value)
-        report.defaults.append(f"{key}: {value}")
+        report.defaults.append(f"{key}: {json.dumps(value)}")  # JSON, not Python repr
     return doc, report

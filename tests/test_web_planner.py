@@ -1,0 +1,408 @@
+"""The planner page doing the whole job in headless Chromium against a real uvicorn on
+127.0.0.1 (the fixtures and helpers of ``test_web``): import the Helsinki blocks with import
+options, place, move, turn and remove candidates on the map, set the parameters, plan, read the
+counts table, colour bar and legend, render a diagnosis and a sizing answer, export plan.json,
+plan.geojson and the candidates; the API-key banner; candidate generation (POST /v1/sites).
+
+Screenshots go to the tests' temporary folder (and ``out/web/`` with
+``RIS_PLANNER_SCREENSHOTS``); docs/guides/web-page.md shows two of them.
+"""
+
+# ruff: noqa: F811  (the fixtures of test_web, imported by name, are the tests' parameters)
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
+    WAIT_MS,
+    Browser,
+    Console,
+    Page,
+    Shots,
+    browser,
+    expect,
+    low_contrast_text,
+    no_horizontal_scroll,
+    page,
+    server,
+    shots,
+    unlabelled_controls,
+)
+
+from api.launch import served
+
+HELSINKI = Path(__file__).resolve().parent.parent / "examples" / "helsinki"
+
+JOB_WAIT_MS = 180_000
+"""Upper bound for the small plan (3 sites, 4 × 4 elements, 200 pairs, 1–2 RISs) to finish:
+a few seconds on an idle machine; the worker's start, imports and figures take most of it,
+and the bound leaves room for a machine shared with other work."""
+
+PX_TOL = 1.5
+"""A dragged candidate lands within 1.5 screen pixels of the pointer (the map's rounding of
+the pointer position to its viewBox)."""
+
+
+def open_planner(pg: Page, url: str) -> None:
+    pg.goto(url + "/")
+    expect(pg.locator("#server-status")).to_contain_text("Server ok")
+    expect(pg.locator("#geojson-box")).to_be_visible()
+
+
+def screen_of(pg: Page, x: float, y: float) -> tuple[float, float]:
+    """Page (client) coordinates of the local point (x, y) on the map."""
+    got: list[float] = pg.evaluate(
+        """([x, y]) => {
+          const v = window.risPlanner.state.view, m = document.getElementById('map');
+          const r = m.getBoundingClientRect(), vb = m.viewBox.baseVal;
+          return [r.left + v.X(x) * r.width / vb.width, r.top + v.Y(y) * r.height / vb.height];
+        }""",
+        [x, y],
+    )
+    return got[0], got[1]
+
+
+EXPORT_ROUNDING_M = 1e-4
+"""plan.geojson rounds lon/lat to 1e-9° (ris_planner.io.export.LONLAT_DIGITS): ≤ 0.5e-9° ×
+111.3 km/° = 56 µm per axis, under 0.1 mm together."""
+
+SPOT_SPACING_M = 25.0
+"""Candidates go on street points this far apart around the middle of the site: close enough
+for two RISs to serve the streets between them, so the heatmap has finite cells."""
+
+
+def spread_near_centre(points: list[list[float]], n: int, spacing: float) -> list[list[float]]:
+    """``n`` of ``points`` nearest the median point, each ≥ ``spacing`` from the ones before."""
+    xs, ys = sorted(p[0] for p in points), sorted(p[1] for p in points)
+    cx, cy = xs[len(xs) // 2], ys[len(ys) // 2]
+    chosen: list[list[float]] = []
+    for p in sorted(points, key=lambda p: math.hypot(p[0] - cx, p[1] - cy)):
+        if all(math.hypot(p[0] - q[0], p[1] - q[1]) >= spacing for q in chosen):
+            chosen.append(p)
+        if len(chosen) == n:
+            return chosen
+    raise AssertionError(f"fewer than {n} street points {spacing} m apart")
+
+
+def import_helsinki(pg: Page) -> None:
+    pg.set_input_files("#upload-geojson", str(HELSINKI / "helsinki.geojson"))
+    expect(pg.locator("#import-table")).to_be_visible(timeout=WAIT_MS)
+
+
+def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, shots: Shots) -> None:
+    pg, console = page
+    console.allow(r"status of 422")  # validation before the candidates are placed
+    open_planner(pg, server)
+    # the import options show the import's documented defaults
+    assert pg.input_value("#imp-default_height") == "10"
+    assert pg.input_value("#imp-ue_height") == "1.5"
+    import_helsinki(pg)
+    report = pg.locator("#import-report")
+    expect(report.locator("tr", has_text="Buildings").first).to_contain_text("29")
+    expect(report.locator("tr", has_text="Road pieces (UE positions)")).to_contain_text("120")
+    expect(report.locator("tr", has_text="Default pairs")).to_contain_text(
+        '{"sample":1000,"seed":1}'
+    )
+    assert "{'" not in report.inner_text()  # JSON text, never Python's dict repr
+    # the file's road classes, all chosen; the site drawn without candidates yet
+    classes = pg.locator("#road-classes input.road-class")
+    assert sorted(classes.evaluate_all("els => els.map(e => e.value)")) == [
+        "footway",
+        "residential",
+        "service",
+    ]
+    expect(pg.locator("polygon.prism")).to_have_count(29)
+    expect(pg.locator("#validation-status")).to_contain_text("No candidate sites yet")
+    all_points = pg.evaluate("window.risPlanner.state.sitePreview.rx_map.total")
+    first = pg.evaluate("window.risPlanner.state.doc")
+    # import again: residential streets only, UEs at 2 m, the default building height 12 m
+    pg.uncheck("#road-footway")
+    pg.uncheck("#road-service")
+    pg.fill("#imp-ue_height", "2")
+    pg.fill("#imp-default_height", "12")
+    pg.fill("#imp-origin", "24.949, 60.1655")
+    pg.click("#reimport")
+    expect(report.locator("tr", has_text="Road pieces skipped")).to_contain_text(
+        "footway (not chosen): 47", timeout=WAIT_MS
+    )
+    doc = pg.evaluate("window.risPlanner.state.doc")
+    assert doc["frame"]["origin"][:2] == [24.949, 60.1655]
+    assert {r["height_m"] for r in doc["tx_map"]["roads"]} == {2.0}
+    heights = [
+        (a["height_m"], b["height_m"])
+        for a, b in zip(
+            first["environment"]["obstacles"], doc["environment"]["obstacles"], strict=True
+        )
+        if a != b
+    ]
+    assert heights == [(10, 12)] * 16  # the 16 buildings without height or levels
+    expect(pg.locator(".ue-map circle").first).to_be_attached(timeout=WAIT_MS)
+    points = pg.evaluate("window.risPlanner.state.sitePreview.rx_map.points")
+    assert 0 < len(points) < all_points
+    shots.take(pg, "planner-01-imported")
+
+    # place three candidates on street points, drag one, turn one, add and remove a fourth
+    spots = spread_near_centre(points, 4, SPOT_SPACING_M)
+    pg.check("#mode-add")
+    for k, (x, y, _) in enumerate(spots[:3]):
+        pg.mouse.click(*screen_of(pg, x, y))
+        expect(pg.locator("#cand-summary")).to_contain_text(f"Added candidate {k}")
+    cands = pg.evaluate("window.risPlanner.state.cands")
+    k_px = pg.evaluate("window.risPlanner.state.view.k")  # px per metre
+    for c, (x, y, _) in zip(cands, spots[:3], strict=True):
+        assert math.hypot(c["position"][0] - x, c["position"][1] - y) <= PX_TOL / k_px
+        assert c["position"][2] == 6  # the first generation height
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 3 candidate sites", timeout=WAIT_MS
+    )
+    target = spots[3]
+    start = screen_of(pg, *cands[0]["position"][:2])
+    end = screen_of(pg, *target[:2])
+    pg.mouse.move(*start)
+    pg.mouse.down()
+    pg.mouse.move(*end, steps=8)
+    pg.mouse.up()
+    expect(pg.locator("#cand-summary")).to_contain_text("Moved candidate 0")
+    moved = pg.evaluate("window.risPlanner.state.cands[0].position")
+    assert math.hypot(moved[0] - target[0], moved[1] - target[1]) <= PX_TOL / k_px
+    assert pg.evaluate("window.risPlanner.state.cands.length") == 3  # a drag adds nothing
+    # select candidate 1 and turn it 15° clockwise (azimuth +15°, yaw −15°)
+    pg.mouse.click(*screen_of(pg, *cands[1]["position"][:2]))
+    expect(pg.locator("#cand-editor-title")).to_contain_text("Candidate 1")
+    before = float(pg.input_value("#ce-azimuth"))
+    pg.click("#ce-right")
+    yaw = pg.evaluate("window.risPlanner.state.cands[1].orientation[0]")
+    turned = (yaw - cands[1]["orientation"][0] + math.pi) % (2 * math.pi) - math.pi
+    assert turned == pytest.approx(-math.radians(15), abs=1e-12)
+    shown = float(pg.input_value("#ce-azimuth"))  # 0.1° steps: two roundings of ≤ 0.05°
+    assert (shown - before - 15 + 180) % 360 - 180 == pytest.approx(0, abs=0.1 + 1e-9)
+    pg.fill("#ce-tilt", "20")
+    pg.press("#ce-tilt", "Enter")
+    pitch = pg.evaluate("window.risPlanner.state.cands[1].orientation[1]")
+    assert pitch == pytest.approx(math.radians(20), rel=1e-12)
+    x4, y4 = screen_of(pg, *points[len(points) // 2][:2])
+    pg.mouse.click(x4 + 30, y4)
+    expect(pg.locator("#cand-summary")).to_contain_text("Added candidate 3")
+    pg.click("#ce-remove")
+    expect(pg.locator("#cand-summary")).to_contain_text("Removed added 4")
+    assert pg.evaluate("window.risPlanner.state.cands.length") == 3
+    expect(pg.locator("#candidates .site.editable")).to_have_count(3)
+    # without a mouse: the sites table's Edit buttons select a candidate for the editor
+    pg.click("#sites-details summary")
+    pg.get_by_role("button", name="Edit candidate 2").click()
+    expect(pg.locator("#cand-editor-title")).to_contain_text("Candidate 2")
+    expect(pg.locator("#ce-azimuth")).to_be_focused()
+    pg.check("#mode-inspect")
+
+    # parameters: a small, fast plan
+    pg.fill("#f-ris_count", "1, 2")
+    pg.fill("#f-ris-rows", "4")
+    pg.fill("#f-ris-cols", "4")
+    pg.fill("#f-objective-level", "5")
+    pg.select_option("#f-pairs-mode", "sample")
+    pg.fill("#f-pairs-sample", "200")
+    pg.check("#f-known-clock")
+    expect(pg.locator("#f-known-height")).to_be_checked()  # the import's default
+    pg.click("#validate")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "3 candidate sites, 200 TX–RX pairs", timeout=WAIT_MS
+    )
+    shots.take(pg, "planner-02-candidates-edited")
+    pg.click("#submit")
+    expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=JOB_WAIT_MS)
+    expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
+    job_id = pg.evaluate("window.risPlanner.state.job.id")
+    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    request = view["request"]
+    assert request["known"] == ["clock", "height"]
+    assert request["pairs"] == {"sample": 200, "seed": 1}
+    assert (request["ris"]["rows"], request["ris"]["cols"]) == (4, 4)
+    assert request["ris_count"] == [1, 2]
+    assert request["objective"]["threshold_m"] == 5
+    # the edited candidates, in the document's frame: back to local metres they are the list
+    edited = pg.evaluate("window.risPlanner.state.cands")
+    back = httpx.post(
+        f"{server}/v1/candidates/convert",
+        json={"frame": request["frame"], "document": request["candidates"]},
+    ).json()["local"]
+    for got, want in zip(back, edited, strict=True):
+        assert math.dist(got["position"], want["position"]) <= 1e-6  # PROJ round trip
+        assert got["orientation"] == want["orientation"]
+    plan = view["result"]
+    assert len(plan["candidates"]) == 3
+    # counts table, colour bar with units and the threshold, legend; UE dots off over the heatmap
+    expect(pg.locator("#count-table tbody tr")).to_have_count(2)
+    assert plan["by_count"][1]["blind_fraction"] < 1  # finite bounds: a colour bar to show
+    bar = pg.locator("#colourbar")
+    expect(bar).to_contain_text("[m]")
+    expect(bar).to_contain_text("threshold")
+    legend = pg.locator("#legend")
+    for text in ("building", "candidate site", "RIS site of the layout shown", "contour at"):
+        expect(legend).to_contain_text(text)
+    expect(pg.locator("#layer-ues")).not_to_be_checked()
+    assert pg.locator(".ue-map circle").count() == 0
+    pg.check("#layer-ues")  # on request: small, translucent, above the heatmap
+    ue = pg.locator(".ue-map").first
+    assert float(ue.get_attribute("fill-opacity") or "1") <= 0.4
+    expect(legend).to_contain_text("UE points")
+    pg.uncheck("#layer-buildings")
+    expect(pg.locator("polygon.prism")).to_have_count(0)
+    pg.check("#layer-buildings")
+    pg.uncheck("#layer-ues")
+    shots.take(pg, "planner-03-results")
+
+    # exports: plan.json, plan.geojson (the job's file) and the candidates as a sites file
+    links = pg.locator("#downloads a")
+    with pg.expect_download() as dl:
+        links.first.click()
+    assert json.loads(Path(dl.value.path()).read_text())["by_count"] == plan["by_count"]
+    gj = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
+    assert gj.get_attribute("download") == f"plan-{job_id[:8]}.geojson"
+    assert httpx.get(server + view["figures"]["geojson"]).json()["type"] == "FeatureCollection"
+    cand_link = pg.locator("#dl-candidates")
+    expect(cand_link).to_be_visible(timeout=WAIT_MS)
+    with pg.expect_download() as dl:
+        cand_link.click()
+    sites = json.loads(Path(dl.value.path()).read_text())
+    assert len(sites["features"]) == 3
+    assert all("role" not in f["properties"] for f in sites["features"])
+    # a sites file the import reads back as the same candidates
+    again = httpx.post(
+        f"{server}/v1/candidates/convert",
+        json={"frame": {"origin": plan["frame"]["origin"]}, "sites": sites},
+    ).json()["local"]
+    for got, want in zip(again, edited, strict=True):
+        assert math.dist(got["position"], want["position"]) <= EXPORT_ROUNDING_M
+        yaw = (got["orientation"][0] - want["orientation"][0] + math.pi) % (2 * math.pi)
+        assert yaw - math.pi == pytest.approx(0, abs=1e-9)
+
+    # a diagnosis and a sizing answer (plan.json keys), rendered from the job's view
+    diagnosis = {
+        "verdict": "weak",
+        "causes": [
+            {
+                "kind": "link_budget",
+                "message": "the RIS is too small for these distances",
+                "suggested_ris_size": [16, 16],
+            },
+            {"kind": "geometry", "message": "the sites see the street from one side"},
+        ],
+        "floor": 0.2,
+        "best": 0.4,
+        "worst": 0.1,
+    }
+    sizing = {
+        "answer": {"rows": 8, "cols": 8, "count": 2, "objective": 0.9},
+        "table": [
+            {"rows": 4, "cols": 4, "count": 2, "objective": 0.5, "reaches": False},
+            {"rows": 8, "cols": 8, "count": 2, "objective": 0.9, "reaches": True},
+        ],
+        "message": "8 × 8 elements with 2 RISs reach the objective",
+    }
+
+    def with_keys(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        body["result"] |= {"diagnosis": diagnosis, "sizing": sizing}
+        route.fulfill(response=answer, json=body)
+
+    pg.route(f"**/v1/jobs/{job_id}", with_keys)
+    pg.locator(f"#jobs-body tr[data-job='{job_id}'] button").click()
+    box = pg.locator("#diagnosis")
+    expect(box).to_be_visible(timeout=WAIT_MS)
+    expect(box).to_have_attribute("data-verdict", "weak")
+    expect(box).to_have_attribute("role", "alert")
+    expect(box).to_contain_text("Warning: the plan is weak")
+    expect(box).to_contain_text("link_budget: the RIS is too small")
+    expect(pg.locator("#sizing-answer")).to_contain_text("8 × 8 elements with 2 RIS")
+    expect(pg.locator("#sizing-table tbody tr")).to_have_count(2)
+    expect(pg.locator("#sizing-table tr.answer")).to_contain_text("yes")
+    shots.take(pg, "planner-04-diagnosis-sizing")
+    box.get_by_role("button", name="Use 16 × 16 elements").click()
+    assert (pg.input_value("#f-ris-rows"), pg.input_value("#f-ris-cols")) == ("16", "16")
+    pg.unroute(f"**/v1/jobs/{job_id}")
+    # the sizing control: the plan document with "sizing": {} where the server knows it
+    spec = httpx.get(f"{server}/openapi.json").json()
+    if "sizing" in spec["components"]["schemas"]["PlanDocument"]["properties"]:
+        expect(pg.locator("#find-size")).to_be_enabled()
+        pg.click("#find-size")
+        for _ in range(WAIT_MS // 100):  # the page's CSP forbids wait_for_function's eval
+            if pg.evaluate("window.risPlanner.state.job.id") != job_id:
+                break
+            pg.wait_for_timeout(100)
+        sized = pg.evaluate("window.risPlanner.state.job.id")
+        expect(pg.locator("#job-status")).to_contain_text("succeeded", timeout=JOB_WAIT_MS)
+        assert httpx.get(f"{server}/v1/jobs/{sized}").json()["request"]["sizing"] == {}
+        expect(pg.locator("#sizing")).to_be_visible(timeout=WAIT_MS)
+    else:
+        expect(pg.locator("#find-size")).to_be_disabled()
+        expect(pg.locator("#hint-find-size")).to_contain_text("cannot size the RIS yet")
+    no_horizontal_scroll(pg)
+    assert unlabelled_controls(pg) == []
+    assert low_contrast_text(pg) == []
+
+
+def test_api_key_banner_follows_the_server(browser: Browser, tmp_path: Path, shots: Shots) -> None:
+    """Without a key the banner asks for one; a wrong key keeps it; the right key hides it
+    (and loads what the 401s refused); a later 401 (a wrong key again) shows it again."""
+    context = browser.new_context(viewport={"width": 1280, "height": 900})
+    pg = context.new_page()
+    console = Console(pg)
+    console.allow(r"status of 401")
+    env = {"RIS_PLANNER_API_KEY": "zebra-secret"}
+    try:
+        with served(tmp_path / "jobs.db", workers=1, env=env) as srv:
+            pg.goto(srv.url + "/")
+            banner = pg.locator("#banner")
+            expect(banner).to_be_visible(timeout=WAIT_MS)
+            expect(pg.locator("#banner-text")).to_contain_text("needs an API key")
+            pg.click("summary:has-text('Server API key')")
+            pg.fill("#api-key", "wrong")
+            pg.click("#api-key-form button[type='submit']")
+            expect(pg.locator("#api-key-status")).to_contain_text("refused", timeout=WAIT_MS)
+            expect(banner).to_be_visible()
+            shots.take(pg, "planner-05-key-needed", full_page=False)
+            pg.fill("#api-key", "zebra-secret")
+            pg.click("#api-key-form button[type='submit']")
+            expect(pg.locator("#api-key-status")).to_have_text(
+                "Key accepted by the server.", timeout=WAIT_MS
+            )
+            expect(banner).to_be_hidden()
+            expect(pg.locator("#preset option[value='fig10-anchors']")).to_be_attached()
+            pg.fill("#api-key", "stale")
+            pg.click("#api-key-form button[type='submit']")
+            expect(banner).to_be_visible(timeout=WAIT_MS)
+            expect(pg.locator("#banner-text")).to_contain_text("needs an API key")
+        assert console.unexpected() == []
+    finally:
+        context.close()
+
+
+def test_generate_candidates_from_the_site(
+    page: tuple[Page, Console], server: str, shots: Shots
+) -> None:
+    """POST /v1/sites (facades and poles of the imported site) → candidates on the map."""
+    probe = httpx.post(f"{server}/v1/sites", json={})
+    if probe.status_code == 404:
+        pytest.skip("this server has no POST /v1/sites yet (candidate generation is being added)")
+    pg, console = page
+    console.allow(r"status of 422")
+    open_planner(pg, server)
+    import_helsinki(pg)
+    expect(pg.locator("#generate")).to_be_enabled()
+    pg.fill("#gen-spacing", "30")
+    pg.fill("#gen-heights", "6")
+    pg.click("#generate")
+    expect(pg.locator("#cand-summary")).to_contain_text("Generated", timeout=WAIT_MS)
+    n = pg.evaluate("window.risPlanner.state.cands.length")
+    assert n > 0
+    expect(pg.locator("#candidates .site.editable")).to_have_count(n)
+    expect(pg.locator("#validation-status")).to_contain_text(
+        f"Valid: {n} candidate sites", timeout=WAIT_MS
+    )
+    shots.take(pg, "planner-06-generated")
