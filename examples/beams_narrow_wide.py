@@ -29,7 +29,11 @@ def main() -> None:
         "--smoke", action="store_true", help="one objective, the narrow maps, 4 positions"
     )
     args = ap.parse_args()
-    objectives, maps = OBJECTIVES, (("narrow", NARROW_TX, NARROW_RX), ("wide", WIDE, WIDE))
+    objectives: tuple[dict[str, object], ...] = OBJECTIVES
+    maps: tuple[tuple[str, dict[str, Any], dict[str, Any]], ...] = (
+        ("narrow", NARROW_TX, NARROW_RX),
+        ("wide", WIDE, WIDE),
+    )
     if args.smoke:
         args.positions, args.seeds, objectives, maps = 4, 1, OBJECTIVES[:1], maps[:1]
     base = plan_preset("fig10-anchors")

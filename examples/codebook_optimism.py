@@ -29,7 +29,7 @@ def main() -> None:
     ap.add_argument("--layout", default="2-ris-L")
     ap.add_argument("--smoke", action="store_true", help="2 seeds, 20 pairs, G/Γ ≤ 4")
     args = ap.parse_args()
-    blocks = BLOCKS
+    blocks: tuple[int, ...] = BLOCKS
     if args.smoke:
         args.seeds, args.pairs, blocks = 2, 20, BLOCKS[:3]
     tx, rx = fig10_pairs()

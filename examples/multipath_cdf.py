@@ -161,7 +161,7 @@ def main() -> None:
         help="tiny sizes, output in a temporary folder (seconds; tests/test_examples.py)",
     )
     args = parser.parse_args()
-    curves = CURVES
+    curves: tuple[tuple[str, float, float | None, float | None], ...] = CURVES
     if args.smoke:
         args.out, args.runs, curves = Path(tempfile.mkdtemp(prefix="ris-smoke-")), 2, CURVES[:2]
     args.out.mkdir(parents=True, exist_ok=True)
@@ -174,7 +174,10 @@ def main() -> None:
     t0 = time.perf_counter()
     print(f"{'curve':32s} {'median':>8} {'p90':>8} {'>0.3 m':>7}  KS vs paper")
     for label, power, rcs, height in curves:
-        mp = Multipath() if rcs is None else paper_clusters(height_m=height, rcs_m2=rcs)
+        if rcs is None or height is None:
+            mp = Multipath()
+        else:
+            mp = paper_clusters(height_m=height, rcs_m2=rcs)
         sim = SimulationDocument(scenario=scenario, multipath=mp)
         res = run_monte_carlo(sim, [power], args.runs, args.seed, ProgressBar(label[:20]))
         p = res.powers[0]
