@@ -6,7 +6,7 @@ OUT    ?= out
 # Debian's chromium for the browser tests (tests/test_web.py); override for another binary
 CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: demo test setup lint typecheck unit browser-check bench clean
+.PHONY: demo test setup lint typecheck unit portable browser-check bench docs clean
 
 $(BIN)/ris-planner: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -42,7 +42,27 @@ browser-check:
 unit: setup browser-check
 	RIS_PLANNER_CHROMIUM=$(CHROMIUM) $(BIN)/pytest -n 2 -rs
 
-test: lint typecheck unit
+# The suite's verdict must not depend on the CPU (docs/concepts/numerics.md, "Comparing
+# results"): the tests of every comparison class – stored files, other processes (REST, CLI,
+# worker pools, Dask), iterative solvers, same-process bit-for-bit contracts, ranking – run a
+# second time on OpenBLAS's Sandybridge kernels with numpy's AVX-512 dispatch disabled.
+PORTABLE_TESTS = tests/test_environment_bounds.py tests/test_beam_design.py tests/test_api.py \
+  tests/test_api_plans.py tests/test_api_power.py tests/test_api_geo.py \
+  tests/test_planning_executors.py tests/test_planning_shared_memory.py tests/test_power.py \
+  tests/test_fast_paths.py tests/test_ldl.py tests/test_crb.py tests/test_fim_naive.py \
+  tests/test_ranking.py tests/test_planning.py tests/test_planning_decisions.py \
+  tests/test_site_cache_storage.py tests/test_coverage_screen.py tests/test_spherical.py
+portable: setup
+	OPENBLAS_CORETYPE=Sandybridge \
+	NPY_DISABLE_CPU_FEATURES="$$($(BIN)/python tests/avx512_features.py)" \
+	$(BIN)/pytest -n 2 -p no:cacheprovider $(PORTABLE_TESTS)
+
+test: lint typecheck unit portable
+
+# the documentation site (docs/, mkdocs.yml) into site/; warnings are errors. tests/test_docs.py
+# builds it too, so `make test` checks it.
+docs: setup
+	$(BIN)/mkdocs build --strict
 
 bench: setup
 	$(BIN)/python benchmarks/bench_bounds.py
@@ -50,4 +70,4 @@ bench: setup
 	$(BIN)/python benchmarks/bench_api.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(OUT) site .pytest_cache .mypy_cache .ruff_cache

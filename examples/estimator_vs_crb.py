@@ -1,6 +1,6 @@
 """Fig. 1 (b) of the paper: RMSE of the two-stage estimator next to PEB_T, PEB_R, CEB.
 
-Table I geometry, noise figure 0 dB (DESIGN.md: the setting of Fig. 1), random codebook
+Table I geometry, noise figure 0 dB (docs/validation/paper.md: Fig. 1's setting), random codebook
 (seed 0), no multipath, ``--runs`` realisations per power (default 200) over 10..30 dBm.
 Checks the acceptance criterion – refined RMSE of p_T, p_R, B within 1.3× of the bounds at 20,
 25 and 30 dBm – and writes ``estimator_vs_crb.png`` and ``estimator_vs_crb.csv`` (ours next to

@@ -15,7 +15,7 @@ GeoJSON / GeoTIFF / CSV in WGS84.
    to ``plan.json`` and the PNGs.
 
 The plan document passes ``environment`` to the planner when the planner takes one (the
-environment-aware planning of DESIGN.md); otherwise the buildings are exported only.
+environment-aware planning, docs/concepts/planning.md); otherwise the buildings are exported only.
 
     python examples/plan_helsinki.py --out out/helsinki [--pairs 1500] [--workers 2]
 """

@@ -6,7 +6,7 @@ is its equivalent FIM on (ξ, ζ, cτ) or cτ0 after eliminating its own gain (�
 the Jacobian of eq. crb_sidelink. Summing those is the Schur complement of J_S I(η) J_S^T
 with respect to all gains, because every gain belongs to one path only.
 
-With an ``environment`` (DESIGN.md, "Environment: obstacles, visibility, field of view") only
+With an ``environment`` (docs/concepts/environment.md, "Visibility rules") only
 the paths that exist for a pair contribute: its other paths' 7×7 contributions are masked to
 exactly zero, their channel bounds are ``inf``, and a pair left with fewer geometric channel
 parameters than unknown states is ``inf`` with a reason naming the missing paths. The
@@ -240,7 +240,7 @@ def ris_path_gain(
     ris: RIS, geo: geometry.RisPathGeometry, tx: FloatArray, rx: FloatArray, wavelength: float
 ) -> FloatArray:
     """|ρ_ℓ| = λ²/(16π² d_T d_R) · (cos θ_T cos θ_R)^q, [P] (Simulation Parameters and the
-    element pattern of DESIGN.md; q = ``pattern_exponent``, q = 0 the paper's isotropic gain
+    element pattern of environment.md; q = ``pattern_exponent``, q = 0 the paper's isotropic gain
     exactly). The one gain rule for the bounds and the signal simulator."""
     alpha = geo.gain(wavelength)
     if ris.pattern_exponent == 0.0:
@@ -370,7 +370,7 @@ PATH_OBSERVATIONS = {"los": 1, "ris": 3}
 def underdetermined_reason(n_observations: int, n_unknown: int, missing: Sequence[str] = ()) -> str:
     """Why a pair is ``inf`` when it has fewer geometric channel parameters than unknown
     states; ``missing`` names the layout's paths that do not exist for it (blocked or out of
-    view). Starts with :data:`REASON_UNDERDETERMINED` (DESIGN.md)."""
+    view). Starts with :data:`REASON_UNDERDETERMINED` (environment.md)."""
     head = (
         f"{REASON_UNDERDETERMINED}: {n_observations} geometric channel parameters for"
         f" {n_unknown} unknown states"
@@ -383,7 +383,7 @@ def underdetermined_reason(n_observations: int, n_unknown: int, missing: Sequenc
 def scenario_path_presence(
     scenario: Scenario, tx: FloatArray, rx: FloatArray
 ) -> dict[str, BoolArray]:
-    """``{"los": [P], "ris1": [P], …}``: which paths exist for each pair (DESIGN.md rules,
+    """``{"los": [P], "ris1": [P], …}``: which paths exist for each pair (environment.md rules,
     :func:`ris_planner.environment.path_presence`); ``"los"`` is False without ``system.los``.
 
     The fields of view always apply (a RIS serves only UEs in front of it: ``max_angle_deg``,

@@ -3,7 +3,7 @@
 A codebook supplies the first block of profiles, G̃ = G/Γ beams per RIS; the full sequence of
 G profiles follows eq. orthogonal_profiles, ω_{ℓ,(i−1)G̃+g̃} = b*_{ℓ,i} ω_{ℓ,g̃}, with B the
 first L+1 columns of the Γ-point DFT matrix (column 0, all ones, for the LOS path) and Γ the
-smallest divisor of G that is ≥ L+1 (DESIGN.md).
+smallest divisor of G that is ≥ L+1 (docs/concepts/conventions.md).
 """
 
 from __future__ import annotations

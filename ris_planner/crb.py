@@ -1,5 +1,5 @@
-"""Numerically sound CRB of the state [p_T, p_R, B] from per-path information (DESIGN.md,
-"Numerical accuracy of the bounds").
+"""Numerically sound CRB of the state [p_T, p_R, B] from per-path information (docs/concepts/
+numerics.md, "Accuracy rule for bounds").
 
 Every path ℓ gives an equivalent FIM Ĩ_ℓ [m, m] on its channel parameters and a Jacobian
 J_ℓ [m, 7] (eq. crb_sidelink), so F = Σ_ℓ J_ℓᵀ Ĩ_ℓ J_ℓ. With Ĩ_ℓ = L_ℓ L_ℓᵀ the rows

@@ -1,8 +1,8 @@
 """Per-path Fisher information of eq. FIM_measurement, batched over UE pairs.
 
 With unit-modulus pilots x_k, the same pilot in every transmission and powers δ_g², every
-derivative of μ_{k,g} factors into a subcarrier part and a transmission part (DESIGN.md,
-derivation notes), so a path's block is
+derivative of μ_{k,g} factors into a subcarrier part and a transmission part (docs/concepts/
+model.md, "Fisher information"), so a path's block is
 
     I_ab = (2P/σ²) · Re{ S_ab · conj(c_a) c_b · Q_{i(a) i(b)} },
 

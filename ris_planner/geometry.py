@@ -1,6 +1,6 @@
 """Geometry and channel parameters of section II, batched over UE pairs.
 
-Conventions (DESIGN.md): R = Rz(yaw)·Ry(pitch)·Rx(roll); a RIS faces its local +x axis; its
+Conventions (conventions.md): R = Rz(yaw)·Ry(pitch)·Rx(roll); a RIS faces its local +x axis; its
 elements lie on the local y–z plane. Every function takes arrays of UE positions with the pairs
 on the leading axis and works for one RIS at a time (L is small; the pairs are many).
 
@@ -128,7 +128,7 @@ def ris_path_geometry(
 ) -> RisPathGeometry:
     """Direction vectors, distances and rotation for one RIS (eqs. tv_T, tv_R).
 
-    tx, rx : [P, 3] UE positions [m]; ris_position : [3] [m]; ris_orientation : [3] [rad].
+    tx, rx : [P, 3] UE positions [m]; ris_position : [3], metres; ris_orientation : [3], radians.
     """
     rot = rotation_matrix(ris_orientation)
     p = np.asarray(ris_position, dtype=float)

@@ -1,5 +1,5 @@
-"""The ``environment`` of scenario and plan documents: obstacles (DESIGN.md, "Environment:
-obstacles, visibility, field of view"). Pydantic models only – the JSON contract; the
+"""The ``environment`` of scenario and plan documents: obstacles (docs/concepts/environment.md, "The
+contract"). Pydantic models only – the JSON contract; the
 visibility engine that uses them is :mod:`ris_planner.environment`.
 
 * ``prism``: a vertical extrusion of a simple polygon ``footprint`` ([x, y] vertices in

@@ -1,4 +1,4 @@
-"""The scenario document: pydantic models that are the JSON contract (DESIGN.md).
+"""The scenario document: pydantic models that are the JSON contract (docs/concepts/conventions.md).
 
 One document drives the Python API, the CLI (``ris-planner bounds``) and the REST service
 (``POST /v1/bounds``). Defaults are the paper's Table I (``table_Simulation_parameters``).
@@ -103,7 +103,7 @@ class SystemParams(DocumentModel):
 
     @property
     def subcarrier_spacing(self) -> float:
-        """Δf = W / K [Hz] (DESIGN.md: the spacing that reproduces the paper's figures)."""
+        """Δf = W / K [Hz] (docs/concepts/model.md: the spacing of the paper's figures)."""
         return self.bandwidth_hz / self.subcarriers
 
     @property
@@ -122,7 +122,7 @@ class SystemParams(DocumentModel):
 
 class RISGrid(DocumentModel):
     """The element grid, field of view and pattern of a RIS: the fields a scenario's ``ris[i]``
-    and a plan document's shared ``ris`` have in common (DESIGN.md conventions)."""
+    and a plan document's shared ``ris`` have in common (docs/concepts/conventions.md)."""
 
     rows: int = Field(10, ge=1, le=512, description="Elements along the local z axis")
     cols: int = Field(10, ge=1, le=512, description="Elements along the local y axis")
@@ -161,7 +161,7 @@ class RISGrid(DocumentModel):
 
 
 class RIS(RISGrid):
-    """One RIS: pose and element grid (DESIGN.md conventions).
+    """One RIS: pose and element grid (docs/concepts/conventions.md).
 
     R = Rz(yaw)·Ry(pitch)·Rx(roll); the RIS faces its local +x axis; elements on the local
     y–z plane, ``rows`` along z and ``cols`` along y; element n = r·cols + c.
@@ -337,7 +337,7 @@ def _points(value: Any, what: str) -> list[list[float]]:
 
 
 class Scenario(DocumentModel):
-    """The scenario document of DESIGN.md.
+    """The scenario document (docs/concepts/conventions.md).
 
     ``tx`` and ``rx`` are one point each or equal-length lists of points (a batch of pairs).
     """
@@ -418,7 +418,7 @@ class Scenario(DocumentModel):
         self, env: Environment, tx: NDArray[np.float64], rx: NDArray[np.float64]
     ) -> None:
         """No RIS centre and no UE more than 1 cm (``INSIDE_MARGIN_M``) inside a prism
-        (DESIGN.md); a RIS on a facade is the normal case. Errors carry the field path."""
+        (environment.md); a RIS on a facade is the normal case. Errors carry the field path."""
         from ris_planner.environment.scene import INSIDE_MARGIN_M, Scene
 
         scene = Scene.from_environment(env)

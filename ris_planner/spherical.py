@@ -1,5 +1,5 @@
-"""Spherical-wave (exact per-element) RIS response and its transmission Gram (DESIGN.md,
-"Wavefront models").
+"""Spherical-wave (exact per-element) RIS response and its transmission Gram (docs/
+concepts/wavefront.md).
 
 Element n at global r_n = p_ℓ + R z_n responds with
 a_n = exp(jφ_n), φ_n = −(2π/λ)·[(‖p_T − r_n‖ − d_T) + (‖p_R − r_n‖ − d_R)],
@@ -33,7 +33,7 @@ from one [3U, N] @ [N, 3U] product (≤ 72 MB); above it, per pair."""
 
 
 def element_positions_global(ris: RIS, wavelength: float) -> FloatArray:
-    """r_n = p_ℓ + R z_n, [N, 3] [m]."""
+    """r_n = p_ℓ + R z_n, [N, 3], metres."""
     local = geometry.element_positions(ris.rows, ris.cols, ris.element_spacing(wavelength))
     rot = geometry.rotation_matrix(ris.orientation)
     return np.asarray(np.asarray(ris.position, dtype=float) + local @ rot.T)
@@ -79,7 +79,7 @@ def _unique_points(tx: FloatArray, rx: FloatArray) -> tuple[FloatArray, IntArray
 def phases(
     tx: FloatArray, rx: FloatArray, ris: RIS, wavelength: float
 ) -> tuple[FloatArray, FloatArray]:
-    """(φ [P, N], ∂φ/∂[p_T, p_R] [P, N, 6]) of the exact per-element response.
+    """(φ [P, N], ∂φ/∂(p_T, p_R) [P, N, 6]) of the exact per-element response.
 
     ∂φ_n/∂p_T = −(2π/λ)((p_T − r_n)/‖p_T − r_n‖ − (p_T − p_ℓ)/d_T), likewise for p_R.
     """

@@ -8,20 +8,20 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tolerance import fim_cond, rtol
 
 sys.path.insert(0, str(Path(__file__).parent))
 
 
-INVERSION_EPS = 1e-14
-"""The bounds agree to max(floor, cond·INVERSION_EPS): a backward-stable inversion of a
-matrix with (unit-diagonal) condition number cond loses about cond·ε of relative accuracy, and
-random small scenarios include near-blind geometries."""
+INVERSION_ULPS = 45.0
+"""The bounds agree to max(floor, 45 ulps · cond) (tests/tolerance.py's rule, 1e-14 · cond): a
+backward-stable inversion of a matrix with (unit-diagonal) condition number cond loses about
+cond·ε of relative accuracy, and random small scenarios include near-blind geometries."""
 
 
 def bounds_rtol(f: np.ndarray, floor: float) -> float:
     """Relative tolerance for bounds computed from the FIM f by two rounding-different routes."""
-    d = np.sqrt(np.diag(f))
-    return max(floor, float(np.linalg.cond(f / np.outer(d, d))) * INVERSION_EPS)
+    return max(floor, rtol(INVERSION_ULPS, fim_cond(f)))
 
 
 def small_scenario_doc(

@@ -1,6 +1,6 @@
 """Free-space cases whose bounds and simulated signals must stay bit-for-bit what they were
-before the environment (obstacles, fields of view) existed (DESIGN.md: "absent, every result
-is exactly what it was without it").
+before the environment (obstacles, fields of view) existed (environment.md: "without it every result
+is what it was in free space").
 
 ``python tests/free_space_cases.py`` writes ``tests/data/free_space_reference.json``; it was
 run at commit 0cb7c82 (before bounds and simulator knew of the environment) and the file is

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from api_helpers import api_client, wait_for
+from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.planning import SerialExecutor, run_plan
 
@@ -62,7 +63,8 @@ def test_plan_job_equals_run_plan_with_figures(tmp_path: Path) -> None:
         assert rows[0].startswith("index,x_m,y_m,z_m,weight") and len(rows) == 1 + 7 * 7 * 2
     with SerialExecutor() as executor:
         expected = run_plan(doc, executor=executor).to_json()
-    assert without_timing(view["result"]) == without_timing(expected)
+    # the worker is another process: plan figures to the bounds' accuracy, decisions exactly
+    assert_close(without_timing(view["result"]), without_timing(expected), accuracy=BOUND_ACCURACY)
     assert [b["ris_count"] for b in view["result"]["by_count"]] == [2, 3]
 
 

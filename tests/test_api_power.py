@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from api_helpers import api_client, wait_for
+from tolerance import SDP_ACCURACY, assert_close
 
 from api.routes.power import Solver
 from ris_planner import preset_document
@@ -40,7 +41,8 @@ def test_power_job_equals_run_power(tmp_path: Path) -> None:
         view = wait_for(client, job["id"], ("succeeded", "failed"), timeout_s=120)
     assert view["status"] == "succeeded", view["error"]
     expected = run_power(doc, objective="sum").to_json()
-    assert without_timing(view["result"]) == without_timing(expected)
+    # the worker is another process: the SDP re-solved to the solver's tolerance
+    assert_close(without_timing(view["result"]), without_timing(expected), accuracy=SDP_ACCURACY)
     assert view["result"]["sdp"]["status"] == "optimal"
 
 

@@ -1,4 +1,4 @@
-"""Numerical accuracy of the bounds (DESIGN.md): the square-root / LOS-referenced inversion of
+"""Numerical accuracy of the bounds (numerics.md): the square-root / LOS-referenced inversion of
 ris_planner.crb against a 40-digit mpmath inversion of the same per-path EFIMs and Jacobians,
 identifiability of parts, exact singularity."""
 

@@ -1,4 +1,4 @@
-"""Bounds in an environment (DESIGN.md, "Environment: obstacles, visibility, field of view"):
+"""Bounds in an environment (docs/concepts/environment.md, "The contract"):
 only the paths present for a pair contribute, checked against the sub-layout of those paths
 built by hand; a RIS facing away contributes exactly nothing; the pattern factor against a
 hand-scaled gain; free-space results bit for bit those computed before the environment
@@ -17,6 +17,7 @@ import pytest
 from api_helpers import api_client
 from conftest import bounds_rtol, small_scenario_doc
 from free_space_cases import REFERENCE, compute_all
+from tolerance import BOUND_ACCURACY, EPS, assert_close
 
 from ris_planner import compute_bounds, load_scenario, preset_document
 from ris_planner.bounds import (
@@ -185,7 +186,7 @@ def test_environment_equals_sub_layout_with_the_layouts_profiles() -> None:
 
 def test_reason_names_the_missing_paths() -> None:
     """Table I (2 RISs + LOS, 7 observations for 7 states) with the LOS blocked by a wall
-    between the UEs: 6 < 7, inf with the DESIGN reason; the RIS paths are clear."""
+    between the UEs: 6 < 7, inf with the contract's reason; the RIS paths are clear."""
     doc = preset_document("paper-table1")
     doc["tx"], doc["rx"] = [[-2.0, -4.0, 1.0], [-2.0, -4.0, 1.0]], [[2.0, 3.0, 1.0], [2, -3, 1]]
     doc["environment"] = {
@@ -277,8 +278,16 @@ def test_pattern_factor_scales_the_gain(rng: np.random.Generator, q: float) -> N
 BOUND_KEYS = ("peb_tx_m", "peb_rx_m", "ceb_m")
 """The reference bounds were inverted by the squared-form LDLᵀ of 0cb7c82; the square-root,
 LOS-referenced inversion of issue 10 (ris_planner.crb) differs from it by the old route's own
-rounding, cond(F)·ε per pair (conftest.bounds_rtol, floor 1e-9). Everything else – FIMs,
-channel bounds, reasons, flags and the simulated signals – is compared exactly."""
+rounding, cond(F)·ε per pair (conftest.bounds_rtol, floor 1e-9)."""
+
+STORED_ULPS = 64.0
+"""Everything else read back from the stored file – FIMs, channel bounds, simulated signals –
+was computed in another process, possibly on another BLAS kernel and SIMD dispatch, so it is
+compared by the tolerance rule (tests/tolerance.py), not bit for bit: FIM entries to 64 ulps
+of √(F_ii F_jj) (sums of a few path terms; measured ≤ 7 ulps between the Haswell, Sandybridge
+and AVX-512-free kernels), channel bounds (inverses of well-conditioned 3×3 path blocks,
+measured ≤ 4 ulps) to 64 ulps, signals (sums of L + 1 path terms with phases of up to ~250 rad)
+to 64 ulps of their largest sample (measured ≤ 3.3). Reasons, flags and shapes stay exact."""
 
 
 def assert_bound_list_close(got: Any, want: Any, fims: Any, where: str) -> None:
@@ -287,8 +296,23 @@ def assert_bound_list_close(got: Any, want: Any, fims: Any, where: str) -> None:
         if w is None:
             assert g is None, f"{where}[{i}]"
         else:
-            tol = bounds_rtol(np.asarray(fims[i]), 1e-9)
-            assert g == pytest.approx(w, rel=tol), f"{where}[{i}]"
+            assert_close(
+                g,
+                w,
+                cond=1.0,
+                ulps=0,
+                accuracy=bounds_rtol(np.asarray(fims[i]), 1e-9),
+                where=f"{where}[{i}]",
+            )
+
+
+def assert_fim_close(got: Any, want: Any, where: str) -> None:
+    """FIMs [P, n, n] entry by entry on the √(F_ii F_jj) scale (STORED_ULPS)."""
+    g, w = np.asarray(got, dtype=float), np.asarray(want, dtype=float)
+    d = np.sqrt(np.abs(np.einsum("pii->pi", w)))
+    scale = d[:, :, None] * d[:, None, :]
+    scale = np.where(scale > 0, scale, 1.0)
+    assert_close(g / scale, w / scale, ulps=STORED_ULPS, atol=STORED_ULPS * EPS, where=where)
 
 
 def test_free_space_results_unchanged() -> None:
@@ -297,12 +321,19 @@ def test_free_space_results_unchanged() -> None:
     noise-free simulated signals against the values computed before bounds and simulator knew
     of the environment (tests/data/free_space_reference.json, written by
     tests/free_space_cases.py at 0cb7c82, rewritten once for a rounding-only change of the
-    profile codebooks' products, see there): FIMs, channel bounds and signals bit for bit, the
-    PEBs and CEB to their conditioning (BOUND_KEYS); ``paths_present`` and ``warnings`` are the
-    new keys."""
+    profile codebooks' products, see there): the PEBs and CEB to their conditioning
+    (BOUND_KEYS), FIMs, channel bounds and signals by the tolerance rule (STORED_ULPS), reasons
+    and flags exactly; ``paths_present`` and ``warnings`` are the new keys."""
     ref = json.loads(REFERENCE.read_text())
     now = compute_all()
-    assert now["signal"] == ref["signal"]
+    assert set(now["signal"]) == set(ref["signal"])
+    for name, sig in now["signal"].items():
+        want = np.asarray(ref["signal"][name]["real"]) + 1j * np.asarray(
+            ref["signal"][name]["imag"]
+        )
+        got = np.asarray(sig["real"]) + 1j * np.asarray(sig["imag"])
+        atol = STORED_ULPS * EPS * float(np.max(np.abs(want)))
+        assert_close(got, want, ulps=STORED_ULPS, atol=atol, where=f"signal.{name}")
     for name, case in now["bounds"].items():
         js = dict(case["json"])
         present = js.pop("paths_present")
@@ -317,8 +348,8 @@ def test_free_space_results_unchanged() -> None:
             else:
                 fims = ref["bounds"][name]["fim"]
                 assert_bound_list_close(got_v, want_v, fims, f"{name}.{key}")
-        assert js == want, name
-        assert case["fim"] == ref["bounds"][name]["fim"], name
+        assert_close(js, want, ulps=STORED_ULPS, where=name)
+        assert_fim_close(case["fim"], ref["bounds"][name]["fim"], f"{name}.fim")
         n_pairs = len(case["json"]["peb_rx_m"])
         ris_names = {c["path"] for c in js["channel"]} - {"los"}
         assert set(present) == {"los"} | ris_names
@@ -408,7 +439,8 @@ def test_bounds_with_environment_cli_equals_rest(
     cli = json.loads(capsys.readouterr().out)
     with api_client(tmp_path) as client:
         r = client.post("/v1/bounds", json=doc)
-    assert r.status_code == 200 and r.json() == cli
+    assert r.status_code == 200
+    assert_close(r.json(), cli, accuracy=BOUND_ACCURACY)  # another process
     assert set(cli["paths_present"]) == {"los", "ris1", "ris2", "ris3", "ris4"}
     assert all(len(v) == 6 for v in cli["paths_present"].values())
     assert not all(all(v) for v in cli["paths_present"].values())

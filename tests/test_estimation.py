@@ -36,7 +36,7 @@ from ris_planner.geometry import steering_vector
 
 
 def table1(power_dbm: float = 30.0, **system: Any) -> dict[str, Any]:
-    """Table I with noise figure 0 dB (the setting that reproduces Fig. 1, DESIGN.md)."""
+    """Table I with noise figure 0 dB (Fig. 1's setting, docs/validation/paper.md)."""
     doc = preset_document("paper-table1")
     doc["system"] |= {"noise_figure_db": 0.0, "tx_power_dbm": power_dbm, **system}
     return doc

@@ -1,4 +1,4 @@
-"""Geometry conventions of DESIGN.md and the Jacobian against finite differences."""
+"""Geometry conventions (conventions.md) and the Jacobian against finite differences."""
 
 from __future__ import annotations
 

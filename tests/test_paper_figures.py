@@ -1,4 +1,4 @@
-"""The bounds against the paper's own figures (conditions in DESIGN.md)."""
+"""The bounds against the paper's own figures (conditions in docs/validation/paper.md)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ SEEDS = range(10)
 
 def fig1_doc(power_dbm: float) -> dict:  # type: ignore[type-arg]
     doc = preset_document("paper-table1")
-    doc["system"]["noise_figure_db"] = 0.0  # DESIGN.md: Fig. 1 is reproduced with NF = 0 dB
+    doc["system"]["noise_figure_db"] = 0.0  # Fig. 1 is reproduced with NF = 0 dB (paper.md)
     doc["system"]["tx_power_dbm"] = power_dbm
     return doc
 

@@ -317,7 +317,7 @@ def test_bad_decision_input_names_the_field(doc: dict[str, Any], message: str) -
 SCALE_RTOL = 1e-6
 """A uniform SNR change scales every FIM entry by one factor, so each bound scales by its
 inverse square root exactly; the two runs differ by rounding amplified by the pair's condition
-number (measured 3e-9 for the median pair here), and DESIGN.md asks bounds to be accurate to
+number (measured 3e-9 for the median pair here), and numerics.md asks bounds to be accurate to
 relative 1e-6."""
 
 

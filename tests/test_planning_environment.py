@@ -38,7 +38,7 @@ moves a bound by ≤ cond·ε (the free-space planning tests use the same tolera
 
 MIRROR_RTOL = 1e-6
 """The mirrored score (reverse direction's PEB_R taken as PEB_T of the same inversion) against
-listing both directions: two inversions of permuted FIMs differ by cond·ε; DESIGN.md requires
+listing both directions: two inversions of permuted FIMs differ by cond·ε; numerics.md requires
 bounds accurate to relative 1e-6 wherever the FIM is non-singular."""
 
 GRID = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}

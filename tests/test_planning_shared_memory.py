@@ -1,12 +1,12 @@
 """The local pool's shared memory (``planning.executor``): the shared object's large arrays
-reach the workers mapped from one anonymous memory file, the plan is bit for bit the
-in-process one, and nothing stays behind – no file descriptor, no ``/dev/shm`` entry, no
-worker – after a plan, a failed task, a lost worker or an interrupt."""
+reach the workers mapped from one anonymous memory file, the plan is the in-process one
+(decisions exactly, figures to the bounds' accuracy: tests/tolerance.py), and nothing stays
+behind – no file descriptor, no ``/dev/shm`` entry, no worker – after a plan, a failed task, a
+lost worker or an interrupt."""
 
 from __future__ import annotations
 
 import gc
-import json
 import os
 import pickle
 from concurrent.futures.process import BrokenProcessPool
@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.planning import LocalExecutor, SerialExecutor, run_plan
 from ris_planner.planning import search as search_module
@@ -142,7 +143,7 @@ def test_share_pickle_round_trip_keeps_values_layout_and_privacy() -> None:
 
 
 @pytest.mark.parametrize("share_memory", [True, False])
-def test_hall_like_plan_on_the_pool_is_the_serial_plan_bit_for_bit(
+def test_hall_like_plan_on_the_pool_is_the_serial_plan(
     monkeypatch: pytest.MonkeyPatch, share_memory: bool
 ) -> None:
     # small chunks: the L=2 layouts and the greedy rounds go to both workers in many tasks
@@ -155,13 +156,14 @@ def test_hall_like_plan_on_the_pool_is_the_serial_plan_bit_for_bit(
         pooled = run_plan(doc, executor=ex)
         pids = ex.worker_pids()
     assert [c.outcome.method for c in serial.counts] == ["exhaustive", "greedy"]
+    # the workers are other processes: decisions exactly, figures to the bounds' accuracy
     for a, b in zip(serial.counts, pooled.counts, strict=True):
         np.testing.assert_array_equal(a.outcome.layouts, b.outcome.layouts)
-        np.testing.assert_array_equal(a.outcome.losses, b.outcome.losses)
+        assert_close(a.outcome.losses, b.outcome.losses, accuracy=BOUND_ACCURACY)
     s, p = serial.to_json(), pooled.to_json()
     s.pop("timing_s")
     p.pop("timing_s")
-    assert json.dumps(s, sort_keys=True) == json.dumps(p, sort_keys=True)
+    assert_close(p, s, accuracy=BOUND_ACCURACY)
     assert len(pids) == 2 and gone(pids)
     assert memfds() == []
     assert dev_shm() == shm_before

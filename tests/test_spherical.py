@@ -1,4 +1,4 @@
-"""Spherical wavefront (DESIGN.md "Wavefront models") against a brute-force reference: exact
+"""Spherical wavefront (docs/concepts/wavefront.md) against a brute-force reference: exact
 per-element distances, the full K × G superposed signal of all paths, derivatives by
 complex-step differentiation (and fourth-order central differences), the state FIM with every
 gain as a nuisance."""

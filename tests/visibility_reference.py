@@ -1,4 +1,4 @@
-"""A deliberately simple per-leg visibility reference (DESIGN.md, "Environment").
+"""A deliberately simple per-leg visibility reference (docs/concepts/environment.md).
 
 One leg at a time, one obstacle at a time, no index, no shared code with the engine:
 

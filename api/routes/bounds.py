@@ -26,7 +26,7 @@ router = APIRouter(tags=["bounds"])
 
 SCENARIO_BODY = document_body(
     "Scenario",
-    'The scenario document (DESIGN.md), in local metres or with a geographic "frame" (WGS84'
+    'The scenario document, in local metres or with a geographic "frame" (WGS84'
     " lon/lat or a projected CRS; converted to local metres first)",
     scenario_examples(),
 )

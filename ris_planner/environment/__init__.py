@@ -1,5 +1,5 @@
-"""Obstacles, visibility of legs and fields of view (DESIGN.md, "Environment: obstacles,
-visibility, field of view").
+"""Obstacles, visibility of legs and fields of view (docs/concepts/environment.md,
+"The contract").
 
 A :class:`Scene` is built once from a document's :class:`~ris_planner.obstacles.Environment`
 and answers batched questions: which legs (segments) are blocked, which points lie inside a

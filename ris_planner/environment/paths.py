@@ -1,5 +1,5 @@
-"""Which paths exist: field of view, blocked legs and the RIS pattern factor (DESIGN.md,
-"Environment: obstacles, visibility, field of view").
+"""Which paths exist: field of view, blocked legs and the RIS pattern factor
+(docs/concepts/environment.md, "Visibility rules").
 
 * A RIS serves a UE when the angle between its normal (global R·e_x) and the direction from
   its centre to the UE is strictly below ``max_angle_deg`` and the leg between them is clear.
@@ -77,7 +77,7 @@ def los_clear(scene: Scene, tx: ArrayLike, rx: ArrayLike) -> BoolArray:
 def path_presence(
     scene: Scene, ris: list[RIS], tx: ArrayLike, rx: ArrayLike, los: bool
 ) -> dict[str, BoolArray]:
-    """``{"los": [P], "ris1": [P], …}``: which paths exist for each pair (DESIGN.md rules);
+    """``{"los": [P], "ris1": [P], …}``: which paths exist for each pair (environment.md rules);
     ``"los"`` only when the system has a LOS path (``los`` False: absent from the dict)."""
     a = np.asarray(tx, dtype=float).reshape(-1, 3)
     b = np.asarray(rx, dtype=float).reshape(-1, 3)

@@ -1,6 +1,6 @@
 """Visibility of legs against prisms and walls, batched over legs.
 
-Rules (DESIGN.md contract; ``tol`` = :data:`VISIBILITY_TOLERANCE_M`, the depth of a point in a
+Rules (concepts/environment.md; ``tol`` = :data:`VISIBILITY_TOLERANCE_M`, the depth of a point in a
 prism = its distance to the nearest face when inside, ≤ 0 outside):
 
 * wall: a leg A→B is blocked when A and B lie on strictly opposite sides of the wall's
@@ -55,7 +55,7 @@ VISIBILITY_TOLERANCE_M = 1e-3
 allows any tolerance between 1 µm and 1 cm."""
 
 INSIDE_MARGIN_M = 1e-2
-"""A UE or RIS centre more than this (1 cm) inside a prism is inside it (DESIGN.md)."""
+"""A UE or RIS centre more than this (1 cm) inside a prism is inside it (environment.md)."""
 
 
 def _points(p: FloatArray, name: str) -> FloatArray:

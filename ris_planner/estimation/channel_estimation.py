@@ -6,7 +6,7 @@ Coarse stage
     coarse_delay_RIS).
   * (ξ_ℓ, ζ_ℓ) at the coarse delay: the concentrated likelihood |a^H v|² / Σ_g δ_g²|ω_g^T a|²
     with v = Σ_g δ_g conj(ω_g) s_g (s_g = d^H(τ̂) Ĥ_ℓ[:, g]), i.e. the matched filter of eq.
-    coarse_ris_xizeta (DESIGN.md erratum: an argmax of the coherent correlation) normalised by
+    coarse_ris_xizeta (erratum, docs/concepts/model.md: argmax of the correlation) normalised by
     the beam energy. a^H v over a grid is a zero-padded 2-D FFT of v on the rows × cols
     aperture; the normaliser is data-independent and computed once per setup.
 

@@ -4,7 +4,7 @@ Coarse stage (eqs. candidate_direction_vec_RX to coarse_position_hatpv), vectori
 TX candidates p̌_T of the search box:
   * t̂_T,ℓ from eq. tv_T; t̂_R,ℓ,2 = ξ̂_ℓ − t̂_T,ℓ,2, t̂_R,ℓ,3 = ζ̂_ℓ − t̂_T,ℓ,3 taken modulo the
     period λ/d of ξ, ζ (the spatial-frequency ambiguity the paper notes) and
-    t̂_R,ℓ,1 = +sqrt(1 − t̂_R,ℓ,2² − t̂_R,ℓ,3²) (DESIGN.md erratum); a candidate for which the
+    t̂_R,ℓ,1 = +sqrt(1 − t̂_R,ℓ,2² − t̂_R,ℓ,3²) (erratum: concepts/model.md); a candidate for which the
     root is imaginary is inconsistent with η̂ and gets an infinite cost.
   * p̌_R = Σ_{i<j} w_ij p̌_ij with p̌_ij the point closest to both bearing lines
     p_i + r t̂_G,i and p_j + r t̂_G,j (the midpoint of the common perpendicular, eqs. a1,

@@ -1,5 +1,5 @@
 """Real sites in, GIS out: geographic frames, GeoJSON / OSM / DXF import, GeoJSON / GeoTIFF /
-CSV export (DESIGN.md layering: above :mod:`ris_planner.planning`; the engine never imports
+CSV export (layering: above :mod:`ris_planner.planning`; the engine never imports
 this package).
 
 * :mod:`ris_planner.io.frames` – ``frame`` of a document (WGS84 lon/lat or a projected CRS)

@@ -1,13 +1,13 @@
 """The plan document: pydantic models that are the JSON contract of ``ris-planner plan`` and
 the REST planning endpoint.
 
-It extends the scenario document of DESIGN.md: ``system`` is the scenario's
+It extends the scenario document (docs/concepts/conventions.md): ``system`` is the scenario's
 :class:`~ris_planner.scenario.SystemParams`, ``ris`` holds the element grid shared by every
 candidate (the scenario's per-RIS ``rows``/``cols``/``spacing_m``), ``codebook`` and ``known``
 mean what they mean there; instead of fixed RISs and UEs it names candidate sites, UE
 probability maps, the pairs to evaluate, an objective, the RIS counts and the search.
-``environment`` is the scenario document's (DESIGN.md, "Environment: obstacles, visibility,
-field of view"); ``facades`` put candidate sites on the facades of its named prisms.
+``environment`` is the scenario document's (docs/concepts/environment.md,
+"The contract"); ``facades`` put candidate sites on the facades of its named prisms.
 """
 
 from __future__ import annotations
@@ -192,7 +192,7 @@ PairsSpec = Literal["all", "unordered"] | PairSample
 
 
 class Candidate(DocumentModel):
-    """An explicit candidate site: a RIS pose (DESIGN.md conventions; faces local +x)."""
+    """An explicit candidate site: a RIS pose (docs/concepts/conventions.md; faces local +x)."""
 
     position: Point3
     orientation: Annotated[

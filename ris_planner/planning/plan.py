@@ -270,7 +270,7 @@ class PlanResult:
         reasons = _dominant_reason(res.reason.reshape(n_tx, n_rx).T, w, np.isinf(vals))
         for m in np.nonzero(empty)[0]:
             reasons[m] = REASON_NO_TX
-        # RIS path for (TX, RX) iff the RIS serves both (DESIGN.md); serving: with ≥ 1 weighted TX
+        # RIS path for (TX, RX) iff the RIS serves both (contract); serving: with ≥ 1 weighted TX
         scene = self.scene if self.scene is not None else Scene.from_environment(environment)
         serves = np.zeros((len(layout), n_rx), dtype=bool)  # [L, M]
         for j, s in enumerate(layout):

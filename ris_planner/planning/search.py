@@ -33,6 +33,56 @@ Layout = tuple[int, ...]
 
 NO_LIMIT = 2**62
 
+RANK_RTOL = 1e-6
+"""Losses closer than this (relative) are equal for every decision of the search and the
+ranking: the bounds a loss is made of are accurate to relative 1e-6 (docs/concepts/numerics.md),
+so a smaller difference is rounding – it differs between BLAS kernels, SIMD dispatch and
+processes – and must not pick the recommended layout. Equal losses are ranked by a fixed key
+(the sites' indices, or the site strength in greedy forward steps)."""
+
+
+def _site_keys(layouts: IntArray) -> tuple[IntArray, ...]:
+    """np.lexsort keys ordering layouts [N, L] by site 0, then site 1, …"""
+    return tuple(layouts[:, c] for c in range(layouts.shape[1] - 1, -1, -1))
+
+
+def ranked_order(losses: FloatArray, keys: tuple[Any, ...], k: int | None = None) -> IntArray:
+    """Indices of the best ``k`` (all when None) losses [N], lower first, where a loss within
+    :data:`RANK_RTOL` of the first loss of its group counts as equal to it: each group (from
+    the smallest remaining loss up to that loss + RANK_RTOL·|loss|; every ``inf`` together) is
+    ordered by ``keys`` (np.lexsort keys, the last one primary), so the order does not depend
+    on rounding. ``nan`` ranks last."""
+    n = losses.shape[0]
+    k = n if k is None else min(k, n)
+    order = np.lexsort((*keys, losses))
+    ordered = losses[order]
+    out: list[IntArray] = []
+    taken, i = 0, 0
+    while taken < k and i < n:
+        first = float(ordered[i])
+        if math.isnan(first):
+            j = n
+        else:
+            limit = first + (RANK_RTOL * abs(first) if math.isfinite(first) else 0.0)
+            j = i + 1 + int(np.searchsorted(ordered[i + 1 :], limit, side="right"))
+        group = order[i:j]
+        out.append(group[np.lexsort(tuple(key[group] for key in keys))] if keys else group)
+        taken += j - i
+        i = j
+    if not out:
+        return np.zeros(0, dtype=int)
+    return np.concatenate(out)[:k]
+
+
+def improves(new: float, old: float) -> bool:
+    """Whether loss ``new`` is better than ``old`` by more than :data:`RANK_RTOL` (a search
+    step that gains only rounding is not taken)."""
+    if math.isnan(new):
+        return False
+    if not math.isfinite(old):
+        return new < old
+    return new < old - RANK_RTOL * abs(old)
+
 
 @dataclass
 class SearchOutcome:
@@ -49,16 +99,12 @@ class SearchOutcome:
         return int(self.losses.shape[0])
 
     def ranked_index(self, k: int) -> IntArray:
-        """Rows of the best k layouts, ties broken by the sites' indices (deterministic)."""
-        # np.lexsort sorts by the last key first: loss, then site 0, site 1, …
-        keys = (
-            *(self.layouts[:, c] for c in range(self.layouts.shape[1] - 1, -1, -1)),
-            self.losses,
-        )
-        return np.lexsort(keys)[:k]
+        """Rows of the best k layouts (:func:`ranked_order`: losses equal to
+        :data:`RANK_RTOL` ranked by the sites' indices – deterministic on every machine)."""
+        return ranked_order(self.losses, _site_keys(self.layouts), k)
 
     def ranked(self, k: int) -> list[tuple[Layout, float]]:
-        """The best k layouts, ties broken by the sites' indices (deterministic)."""
+        """The best k layouts, equal losses ranked by the sites' indices (deterministic)."""
         order = self.ranked_index(k)
         return [(tuple(int(s) for s in self.layouts[i]), float(self.losses[i])) for i in order]
 
@@ -301,8 +347,8 @@ def greedy(
                 vals = np.array(score([tuple(int(x) for x in c) for c in cand]))
             else:
                 vals = evaluate(scorer, cand, executor)
-            key = np.lexsort((-strength[rest], vals))
-            cur.append(rest[int(key[0])])
+            best = ranked_order(vals, (np.arange(len(rest)), -strength[rest]), 1)[0]
+            cur.append(rest[int(best)])
         return tuple(sorted(cur))
 
     first = complete(tuple(cons.required) if cons is not None else ())
@@ -345,10 +391,10 @@ def greedy(
         for i in active:
             neigh = neighs[i]
             if neigh:
-                nvals = [memo[c] for c in neigh]
-                j = min(range(len(neigh)), key=lambda k: (nvals[k], neigh[k]))
-                if nvals[j] < cur[i][1]:
-                    cur[i] = (neigh[j], nvals[j])
+                nvals = np.array([memo[c] for c in neigh])
+                j = int(ranked_order(nvals, _site_keys(np.array(neigh, dtype=int)), 1)[0])
+                if improves(float(nvals[j]), cur[i][1]):
+                    cur[i] = (neigh[j], float(nvals[j]))
                     still.append(i)
                     continue
             n_done += 1

@@ -1,5 +1,5 @@
 """Per-site information cache: each candidate RIS path's 7×7 information on [p_T, p_R, B]
-for every pair, computed once (DESIGN.md, performance model).
+for every pair, computed once (docs/concepts/scoring.md).
 
 With the ``expected_random`` codebook a RIS path's equivalent FIM after eliminating its gain
 (α, β) by a Schur complement is E[Q]-based with Σ_g δ_g² = Γ·G̃ = G (the core's
@@ -11,7 +11,7 @@ any layout, and a layout's state FIM is the LOS matrix plus the sum of its sites
 With an environment (:mod:`ris_planner.planning.visibility`) a site's matrix is zero for the
 pairs it cannot serve and the LOS matrix zero where the LOS leg is blocked – adding an exact
 zero is removing the path – and ``present`` / ``los_present`` let the scorer count each pair's
-geometric channel parameters per layout (DESIGN.md: fewer than the unknown states is ``inf``).
+geometric channel parameters per layout (concepts/numerics.md: fewer than the states is ``inf``).
 The RIS pattern factor (cos θ_T cos θ_R)^q is in the path gain
 (:func:`ris_planner.bounds.ris_path_gain`).
 Storage (issue 14, memory): the site information is held once, in the pair blocks the compiled

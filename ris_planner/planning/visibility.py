@@ -1,5 +1,5 @@
 """What each candidate site can serve, computed once per (UE point, site) and per LOS pair,
-never per layout (DESIGN.md, "Environment: obstacles, visibility, field of view").
+never per layout (docs/concepts/environment.md, "Visibility rules").
 
 * A site serves a UE point when the point is in its field of view and the leg between them is
   clear (:func:`ris_planner.environment.ris_serves`, batched over all sites here); the RIS path

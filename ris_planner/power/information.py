@@ -122,7 +122,7 @@ def _beam_information(
     system = scenario.system
     radio = fim.Radio.from_system(system)
     n_ris = len(scenario.ris)
-    # paths that exist per position (DESIGN.md environment rules): a missing path carries no
+    # paths that exist per position (docs/concepts/environment.md): a missing path carries no
     # information, exactly as in compute_bounds; the pattern factor scales each RIS gain
     present = bounds.scenario_path_presence(scenario, tx, rx)
     gamma = codebooks.block_count(system.transmissions, n_ris)
