@@ -95,7 +95,7 @@ BYTES_PER_LAYOUT = 250
 BYTES_PER_CACHE_BUILD_PAIR = {"planar": 2_000, "spherical": 7_000}
 """Per pair, while the site cache is built: one site's path information (its 7×7 / 9×9
 blocks, Jacobian and square-root rows) and its packed rows, reused site after site."""
-BYTES_PER_HEATMAP_PAIR = {"planar": 1_600, "spherical": 7_000}
+BYTES_PER_HEATMAP_PAIR = {"planar": 1_600, "spherical": 5_500}
 """Per heatmap pair (TX × RX), independent of the RIS count: the pair arrays and the LOS path
 of ``compute_bounds`` with its temporaries (spherical: the complex 9×9 products of one RIS
 path), the reasons and weights of :meth:`PlanResult.rx_field`."""
