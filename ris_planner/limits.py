@@ -10,7 +10,10 @@ document the service accepts is one the job can run.
 
 The per-item byte costs below are the arrays each stage holds at its peak (float64, with the
 temporaries of building them), rounded up; Python objects (sites, memo entries) are measured
-sizes on CPython 3.11.
+sizes on CPython 3.11. A plan's memory is the sum of :func:`plan_memory`'s terms; a refusal
+names the largest term and the largest value of its quantity that fits
+(:func:`explain_plan_memory`). ``benchmarks/bench_memory.py`` checks the estimate against the
+measured peak resident memory of real runs (docs/validation/resources.md).
 """
 
 from __future__ import annotations
