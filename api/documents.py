@@ -19,6 +19,7 @@ from pydantic.json_schema import models_json_schema
 
 from api.errors import MalformedBodyError
 from ris_planner.errors import RisPlannerError
+from ris_planner.io.candidates import CandidateOptions
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io_json import parse_json
 from ris_planner.planning import PlanDocument
@@ -49,6 +50,16 @@ class GeoDocument(BaseModel):
     model_config = ConfigDict(extra="allow")
 
     frame: GeoFrame = Field(description="The frame of the document's coordinates")
+    license: str | None = Field(
+        None,
+        max_length=2000,
+        description="Licence of the site data (an import copies it from its input, e.g."
+        " '© OpenStreetMap contributors, ODbL 1.0'); carried into plan.json, plan.geojson,"
+        " heatmap.tif and points.csv",
+    )
+    attribution: str | None = Field(
+        None, max_length=2000, description="Attribution of the site data (carried like license)"
+    )
 
 
 DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (
@@ -56,6 +67,7 @@ DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (
     Scenario,
     LayoutBeamsDocument,
     GeoDocument,
+    CandidateOptions,
 )
 """Models the request bodies of :func:`document_body` refer to (added to the OpenAPI
 components by :func:`install_document_schemas`)."""

@@ -42,11 +42,9 @@ def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Pat
 
         return JobOutput(run_layout_beams(to_local(document["layout"])[0], progress))
 
+    scenario = to_local(document["scenario"])[0]
     result = run_power(
-        to_local(document["scenario"])[0],
-        progress,
-        objective=document["objective"],
-        solver=document["solver"],
+        scenario, progress, objective=document["objective"], solver=document["solver"]
     )
     return JobOutput(result.to_json())
 

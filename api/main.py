@@ -23,10 +23,11 @@ from api.errors import (
     install_error_handlers,
 )
 from api.kinds import JOB_KINDS
-from api.routes import bounds, events, imports, jobs, meta, plans, power, web
+from api.routes import bounds, events, imports, jobs, meta, plans, power, sites, web
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
+from ris_planner import allocator
 
 DESCRIPTION = """\
 RIS deployment planning for base-station-free 3D sidelink positioning: CRB-based position error
@@ -50,6 +51,7 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
+        allocator.tune_malloc()  # the service's entry point (ris_planner.allocator)
         with server_lock(current.db):  # refuses a second server on this database file
             store = JobStore(
                 current.db,
@@ -99,6 +101,7 @@ def create_app(
         plans.router,
         power.router,
         imports.router,
+        sites.router,
         events.router,
         jobs.router,
     )

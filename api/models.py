@@ -71,6 +71,18 @@ class ChannelBounds(BaseModel):
     )
 
 
+class Provenance(BaseModel):
+    """Which package version computed a result, from which input (ris_planner.provenance)."""
+
+    package: Literal["ris_planner"] = Field(description="The package name")
+    version: str = Field(description="Its version")
+    input_sha256: str = Field(
+        pattern="^[0-9a-f]{64}$",
+        description="SHA-256 of the validated input document as canonical JSON (sorted keys,"
+        " compact separators, defaults filled in)",
+    )
+
+
 class BoundsResponse(BaseModel):
     """The answer of ``POST /v1/bounds`` (the same document as ``ris-planner bounds``).
 
@@ -118,6 +130,7 @@ class BoundsResponse(BaseModel):
         " G/Γ, element spacing above λ/2 (grating lobes), far-field pairs a minority (advice:"
         " system.wavefront = 'spherical')",
     )
+    provenance: Provenance = Field(description="Package version and hash of the input")
 
 
 class JobSummary(BaseModel):

@@ -8,7 +8,6 @@ Public surface (batch scripts)::
     res.peb_rx, res.peb_tx, res.ceb                 # numpy arrays in pair order
 """
 
-from ris_planner import allocator as allocator  # malloc thresholds, before any array work
 from ris_planner.bounds import BoundsResult, compute_bounds
 from ris_planner.scenario import (
     PRESET_NAMES,

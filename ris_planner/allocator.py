@@ -1,4 +1,5 @@
-"""glibc malloc thresholds for the engine's array temporaries (set once, at import).
+"""glibc malloc thresholds for the engine's array temporaries (set by the entry points, never
+at import).
 
 A bounds batch makes many short-lived arrays of 0.1–10 MB (the [N, 512] steering blocks, the
 [5, 5, P] FIM products, the [P, 7, 7] sums). glibc serves an allocation above its mmap
@@ -8,6 +9,13 @@ and trims the heap top again, so the faults keep coming. On the 2-core machine t
 ``random`` Fig. 10 layout (4 RISs, 4753 pairs) spent ≈ 25 % of its CPU time there: 133–149
 against 101–104 ms CPU per layout with the thresholds below (alternating runs, README "Validation
 and speed of the bounds"); tests/test_allocator.py counts the page faults.
+
+Importing :mod:`ris_planner` changes nothing in the host process: the thresholds are set by
+the entry points – the ``ris-planner`` command line (:func:`ris_planner.cli.main`), the
+service's startup and its job workers – and, as an opt-in, by a script that calls
+:func:`tune_malloc`. A process that tuned itself marks the environment
+(``RIS_PLANNER_MALLOC_TUNING=1``) so the worker processes it spawns (the local pool) follow it
+(:func:`tune_worker`).
 
 The values are those the heuristic itself reaches after a freed 32 MiB array (glibc's
 ``DEFAULT_MMAP_THRESHOLD_MAX`` on 64-bit, trim at twice that): at most 64 MiB of freed heap
@@ -33,8 +41,15 @@ TUNING_ENV = "RIS_PLANNER_MALLOC_TUNING"
 GLIBC_ENV = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")
 
 
+_STATE = {"tuned": False}
+
+
 def tune_malloc() -> bool:
-    """Set the thresholds (see the module docstring); whether they were set."""
+    """Set the thresholds in this process (see the module docstring) unless the user opted out
+    (``RIS_PLANNER_MALLOC_TUNING=0``) or chose glibc's own variables; whether they are set.
+    Marks the environment so spawned workers follow (:func:`tune_worker`)."""
+    if _STATE["tuned"]:
+        return True
     if os.environ.get(TUNING_ENV, "1").strip() == "0":
         return False
     if any(k in os.environ for k in GLIBC_ENV) or not sys.platform.startswith("linux"):
@@ -46,8 +61,21 @@ def tune_malloc() -> bool:
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     mallopt.restype = ctypes.c_int
     ok = mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES) == 1
-    return ok and mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES) == 1
+    ok = ok and mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES) == 1
+    if ok:
+        _STATE["tuned"] = True
+        os.environ[TUNING_ENV] = "1"
+    return ok
 
 
-TUNED = tune_malloc()
-"""Whether this process runs with the thresholds (evaluated once, at import)."""
+def tune_worker() -> bool:
+    """In a worker process: tune only when the process that started it did
+    (``RIS_PLANNER_MALLOC_TUNING=1`` in the inherited environment)."""
+    if os.environ.get(TUNING_ENV, "").strip() != "1":
+        return False
+    return tune_malloc()
+
+
+def tuned() -> bool:
+    """Whether this process runs with the thresholds."""
+    return _STATE["tuned"]

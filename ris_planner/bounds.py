@@ -762,3 +762,13 @@ def bounds_warnings(scenario: Scenario, *, expected: bool, far: NDArray[np.bool_
     if far.size and system.wavefront == "planar":
         out.append(advice.near_field_warning(float(np.mean(np.all(far, axis=1)))))
     return [w for w in out if w is not None]
+
+
+def bounds_document(scenario: Scenario) -> dict[str, Any]:
+    """The result document of ``ris-planner bounds`` and ``POST /v1/bounds``: the bounds of
+    the scenario's pairs (:meth:`BoundsResult.to_json`) and their provenance
+    (:mod:`ris_planner.provenance`)."""
+    from ris_planner.provenance import provenance
+
+    out = compute_bounds(scenario).to_json(batch=scenario.is_batch)
+    return out | {"provenance": provenance(scenario)}

@@ -104,11 +104,9 @@ def print_json(obj: Any) -> None:
 
 
 def _cmd_bounds(args: argparse.Namespace) -> int:
-    from ris_planner.bounds import compute_bounds
+    from ris_planner.bounds import bounds_document
 
-    scenario = read_scenario(args)
-    result = compute_bounds(scenario)
-    print_json(result.to_json(batch=scenario.is_batch))
+    print_json(bounds_document(read_scenario(args)))
     return 0
 
 
@@ -150,25 +148,45 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_serve)
 
 
-def _registrars() -> list[Callable[[argparse._SubParsersAction], None]]:
-    """Every feature's ``add_cli``: one line per feature (imported here, not at module load)."""
-    from ris_planner.estimation.cli import add_cli as estimation_cli
-    from ris_planner.io.cli import add_cli as import_cli
-    from ris_planner.planning.cli import add_cli as plan_cli
-    from ris_planner.power.cli import add_cli as power_cli
+REGISTRARS: dict[str, tuple[str, ...]] = {
+    "ris_planner.cli:_add_core": ("bounds", "schema"),
+    "ris_planner.power.cli:add_cli": ("power",),
+    "ris_planner.planning.cli:add_cli": ("plan",),
+    "ris_planner.estimation.cli:add_cli": ("simulate", "blind-area"),
+    "ris_planner.io.cli:add_cli": ("import", "sites"),
+    "ris_planner.cli:_add_serve": ("serve",),
+}
+"""Every feature's ``add_cli`` ("module:function") and the subcommands it registers, in help
+order. A run imports only the module of its own subcommand (``ris-planner bounds`` never loads
+the planner); ``--help``, a usage error or an unknown command builds the whole parser."""
 
-    return [_add_core, power_cli, plan_cli, estimation_cli, import_cli, _add_serve]
+
+def _registrar(path: str) -> Callable[[argparse._SubParsersAction], None]:
+    module, name = path.split(":")
+    registrar: Callable[[argparse._SubParsersAction], None] = getattr(
+        importlib.import_module(module), name
+    )
+    return registrar
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser with every subcommand, or only ``command``'s feature when it names one."""
     parser = argparse.ArgumentParser(
         prog="ris-planner",
         description="RIS deployment planning for sidelink positioning (CRB/PEB engine).",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    for register in _registrars():
-        register(sub)
+    wanted = [path for path, names in REGISTRARS.items() if command in names]
+    for path in wanted or REGISTRARS:
+        _registrar(path)(sub)
     return parser
+
+
+def _command(argv: Sequence[str]) -> str | None:
+    """The subcommand named by the first argument, when it is one (else None: full parser)."""
+    first = argv[0] if argv else None
+    known = {name for names in REGISTRARS.values() for name in names}
+    return first if first in known else None
 
 
 def _say(message: str) -> None:
@@ -181,7 +199,11 @@ def _say(message: str) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; every input error ends with one line on stderr and exit status 2."""
-    parser = build_parser()
+    from ris_planner import allocator
+
+    allocator.tune_malloc()  # an entry point: the library itself never changes the process
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_command(argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0) or a usage error (2, argparse printed one line)

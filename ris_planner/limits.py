@@ -382,6 +382,8 @@ class PlanShape:
     """Pairs the run builds (the sample, or every pair up to ``max_pairs``)."""
     csv_rows: int
     layouts: int
+    """Layouts one plan run may score (the sizing question's runs are sequential: they
+    multiply the search, not the memory)."""
     counts: int
     """RIS counts searched (one ``points`` entry each per RX point)."""
     max_count: int
@@ -470,6 +472,15 @@ def _largest(make: Callable[[int], PlanShape], low: int, now: int, budget: int) 
         else:
             hi = mid
     return lo
+
+
+def plan_runs(doc: PlanDocument) -> int:
+    """Plan runs of one document: its own, and one per size of the sizing question
+    (:func:`ris_planner.planning.sizing.sizing_runs`; the runs are sequential, so they
+    multiply the searched layouts, not the memory)."""
+    from ris_planner.planning.sizing import sizing_runs
+
+    return 1 + sizing_runs(doc)
 
 
 def _side(shape: PlanShape, rows: int) -> PlanShape:
@@ -572,10 +583,21 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
     )
 
 
+def largest_plan_shape(doc: PlanDocument) -> PlanShape:
+    """The :func:`plan_shape` of the document's run that needs the most memory: its own, or one
+    with another RIS size of ``sweep.ris_size`` or ``sizing.ris_sizes`` (those runs are
+    sequential: the estimate is the largest one's)."""
+    shape = plan_shape(doc)
+    sides = [tuple(rc) for rc in (doc.sweep.ris_size or [])] if doc.sweep is not None else []
+    sides += [tuple(rc) for rc in doc.sizing.ris_sizes] if doc.sizing is not None else []
+    shapes = [shape] + [replace(shape, ris_side=(r, c), elements=r * c) for r, c in sides]
+    return max(shapes, key=_memory)
+
+
 def estimate_plan(doc: PlanDocument) -> Sizes:
     """Every size of a plan run from its validated document (nothing is built); the memory is
-    the sum of :func:`plan_memory`."""
-    shape = plan_shape(doc)
+    the sum of :func:`plan_memory` for its largest run (:func:`largest_plan_shape`)."""
+    shape = largest_plan_shape(doc)
     n_t, n_r = shape.tx_points, shape.rx_points
     pairs_spec = doc.pairs
     if isinstance(pairs_spec, str):
@@ -590,7 +612,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         pairs=pairs,
         cache_entries=shape.sites * pairs,
         heatmap_pairs=heat_rx * heat_tx,
-        search_layouts=shape.layouts,
+        search_layouts=shape.layouts * plan_runs(doc),
         memory_bytes=sum(plan_memory(shape).values()),
     )
 

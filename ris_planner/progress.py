@@ -19,20 +19,24 @@ def no_progress(fraction: float, message: str) -> None:
 
 
 class ProgressBar:
-    """A text progress bar on stderr for the CLI (redraws at most every 0.1 s)."""
+    """A text progress bar on stderr for the CLI (redraws at most every 0.1 s, and always at a
+    new stage: the part of the message before its first ``:``, :class:`Stages`)."""
 
     def __init__(self, label: str, stream: TextIO | None = None, width: int = 30) -> None:
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.width = width
         self._last = 0.0
+        self._stage: str | None = None
         self._start = time.perf_counter()
 
     def __call__(self, fraction: float, message: str = "") -> None:
         now = time.perf_counter()
-        if fraction < 1.0 and now - self._last < 0.1:
+        stage = message.split(":", 1)[0]
+        if fraction < 1.0 and now - self._last < 0.1 and stage == self._stage:
             return
         self._last = now
+        self._stage = stage
         frac = min(max(fraction, 0.0), 1.0)
         filled = round(frac * self.width)
         bar = "#" * filled + "-" * (self.width - filled)
@@ -41,3 +45,52 @@ class ProgressBar:
         if frac >= 1.0:
             self.stream.write("\n")
         self.stream.flush()
+
+
+LAST_BEFORE_END = 0.999
+"""The largest fraction :class:`Stages` reports before :meth:`Stages.finish` (1.0 only at the
+end)."""
+
+
+class Stages:
+    """A progress callback split over consecutive named stages, each holding a share of the bar
+    proportional to its estimated work (seconds, :mod:`ris_planner.planning.work`).
+
+    ``stages.callback(name)`` is the callback of one stage: its own fraction f ∈ [0, 1] maps
+    to ``start + f · share`` and its message becomes ``"name: message"``. Fractions never go
+    back (a later stage's call below an earlier one repeats the earlier fraction), stay below
+    1 (at most :data:`LAST_BEFORE_END`) until :meth:`finish` reports 1.0, so a bar shows 100 %
+    only once everything – figures and exports included – is written. Stages may be nested:
+    an inner :class:`Stages` on an outer stage's callback finishes at that stage's end."""
+
+    def __init__(self, progress: ProgressCallback, work: dict[str, float]) -> None:
+        self.progress = progress
+        total = sum(max(w, 0.0) for w in work.values())
+        self.start: dict[str, float] = {}
+        self.share: dict[str, float] = {}
+        at = 0.0
+        for name, w in work.items():
+            share = max(w, 0.0) / total if total > 0 else 1.0 / len(work)
+            self.start[name], self.share[name] = at, share
+            at += share
+        self.fraction = 0.0
+
+    def report(self, name: str, fraction: float, message: str = "") -> None:
+        """Report stage ``name`` at its own ``fraction``."""
+        f = self.start[name] + self.share[name] * min(max(fraction, 0.0), 1.0)
+        self.fraction = max(self.fraction, min(f, LAST_BEFORE_END))
+        self.progress(self.fraction, f"{name}: {message}" if message else name)
+
+    def callback(self, name: str) -> ProgressCallback:
+        """The progress callback of stage ``name`` (reports its start at once)."""
+        self.report(name, 0.0)
+
+        def on_stage(fraction: float, message: str = "") -> None:
+            self.report(name, fraction, message)
+
+        return on_stage
+
+    def finish(self, message: str = "done") -> None:
+        """Report the end: 1.0."""
+        self.fraction = 1.0
+        self.progress(1.0, message)

@@ -17,7 +17,7 @@ from ris_planner.limits import (
     estimate_power,
     explain_plan_memory,
     job_memory_mb,
-    plan_shape,
+    largest_plan_shape,
     plan_sites,
 )
 from ris_planner.planning.document import PlanDocument
@@ -49,7 +49,7 @@ def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
             f"ris_count {max(doc.ris_count)} exceeds the {sites} candidate sites",
         )
     sizes = estimate_plan(doc)
-    shape = plan_shape(doc)
+    shape = largest_plan_shape(doc)
     check_sizes(
         sizes,
         max_pairs=doc.max_pairs,

@@ -1,6 +1,7 @@
-"""The malloc thresholds of :mod:`ris_planner.allocator`: set at import on glibc, left alone
-when the user opts out or chose glibc's own variables (fresh interpreters: the setting is
-process-wide and made once)."""
+"""The malloc thresholds of :mod:`ris_planner.allocator`: never set by importing the package;
+set by the entry points (the command line, the service) and by an explicit opt-in on glibc,
+followed by the local pool's workers, left alone when the user opts out or chose glibc's own
+variables (fresh interpreters: the setting is process-wide and made once)."""
 
 from __future__ import annotations
 
@@ -8,13 +9,17 @@ import os
 import platform
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 GLIBC = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
 
 FAULTS = """
-import resource, numpy as np, ris_planner
+import resource, sys, numpy as np, ris_planner
+from ris_planner import allocator
+if sys.argv[1:] == ["tune"]:
+    allocator.tune_malloc()
 def cycle():
     live = [np.ones(750_000) for _ in range(3)]  # three 6 MB temporaries, then all freed
     del live
@@ -22,26 +27,68 @@ cycle()
 f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 for _ in range(20):
     cycle()
-print(ris_planner.allocator.TUNED, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
+print(allocator.tuned(), resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 """
 
 
-def run(code: str, **env: str) -> list[str]:
+def run(code: str | Path, *args: str, **env: str) -> list[str]:
+    """Run code (a string, or a script file) in a fresh interpreter; its stdout words."""
     full = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
     full.pop("RIS_PLANNER_MALLOC_TUNING", None)
+    source = [str(code)] if isinstance(code, Path) else ["-c", code]
     out = subprocess.run(
-        [sys.executable, "-c", code], env=full | env, capture_output=True, text=True, timeout=60
+        [sys.executable, *source, *args],
+        env=full | env,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert out.returncode == 0, out.stderr
     return out.stdout.split()
 
 
+CLI_PROBE = """
+import sys
+from ris_planner import allocator, cli
+cli.main(["schema"])
+print(allocator.tuned(), file=sys.stderr)
+"""
+
+POOL_PROBE = """
+from ris_planner import allocator
+from ris_planner.planning.executor import LocalExecutor
+def probe(shared, chunk):
+    from ris_planner import allocator
+    return allocator.tuned()
+if __name__ == "__main__":
+    import sys
+    if sys.argv[1:] == ["tune"]:
+        allocator.tune_malloc()
+    with LocalExecutor(2, share_memory=False) as ex:
+        print(all(ex.map(probe, None, [0, 1])))
+"""
+
+
 @pytest.mark.skipif(not GLIBC, reason="mallopt thresholds are glibc's")
-def test_thresholds_set_at_import_unless_opted_out() -> None:
-    probe = "import ris_planner; print(ris_planner.allocator.TUNED)"
-    assert run(probe) == ["True"]
-    assert run(probe, RIS_PLANNER_MALLOC_TUNING="0") == ["False"]
-    assert run(probe, MALLOC_MMAP_THRESHOLD_="131072") == ["False"]  # the user's own choice
+def test_import_changes_nothing_entry_points_and_opt_in_tune() -> None:
+    probe = "import ris_planner.bounds; from ris_planner import allocator; print(allocator.tuned())"
+    assert run(probe) == ["False"]  # importing the library leaves the host process alone
+    tune = "from ris_planner import allocator; print(allocator.tune_malloc(), allocator.tuned())"
+    assert run(tune) == ["True", "True"]  # the opt-in
+    assert run(tune, RIS_PLANNER_MALLOC_TUNING="0") == ["False", "False"]
+    assert run(tune, MALLOC_MMAP_THRESHOLD_="131072") == ["False", "False"]  # the user's choice
+    out = subprocess.run(
+        [sys.executable, "-c", CLI_PROBE], capture_output=True, text=True, timeout=60
+    )
+    assert out.returncode == 0 and out.stderr.split()[-1] == "True"  # the command line tunes
+
+
+@pytest.mark.skipif(not GLIBC, reason="mallopt thresholds are glibc's")
+def test_pool_workers_follow_the_process_that_started_them(tmp_path: Path) -> None:
+    script = tmp_path / "pool_probe.py"
+    script.write_text(POOL_PROBE)
+    assert run(script, "tune")[-1] == "True"
+    assert run(script)[-1] == "False"
 
 
 @pytest.mark.skipif(not GLIBC, reason="mallopt thresholds are glibc's")
@@ -50,7 +97,7 @@ def test_freed_temporaries_are_reused_without_page_faults() -> None:
     and are reused (no minor faults after the first round); with glibc's heuristic alone
     (opted out) the heap is trimmed and every round faults its 18 MB in again (≈ 17 500 faults
     measured on the 2-core machine)."""
-    tuned, faults = run(FAULTS)
+    tuned, faults = run(FAULTS, "tune")
     assert tuned == "True" and int(faults) <= 50
-    untuned, faults_default = run(FAULTS, RIS_PLANNER_MALLOC_TUNING="0")
+    untuned, faults_default = run(FAULTS)
     assert untuned == "False" and int(faults_default) > 20 * int(faults) + 1000

@@ -188,7 +188,7 @@ def test_geographic_power_allocation(server: str) -> None:
 @pytest.mark.parametrize(
     ("change", "field"),
     [
-        ({"frame": {"origin": [60.1699, 24.9384]}}, "candidates.0.position"),  # lat/lon swapped
+        ({"frame": {"origin": [60.1699, 24.9384]}}, "frame.origin"),  # lat/lon swapped
         ({"frame": {"origin": ["east", 60.1]}}, "frame.origin"),
         ({"frame": {"crs": 5}}, "frame.crs"),
         ({"frame": {}}, "frame"),
@@ -252,6 +252,7 @@ def test_import_geojson_gives_a_plan_document(
     assert report["candidates"] == 6 and len(report["default_height"]) == 29 - 13
     assert len(doc["environment"]["obstacles"]) == 29 and doc["tx_map"] == doc["rx_map"]
     assert doc["frame"] == answer["fragment"]["frame"]
+    assert doc["license"] == report["license"] == "© OpenStreetMap contributors, ODbL 1.0"
     preview = httpx.post(f"{server}/v1/plans/validate", json=doc, timeout=60)
     assert preview.status_code == 200, preview.text
     assert preview.json()["sites"] == 6 and len(preview.json()["obstacles"]) == 29
@@ -330,9 +331,24 @@ def test_import_errors(server: str) -> None:
             }
         ],
     }
-    r = httpx.post(f"{server}/v1/import", json=bad, timeout=60)
-    assert r.status_code == 422 and "feature 0 (id b7): invalid outline" in r.json()["message"]
+    r = httpx.post(f"{server}/v1/import?invalid=error", json=bad, timeout=60)
+    assert r.status_code == 422, r.text
+    assert "feature 0 (id b7) at [24.940000, 60.160000]: invalid outline" in r.json()["message"]
     assert r.json()["fields"][0]["field"] == "features.0"
+    # by default repaired, and listed by id and lon/lat; or skipped
+    r = httpx.post(f"{server}/v1/import", json=bad, timeout=60)
+    assert r.status_code == 200, r.text
+    (entry,) = r.json()["report"]["repaired"]
+    assert (entry["id"], entry["lonlat"], entry["parts"]) == ("b7", [24.94, 60.16], 2)
+    assert len(r.json()["document"]["environment"]["obstacles"]) == 2
+    r = httpx.post(f"{server}/v1/import?invalid=skip", json=bad, timeout=60)
+    assert r.status_code == 200 and r.json()["report"]["skipped_invalid"][0]["id"] == "b7"
+    r = httpx.post(f"{server}/v1/import?invalid=mend", json=bad, timeout=60)
+    assert r.status_code == 422 and r.json()["fields"][0]["field"] == "invalid"
+    # an origin given as LAT,LON: the origin is named, not a feature
+    r = httpx.post(f"{server}/v1/import?origin=60.1655,24.949", json=site, timeout=60)
+    assert r.status_code == 422 and r.json()["fields"][0]["field"] == "origin"
+    assert "swapped?" in r.json()["message"]
     for body, status in [
         (b"{not json", 422),
         (b'{"type": "FeatureCollection", "features": []}', 422),

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -98,3 +100,44 @@ def test_plan_from_stdin_and_unusable_output_folder(
         2,
         3,
     ]
+
+
+LAZY_PROBE = """
+import sys
+from ris_planner import cli
+assert cli.main(["bounds", "--preset", "paper-table1"]) == 0
+loaded = [m for m in ("ris_planner.planning", "ris_planner.power", "ris_planner.estimation",
+                      "ris_planner.io.cli", "api", "scipy.spatial") if m in sys.modules]
+print("LOADED", loaded, file=sys.stderr)
+"""
+
+
+def test_a_command_loads_only_its_own_feature() -> None:
+    """``ris-planner bounds`` builds the parser of its own subcommand only: the planner, the
+    power and estimation features, the importers and the service are never imported (the
+    whole parser, for --help, has them all: test_help_lists_every_command)."""
+    out = subprocess.run(
+        [sys.executable, "-c", LAZY_PROBE], capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.strip().splitlines()[-1] == "LOADED []"
+
+
+def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
+    from ris_planner.cli import REGISTRARS
+
+    code, out, _ = run(capsys, "--help")
+    assert code == 0
+    for names in REGISTRARS.values():
+        for name in names:
+            assert name in out
+    # the table names exactly what each feature registers (a run builds only its own)
+    import argparse
+
+    from ris_planner.cli import _registrar
+
+    for path, names in REGISTRARS.items():
+        parser = argparse.ArgumentParser()
+        sub = parser.add_subparsers()
+        _registrar(path)(sub)
+        assert tuple(sub.choices) == names, path

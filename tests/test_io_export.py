@@ -28,6 +28,7 @@ from ris_planner.io.export import (  # noqa: E402
     write_geotiff,
 )
 from ris_planner.io.frames import Frame, to_local  # noqa: E402
+from ris_planner.io.geojson_import import OSM_LICENSE as LICENSE  # noqa: E402
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan  # noqa: E402
 from ris_planner.scenario import SystemParams  # noqa: E402
 
@@ -293,12 +294,29 @@ def test_points_csv(planned: Any) -> None:
 def test_plan_cli_writes_gis_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     doc = geo_plan_document()
     doc.pop("_environment")
+    doc |= {"license": LICENSE, "attribution": "Imported with ris-planner"}
     src = tmp_path / "plan.json"
     src.write_text(json.dumps(doc))
     out = tmp_path / "out"
     assert main(["plan", str(src), "--out", str(out), "--workers", "1"]) == 0
     plan = json.loads((out / "plan.json").read_text())
     assert plan["frame"]["origin"] == list(ORIGIN)
+    # the licence in every file
+    assert plan["license"] == LICENSE
+    fc = json.loads((out / "plan.geojson").read_text())
+    assert (fc["license"], fc["attribution"]) == (LICENSE, "Imported with ris-planner")
+    with rasterio.open(out / "heatmap.tif") as ds:
+        tags = ds.tags()
+        assert tags["TIFFTAG_COPYRIGHT"] == f"{LICENSE}; Imported with ris-planner"
+        assert tags["license"] == LICENSE
+    lines = (out / "points.csv").read_text().splitlines()
+    assert lines[:2] == [f"# license: {LICENSE}", "# attribution: Imported with ris-planner"]
+    assert lines[2].startswith("index,x_m,")
+    sites = [f["properties"] for f in fc["features"] if f["properties"]["role"] == "site"]
+    assert sites and all(
+        {"azimuth_deg", "tilt_deg", "roll_deg"} <= set(p) and not any(k.endswith("_rad") for k in p)
+        for p in sites
+    )
     for name in ("plan.geojson", "heatmap.tif", "points.csv", "heatmap.png"):
         assert (out / name).is_file()
     fc = json.loads((out / "plan.geojson").read_text())
@@ -371,4 +389,11 @@ def test_heights_go_back_to_the_documents_datum() -> None:
     site, cand, block = (f["properties"] for f in fc["features"])
     assert site["height_m"] == cand["height_m"] == pytest.approx(25.0)
     assert site["azimuth_deg"] == pytest.approx(90.0)  # yaw 0 faces east
+    # degrees, as the import's input: no radians in a GIS file
+    plan["candidates"][0]["orientation"] = [math.pi, math.radians(15), 0.0]
+    site, cand, _ = (f["properties"] for f in plan_geojson(plan, doc)["features"])
+    assert site["azimuth_deg"] == pytest.approx(270.0) and site["tilt_deg"] == pytest.approx(15)
+    assert cand["tilt_deg"] == pytest.approx(15) and cand["roll_deg"] == 0
+    assert not [k for k in (*site, *cand) if k.endswith("_rad")]
+    assert "license" not in plan_geojson(plan, doc)  # none given, none written
     assert block["base_m"] == pytest.approx(21.0) and block["height_m"] == 4

@@ -12,7 +12,7 @@ import pytest
 
 pyproj = pytest.importorskip("pyproj")
 
-from ris_planner.errors import RisPlannerError  # noqa: E402
+from ris_planner.errors import DocumentFieldError, RisPlannerError  # noqa: E402
 from ris_planner.io.frames import MAX_FRAME_RADIUS_M, Frame, to_local  # noqa: E402
 
 GEOD = pyproj.Geod(ellps="WGS84")
@@ -213,7 +213,7 @@ def test_projected_crs_frame_matches_lonlat_frame() -> None:
 @pytest.mark.parametrize(
     ("frame", "match"),
     [
-        ({"origin": [60.17, 24.95, 0]}, r"lies \d+ km from the frame origin"),  # swapped origin
+        ({"origin": [60.17, 24.95, 0]}, r"^frame\.origin: .*lies among them: lat/lon swapped\?"),
         ({"origin": [200, 10]}, "not a WGS84 position"),
         ({"crs": "EPSG:4326"}, "not a projected CRS"),
         ({"crs": "EPSG:999999"}, "unknown CRS"),
@@ -320,14 +320,43 @@ def test_far_point_precheck_against_geodesics(origin: tuple[float, float, float]
     """The great-circle distance that refuses far points before projecting (the tmerc frame is
     undefined 90° from its meridian) against pyproj's geodesics; a point on the far side of the
     Earth is refused naming its field, not a projection error."""
-    from ris_planner.io.frames import _great_circle_m
+    from ris_planner.io.frames import great_circle_m
 
     rng = np.random.default_rng(7)
     ll = np.column_stack([rng.uniform(-180, 180, 200), rng.uniform(-80, 80, 200)])
     _, _, want = GEOD.inv(np.full(200, origin[0]), np.full(200, origin[1]), ll[:, 0], ll[:, 1])
-    got = _great_circle_m(ll, origin)
+    got = great_circle_m(ll, origin)
     assert np.allclose(got, want, rtol=GREAT_CIRCLE_RTOL, atol=1.0)
     antipode = [origin[0] - 180 if origin[0] > 0 else origin[0] + 180, -origin[1], 0.0]
-    doc = {"frame": {"origin": list(origin)}, "rx": antipode}
+    doc = {"frame": {"origin": list(origin)}, "tx": list(origin), "rx": antipode}
     with pytest.raises(RisPlannerError, match=r"^rx: .* lies 200\d\d km from the frame origin"):
         to_local(doc)
+
+
+def test_a_swapped_origin_is_blamed_on_the_origin_not_a_point() -> None:
+    """Every point far from the origin while the origin read as [lat, lon] lies among them:
+    the origin is at fault (checked before any single point is blamed)."""
+    doc = {
+        "frame": {"origin": [60.1655, 24.949, 0.0]},
+        "candidates": [{"position": [24.9491, 60.1656, 5.0], "orientation": [0, 0, 0]}],
+        "tx_map": {"points": [[24.949, 60.1655, 1.5], [24.9495, 60.1652, 1.5]]},
+    }
+    with pytest.raises(DocumentFieldError, match=r"^frame\.origin: .*swapped\?") as info:
+        to_local(doc)
+    assert info.value.field == "frame.origin"
+    # an origin far from everything, not swapped: still the origin's fault
+    with pytest.raises(DocumentFieldError, match=r"^frame\.origin: .*the wrong origin") as info:
+        to_local(doc | {"frame": {"origin": [10.0, 50.0]}})
+    # one point swapped among good ones: that point, with "swapped?"
+    bad = doc | {"frame": {"origin": [24.949, 60.1655]}}
+    bad["tx_map"] = {"points": [[24.949, 60.1655, 1.5], [60.1652, 24.9495, 1.5]]}
+    with pytest.raises(DocumentFieldError, match=r"^tx_map\.points\.1: .*swapped\?"):
+        to_local(bad)
+    # a projected frame whose origin has easting and northing swapped
+    utm = {"frame": {"crs": "EPSG:3067", "origin": [6672000, 385000]}}
+    utm |= {"tx": [385100, 6672100, 0], "rx": [385200, 6672000, 0]}
+    with pytest.raises(DocumentFieldError, match=r"^frame\.origin: .*easting/northing swapped"):
+        to_local(utm)
+    # licence fields are taken off (the exports carry them), with or without a frame
+    local, frame = to_local({"license": "ODbL", "tx": [0.0, 0.0, 0.0]})
+    assert local == {"tx": [0.0, 0.0, 0.0]} and frame is None

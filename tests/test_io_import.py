@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import pickle
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,7 @@ from ris_planner.io.geojson_import import (
     DEFAULT_BUILDING_HEIGHT_M,
     HIGHWAY_WIDTH_M,
     METRES_PER_LEVEL,
+    OSM_LICENSE,
     FeatureError,
     ImportOptions,
     import_features,
@@ -63,6 +65,14 @@ SQUARE = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]]
 L_SHAPE = [[30.0, 0.0], [50.0, 0.0], [50.0, 8.0], [38.0, 8.0], [38.0, 25.0], [30.0, 25.0]]
 
 
+def _at(feature: dict) -> str:
+    """How messages write a feature's first position."""
+    coords = feature["geometry"]["coordinates"]
+    while isinstance(coords[0], list):
+        coords = coords[0]
+    return f"[{coords[0]:.6f}, {coords[1]:.6f}]"
+
+
 def _import(*features: dict, **opts: object) -> tuple[dict, object]:
     fragment, summary = import_features(_fc(*features), ORIGIN, ImportOptions(**opts))  # type: ignore[arg-type]
     return fragment, summary
@@ -84,13 +94,15 @@ def test_building_heights_levels_defaults_and_holes() -> None:
     ]
     fragment, summary = _import(*features)
     obs = fragment["environment"]["obstacles"]
-    assert [o["name"] for o in obs] == ["way/1", "way/2", "Shed", "way/4"]
+    # the courtyard building is cut into simple pieces (tests below: the hole stays open)
+    assert [o["name"] for o in obs] == ["way/1", "way/2", "Shed", "way/4#0", "way/4#1"]
     assert obs[0]["height_m"] == 21.5 and obs[0]["base_m"] == 0
     assert obs[1]["height_m"] == 5 * METRES_PER_LEVEL
     assert obs[2]["height_m"] == DEFAULT_BUILDING_HEIGHT_M
-    assert obs[3]["base_m"] == 3 and obs[3]["height_m"] == 9
-    assert summary.default_height == ["feature 2 (id way/3, name 'Shed')"]
-    assert summary.heights_from_levels == 1 and summary.holes_dropped == 1
+    assert all(o["base_m"] == 3 and o["height_m"] == 9 for o in obs[3:])
+    assert summary.default_height == ["feature 2 (id way/3, name 'Shed') at " + _at(features[2])]
+    assert summary.heights_from_levels == 1 and summary.courtyards == 1
+    assert summary.tag_problems == [] and summary.repaired == []
     assert summary.skipped == 1  # building=no
     local, _ = to_local(fragment)
     env = Environment.model_validate(local["environment"])
@@ -130,26 +142,37 @@ def test_imported_building_blocks_the_same_legs_as_the_metre_prism() -> None:
 @pytest.mark.parametrize(
     ("geometry", "match"),
     [
-        (_poly([[0, 0], [10, 10], [10, 0], [0, 10]]), "feature 0 \\(id way/9.*Self-intersection"),
+        (
+            _poly([[0, 0], [10, 10], [10, 0], [0, 10]]),
+            "feature 0 \\(id way/9\\) at \\[24.949000, 60.165500\\].*Self-intersection at"
+            " \\[24.94909\\d, 60.16554\\d\\]",
+        ),
         ({"type": "Polygon", "coordinates": []}, "feature 0 \\(id way/9.*empty"),
         (
             {"type": "Polygon", "coordinates": [_ring(SQUARE)[:-1]]},
-            "feature 0 \\(id way/9.*ring 0: ring is not closed",
+            "feature 0 \\(id way/9.*ring not closed",
         ),
         (
-            {"type": "Polygon", "coordinates": [[[p[1], p[0]] for p in _ring(SQUARE)]]},
-            "feature 0 \\(id way/9.*km from the origin.*swapped",
+            {"type": "Polygon", "coordinates": [[list(ORIGIN[:2])] * 4]},
+            "feature 0 \\(id way/9.*at least 3 distinct",
         ),
         (
             {"type": "Polygon", "coordinates": [[[200, 0], [201, 0], [201, 1], [200, 0]]]},
             "feature 0 \\(id way/9.*not a WGS84",
+        ),
+        (
+            {
+                "type": "Polygon",
+                "coordinates": [[[24.9, 95], [24.91, 95], [24.9, 95.1], [24.9, 95]]],
+            },
+            "feature 0 \\(id way/9\\) at \\[24.900000, 95.000000\\].*not a WGS84.*swapped\\?",
         ),
         ({"type": "LineString", "coordinates": [[24.9, 60.1]]}, "at least 2 distinct"),
     ],
 )
 def test_invalid_geometries_name_the_feature(geometry: dict, match: str) -> None:
     with pytest.raises(RisPlannerError, match=match) as info:
-        _import(_feature(geometry, "way/9", building="yes", highway="residential"))
+        _import(_feature(geometry, "way/9", building="yes", highway="residential"), invalid="error")
     # the feature's path for the service's 422, and an error that survives a process boundary
     assert isinstance(info.value, FeatureError) and info.value.field == "features.0"
     back = pickle.loads(pickle.dumps(info.value))
@@ -306,9 +329,10 @@ def test_cli_import_geojson_and_errors(tmp_path: Path, capsys: pytest.CaptureFix
     assert "import summary" in captured.err and "way/1" in captured.err
     bad = tmp_path / "bad.geojson"
     bad.write_text(json.dumps(_fc(_feature(_poly([[0, 0], [10, 10], [10, 0], [0, 10]]), "w/7"))))
-    assert main(["import", "geojson", str(bad)]) == 2
+    assert main(["import", "geojson", str(bad), "--invalid", "error"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: feature 0 (id w/7)") and err.count("\n") == 1
+    assert err.startswith("error: feature 0 (id w/7) at [") and err.count("\n") == 1
+    assert "invalid outline (Self-intersection at [" in err
 
 
 def test_helsinki_data_imports() -> None:
@@ -391,3 +415,419 @@ def test_dxf_errors_and_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert main(["import", "dxf", str(path), "--layer", "WALLS=prism:2"]) == 2
     err = capsys.readouterr().err
     assert "LWPOLYLINE" in err and "closed polylines" in err
+
+
+# --- real data: invalid outlines, courtyards, tags, swaps, licence ---------------------------
+
+BOWTIE = [[0.0, 0.0], [10.0, 10.0], [10.0, 0.0], [0.0, 10.0]]
+COURTYARD = [[0.0, 0.0], [40.0, 0.0], [40.0, 40.0], [0.0, 40.0]]
+HOLE = [[12.0, 12.0], [28.0, 12.0], [28.0, 28.0], [12.0, 28.0]]
+AREA_TOLERANCE_M2 = 1e-3
+"""Footprints computed in metres and written as lon/lat with 1e-9° digits (≤ 0.1 mm): areas
+of tens of metres across agree to well below 1e-3 m²."""
+
+
+def _local_prisms(fragment: dict) -> list[Prism]:
+    local, _ = to_local(fragment)
+    env = Environment.model_validate(local["environment"])  # every footprint a simple polygon
+    return [o for o in env.obstacles if isinstance(o, Prism)]
+
+
+def _union(prisms: list[Prism]) -> object:
+    import shapely
+
+    return shapely.union_all([shapely.Polygon(p.vertices) for p in prisms])
+
+
+@pytest.mark.parametrize("policy", ["repair", "skip", "error"])
+def test_invalid_outline_policies(policy: str) -> None:
+    bow = _feature(_poly(BOWTIE), "way/7", building="yes", name="Bockin talo")
+    ok = _feature(_poly(SQUARE), "way/8", building="yes")
+    if policy == "error":
+        with pytest.raises(FeatureError, match=r"feature 0 \(id way/7, name 'Bockin talo'\) at"):
+            _import(bow, ok, invalid=policy)
+        return
+    fragment, summary = _import(bow, ok, invalid=policy)
+    prisms = _local_prisms(fragment)
+    entries = summary.repaired if policy == "repair" else summary.skipped_invalid
+    (entry,) = entries
+    assert (entry["feature"], entry["id"], entry["name"]) == (0, "way/7", "Bockin talo")
+    assert entry["lonlat"] == pytest.approx(list(ORIGIN[:2]), abs=1e-7)
+    assert "Self-intersection at [24.9490" in entry["reason"]
+    if policy == "skip":
+        assert [p.name for p in prisms] == ["way/8"] and summary.repaired == []
+        return
+    # two triangles, 25 m² each: the enclosed area kept, no warning
+    assert [p.name for p in prisms] == ["Bockin talo#0", "Bockin talo#1", "way/8"]
+    assert entry["parts"] == 2 and "warning" not in entry
+    assert entry["area_before_m2"] == pytest.approx(50) and entry["area_after_m2"] == 50
+    assert _union(prisms[:2]).area == pytest.approx(50, abs=AREA_TOLERANCE_M2)
+
+
+def test_a_repair_that_changes_the_area_is_flagged() -> None:
+    # the outline loops back over itself: its lines enclose 225 m², of which 50 m² twice
+    # over; the valid (even-odd) repair keeps 175 m²
+    fold = [[0, 0], [20, 0], [20, 10], [5, 10], [5, -5], [15, -5], [15, 5], [0, 5]]
+    _, summary = _import(_feature(_poly(fold), "way/3", building="yes"))
+    (entry,) = summary.repaired
+    assert (entry["area_before_m2"], entry["area_after_m2"]) == (225, 175)
+    assert "warning" in entry and "changed the enclosed area" in entry["warning"]
+
+
+def test_unclosed_and_degenerate_rings_follow_the_policy() -> None:
+    open_ring = {"type": "Polygon", "coordinates": [_ring(SQUARE)[:-1]]}
+    flat = {"type": "Polygon", "coordinates": [[list(ORIGIN[:2])] * 4]}
+    fragment, summary = _import(
+        _feature(open_ring, "way/1", building="yes"), _feature(flat, "way/2", building="yes")
+    )
+    assert [e["id"] for e in summary.repaired] == ["way/1"]
+    assert "ring not closed" in summary.repaired[0]["reason"]
+    assert [e["id"] for e in summary.skipped_invalid] == ["way/2"]
+    assert summary.skipped_invalid[0]["lonlat"] == pytest.approx(list(ORIGIN[:2]))
+    (prism,) = _local_prisms(fragment)
+    assert np.allclose(prism.vertices, SQUARE, atol=COORD_TOLERANCE_M)
+
+
+def test_random_bowties_are_repaired_into_valid_prisms() -> None:
+    """Property: a quadrilateral with two corners swapped (a bowtie), anywhere, any size and
+    orientation, imports as valid prisms whose union is shapely's repair of it."""
+    import shapely
+
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        c = rng.uniform(-300, 300, 2)
+        w, h = rng.uniform(3, 60, 2)
+        a = rng.uniform(0, np.pi)
+        rect = np.array([[-w, -h], [w, -h], [w, h], [-w, h]]) / 2
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        quad = rect @ rot.T + c
+        quad[[1, 2]] = quad[[2, 1]]  # crossing edges
+        quad += rng.normal(0, 0.2, quad.shape)  # not a perfect X
+        fragment, summary = _import(_feature(_poly(quad.tolist()), f"way/{trial}", building="yes"))
+        (entry,) = summary.repaired
+        assert entry["id"] == f"way/{trial}" and entry["parts"] >= 2
+        got = _union(_local_prisms(fragment))
+        want = shapely.make_valid(shapely.Polygon(quad))
+        assert got.area == pytest.approx(want.area, abs=AREA_TOLERANCE_M2)
+        assert shapely.symmetric_difference(got, want).area < AREA_TOLERANCE_M2
+
+
+def _courtyard_scene(overlap_m: float | None = None) -> tuple[Scene, list[Prism]]:
+    from ris_planner.io import geojson_import as gi
+
+    if overlap_m is None:
+        fragment, summary = _import(
+            _feature(_poly(COURTYARD, HOLE), "way/5", building="yes", height=12)
+        )
+    else:
+        saved = gi.PIECE_OVERLAP_M
+        try:
+            gi.simple_pieces.__defaults__ = (overlap_m,)
+            fragment, summary = _import(
+                _feature(_poly(COURTYARD, HOLE), "way/5", building="yes", height=12)
+            )
+        finally:
+            gi.simple_pieces.__defaults__ = (saved,)
+    assert summary.courtyards == 1
+    prisms = _local_prisms(fragment)
+    return Scene.from_environment(Environment(obstacles=prisms)), prisms
+
+
+def test_courtyards_stay_open_and_cuts_do_not_leak() -> None:
+    import shapely
+
+    scene, prisms = _courtyard_scene()
+    assert len(prisms) == 2
+    want = shapely.Polygon(COURTYARD, [HOLE])
+    got = _union(prisms)
+    assert shapely.symmetric_difference(got, want).area < AREA_TOLERANCE_M2  # hole not filled
+    a = np.array(
+        [
+            [20.0, 20.0, 1.5],  # courtyard → courtyard: clear
+            [20.0, 20.0, 1.5],  # courtyard → out over the roof: clear
+            [20.0, -5.0, 5.0],  # along the cut line x = 20 through the south wing: blocked
+            [15.0, 5.0, 5.0],  # across the cut inside the south wing: blocked
+            [20.0, 20.0, 1.5],  # courtyard → street through the east wing: blocked
+        ]
+    )
+    b = np.array(
+        [
+            [25.0, 14.0, 1.5],
+            [20.0, 32.0, 60.0],
+            [20.0, 45.0, 5.0],
+            [25.0, 5.0, 5.0],
+            [60.0, 20.0, 1.5],
+        ]
+    )
+    assert scene.blocked(a, b).tolist() == [False, False, True, True, True]
+    # the courtyard is not inside the building; the wings are
+    assert scene.inside(np.array([[20.0, 20.0, 1.5], [20.0, 5.0, 1.5]])).tolist()[0] == -1
+    assert scene.inside(np.array([[20.0, 5.0, 1.5]]))[0] >= 0
+    # without the overlap, a leg along the shared edge of two pieces would pass: the test
+    # above can fail
+    bare, _ = _courtyard_scene(overlap_m=0.0)
+    assert not bare.blocked(a[2:3], b[2:3])[0]
+
+
+def test_a_ue_area_in_a_courtyard_imports_and_plans() -> None:
+    from ris_planner.io.site_import import import_data, plan_from_import
+    from ris_planner.planning.plan import run_plan
+
+    def pt(x: float, y: float) -> list[float]:
+        return FRAME.to_geographic(np.array([[x, y]]))[0].tolist()
+
+    sites = [(12.05, 20, 90), (27.95, 20, 270), (20, 12.05, 0), (20, 27.95, 180)]
+    fc = _fc(
+        _feature(_poly(COURTYARD, HOLE), "way/1", building="yes", height="12"),
+        _feature(_poly([[13, 13], [27, 13], [27, 27], [13, 27]]), "way/2", density=1),
+        *(
+            _feature(
+                {"type": "Point", "coordinates": pt(x, y)}, name=f"s{k}", height=6, azimuth_deg=az
+            )
+            for k, (x, y, az) in enumerate(sites)
+        ),
+    )
+    fragment, summary = import_data(json.dumps(fc).encode(), "geojson", origin=ORIGIN)
+    assert summary["area_points"] == 9 and summary["candidates"] == 4
+    doc, _ = plan_from_import(fragment, "geojson", summary)
+    doc |= {"pairs": {"sample": 100, "seed": 1}, "ris_count": [2]}
+    local, _ = to_local(doc)
+    plan = run_plan(local).to_json()
+    assert plan["dropped_points"] == {"tx": 0, "rx": 0}  # no courtyard point is "inside"
+    assert plan["by_count"][0]["top_layouts"][0]["objective"] > 0.5
+
+
+@pytest.mark.parametrize(
+    ("tags", "problem", "used", "height"),
+    [
+        ({"height": "tall", "building:levels": "4"}, "height", "building:levels 4 × 3 m", 12.0),
+        ({"height": "3;4"}, "height", "4 (the largest value)", 4.0),
+        ({"height": ""}, "height", "the default height 10 m", DEFAULT_BUILDING_HEIGHT_M),
+        ({"height": "-5"}, "height", "the default height", DEFAULT_BUILDING_HEIGHT_M),
+        ({"height": "nan"}, "height", "the default height", DEFAULT_BUILDING_HEIGHT_M),
+        ({"building:levels": "0"}, "building:levels", "the default height", 10.0),
+        ({"height": 20, "min_height": "ground"}, "min_height", "base 0 m", 20.0),
+    ],
+)
+def test_unusable_height_tags_are_reported(
+    tags: dict, problem: str, used: str, height: float
+) -> None:
+    fragment, summary = _import(
+        _feature(_poly(SQUARE), "way/4", building="yes", name="Talo", **tags)
+    )
+    (entry,) = summary.tag_problems
+    assert (entry["id"], entry["name"], entry["tag"], entry["value"]) == (
+        "way/4",
+        "Talo",
+        problem,
+        tags[problem],
+    )
+    assert used in entry["used"] and entry["lonlat"] == pytest.approx(list(ORIGIN[:2]))
+    assert fragment["environment"]["obstacles"][0]["height_m"] == pytest.approx(height)
+    assert parse_length("-5") == -5  # a length; a negative height is the tag rule's to refuse
+
+
+def _rect_ring(lon: float, lat: float, w_m: float, h_m: float, angle: float) -> list[list[float]]:
+    frame = Frame((lon, lat, 0.0))
+    r = np.array([[-w_m, -h_m], [w_m, -h_m], [w_m, h_m], [-w_m, h_m]]) / 2
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    ll = frame.to_geographic(r @ rot.T).tolist()
+    return [*ll, ll[0]]
+
+
+def _town(rng: np.random.Generator, lon: float, lat: float, n: int) -> list[dict]:
+    """n rectangular buildings (rotated at random) within ~300 m of (lon, lat)."""
+    out = []
+    for k in range(n):
+        dlon, dlat = rng.uniform(-300, 300, 2) / 111_000
+        ring = _rect_ring(
+            lon + dlon / math.cos(math.radians(lat)),
+            lat + dlat,
+            *rng.uniform(8, 30, 2),
+            rng.uniform(0, np.pi),
+        )
+        out.append(_feature({"type": "Polygon", "coordinates": [ring]}, f"way/{k}", building="yes"))
+    return out
+
+
+def _swap(feature: dict) -> dict:
+    geom = feature["geometry"]
+    rings = [[[p[1], p[0]] for p in r] for r in geom["coordinates"]]
+    return {**feature, "geometry": {"type": "Polygon", "coordinates": rings}}
+
+
+def test_random_lat_lon_swaps_are_detected() -> None:
+    """Property: in a town anywhere (where [lat, lon] lies far from [lon, lat]), one feature
+    swapped is named, with "swapped?"; every feature swapped is told from the square corners
+    where a degree of longitude and one of latitude differ in length; nothing is flagged in
+    the town as given."""
+    rng = np.random.default_rng(5)
+    checked_file = 0
+    for _ in range(25):
+        lat = float(rng.uniform(-60, 60))
+        lon = float(rng.uniform(-90, 90))
+        if abs(lat - lon) < 2:
+            continue
+        feats = _town(rng, lon, lat, 8)
+        fragment, _ = import_features(_fc(*feats))  # as given: fine
+        assert len(fragment["environment"]["obstacles"]) == 8
+        k = int(rng.integers(8))
+        mixed = [*feats[:k], _swap(feats[k]), *feats[k + 1 :]]
+        for origin in (None, (lon, lat)):
+            with pytest.raises(FeatureError, match=r"swapped\?") as info:
+                import_features(_fc(*mixed), origin)
+            assert info.value.field == f"features.{k}"
+            assert str(info.value).startswith(f"feature {k} (id way/{k}) at [")
+        ratio = math.cos(math.radians(lat)) / math.cos(math.radians(lon))
+        if abs(math.log(ratio)) > math.log(1.3):
+            with pytest.raises(
+                DocumentFieldError, match=r"swapped\?.*e\.g\. feature 0 \(id way/0\)"
+            ):
+                import_features(_fc(*[_swap(f) for f in feats]))
+            import_features(
+                _fc(*[_swap(f) for f in feats]), options=ImportOptions(swap_check=False)
+            )
+            checked_file += 1
+    assert checked_file >= 10
+
+
+def test_a_swapped_origin_is_blamed_on_the_origin() -> None:
+    feats = _town(np.random.default_rng(2), 24.949, 60.1655, 3)
+    with pytest.raises(
+        DocumentFieldError, match=r"read as \[lat, lon\] the origin lies among"
+    ) as info:
+        import_features(_fc(*feats), (60.1655, 24.949))
+    assert info.value.field == "origin"
+    assert re.search(r"nearest feature, feature \d \(id way/\d\) at \[24\.9", str(info.value))
+    with pytest.raises(DocumentFieldError, match=r"the wrong origin\?") as info:
+        import_features(_fc(*feats), (10.0, 50.0))
+    assert info.value.field == "origin"
+
+
+def test_cli_swapped_file_is_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    feats = _town(np.random.default_rng(4), 24.949, 60.1655, 10)
+    src = tmp_path / "swapped.geojson"
+    src.write_text(json.dumps(_fc(*[_swap(f) for f in feats])))
+    assert main(["import", "geojson", str(src)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: features: ") and "swapped?" in err and err.count("\n") == 1
+    assert main(["import", "geojson", str(src), "--no-swap-check"]) == 0
+
+
+def test_licence_is_carried_from_the_input() -> None:
+    from ris_planner.io.site_import import plan_from_import
+
+    fc = _fc(_feature(_poly(SQUARE), "b1", building="yes")) | {
+        "license": "CC-BY 4.0",
+        "attribution": "City survey",
+    }
+    fragment, summary = import_features(fc, ORIGIN)
+    assert (fragment["license"], fragment["attribution"]) == ("CC-BY 4.0", "City survey")
+    doc, _ = plan_from_import(fragment, "geojson", summary.to_json())
+    assert doc["license"] == "CC-BY 4.0"
+    local, _ = to_local(doc)
+    assert "license" not in local and "attribution" not in local  # not the engine's
+    # OSM ids and no licence of its own: the ODbL, with a note
+    fragment, summary = import_features(_fc(_feature(_poly(SQUARE), "way/1", building="yes")))
+    assert fragment["license"] == OSM_LICENSE and any(
+        "OpenStreetMap ids" in n for n in summary.notes
+    )
+    fragment, _ = import_features(_fc(_feature(_poly(SQUARE), "b1", building="yes")))
+    assert "license" not in fragment
+    with pytest.raises(DocumentFieldError, match=r"^license: expected a text"):
+        to_local({"license": 5, "frame": {"origin": list(ORIGIN)}})
+
+
+OSM_CUT = Path(__file__).parent / "data" / "osm" / "bulevardi.geojson"
+
+
+def test_real_osm_cut_imports_with_defaults() -> None:
+    import shapely
+
+    assert OSM_CUT.stat().st_size < 150_000
+    fc = json.loads(OSM_CUT.read_text())
+    assert fc["license"] == OSM_LICENSE
+    fragment, summary = import_features(fc)
+    assert fragment["license"] == OSM_LICENSE
+    assert summary.buildings == 45 and summary.courtyards == 15 and summary.prisms == 61
+    assert summary.repaired == [] and summary.skipped_invalid == []  # the extract has none
+    prisms = _local_prisms(fragment)
+    _, frame = to_local(fragment)
+    assert frame is not None
+    # every courtyard building: its pieces cover exactly the polygon less its courtyards
+    by_name: dict[str, list[Prism]] = {}
+    for p in prisms:
+        by_name.setdefault(str(p.name).split("#")[0], []).append(p)
+    for f in fc["features"]:
+        if f["geometry"]["type"] != "MultiPolygon":
+            continue
+        want = shapely.MultiPolygon(
+            [
+                shapely.Polygon(
+                    frame.from_source(np.array(poly[0])[:-1]),
+                    [frame.from_source(np.array(r)[:-1]) for r in poly[1:]],
+                )
+                for poly in f["geometry"]["coordinates"]
+            ]
+        )
+        got = _union(by_name[f["properties"].get("name") or f["properties"]["@id"]])
+        assert shapely.symmetric_difference(got, want).area < 0.01 * 1e-3 * want.length + 1e-2
+    # a real building made invalid (two corners exchanged): repaired and named by its OSM id
+    i = next(k for k, f in enumerate(fc["features"]) if f["geometry"]["type"] == "Polygon")
+    ring = fc["features"][i]["geometry"]["coordinates"][0]
+    ring[1], ring[2] = ring[2], ring[1]
+    _, summary = import_features(fc)
+    (entry,) = summary.repaired
+    assert entry["id"] == fc["features"][i]["properties"]["@id"] and entry["feature"] == i
+    _, summary = import_features(fc, options=ImportOptions(invalid="skip"))
+    assert [e["id"] for e in summary.skipped_invalid] == [entry["id"]]
+
+
+def test_unusable_density_and_width_are_reported() -> None:
+    def line(xy: list[list[float]]) -> dict:
+        return {"type": "LineString", "coordinates": FRAME.to_geographic(np.array(xy)).tolist()}
+
+    fragment, summary = _import(
+        _feature(_poly(SQUARE), "a1", density="lots"),
+        _feature(_poly(L_SHAPE), "a2", density=-1),
+        _feature(line([[0, -10], [50, -10]]), "r1", highway="residential", width="wide"),
+        _feature(line([[0, -20], [50, -20]]), "r2", width="narrow"),
+    )
+    got = [(e["id"], e["tag"], e["used"]) for e in summary.tag_problems]
+    assert got == [
+        ("a1", "density", "feature skipped"),
+        ("a2", "density", "feature skipped"),
+        ("r1", "width", "the residential default 6 m"),
+        ("r2", "width", "not a road (skipped)"),
+    ]
+    assert summary.skipped == 2 and "environment" not in fragment and summary.areas == 0
+    assert [r["width_m"] for r in fragment["ue_map"]["roads"]] == [HIGHWAY_WIDTH_M["residential"]]
+
+
+def test_osm_xml_courtyard_relation_keeps_its_inner_ring(tmp_path: Path) -> None:
+    import shapely
+
+    outer = [[0, 0], [30, 0], [30, 30], [0, 30]]
+    inner = [[10, 10], [20, 10], [20, 20], [10, 20]]
+    ll = FRAME.to_geographic(np.array(outer + inner, dtype=float))
+    nodes = "\n".join(
+        f'<node id="{i + 1}" lat="{lat!r}" lon="{lon!r}"/>'
+        for i, (lon, lat) in enumerate(ll.tolist())
+    )
+    xml = f"""<?xml version='1.0'?><osm version="0.6">{nodes}
+     <way id="1"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/></way>
+     <way id="2"><nd ref="5"/><nd ref="6"/><nd ref="7"/><nd ref="8"/><nd ref="5"/></way>
+     <relation id="9"><member type="way" ref="1" role="outer"/>
+      <member type="way" ref="2" role="inner"/>
+      <tag k="type" v="multipolygon"/><tag k="building" v="yes"/></relation></osm>"""
+    path = tmp_path / "court.osm"
+    path.write_text(xml)
+    fc, _ = osm_xml_features(path)
+    assert fc["license"] == OSM_LICENSE
+    fragment, summary = import_features(fc, ORIGIN)
+    assert summary.courtyards == 1 and fragment["license"] == OSM_LICENSE
+    got = _union(_local_prisms(fragment))
+    want = shapely.Polygon(outer, [inner])
+    assert shapely.symmetric_difference(got, want).area < AREA_TOLERANCE_M2

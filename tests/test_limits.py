@@ -309,3 +309,13 @@ def test_cli_and_service_refuse_with_the_advice(tmp_path: Path, monkeypatch: Any
         body = r.json()
         assert body["limit"] == 700 and "largest pair count that fits is" in body["message"]
         assert client.get("/v1/jobs").json()["total"] == 0
+
+
+def test_a_ris_size_sweep_is_estimated_at_its_largest_run() -> None:
+    """The sweep's and the sizing question's runs are sequential: the memory is the largest
+    run's (here the spherical per-element arrays of the swept 100 × 100 RIS)."""
+    base = small_plan_doc(system={"wavefront": "spherical"})
+    swept = estimate_plan(PlanDocument.model_validate(base | {"sweep": {"ris_size": [[100, 100]]}}))
+    big = estimate_plan(PlanDocument.model_validate(base | {"ris": {"rows": 100, "cols": 100}}))
+    small = estimate_plan(PlanDocument.model_validate(base))
+    assert swept.memory_bytes == big.memory_bytes > small.memory_bytes

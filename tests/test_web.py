@@ -482,7 +482,8 @@ def small_site(bowtie: bool = False) -> dict[str, Any]:
 def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: Shots) -> None:
     """Upload a GeoJSON site: POST /v1/import turns it into a plan document in WGS84; the page
     draws its buildings, street points and mounting sites in local metres, validates it, plans
-    it; a broken outline is a message next to the file input."""
+    it; outlines that cross themselves are repaired and listed in the report; a building given
+    as [lat, lon] is a message next to the file input."""
     pg, console = page
     console.allow(r"status of 422")  # the broken file's answer
     open_page(pg, server)
@@ -524,13 +525,22 @@ def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: S
     link = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
     assert (link.get_attribute("download") or "").endswith(".geojson")
     shots.take(pg, "10-imported-site-planned")
-    # a broken outline: the server's message next to the input, the document unchanged
+    # outlines that cross themselves: repaired by default, each named in the report
     broken = site | {"name": "broken.geojson", "buffer": json.dumps(small_site(True)).encode()}
     pg.set_input_files("#upload-geojson", files=[broken])
+    expect(pg.locator("#doc-name")).to_contain_text("broken.geojson (imported)", timeout=WAIT_MS)
+    expect(report).to_contain_text("2 outline(s) repaired: North block at [24.93964")
+    # one building as [lat, lon]: the server's message next to the input, the document kept
+    swapped = small_site()
+    geom = swapped["features"][0]["geometry"]
+    geom["coordinates"] = [[[p[1], p[0]] for p in r] for r in geom["coordinates"]]
+    bad = site | {"name": "swapped.geojson", "buffer": json.dumps(swapped).encode()}
+    pg.set_input_files("#upload-geojson", files=[bad])
     err = pg.locator("#err-upload-geojson")
-    expect(err).to_contain_text("broken.geojson: feature 0 (name 'North block'): invalid outline")
+    expect(err).to_contain_text("swapped.geojson: feature 0 (name 'North block') at [60.165")
+    expect(err).to_contain_text("swapped?")
     assert pg.locator("#upload-geojson").get_attribute("aria-invalid") == "true"
-    expect(pg.locator("#doc-name")).to_contain_text("block.geojson (imported)")
+    expect(pg.locator("#doc-name")).to_contain_text("broken.geojson (imported)")
     shots.take(pg, "11-import-error")
 
 

@@ -18,7 +18,7 @@ from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.limits import check_scenario_size
 from api.models import BoundsResponse, scenario_examples
 from api.settings import Settings
-from ris_planner.bounds import compute_bounds
+from ris_planner.bounds import bounds_document
 from ris_planner.io.frames import to_local
 from ris_planner.scenario import Scenario
 
@@ -58,4 +58,4 @@ def _bounds_json(body: bytes, settings: Settings) -> dict[str, Any]:
     local, _ = to_local(json_document(body))
     scenario = Scenario.model_validate(local)
     check_scenario_size(scenario, settings)
-    return compute_bounds(scenario).to_json(batch=scenario.is_batch)
+    return bounds_document(scenario)

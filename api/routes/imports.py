@@ -60,9 +60,12 @@ class ImportAnswer(BaseModel):
     )
     report: dict[str, Any] = Field(
         description="format, the parser's counts (buildings, prisms, heights_from_levels,"
-        " default_height – the features given the default height –, holes_dropped, roads,"
-        " roads_skipped, areas, area_points, candidates, walls, skipped; for DXF units_to_m,"
-        " walls, prisms, ignored), defaults_applied and notes"
+        " default_height – the features given the default height –, courtyards (inner rings"
+        " kept open), roads, roads_skipped, areas, area_points, candidates, walls, skipped; for"
+        " DXF units_to_m, walls, prisms, ignored), repaired / skipped_invalid (invalid"
+        " outlines: feature index, id, name, lonlat, reason, areas before and after),"
+        " tag_problems (tags that are not lengths and what was used instead), license,"
+        " defaults_applied and notes"
     )
 
 
@@ -170,11 +173,28 @@ async def post_import(
     units: Annotated[
         Literal["mm", "cm", "m", "in", "ft"] | None, Query(description="dxf: override $INSUNITS")
     ] = None,
+    invalid: Annotated[
+        Literal["repair", "skip", "error"],
+        Query(
+            description="Invalid outlines (self-intersecting, unclosed, degenerate): repair"
+            " (shapely make_valid; listed in report.repaired), skip (listed in"
+            " report.skipped_invalid) or error (422 naming the feature)"
+        ),
+    ] = "repair",
+    swap_check: Annotated[
+        bool,
+        Query(
+            description="Run the file-wide lat/lon swap test (building corners square only"
+            " when read as [lat, lon]); the per-feature and origin checks always run"
+        ),
+    ] = True,
 ) -> JSONResponse:
-    """The options are those of ``ris-planner import`` (README "Real sites and GIS"). 422
-    naming the feature (invalid geometry, lat/lon swapped, a site without azimuth), the layer
-    (a DXF without the chosen layers) or the option; 413 above the body limit; 501 on a server
-    without the GIS extra."""
+    """The options are those of ``ris-planner import`` (``docs/guides/import.md``). 422 naming
+    the feature by index, id, name and lon/lat in its message and ``features.N`` as its field
+    (an invalid outline with ``invalid=error``, lat/lon swapped, a site without azimuth), the
+    ``origin`` (swapped or far from the features), the layer (a DXF without the chosen
+    layers) or the option; 413 above the body limit; 501 on a server without the GIS
+    extra."""
     body = await request.body()
     options = ImportOptions(
         metres_per_level=metres_per_level,
@@ -185,6 +205,8 @@ async def post_import(
         area_step_m=area_step,
         site_spacing_m=site_spacing,
         highways=tuple(h for h in highways.split(",") if h) if highways else None,
+        invalid=invalid,
+        swap_check=swap_check,
     )
     content_type = request.headers.get("content-type")
 

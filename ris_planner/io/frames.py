@@ -139,6 +139,10 @@ class Frame:
     origin: tuple[float, float, float]
     source_crs: str = WGS84
 
+    def __post_init__(self) -> None:
+        # plain floats (a numpy scalar's repr would end up in the PROJ string)
+        object.__setattr__(self, "origin", tuple(float(v) for v in self.origin))
+
     @property
     def proj4(self) -> str:
         lon, lat, _ = self.origin
@@ -208,7 +212,8 @@ def parse_frame(spec: Any, doc: dict[str, Any] | None = None) -> Frame:
             raise DocumentFieldError(
                 "frame.origin",
                 f"[lon, lat] = [{lon}, {lat}] is not a WGS84 position (lon within ±180°, lat"
-                " within ±90°; GeoJSON order is lon, lat)",
+                " within ±90°; GeoJSON order is lon, lat)"
+                + (" – lat/lon swapped?" if abs(lon) <= 90 and abs(lat) <= 180 else ""),
             )
         if abs(lat) > 84:
             raise DocumentFieldError("frame.origin", f"latitude {lat} is beyond ±84° (polar sites)")
@@ -260,7 +265,7 @@ MAX_CRS_CHARS = 2000
 """Longest ``frame.crs`` text accepted (an EPSG code, a PROJ string or WKT)."""
 
 
-def _great_circle_m(lonlat: FloatArray, origin: tuple[float, float, float]) -> FloatArray:
+def great_circle_m(lonlat: FloatArray, origin: tuple[float, float, float]) -> FloatArray:
     """Haversine distances [N] of WGS84 [lon, lat] [N, 2] from the origin (sphere of
     :data:`EARTH_RADIUS_M`; 0.5 % from the ellipsoid, enough to refuse far points before the
     projection, which is undefined 90° from its meridian)."""
@@ -271,46 +276,126 @@ def _great_circle_m(lonlat: FloatArray, origin: tuple[float, float, float]) -> F
 
 
 def _far_error(where: str, v: list[float], dist_m: float, frame: Frame) -> DocumentFieldError:
+    hint = "lat/lon swapped (GeoJSON order is [lon, lat]) or the wrong CRS?"
+    if frame.source_crs != WGS84:
+        hint = f"easting/northing swapped or not in {frame.source_crs}?"
+    elif abs(v[0]) <= 90:
+        swapped = float(great_circle_m(np.array([[v[1], v[0]]]), frame.origin)[0])
+        if swapped <= MAX_FRAME_RADIUS_M:
+            hint = (
+                f"lat/lon swapped? (read as [lat, lon] it lies {swapped / 1000:.1f} km from the"
+                " origin; GeoJSON order is [lon, lat])"
+            )
     return DocumentFieldError(
         where,
         f"{v[:2]} lies {dist_m / 1000:.0f} km from the frame origin {list(frame.origin[:2])}"
-        f" (limit {MAX_FRAME_RADIUS_M / 1000:g} km): lat/lon swapped (GeoJSON order is"
-        " [lon, lat]) or the wrong CRS?",
+        f" (limit {MAX_FRAME_RADIUS_M / 1000:g} km): {hint}",
+    )
+
+
+def _origin_error(frame: Frame, src: FloatArray, dist_m: FloatArray) -> DocumentFieldError:
+    """The error on ``frame.origin`` when no point of the document lies near it (checked
+    before any single point is blamed: one wrong origin is not every point's fault)."""
+    lo, hi = src.min(axis=0), src.max(axis=0)
+    centre = ((lo + hi) / 2).tolist()
+    o = list(frame.origin[:2])
+    what = (
+        f"no point of the document lies within {MAX_FRAME_RADIUS_M / 1000:g} km of it (the"
+        f" nearest {float(np.min(dist_m)) / 1000:.0f} km; the points lie around"
+        f" [{centre[0]:.6f}, {centre[1]:.6f}])"
+    )
+    if frame.source_crs == WGS84 and abs(o[0]) <= 90:
+        swapped = great_circle_m(src, (o[1], o[0], 0.0))
+        if float(np.median(swapped)) <= MAX_FRAME_RADIUS_M:
+            return DocumentFieldError(
+                "frame.origin",
+                f"[lon, lat] = {o}: {what}; read as [lat, lon] the origin lies"
+                " among them: lat/lon swapped? (GeoJSON order is [lon, lat])",
+            )
+    if frame.source_crs != WGS84:
+        return DocumentFieldError(
+            "frame.origin",
+            f"(at lon/lat {o}) {what}: the wrong origin, easting/northing swapped or the wrong"
+            " CRS?",
+        )
+    return DocumentFieldError(
+        "frame.origin", f"{o}: {what}: the wrong origin, lat/lon swapped or the wrong CRS?"
     )
 
 
 def _convert(frame: Frame, items: list[tuple[str, list[float]]]) -> FloatArray:
-    """Source x, y of each (field, point) → local x, y [N, 2]; a field whose point is no
-    position or lies beyond :data:`MAX_FRAME_RADIUS_M` is named in the error."""
+    """Source x, y of each (field, point) → local x, y [N, 2]. Checks in this order, so the
+    error names the field at fault: a point that is no [lon, lat] position (``swapped?`` when
+    it is one read as [lat, lon]); ``frame.origin`` when no point lies within
+    :data:`MAX_FRAME_RADIUS_M` of it; then the first point beyond that distance."""
     src = np.array([v[:2] for _, v in items], dtype=float)
     if frame.source_crs == WGS84:
         for where, v in items:
             lon, lat = v[0], v[1]
             if not (-180 <= lon <= 180 and -90 <= lat <= 90):
+                hint = (
+                    " – lat/lon swapped? (GeoJSON order is [lon, lat])"
+                    if abs(lon) <= 90 and abs(lat) <= 180
+                    else ""
+                )
                 raise DocumentFieldError(
                     where,
                     f"[{lon}, {lat}] is not [lon, lat] in degrees (lon within ±180, lat"
-                    " within ±90)",
+                    f" within ±90){hint}",
                 )
-        arc = _great_circle_m(src, frame.origin)
+        arc = great_circle_m(src, frame.origin)
+        if not np.any(arc <= MAX_FRAME_RADIUS_M):
+            raise _origin_error(frame, src, arc)
         far = arc > 2 * MAX_FRAME_RADIUS_M  # certainly too far: refused before projecting
         if np.any(far):
             k = int(np.argmax(far))
             raise _far_error(items[k][0], items[k][1], float(arc[k]), frame)
     try:
-        return frame.from_source(src)
+        xy = frame.from_source(src)
     except MissingExtraError:
         raise
     except Exception as exc:  # pyproj.exceptions.ProjError: a point the CRS cannot convert
         raise DocumentFieldError(
             "frame.crs", f"coordinates outside the area of {frame.source_crs} ({exc})"
         ) from None
+    dist = np.hypot(xy[:, 0], xy[:, 1])
+    if not np.any(dist <= MAX_FRAME_RADIUS_M):
+        raise _origin_error(frame, src, np.where(np.isfinite(dist), dist, np.inf))
+    return xy
+
+
+LICENSE_FIELDS = ("license", "attribution")
+"""Top-level fields of a document that name its data's licence and attribution (an import
+copies them from its input; the exports carry them); :func:`to_local` takes them off."""
+
+MAX_LICENSE_CHARS = 2000
+"""Longest ``license`` / ``attribution`` text."""
+
+
+def license_of_document(document: Any) -> dict[str, str]:
+    """The ``license`` / ``attribution`` of a document (only those present), or a
+    :class:`~ris_planner.errors.DocumentFieldError` naming the field when one is not a text."""
+    out: dict[str, str] = {}
+    if not isinstance(document, dict):
+        return out
+    for key in LICENSE_FIELDS:
+        value = document.get(key)
+        if value is None:
+            continue
+        if not isinstance(value, str) or len(value) > MAX_LICENSE_CHARS:
+            raise DocumentFieldError(
+                key, f"expected a text of at most {MAX_LICENSE_CHARS} characters, got {value!r:.80}"
+            )
+        out[key] = value
+    return out
 
 
 def to_local(document: Any) -> tuple[Any, Frame | None]:
     """(the document in local metres without ``frame``, its :class:`Frame`), or the document
     unchanged and ``None`` when it has no ``frame`` (or is no JSON object: the document model
-    then says what is wrong).
+    then says what is wrong). The top-level ``license`` and ``attribution``
+    (:data:`LICENSE_FIELDS`) are taken off too: they travel with the document as given to the
+    exports, not into the engine.
 
     The one boundary of geographic documents: ``ris-planner bounds/plan``, the service's
     routes that take a document (``POST /v1/bounds``, ``/v1/plans``, ``/v1/plans/validate``,
@@ -324,10 +409,15 @@ def to_local(document: Any) -> tuple[Any, Frame | None]:
     or roads); :class:`~ris_planner.io.MissingExtraError` without pyproj. A ``rectangle`` wall
     becomes its four segment walls (outward facing), since its sides are no longer axis-aligned.
     """
-    if not isinstance(document, dict) or "frame" not in document:
+    if not isinstance(document, dict) or not (set(document) & {"frame", *LICENSE_FIELDS}):
         return document, None
+    license_of_document(document)
+    if "frame" not in document:
+        return {k: v for k, v in document.items() if k not in LICENSE_FIELDS}, None
     frame = parse_frame(document["frame"], document)
-    doc = copy.deepcopy({k: v for k, v in document.items() if k != "frame"})
+    doc = copy.deepcopy(
+        {k: v for k, v in document.items() if k != "frame" and k not in LICENSE_FIELDS}
+    )
     for m in ("tx_map", "rx_map"):
         spec = doc.get(m)
         if isinstance(spec, dict):

@@ -4,8 +4,9 @@ jobs, so both write the same files for the same document.
 
 The document is converted once (:func:`~ris_planner.io.frames.to_local`), planned in local
 metres, and its ``plan.json`` gains ``"frame": {"origin": [lon, lat, h], "local_crs": proj4}``
-when it had a frame; ``plan.geojson`` / ``heatmap.tif`` / ``points.csv`` are written from the
-document as given (WGS84 with a frame, :func:`~ris_planner.io.export.plan_outputs`).
+when it had a frame, and the document's ``license`` / ``attribution``; ``plan.geojson`` /
+``heatmap.tif`` / ``points.csv`` are written from the document as given (WGS84 with a frame,
+:func:`~ris_planner.io.export.plan_outputs`, each carrying the licence).
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from ris_planner.io import MissingExtraError
-from ris_planner.io.frames import to_local
-from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.io.frames import license_of_document, to_local
+from ris_planner.progress import ProgressCallback, Stages, no_progress
 
 
 @dataclass(frozen=True)
@@ -40,21 +41,41 @@ def plan_document(
 ) -> PlanFiles:
     """Convert, plan (:func:`~ris_planner.planning.plan.run_plan` with ``executor``), write
     the figures and GIS files into ``out_dir``; ``plan.json`` itself is the caller's to write
-    (the command line writes it, a job stores it as its result)."""
-    from ris_planner.planning.plan import run_plan
+    (the command line writes it, a job stores it as its result).
+
+    Progress goes over the stages ``plan`` (the search: cache, search, checks, beams),
+    ``fields`` (every count's per-point bounds), ``report`` (plan.json), ``figures`` and
+    ``exports``, each with a share
+    proportional to its estimated work (:mod:`ris_planner.planning.work`); 1.0 only once the
+    files are written."""
+    from ris_planner.planning.plan import fill_fields, prepare_plan, run_plan
     from ris_planner.planning.report import write_figures
+    from ris_planner.planning.work import plan_work, report_work
 
     local, frame = to_local(document)
-    result = run_plan(local, progress, executor)
+    inputs = prepare_plan(local)
+    sweep = inputs.document.sweep
+    runs = 1 if sweep is None else 1 + len(sweep.values)
+    stages = Stages(
+        progress, {"plan": runs * sum(plan_work(inputs).values()), **report_work(inputs)}
+    )
+    on_plan = stages.callback("plan")
+    result = run_plan(local, on_plan, executor, inputs=None if sweep is not None else inputs)
+    fill_fields(result, stages.callback("fields"))
+    stages.callback("report")
     plan = result.to_json()
     if frame is not None:
         plan["frame"] = frame.describe()
+    plan.update(license_of_document(document))
+    stages.callback("figures")
     files = write_figures(result, out_dir)
     note = None
+    stages.callback("exports")
     try:
         from ris_planner.io.export import plan_outputs
 
         files.update(plan_outputs(result, plan, document, out_dir))
     except MissingExtraError as exc:
         note = str(exc)
+    stages.finish("done")
     return PlanFiles(plan, files, note)

@@ -29,6 +29,7 @@ from ris_planner.io.geojson_import import (
     osm_xml_features,
 )
 from ris_planner.io_json import parse_json_object
+from ris_planner.planning.physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 
 IMPORT_FORMATS = ("geojson", "osm", "sites", "dxf")
 """What :func:`import_data` reads."""
@@ -38,11 +39,14 @@ PLAN_DEFAULTS: dict[str, Any] = {
     "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
     "ris_count": [2, 3],
     "known": ["height"],
+    "ris": {"pattern_exponent": PLAN_PATTERN_EXPONENT, "max_angle_deg": PLAN_MAX_ANGLE_DEG},
 }
 """Fields of a plan document made by :func:`plan_from_import` (the planner's to edit): 1000
 sampled TX–RX pairs, coverage Pr(PEB_R ≤ 1 m), 2 and 3 RISs (one RIS leaves both UEs
 unlocated), UE heights known (street or
-floor level)."""
+floor level), and the plan's physical RIS element written out (the unit-cell pattern
+q = 1.5 and the 84.26° field of view of :mod:`ris_planner.planning.physics`, so the planner
+sees and may edit them; docs/concepts/planning-physics.md)."""
 
 MAX_DXF_GRID_POINTS = 10_000
 """A DXF plan's UE grid is coarsened (its step doubled) until it has at most this many points."""
@@ -59,6 +63,21 @@ def parse_origin(text: str | None) -> tuple[float, ...] | None:
     if len(vals) not in (2, 3) or not all(math.isfinite(v) for v in vals):
         raise RisPlannerError(f"origin {text!r}: expected LON,LAT[,H] finite numbers")
     return vals
+
+
+def collection_origin(collection: Any) -> tuple[float, ...] | None:
+    """The ``frame.origin`` a FeatureCollection carries as a top-level member (the candidate
+    files of ``ris-planner sites``: their azimuths are those of that frame), else ``None``."""
+    frame = collection.get("frame") if isinstance(collection, dict) else None
+    origin = frame.get("origin") if isinstance(frame, dict) else None
+    if (
+        isinstance(origin, list)
+        and len(origin) in (2, 3)
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in origin)
+        and all(math.isfinite(v) for v in origin)
+    ):
+        return tuple(float(v) for v in origin)
+    return None
 
 
 @dataclass
@@ -130,7 +149,9 @@ def import_data(
     ``geojson``: :func:`import_features`, and its Point features as mounting points
     (:func:`import_sites`: ``azimuth_deg`` and a height required), so one file can carry a
     whole site; ``sites``: :func:`import_sites`; ``osm``: :func:`osm_xml_features` then
-    :func:`import_features`; ``dxf``: :func:`import_dxf` with ``layers`` and ``units``."""
+    :func:`import_features`; ``dxf``: :func:`import_dxf` with ``layers`` and ``units``. Without
+    ``origin``, a GeoJSON collection's top-level ``frame`` (:func:`collection_origin`) gives it,
+    else the features' bounding-box centre."""
     opts = options or ImportOptions()
     if fmt == "dxf":
         return import_dxf(read_dxf(data, what), layers or {}, units)
@@ -142,6 +163,7 @@ def import_data(
         notes = osm_summary.notes
     else:
         collection = parse_json_object(data, what)
+        origin = origin if origin is not None else collection_origin(collection)
     if fmt == "sites":
         fragment, s = import_sites(collection, origin, opts)
         return fragment, s.to_json()
@@ -196,7 +218,7 @@ def plan_from_import(
     opts = options or ImportOptions()
     report = ImportReport(fmt, summary)
     doc: dict[str, Any] = {"description": f"Imported site ({fmt})"}
-    for key in ("frame", "environment", "candidates", "walls"):
+    for key in ("license", "attribution", "frame", "environment", "candidates", "walls"):
         if key in fragment:
             doc[key] = copy.deepcopy(fragment[key])
     ue = fragment.get("ue_map")

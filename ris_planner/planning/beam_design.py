@@ -163,14 +163,32 @@ def objective_on_pairs(
     """A plan objective of a layout by ``compute_bounds`` on pairs tx, rx [P, 3] with weights
     [P] (sum 1); with ``mirror`` each pair also counts reversed with half the weight (the
     reverse direction's PEB_R is the forward PEB_T, as the planning scorer counts it)."""
+    metric, w = metric_on_pairs(
+        scenario, tx, rx, weights, objective.metric, mirror, profiles, beam_powers
+    )
+    return float(objective_value(objective, metric[None, :], w)[0])
+
+
+def metric_on_pairs(
+    scenario: Scenario,
+    tx: FloatArray,
+    rx: FloatArray,
+    weights: FloatArray,
+    metric_name: str,
+    mirror: bool = False,
+    profiles: list[ComplexArray] | str | None = "codebook",
+    beam_powers: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """(metric [P] or [2P] with ``mirror``, its weights): the objective's bound per pair by
+    ``compute_bounds``, laid out as the planning scorer's (:attr:`Scorer.metric_weights`)."""
     res = compute_bounds(scenario, tx, rx, profiles=profiles, beam_powers=beam_powers)
-    metric = select_metric(objective.metric, res.peb_tx, res.peb_rx)
+    metric = select_metric(metric_name, res.peb_tx, res.peb_rx)
     w = weights
     if mirror:  # j → i: its PEB_R is the PEB_T of i → j (and vice versa)
         assert res.peb_tx is not None  # mirror needs an unknown TX (maps.unordered_directions)
-        metric = np.concatenate([metric, select_metric(objective.metric, res.peb_rx, res.peb_tx)])
+        metric = np.concatenate([metric, select_metric(metric_name, res.peb_rx, res.peb_tx)])
         w = np.concatenate([weights, weights]) / 2
-    return float(objective_value(objective, metric[None, :], w)[0])
+    return metric, w
 
 
 def layout_scenario(

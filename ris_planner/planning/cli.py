@@ -1,4 +1,8 @@
-"""``ris-planner plan FILE.json [--out DIR] [--scheduler ADDRESS]`` (or ``--preset NAME``)."""
+"""``ris-planner plan FILE.json [--out DIR] [--scheduler ADDRESS]`` (or ``--preset NAME``).
+
+A plan whose diagnosis is not ``ok`` prints a WARNING block on stderr and still exits 0;
+with ``--fail-on-useless`` a ``useless`` plan exits :data:`EXIT_USELESS` (3) after writing
+its files (docs/concepts/diagnosis.md)."""
 
 from __future__ import annotations
 
@@ -9,9 +13,19 @@ from pathlib import Path
 from ris_planner.cli import int_in
 from ris_planner.errors import RisPlannerError
 
+EXIT_USELESS = 3
+"""Exit status of ``ris-planner plan --fail-on-useless`` for a plan diagnosed ``useless``."""
+
+
+def rounded(value: float | None, digits: int = 3) -> str:
+    """A human-readable number: ``digits`` significant digits (``0.116``, not
+    ``0.11600000000000002``); ``None`` (an infinite value in plan.json) is ``inf``."""
+    return "inf" if value is None else f"{value:.{digits}g}"
+
 
 def _cmd_plan(args: argparse.Namespace) -> int:
     from ris_planner.io.geoplan import plan_document
+    from ris_planner.planning.diagnosis import summary_lines
     from ris_planner.planning.executor import DaskExecutor, Executor, LocalExecutor
     from ris_planner.planning.presets import load_plan_file, plan_preset
     from ris_planner.planning.report import write_plan_json
@@ -20,8 +34,12 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.preset is None):
         raise RisPlannerError("give exactly one of FILE or --preset NAME")
     doc = plan_preset(args.preset) if args.preset is not None else load_plan_file(args.file)
+    if args.nested:
+        doc = {**doc, "rollout": "nested"}
     if args.beams and doc.get("beams") is None:
         doc = {**doc, "beams": {}}  # the default beam settings (PlanDocument.beams)
+    if args.sizing and doc.get("sizing") is None:
+        doc = {**doc, "sizing": {}}  # the default ladder and target (PlanDocument.sizing)
     executor: Executor = (
         DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
     )
@@ -37,11 +55,20 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         print(f"wrote {p}", file=sys.stderr)
     for entry in plan["by_count"]:
         print(
-            f"{entry['ris_count']} RIS: sites {entry['sites']} objective {entry['objective']}"
+            f"{entry['ris_count']} RIS: sites {entry['sites']} objective"
+            f" {rounded(entry['objective'])}"
             f" ({entry['method']}, {entry['layouts_evaluated']}/{entry['layouts_total']} layouts)"
         )
     if "decision" in plan:
         print(f"decision: {plan['decision']['message']}")
+    if "sizing" in plan:
+        print(f"sizing: {plan['sizing']['message']}")
+    diagnosis = plan.get("diagnosis")
+    if diagnosis is not None:
+        for line in summary_lines(diagnosis):
+            print(line, file=sys.stderr)
+        if args.fail_on_useless and diagnosis["verdict"] == "useless":
+            return EXIT_USELESS
     return 0
 
 
@@ -66,5 +93,23 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="design DIR/DIR+DER beams from the UE maps and allocate power (γ_P, SDP) for the"
         " best layout of each count (the document's 'beams' settings, default ones if absent)",
+    )
+    p.add_argument(
+        "--sizing",
+        action="store_true",
+        help="also answer the smallest RIS size × count that reaches the target (the"
+        " document's 'sizing' settings, the default ladder 10×10 … 100×100 if absent)",
+    )
+    p.add_argument(
+        "--fail-on-useless",
+        action="store_true",
+        help=f"exit with status {EXIT_USELESS} when the plan is diagnosed useless (the files are"
+        " still written; default: a WARNING on stderr and status 0)",
+    )
+    p.add_argument(
+        "--nested",
+        action="store_true",
+        help="phased roll-out: each count's layout contains the previous count's (the"
+        " document's rollout = 'nested'; plan.json rollout gives the price of nesting)",
     )
     p.set_defaults(func=_cmd_plan)

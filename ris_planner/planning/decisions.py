@@ -97,7 +97,7 @@ def decision_json(
         minimal = proven and not smaller_missing
         msg = (
             f"{answer.ris_count} RIS{'s' if answer.ris_count > 1 else ''} meet the target"
-            f" ({obj.kind} {value:.6g}); "
+            f" ({obj.kind} {value:.3g}); "
             + (
                 "no smaller count can (certified)"
                 if minimal
@@ -124,7 +124,8 @@ def decision_json(
         " (certified)" if proven_all else " (not found by the search; not proven impossible)"
     )
     if best is not None:
-        msg += f"; best {obj.kind} {best_val} with {best.ris_count} RISs"
+        shown = "inf" if best_val is None else f"{best_val:.3g}"  # full precision in "objective"
+        msg += f"; best {obj.kind} {shown} with {best.ris_count} RISs"
     return {
         "target": target.model_dump(exclude_none=True),
         "mode": "target" if target_mode else "compare",

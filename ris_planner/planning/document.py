@@ -20,6 +20,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ris_planner.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS
 from ris_planner.obstacles import Environment, Prism
+from ris_planner.planning.physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 from ris_planner.power.options import Solver
 from ris_planner.scenario import (
     RIS,
@@ -323,7 +324,34 @@ class PlanCodebook(DocumentModel):
 
 class RISDefaults(RISGrid):
     """The element grid, field of view and pattern of every candidate RIS (the scenario
-    document's per-RIS fields of the same names, :class:`~ris_planner.scenario.RISGrid`)."""
+    document's per-RIS fields of the same names, :class:`~ris_planner.scenario.RISGrid`).
+
+    Unlike a scenario's (the paper's isotropic q = 0, 90°), ``pattern_exponent`` and
+    ``max_angle_deg`` default to a physical element: the unit-cell power pattern cos³ θ of
+    Tang et al. (IEEE TWC 2021) as the amplitude exponent q = 1.5, and a field of view of
+    84.26° (:mod:`ris_planner.planning.physics`, docs/concepts/planning-physics.md). A value
+    the document gives always wins (``model_fields_set`` tells them apart)."""
+
+    max_angle_deg: float = Field(
+        PLAN_MAX_ANGLE_DEG,
+        gt=0,
+        le=180,
+        allow_inf_nan=False,
+        description="Field of view: a UE is served only when the angle between the RIS normal"
+        " and the direction to the UE is strictly below this [deg]; default 84.26 (cos θ > 0.1:"
+        " the cos³ θ unit-cell pattern 30 dB below boresight); 90 = the paper's open front"
+        " half-space",
+    )
+    pattern_exponent: float = Field(
+        PLAN_PATTERN_EXPONENT,
+        ge=0,
+        le=100,
+        allow_inf_nan=False,
+        description="q of the element pattern: the path gain |ρ| is multiplied by"
+        " (cos θ_T · cos θ_R)^q, θ the angles to the normal; default 1.5 (the unit-cell power"
+        " pattern cos³ θ of Tang et al., IEEE TWC 2021, as an amplitude exponent); 0 = the"
+        " paper's isotropic model",
+    )
 
 
 # --- decisions: targets, constraints and cost (issue 14) -----------------------------------
@@ -451,6 +479,66 @@ class Sweep(DocumentModel):
         else:
             out["system"] = {**out.get("system", {}), self.parameter: value}
         return out
+
+
+DEFAULT_SIZING_LADDER = ((10, 10), (16, 16), (24, 24), (32, 32), (48, 48), (64, 64), (100, 100))
+"""The RIS element grids [rows, cols] the sizing question tries by default
+(docs/concepts/diagnosis.md): square grids from the import default (10 × 10) to 100 × 100."""
+
+SIZING_COVERAGE_TARGET = 0.9
+"""The default sizing target of a coverage objective without ``objective.target``: 90 % of the
+pair weight with a bound ≤ threshold_m (docs/concepts/diagnosis.md)."""
+
+
+class SizingTarget(DocumentModel):
+    """The objective value the sizing question must reach: coverage ≥ it (a fraction), a
+    bound in metres (mean_capped, quantile) ≤ it."""
+
+    objective: float = Field(gt=0, allow_inf_nan=False, description="Objective value to reach")
+
+
+class Sizing(DocumentModel):
+    """The sizing question: the smallest RIS size × count that reaches the target
+    (docs/concepts/diagnosis.md). Each size runs the plan once more over the same candidates
+    and pairs (the ``sweep`` machinery over ``ris_size``)."""
+
+    ris_sizes: list[Annotated[list[int], Field(min_length=2, max_length=2)]] = Field(
+        default_factory=lambda: [list(s) for s in DEFAULT_SIZING_LADDER],
+        min_length=1,
+        max_length=MAX_SWEEP_VALUES,
+        description="RIS element grids [rows, cols] to try (each 1–512); default 10×10, 16×16,"
+        " 24×24, 32×32, 48×48, 64×64, 100×100",
+    )
+    counts: list[int] | None = Field(
+        None,
+        min_length=1,
+        max_length=16,
+        description="RIS counts to try (default: the document's ris_count, else 1 … max_ris"
+        " stopping at the first count that reaches the target)",
+    )
+    target: SizingTarget | None = Field(
+        None,
+        description="What to reach (default: objective.target, else coverage ≥ 0.9; a"
+        " mean_capped or quantile objective without objective.target needs it)",
+    )
+
+    @field_validator("ris_sizes")
+    @classmethod
+    def _check_sizes(cls, v: list[list[int]]) -> list[list[int]]:
+        for rc in v:
+            if not all(1 <= x <= 512 for x in rc):
+                raise ValueError(f"sizing.ris_sizes {rc}: rows and cols must be 1–512")
+        # ascending element count (then rows), duplicates dropped
+        return [list(t) for t in sorted({tuple(rc) for rc in v}, key=lambda t: (t[0] * t[1], t))]
+
+    @field_validator("counts")
+    @classmethod
+    def _check_counts(cls, v: list[int] | None) -> list[int] | None:
+        if v is None:
+            return v
+        if any(not 1 <= c <= 16 for c in v) or len(set(v)) != len(v):
+            raise ValueError(f"sizing.counts must be distinct counts 1–16, got {v}")
+        return sorted(v)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -627,6 +715,11 @@ class PlanDocument(DocumentModel):
     sweep: Sweep | None = Field(
         None, description="Run the plan again for each value of one parameter (one table)"
     )
+    sizing: Sizing | None = Field(
+        None,
+        description="Also answer the smallest RIS size × count that reaches a target"
+        " (plan.json 'sizing'; docs/concepts/diagnosis.md)",
+    )
     codebook: PlanCodebook = Field(
         default_factory=PlanCodebook, description="Codebook (expected_random, unitless)"
     )
@@ -634,6 +727,12 @@ class PlanDocument(DocumentModel):
         default_factory=list, description="Known state parts: clock, height, tx"
     )
     search: SearchSpec = Field(default_factory=SearchSpec, description="Placement search")
+    rollout: Literal["free", "nested"] = Field(
+        "free",
+        description="free: every RIS count's best layout on its own; nested: a phased"
+        " roll-out, each count's layout contains the previous count's (plan.json rollout:"
+        " nested layouts and the price of nesting; docs/guides/rollout.md)",
+    )
     beams: BeamsSpec | None = Field(
         None,
         description="Design beams from the UE maps and allocate power for the recommended"
@@ -698,13 +797,39 @@ class PlanDocument(DocumentModel):
                 f"constraints.require names {len(self.constraints.require)} candidates, more"
                 f" than the largest RIS count {self.max_counts[-1]}"
             )
-        for c in self.max_counts:
+        if self.sizing is not None:
+            self.sizing_target()  # a target exists
+        sizing_counts = [] if self.sizing is None else list(self.sizing.counts or [])
+        for c in self.max_counts + sizing_counts:
             if c + 1 > self.system.transmissions:
                 raise ValueError(
                     f"ris_count {c} needs at least L+1 = {c + 1} transmissions (G ="
                     f" {self.system.transmissions})"
                 )
         return self
+
+    def sizing_target(self) -> Target:
+        """The target of the sizing question: ``sizing.target``, else ``objective.target``,
+        else coverage ≥ :data:`SIZING_COVERAGE_TARGET` (a ValueError naming ``sizing.target``
+        for a mean_capped or quantile objective without one)."""
+        obj = self.objective
+        given = None if self.sizing is None else self.sizing.target
+        if given is not None:
+            if obj.kind == "coverage":
+                if given.objective > 1:
+                    raise ValueError(
+                        f"sizing.target.objective {given.objective} is a coverage fraction ≤ 1"
+                    )
+                return Target(min=given.objective)
+            return Target(max=given.objective)
+        if obj.target is not None:
+            return obj.target
+        if obj.kind == "coverage":
+            return Target(min=SIZING_COVERAGE_TARGET)
+        raise ValueError(
+            f"sizing.target: a {obj.kind} objective without objective.target needs"
+            " sizing.target {'objective': bound in metres}"
+        )
 
     @property
     def target_mode(self) -> bool:

@@ -31,6 +31,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from ris_planner import allocator
+
 S = TypeVar("S")
 C = TypeVar("C")
 R = TypeVar("R")
@@ -286,6 +288,7 @@ _WORKER_SHARED: dict[str, Any] = {}
 
 
 def _init_worker(shared: Any) -> None:
+    allocator.tune_worker()
     _WORKER_SHARED["shared"] = shared
 
 
@@ -295,6 +298,7 @@ def _run_task(fn: Callable[[Any, Any], Any], chunk: Any) -> Any:
 
 def _warm_worker(modules: tuple[str, ...]) -> None:
     """Pool initializer of the sharing pool: import the task modules now."""
+    allocator.tune_worker()
     for name in modules:
         importlib.import_module(name)
 

@@ -32,7 +32,7 @@ from ris_planner.planning.branch_bound import (
 from ris_planner.planning.certificates import Certificate, relaxation_certificate
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
-from ris_planner.planning.document import Objective, PlanDocument
+from ris_planner.planning.document import Objective, PlanDocument, Sweep
 from ris_planner.planning.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.planning.finalists import exact_certificate, rescore_finalists
 from ris_planner.planning.maps import (
@@ -49,7 +49,9 @@ from ris_planner.planning.objectives import (
     select_metric,
     weighted_quantile,
 )
+from ris_planner.planning.physics import physics_json
 from ris_planner.planning.points import heatmap_json, points_json
+from ris_planner.planning.rollout import plan_rollout
 from ris_planner.planning.search import MIN_TASK_MATRICES, Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.sites import Site, candidate_json, expand_sites
@@ -59,7 +61,9 @@ from ris_planner.planning.visibility import (
     pair_visibility,
     serve_warnings,
 )
-from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.planning.work import plan_work, search_layouts
+from ris_planner.progress import ProgressCallback, Stages, no_progress
+from ris_planner.provenance import provenance
 from ris_planner.scenario import RandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
@@ -166,6 +170,12 @@ class PlanResult:
     feasibility: Feasibility | None = None
     infeasible_counts: tuple[int, ...] = ()
     sweep: dict[str, Any] | None = None
+    sizing: dict[str, Any] | None = None
+    """The sizing question's answer (:func:`ris_planner.planning.sizing.run_sizing`)."""
+    diagnosis: dict[str, Any] | None = None
+    """Whether the plan is useful, and why not (:func:`ris_planner.planning.diagnosis.diagnose`)."""
+    rollout: dict[str, Any] | None = None
+    """plan.json ``rollout`` (:func:`~ris_planner.planning.rollout.plan_rollout`)."""
 
     @property
     def cache(self) -> SiteCache:
@@ -362,6 +372,7 @@ class PlanResult:
             "tx_points": len(self.tx_map.points),
             "rx_points": len(self.rx_map.points),
             "known": list(doc.known),
+            "physics": physics_json(doc),
             "points": points_json(self),
             "heatmap": heatmap_json(self),
             "timing_s": self.timing,
@@ -372,7 +383,9 @@ class PlanResult:
             },
             "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
+            **({"rollout": self.rollout} if self.rollout is not None else {}),
             **self._decision_json(),
+            "provenance": provenance(doc),
         }
 
     # --- decisions (issue 14): certificates, ties, targets, cost ------------------------------
@@ -456,6 +469,10 @@ class PlanResult:
         }
         if self.sweep is not None:
             out["sweep"] = self.sweep
+        if self.sizing is not None:
+            out["sizing"] = self.sizing
+        if self.diagnosis is not None:
+            out["diagnosis"] = self.diagnosis
         if obj.target is not None:
             answers = [
                 CountAnswer(
@@ -514,11 +531,14 @@ def validate_document(document: PlanDocument | dict[str, Any]) -> PlanDocument:
     return validate_plan(document)
 
 
-def prepare_plan(document: PlanDocument | dict[str, Any]) -> PlanInputs:
+def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False) -> PlanInputs:
     """Validate a plan document, expand its sites and maps, build its pairs and check every limit
     that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
-    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound."""
-    doc = validate_document(document)
+    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound. ``checked``:
+    the document's sizes were checked already (:func:`plan_once`)."""
+    doc = (
+        document if checked and isinstance(document, PlanDocument) else validate_document(document)
+    )
     # the fields of view apply in free space too (an empty scene); obstacles where given
     scene = Scene.from_environment(doc.environment)
     sites = expand_sites(doc)
@@ -557,24 +577,60 @@ def run_plan(
     document: PlanDocument | dict[str, Any],
     progress: ProgressCallback = no_progress,
     executor: Executor | None = None,
+    inputs: PlanInputs | None = None,
 ) -> PlanResult:
     """Run a plan document: build maps and pairs, cache every site's information, search each
-    RIS count, rank. ``executor`` defaults to a local process pool (closed afterwards)."""
+    RIS count, rank; then the sizing question (``document.sizing``) and the diagnosis
+    (:mod:`ris_planner.planning.diagnosis`). ``executor`` defaults to a local process pool
+    (closed afterwards); ``inputs``: the document's :func:`prepare_plan` when the caller has it
+    already. Progress goes over the stages of :func:`~ris_planner.planning.work.plan_work` by
+    their estimated work, 1.0 at the end."""
+    from ris_planner.planning.diagnosis import diagnose
+    from ris_planner.planning.sizing import run_sizing, sizing_runs
+
     doc = validate_document(document)
-    if doc.sweep is not None:
-        return _run_sweep(doc, progress, executor)
-    t0 = time.perf_counter()
-    inputs = prepare_plan(doc)
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
     try:
-        if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
-            # the workers start (and import) while this process builds the site cache
-            ex.start()
-        return _plan_with(doc, progress, ex, inputs, t0)
+        n_runs = 1 + sizing_runs(doc)
+        main = progress if n_runs == 1 else lambda f, m: progress(f / n_runs, m)
+        result = (
+            _run_sweep(doc, main, ex)
+            if doc.sweep is not None
+            else plan_once(doc, main, ex, inputs=inputs)
+        )
+        if doc.sizing is not None:
+            result.sizing = run_sizing(
+                doc, lambda f, m: progress((1 + f * (n_runs - 1)) / n_runs, m), ex
+            )
+        result.diagnosis = diagnose(result)
+        return result
     finally:
         if own:
             ex.close()
+
+
+def plan_once(
+    document: PlanDocument | dict[str, Any],
+    progress: ProgressCallback,
+    ex: Executor,
+    checked: bool = False,
+    inputs: PlanInputs | None = None,
+) -> PlanResult:
+    """One plan run on an executor (no sweep, no sizing, no diagnosis): the base of
+    :func:`run_plan`, and each run of a sweep and of the sizing question. ``checked``: a
+    validated document whose sizes its parent document already checked (a sweep or sizing run:
+    :func:`ris_planner.limits.plan_runs`; it draws no heatmap, so the heatmap's memory does
+    not apply)."""
+    doc = (
+        document if checked and isinstance(document, PlanDocument) else validate_document(document)
+    )
+    t0 = time.perf_counter()
+    inputs = prepare_plan(doc, checked=checked) if inputs is None else inputs
+    if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
+        # the workers start (and import) while this process builds the site cache
+        ex.start()
+    return _plan_with(doc, progress, ex, inputs, t0)
 
 
 def needs_workers(inputs: PlanInputs, max_exhaustive: int, workers: int) -> bool:
@@ -598,7 +654,8 @@ def _plan_with(
     sites, tx_map, rx_map, pairs = inputs.sites, inputs.tx_map, inputs.rx_map, inputs.pairs
     scene, dropped, directions = inputs.scene, inputs.dropped, inputs.directions
     wanted, feasibility = inputs.counts, inputs.feasibility
-    progress(0.0, "caching site information")
+    stages = Stages(progress, plan_work(inputs))
+    on_cache = stages.callback("cache")
     t_vis = time.perf_counter()
     visibility = pair_visibility(scene, sites, pairs, doc.system.los)
     warnings = serve_warnings(sites, visibility.present, pairs.weights)
@@ -607,7 +664,7 @@ def _plan_with(
         doc.system,
         sites,
         pairs,
-        lambda f, m: progress(0.2 * f, f"cache: {m}"),
+        on_cache,
         visibility,
         known=tuple(doc.known),
         layout=cache_layout(len(sites) * pairs.size, doc.system.wavefront),
@@ -617,9 +674,9 @@ def _plan_with(
         cache, pairs.weights, doc.objective, tuple(doc.known), mirror=directions == "mirror"
     )
     counts: list[CountResult] = []
-    # search effort ∝ number of layouts (exhaustive) – used only for the progress fractions
-    effort = [min(math.comb(len(sites), c), doc.search.max_exhaustive) for c in wanted]
-    share = 0.75 if doc.beams is None else 0.7  # of the progress bar
+    # search effort ∝ the layouts each count evaluates – used only for the progress fractions
+    effort = [search_layouts(inputs, c) for c in wanted]
+    on_search = stages.callback("search")
     done = 0.0
     infeasible: list[int] = []
     t_bnb = 0.0
@@ -628,7 +685,7 @@ def _plan_with(
         base = done
 
         def on_fraction(f: float, base: float = base, e: float = e, c: int = c) -> None:
-            progress(0.2 + share * (base + f * e) / sum(effort), f"search L={c}")
+            on_search((base + f * e) / sum(effort), f"L={c}")
 
         # the best layouts of the smaller counts seed the greedy search
         seeds = tuple(cr.ranked[0][0] for cr in counts)
@@ -702,6 +759,7 @@ def _plan_with(
     tasks: list[PlanCheck] = [("certificate", (c, feasibility, iterations)) for _, c in deferred]
     tasks += [("codebook", t) for job in jobs for t in job]
     on = ex if ex.started and not ex.site_blocks else SerialExecutor()
+    stages.callback("checks")(0.0, f"{len(deferred)} relaxation bounds, {len(tasks)} tasks")
     values = on.map(plan_check_task, scorer, tasks)
     for (i, _), bound in zip(deferred, values[: len(deferred)], strict=True):
         assert isinstance(bound, Certificate)
@@ -712,12 +770,20 @@ def _plan_with(
         cr.random_codebook = random_codebook_summary(
             codebook[i * n : (i + 1) * n], len(jobs[i][0][1])
         )
+    t_checks = time.perf_counter() - t1
+    t_roll = time.perf_counter()
+    stages.callback("rollout")(0.0, doc.rollout)
+    free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
+    searched = sum(cr.outcome.evaluated for cr in counts) * pairs.size
+    rollout = plan_rollout(doc.rollout, scorer, feasibility, free, doc.search, pairs.size, searched)
+    t_roll = time.perf_counter() - t_roll
     timing = {
         "cache": t_cache,
         "search": t_search,
         "branch_and_bound": t_bnb,
         "visibility": t_vis,
-        "checks": time.perf_counter() - t1,
+        "checks": t_checks,
+        "rollout": t_roll,
     }
     result = PlanResult(
         doc,
@@ -733,13 +799,25 @@ def _plan_with(
         site_warnings=warnings,
         feasibility=feasibility,
         infeasible_counts=tuple(infeasible),
+        rollout=rollout,
     )
     if doc.beams is not None:
         t1 = time.perf_counter()
-        result.beams = plan_beams(result, lambda f, m: progress(0.9 + 0.1 * f, m))
+        result.beams = plan_beams(result, stages.callback("beams"))
         timing["beams"] = time.perf_counter() - t1
-    progress(1.0, "done")
+    stages.finish("done")
     return result
+
+
+def fill_fields(result: PlanResult, progress: ProgressCallback = no_progress) -> None:
+    """Compute every count's per-point bounds (:meth:`PlanResult.rx_field` of its best layout:
+    the heatmap and ``points`` of plan.json) with progress per count, so that
+    :meth:`PlanResult.to_json` finds them cached."""
+    layouts = list(dict.fromkeys(cr.ranked[0][0] for cr in result.counts))
+    for i, layout in enumerate(layouts):
+        progress(i / len(layouts), f"per-point bounds of {len(layout)} RISs")
+        result.rx_field(layout)
+    progress(1.0, "per-point bounds")
 
 
 def bnb_certificate(bnb: BranchBoundOutcome) -> Certificate:
@@ -772,38 +850,38 @@ def plan_check_task(scorer: Scorer, task: PlanCheck) -> Certificate | float:
     return objective_task(None, args)
 
 
-def _run_sweep(
-    doc: PlanDocument, progress: ProgressCallback, executor: Executor | None
-) -> PlanResult:
+def _run_sweep(doc: PlanDocument, progress: ProgressCallback, ex: Executor) -> PlanResult:
     """The base plan (the document's own values) and one more plan per sweep value over the
     same candidates and pairs; ``result.sweep`` holds one table of every run's counts."""
     assert doc.sweep is not None
     sweep = doc.sweep
     raw = doc.model_dump(mode="json")
-    own = executor is None
-    ex = LocalExecutor() if executor is None else executor
     n_runs = 1 + len(sweep.values)
-    try:
-        base_raw = {k: v for k, v in raw.items() if k != "sweep"}
-        base = run_plan(base_raw, lambda f, m: progress(f / n_runs, f"base: {m}"), ex)
-        if sweep.parameter == "ris_size":
-            base_value: Any = [doc.ris.rows, doc.ris.cols]
-        else:
-            base_value = getattr(doc.system, sweep.parameter)
-        rows = [dict(r, base=True) for r in base.summary_rows(base_value)]
-        for i, value in enumerate(sweep.values, start=1):
+    base_raw = {k: v for k, v in raw.items() if k not in ("sweep", "sizing")}
+    base = plan_once(base_raw, lambda f, m: progress(f / n_runs, f"base: {m}"), ex)
+    if sweep.parameter == "ris_size":
+        base_value: Any = [doc.ris.rows, doc.ris.cols]
+    else:
+        base_value = getattr(doc.system, sweep.parameter)
+    rows = [dict(r, base=True) for r in base.summary_rows(base_value)]
+    for i, value in enumerate(sweep.values, start=1):
 
-            def sub_progress(f: float, m: str, i: int = i, value: Any = value) -> None:
-                progress((i + f) / n_runs, f"{sweep.parameter}={value}: {m}")
+        def sub_progress(f: float, m: str, i: int = i, value: Any = value) -> None:
+            progress((i + f) / n_runs, f"{sweep.parameter}={value}: {m}")
 
-            sub = run_plan(sweep.apply(raw, value), sub_progress, ex)
-            rows += [dict(r, base=False) for r in sub.summary_rows(value)]
-    finally:
-        if own:
-            ex.close()
+        rows += [dict(r, base=False) for r in sweep_rows(base_raw, sweep, value, sub_progress, ex)]
     base.document = doc
     base.sweep = {"parameter": sweep.parameter, "values": sweep.values, "table": rows}
     return base
+
+
+def sweep_rows(
+    raw: dict[str, Any], sweep: Sweep, value: Any, progress: ProgressCallback, ex: Executor
+) -> list[dict[str, Any]]:
+    """The :meth:`PlanResult.summary_rows` of one sweep run: the plan document ``raw`` (a JSON
+    dict) with the sweep's parameter set to ``value`` (:meth:`Sweep.apply`)."""
+    sub = PlanDocument.model_validate(sweep.apply(raw, value))
+    return plan_once(sub, progress, ex, checked=True).summary_rows(value)
 
 
 def _drop_points(

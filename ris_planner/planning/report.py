@@ -3,7 +3,9 @@
 The top view and the heatmap draw the environment's obstacles (prisms as filled footprints,
 walls as thick lines); the heatmap is a raster over the RX map (cells of about the map's point
 spacing, each showing the worst bound of the RX points in it, blank where no point is or inside
-a prism, red where the layout is blind)."""
+a prism) on a diverging scale centred on the objective's level (green at or below it, red
+above, purple where the layout is blind), with a colour bar in metres and a legend
+(docs/concepts/diagnosis.md)."""
 
 from __future__ import annotations
 
@@ -20,6 +22,9 @@ from ris_planner.obstacles import Environment, Prism
 from ris_planner.planning.plan import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")
+SIZING_FIGURE = "sizing"
+"""Written besides :data:`FIGURE_NAMES` when the plan answers the sizing question: objective
+vs RIS size, one line per RIS count, the target line."""
 SWEEP_FIGURE = "sweep"
 """Written besides :data:`FIGURE_NAMES` when the plan has a sweep: objective vs RIS count,
 one line per sweep value."""
@@ -217,42 +222,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     plt.close(fig)
 
     # heatmap of the bound over the RX map for the best layout of the largest count
-    pts, vals, lay = result.heatmap()
-    fig, ax = plt.subplots(figsize=(7, 6))
-    from matplotlib.colors import LogNorm
-
-    x_edges, y_edges, grid, empty = raster(pts, vals, result.scene)
-    finite = np.isfinite(grid) & ~empty
-    if np.any(finite):
-        lo, hi = float(grid[finite].min()), float(grid[finite].max())
-        cmap = plt.get_cmap("viridis").with_extremes(over="red")
-        shown = np.ma.masked_array(np.where(np.isinf(grid), hi * 10, grid), mask=empty)
-        mesh = ax.pcolormesh(
-            x_edges,
-            y_edges,
-            shown,
-            cmap=cmap,
-            norm=LogNorm(vmin=lo, vmax=max(hi, lo * 1.01)),
-            shading="flat",
-            zorder=0,
-        )
-        fig.colorbar(mesh, ax=ax, label=f"{label} [m] (red: blind spot)", extend="max", shrink=0.8)
-    elif np.any(np.isinf(grid) & ~empty):
-        blind = np.ma.masked_array(np.ones_like(grid), mask=empty | ~np.isinf(grid))
-        ax.pcolormesh(x_edges, y_edges, blind, cmap="autumn", shading="flat", zorder=0)
-    draw_obstacles(ax, env)
-    for s in lay:
-        p = result.sites[s].ris.position
-        ax.scatter(p[0], p[1], marker="s", c="k", s=50, zorder=5)
-        ax.annotate(str(s), (p[0], p[1]), xytext=(4, 4), textcoords="offset points", fontsize=7)
-    tx_txt = "fixed TX" if result.document.heatmap_tx is not None else "weighted median over TX map"
-    ax.set_title(f"{label} over the RX map\nbest {len(lay)}-RIS layout, {tx_txt}", fontsize=10)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    fig.tight_layout()
-    fig.savefig(paths["heatmap"], dpi=110)
-    plt.close(fig)
+    write_heatmap(result, paths["heatmap"])
 
     # weighted CDFs of the bound per RIS count (best layout of each)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
@@ -283,7 +253,157 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     plt.close(fig)
     if result.beams:
         paths["beams"] = write_beams_figure(result, out_dir / "beams.png")
+    if result.sizing is not None:
+        paths[SIZING_FIGURE] = write_sizing_figure(result, out_dir / f"{SIZING_FIGURE}.png")
     return paths
+
+
+BLIND_COLOUR = "#5b2a86"
+"""Heatmap cells where the layout is blind (no finite bound): a colour outside the diverging
+scale, named in the legend."""
+
+
+def heatmap_level(result: PlanResult, finite: FloatArray) -> float:
+    """The bound [m] the heatmap's diverging scale is centred on: the objective's reference
+    level (threshold, cap, quantile target: :func:`ris_planner.planning.diagnosis.
+    reference_level`), else the geometric mean of the finite values shown."""
+    from ris_planner.planning.diagnosis import reference_level
+
+    level = reference_level(result.document.objective)
+    if np.isfinite(level):
+        return float(level)
+    return float(np.exp(np.mean(np.log(finite)))) if finite.size else 1.0
+
+
+def write_heatmap(result: PlanResult, path: Path) -> Path:
+    """The bound over the RX map for the best layout of the largest count: a raster with a
+    diverging colour scale centred (in log) on the objective's level – green at or below it,
+    red above – blind cells in :data:`BLIND_COLOUR`, a colour bar in metres, and a legend of
+    the obstacles, the candidates and the layout's sites. No UE markers are drawn over the
+    cells (the raster itself shows every point's value)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.patches import Patch
+    from matplotlib.ticker import FuncFormatter
+
+    label = _metric_label(result)
+    pts, vals, lay = result.heatmap()
+    fig, ax = plt.subplots(figsize=(8.5, 6))
+    x_edges, y_edges, grid, empty = raster(pts, vals, result.scene)
+    finite = np.isfinite(grid) & ~empty
+    blind = np.isinf(grid) & ~empty
+    level = heatmap_level(result, grid[finite])
+    zc = float(np.log10(level))
+    z = np.log10(np.where(finite, grid, level))
+    zlo = min(float(z[finite].min()) if np.any(finite) else zc, zc - 0.5)
+    zhi = max(float(z[finite].max()) if np.any(finite) else zc, zc + 0.5)
+    cmap = plt.get_cmap("RdYlGn_r").with_extremes(over=BLIND_COLOUR)
+    shown = np.ma.masked_array(np.where(blind, zhi + 1.0, z), mask=empty)
+    mesh = ax.pcolormesh(
+        x_edges,
+        y_edges,
+        shown,
+        cmap=cmap,
+        norm=TwoSlopeNorm(vcenter=zc, vmin=zlo, vmax=zhi),
+        shading="flat",
+        zorder=0,
+    )
+    bar = fig.colorbar(mesh, ax=ax, extend="max", shrink=0.85, pad=0.02)
+    bar.set_label(f"{label} [m] (log scale; centre = {level:.3g} m)")
+    bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{10**v:.3g}"))
+    bar.ax.axhline(zc, color="k", lw=1.2)
+    draw_obstacles(ax, result.document.environment)
+    pos = np.array([s.ris.position for s in result.sites])
+    ax.scatter(
+        pos[:, 0],
+        pos[:, 1],
+        marker="s",
+        s=14,
+        facecolors="none",
+        edgecolors="0.35",
+        linewidths=0.6,
+        zorder=4,
+        label="candidate sites",
+    )
+    for j, s in enumerate(lay):
+        p = result.sites[s].ris.position
+        ax.scatter(
+            p[0],
+            p[1],
+            marker="s",
+            c="k",
+            s=50,
+            zorder=5,
+            label=f"chosen sites ({len(lay)} RIS)" if j == 0 else None,
+        )
+        ax.annotate(str(s), (p[0], p[1]), xytext=(4, 4), textcoords="offset points", fontsize=7)
+    handles, _ = ax.get_legend_handles_labels()
+    handles.append(Patch(color=BLIND_COLOUR, label="blind (no finite bound)"))
+    handles.append(Patch(color=cmap(0.2), label=f"≤ {level:.3g} m"))
+    handles.append(Patch(color=cmap(0.8), label=f"> {level:.3g} m"))
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.1), ncol=3)
+    tx_txt = "fixed TX" if result.document.heatmap_tx is not None else "weighted median over TX map"
+    title = f"{label} over the RX map\nbest {len(lay)}-RIS layout, {tx_txt}"
+    diagnosis = result.diagnosis
+    if diagnosis is not None and diagnosis["verdict"] != "ok":
+        title += (
+            f"\n{diagnosis['verdict'].upper()}: serves"
+            f" {100 * diagnosis['served_fraction']:.1f} % of the pair weight"
+        )
+    ax.set_title(title, fontsize=10)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_sizing_figure(result: PlanResult, path: Path) -> Path:
+    """The sizing question: objective vs RIS size (elements per RIS, log axis, ticks
+    rows×cols), one line per RIS count, the target as a dotted line and the answer ringed."""
+    import matplotlib.pyplot as plt
+
+    assert result.sizing is not None
+    sizing = result.sizing
+    obj = result.document.objective
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    table = sizing["table"]
+    for count in sorted({r["count"] for r in table}):
+        rows = [r for r in table if r["count"] == count]
+        xs = [r["rows"] * r["cols"] for r in rows]
+        ys = [np.nan if r["objective"] is None else r["objective"] for r in rows]
+        ax.plot(xs, ys, "-o", label=f"{count} RIS")
+    ticks = sorted({(r["rows"], r["cols"]) for r in table}, key=lambda t: t[0] * t[1])
+    ax.set_xscale("log")
+    ax.set_xticks([a * b for a, b in ticks])
+    ax.set_xticklabels([f"{a}×{b}" for a, b in ticks], fontsize=7, rotation=30)
+    ax.minorticks_off()
+    ax.axhline(sizing["target"]["objective"], color="k", lw=0.8, ls=":", label="target")
+    answer = sizing["answer"]
+    if answer is not None:
+        ax.scatter(
+            [answer["rows"] * answer["cols"]],
+            [answer["objective"]],
+            s=180,
+            facecolors="none",
+            edgecolors="k",
+            linewidths=1.5,
+            zorder=5,
+            label=f"answer: {answer['count']} × {answer['rows']}×{answer['cols']}",
+        )
+    ax.set_xlabel("RIS size (elements per RIS)")
+    ax.set_ylabel(
+        f"{obj.kind} of {_metric_label(result)}" + ("" if obj.kind == "coverage" else " [m]")
+    )
+    ax.set_title("Sizing: best layout per RIS size and count", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 BEAM_CURVES = (

@@ -93,6 +93,7 @@ class PowerResult:
     sdp: SdpResult
     sdp_objective: float | None
     beams: int
+    provenance: dict[str, str] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """What ``ris-planner power FILE.json`` prints."""
@@ -124,6 +125,7 @@ class PowerResult:
             "uniform": _entry(self.uniform_objective),
             "gamma_p": gamma,
             "sdp": sdp,
+            **({"provenance": self.provenance} if self.provenance is not None else {}),
         }
 
 
@@ -135,6 +137,7 @@ def run_power(
     solver: str = "CLARABEL",
 ) -> PowerResult:
     """Uniform power, the best γ_P (DIR+DER only) and the SDP allocation for a scenario."""
+    from ris_planner.provenance import provenance
     from ris_planner.validation import validate_power
 
     sc = validate_power(scenario, objective)  # the CLI's and the service's checks, sizes first
@@ -174,4 +177,4 @@ def run_power(
     sdp = solve_power_sdp(info, objective, solver=solver)
     sdp_obj = None if sdp.powers is None else evaluate(sdp.powers)
     progress(1.0, f"SDP {sdp.status}")
-    return PowerResult(objective, tx, rx, uniform, gamma, sdp, sdp_obj, g_tilde)
+    return PowerResult(objective, tx, rx, uniform, gamma, sdp, sdp_obj, g_tilde, provenance(sc))
