@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -39,7 +40,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("out"))
     parser.add_argument("--points", type=int, default=201, help="grid points per axis")
+    parser.add_argument(
+        "--smoke",
+        action="store_true",
+        help="tiny sizes, output in a temporary folder (seconds; tests/test_examples.py)",
+    )
     args = parser.parse_args()
+    if args.smoke:
+        args.out, args.points = Path(tempfile.mkdtemp(prefix="ris-smoke-")), 21
     args.out.mkdir(parents=True, exist_ok=True)
     sc = load_scenario(preset_document("paper-table1") | {"tx": TX_FIGURE})
     ris, lam = sc.ris[0], sc.system.wavelength

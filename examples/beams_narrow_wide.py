@@ -25,10 +25,20 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--positions", type=int, default=32)
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument(
+        "--smoke", action="store_true", help="one objective, the narrow maps, 4 positions"
+    )
     args = ap.parse_args()
+    objectives: tuple[dict[str, object], ...] = OBJECTIVES
+    maps: tuple[tuple[str, dict[str, Any], dict[str, Any]], ...] = (
+        ("narrow", NARROW_TX, NARROW_RX),
+        ("wide", WIDE, WIDE),
+    )
+    if args.smoke:
+        args.positions, args.seeds, objectives, maps = 4, 1, OBJECTIVES[:1], maps[:1]
     base = plan_preset("fig10-anchors")
-    for obj in OBJECTIVES:
-        for name, tx_map, rx_map in (("narrow", NARROW_TX, NARROW_RX), ("wide", WIDE, WIDE)):
+    for obj in objectives:
+        for name, tx_map, rx_map in maps:
             doc: dict[str, Any] = {k: base[k] for k in ("system", "ris", "candidates")}
             doc |= {
                 "tx_map": tx_map,

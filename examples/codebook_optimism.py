@@ -27,7 +27,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--pairs", type=int, default=200)
     ap.add_argument("--layout", default="2-ris-L")
+    ap.add_argument("--smoke", action="store_true", help="2 seeds, 20 pairs, G/Γ ≤ 4")
     args = ap.parse_args()
+    blocks: tuple[int, ...] = BLOCKS
+    if args.smoke:
+        args.seeds, args.pairs, blocks = 2, 20, BLOCKS[:3]
     tx, rx = fig10_pairs()
     pick = np.random.default_rng(0).choice(len(tx), args.pairs, replace=False)
     tx, rx = tx[pick], rx[pick]
@@ -37,7 +41,7 @@ def main() -> None:
     print(f"{args.layout}: Γ = {gamma}, {args.pairs} pairs, {args.seeds} seeds")
     print("G/Γ   G    median ratio   p90 ratio")
     first_ok = None
-    for g_tilde in BLOCKS:
+    for g_tilde in blocks:
         system = base["system"] | {"transmissions": gamma * g_tilde}
         exp = compute_bounds(
             load_scenario(base | {"system": system, "codebook": {"kind": "expected_random"}}),

@@ -40,7 +40,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--layouts", type=int, default=100)
     ap.add_argument("--sample", type=int, default=20000)
+    ap.add_argument("--smoke", action="store_true", help="5 layouts, 500 sampled pairs")
     args = ap.parse_args()
+    if args.smoke:
+        args.layouts, args.sample = 5, 500
     doc = PlanDocument.model_validate(square_plan())
     sites = expand_sites(doc)
     pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**5)

@@ -150,7 +150,10 @@ def rx_scan(seed_mean: np.ndarray) -> tuple[float, list[float], np.ndarray]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=100)
-    n = ap.parse_args().seeds
+    ap.add_argument("--smoke", action="store_true", help="2 seeds per row (variants: 2)")
+    args = ap.parse_args()
+    n = 2 if args.smoke else args.seeds
+    variant_seeds = n if args.smoke else max(10, n // 5)
     print(f"paper (one realisation)    T {PAPER[0]:.4f}   R {PAPER[1]:.4f}   CEB {PAPER[2]:.4f}")
     base = base_document()
     ours = over_seeds(base, n)
@@ -161,7 +164,7 @@ def main() -> None:
     for name, change in MODEL_VARIANTS.items():
         doc = base_document()
         change(doc)
-        row(name, over_seeds(doc, max(10, n // 5)))
+        row(name, over_seeds(doc, variant_seeds))
     miss, offset, v = rx_scan(ours.mean(axis=0))
     print(f"closest RX offset {offset}: T {v[0]:.4f} R {v[1]:.4f} CEB {v[2]:.4f}", end=" ")
     print(f"(max miss {miss:.1%})")

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -115,7 +116,15 @@ def main() -> None:
         "--prior-offset", action="store_true", help="prior mean = truth + σ·z, not the truth"
     )
     parser.add_argument("--der-samples", type=int, default=None, help="DIR+DER prior samples")
+    parser.add_argument(
+        "--smoke",
+        action="store_true",
+        help="tiny sizes, output in a temporary folder (seconds; tests/test_examples.py)",
+    )
     args = parser.parse_args()
+    points = None  # every σ / γ_P of the paper's curves
+    if args.smoke:
+        args.out, args.draws, points = Path(tempfile.mkdtemp(prefix="ris-smoke-")), 1, 1
     global PRIOR_OFFSET, DER_SAMPLES
     PRIOR_OFFSET, DER_SAMPLES = args.prior_offset, args.der_samples
     args.out.mkdir(parents=True, exist_ok=True)
@@ -124,7 +133,7 @@ def main() -> None:
     t0 = time.perf_counter()
     colors = dict(zip(FIG5_CURVES, ["k", "b", "r", "c", "g", "m"], strict=True))
     for curve in FIG5_CURVES:
-        sigmas, paper = paper_curve("fig5", curve)
+        sigmas, paper = (a[:points] for a in paper_curve("fig5", curve))
         ours = np.array([fig5_value(curve, s, args.draws) for s in sigmas])
         rows += [["fig5", curve, s, o, p] for s, o, p in zip(sigmas, ours, paper, strict=True)]
         ax5.loglog(sigmas, ours, "-o", color=colors[curve], ms=3, label=f"{curve} (ours)")
@@ -137,7 +146,7 @@ def main() -> None:
         )
     colors6 = dict(zip(FIG6_CURVES, ["b", "r", "m", "orange", "c"], strict=True))
     for curve, (sigma, size) in FIG6_CURVES.items():
-        gammas, paper = paper_curve("fig6", curve)
+        gammas, paper = (a[:points] for a in paper_curve("fig6", curve))
         ours = np.array(
             [
                 np.mean(

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -68,9 +69,18 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("out/helsinki"))
     ap.add_argument("--pairs", type=int, default=1500)
+    ap.add_argument(
+        "--smoke",
+        action="store_true",
+        help="tiny sizes, output in a temporary folder (seconds; tests/test_examples.py)",
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
+    if args.smoke:
+        args.out, args.pairs = Path(tempfile.mkdtemp(prefix="ris-smoke-")), 100
     doc, environment = helsinki_document(args.pairs)
+    if args.smoke:  # 2 RISs of 16×16 on 100 pairs
+        doc |= {"ris": {"rows": 16, "cols": 16}, "ris_count": [2]}
     export_doc = {**doc, "environment": environment}  # buildings in the GIS files either way
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "helsinki_plan.json").write_text(json.dumps(doc, indent=1))

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import tempfile
 import time
 from pathlib import Path
 
@@ -37,9 +38,18 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("out/junction"))
     ap.add_argument("--workers", type=int, default=None, help="local worker processes")
     ap.add_argument("--check-greedy", action="store_true")
+    ap.add_argument(
+        "--smoke",
+        action="store_true",
+        help="tiny sizes, output in a temporary folder (seconds; tests/test_examples.py)",
+    )
     args = ap.parse_args()
-    args.out.mkdir(parents=True, exist_ok=True)
     doc = plan_preset("junction")
+    if args.smoke:  # 1–2 RISs of 8×8 on 200 sampled pairs, in this process
+        args.out, args.workers = Path(tempfile.mkdtemp(prefix="ris-smoke-")), 1
+        doc |= {"ris": {"rows": 8, "cols": 8}, "pairs": {"sample": 200, "seed": 0}}
+        doc |= {"ris_count": [1, 2]}
+    args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "junction.json").write_text(json.dumps(doc, indent=1))
     t0 = time.perf_counter()
     with LocalExecutor(args.workers) as ex:

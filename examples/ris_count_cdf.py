@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import tempfile
 import time
 from pathlib import Path
 
@@ -31,9 +32,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("out"))
     parser.add_argument("--seed", type=int, default=0, help="random codebook seed")
+    parser.add_argument(
+        "--smoke",
+        action="store_true",
+        help="tiny sizes, output in a temporary folder (seconds; tests/test_examples.py)",
+    )
     args = parser.parse_args()
-    args.out.mkdir(parents=True, exist_ok=True)
     tx, rx = fig10_pairs()
+    if args.smoke:  # 200 of the 4753 pairs
+        args.out, tx, rx = Path(tempfile.mkdtemp(prefix="ris-smoke-")), tx[::24], rx[::24]
+    args.out.mkdir(parents=True, exist_ok=True)
     rows: list[list[object]] = []
     results: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for curve in FIG10_CURVES:

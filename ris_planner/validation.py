@@ -15,7 +15,9 @@ from ris_planner.limits import (
     check_sizes,
     estimate_plan,
     estimate_power,
+    explain_plan_memory,
     job_memory_mb,
+    largest_plan_shape,
     plan_sites,
 )
 from ris_planner.planning.document import PlanDocument
@@ -47,7 +49,13 @@ def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
             f"ris_count {max(doc.ris_count)} exceeds the {sites} candidate sites",
         )
     sizes = estimate_plan(doc)
-    check_sizes(sizes, max_pairs=doc.max_pairs, memory_mb=_budget(memory_mb))
+    shape = largest_plan_shape(doc)
+    check_sizes(
+        sizes,
+        max_pairs=doc.max_pairs,
+        memory_mb=_budget(memory_mb),
+        explain=lambda budget: explain_plan_memory(shape, budget),
+    )
     return sizes
 
 

@@ -210,3 +210,112 @@ def test_extreme_relative_weights_give_finite_normalised_pair_weights() -> None:
         # a pair's weight ∝ w_T·w_R: the (0, 1) pair weighs twice the (0, 2) pair
         w = dict(zip(zip(pairs.tx_index, pairs.rx_index, strict=True), pairs.weights, strict=True))
         assert math.isclose(w[(0, 1)], 2 * w[(0, 2)], rel_tol=1e-12)
+
+
+# --- the memory estimate against measured peaks, and the refusal's advice -------------------
+
+
+def test_smoke_estimates_cover_the_measured_peak_within_twice() -> None:
+    """benchmarks/bench_memory.py --smoke: each tiny plan run in a fresh process (plan, figures,
+    GIS files, as a job); 1 ≤ estimate / peak RSS ≤ 2 (docs/validation/resources.md)."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
+    from bench_memory import SMOKE, run_case
+
+    for case in SMOKE:
+        got = run_case(case, timeout=120)
+        assert got["peak"] <= got["estimate"] <= 2 * got["peak"], (case.name, got)
+
+
+def _refusal(doc: dict[str, Any], budget_mb: int) -> str:
+    from ris_planner.errors import LimitExceededError
+    from ris_planner.validation import validate_plan
+
+    with pytest.raises(LimitExceededError) as exc:
+        validate_plan(doc, memory_mb=budget_mb)
+    return str(exc.value)
+
+
+def _fits(doc: dict[str, Any], budget_mb: int) -> bool:
+    from ris_planner.errors import LimitExceededError
+    from ris_planner.validation import validate_plan
+
+    try:
+        validate_plan(doc, memory_mb=budget_mb)
+    except LimitExceededError:
+        return False
+    return True
+
+
+def _number(text: str, before: str) -> int:
+    return int(text.split(before)[1].split(" (")[0].split(";")[0].replace(" ", ""))
+
+
+CACHE_DOC = small_plan_doc(candidates=ring(52), pairs={"sample": 20000, "seed": 1}, max_pairs=20000)
+"""52 candidates × 20 000 pairs: a 390 MiB site cache dominates the estimate."""
+
+
+def test_the_refusal_names_the_site_cache_and_the_largest_pair_count_that_fits() -> None:
+    budget = 700
+    msg = _refusal(CACHE_DOC, budget)
+    assert "above the job memory budget of 700 MiB" in msg
+    assert "dominated by the site cache (52 sites × 20 000 pairs)" in msg
+    best = _number(msg, "the largest pair count that fits is ")
+    assert 0 < best < 20000
+    # the advice is exact: that many pairs pass the same check, one more does not
+    fit = CACHE_DOC | {"pairs": {"sample": best, "seed": 1}}
+    assert _fits(fit, budget)
+    assert not _fits(CACHE_DOC | {"pairs": {"sample": best + 1, "seed": 1}}, budget)
+
+
+def test_the_refusal_names_the_ris_size_that_fits_for_spherical_element_arrays() -> None:
+    doc = small_plan_doc(system={"wavefront": "spherical"}, ris={"rows": 100, "cols": 100})
+    budget = 800
+    msg = _refusal(doc, budget)
+    assert "dominated by the per-element arrays (100 × 100 elements per RIS, spherical" in msg
+    side = int(msg.split("the largest RIS that fits is ")[1].split(" × ")[0])
+    assert 1 <= side < 100 and msg.rstrip().endswith(f"{side} × {side}")
+    assert _fits(doc | {"ris": {"rows": side, "cols": side}}, budget)
+    assert not _fits(doc | {"ris": {"rows": side + 1, "cols": side + 1}}, budget)
+
+
+def test_the_users_64x64_plan_of_52_sites_fits_the_default_budget() -> None:
+    """The plan the old estimate refused (50 256 MiB for 64×64 RISs, 52 sites × 1000 pairs):
+    about 1.2 GiB now, its measured peak 0.75–1 GB (docs/validation/resources.md)."""
+    doc = small_plan_doc(
+        candidates=ring(52), ris={"rows": 64, "cols": 64}, pairs={"sample": 1000, "seed": 1}
+    )
+    sizes = estimate_plan(PlanDocument.model_validate(doc))
+    assert sizes.memory_bytes < 2 << 30 and _fits(doc, 6144)
+
+
+def test_cli_and_service_refuse_with_the_advice(tmp_path: Path, monkeypatch: Any) -> None:
+    from ris_planner.cli import main
+
+    src = tmp_path / "plan.json"
+    src.write_text(json.dumps(CACHE_DOC))
+    monkeypatch.setenv("RIS_PLANNER_JOB_MEMORY_MB", "700")
+    import io
+    from contextlib import redirect_stderr
+
+    err = io.StringIO()
+    with redirect_stderr(err):
+        code = main(["plan", str(src), "--out", str(tmp_path / "out")])
+    text = err.getvalue()
+    assert code == 2 and "Traceback" not in text and text.count("\n") == 1, text
+    assert "dominated by the site cache" in text and "largest pair count that fits" in text
+    with api_client(tmp_path, workers=1, job_memory_mb=700) as client:
+        r = client.post("/v1/plans", json=CACHE_DOC)
+        assert r.status_code == 413, r.text
+        body = r.json()
+        assert body["limit"] == 700 and "largest pair count that fits is" in body["message"]
+        assert client.get("/v1/jobs").json()["total"] == 0
+
+
+def test_a_ris_size_sweep_is_estimated_at_its_largest_run() -> None:
+    """The sweep's and the sizing question's runs are sequential: the memory is the largest
+    run's (here the spherical per-element arrays of the swept 100 × 100 RIS)."""
+    base = small_plan_doc(system={"wavefront": "spherical"})
+    swept = estimate_plan(PlanDocument.model_validate(base | {"sweep": {"ris_size": [[100, 100]]}}))
+    big = estimate_plan(PlanDocument.model_validate(base | {"ris": {"rows": 100, "cols": 100}}))
+    small = estimate_plan(PlanDocument.model_validate(base))
+    assert swept.memory_bytes == big.memory_bytes > small.memory_bytes
