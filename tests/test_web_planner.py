@@ -406,3 +406,44 @@ def test_generate_candidates_from_the_site(
         f"Valid: {n} candidate sites", timeout=WAIT_MS
     )
     shots.take(pg, "planner-06-generated")
+
+
+def test_real_osm_cut_through_the_page(
+    page: tuple[Page, Console], server: str, shots: Shots
+) -> None:
+    """The real-site chain of tests/test_real_site_e2e.py through the page: upload the OSM cut,
+    generate candidates with the page's defaults, plan with the import's defaults (a 200-pair
+    sample and 60 candidates for the test's time), read the diagnosis; no candidate and no
+    scored UE point inside a building, the licence in the export."""
+    from test_real_site_e2e import LICENSE, MAX_CANDIDATES, PAIRS, SITE, check_plan
+
+    pg, console = page
+    console.allow(r"status of 422")  # validation before the candidates are placed
+    open_planner(pg, server)
+    pg.set_input_files("#upload-geojson", str(SITE))
+    expect(pg.locator("#import-table")).to_be_visible(timeout=WAIT_MS)
+    report = pg.locator("#import-report")
+    expect(report.locator("tr", has_text="Buildings").first).to_contain_text("45")
+    pg.click("#generate")
+    expect(pg.locator("#cand-summary")).to_contain_text("Generated", timeout=WAIT_MS)
+    n = pg.evaluate("window.risPlanner.state.cands.length")
+    assert n > 0
+    # keep the first MAX_CANDIDATES (the test's time), as a planner prunes a long list
+    pg.evaluate(f"window.risPlanner.state.cands.splice({MAX_CANDIDATES})")
+    pg.select_option("#f-pairs-mode", "sample")
+    pg.fill("#f-pairs-sample", str(PAIRS))
+    pg.click("#validate")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        f"{min(n, MAX_CANDIDATES)} candidate sites, {PAIRS} TX–RX pairs", timeout=WAIT_MS
+    )
+    pg.click("#submit")
+    expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=JOB_WAIT_MS)
+    expect(pg.locator("#diagnosis")).to_be_visible(timeout=WAIT_MS)
+    shots.take(pg, "planner-07-real-osm-cut")
+    job_id = pg.evaluate("window.risPlanner.state.job.id")
+    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    assert view["status"] == "succeeded", view["error"]
+    check_plan(view["request"], view["result"])
+    geo = httpx.get(server + view["figures"]["geojson"]).json()
+    assert geo["license"] == LICENSE
+    assert console.unexpected() == []
