@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import hmac
-
 from fastapi import HTTPException, Request, Security
 from fastapi.security import APIKeyHeader
 
+from api.auth import ANONYMOUS, KeyRing, Principal
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore
 from api.worker import JobRunner
@@ -14,7 +13,8 @@ from api.worker import JobRunner
 api_key_header = APIKeyHeader(
     name=API_KEY_HEADER,
     auto_error=False,
-    description="API key; required on every /v1 route when the server sets RIS_PLANNER_API_KEY",
+    description="API key; required on every /v1 route when the server has keys"
+    " (RIS_PLANNER_API_KEY, RIS_PLANNER_API_KEYS, RIS_PLANNER_API_KEYS_FILE)",
 )
 
 
@@ -33,14 +33,18 @@ def get_runner(request: Request) -> JobRunner:
     return runner
 
 
+def get_principal(request: Request) -> Principal:
+    """Who sent the request (set by :class:`api.errors.ApiKeyMiddleware`); without keys
+    :data:`api.auth.ANONYMOUS`, which sees every job."""
+    principal: Principal | None = getattr(request.state, "principal", None)
+    return ANONYMOUS if principal is None else principal
+
+
 def require_api_key(request: Request, key: str | None = Security(api_key_header)) -> None:
-    """401 unless no key is configured or the header matches it (constant-time comparison)."""
-    expected = get_settings(request).api_key
-    if expected is None:
-        return
-    if key is None or not hmac.compare_digest(
-        key.encode("utf-8"), expected.get_secret_value().encode("utf-8")
-    ):
+    """401 unless no key is configured or the middleware accepted the request's key (the
+    middleware answers first; this dependency declares the key in the OpenAPI document)."""
+    keys: KeyRing = request.app.state.keys
+    if keys.enabled and getattr(request.state, "principal", None) is None:
         raise HTTPException(
             401,
             f"missing or wrong API key: send it in the {API_KEY_HEADER} header",

@@ -17,8 +17,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import models_json_schema
 
-from api.errors import MalformedBodyError
-from ris_planner.errors import RisPlannerError
+from api.limits import prescan_document
 from ris_planner.io.candidates import CandidateOptions
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io_json import parse_json
@@ -100,15 +99,15 @@ def install_document_schemas(app: FastAPI) -> None:
 
 def json_document(body: bytes) -> Any:
     """The JSON value of a request body: 422 ``body: Field required`` when empty, 400 when it is
-    not JSON (the shapes FastAPI gives a declared body)."""
+    not JSON (the shapes FastAPI gives a declared body), 413 when a list exceeds its limit
+    (:func:`api.limits.prescan_document`, before validation)."""
     if not body.strip():
         raise RequestValidationError(
             [{"type": "missing", "loc": ("body",), "msg": "Field required"}]
         )
-    try:
-        return parse_json(body, "request body")
-    except RisPlannerError as exc:
-        raise MalformedBodyError(str(exc)) from None
+    value = parse_json(body, "request body")  # MalformedJsonError → 400, too many digits → 413
+    prescan_document(value)  # list sizes → 413 before any model validation
+    return value
 
 
 def local_plan(document: Any, memory_mb: int) -> tuple[PlanDocument, Frame | None]:

@@ -198,4 +198,5 @@ async def post_import(
         answer = ImportAnswer(document=document, fragment=fragment, report=report.to_json())
         return answer.model_dump(mode="json")
 
-    return JSONResponse(await anyio.to_thread.run_sync(run))
+    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
+    return JSONResponse(await anyio.to_thread.run_sync(run, limiter=limiter))
