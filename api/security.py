@@ -22,9 +22,9 @@ def docs_csp(script_hashes: list[str]) -> str:
     """The policy of ``/docs`` and ``/redoc``: scripts from this origin plus the page's one
     inline start-up script (by its SHA-256), inline styles (both UIs set them), workers from
     blob: (ReDoc), nothing from elsewhere – they run offline from ``static/vendor``."""
-    hashes = " ".join(f"'sha256-{h}'" for h in script_hashes)
+    scripts = " ".join(["'self'", *(f"'sha256-{h}'" for h in script_hashes)])
     return (
-        f"default-src 'self'; script-src 'self' {hashes}; style-src 'self' 'unsafe-inline';"
+        f"default-src 'self'; script-src {scripts}; style-src 'self' 'unsafe-inline';"
         " img-src 'self' data: blob:; font-src 'self' data:; worker-src 'self' blob:;"
         " connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
     )
