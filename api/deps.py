@@ -1,4 +1,8 @@
-"""Request dependencies: the app's settings, store and runner, and the API-key check."""
+"""Request dependencies: the app's settings, store and runner, and the API-key check.
+
+All are ``async``: they only read the application's state, and FastAPI would otherwise run
+each in the thread pool – a thread hand-off per dependency and request, which under load
+queues behind request work (``/healthz`` among them)."""
 
 from __future__ import annotations
 
@@ -18,29 +22,29 @@ api_key_header = APIKeyHeader(
 )
 
 
-def get_settings(request: Request) -> Settings:
+async def get_settings(request: Request) -> Settings:
     settings: Settings = request.app.state.settings
     return settings
 
 
-def get_store(request: Request) -> JobStore:
+async def get_store(request: Request) -> JobStore:
     store: JobStore = request.app.state.store
     return store
 
 
-def get_runner(request: Request) -> JobRunner:
+async def get_runner(request: Request) -> JobRunner:
     runner: JobRunner = request.app.state.runner
     return runner
 
 
-def get_principal(request: Request) -> Principal:
+async def get_principal(request: Request) -> Principal:
     """Who sent the request (set by :class:`api.errors.ApiKeyMiddleware`); without keys
     :data:`api.auth.ANONYMOUS`, which sees every job."""
     principal: Principal | None = getattr(request.state, "principal", None)
     return ANONYMOUS if principal is None else principal
 
 
-def require_api_key(request: Request, key: str | None = Security(api_key_header)) -> None:
+async def require_api_key(request: Request, key: str | None = Security(api_key_header)) -> None:
     """401 unless no key is configured or the middleware accepted the request's key (the
     middleware answers first; this dependency declares the key in the OpenAPI document)."""
     keys: KeyRing = request.app.state.keys

@@ -374,13 +374,15 @@ class JobRunner:
         return existed
 
     def running(self) -> int:
-        with self._lock:
-            return sum(p.is_alive() for p in self._procs.values())
+        """Worker processes alive now. Lock-free (a snapshot of the process table): the
+        dispatcher holds the lock while it starts a process, which can take seconds, and
+        ``/healthz`` must not wait for it."""
+        return sum(p.is_alive() for p in list(self._procs.values()))
 
     def worker_pids(self) -> list[int]:
-        """Pids of the running worker processes."""
-        with self._lock:
-            return [p.pid for p in self._procs.values() if p.pid is not None and p.is_alive()]
+        """Pids of the running worker processes (lock-free, as :meth:`running`)."""
+        procs = list(self._procs.values())
+        return [p.pid for p in procs if p.pid is not None and p.is_alive()]
 
     def health(self) -> str | None:
         """None when healthy, else why the service is degraded now: a dispatcher cycle that
