@@ -7,6 +7,8 @@ queues behind request work (``/healthz`` among them)."""
 from __future__ import annotations
 
 from fastapi import HTTPException, Request, Security
+from fastapi.dependencies.models import Dependant
+from fastapi.exceptions import RequestValidationError
 from fastapi.security import APIKeyHeader
 
 from api.auth import ANONYMOUS, KeyRing, Principal
@@ -54,3 +56,39 @@ async def require_api_key(request: Request, key: str | None = Security(api_key_h
             f"missing or wrong API key: send it in the {API_KEY_HEADER} header",
             headers={"WWW-Authenticate": "ApiKey"},
         )
+
+
+async def reject_unknown_query(request: Request) -> None:
+    """422 for a query parameter the route does not declare (a misspelt ``limt=5`` would
+    otherwise be ignored silently; the OpenAPI document lists every parameter)."""
+    if not request.query_params:
+        return
+    route = request.scope.get("route")
+    dependant = getattr(route, "dependant", None)
+    if dependant is None:
+        return
+    known = _query_names(dependant)
+    unknown = sorted(set(request.query_params) - known)
+    if unknown:
+        raise RequestValidationError(
+            [
+                {
+                    "type": "extra_forbidden",
+                    "loc": ("query", name),
+                    "msg": "unknown query parameter"
+                    + (f" (this route takes: {', '.join(sorted(known))})" if known else ""),
+                }
+                for name in unknown
+            ]
+        )
+
+
+def _query_names(dependant: Dependant) -> set[str]:
+    """The query parameter names of a route and of its (sub-)dependencies."""
+    names: set[str] = set()
+    todo = [dependant]
+    while todo:
+        d = todo.pop()
+        names.update(p.alias for p in d.query_params)
+        todo.extend(d.dependencies)
+    return names

@@ -27,6 +27,7 @@ import uuid
 from collections.abc import Sequence
 from typing import Any
 
+import anyio
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
@@ -184,9 +185,18 @@ RETRY_AFTER_S = 5
 
 
 async def _on_validation(request: Request, exc: Exception) -> JSONResponse:
-    """Request bodies (FastAPI) and documents validated later (pydantic) alike."""
+    """Request bodies (FastAPI) and documents validated later (pydantic) alike. The error list
+    of a large invalid document (one error per bad item: tens of thousands) is built in a
+    worker thread, never on the event loop."""
     assert isinstance(exc, RequestValidationError | ValidationError)
-    errors = exc.errors()
+    return await anyio.to_thread.run_sync(_validation_answer, exc)
+
+
+def _validation_answer(exc: RequestValidationError | ValidationError) -> JSONResponse:
+    if isinstance(exc, ValidationError):
+        errors: Sequence[Any] = exc.errors(include_url=False, include_input=False)
+    else:
+        errors = exc.errors()
     bad_json = [e for e in errors if e.get("type") == "json_invalid"]
     if bad_json:  # text that is not JSON: a malformed request, not an invalid document
         detail = bad_json[0].get("ctx", {}).get("error", "JSON decode error")

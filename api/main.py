@@ -15,7 +15,7 @@ from fastapi import Depends, FastAPI
 from threadpoolctl import threadpool_limits
 
 from api.auth import KeyRing
-from api.deps import require_api_key
+from api.deps import reject_unknown_query, require_api_key
 from api.documents import install_document_schemas
 from api.errors import (
     V1_ERROR_RESPONSES,
@@ -103,7 +103,7 @@ def create_app(
     app.add_middleware(SecurityHeadersMiddleware, store_wait_s=settings.request_store_wait_s)
     app.include_router(meta.health_router)
     web.install_web(app)
-    v1 = [Depends(require_api_key)]
+    v1 = [Depends(require_api_key), Depends(reject_unknown_query)]
     routers = (
         web.router,
         bounds.router,

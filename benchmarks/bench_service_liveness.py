@@ -122,7 +122,7 @@ def concurrent_posts(path: str, bodies: list[bytes], workers: int) -> Callable[[
 
 def prism_doc(n: int) -> bytes:
     doc = small_plan_doc()
-    prism = {"kind": "prism", "footprint": [[50, 50], [51, 50], [51, 51]], "height": 3}
+    prism = {"kind": "prism", "footprint": [[50, 50], [51, 50], [51, 51]], "height_m": 3}
     doc["environment"] = {"obstacles": [prism] * n}
     return json.dumps(doc).encode()
 
@@ -176,7 +176,7 @@ def event_streams(n: int, seconds: float) -> Callable[[str], Counter[int]]:
     return load
 
 
-def measure(smoke: bool) -> list[dict[str, Any]]:
+def measure(smoke: bool, only: str | None = None) -> list[dict[str, Any]]:
     """Every load against one server; the figures."""
     n_plans, n_prisms, n_vertices, n_streams = (
         (30, 20_000, 40_000, 20) if smoke else (300, 100_001, 400_000, 100)
@@ -206,6 +206,8 @@ def measure(smoke: bool) -> list[dict[str, Any]]:
             (f"{n_streams} event streams", event_streams(n_streams, 3.0 if smoke else 10.0)),
         ]
         for name, load in loads:
+            if only is not None and only not in name:
+                continue
             results.append(run_load(url, name, load))
     return results
 
@@ -214,8 +216,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--smoke", action="store_true", help="small loads (the test suite's)")
     parser.add_argument("--json", type=Path, help="write the figures here")
+    parser.add_argument("--only", help="run only the loads whose name contains this text")
     args = parser.parse_args()
-    results = measure(args.smoke)
+    results = measure(args.smoke, args.only)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
 
