@@ -6,6 +6,7 @@ runner (start-up recovery, worker processes) are created in the application's li
 
 from __future__ import annotations
 
+import sys
 from collections.abc import AsyncIterator, Mapping
 from contextlib import asynccontextmanager
 from importlib.metadata import version
@@ -44,6 +45,10 @@ the job database does not answer within a bound, every route answers 503 with `R
 """
 
 
+GIL_SWITCH_S = 0.001
+"""The interpreter's thread switch interval while the service runs (default 5 ms)."""
+
+
 def create_app(
     settings: Settings | None = None, kinds: Mapping[str, JobFunction] | None = None
 ) -> FastAPI:
@@ -56,6 +61,10 @@ def create_app(
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
         allocator.tune_malloc()  # the service's entry point (ris_planner.allocator)
+        # a thread validating a large document hands the GIL over every 1 ms instead of 5 ms:
+        # the event loop and /healthz wait less behind it (docs/guides/service-operations.md)
+        switch = sys.getswitchinterval()
+        sys.setswitchinterval(GIL_SWITCH_S)
         with server_lock(current.db):  # refuses a second server on this database file
             store = JobStore(
                 current.db,
@@ -83,6 +92,7 @@ def create_app(
             finally:
                 runner.stop()
                 blas.restore_original_limits()
+                sys.setswitchinterval(switch)
 
     app = FastAPI(
         title="ris_planner",

@@ -186,29 +186,34 @@ def measure(smoke: bool, only: str | None = None) -> list[dict[str, Any]]:
     with tempfile.TemporaryDirectory() as tmp, served(Path(tmp) / "jobs.db", env=env) as server:
         url = server.url
         plan = json.dumps(small_plan_doc()).encode()
-        loads: list[tuple[str, Callable[[str], Counter[int]]]] = [
+        loads: list[tuple[str, Callable[[], Callable[[str], Counter[int]]]]] = [
             (
                 f"{n_plans} concurrent plan submissions",
-                concurrent_posts("/v1/plans", [plan] * n_plans, n_plans),
+                lambda: concurrent_posts("/v1/plans", [plan] * n_plans, n_plans),
             ),
             (
                 f"plan with {n_prisms} prisms",
-                concurrent_posts("/v1/plans", [prism_doc(n_prisms)], 1),
+                lambda: concurrent_posts("/v1/plans", [prism_doc(n_prisms)], 1),
             ),
             (
-                f"plan with {n_prisms // 2} prisms",
-                concurrent_posts("/v1/plans/validate", [prism_doc(n_prisms // 2)], 1),
+                f"validation of {n_prisms // 2} prisms",
+                lambda: concurrent_posts("/v1/plans/validate", [prism_doc(n_prisms // 2)], 1),
             ),
             (
                 f"import of {n_vertices} vertices",
-                concurrent_posts("/v1/import?format=geojson", [geojson_buildings(n_vertices)], 1),
+                lambda: concurrent_posts(
+                    "/v1/import?format=geojson", [geojson_buildings(n_vertices)], 1
+                ),
             ),
-            (f"{n_streams} event streams", event_streams(n_streams, 3.0 if smoke else 10.0)),
+            (
+                f"{n_streams} event streams",
+                lambda: event_streams(n_streams, 3.0 if smoke else 10.0),
+            ),
         ]
-        for name, load in loads:
+        for name, make in loads:
             if only is not None and only not in name:
                 continue
-            results.append(run_load(url, name, load))
+            results.append(run_load(url, name, make()))
     return results
 
 

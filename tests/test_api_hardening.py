@@ -253,3 +253,14 @@ def test_delete_of_a_running_job_cancels_and_removes_it(tmp_path: Path) -> None:
         assert httpx.get(f"{url}/v1/jobs/{job}", timeout=10).status_code == 404
         assert httpx.get(f"{url}/v1/jobs", timeout=10).json()["total"] == 0
         assert not (Path(f"{db}.data") / job).exists()
+
+
+def test_healthz_answers_under_load() -> None:
+    """A bounded version of ``benchmarks/bench_service_liveness.py``: 30 concurrent plan
+    submissions and 20 open event streams; ``/healthz`` p99 below 0.5 s during each."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from bench_service_liveness import measure
+
+    for figures in measure(smoke=True, only="concurrent") + measure(smoke=True, only="streams"):
+        assert set(figures["health_statuses"]) == {200}, figures
+        assert figures["p99_s"] < 0.5, figures
