@@ -222,7 +222,22 @@ def main() -> None:
     parser.add_argument("--smoke", action="store_true", help="small loads (the test suite's)")
     parser.add_argument("--json", type=Path, help="write the figures here")
     parser.add_argument("--only", help="run only the loads whose name contains this text")
+    parser.add_argument(
+        "--parse-times", action="store_true", help="only time json.loads of the large bodies"
+    )
     args = parser.parse_args()
+    if args.parse_times:
+        bodies = {
+            "20 000 prisms": prism_doc(20_000),
+            "100 001 prisms": prism_doc(100_001),
+            "400 000 vertices": geojson_buildings(400_000),
+        }
+        for name, body in bodies.items():
+            t0 = time.perf_counter()
+            json.loads(body)
+            took = time.perf_counter() - t0
+            print(f"json.loads of {name}: {len(body) / 1e6:.1f} MB in {took:.2f} s")
+        return
     results = measure(args.smoke, args.only)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
