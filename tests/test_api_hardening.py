@@ -264,3 +264,22 @@ def test_healthz_answers_under_load() -> None:
     for figures in measure(smoke=True, only="concurrent") + measure(smoke=True, only="streams"):
         assert set(figures["health_statuses"]) == {200}, figures
         assert figures["p99_s"] < 0.5, figures
+
+
+def test_every_sqlite_error_is_503(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk or a read-only database (SQLite errors that are not retried) answer 503 with
+    Retry-After through the same handler (in-process: the store's call raises as SQLite
+    would)."""
+    from api_helpers import api_client
+
+    from api.store import JobStore
+
+    def full(*args: Any, **kwargs: Any) -> Any:
+        raise sqlite3.OperationalError("database or disk is full")
+
+    with api_client(tmp_path) as client:
+        monkeypatch.setattr(JobStore, "create_once", full)
+        monkeypatch.setattr(JobStore, "list_jobs", full)
+        for r in (client.post("/v1/plans", json=small_plan_doc()), client.get("/v1/jobs")):
+            assert r.status_code == 503 and r.headers["retry-after"] == "5", r.text
+            assert "disk is full" in r.json()["message"]
