@@ -10,36 +10,55 @@ the local document's schema, or any object with a ``frame`` (:class:`GeoFrame`).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
 from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import models_json_schema
 
-from api.errors import MalformedBodyError
-from ris_planner.errors import RisPlannerError
+from api.limits import prescan_document
 from ris_planner.io.candidates import CandidateOptions
-from ris_planner.io.frames import Frame, to_local
+from ris_planner.io.frames import MAX_CRS_CHARS, Frame, to_local
 from ris_planner.io_json import parse_json
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.scenario import Scenario
 from ris_planner.validation import plan_check
 
+Longitude = Annotated[float, Field(ge=-180, le=180, description="Longitude [deg]")]
+Latitude = Annotated[
+    float, Field(ge=-84, le=84, description="Latitude [deg] (polar sites refused)")
+]
+
 
 class GeoFrame(BaseModel):
-    """A document's geographic frame (README "Real sites and GIS"): WGS84 ``origin`` [lon, lat,
-    h] – the document's coordinates are then [lon, lat(, h)] – or a projected ``crs`` (its
-    coordinates in that CRS's metres; ``origin`` in the same CRS, default the bounding-box
-    centre)."""
+    """A document's WGS84 frame (README "Real sites and GIS"): ``origin`` [lon, lat(, h)] – the
+    document's coordinates are then [lon, lat(, h)]."""
 
     model_config = ConfigDict(extra="forbid")
 
-    origin: list[float] | None = Field(
-        None, min_length=2, max_length=3, description="[lon, lat(, h)] (or [E, N(, h)] with crs)"
+    origin: tuple[Longitude, Latitude] | tuple[Longitude, Latitude, float] = Field(
+        description="[lon, lat(, h)]: WGS84 degrees (|lat| ≤ 84°), height in metres"
     )
-    crs: str | None = Field(None, description="A projected CRS, e.g. 'EPSG:32635' (UTM 35N)")
+
+
+class CrsFrame(BaseModel):
+    """A document's projected frame: its coordinates are metres of ``crs``; ``origin`` in the
+    same CRS (default: the bounding-box centre of the document's positions)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    crs: str = Field(
+        min_length=1,
+        max_length=MAX_CRS_CHARS,
+        pattern=r"\S",
+        description="A projected CRS in metres, e.g. 'EPSG:32635' (UTM 35N): an EPSG code, a PROJ"
+        " string or WKT, not blank (an unknown or geographic CRS is a 422)",
+    )
+    origin: tuple[float, float] | tuple[float, float, float] | None = Field(
+        None, description="[E, N(, h)] in the CRS's metres"
+    )
 
 
 class GeoDocument(BaseModel):
@@ -49,7 +68,7 @@ class GeoDocument(BaseModel):
 
     model_config = ConfigDict(extra="allow")
 
-    frame: GeoFrame = Field(description="The frame of the document's coordinates")
+    frame: GeoFrame | CrsFrame = Field(description="The frame of the document's coordinates")
     license: str | None = Field(
         None,
         max_length=2000,
@@ -110,15 +129,15 @@ def install_document_schemas(app: FastAPI) -> None:
 
 def json_document(body: bytes) -> Any:
     """The JSON value of a request body: 422 ``body: Field required`` when empty, 400 when it is
-    not JSON (the shapes FastAPI gives a declared body)."""
+    not JSON (the shapes FastAPI gives a declared body), 413 when a list exceeds its limit
+    (:func:`api.limits.prescan_document`, before validation)."""
     if not body.strip():
         raise RequestValidationError(
             [{"type": "missing", "loc": ("body",), "msg": "Field required"}]
         )
-    try:
-        return parse_json(body, "request body")
-    except RisPlannerError as exc:
-        raise MalformedBodyError(str(exc)) from None
+    value = parse_json(body, "request body")  # MalformedJsonError → 400, too many digits → 413
+    prescan_document(value)  # list sizes → 413 before any model validation
+    return value
 
 
 def local_plan(document: Any, memory_mb: int) -> tuple[PlanDocument, Frame | None]:

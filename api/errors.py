@@ -11,29 +11,38 @@ a readable ``message``, the offending ``fields`` (validation) and the ``limit`` 
   the engine (input it cannot work with, as the CLI treats it) → 422;
 * a feature of the GIS extra on a server without it (:class:`MissingExtraError`) → 501 with
   what to install;
-* unknown job or figure → 404; cancelling a finished job → 409; missing/wrong API key → 401;
-  unknown route 404, wrong method 405;
+* unknown job or figure (or another key's job) → 404; cancelling a finished job → 409;
+  missing/wrong API key → 401; unknown route 404, wrong method 405;
+* the job database does not answer within the request's bound (:class:`StoreUnavailableError`,
+  a SQLite error) → 503 with ``Retry-After`` (one handler, every route);
+* a client that disconnects before sending its whole body → one info log line, no traceback;
 * anything else → 500 with an error id and no traceback (the traceback goes to the log).
 """
 
 from __future__ import annotations
 
-import hmac
 import logging
+import sqlite3
 import uuid
 from collections.abc import Sequence
 from typing import Any
 
+import anyio
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.requests import ClientDisconnect
+from starlette.responses import Response
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from api.auth import KeyRing
+from api.store import StoreUnavailableError
 from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.io import MissingExtraError
+from ris_planner.io_json import MalformedJsonError
 
 log = logging.getLogger("api")
 
@@ -88,6 +97,12 @@ V1_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
     },
     401: {"model": ErrorBody, "description": "Missing or wrong API key (when one is configured)"},
     422: {"model": ErrorBody, "description": "Invalid request; `fields` names each problem"},
+    503: {
+        "model": ErrorBody,
+        "description": "The job database did not answer within the request's bound; retry"
+        " after the Retry-After header's seconds",
+        "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "Seconds"}},
+    },
 }
 """``responses=`` entries of every /v1 route (OpenAPI)."""
 
@@ -162,13 +177,26 @@ _HTTP_CODES = {
     413: "too_large",
     415: "unsupported_media_type",
     501: "not_implemented",
+    503: "unavailable",
 }
+
+RETRY_AFTER_S = 5
+"""``Retry-After`` of a 503 (the store retries with backoff of up to 2 s between attempts)."""
 
 
 async def _on_validation(request: Request, exc: Exception) -> JSONResponse:
-    """Request bodies (FastAPI) and documents validated later (pydantic) alike."""
+    """Request bodies (FastAPI) and documents validated later (pydantic) alike. The error list
+    of a large invalid document (one error per bad item: tens of thousands) is built in a
+    worker thread, never on the event loop."""
     assert isinstance(exc, RequestValidationError | ValidationError)
-    errors = exc.errors()
+    return await anyio.to_thread.run_sync(_validation_answer, exc)
+
+
+def _validation_answer(exc: RequestValidationError | ValidationError) -> JSONResponse:
+    if isinstance(exc, ValidationError):
+        errors: Sequence[Any] = exc.errors(include_url=False, include_input=False)
+    else:
+        errors = exc.errors()
     bad_json = [e for e in errors if e.get("type") == "json_invalid"]
     if bad_json:  # text that is not JSON: a malformed request, not an invalid document
         detail = bad_json[0].get("ctx", {}).get("error", "JSON decode error")
@@ -188,7 +216,7 @@ async def _on_missing_extra(request: Request, exc: Exception) -> JSONResponse:
 
 async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
     """Every 422 names a field: the rule's own field, else the document as a whole."""
-    if isinstance(exc, MalformedBodyError):
+    if isinstance(exc, MalformedBodyError | MalformedJsonError):
         return error_response(400, "bad_request", str(exc))
     field, reason = "(document)", str(exc)
     if isinstance(exc, DocumentFieldError):
@@ -237,6 +265,25 @@ async def _on_http(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+async def _on_store_unavailable(request: Request, exc: Exception) -> JSONResponse:
+    """The job database did not answer (locked, full, unwritable, I/O): not the client's fault
+    and usually passing, so 503 with Retry-After, whatever the route."""
+    reason = str(exc) if isinstance(exc, StoreUnavailableError) else f"job database error: {exc}"
+    log.warning("503 on %s %s: %s", request.method, request.url.path, reason)
+    return error_response(
+        503,
+        "unavailable",
+        f"the job database is unavailable, try again in {RETRY_AFTER_S} s ({reason})",
+        headers={"Retry-After": str(RETRY_AFTER_S)},
+    )
+
+
+async def _on_disconnect(request: Request, exc: Exception) -> Response:
+    """The client went away before its body arrived: nobody reads an answer, one log line."""
+    log.info("client disconnected during %s %s (request dropped)", request.method, request.url.path)
+    return Response(status_code=400)
+
+
 async def _on_unexpected(request: Request, exc: Exception) -> JSONResponse:
     error_id = uuid.uuid4().hex[:12]
     log.error(
@@ -257,6 +304,9 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(JobNotFoundError, _on_not_found)
     app.add_exception_handler(JobConflictError, _on_conflict)
     app.add_exception_handler(StarletteHTTPException, _on_http)
+    app.add_exception_handler(StoreUnavailableError, _on_store_unavailable)
+    app.add_exception_handler(sqlite3.Error, _on_store_unavailable)
+    app.add_exception_handler(ClientDisconnect, _on_disconnect)
     app.add_exception_handler(Exception, _on_unexpected)
 
 
@@ -307,12 +357,13 @@ class BodyLimitMiddleware:
 
 
 class ApiKeyMiddleware:
-    """Pure ASGI middleware: with a key configured, a ``/v1`` request without the right
-    ``X-API-Key`` gets 401 before anything reads or parses its body (constant-time compare)."""
+    """Pure ASGI middleware: with keys configured (:class:`api.auth.KeyRing`), a ``/v1``
+    request without a known ``X-API-Key`` gets 401 before anything reads or parses its body;
+    a known key's :class:`api.auth.Principal` goes to ``scope["state"]["principal"]``."""
 
-    def __init__(self, app: ASGIApp, key: str | None, header: str, prefix: str = "/v1") -> None:
+    def __init__(self, app: ASGIApp, keys: KeyRing, header: str, prefix: str = "/v1") -> None:
         self.app = app
-        self.key = None if key is None else key.encode("utf-8")
+        self.keys = keys
         self.header = header.lower().encode("latin-1")
         self.header_name = header
         self.prefix = prefix
@@ -320,14 +371,15 @@ class ApiKeyMiddleware:
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         path = scope.get("path", "")
         if (
-            self.key is None
+            not self.keys.enabled
             or scope["type"] != "http"
             or not (path == self.prefix or path.startswith(self.prefix + "/"))
         ):
             await self.app(scope, receive, send)
             return
         given = next((v for k, v in scope.get("headers", []) if k == self.header), None)
-        if given is None or not hmac.compare_digest(given, self.key):
+        principal = self.keys.lookup(given)
+        if principal is None:
             response = error_response(
                 401,
                 "unauthorized",
@@ -336,4 +388,5 @@ class ApiKeyMiddleware:
             )
             await response(scope, receive, send)
             return
+        scope.setdefault("state", {})["principal"] = principal
         await self.app(scope, receive, send)

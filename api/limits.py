@@ -10,10 +10,13 @@ to the same work limit.
 
 from __future__ import annotations
 
+from typing import Any
+
 from api.settings import Settings
 from ris_planner.codebooks import block_length
 from ris_planner.errors import LimitExceededError
-from ris_planner.obstacles import Environment
+from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES
+from ris_planner.obstacles import MAX_FOOTPRINT_VERTICES, MAX_OBSTACLES, Environment
 from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.scenario import Scenario
 
@@ -90,3 +93,49 @@ def check_size(
                 f" {settings.max_work}); use fewer pairs, RISs or obstacles",
                 settings.max_work,
             )
+
+
+LIST_LIMITS: dict[str, tuple[int, str]] = {
+    "obstacles": (MAX_OBSTACLES, "obstacles"),
+    "footprint": (MAX_FOOTPRINT_VERTICES, "footprint vertices"),
+    "features": (MAX_OBSTACLES, "features"),
+    "points": (MAX_MAP_POINTS, "points"),
+    "sites": (MAX_SITES, "sites"),
+}
+"""The lists a document may carry in bulk, by field name, with their limits (the models'
+``max_length``); :func:`prescan_document` refuses longer ones before validation."""
+
+MAX_LIST_ITEMS = MAX_MAP_POINTS
+"""Longest list of any other name (no field of a document takes more)."""
+
+MAX_COORDINATES = 4 * MAX_MAP_POINTS
+"""Numbers inside the lists of :data:`LIST_LIMITS` together (vertices, points: 2–3 each)."""
+
+
+def prescan_document(value: Any, what: str = "request body") -> None:
+    """Refuse a parsed JSON document whose lists exceed their limits – obstacles, footprint
+    vertices, features, points, sites (:data:`LIST_LIMITS`), any list above
+    :data:`MAX_LIST_ITEMS`, or more than :data:`MAX_COORDINATES` numbers in them together –
+    with :class:`LimitExceededError` (413) in one pass over the decoded value, before the
+    (much slower) model validation. Iterative: no recursion limit (depth was checked when it
+    was parsed)."""
+    numbers = 0
+    stack: list[tuple[Any, str]] = [(value, "")]
+    while stack:
+        item, name = stack.pop()
+        if isinstance(item, dict):
+            stack.extend((v, str(k)) for k, v in item.items())
+            continue
+        if not isinstance(item, list):
+            numbers += isinstance(item, int | float)
+            continue
+        limit, label = LIST_LIMITS.get(name, (MAX_LIST_ITEMS, f"items in {name or 'a list'}"))
+        if len(item) > limit:
+            raise LimitExceededError(
+                f"{what}: {len(item)} {label} exceed the limit of {limit}", limit
+            )
+        if numbers > MAX_COORDINATES:
+            raise LimitExceededError(
+                f"{what}: more than {MAX_COORDINATES} numbers in one document", MAX_COORDINATES
+            )
+        stack.extend((v, name) for v in item)  # a list's items keep the list's field name

@@ -6,6 +6,7 @@ runner (start-up recovery, worker processes) are created in the application's li
 
 from __future__ import annotations
 
+import sys
 from collections.abc import AsyncIterator, Mapping
 from contextlib import asynccontextmanager
 from importlib.metadata import version
@@ -14,7 +15,8 @@ import anyio
 from fastapi import Depends, FastAPI
 from threadpoolctl import threadpool_limits
 
-from api.deps import require_api_key
+from api.auth import KeyRing
+from api.deps import reject_unknown_query, require_api_key
 from api.documents import install_document_schemas
 from api.errors import (
     V1_ERROR_RESPONSES,
@@ -24,6 +26,7 @@ from api.errors import (
 )
 from api.kinds import JOB_KINDS
 from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
+from api.security import SecurityHeadersMiddleware
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
@@ -35,9 +38,15 @@ bounds (PEB_T, PEB_R, CEB) for a layout, and long-running work as persistent job
 
 Documents are those of the `ris-planner` command line. Units are SI unless a field name says
 otherwise (`_m` metres, `_hz` hertz, `_dbm` dBm, angles in radians). Errors are JSON with the
-field path of each problem. When the server sets `RIS_PLANNER_API_KEY`, every `/v1` route needs
-it in the `X-API-Key` header.
+field path of each problem. When the server has API keys, every `/v1` route needs one in the
+`X-API-Key` header; a key sees only the jobs it created (the admin key sees all). Submissions
+take an `Idempotency-Key` header: a retried POST with the same key returns the first job. When
+the job database does not answer within a bound, every route answers 503 with `Retry-After`.
 """
+
+
+GIL_SWITCH_S = 0.001
+"""The interpreter's thread switch interval while the service runs (default 5 ms)."""
 
 
 def create_app(
@@ -52,6 +61,10 @@ def create_app(
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
         allocator.tune_malloc()  # the service's entry point (ris_planner.allocator)
+        # a thread validating a large document hands the GIL over every 1 ms instead of 5 ms:
+        # the event loop and /healthz wait less behind it (docs/guides/service-operations.md)
+        switch = sys.getswitchinterval()
+        sys.setswitchinterval(GIL_SWITCH_S)
         with server_lock(current.db):  # refuses a second server on this database file
             store = JobStore(
                 current.db,
@@ -70,6 +83,8 @@ def create_app(
             app.state.store = store
             app.state.runner = runner
             app.state.bounds_limiter = anyio.CapacityLimiter(current.bounds_concurrency)
+            app.state.parse_limiter = anyio.CapacityLimiter(current.parse_concurrency)
+            app.state.health_limiter = anyio.CapacityLimiter(2)  # never behind request work
             blas = threadpool_limits(limits=current.blas_threads)  # this process's threads
             runner.start()
             try:
@@ -77,6 +92,7 @@ def create_app(
             finally:
                 runner.stop()
                 blas.restore_original_limits()
+                sys.setswitchinterval(switch)
 
     app = FastAPI(
         title="ris_planner",
@@ -90,11 +106,14 @@ def create_app(
     app.state.settings = settings
     install_error_handlers(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
-    key = None if settings.api_key is None else settings.api_key.get_secret_value()
-    app.add_middleware(ApiKeyMiddleware, key=key, header=API_KEY_HEADER)  # outermost: first
+    keys = KeyRing(settings)
+    app.state.keys = keys
+    app.add_middleware(ApiKeyMiddleware, keys=keys, header=API_KEY_HEADER)
+    # outermost: its headers go on every answer, the 401 and 413 of the middlewares too
+    app.add_middleware(SecurityHeadersMiddleware, store_wait_s=settings.request_store_wait_s)
     app.include_router(meta.health_router)
     web.install_web(app)
-    v1 = [Depends(require_api_key)]
+    v1 = [Depends(require_api_key), Depends(reject_unknown_query)]
     routers = (
         web.router,
         bounds.router,

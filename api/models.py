@@ -220,10 +220,14 @@ class Health(BaseModel):
     """Liveness and queue state."""
 
     status: Literal["ok", "degraded", "unavailable"] = Field(
-        description="ok; degraded: a fault happened in the last 5 minutes and the service"
-        " recovered (see reason); unavailable (503): the job database does not answer"
+        description="ok; degraded: a fault now, the service still answers (see reason), e.g. a"
+        " write lock the store is retrying; unavailable (503): the job database does not"
+        " answer. Back to ok as soon as the fault is over"
     )
     reason: str | None = Field(None, description="Why the service is degraded or unavailable")
+    last_fault: str | None = Field(
+        None, description="The last fault within 5 minutes, also after recovery (for the record)"
+    )
     version: str = Field(description="Package version")
     workers: int = Field(ge=1, description="Configured job worker processes")
     running: int = Field(ge=0, description="Worker processes running a job now")

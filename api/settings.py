@@ -12,7 +12,11 @@ RIS_PLANNER_MAX_PAIRS    10000                          TX–RX pairs per ``POST
 RIS_PLANNER_MAX_ARRAY_ELEMENTS 20000000                 largest engine array of a request [elements]
 RIS_PLANNER_MAX_WORK     1000000000                     Σ_ℓ 3·G̃·N_ℓ·pairs; legs × obstacle edges
 RIS_PLANNER_MAX_BODY_BYTES 10000000                     request body limit [bytes]
-RIS_PLANNER_API_KEY      (unset: no authentication)     key required in ``X-API-Key`` on /v1
+RIS_PLANNER_API_KEY      (unset: no authentication)     the admin key (sees every job) on /v1
+RIS_PLANNER_API_KEYS     (unset)                        more keys: ``name:sha256hex,...``
+RIS_PLANNER_API_KEYS_FILE (unset)                       more keys: one ``name:sha256hex`` a line
+RIS_PLANNER_REQUEST_STORE_WAIT_S 10                     a request's longest wait for the DB [s]
+RIS_PLANNER_PARSE_CONCURRENCY 4                         request bodies parsed/validated at once
 RIS_PLANNER_DB_BUSY_TIMEOUT_S 10                        SQLite lock wait per attempt [s]
 RIS_PLANNER_DB_RETRY_S   60                             retries of a failing store call [s]
 RIS_PLANNER_JOB_MEMORY_MB 4096                          memory budget of one job worker [MiB]
@@ -86,7 +90,32 @@ class Settings(BaseSettings):
         description="Memory budget of one job worker [MiB]: the size estimate of a submitted"
         " document must fit it (413 otherwise) and the worker's address space is capped at it",
     )
-    api_key: SecretStr | None = Field(None, description="If set, /v1 routes require this key")
+    api_key: SecretStr | None = Field(
+        None,
+        description="The admin key: if set (or api_keys are), /v1 routes require a key; this"
+        " one sees and cancels every job",
+    )
+    api_keys: str | None = Field(
+        None,
+        description="Further API keys, comma-separated 'name:sha256hex' (the SHA-256 of the"
+        " key, hex); each key sees only the jobs it created",
+    )
+    api_keys_file: Path | None = Field(
+        None, description="A file of further API keys, one 'name:sha256hex' a line (# comments)"
+    )
+    request_store_wait_s: float = Field(
+        10.0,
+        gt=0,
+        le=600,
+        description="Longest wait of one HTTP request for the job database (locks and retries"
+        " together); then 503 with Retry-After [s]",
+    )
+    parse_concurrency: int = Field(
+        4,
+        ge=1,
+        le=256,
+        description="Request bodies parsed and validated at once (threads); others wait",
+    )
     dask_scheduler: str | None = Field(
         None,
         pattern=r"^(tcp|tls|inproc|ucx)://\S+$",

@@ -36,6 +36,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -59,6 +60,11 @@ BACKOFF_S = (0.05, 2.0)
 
 log = logging.getLogger("api.store")
 
+CALL_BUDGET_S: ContextVar[float | None] = ContextVar("store_call_budget_s", default=None)
+"""The longest a store call may wait (lock waits and retries together) in the current context:
+set per HTTP request by the service (``Settings.request_store_wait_s``), so that a request
+answers 503 within a known bound while the job workers keep their longer ``retry_s``."""
+
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS jobs (
     id          TEXT PRIMARY KEY,
@@ -78,6 +84,15 @@ CREATE TABLE IF NOT EXISTS jobs (
 );
 CREATE INDEX IF NOT EXISTS jobs_seq ON jobs (seq);
 CREATE INDEX IF NOT EXISTS jobs_status ON jobs (status);
+"""
+
+_ADDED_COLUMNS = {"owner": "TEXT", "idempotency_key": "TEXT"}
+"""Columns added after the first schema (added to an older database when it is opened)."""
+
+_ADDED_INDEXES = """
+CREATE UNIQUE INDEX IF NOT EXISTS jobs_idempotency ON jobs (owner, idempotency_key)
+    WHERE idempotency_key IS NOT NULL;
+CREATE INDEX IF NOT EXISTS jobs_owner ON jobs (owner, seq);
 """
 
 
@@ -202,6 +217,7 @@ class JobHead:
     created_at: str
     started_at: str | None
     finished_at: str | None
+    owner: str | None
 
     @classmethod
     def from_row(cls, row: sqlite3.Row) -> JobHead:
@@ -268,6 +284,11 @@ class JobStore:
         try:
             con.execute("PRAGMA journal_mode=WAL")
             con.executescript(_SCHEMA)
+            have = {row[1] for row in con.execute("PRAGMA table_info(jobs)")}
+            for name, sql_type in _ADDED_COLUMNS.items():
+                if name not in have:
+                    con.execute(f"ALTER TABLE jobs ADD COLUMN {name} {sql_type}")
+            con.executescript(_ADDED_INDEXES)
         finally:
             con.close()
 
@@ -299,11 +320,12 @@ class JobStore:
             self.on_recreated()
 
     @contextmanager
-    def _connect(self) -> Iterator[sqlite3.Connection]:
+    def _connect(self, timeout_s: float | None = None) -> Iterator[sqlite3.Connection]:
         """One attempt: a connection in one transaction (commit on success)."""
         self._check_identity()
+        timeout = self.busy_timeout_s if timeout_s is None else timeout_s
         # mode=rw: never create a file behind the store's back (a removed database)
-        con = sqlite3.connect(f"file:{self.path}?mode=rw", uri=True, timeout=self.busy_timeout_s)
+        con = sqlite3.connect(f"file:{self.path}?mode=rw", uri=True, timeout=timeout)
         con.row_factory = sqlite3.Row
         try:
             with con:  # one transaction: commit on success, roll back on error
@@ -313,12 +335,21 @@ class JobStore:
 
     def _run(self, work: Callable[[sqlite3.Connection], Any], *, retry: bool = True) -> Any:
         """``work(con)`` in one transaction, retried with backoff on transient errors for up
-        to ``retry_s`` (README "Fault behaviour"); :class:`StoreUnavailableError` after that."""
-        deadline = time.monotonic() + (self.retry_s if retry else 0.0)
+        to ``retry_s`` (README "Fault behaviour"); :class:`StoreUnavailableError` after that.
+        Within an HTTP request (:data:`CALL_BUDGET_S` set) lock waits and retries together end
+        after that budget (docs/guides/service-operations.md)."""
+        budget = CALL_BUDGET_S.get()
+        retry_s = self.retry_s if budget is None else min(self.retry_s, budget)
+        start = time.monotonic()
+        deadline = start + (retry_s if retry else 0.0)
         pause = BACKOFF_S[0]
         while True:
+            timeout_s = None if retry else min(self.busy_timeout_s, 1.0)
+            if budget is not None:  # each attempt's lock wait within what is left
+                left = max(0.05, start + budget - time.monotonic())
+                timeout_s = min(timeout_s or self.busy_timeout_s, left)
             try:
-                with self._connect() as con:
+                with self._connect(timeout_s) as con:
                     out = work(con)
                 if self.faults.current is not None:
                     self.faults.clear()
@@ -331,27 +362,54 @@ class JobStore:
                 reason = f"job database error: {exc}"
                 self.faults.record(reason)
                 if time.monotonic() + pause > deadline:
+                    waited = time.monotonic() - start
                     raise StoreUnavailableError(
-                        f"the job database did not answer for {self.retry_s:g} s ({exc})"
+                        f"the job database did not answer for {waited:.1f} s ({exc})"
                     ) from None
                 time.sleep(pause)
                 pause = min(2 * pause, BACKOFF_S[1])
 
     # -- creation and reading -------------------------------------------------------------
 
-    def create(self, kind: str, request: dict[str, Any]) -> Job:
+    def create(self, kind: str, request: dict[str, Any], *, owner: str | None = None) -> Job:
         """A new ``queued`` job holding the (validated) request document."""
+        return self.create_once(kind, request, owner=owner)[0]
+
+    def create_once(
+        self,
+        kind: str,
+        request: dict[str, Any],
+        *,
+        owner: str | None = None,
+        idempotency_key: str | None = None,
+    ) -> tuple[Job, bool]:
+        """A new ``queued`` job holding the (validated) request document, owned by ``owner``
+        (an API key's name; None without keys); ``(job, True)``. With an ``idempotency_key``
+        already used by the same owner, the job created then and ``False`` (nothing new)."""
         job_id = uuid.uuid4().hex
         created_at = utc_now()
         text = json.dumps(request, allow_nan=False)
-        self._run(  # one statement: seq is unique under concurrent inserts
-            lambda con: con.execute(
-                "INSERT INTO jobs (id, kind, status, request, seq, created_at)"
-                " SELECT ?, ?, 'queued', ?, COALESCE(MAX(seq), 0) + 1, ? FROM jobs",
-                (job_id, kind, text, created_at),
+
+        def work(con: sqlite3.Connection) -> sqlite3.Row | None:
+            if idempotency_key is not None:
+                row: sqlite3.Row | None = con.execute(
+                    "SELECT * FROM jobs WHERE owner IS ? AND idempotency_key = ?",
+                    (owner, idempotency_key),
+                ).fetchone()
+                if row is not None:
+                    return row
+            con.execute(  # one statement: seq is unique under concurrent inserts
+                "INSERT INTO jobs (id, kind, status, request, seq, created_at, owner,"
+                " idempotency_key) SELECT ?, ?, 'queued', ?, COALESCE(MAX(seq), 0) + 1, ?, ?, ?"
+                " FROM jobs",
+                (job_id, kind, text, created_at, owner, idempotency_key),
             )
-        )
-        return Job(
+            return None
+
+        existing: sqlite3.Row | None = self._run(work)
+        if existing is not None:
+            return Job.from_row(existing), False
+        job = Job(
             id=job_id,
             kind=kind,
             status="queued",
@@ -361,10 +419,19 @@ class JobStore:
             created_at=created_at,
             started_at=None,
             finished_at=None,
+            owner=owner,
             request=request,
             result=None,
             figures={},
         )
+        return job, True
+
+    def delete(self, job_id: str) -> bool:
+        """Remove the job's row (True if it existed)."""
+        changed: int = self._run(
+            lambda con: con.execute("DELETE FROM jobs WHERE id = ?", (job_id,)).rowcount
+        )
+        return changed == 1
 
     def _row(self, sql: str, args: tuple[Any, ...]) -> sqlite3.Row | None:
         row: sqlite3.Row | None = self._run(lambda con: con.execute(sql, args).fetchone())
@@ -386,11 +453,15 @@ class JobStore:
         offset: int = 0,
         status: JobStatus | None = None,
         kind: str | None = None,
+        owner: str | None = None,
     ) -> tuple[list[JobHead], int]:
         """A page of jobs (without their documents), newest first, and the total count
-        matching the filters."""
+        matching the filters (``owner``: only that owner's jobs)."""
         where: list[str] = []
         args: list[str] = []
+        if owner is not None:
+            where.append("owner = ?")
+            args.append(owner)
         if status is not None:
             where.append("status = ?")
             args.append(status)

@@ -305,7 +305,7 @@ def exit_message(code: int | None) -> str:
 
 
 FAULT_HOLD_S = 300.0
-"""``/healthz`` reports ``degraded`` for this long after the last fault."""
+"""``/healthz`` shows the last fault (``last_fault``) for this long after it."""
 
 
 class JobRunner:
@@ -332,11 +332,13 @@ class JobRunner:
         self._kind_of: dict[str, str] = {}
         self._procs: dict[str, BaseProcess] = {}
         self._unsettled: dict[str, str] = {}  # job id → final error not yet stored
+        self._deleted: set[str] = set()  # removed while their process ran
         self._lock = threading.Condition()
         self._stopping = False
         self._thread: threading.Thread | None = None
         self._db_lost = threading.Event()
-        self._fault: str | None = None
+        self._fault: str | None = None  # the dispatcher's fault, until a cycle succeeds
+        self._last_fault: str | None = None
         self._fault_at = -math.inf
         self._ctx = multiprocessing.get_context("forkserver")
         self._ctx.set_forkserver_preload(PRELOAD_MODULES)
@@ -368,23 +370,42 @@ class JobRunner:
             self._lock.notify_all()
         return applied
 
-    def running(self) -> int:
+    def delete(self, job_id: str) -> bool:
+        """Remove a job: a queued or running one is cancelled first (its process terminated),
+        then its row and its figure folder are removed; False if there was no such job."""
         with self._lock:
-            return sum(p.is_alive() for p in self._procs.values())
+            self._deleted.add(job_id)  # its worker's exit must not record it again
+        self.cancel(job_id)
+        existed = self.store.delete(job_id)
+        _remove(self.figures_dir / job_id)
+        with self._lock:
+            if job_id not in self._procs:
+                self._deleted.discard(job_id)
+        return existed
+
+    def running(self) -> int:
+        """Worker processes alive now. Lock-free (a snapshot of the process table): the
+        dispatcher holds the lock while it starts a process, which can take seconds, and
+        ``/healthz`` must not wait for it."""
+        return sum(p.is_alive() for p in list(self._procs.values()))
 
     def worker_pids(self) -> list[int]:
-        """Pids of the running worker processes."""
-        with self._lock:
-            return [p.pid for p in self._procs.values() if p.pid is not None and p.is_alive()]
+        """Pids of the running worker processes (lock-free, as :meth:`running`)."""
+        procs = list(self._procs.values())
+        return [p.pid for p in procs if p.pid is not None and p.is_alive()]
 
     def health(self) -> str | None:
-        """None when healthy, else why the service is degraded (a fault now or within
-        :data:`FAULT_HOLD_S`: the dispatcher's, or the store's)."""
-        if self._fault is not None and time.monotonic() - self._fault_at < FAULT_HOLD_S:
+        """None when healthy, else why the service is degraded now: a dispatcher cycle that
+        failed and has not succeeded since, or a store call failing now (the service is ``ok``
+        again as soon as the store answers and the dispatcher completes a cycle)."""
+        if self._fault is not None:
             return self._fault
-        current = self.store.faults.current
-        if current is not None:
-            return current
+        return self.store.faults.current
+
+    def last_fault(self) -> str | None:
+        """The last fault met within :data:`FAULT_HOLD_S` (recovered or not), for the record."""
+        if self._last_fault is not None and time.monotonic() - self._fault_at < FAULT_HOLD_S:
+            return self._last_fault
         recent = self.store.faults.recent
         if recent and time.monotonic() - recent[-1].mono < FAULT_HOLD_S:
             return recent[-1].reason
@@ -414,6 +435,7 @@ class JobRunner:
     def _note_fault(self, reason: str) -> None:
         log.error("job dispatcher: %s", reason)
         self._fault, self._fault_at = reason, time.monotonic()
+        self._last_fault = reason
 
     def _launch(self, job_id: str) -> None:
         job = self.store.head(job_id)
@@ -459,7 +481,10 @@ class JobRunner:
             proc.join()
             del self._procs[job_id]
             _remove(staging_dir(self.figures_dir, job_id))
-            if proc.exitcode != 0:  # no-op when the job was cancelled (terminated) or ended
+            if job_id in self._deleted:  # removed (DELETE): nothing to record
+                self._deleted.discard(job_id)
+                self._kind_of.pop(job_id, None)
+            elif proc.exitcode != 0:  # no-op when the job was cancelled (terminated) or ended
                 self._settle(job_id, exit_message(proc.exitcode))
             else:
                 self._kind_of.pop(job_id, None)
@@ -515,6 +540,7 @@ class JobRunner:
                 try:
                     sentinels = self._cycle()
                     pause = self.poll_s
+                    self._fault = None  # recovered (last_fault keeps it for the record)
                 except Exception as exc:  # the dispatcher never dies: note, back off, go on
                     self._note_fault(f"job dispatcher: {describe_error(exc)}")
                     pause = min(2 * pause, 2.0)

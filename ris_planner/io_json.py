@@ -16,11 +16,21 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from ris_planner.errors import RisPlannerError
+from ris_planner.errors import LimitExceededError, RisPlannerError
 
 MAX_JSON_DEPTH = 64
 """Deepest nesting of arrays/objects a document may have (the deepest real field, a list of
 points inside a map inside a plan, is 5 levels); deeper input is refused before validation."""
+
+
+MAX_NUMBER_DIGITS = 4300
+"""Longest integer literal a document may hold (Python's own conversion limit; a real field
+needs a few dozen digits): longer ones are refused with this limit (413 in the service)."""
+
+
+class MalformedJsonError(RisPlannerError):
+    """Text that is not a usable JSON value: not JSON, not UTF-8, nested too deeply (the
+    service answers 400 on every route, the command line exit status 2)."""
 
 
 def json_depth(value: Any) -> int:
@@ -46,20 +56,28 @@ def json_depth(value: Any) -> int:
 def check_depth(value: Any, what: str = "document") -> None:
     """Raise :class:`RisPlannerError` when ``value`` nests deeper than :data:`MAX_JSON_DEPTH`."""
     if json_depth(value) > MAX_JSON_DEPTH:
-        raise RisPlannerError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels")
+        raise MalformedJsonError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels")
 
 
 def parse_json(text: str | bytes, what: str = "document") -> Any:
     """A JSON value from text, nested at most :data:`MAX_JSON_DEPTH` deep; every failure a
-    one-line :class:`RisPlannerError`."""
+    one-line :class:`MalformedJsonError`, an integer longer than :data:`MAX_NUMBER_DIGITS`
+    digits a :class:`~ris_planner.errors.LimitExceededError` (never the interpreter's own
+    message)."""
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise RisPlannerError(f"{what}: not valid JSON ({exc})") from None
+        raise MalformedJsonError(f"{what}: not valid JSON ({exc})") from None
     except UnicodeDecodeError:
-        raise RisPlannerError(f"{what}: not UTF-8 text") from None
+        raise MalformedJsonError(f"{what}: not UTF-8 text") from None
     except RecursionError:
-        raise RisPlannerError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels") from None
+        raise MalformedJsonError(f"{what}: nested deeper than {MAX_JSON_DEPTH} levels") from None
+    except ValueError:  # int("…" * 5000): Python's limit on integer text, the only other case
+        raise LimitExceededError(
+            f"{what}: a number with more than {MAX_NUMBER_DIGITS} digits; write it with an"
+            " exponent (1e5000 is still refused as out of range) or fewer digits",
+            MAX_NUMBER_DIGITS,
+        ) from None
     check_depth(value, what)
     return value
 
@@ -68,7 +86,7 @@ def parse_json_object(text: str | bytes, what: str = "document") -> dict[str, An
     """A JSON object from text, every failure a one-line :class:`RisPlannerError`."""
     doc = parse_json(text, what)
     if not isinstance(doc, dict):
-        raise RisPlannerError(f"{what}: the document must be a JSON object")
+        raise MalformedJsonError(f"{what}: the document must be a JSON object")
     return doc
 
 

@@ -186,6 +186,7 @@ def test_unknown_job_routes_and_methods(tmp_path: Path) -> None:
         for method, path in [
             ("GET", f"/v1/jobs/{missing}"),
             ("DELETE", f"/v1/jobs/{missing}"),
+            ("POST", f"/v1/jobs/{missing}/cancel"),
             ("GET", f"/v1/jobs/{missing}/figures/topview"),
         ]:
             r = client.request(method, path)

@@ -124,17 +124,17 @@ def test_cancel_running_and_queued_jobs(tmp_path: Path) -> None:
         queued = submit(client, "count", {"steps": 1})
         wait_for(client, running, ("running",))
         assert client.get(f"/v1/jobs/{queued}").json()["status"] == "queued"  # 1 worker busy
-        r = client.delete(f"/v1/jobs/{queued}")
+        r = client.post(f"/v1/jobs/{queued}/cancel")
         assert r.status_code == 200 and r.json()["status"] == "cancelled"
         t0 = time.monotonic()
-        r = client.delete(f"/v1/jobs/{running}")
+        r = client.post(f"/v1/jobs/{running}/cancel")
         assert r.status_code == 200 and r.json()["status"] == "cancelled"
         # the worker process is terminated, the slot frees, and nothing overwrites the state
         while client.app.state.runner.running() and time.monotonic() - t0 < 10:
             time.sleep(0.05)
         assert client.app.state.runner.running() == 0 and time.monotonic() - t0 < 10
         assert client.get(f"/v1/jobs/{running}").json()["status"] == "cancelled"
-        again = client.delete(f"/v1/jobs/{running}")
+        again = client.post(f"/v1/jobs/{running}/cancel")
         assert again.status_code == 409 and "already ended (cancelled)" in again.json()["message"]
 
 
@@ -245,7 +245,7 @@ def test_cancelled_job_leaves_no_partial_figures(tmp_path: Path) -> None:
         while not any(data.glob("**/partial.png")):
             assert time.monotonic() < deadline, "the job never wrote its figure"
             time.sleep(0.05)
-        assert client.delete(f"/v1/jobs/{job_id}").status_code == 200
+        assert client.post(f"/v1/jobs/{job_id}/cancel").status_code == 200
         view = wait_for(client, job_id, ("cancelled",))
         deadline = time.monotonic() + 10
         while any(data.glob("**/partial.png")):

@@ -14,7 +14,8 @@ from api_job_kinds import TEST_KINDS
 from test_api_plans import small_plan_doc
 
 from api.routes.events import job_events
-from api.routes.web import PAGE_CSP, STATIC_DIR
+from api.routes.web import STATIC_DIR
+from api.security import PAGE_CSP
 from ris_planner.planning import SerialExecutor, plan_preset, run_plan
 
 EXTERNAL_URL = re.compile(r"""(src|href)=["']?(https?:)?//""")

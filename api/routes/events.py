@@ -27,9 +27,8 @@ from fastapi import APIRouter, Depends
 from fastapi.responses import StreamingResponse
 
 from api.deps import get_store
-from api.errors import JobNotFoundError
 from api.models import JobSummary
-from api.routes.jobs import NOT_FOUND, JobId
+from api.routes.jobs import NOT_FOUND, JobId, PrincipalDep, owned_head
 from api.store import JobHead, JobStore
 
 EVENT_CHECK_S = 0.25
@@ -105,11 +104,10 @@ async def job_events(
     summary="Job progress as server-sent events",
 )
 def get_job_events(
-    job_id: JobId, store: Annotated[JobStore, Depends(get_store)]
+    job_id: JobId, store: Annotated[JobStore, Depends(get_store)], principal: PrincipalDep
 ) -> StreamingResponse:
     """A stream of the job's state changes; ends with an ``end`` event when the job ends."""
-    if store.head(job_id) is None:
-        raise JobNotFoundError(f"no job with id {job_id}")
+    owned_head(store, job_id, principal)  # 404: unknown, or another key's job
     return StreamingResponse(
         job_events(store, job_id),
         media_type="text/event-stream",

@@ -14,11 +14,11 @@ from typing import Annotated, Any, Literal
 import anyio
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, StringConstraints
 
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
 from ris_planner.errors import RisPlannerError
-from ris_planner.io.dxf_import import parse_layer_spec
+from ris_planner.io.dxf_import import LAYER_SPEC_PATTERN, parse_layer_spec
 from ris_planner.io.geojson_import import (
     DEFAULT_AREA_STEP_M,
     DEFAULT_BUILDING_HEIGHT_M,
@@ -163,7 +163,7 @@ async def post_import(
         str | None, Query(max_length=1000, description="Road classes, comma-separated")
     ] = None,
     layer: Annotated[
-        list[str] | None,
+        list[Annotated[str, StringConstraints(min_length=3, pattern=LAYER_SPEC_PATTERN)]] | None,
         Query(
             max_length=100,
             description="dxf: LAYER=wall:HEIGHT_M or"
@@ -220,4 +220,5 @@ async def post_import(
         answer = ImportAnswer(document=document, fragment=fragment, report=report.to_json())
         return answer.model_dump(mode="json")
 
-    return JSONResponse(await anyio.to_thread.run_sync(run))
+    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
+    return JSONResponse(await anyio.to_thread.run_sync(run, limiter=limiter))

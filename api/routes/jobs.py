@@ -1,20 +1,26 @@
-"""Jobs: listing, status and result, cancellation, figures; and the submit helper that the job
-kinds' POST routes share."""
+"""Jobs: listing, status and result, cancellation, removal, figures; and the submit helper that
+the job kinds' POST routes share.
+
+Every job belongs to the API key that created it (:mod:`api.auth`): a key lists, reads, streams,
+cancels and removes only its own jobs – another key's job answers 404, as an unknown id – and
+the admin key all. ``POST /v1/jobs/{id}/cancel`` cancels (the job stays, ``cancelled``);
+``DELETE /v1/jobs/{id}`` removes it (a running job is cancelled first; then GET → 404)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Depends, Header, Query
 from fastapi import Path as PathParam
-from fastapi.responses import FileResponse, JSONResponse
+from fastapi.responses import FileResponse, JSONResponse, Response
 
-from api.deps import get_runner, get_settings, get_store
+from api.auth import Principal
+from api.deps import get_principal, get_runner, get_settings, get_store
 from api.errors import ErrorBody, JobConflictError, JobNotFoundError
 from api.models import JobPage, JobSummary, JobView
 from api.settings import Settings
-from api.store import Job, JobStatus, JobStore
+from api.store import Job, JobHead, JobStatus, JobStore
 from api.worker import JobRunner
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -44,7 +50,7 @@ JOB_LINKS: dict[int | str, dict[str, Any]] = {
                 "description": "Status and result of the job",
             },
             "CancelJob": {
-                "operationId": "cancel_job_v1_jobs__job_id__delete",
+                "operationId": "cancel_job_v1_jobs__job_id__cancel_post",
                 "parameters": {"job_id": "$response.body#/id"},
                 "description": "Cancel the job",
             },
@@ -54,34 +60,88 @@ JOB_LINKS: dict[int | str, dict[str, Any]] = {
 """OpenAPI links of a 202 job answer (clients and stateful testers follow them)."""
 
 
+IDEMPOTENCY_KEY_HEADER = "Idempotency-Key"
+
+IdempotencyKey = Annotated[
+    str | None,
+    Header(
+        alias=IDEMPOTENCY_KEY_HEADER,
+        min_length=1,
+        max_length=200,
+        pattern=r"^[\x21-\x7e]+$",
+        description="A client-chosen key (1–200 visible ASCII characters) of this submission:"
+        " a retry with the same key (same API key) returns the job created first (202, header"
+        " Idempotent-Replayed: true) instead of a second job; a different document under a"
+        " used key is 409",
+    ),
+]
+"""The ``Idempotency-Key`` header of the job submissions."""
+
+CONFLICT_RESPONSE: dict[int | str, dict[str, Any]] = {
+    409: {"model": ErrorBody, "description": "Idempotency-Key reused with another document"}
+}
+
+
 def submit_job(
-    kind: str, document: dict[str, Any], store: JobStore, runner: JobRunner
+    kind: str,
+    document: dict[str, Any],
+    store: JobStore,
+    runner: JobRunner,
+    principal: Principal | None = None,
+    idempotency_key: str | None = None,
 ) -> JSONResponse:
-    """Store a queued job, hand it to the runner, answer 202 with its view and Location."""
-    job = store.create(kind, document)
-    runner.submit(job.id, kind)
+    """Store a queued job owned by ``principal``'s key, hand it to the runner, answer 202 with
+    its view and Location; with an ``idempotency_key`` this key used before, the job created
+    then (nothing new is queued; 409 if that job holds another document or kind)."""
+    owner = None if principal is None or not principal.name else principal.name
+    job, created = store.create_once(kind, document, owner=owner, idempotency_key=idempotency_key)
+    headers = {"Location": f"/v1/jobs/{job.id}"}
+    if created:
+        runner.submit(job.id, kind)
+    else:
+        if job.kind != kind or job.request != document:
+            raise JobConflictError(
+                f"the Idempotency-Key was used for another submission (job {job.id}, kind"
+                f" {job.kind}); use a new key for a new document"
+            )
+        headers["Idempotent-Replayed"] = "true"
     view = JobView.of(job)
-    return JSONResponse(
-        view.model_dump(mode="json"), status_code=202, headers={"Location": view.url}
-    )
+    headers["Location"] = view.url
+    return JSONResponse(view.model_dump(mode="json"), status_code=202, headers=headers)
 
 
-def _job(store: JobStore, job_id: str) -> Job:
+def owned_job(store: JobStore, job_id: str, principal: Principal) -> Job:
+    """The job, if ``principal`` may see it; 404 otherwise (as for an unknown id)."""
     job = store.get(job_id)
-    if job is None:
+    if job is None or not principal.may_see(job.owner):
         raise JobNotFoundError(f"no job with id {job_id}")
     return job
+
+
+def owned_head(store: JobStore, job_id: str, principal: Principal) -> JobHead:
+    """The job's state, if ``principal`` may see it; 404 otherwise."""
+    head = store.head(job_id)
+    if head is None or not principal.may_see(head.owner):
+        raise JobNotFoundError(f"no job with id {job_id}")
+    return head
+
+
+PrincipalDep = Annotated[Principal, Depends(get_principal)]
 
 
 @router.get("", response_model=JobPage, summary="List jobs, newest first (paged)")
 def list_jobs(
     store: Annotated[JobStore, Depends(get_store)],
+    principal: PrincipalDep,
     limit: Annotated[int, Query(ge=1, le=200, description="Page size (1–200)")] = 50,
     offset: Annotated[int, Query(ge=0, le=10**9, description="Jobs to skip")] = 0,
     status: Annotated[JobStatus | None, Query(description="Only jobs with this status")] = None,
     kind: Annotated[str | None, Query(max_length=40, description="Only jobs of this kind")] = None,
 ) -> JobPage:
-    jobs, total = store.list_jobs(limit=limit, offset=offset, status=status, kind=kind)
+    """This key's jobs (the admin key's: all)."""
+    jobs, total = store.list_jobs(
+        limit=limit, offset=offset, status=status, kind=kind, owner=principal.owner_filter
+    )
     nxt = offset + len(jobs)
     return JobPage(
         items=[JobSummary.of_head(j) for j in jobs],
@@ -95,28 +155,55 @@ def list_jobs(
 @router.get(
     "/{job_id}", response_model=JobView, responses=NOT_FOUND, summary="Job status and result"
 )
-def get_job(job_id: JobId, store: Annotated[JobStore, Depends(get_store)]) -> JobView:
+def get_job(
+    job_id: JobId, store: Annotated[JobStore, Depends(get_store)], principal: PrincipalDep
+) -> JobView:
     """Status, progress (0–1) and, when finished, the result or the error."""
-    return JobView.of(_job(store, job_id))
+    return JobView.of(owned_job(store, job_id, principal))
 
 
-@router.delete(
-    "/{job_id}",
+@router.post(
+    "/{job_id}/cancel",
     response_model=JobView,
     responses={**NOT_FOUND, 409: {"model": ErrorBody, "description": "The job had already ended"}},
-    summary="Cancel a queued or running job",
+    summary="Cancel a queued or running job (the job stays, as cancelled)",
 )
 def cancel_job(
     job_id: JobId,
     store: Annotated[JobStore, Depends(get_store)],
     runner: Annotated[JobRunner, Depends(get_runner)],
+    principal: PrincipalDep,
 ) -> JobView:
-    """A running job's worker process is terminated; the job ends as ``cancelled``."""
+    """A running job's worker process is terminated; the job ends as ``cancelled`` and keeps
+    answering GET. 409 if it had already ended."""
+    owned_head(store, job_id, principal)  # 404 for an unknown id or another key's job
     applied = runner.cancel(job_id)
-    job = _job(store, job_id)  # 404 for an unknown id (nothing was cancelled then)
+    job = owned_job(store, job_id, principal)
     if not applied:
         raise JobConflictError(f"job {job_id} has already ended ({job.status}); nothing to cancel")
     return JobView.of(job)
+
+
+@router.delete(
+    "/{job_id}",
+    status_code=204,
+    response_class=Response,
+    responses={**NOT_FOUND, 204: {"description": "The job was removed"}},
+    summary="Remove a job (a queued or running one is cancelled first); then GET answers 404",
+)
+def delete_job(
+    job_id: JobId,
+    store: Annotated[JobStore, Depends(get_store)],
+    runner: Annotated[JobRunner, Depends(get_runner)],
+    principal: PrincipalDep,
+) -> Response:
+    """The job's row, result and figures are removed; a queued or running job is cancelled
+    (its worker process terminated) first. 404 for an unknown id, another key's job or a job
+    removed before."""
+    owned_head(store, job_id, principal)
+    if not runner.delete(job_id):
+        raise JobNotFoundError(f"no job with id {job_id}")
+    return Response(status_code=204)
 
 
 @router.get(
@@ -138,8 +225,9 @@ def get_figure(
     ],
     store: Annotated[JobStore, Depends(get_store)],
     settings: Annotated[Settings, Depends(get_settings)],
+    principal: PrincipalDep,
 ) -> FileResponse:
-    job = _job(store, job_id)
+    job = owned_job(store, job_id, principal)
     filename = job.figures.get(name)
     if filename is None:
         have = ", ".join(sorted(job.figures)) or "none"

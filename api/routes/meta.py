@@ -6,7 +6,8 @@ import sqlite3
 from importlib.metadata import version
 from typing import Annotated
 
-from fastapi import APIRouter, Depends
+import anyio
+from fastapi import APIRouter, Depends, Request
 from fastapi.responses import JSONResponse
 
 from api.deps import get_runner, get_settings, get_store
@@ -27,14 +28,22 @@ router = APIRouter(tags=["service"])
     responses={503: {"model": Health, "description": "The job database does not answer"}},
     summary="Liveness and queue state (no API key needed)",
 )
-def healthz(
+async def healthz(
+    request: Request,
     store: Annotated[JobStore, Depends(get_store)],
     runner: Annotated[JobRunner, Depends(get_runner)],
     settings: Annotated[Settings, Depends(get_settings)],
 ) -> JSONResponse:
-    """``ok``; ``degraded`` (200) with the ``reason`` after a fault the service recovered from
-    (within the last 5 minutes: a locked or removed database, a dispatcher error); 503 while
-    the job database does not answer (one attempt, no retries: the answer comes at once)."""
+    """``ok``; ``degraded`` (200) with the ``reason`` while a fault lasts and the service still
+    answers (a locked database the store retries, a dispatcher error); 503 while the job
+    database does not answer (one attempt, no retries: the answer comes at once); ``ok`` again
+    when the fault is over, ``last_fault`` keeping the last one for 5 minutes. Its work runs
+    on its own threads (never queued behind request work), so it answers under load."""
+    limiter: anyio.CapacityLimiter = request.app.state.health_limiter
+    return await anyio.to_thread.run_sync(_health, store, runner, settings, limiter=limiter)
+
+
+def _health(store: JobStore, runner: JobRunner, settings: Settings) -> JSONResponse:
     reason = runner.health()
     try:
         counts, status, code = store.counts(retry=False), "ok", 200
@@ -46,6 +55,7 @@ def healthz(
     body = Health(
         status=status,
         reason=reason,
+        last_fault=runner.last_fault(),
         version=version("ris_planner"),
         workers=settings.workers,
         running=runner.running(),

@@ -13,11 +13,12 @@ import anyio
 from fastapi import APIRouter, Depends, Request
 from fastapi.responses import JSONResponse
 
-from api.deps import get_runner, get_settings, get_store
+from api.auth import Principal
+from api.deps import get_principal, get_runner, get_settings, get_store
 from api.documents import document_body, json_document, local_plan
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.models import JobView, plan_examples
-from api.routes.jobs import JOB_LINKS, submit_job
+from api.routes.jobs import CONFLICT_RESPONSE, JOB_LINKS, IdempotencyKey, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
@@ -37,7 +38,7 @@ PLAN_BODY = document_body(
     "/plans",
     status_code=202,
     response_model=JobView,
-    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE, **JOB_LINKS},
+    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE, **JOB_LINKS, **CONFLICT_RESPONSE},
     summary="Start a placement-planning job (ris-planner plan)",
     openapi_extra=PLAN_BODY,
 )
@@ -46,6 +47,8 @@ async def post_plan(
     store: Annotated[JobStore, Depends(get_store)],
     runner: Annotated[JobRunner, Depends(get_runner)],
     settings: Annotated[Settings, Depends(get_settings)],
+    principal: Annotated[Principal, Depends(get_principal)],
+    idempotency_key: IdempotencyKey = None,
 ) -> JSONResponse:
     """202 with the queued job. Its result is the ``plan.json`` of ``ris-planner plan`` (ranked
     layouts per RIS count, coverage and CDF figures of merit; ``frame`` for a geographic
@@ -57,15 +60,16 @@ async def post_plan(
     job memory budget), 501 for a frame on a server without the GIS extra. The job keeps the
     document as sent (a geographic one in its own coordinates)."""
     body = await request.body()
-    return await anyio.to_thread.run_sync(_submit_plan, body, store, runner, settings)
+    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
 
+    def submit() -> JSONResponse:
+        document = json_document(body)
+        plan, frame = local_plan(document, settings.job_memory_mb)
+        # the RIS element fields the document leaves unset stay unset: plan.json physics.from
+        unset = {f for f in PHYSICS_FIELDS if f not in plan.ris.model_fields_set}
+        stored = (
+            document if frame is not None else plan.model_dump(mode="json", exclude={"ris": unset})
+        )
+        return submit_job("plan", stored, store, runner, principal, idempotency_key)
 
-def _submit_plan(
-    body: bytes, store: JobStore, runner: JobRunner, settings: Settings
-) -> JSONResponse:
-    document = json_document(body)
-    plan, frame = local_plan(document, settings.job_memory_mb)
-    # the RIS element fields the document leaves unset stay unset: plan.json physics.from
-    unset = {f for f in PHYSICS_FIELDS if f not in plan.ris.model_fields_set}
-    stored = document if frame is not None else plan.model_dump(mode="json", exclude={"ris": unset})
-    return submit_job("plan", stored, store, runner)
+    return await anyio.to_thread.run_sync(submit, limiter=limiter)

@@ -9,12 +9,13 @@ from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import JSONResponse
 from pydantic import Discriminator, Tag, TypeAdapter
 
-from api.deps import get_runner, get_settings, get_store
+from api.auth import Principal
+from api.deps import get_principal, get_runner, get_settings, get_store
 from api.documents import document_body, json_document
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.limits import check_layout_beams_size, check_scenario_size
 from api.models import JobView, power_examples
-from api.routes.jobs import JOB_LINKS, submit_job
+from api.routes.jobs import CONFLICT_RESPONSE, JOB_LINKS, IdempotencyKey, submit_job
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
@@ -56,7 +57,7 @@ POWER_BODY = document_body(
     "/power-allocations",
     status_code=202,
     response_model=JobView,
-    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE, **JOB_LINKS},
+    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE, **JOB_LINKS, **CONFLICT_RESPONSE},
     summary="Start a power-allocation job (ris-planner power)",
     openapi_extra=POWER_BODY,
 )
@@ -65,11 +66,13 @@ async def post_power(
     store: Annotated[JobStore, Depends(get_store)],
     runner: Annotated[JobRunner, Depends(get_runner)],
     settings: Annotated[Settings, Depends(get_settings)],
+    principal: Annotated[Principal, Depends(get_principal)],
     objective: Annotated[
         Objective,
         Query(description="Minimise the mean PEB_R² (rx), PEB_T² (tx) or their sum [m²]"),
     ] = "rx",
     solver: Annotated[Solver, Query(description="SDP solver (cvxpy)")] = "CLARABEL",
+    idempotency_key: IdempotencyKey = None,
 ) -> JSONResponse:
     """202 with the queued job; its result is the JSON of ``ris-planner power`` (uniform power,
     the best γ_P for DIR+DER codebooks, the SDP allocation, each objective re-evaluated by the
@@ -88,7 +91,9 @@ async def post_power(
         if isinstance(parsed, LayoutBeamsDocument):
             check_layout_beams_size(parsed, settings)
             layout = document if frame is not None else parsed.model_dump(mode="json")
-            return submit_job("power", {"layout": layout}, store, runner)
+            return submit_job(
+                "power", {"layout": layout}, store, runner, principal, idempotency_key
+            )
         check_scenario_size(parsed, settings)
         power_check(parsed, objective, settings.job_memory_mb)  # ris-planner power's checks
         job = {
@@ -96,6 +101,7 @@ async def post_power(
             "objective": objective,
             "solver": solver,
         }
-        return submit_job("power", job, store, runner)
+        return submit_job("power", job, store, runner, principal, idempotency_key)
 
-    return await anyio.to_thread.run_sync(submit)
+    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
+    return await anyio.to_thread.run_sync(submit, limiter=limiter)

@@ -109,4 +109,5 @@ async def post_sites(
         collection, summary = candidate_sites(req.site, req.options, max_tests=settings.max_work)
         return {**collection, "summary": summary.to_json()}
 
-    return JSONResponse(await anyio.to_thread.run_sync(run))
+    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
+    return JSONResponse(await anyio.to_thread.run_sync(run, limiter=limiter))

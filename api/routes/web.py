@@ -11,7 +11,10 @@ draws (expanded candidate sites, UE map points).
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -31,6 +34,7 @@ from api.deps import get_settings
 from api.documents import document_body, json_document, local_plan
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.models import plan_examples
+from api.security import PAGE_CSP, docs_csp
 from api.settings import Settings
 from ris_planner.planning.maps import PointMap
 from ris_planner.planning.plan import prepare_plan
@@ -42,11 +46,20 @@ STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 PREVIEW_MAX_POINTS = 5000
 """UE map points returned per map by the validation preview (every k-th point beyond it)."""
 
-PAGE_CSP = (
-    "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:;"
-    " connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
-)
-"""Content-Security-Policy of the planner page: only its own origin (proves no CDN use)."""
+
+def inline_script_hashes(html: str) -> list[str]:
+    """SHA-256 (base64) of each inline ``<script>`` of a page, for its CSP."""
+    bodies = re.findall(r"<script(?![^>]*\bsrc=)[^>]*>(.*?)</script>", html, flags=re.S)
+    return [base64.b64encode(hashlib.sha256(b.encode()).digest()).decode() for b in bodies]
+
+
+def _with_csp(page: HTMLResponse) -> HTMLResponse:
+    """The page with a CSP admitting its own inline start-up script (and nothing else inline)."""
+    html = bytes(page.body).decode("utf-8")
+    return HTMLResponse(
+        html, headers={"Content-Security-Policy": docs_csp(inline_script_hashes(html))}
+    )
+
 
 router = APIRouter(tags=["jobs"])
 
@@ -119,7 +132,8 @@ async def validate_plan(
     site-cache limits: 422 / 413); nothing is queued. The answer previews the expanded sites,
     maps and obstacles in local metres, with the document's frame."""
     body = await request.body()
-    return await anyio.to_thread.run_sync(_preview, body, settings)
+    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
+    return await anyio.to_thread.run_sync(_preview, body, settings, limiter=limiter)
 
 
 def _preview(body: bytes, settings: Settings) -> PlanPreview:
@@ -170,6 +184,9 @@ def install_web(app: FastAPI) -> None:
 
     @pages.get("/docs", response_class=HTMLResponse)
     def swagger_ui() -> HTMLResponse:
+        return _with_csp(docs_page())
+
+    def docs_page() -> HTMLResponse:
         return get_swagger_ui_html(
             openapi_url=openapi_url,
             title=f"{title} – Swagger UI",
@@ -182,10 +199,13 @@ def install_web(app: FastAPI) -> None:
 
     @pages.get(oauth_redirect, response_class=HTMLResponse)
     def swagger_redirect() -> HTMLResponse:
-        return get_swagger_ui_oauth2_redirect_html()
+        return _with_csp(get_swagger_ui_oauth2_redirect_html())
 
     @pages.get("/redoc", response_class=HTMLResponse)
     def redoc() -> HTMLResponse:
+        return _with_csp(redoc_page())
+
+    def redoc_page() -> HTMLResponse:
         return get_redoc_html(
             openapi_url=openapi_url,
             title=f"{title} – ReDoc",

@@ -843,7 +843,7 @@
     if (!state.job) return;
     $("cancel").disabled = true;
     try {
-      const job = await api(`/v1/jobs/${state.job.id}`, { method: "DELETE" });
+      const job = await api(`/v1/jobs/${state.job.id}/cancel`, { method: "POST" });
       showJob(job);
       refreshJobs();
     } catch (err) {

@@ -17,6 +17,7 @@ layers are ignored (counted per layer in the summary).
 from __future__ import annotations
 
 import itertools
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -40,8 +41,22 @@ class LayerSpec:
     base_m: float = 0.0
 
 
+_POSITIVE = r"(?:[0-9]*[1-9][0-9]*(?:\.[0-9]*)?|[0-9]*\.[0-9]*[1-9][0-9]*)"
+_NON_NEGATIVE = r"(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)"
+LAYER_SPEC_PATTERN = rf"^[^=]+=(?:wall|prism):{_POSITIVE}(?::{_NON_NEGATIVE})?$"
+"""The text of one layer choice: ``NAME=wall:HEIGHT_M`` or ``NAME=prism:HEIGHT_M[:BASE_M]``
+(a non-empty name; plain decimal metres, height > 0, base ≥ 0) – the service's OpenAPI
+document states the same pattern."""
+
+
 def parse_layer_spec(text: str) -> tuple[str, LayerSpec]:
-    """``NAME=wall:2.5`` or ``NAME=prism:3[:base]`` → (layer name, spec)."""
+    """``NAME=wall:2.5`` or ``NAME=prism:3[:base]`` → (layer name, spec)
+    (:data:`LAYER_SPEC_PATTERN`)."""
+    if re.fullmatch(LAYER_SPEC_PATTERN, text) is None:
+        raise RisPlannerError(
+            f"layer {text!r}: expected LAYER=wall:HEIGHT_M or LAYER=prism:HEIGHT_M[:BASE_M]"
+            " (decimal metres, height > 0, base ≥ 0)"
+        )
     name, sep, rest = text.partition("=")
     parts = rest.split(":")
     if not sep or not name or len(parts) not in (2, 3) or parts[0] not in ("wall", "prism"):

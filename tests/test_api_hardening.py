@@ -1,0 +1,285 @@
+"""Service hardening against real servers (uvicorn on 127.0.0.1, each stopped by its PID via
+``api.launch.served``): storage faults answer 503 with Retry-After within the request bound and
+health recovers; security headers on every answer; a client that disconnects mid-body leaves
+no traceback; one error class per failure kind; list sizes refused before validation; API keys
+owning their jobs; Idempotency-Key; DELETE removes a job (docs/guides/service-operations.md).
+
+Storage fault injection: a connection of the test process holds the database in SQLite's
+``locking_mode=EXCLUSIVE`` with an open write transaction, so that no other connection (the
+server's, its workers') can read or write the file – the store's real failure path (every
+attempt fails with "database is locked" until the request's bound). Root ignores file
+permissions, so a read-only file would not fail; the lock fails for every user.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import sqlite3
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from test_api_faults import FINAL, poll, wait_gone
+from test_api_plans import small_plan_doc
+
+from api.auth import key_digest
+from api.launch import served
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")
+
+WAIT_S = 1.5
+"""The request bound of the fault tests (RIS_PLANNER_REQUEST_STORE_WAIT_S)."""
+
+
+def lock_database(db: Path, ready: threading.Event, release: threading.Event) -> None:
+    """Hold ``db`` exclusively (no reader nor writer gets in) until ``release`` is set."""
+    con = sqlite3.connect(db, isolation_level=None, timeout=10)
+    try:
+        con.execute("PRAGMA locking_mode=EXCLUSIVE")
+        con.execute("BEGIN EXCLUSIVE")
+        con.execute("UPDATE jobs SET message = message WHERE 0")
+        ready.set()
+        release.wait(60)
+        con.execute("COMMIT")
+    finally:
+        con.close()
+
+
+def test_storage_fault_is_503_with_retry_after_and_health_recovers(tmp_path: Path) -> None:
+    db = tmp_path / "jobs.db"
+    log = tmp_path / "server.log"
+    env = {"RIS_PLANNER_REQUEST_STORE_WAIT_S": str(WAIT_S), "RIS_PLANNER_DB_BUSY_TIMEOUT_S": "0.2"}
+    with served(db, env=env, log=log) as server:
+        url = server.url
+        first = httpx.post(f"{url}/v1/plans", json=small_plan_doc(), timeout=30)
+        assert first.status_code == 202
+        poll(url, first.json()["id"], FINAL)
+        ready, release = threading.Event(), threading.Event()
+        holder = threading.Thread(target=lock_database, args=(db, ready, release))
+        holder.start()
+        try:
+            assert ready.wait(10)
+            for method, path, body in [
+                ("POST", "/v1/plans", small_plan_doc()),
+                ("GET", "/v1/jobs", None),
+                ("GET", f"/v1/jobs/{first.json()['id']}", None),
+                ("DELETE", f"/v1/jobs/{first.json()['id']}", None),
+            ]:
+                t0 = time.monotonic()
+                r = httpx.request(method, f"{url}{path}", json=body, timeout=30)
+                took = time.monotonic() - t0
+                assert r.status_code == 503, (path, r.status_code, r.text)
+                assert r.headers["retry-after"].isdigit(), r.headers
+                assert r.json()["error"] == "unavailable" and "job database" in r.json()["message"]
+                assert took < WAIT_S + 2.0, (path, took)  # the documented bound (+ one attempt)
+            health = httpx.get(f"{url}/healthz", timeout=5)
+            assert health.status_code == 503 and health.json()["status"] == "unavailable"
+        finally:
+            release.set()
+            holder.join(30)
+        deadline = time.monotonic() + 15
+        while (h := httpx.get(f"{url}/healthz", timeout=5).json())["status"] != "ok":
+            assert time.monotonic() < deadline, h  # back to ok once the store answers
+            time.sleep(0.2)
+        assert h["last_fault"], h  # the fault stays on record
+        assert httpx.get(f"{url}/v1/jobs", timeout=10).status_code == 200
+        pids = [server.process.pid]
+    wait_gone(pids)
+    text = log.read_text()
+    assert "Traceback" not in text and "internal_error" not in text and "unexpected" not in text
+
+
+def test_headers_on_every_answer(tmp_path: Path) -> None:
+    with served(tmp_path / "jobs.db") as server:
+        url = server.url
+        answers = {
+            path: httpx.get(f"{url}{path}", timeout=10)
+            for path in ("/", "/static/index.html", "/docs", "/redoc", "/docs/oauth2-redirect")
+        }
+        for path in ("/healthz", "/openapi.json", "/static/app.js", "/v1/nothing", "/v1/jobs/x"):
+            r = httpx.get(f"{url}{path}", timeout=10)
+            assert r.headers["x-content-type-options"] == "nosniff", path
+        r = httpx.post(f"{url}/v1/bounds", content=b"x" * 20_000_000, timeout=30)
+        assert r.status_code == 413 and r.headers["x-content-type-options"] == "nosniff"
+        for path, r in answers.items():
+            assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
+            csp = r.headers["content-security-policy"]
+            assert "frame-ancestors 'none'" in csp and "default-src 'self'" in csp, path
+            assert "unsafe-inline" not in csp.split("script-src")[1].split(";")[0], path
+            assert r.headers["x-frame-options"] == "DENY", path
+            assert r.headers["x-content-type-options"] == "nosniff", path
+        # Swagger UI's inline start-up script is admitted by its hash (ReDoc has none)
+        assert "'sha256-" in answers["/docs"].headers["content-security-policy"]
+        for path in ("/docs", "/redoc"):
+            assert "cdn" not in answers[path].text.lower(), path
+
+
+def test_client_disconnect_mid_body_is_no_error(tmp_path: Path) -> None:
+    log = tmp_path / "server.log"
+    with served(tmp_path / "jobs.db", log=log) as server:
+        host, port = server.url.removeprefix("http://").split(":")
+        for path in ("/v1/plans", "/v1/bounds", "/v1/import", "/v1/plans/validate"):
+            with socket.create_connection((host, int(port)), timeout=5) as s:
+                head = f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                s.sendall(f"{head}Content-Length: 1000\r\n\r\n".encode() + b'{"a": 1')
+            time.sleep(0.3)
+        assert httpx.get(f"{server.url}/healthz", timeout=5).status_code == 200
+        pids = [server.process.pid]
+    wait_gone(pids)
+    text = log.read_text()
+    assert "Traceback" not in text and "ClientDisconnect" not in text, text[-2000:]
+    assert "unexpected error" not in text
+
+
+def nested(depth: int) -> str:
+    return "[" * depth + "]" * depth
+
+
+def test_one_error_class_per_failure_kind(tmp_path: Path) -> None:
+    with served(tmp_path / "jobs.db") as server:
+        url = server.url
+        routes = ["/v1/bounds", "/v1/plans", "/v1/plans/validate", "/v1/power-allocations"]
+        routes += ["/v1/sites", "/v1/import?format=geojson", "/v1/import?format=sites"]
+        huge = '{"a": ' + "7" * 100_000 + "}"
+        for route in routes:
+            for body in (nested(10_000), '{"x": ' + nested(100) + "}", "{not json"):
+                r = httpx.post(f"{url}{route}", content=body, timeout=30)
+                assert r.status_code == 400 and r.json()["error"] == "bad_request", (route, r.text)
+            r = httpx.post(f"{url}{route}", content=huge, timeout=30)
+            assert r.status_code == 413, (route, r.status_code, r.text[:300])
+            assert "digits" in r.json()["message"] and "sys." not in r.text, route
+            r = httpx.post(f"{url}{route}", content=b"x" * 20_000_000, timeout=30)
+            assert r.status_code == 413 and r.json()["limit"] == 10_000_000, route
+
+
+def test_list_sizes_refused_before_validation(tmp_path: Path) -> None:
+    prism = {"kind": "prism", "footprint": [[0, 0], [1, 0], [1, 1]], "height": 3}
+    doc = small_plan_doc()
+    doc["environment"] = {"obstacles": [prism] * 100_001}
+    body = json.dumps(doc)
+    with served(tmp_path / "jobs.db", env={"RIS_PLANNER_MAX_BODY_BYTES": "20000000"}) as server:
+        for route in ("/v1/plans", "/v1/plans/validate", "/v1/bounds"):
+            t0 = time.monotonic()
+            r = httpx.post(f"{server.url}{route}", content=body, timeout=60)
+            took = time.monotonic() - t0
+            assert r.status_code == 413 and r.json()["limit"] == 100_000, r.text[:300]
+            assert "obstacles" in r.json()["message"]
+            assert took < 5.0, took  # parsed and counted, never validated (validation: ~10 s)
+
+
+def headers(key: str, **more: str) -> dict[str, str]:
+    return {"X-API-Key": key, **more}
+
+
+def test_api_keys_own_their_jobs_and_idempotent_submissions(tmp_path: Path) -> None:
+    keys_file = tmp_path / "keys"
+    keys_file.write_text(f"# name:sha256\nbob:{key_digest('bob-key')}\n")
+    env = {
+        "RIS_PLANNER_API_KEY": "admin-key",
+        "RIS_PLANNER_API_KEYS": f"alice:{key_digest('alice-key')}",
+        "RIS_PLANNER_API_KEYS_FILE": str(keys_file),
+    }
+    with served(tmp_path / "jobs.db", env=env) as server:
+        url = server.url
+        doc = small_plan_doc()
+        assert httpx.get(f"{url}/v1/jobs", timeout=10).status_code == 401
+        assert httpx.get(f"{url}/v1/jobs", headers=headers("alice"), timeout=10).status_code == 401
+        assert httpx.get(f"{url}/healthz", timeout=10).status_code == 200
+        alice = headers("alice-key", **{"Idempotency-Key": "run-1"})
+        r1 = httpx.post(f"{url}/v1/plans", json=doc, headers=alice, timeout=30)
+        r2 = httpx.post(f"{url}/v1/plans", json=doc, headers=alice, timeout=30)
+        assert r1.status_code == r2.status_code == 202
+        job = r1.json()["id"]
+        assert r2.json()["id"] == job and r2.headers["idempotent-replayed"] == "true"
+        other = small_plan_doc(description="another")
+        r3 = httpx.post(f"{url}/v1/plans", json=other, headers=alice, timeout=30)
+        assert r3.status_code == 409 and r3.json()["error"] == "conflict"
+        bob = headers("bob-key", **{"Idempotency-Key": "run-1"})  # same key, other owner
+        rb = httpx.post(f"{url}/v1/plans", json=doc, headers=bob, timeout=30)
+        assert rb.status_code == 202 and rb.json()["id"] != job
+        bob_job = rb.json()["id"]
+        for h, own, other_job in ((alice, job, bob_job), (bob, bob_job, job)):
+            page = httpx.get(f"{url}/v1/jobs", headers=h, timeout=10).json()
+            assert [j["id"] for j in page["items"]] == [own] and page["total"] == 1
+            for method, path in [
+                ("GET", f"/v1/jobs/{other_job}"),
+                ("GET", f"/v1/jobs/{other_job}/events"),
+                ("GET", f"/v1/jobs/{other_job}/figures/topview"),
+                ("POST", f"/v1/jobs/{other_job}/cancel"),
+                ("DELETE", f"/v1/jobs/{other_job}"),
+            ]:
+                r = httpx.request(method, f"{url}{path}", headers=h, timeout=10)
+                assert r.status_code == 404 and r.json()["error"] == "not_found", (method, path)
+        admin = headers("admin-key")
+        page = httpx.get(f"{url}/v1/jobs", headers=admin, timeout=10).json()
+        assert {j["id"] for j in page["items"]} == {job, bob_job}
+        # DELETE removes (the admin may remove any job); POST .../cancel of an ended job: 409
+        view = poll_key(url, job, admin)
+        r = httpx.post(f"{url}/v1/jobs/{job}/cancel", headers=admin, timeout=10)
+        assert r.status_code == 409 and view["status"] in FINAL
+        assert httpx.delete(f"{url}/v1/jobs/{job}", headers=admin, timeout=10).status_code == 204
+        for h in (admin, alice):
+            assert httpx.get(f"{url}/v1/jobs/{job}", headers=h, timeout=10).status_code == 404
+        assert httpx.delete(f"{url}/v1/jobs/{job}", headers=admin, timeout=10).status_code == 404
+
+
+def poll_key(url: str, job_id: str, h: dict[str, str], timeout_s: float = 60) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout_s
+    while True:
+        view: dict[str, Any] = httpx.get(f"{url}/v1/jobs/{job_id}", headers=h, timeout=10).json()
+        if view["status"] in FINAL:
+            return view
+        assert time.monotonic() < deadline, view
+        time.sleep(0.05)
+
+
+def test_delete_of_a_running_job_cancels_and_removes_it(tmp_path: Path) -> None:
+    from test_api_faults import long_plan, worker_pids
+
+    db = tmp_path / "jobs.db"
+    with served(db) as server:
+        url = server.url
+        job = httpx.post(f"{url}/v1/plans", json=long_plan(), timeout=30).json()["id"]
+        poll(url, job, ("running",))
+        workers = worker_pids(server.process.pid)
+        assert httpx.delete(f"{url}/v1/jobs/{job}", timeout=10).status_code == 204
+        wait_gone(workers)  # its worker process was terminated
+        time.sleep(0.5)  # the dispatcher reaps it: no row comes back
+        assert httpx.get(f"{url}/v1/jobs/{job}", timeout=10).status_code == 404
+        assert httpx.get(f"{url}/v1/jobs", timeout=10).json()["total"] == 0
+        assert not (Path(f"{db}.data") / job).exists()
+
+
+def test_healthz_answers_under_load() -> None:
+    """A bounded version of ``benchmarks/bench_service_liveness.py``: 30 concurrent plan
+    submissions and 20 open event streams; ``/healthz`` p99 below 0.5 s during each."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from bench_service_liveness import measure
+
+    for figures in measure(smoke=True, only="concurrent") + measure(smoke=True, only="streams"):
+        assert set(figures["health_statuses"]) == {200}, figures
+        assert figures["p99_s"] < 0.5, figures
+
+
+def test_every_sqlite_error_is_503(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk or a read-only database (SQLite errors that are not retried) answer 503 with
+    Retry-After through the same handler (in-process: the store's call raises as SQLite
+    would)."""
+    from api_helpers import api_client
+
+    from api.store import JobStore
+
+    def full(*args: Any, **kwargs: Any) -> Any:
+        raise sqlite3.OperationalError("database or disk is full")
+
+    with api_client(tmp_path) as client:
+        monkeypatch.setattr(JobStore, "create_once", full)
+        monkeypatch.setattr(JobStore, "list_jobs", full)
+        for r in (client.post("/v1/plans", json=small_plan_doc()), client.get("/v1/jobs")):
+            assert r.status_code == 503 and r.headers["retry-after"] == "5", r.text
+            assert "disk is full" in r.json()["message"]
