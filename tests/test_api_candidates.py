@@ -125,7 +125,9 @@ def test_convert_errors_name_the_field(tmp_path: Path) -> None:
             json={"frame": {"origin": [60.1, 24.9]}, "document": [{"position": [24.9, 60.1, 0]}]},
         )
         assert swapped.status_code == 422
-        assert swapped.json()["fields"][0]["field"] == "candidates.0.position"
+        # the origin is the swapped one (the candidate lies where [lat, lon] of it would)
+        assert swapped.json()["fields"][0]["field"] == "frame.origin"
+        assert "swapped?" in swapped.json()["message"]
 
 
 def test_site_preview_of_an_import_without_candidates(tmp_path: Path) -> None:

@@ -1,7 +1,7 @@
 """``POST /v1/sites`` against a real uvicorn on 127.0.0.1: the Helsinki site (raw GeoJSON and the
 document ``POST /v1/import`` makes of it) gives what ``ris-planner sites`` writes plus its
 summary, bad options are a 422 naming ``options.…``, a body over the limit and a layout over
-the visibility limits a 413 before any work, a missing API key a 401."""
+the generator's site and leg limits a 413 before any work, a missing API key a 401."""
 
 from __future__ import annotations
 
@@ -14,7 +14,12 @@ import pytest
 from api_helpers import api_client
 
 from api.launch import served
-from ris_planner.io.candidates import CandidateOptions, candidate_sites, generate_candidates
+from ris_planner.io.candidates import (
+    MAX_VISIBILITY_LEGS,
+    CandidateOptions,
+    candidate_sites,
+    generate_candidates,
+)
 
 HELSINKI = Path(__file__).resolve().parent.parent / "examples" / "helsinki"
 BODY_LIMIT = 200_000
@@ -71,12 +76,12 @@ def test_sites_errors(server: str) -> None:
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "options.tilts"
     r = httpx.post(url, json={"options": {}})
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "site"
-    ring = [[24.94, 60.17], [24.941, 60.17], [24.941, 60.171]]  # not closed
+    ring = [[24.94, 160.17], [24.941, 160.17], [24.941, 160.171], [24.94, 160.17]]  # lat > 90
     feature = {"type": "Feature", "properties": {"building": "yes"}}
     feature["geometry"] = {"type": "Polygon", "coordinates": [ring]}
     r = httpx.post(url, json={"site": {"type": "FeatureCollection", "features": [feature]}})
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "site.features.0"
-    assert "ring is not closed" in r.json()["message"]
+    assert "swapped?" in r.json()["message"]
     no_ue = {"frame": {"origin": [24.94, 60.17]}, "environment": {"obstacles": []}}
     r = httpx.post(url, json={"site": no_ue})
     assert r.status_code == 422 and "no UE positions" in r.json()["message"]
@@ -85,9 +90,10 @@ def test_sites_errors(server: str) -> None:
     assert r.status_code == 413 and r.json()["limit"] == BODY_LIMIT
     r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0.001}}, timeout=60)
     assert r.status_code == 413 and "sites before the visibility filter" in r.json()["message"]
-    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 1.0}}, timeout=60)
-    assert r.status_code == 413 and "visibility tests" in r.json()["message"]
-    assert r.json()["limit"] == 1_000_000_000  # the service's max_work
+    # 48 627 sites × 692 UE points = 33.6 M legs fit; 97 195 × 692 = 67.3 M do not
+    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0.05}}, timeout=60)
+    assert r.status_code == 413 and "visibility legs" in r.json()["message"]
+    assert r.json()["limit"] == MAX_VISIBILITY_LEGS
 
 
 def test_sites_needs_the_api_key(tmp_path: Path) -> None:

@@ -132,7 +132,8 @@ def test_scorer_equals_compute_bounds_on_ill_conditioned_street() -> None:
         doc = PlanDocument.model_validate(
             {
                 "system": {"tx_power_dbm": 30, "noise_figure_db": 10},
-                "ris": {"rows": 20, "cols": 20},
+                # the scenario's element model (plan documents default to a physical one)
+                "ris": {"rows": 20, "cols": 20, "pattern_exponent": 0, "max_angle_deg": 90},
                 "candidates": [
                     {"position": r.position, "orientation": r.orientation} for r in sc.ris
                 ],

@@ -112,7 +112,7 @@ def test_command_line_chain(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     import rasterio
 
     with rasterio.open(out / "heatmap.tif") as tif:
-        assert LICENSE in json.dumps(tif.tags())
+        assert LICENSE in tif.tags().values()
 
 
 @pytest.fixture(scope="module")

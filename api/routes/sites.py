@@ -13,17 +13,15 @@ visibility limits before any visibility test (413).
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Any
 
 import anyio
-from fastapi import APIRouter, Depends, Request
+from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
-from api.deps import get_settings
 from api.documents import json_document
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
-from api.settings import Settings
 from ris_planner.io.candidates import CandidateOptions, candidate_sites
 
 router = APIRouter(tags=["import"])
@@ -95,18 +93,19 @@ SITES_BODY: dict[str, Any] = {
     openapi_extra=SITES_BODY,
 )
 async def post_sites(
-    request: Request, settings: Annotated[Settings, Depends(get_settings)]
+    request: Request,
 ) -> JSONResponse:
     """Facade sites (every ``spacing_m`` along each wall, corner clearance at both ends, every
     mounting height below the roof, facing outward) and poles (every ``pole_spacing_m`` along
     the roads, facing across them), kept where they see a UE point; what
-    ``ris-planner sites`` writes, with its summary. 413 above the body limit or when the layout
-    would need more visibility tests than ``max_work``; 422 naming the option or feature."""
+    ``ris-planner sites`` writes, with its summary. 413 above the body limit, or when the layout
+    gives more sites or site × UE point legs than the generator's limits (before any visibility
+    test); 422 naming the option or feature."""
     body = await request.body()
 
     def run() -> dict[str, Any]:
         req = SitesRequest.model_validate(json_document(body))
-        collection, summary = candidate_sites(req.site, req.options, max_tests=settings.max_work)
+        collection, summary = candidate_sites(req.site, req.options)
         return {**collection, "summary": summary.to_json()}
 
     limiter: anyio.CapacityLimiter = request.app.state.parse_limiter

@@ -568,14 +568,14 @@ def candidate_sites(
     options: CandidateOptions | None = None,
     *,
     max_legs: int = MAX_VISIBILITY_LEGS,
-    max_tests: int | None = None,
 ) -> tuple[dict[str, Any], CandidateSummary]:
     """(the candidate FeatureCollection, the summary) of a site (module docstring).
 
-    ``max_legs`` bounds the site × UE point legs, ``max_tests`` (the service's ``max_work``)
-    the legs × obstacle edges; both are checked on the layout's arithmetic before any site is
-    built or tested (:class:`LimitExceededError`). Bad input raises :class:`RisPlannerError`
-    naming the feature or field."""
+    ``max_legs`` bounds the site × UE point legs, checked on the layout's arithmetic before any
+    site is built or tested (:class:`LimitExceededError`): the visibility engine's uniform grid
+    makes a leg's cost grow with the cells it crosses, not with the site's obstacle edges, so
+    the legs are what drive the time (a 45-building OSM cut, 2.4 M legs × 833 edges: about 3 s).
+    Bad input raises :class:`RisPlannerError` naming the feature or field."""
     opts = options or CandidateOptions()
     summary = CandidateSummary()
     parsed = _parse_site(site, opts)
@@ -595,15 +595,6 @@ def candidate_sites(
             f"{raw} sites × {len(parsed.ue_points)} UE points = {legs} visibility legs, above"
             f" the limit of {max_legs}; use a larger spacing or a coarser UE map",
             max_legs,
-        )
-    edges = sum(
-        len(ob.footprint) if isinstance(ob, Prism) else 1 for ob in parsed.environment.obstacles
-    )
-    if max_tests is not None and legs * edges > max_tests:
-        raise LimitExceededError(
-            f"{legs} legs × {edges} obstacle edges = {legs * edges} visibility tests, above"
-            f" the limit of {max_tests}; use a larger spacing, a coarser UE map or a smaller site",
-            max_tests,
         )
     rows: list[Row] = []
     if "facade" in opts.kinds:
