@@ -9,8 +9,8 @@ sites`` → the same local poses; a tiny plan runs on them)."""
 from __future__ import annotations
 
 import json
-import re
 import math
+import re
 from pathlib import Path
 from typing import Any
 

@@ -135,7 +135,7 @@ def convert_candidates(req: CandidateConversion) -> ConvertedCandidates:
         cands = req.local if req.local is not None else req.document
         same = _checked(cands or [], "local" if req.local is not None else "document")
         return ConvertedCandidates(local=same, document=[dict(c) for c in same])
-    frame_json = req.frame.model_dump(exclude_none=True)
+    frame_json = req.frame.model_dump(mode="json", exclude_none=True)
     frame = parse_frame(frame_json, {"candidates": req.document or []})
     if req.local is not None:
         local = _checked(req.local, "local")
