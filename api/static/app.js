@@ -248,6 +248,7 @@
     state.selCand = null;
     state.candsDoc = null;
     state.cands = [];
+    state.candNote = "";  // a new document: the last list's note no longer applies
     const own = doc && Array.isArray(doc.candidates) ? doc.candidates : [];
     if (own.length && geographic()) {
       try {
@@ -1614,6 +1615,10 @@
         box.append(h("span", { class: "cb", id: "colourbar" },
           h("span", {}, `${metric} [m] at ${state.count} RIS, log scale; ▮ = threshold${thrNote} `, wrap),
           h("span", { class: "ticks" }, h("span", { text: `${fmtNum(range.lo)} m` }), h("span", { text: `${fmtNum(mid)} m` }), h("span", { text: `${fmtNum(range.hi)} m` }))));
+      } else if ($("layer-heatmap").checked) {
+        // nothing to scale: say so where the colour bar would be (the diagnosis says why)
+        box.append(h("span", { class: "cb", id: "colourbar" },
+          `${metric} [m] at ${state.count} RIS: every cell is blind (no finite bound)` + (level ? `; threshold ${fmtM(level)}` : "")));
       }
       item(h("span", { class: "swatch", "data-colour": BLIND_COLOUR }), "blind (bound ∞)");
       if ($("layer-contour").checked) item(h("span", { class: "line" }), `contour at ${plan.heatmap.threshold_label} (${fmtM(level)})`);
@@ -1838,7 +1843,10 @@
     state.validateTimer = setTimeout(() => validate({ auto: true }), 300);
   }
 
+  /** The list's summary; the last edit's note (generated, moved, …) stays until the next one. */
   function renderCandSummary(note) {
+    if (note !== undefined) state.candNote = note;
+    note = state.candNote;
     const n = state.cands.length;
     const extra = state.preview ? state.preview.candidates.length - state.previewExplicit : 0;
     $("cand-summary").textContent = (n ? `${n} candidate site${n === 1 ? "" : "s"} in the list` : "No candidates in the list yet")
