@@ -133,6 +133,10 @@ doc = case_document(c)
 parsed = PlanDocument.model_validate(doc)
 sizes = estimate_plan(parsed)
 layout = cache_layout(sizes.cache_entries, c.wavefront)
+from ris_planner.planning.plan import prepare_plan
+from ris_planner.planning.work import plan_work, report_work
+inputs = prepare_plan(parsed)
+est_s = sum(plan_work(inputs).values()) + sum(report_work(inputs).values())
 t0 = time.perf_counter()
 with tempfile.TemporaryDirectory() as tmp, SerialExecutor() as ex:
     done = plan_document(doc, Path(tmp), lambda f, m: None, ex)
@@ -140,6 +144,7 @@ seconds = time.perf_counter() - t0
 status = open("/proc/self/status").read()
 hwm = int(status.split("VmHWM:")[1].split()[0]) * 1024
 print(json.dumps({"estimate": sizes.memory_bytes, "peak": hwm, "seconds": seconds,
+                  "estimate_s": est_s,
                   "layout": list(layout), "storage": done.plan["site_cache"]}))
 """
 
@@ -180,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         cases = [c for c in SMOKE + FULL if any(s in c.name for s in args.case)]
     print(
         f"{'case':36} {'tier':13} {'wave':9} {'estimate MiB':>12} {'peak MiB':>9}"
-        f" {'ratio':>6} {'time s':>7}  result"
+        f" {'ratio':>6} {'time s':>7} {'est. s':>7} {'ratio':>6}  result"
     )
     rows, t0 = [], time.perf_counter()
     for case in cases:
@@ -188,7 +193,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append({"case": asdict(case), **r})
         print(
             f"{case.name:36} {case.tier:13} {case.wavefront:9} {r['estimate'] / 2**20:12.0f}"
-            f" {r['peak'] / 2**20:9.0f} {r['ratio']:6.2f} {r['seconds']:7.1f} "
+            f" {r['peak'] / 2**20:9.0f} {r['ratio']:6.2f} {r['seconds']:7.1f}"
+            f" {r['estimate_s']:7.1f} {r['estimate_s'] / r['seconds']:6.2f} "
             f" {'pass' if r['passed'] else 'FAIL'}",
             flush=True,
         )

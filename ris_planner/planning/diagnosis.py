@@ -160,14 +160,7 @@ def smallest_side(
 
     if not reaches(predicted(max_side)):
         return None
-    lo, hi = 0, max_side
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if reaches(predicted(mid)):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return smallest_passing(0, max_side, lambda side: reaches(predicted(side)))
 
 
 PAIR_SIDE_QUANTILES = (0.5, 0.9)
@@ -208,14 +201,7 @@ def smallest_power_step(
 
     if max_steps < 0 or not reaches(scaled(max_steps)):
         return None
-    lo, hi = -1, max_steps
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if reaches(scaled(mid)):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return smallest_passing(-1, max_steps, lambda step: reaches(scaled(step)))
 
 
 def rescore(
@@ -445,3 +431,15 @@ def summary_lines(diagnosis: dict[str, Any]) -> list[str]:
     ]
     lines += [f"  - {c['kind']}: {c['message']}" for c in diagnosis["causes"]]
     return lines
+
+
+def smallest_passing(lo: int, hi: int, ok: Callable[[int], bool]) -> int:
+    """The smallest integer in (lo, hi] where the monotone predicate ``ok`` holds, by
+    bisection; ``ok(hi)`` must hold (the callers check it first)."""
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if ok(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
