@@ -100,10 +100,15 @@ def main() -> None:
         f" {result.pairs.size} pairs, {n_env} buildings {planned}; {elapsed:.1f} s"
     )
     for entry in plan["by_count"]:
+        median = entry["quantiles_m"]["0.5"]  # null: more than half of the pairs are blind
         print(
             f"{entry['ris_count']} RIS: sites {entry['sites']} coverage {entry['objective']:.3f}"
-            f" median PEB_R {entry['quantiles_m']['0.5']}"
+            f" median PEB_R {'inf (blind)' if median is None else f'{median:.3g} m'}"
         )
+    diagnosis = plan["diagnosis"]
+    print(f"diagnosis: {diagnosis['verdict']}")
+    for cause in diagnosis["causes"]:
+        print(f"  - {cause['kind']}: {cause['message']}")
     for name, path in files.items():
         print(f"wrote {name}: {path}")
 
