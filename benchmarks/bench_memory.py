@@ -136,15 +136,27 @@ layout = cache_layout(sizes.cache_entries, c.wavefront)
 from ris_planner.planning.plan import prepare_plan
 from ris_planner.planning.work import plan_work, report_work
 inputs = prepare_plan(parsed)
-est_s = sum(plan_work(inputs).values()) + sum(report_work(inputs).values())
+est_stages = {**plan_work(inputs), **report_work(inputs)}
+est_s = sum(est_stages.values())
+trace = []
 t0 = time.perf_counter()
 with tempfile.TemporaryDirectory() as tmp, SerialExecutor() as ex:
-    done = plan_document(doc, Path(tmp), lambda f, m: None, ex)
+    done = plan_document(
+        doc, Path(tmp), lambda f, m: trace.append((time.perf_counter() - t0, m)), ex
+    )
 seconds = time.perf_counter() - t0
+starts = {}
+for t, m in trace:
+    parts = m.split(": ")
+    name = parts[1] if parts[0] == "plan" and len(parts) > 1 else parts[0]
+    starts.setdefault(name, t)
+order = sorted(starts.items(), key=lambda kv: kv[1]) + [("end", seconds)]
+stages = {a: round(tb - ta, 3) for (a, ta), (_, tb) in zip(order, order[1:])}
 status = open("/proc/self/status").read()
 hwm = int(status.split("VmHWM:")[1].split()[0]) * 1024
 print(json.dumps({"estimate": sizes.memory_bytes, "peak": hwm, "seconds": seconds,
-                  "estimate_s": est_s,
+                  "estimate_s": est_s, "stages_s": stages,
+                  "estimate_stages_s": {k: round(v, 3) for k, v in est_stages.items()},
                   "layout": list(layout), "storage": done.plan["site_cache"]}))
 """
 
@@ -179,6 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--smoke", action="store_true", help="three tiny cases (< 60 s)")
     ap.add_argument("--case", action="append", help="run only cases whose name contains this")
     ap.add_argument("--json", type=Path, help="also write the rows as JSON here")
+    ap.add_argument(
+        "--stages", action="store_true", help="also print each stage's measured and estimated s"
+    )
     args = ap.parse_args(argv)
     cases = SMOKE if args.smoke else FULL
     if args.case:
@@ -198,6 +213,10 @@ def main(argv: list[str] | None = None) -> int:
             f" {'pass' if r['passed'] else 'FAIL'}",
             flush=True,
         )
+        if args.stages:
+            est = r["estimate_stages_s"]
+            for name, t in r["stages_s"].items():
+                print(f"    {name:10} measured {t:8.3f} s  estimated {est.get(name, 0.0):8.3f} s")
     print(f"{sum(r['passed'] for r in rows)}/{len(rows)} passed, {time.perf_counter() - t0:.0f} s")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
