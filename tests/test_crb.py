@@ -5,6 +5,7 @@ identifiability of parts, exact singularity."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import mpmath
 import numpy as np
@@ -37,27 +38,30 @@ STREET_TX_X = (-30.0, -36.0, -38.0, -41.0, -45.0, -80.0, -100.0)
 with the squared-form inversion, and −30, −36 m off by ~1e-5."""
 
 
-def street(known: list[str] | None = None, los: bool = True) -> Scenario:
+def street_document(known: list[str] | None = None, los: bool = True) -> dict[str, Any]:
     """Two 20 × 20 RISs on the facade at y = −6 m, z = 5 m, x = ±4.25 m, facing the street
     (+y) and tilted 0.2 rad down (the junction preset's sites), UEs at z = 0."""
-    return load_scenario(
-        {
-            "system": {"tx_power_dbm": 30, "noise_figure_db": 10, "los": los},
-            "ris": [
-                {
-                    "position": [x, -6, 5],
-                    "orientation": [math.pi / 2, 0.2, 0],
-                    "rows": 20,
-                    "cols": 20,
-                }
-                for x in (-4.25, 4.25)
-            ],
-            "tx": [-38, 0, 0],
-            "rx": [0, 0, 0],
-            "codebook": {"kind": "expected_random"},
-            "known": known or [],
-        }
-    )
+    return {
+        "system": {"tx_power_dbm": 30, "noise_figure_db": 10, "los": los},
+        "ris": [
+            {
+                "position": [x, -6, 5],
+                "orientation": [math.pi / 2, 0.2, 0],
+                "rows": 20,
+                "cols": 20,
+            }
+            for x in (-4.25, 4.25)
+        ],
+        "tx": [-38, 0, 0],
+        "rx": [0, 0, 0],
+        "codebook": {"kind": "expected_random"},
+        "known": known or [],
+    }
+
+
+def street(known: list[str] | None = None, los: bool = True) -> Scenario:
+    """The street scenario of :func:`street_document`."""
+    return load_scenario(street_document(known, los))
 
 
 def street_pairs() -> tuple[np.ndarray, np.ndarray]:

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import itertools
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from conftest import small_scenario_doc
+from test_crb import street_document, street_pairs
 from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
 from ris_planner import ldl
@@ -306,30 +306,14 @@ def test_degenerate_design_position_is_a_failed_status() -> None:
 
 # ---- one inversion route: the power module's CRBs are compute_bounds' (numerics.md) ----
 
-STREET_TX_X = (-30.0, -36.0, -38.0, -41.0, -45.0, -80.0, -100.0)
-
 
 def street_power(known: list[str]) -> Scenario:
     """tests/test_crb.py's street (two 20 × 20 RISs on one facade, TX 30–100 m down the
     street, RX at the origin: scaled cond(F) 1e11–1e15) with a random codebook, G = 48."""
-    return load_scenario(
-        {
-            "system": {"tx_power_dbm": 30, "noise_figure_db": 10, "transmissions": 48},
-            "ris": [
-                {
-                    "position": [x, -6, 5],
-                    "orientation": [math.pi / 2, 0.2, 0],
-                    "rows": 20,
-                    "cols": 20,
-                }
-                for x in (-4.25, 4.25)
-            ],
-            "tx": [-38, 0, 0],
-            "rx": [0, 0, 0],
-            "codebook": {"kind": "random", "seed": 3},
-            "known": known,
-        }
-    )
+    doc = street_document(known)
+    doc["system"] = {"tx_power_dbm": 30, "noise_figure_db": 10, "transmissions": 48}
+    doc["codebook"] = {"kind": "random", "seed": 3}
+    return load_scenario(doc)
 
 
 @pytest.mark.parametrize("known", [[], ["clock"]])
@@ -342,8 +326,7 @@ def test_ill_conditioned_design_positions_equal_compute_bounds(known: list[str])
     its own objective within the solver's accuracy of the re-evaluated one."""
 
     sc = street_power(known)
-    tx = np.array([[x, 0.0, 0.0] for x in STREET_TX_X])
-    rx = np.zeros_like(tx)
+    tx, rx = street_pairs()
     prof = first_block_profiles(sc)
     assert prof is not None
     info = beam_information(sc, tx, rx, prof)
