@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ris_planner import advice, beams, blas, codebooks, crb, fim, geometry, ldl, spherical
 from ris_planner.environment import Scene, path_presence, pattern_factor
+from ris_planner.provenance import provenance
 from ris_planner.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
@@ -760,7 +761,5 @@ def bounds_document(scenario: Scenario) -> dict[str, Any]:
     """The result document of ``ris-planner bounds`` and ``POST /v1/bounds``: the bounds of
     the scenario's pairs (:meth:`BoundsResult.to_json`) and their provenance
     (:mod:`ris_planner.provenance`)."""
-    from ris_planner.provenance import provenance
-
     out = compute_bounds(scenario).to_json(batch=scenario.is_batch)
     return out | {"provenance": provenance(scenario)}

@@ -29,6 +29,7 @@ from ris_planner.power.sdp import (
     solve_power_sdp,
 )
 from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.provenance import provenance
 from ris_planner.scenario import (
     DirectionalCodebook,
     DirectionalDerivativeCodebook,
@@ -137,7 +138,6 @@ def run_power(
     solver: str = "CLARABEL",
 ) -> PowerResult:
     """Uniform power, the best γ_P (DIR+DER only) and the SDP allocation for a scenario."""
-    from ris_planner.provenance import provenance
     from ris_planner.validation import validate_power
 
     sc = validate_power(scenario, objective)  # the CLI's and the service's checks, sizes first
