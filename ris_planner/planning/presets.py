@@ -1,4 +1,4 @@
-"""Shipped plan documents (``ris_planner/presets/plans/NAME.json``) and reading plan files."""
+"""Shipped plan documents (``ris_planner/model/presets/plans/NAME.json``) and reading plan files."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ris_planner.errors import RisPlannerError
-from ris_planner.io_json import read_json_object
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.core.io_json import read_json_object
+from ris_planner.model.scenario import with_defaults
 
 PLAN_PRESET_NAMES = ("fig10-anchors", "junction", "hall")
 """``fig10-anchors``: the four Fig. 10 anchor sites over the Fig. 10 pairs, 2–4 RISs;
@@ -18,14 +19,15 @@ aisles of forklifts) with candidates on its four walls facing inwards."""
 
 
 def plan_preset(name: str) -> dict[str, Any]:
-    """The raw JSON document of a shipped plan."""
+    """The JSON document of a shipped plan, its ``system`` written out from Table I
+    (:func:`ris_planner.model.scenario.with_defaults`)."""
     if name not in PLAN_PRESET_NAMES:
         raise RisPlannerError(
             f"unknown plan preset {name!r}; choose one of {', '.join(PLAN_PRESET_NAMES)}"
         )
-    text = resources.files("ris_planner.presets").joinpath(f"plans/{name}.json").read_text()
+    text = resources.files("ris_planner.model.presets").joinpath(f"plans/{name}.json").read_text()
     doc: dict[str, Any] = json.loads(text)
-    return doc
+    return {**doc, "system": with_defaults(doc)["system"]}
 
 
 def inline_csv(doc: dict[str, Any], base_dir: Path) -> dict[str, Any]:

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, field_validator, model_validator
 
-from ris_planner.document import (
+from ris_planner.core.document import (
     _POINTS_SCHEMA,
     MAX_COORDINATE_M,
     MIN_UE_RIS_DISTANCE_M,
@@ -27,8 +27,8 @@ from ris_planner.document import (
     field_error,
     finite_point,
 )
-from ris_planner.obstacles import Environment
-from ris_planner.units import SPEED_OF_LIGHT, db_to_linear, dbm_to_watt
+from ris_planner.core.units import SPEED_OF_LIGHT, db_to_linear, dbm_to_watt
+from ris_planner.environment.model import Environment
 
 KnownPart = Literal["clock", "height", "tx"]
 """State parts that may be known: ``clock`` (B, round trip), ``height`` (z of both UEs), ``tx``."""
@@ -449,7 +449,7 @@ class Scenario(DocumentModel):
                 )
 
     def _check_prior(self, cb: DirectionalCodebook | DirectionalDerivativeCodebook) -> None:
-        from ris_planner.codebooks import block_length
+        from ris_planner.model.profiles import block_length
 
         g_tilde = block_length(self.system.transmissions, len(self.ris))
         per_sample = cb.beams_per_sample
@@ -471,7 +471,7 @@ class Scenario(DocumentModel):
                 )
 
     def _check_explicit(self, cb: ExplicitCodebook) -> None:
-        from ris_planner.codebooks import block_length
+        from ris_planner.model.profiles import block_length
 
         if len(cb.phases) != len(self.ris):
             raise ValueError(
@@ -506,16 +506,28 @@ class Scenario(DocumentModel):
 
 
 PRESET_NAMES = ("paper-table1", "2-ris-L", "2-ris-P", "3-ris", "4-ris")
-"""Scenario presets shipped as package data (``ris_planner/presets/NAME.json``)."""
+"""Scenario presets shipped as package data (``ris_planner/model/presets/NAME.json``)."""
+
+
+def with_defaults(document: dict[str, Any]) -> dict[str, Any]:
+    """``document`` with every ``system`` field and each RIS's size written out from the
+    models' defaults (Table I; docs/concepts/conventions.md). Shipped presets hold only what they
+    override; the documents :func:`preset_document` returns show every value in force, so a
+    script that edits ``doc["system"]`` finds each field there."""
+    out = dict(document)
+    out["system"] = SystemParams().model_dump(mode="json") | dict(document.get("system") or {})
+    if isinstance(out.get("ris"), list):
+        size = {k: RIS.model_fields[k].default for k in ("rows", "cols")}
+        out["ris"] = [size | dict(r) if isinstance(r, dict) else r for r in out["ris"]]
+    return out
 
 
 def preset_document(name: str) -> dict[str, Any]:
-    """The raw JSON document of a named preset."""
+    """The JSON document of a named preset, defaults written out (:func:`with_defaults`)."""
     if name not in PRESET_NAMES:
         raise ValueError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
-    text = resources.files("ris_planner.presets").joinpath(f"{name}.json").read_text()
-    doc: dict[str, Any] = json.loads(text)
-    return doc
+    text = resources.files("ris_planner.model.presets").joinpath(f"{name}.json").read_text()
+    return with_defaults(json.loads(text))
 
 
 def load_scenario(source: str | Path | dict[str, Any] | Scenario) -> Scenario:
