@@ -1,6 +1,6 @@
 """``ris-planner serve``: run the REST service with uvicorn (127.0.0.1:8000 by default).
 
-The command's arguments are declared in :mod:`ris_planner.cli`, which imports this module only
+The command's arguments are declared in :mod:`ris_planner.cli.main`, which imports this module only
 when ``serve`` runs (the package never imports the service at import time).
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
 
 
 def run_serve(args: argparse.Namespace) -> int:

@@ -40,9 +40,9 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from api.auth import KeyRing
 from api.store import StoreUnavailableError
-from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
+from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
+from ris_planner.core.io_json import MalformedJsonError
 from ris_planner.io import MissingExtraError
-from ris_planner.io_json import MalformedJsonError
 
 log = logging.getLogger("api")
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from api.worker import JobFunction, JobOutput
-from ris_planner.progress import ProgressCallback
+from ris_planner.runtime.progress import ProgressCallback
 
 
 def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:

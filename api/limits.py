@@ -1,7 +1,7 @@
 """Size limits of one request, checked before any engine work (→ 413 with the limit).
 
 The bounds engine's big arrays per RIS ℓ are the steering vectors [N_ℓ, P], the weighted
-profiles [3G̃, N_ℓ] and their product [3G̃, P] (``ris_planner.fim.transmission_vectors``), and
+profiles [3G̃, N_ℓ] and their product [3G̃, P] (``ris_planner.physics.fim.transmission_vectors``), and
 its work is Σ_ℓ 3·G̃·N_ℓ·P complex products (G̃ = G/Γ beams per block, N_ℓ elements, P pairs).
 With an environment, deciding the legs (TX–RX and TX/RX–RIS, P·(1 + 2L)) against the obstacles
 is at most one segment test per leg and obstacle edge (a wall is one edge); that count is held
@@ -13,12 +13,12 @@ from __future__ import annotations
 from typing import Any
 
 from api.settings import Settings
-from ris_planner.codebooks import block_length
-from ris_planner.errors import LimitExceededError
-from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES
-from ris_planner.obstacles import MAX_FOOTPRINT_VERTICES, MAX_OBSTACLES, Environment
-from ris_planner.planning.document import LayoutBeamsDocument
-from ris_planner.scenario import Scenario
+from ris_planner.core.errors import LimitExceededError
+from ris_planner.environment.model import MAX_FOOTPRINT_VERTICES, MAX_OBSTACLES, Environment
+from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES
+from ris_planner.model.plan import LayoutBeamsDocument
+from ris_planner.model.scenario import Scenario
+from ris_planner.physics.codebooks import block_length
 
 
 def check_scenario_size(scenario: Scenario, settings: Settings) -> None:
@@ -35,8 +35,9 @@ def check_scenario_size(scenario: Scenario, settings: Settings) -> None:
 def check_layout_beams_size(document: LayoutBeamsDocument, settings: Settings) -> None:
     """The limits of a layout + UE-map power allocation: its pairs are evaluated by the bounds
     engine once per beam design (the maps' point counts are checked against their limit
-    before they are expanded, :func:`ris_planner.limits.map_points`)."""
-    from ris_planner.limits import Sizes, check_sizes, map_points
+    before they are expanded, :func:`ris_planner.model.plan.map_points`)."""
+    from ris_planner.model.limits import Sizes, check_sizes
+    from ris_planner.model.plan import map_points
     from ris_planner.planning.maps import build_map, build_pairs
 
     # the maps' sizes before any is built (a road step of 5e-324 would build forever)

@@ -30,7 +30,7 @@ from api.security import SecurityHeadersMiddleware
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
-from ris_planner import allocator
+from ris_planner.runtime import allocator
 
 DESCRIPTION = """\
 RIS deployment planning for base-station-free 3D sidelink positioning: CRB-based position error
@@ -60,7 +60,7 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
-        allocator.tune_malloc()  # the service's entry point (ris_planner.allocator)
+        allocator.tune_malloc()  # the service's entry point (ris_planner.runtime.allocator)
         # a thread validating a large document hands the GIL over every 1 ms instead of 5 ms:
         # the event loop and /healthz wait less behind it (docs/guides/service-operations.md)
         switch = sys.getswitchinterval()

@@ -1,5 +1,5 @@
 """Response models of the service (OpenAPI documentation; request bodies are the engine's own
-pydantic documents: :class:`ris_planner.scenario.Scenario` and friends)."""
+pydantic documents: :class:`ris_planner.model.scenario.Scenario` and friends)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from api.store import Job, JobHead, JobStatus
-from ris_planner.scenario import KnownPart, preset_document
+from ris_planner.model.scenario import KnownPart, preset_document
 
 Bound = float | None
 
@@ -72,7 +72,8 @@ class ChannelBounds(BaseModel):
 
 
 class Provenance(BaseModel):
-    """Which package version computed a result, from which input (ris_planner.provenance)."""
+    """Which package version computed a result, from which input
+    (ris_planner.runtime.provenance)."""
 
     package: Literal["ris_planner"] = Field(description="The package name")
     version: str = Field(description="Its version")

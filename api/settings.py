@@ -31,7 +31,7 @@ from pathlib import Path
 from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from ris_planner.limits import JOB_MEMORY_MB_DEFAULT
+from ris_planner.model.limits import JOB_MEMORY_MB_DEFAULT
 
 API_KEY_HEADER = "X-API-Key"
 

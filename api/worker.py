@@ -51,10 +51,10 @@ from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
 from api.store import BUSY_TIMEOUT_S, RETRY_S, FileIdentity, JobStore, StoreUnavailableError
-from ris_planner import allocator
-from ris_planner.errors import RisPlannerError
-from ris_planner.io_json import one_line_validation_error
-from ris_planner.progress import LAST_BEFORE_END, ProgressCallback
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.core.io_json import one_line_validation_error
+from ris_planner.runtime import allocator
+from ris_planner.runtime.progress import LAST_BEFORE_END, ProgressCallback
 
 log = logging.getLogger("api.worker")
 
@@ -83,10 +83,11 @@ class JobCancelledError(Exception):
 class StoreProgress:
     """A :data:`ProgressCallback` writing a job's progress to the store (throttled: at most
     every ``interval_s``, but always the end and the first call of a new stage – the part of
-    the message before its first ``:``, :class:`ris_planner.progress.Stages` – so a long stage
+    the message before its first ``:``, :class:`ris_planner.runtime.progress.Stages` – so a long
+    stage
     with one call is never hidden behind the previous one's); raises
     :class:`JobCancelledError` once the job is no longer running. The job function's own 1.0
-    is written as :data:`~ris_planner.progress.LAST_BEFORE_END`: the job reaches 1.0 only
+    is written as :data:`~ris_planner.runtime.progress.LAST_BEFORE_END`: the job reaches 1.0 only
     when its result is stored."""
 
     def __init__(self, store: JobStore, job_id: str, interval_s: float = PROGRESS_INTERVAL_S):
@@ -226,7 +227,7 @@ def execute_job(
     memory_mb: int | None = None,
 ) -> None:
     """Run one job to its end state (the body of a worker process)."""
-    allocator.tune_malloc()  # a service process (ris_planner.allocator)
+    allocator.tune_malloc()  # a service process (ris_planner.runtime.allocator)
     _close_inherited_alive_pipe()
     set_parent_death_signal()
     if memory_mb is not None:

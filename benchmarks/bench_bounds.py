@@ -24,9 +24,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from naive import naive_bounds, naive_state_fim
 
-from ris_planner import codebooks, compute_bounds, load_scenario, preset_document
-from ris_planner.bounds import first_block_profiles
-from ris_planner.paper import fig10_pairs
+from ris_planner import compute_bounds, load_scenario, preset_document
+from ris_planner.bounds.compute import first_block_profiles
+from ris_planner.model.paper import fig10_pairs
+from ris_planner.physics import codebooks
 
 LAYOUTS = ("2-ris-L", "2-ris-P", "3-ris", "4-ris")
 

@@ -4,7 +4,7 @@ workload (4753 pairs, 4 RISs, N = 100, G = 192).
 The same pairs and layout with and without an environment of ``--prisms`` random 0.6–1.2 m
 pillars (UEs inside them have their legs blocked; the scenario document would reject them,
 the array API scores them), median wall time of each, the share of the visibility
-(:func:`ris_planner.bounds.scenario_path_presence`) and the ratio to free space, for the
+(:func:`ris_planner.bounds.compute.scenario_path_presence`) and the ratio to free space, for the
 ``random`` and ``expected_random`` codebooks. The masking itself is one ``np.where`` per path.
 
     python benchmarks/bench_environment_bounds.py [--prisms 10] [--repeats 5]
@@ -19,8 +19,8 @@ import numpy as np
 from timing import median_time  # the script's folder is on sys.path
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.bounds import scenario_path_presence
-from ris_planner.paper import fig10_pairs
+from ris_planner.bounds.compute import scenario_path_presence
+from ris_planner.model.paper import fig10_pairs
 
 
 def pillars(n: int, rng: np.random.Generator, keep_clear: np.ndarray) -> list[dict[str, Any]]:

@@ -1,4 +1,5 @@
-"""The plan's memory estimate (:func:`ris_planner.limits.estimate_plan`) against the measured
+"""The plan's memory estimate (:func:`ris_planner.planning.resources.estimate_plan`) against the
+measured
 peak resident memory of the same plan, case by case (docs/validation/resources.md).
 
 Each case is a plan document (candidates on a ring facing grid UE maps, the shape of
@@ -107,7 +108,7 @@ def case_document(case: Case) -> dict[str, Any]:
 
 def cache_budget_mb(case: Case) -> int:
     """A site-cache budget [MiB] that selects the case's tier (:func:`limits.cache_layout`)."""
-    from ris_planner.limits import CacheLayout, cache_layout
+    from ris_planner.model.limits import CacheLayout, cache_layout
 
     entries = case.sites * case.pairs
     storage = "float32" if case.tier == "float32" else "float64"
@@ -124,7 +125,8 @@ import json, os, sys, tempfile, time
 from pathlib import Path
 case = json.loads(sys.argv[1])
 from ris_planner.io.geoplan import plan_document
-from ris_planner.limits import cache_layout, estimate_plan
+from ris_planner.model.limits import cache_layout
+from ris_planner.planning.resources import estimate_plan
 from ris_planner.planning import PlanDocument, SerialExecutor
 sys.path.insert(0, sys.argv[2])
 from bench_memory import Case, case_document

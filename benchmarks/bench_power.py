@@ -26,7 +26,7 @@ import cvxpy as cp
 import numpy as np
 
 from ris_planner import load_scenario, preset_document
-from ris_planner.beams import codebook_block, gamma_p_powers
+from ris_planner.physics.beams import codebook_block, gamma_p_powers
 from ris_planner.power.gamma import search_gamma_p
 from ris_planner.power.information import BeamInformation, beam_information
 from ris_planner.power.report import design_objective

@@ -29,7 +29,7 @@ import numpy as np
 from bench_planning import square_plan  # the script's folder is on sys.path
 from bench_search import hall_doc
 
-from ris_planner import crb
+from ris_planner.inversion import crb
 from ris_planner.planning import PlanDocument, SerialExecutor, plan_preset, run_plan
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer

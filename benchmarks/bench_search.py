@@ -137,7 +137,7 @@ def site_scorer(doc: PlanDocument, budget: bool = False) -> tuple[list[Any], Any
     """(sites, pairs, scorer) of a plan document: its candidates, sampled pairs and the site
     cache with the plan's fields of view and obstacles – float64 with the square-root rows, as
     before issue 14's memory item, or with ``budget`` the layout the plan's budget picks."""
-    from ris_planner.limits import cache_layout
+    from ris_planner.model.limits import cache_layout
     from ris_planner.planning.site_cache import FULL
 
     sites = expand_sites(doc)
@@ -268,7 +268,7 @@ def storage_check(raw: dict[str, Any], n_layouts: int) -> None:
     """float32 against float64 storage on the same problem: the scores of n_layouts random
     layouts per count (max relative error, same inf pattern) and the plan's answers (best
     layouts, objectives) with the cache budget set just below float64's storage."""
-    from ris_planner.limits import CACHE_MEMORY_ENV, CacheLayout
+    from ris_planner.model.limits import CACHE_MEMORY_ENV, CacheLayout
     from ris_planner.planning.search import all_layouts
 
     doc = PlanDocument.model_validate(raw)
@@ -330,7 +330,7 @@ def city_memory(raw: dict[str, Any], n_layouts: int) -> None:
     """The city's site cache at full size without the searches: the layout the budget picks,
     its build time and bytes, the peak RSS, the scoring rate on it and the exact float64
     re-score of a few layouts (what the plan does for its finalists)."""
-    from ris_planner.limits import cache_layout
+    from ris_planner.model.limits import cache_layout
 
     doc = PlanDocument.model_validate(raw)
     t0 = time.perf_counter()

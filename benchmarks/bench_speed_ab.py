@@ -36,7 +36,7 @@ def measure(case: str, repeats: int) -> dict[str, float]:
     from bench_spherical import spherical_doc
 
     from ris_planner import compute_bounds, load_scenario, preset_document
-    from ris_planner.paper import fig10_pairs
+    from ris_planner.model.paper import fig10_pairs
 
     words = case.split()
     if words[0] == "site":

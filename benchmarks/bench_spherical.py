@@ -2,7 +2,7 @@
 100 × 100 RISs (N = 10⁴), ``expected_random``, per layout; and the planar ``random`` layout.
 
 The engine computes the exact per-element terms once per distinct UE position and every
-pair's Gram from one matrix product (:func:`ris_planner.spherical.expected_gram`). The naive
+pair's Gram from one matrix product (:func:`ris_planner.physics.spherical.expected_gram`). The naive
 reference evaluates each pair on its own (per-element distances and the 7 × 7 Gram summed over
 the N elements for that pair, then the same inversion), measured in the same run on a few pairs
 and extrapolated to 4753. Targets on the 2-core machine: ≤ 2 s per spherical layout, ≤ 0.1 s
@@ -21,7 +21,7 @@ import numpy as np
 from timing import median_time  # the script's folder is on sys.path
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.paper import fig10_pairs
+from ris_planner.model.paper import fig10_pairs
 
 LAYOUTS = ("2-ris-L", "2-ris-P", "3-ris", "4-ris")
 

@@ -6,7 +6,7 @@ The figure's caption puts the DIR maximum at (ξ, ζ) = (−0.4443, −0.5039) w
 [−1.1071, −0.2200] rad and RX angles [0.4636, −0.2898] rad; those follow from RIS 1 at
 [−4, 0, 2] with p_R = [2, 3, 0] and p_T = [−2, −4, 1] (not Table I's z = 0), used here.
 The DER beams are the unit-modulus projections of eqs. sum_diff_beam_2, 3
-(:mod:`ris_planner.beams`). Writes ``beam_patterns.png`` and ``beam_patterns.csv`` (ξ, ζ and
+(:mod:`ris_planner.physics.beams`). Writes ``beam_patterns.png`` and ``beam_patterns.csv`` (ξ, ζ and
 the normalised gains) to ``--out``.
 
     python examples/beam_patterns.py --out out/
@@ -25,8 +25,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ris_planner import geometry, load_scenario, preset_document
-from ris_planner.beams import (
+from ris_planner import load_scenario, preset_document
+from ris_planner.physics import geometry
+from ris_planner.physics.beams import (
     derivative_beams,
     directional_beams,
     project_unit_modulus,

@@ -5,7 +5,7 @@ By Jensen the CRB of the expected FIM is below the expected CRB; the gap shrinks
 per RIS and block) grows. For each G/Γ this prints, over a sample of Fig. 10 pairs with the
 2-RIS L layout (P = 30 dBm, NF 10 dB), the median and 90th percentile over pairs of
 mean_seeds(PEB_R random) / PEB_R expected, and the smallest G/Γ whose median stays ≤ 1.10
-(``ris_planner.advice.EXPECTED_RANDOM_MIN_BLOCK`` is set from it).
+(``ris_planner.bounds.advice.EXPECTED_RANDOM_MIN_BLOCK`` is set from it).
 
     python examples/codebook_optimism.py [--seeds 20] [--pairs 200]
 """
@@ -17,7 +17,7 @@ import argparse
 import numpy as np
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.paper import fig10_pairs
+from ris_planner.model.paper import fig10_pairs
 
 BLOCKS = (1, 2, 4, 8, 16, 32, 64)
 

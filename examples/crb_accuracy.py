@@ -1,4 +1,5 @@
-"""Accuracy of the squared-form inversion vs the square-root route (ris_planner.crb) on the
+"""Accuracy of the squared-form inversion vs the square-root route (ris_planner.inversion.crb) on
+the
 planning benchmark's layout-pairs (30 candidates on a square, 3 RISs, 4753 Fig. 10 pairs).
 
 Prints the distribution of trace(F̂⁻¹) (F̂ = F scaled to unit diagonal) on the plain
@@ -22,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 from bench_planning import square_plan
 
-from ris_planner import crb, ldl
+from ris_planner.inversion import crb, ldl
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.site_cache import SiteCache, build_site_cache

@@ -25,8 +25,8 @@ from ris_planner import preset_document
 from ris_planner.estimation.models import load_simulation
 from ris_planner.estimation.montecarlo import run_monte_carlo
 from ris_planner.estimation.plots import plot_channel_rmse, plot_rmse_vs_power
-from ris_planner.paper import paper_curve
-from ris_planner.progress import ProgressBar
+from ris_planner.model.paper import paper_curve
+from ris_planner.runtime.progress import ProgressBar
 
 CHECK_POWERS = (20.0, 25.0, 30.0)
 RATIO_LIMIT = 1.3

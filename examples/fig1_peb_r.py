@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-import ris_planner.codebooks as codebooks
+import ris_planner.physics.codebooks as codebooks
 from ris_planner import compute_bounds, load_scenario, preset_document
 
 PAPER = np.array([0.147212718671174, 0.133570767224502, 0.0945666402259775])

@@ -37,8 +37,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.beams import codebook_block, gamma_p_powers
-from ris_planner.paper import paper_curve
+from ris_planner.model.paper import paper_curve
+from ris_planner.physics.beams import codebook_block, gamma_p_powers
 from ris_planner.power.gamma import search_gamma_p
 from ris_planner.power.report import design_objective
 

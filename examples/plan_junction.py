@@ -8,7 +8,7 @@ are absent. Their road-facing facades, 6 m from the centre lines, carry candidat
 8.5 m at 5 m height with two downward tilts, all facing the street (64 candidates, 20×20 RISs,
 P = 30 dBm). The objective is the weighted coverage Pr(PEB_R ≤ 0.5 m) over all unordered pairs
 of road points, each counted in both directions with half the weight, for 2, 3 and 4 RISs
-(``ris_planner/presets/plans/junction.json``).
+(``ris_planner/model/presets/plans/junction.json``).
 
 Writes to ``--out``: ``plan.json`` (ranked layouts, per-count comparison), ``topview.png``,
 ``heatmap.png``, ``cdf.png``, ``by_count.csv`` and the plan document ``junction.json``. With
@@ -30,7 +30,7 @@ from pathlib import Path
 from ris_planner.planning import LocalExecutor, SerialExecutor, plan_preset, run_plan, write_figures
 from ris_planner.planning.report import write_plan_json
 from ris_planner.planning.search import greedy
-from ris_planner.progress import ProgressBar
+from ris_planner.runtime.progress import ProgressBar
 
 
 def main() -> None:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.paper import FIG10_CURVES, fig10_pairs, paper_curve
+from ris_planner.model.paper import FIG10_CURVES, fig10_pairs, paper_curve
 
 
 def curve_scenario(curve: str, codebook: dict[str, object]) -> dict[str, object]:

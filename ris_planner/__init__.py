@@ -8,8 +8,8 @@ Public surface (batch scripts)::
     res.peb_rx, res.peb_tx, res.ceb                 # numpy arrays in pair order
 """
 
-from ris_planner.bounds import BoundsResult, compute_bounds
-from ris_planner.scenario import (
+from ris_planner.bounds.compute import BoundsResult, compute_bounds
+from ris_planner.model.scenario import (
     PRESET_NAMES,
     RIS,
     Scenario,

@@ -46,8 +46,8 @@ def _cell(text: object) -> str:
 
 def schemas() -> str:
     from ris_planner.estimation.models import SimulationDocument
-    from ris_planner.planning.document import PlanDocument
-    from ris_planner.scenario import Scenario
+    from ris_planner.model.plan import PlanDocument
+    from ris_planner.model.scenario import Scenario
 
     parts = []
     for title, model, where in (
@@ -131,10 +131,10 @@ def settings() -> str:
         )
     service = "\n".join(rows)
     rows = ["| variable | default | meaning |", "|---|---|---|"]
-    from ris_planner import limits
+    from ris_planner.model import limits
 
     for name, default, meaning in ENGINE_VARIABLES:
-        if default.isupper():  # a constant of ris_planner.limits
+        if default.isupper():  # a constant of ris_planner.model.limits
             default = f"`{getattr(limits, default)}`"
         rows.append(f"| `{name}` | {default} | {_cell(meaning)} |")
     return (
@@ -155,7 +155,7 @@ def _subparsers(parser: argparse.ArgumentParser) -> Iterator[tuple[str, argparse
 
 
 def cli() -> str:
-    from ris_planner.cli import build_parser
+    from ris_planner.cli.main import build_parser
 
     os.environ["COLUMNS"] = "100"
     parser = build_parser()

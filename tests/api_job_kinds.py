@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from api.worker import JobOutput
-from ris_planner.errors import RisPlannerError
-from ris_planner.progress import ProgressCallback
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.runtime.progress import ProgressCallback
 
 
 def counting_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import geometry
-from ris_planner.scenario import Scenario
-from ris_planner.units import SPEED_OF_LIGHT
+from ris_planner.core.units import SPEED_OF_LIGHT
+from ris_planner.model.scenario import Scenario
+from ris_planner.physics import geometry
 
 
 def _norm(v: NDArray) -> NDArray:

@@ -9,8 +9,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ris_planner.planning.document import SearchSpec
-from ris_planner.planning.executor import Executor
+from ris_planner.model.plan import SearchSpec
 from ris_planner.planning.objectives import Scorer, score_chunk
 from ris_planner.planning.search import (
     CHUNK_MATRICES,
@@ -20,6 +19,7 @@ from ris_planner.planning.search import (
     SearchOutcome,
     site_strength,
 )
+from ris_planner.runtime.executor import Executor
 
 
 def old_evaluate(

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from test_planning import plan_doc
 
-from ris_planner import advice, compute_bounds, load_scenario, preset_document
+from ris_planner import compute_bounds, load_scenario, preset_document
+from ris_planner.bounds import advice
 from ris_planner.planning import SerialExecutor, run_plan
 
 

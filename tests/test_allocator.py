@@ -1,4 +1,5 @@
-"""The malloc thresholds of :mod:`ris_planner.allocator`: never set by importing the package;
+"""The malloc thresholds of :mod:`ris_planner.runtime.allocator`: never set by importing the
+package;
 set by the entry points (the command line, the service) and by an explicit opt-in on glibc,
 followed by the local pool's workers, left alone when the user opts out or chose glibc's own
 variables (fresh interpreters: the setting is process-wide and made once)."""
@@ -17,7 +18,7 @@ GLIBC = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
 
 FAULTS = """
 import resource, sys, numpy as np, ris_planner
-from ris_planner import allocator
+from ris_planner.runtime import allocator
 if sys.argv[1:] == ["tune"]:
     allocator.tune_malloc()
 def cycle():
@@ -49,16 +50,17 @@ def run(code: str | Path, *args: str, **env: str) -> list[str]:
 
 CLI_PROBE = """
 import sys
-from ris_planner import allocator, cli
+from ris_planner.runtime import allocator
+from ris_planner.cli import main as cli
 cli.main(["schema"])
 print(allocator.tuned(), file=sys.stderr)
 """
 
 POOL_PROBE = """
-from ris_planner import allocator
-from ris_planner.planning.executor import LocalExecutor
+from ris_planner.runtime import allocator
+from ris_planner.runtime.executor import LocalExecutor
 def probe(shared, chunk):
-    from ris_planner import allocator
+    from ris_planner.runtime import allocator
     return allocator.tuned()
 if __name__ == "__main__":
     import sys
@@ -71,9 +73,11 @@ if __name__ == "__main__":
 
 @pytest.mark.skipif(not GLIBC, reason="mallopt thresholds are glibc's")
 def test_import_changes_nothing_entry_points_and_opt_in_tune() -> None:
-    probe = "import ris_planner.bounds; from ris_planner import allocator; print(allocator.tuned())"
+    probe = "import ris_planner.bounds.compute; from ris_planner.runtime import allocator;"
+    probe += "print(allocator.tuned())"
     assert run(probe) == ["False"]  # importing the library leaves the host process alone
-    tune = "from ris_planner import allocator; print(allocator.tune_malloc(), allocator.tuned())"
+    tune = "from ris_planner.runtime import allocator;"
+    tune += "print(allocator.tune_malloc(), allocator.tuned())"
     assert run(tune) == ["True", "True"]  # the opt-in
     assert run(tune, RIS_PLANNER_MALLOC_TUNING="0") == ["False", "False"]
     assert run(tune, MALLOC_MMAP_THRESHOLD_="131072") == ["False", "False"]  # the user's choice

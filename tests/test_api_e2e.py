@@ -16,7 +16,7 @@ from test_api_plans import small_plan_doc
 from api.launch import served
 from api.store import INTERRUPTED_MESSAGE
 from ris_planner import preset_document
-from ris_planner.paper import fig10_pairs
+from ris_planner.model.paper import fig10_pairs
 
 
 def poll(url: str, job_id: str, timeout_s: float = 120.0) -> dict[str, Any]:

@@ -204,8 +204,8 @@ def test_describe_error_is_one_line() -> None:
     from pydantic import ValidationError
 
     from api.worker import describe_error
-    from ris_planner.errors import RisPlannerError
-    from ris_planner.scenario import Scenario
+    from ris_planner.core.errors import RisPlannerError
+    from ris_planner.model.scenario import Scenario
 
     try:
         Scenario.model_validate({"ris": [], "tx": [0, 0, 0]})

@@ -62,7 +62,7 @@ class _Recorder:
 
 def test_store_progress_throttles_within_a_stage_but_writes_every_new_stage() -> None:
     from api.worker import StoreProgress
-    from ris_planner.progress import LAST_BEFORE_END
+    from ris_planner.runtime.progress import LAST_BEFORE_END
 
     rec = _Recorder()
     progress = StoreProgress(rec, "job", interval_s=60.0)  # type: ignore[arg-type]

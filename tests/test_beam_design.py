@@ -13,18 +13,18 @@ import pytest
 from api_helpers import api_client, wait_for
 from tolerance import SDP_ACCURACY, assert_close
 
-from ris_planner.bounds import compute_bounds
+from ris_planner.bounds.compute import compute_bounds
+from ris_planner.model.plan import PlanDocument
+from ris_planner.model.scenario import Scenario
 from ris_planner.planning import SerialExecutor, plan_preset, run_plan
 from ris_planner.planning.beam_design import (
     design_beams,
     design_positions,
     run_layout_beams,
 )
-from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.objectives import objective_value
 from ris_planner.planning.plan import PlanResult
 from ris_planner.planning.report import write_figures
-from ris_planner.scenario import Scenario
 
 SOLVER_RTOL = SDP_ACCURACY
 """The SDP's own objective and its re-evaluation by compute_bounds on the design positions

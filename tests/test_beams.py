@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from ris_planner import beams, geometry, priors
-from ris_planner.bounds import compute_bounds
-from ris_planner.scenario import load_scenario, preset_document
+from ris_planner.bounds.compute import compute_bounds
+from ris_planner.model import priors
+from ris_planner.model.scenario import load_scenario, preset_document
+from ris_planner.physics import beams, geometry
 
 WAVELENGTH = 0.01
 

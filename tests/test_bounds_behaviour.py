@@ -9,14 +9,15 @@ import pytest
 from pydantic import ValidationError
 from tolerance import BOUND_ACCURACY, assert_close
 
-from ris_planner import compute_bounds, crb, ldl, load_scenario, preset_document
-from ris_planner.bounds import (
+from ris_planner import compute_bounds, load_scenario, preset_document
+from ris_planner.bounds.compute import (
     REASON_DEGENERATE,
     REASON_UNDERDETERMINED,
     first_block_profiles,
     path_information,
 )
-from ris_planner.scenario import Scenario
+from ris_planner.inversion import crb, ldl
+from ris_planner.model.scenario import Scenario
 
 
 def table1(**changes: object) -> dict:  # type: ignore[type-arg]

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from ris_planner._crb_jit import CHUNK, SCREEN_MAX_STATES, screen_chunk
 from ris_planner.environment import Scene
-from ris_planner.ldl import pack
+from ris_planner.inversion._crb_jit import CHUNK, SCREEN_MAX_STATES, screen_chunk
+from ris_planner.inversion.ldl import pack
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer, loss_from_metric

@@ -1,5 +1,6 @@
 """Numerical accuracy of the bounds (numerics.md): the square-root / LOS-referenced inversion of
-ris_planner.crb against a 40-digit mpmath inversion of the same per-path EFIMs and Jacobians,
+ris_planner.inversion.crb against a 40-digit mpmath inversion of the same per-path EFIMs and
+Jacobians,
 identifiability of parts, exact singularity."""
 
 from __future__ import annotations
@@ -11,8 +12,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from ris_planner import crb
-from ris_planner.bounds import (
+from ris_planner.bounds.compute import (
     REASON_NOT_IDENTIFIABLE,
     REASON_SINGULAR,
     PathInfo,
@@ -21,12 +21,13 @@ from ris_planner.bounds import (
     kept_states,
     path_information,
 )
+from ris_planner.inversion import crb
+from ris_planner.model.scenario import Scenario, load_scenario
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.objectives import Scorer
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites
-from ris_planner.scenario import Scenario, load_scenario
 
 MPMATH_DIGITS = 40
 CRB_RTOL = 1e-6

@@ -13,11 +13,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ris_planner.bounds import compute_bounds
-from ris_planner.cli import main
-from ris_planner.fim import steering_gram
-from ris_planner.geometry import element_positions
-from ris_planner.limits import estimate_plan
+from ris_planner.bounds.compute import compute_bounds
+from ris_planner.cli.main import main
+from ris_planner.model.scenario import RIS, SystemParams
+from ris_planner.physics.fim import steering_gram
+from ris_planner.physics.geometry import element_positions
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
 from ris_planner.planning.beam_design import layout_scenario
 from ris_planner.planning.diagnosis import (
@@ -34,13 +34,14 @@ from ris_planner.planning.diagnosis import (
 )
 from ris_planner.planning.plan import plan_once
 from ris_planner.planning.report import BLIND_COLOUR, write_figures
+from ris_planner.planning.resources import estimate_plan
 from ris_planner.planning.sizing import smallest
-from ris_planner.scenario import RIS, SystemParams
 
 GRID = {"grid": {"x": [-3, 3, 1.5], "y": [-3, 3, 1.5], "z": [1.5, 1.5, 1]}}
 RTOL = 1e-9
 """Same-process comparisons of two routes to one bound (compute_bounds vs the site cache):
-both invert through ris_planner.ldl, only the summation order of the 7×7 blocks differs."""
+both invert through ris_planner.inversion.ldl, only the summation order of the 7×7 blocks
+differs."""
 
 
 def ring(n: int, radius: float, h: float = 3.0) -> list[dict[str, Any]]:

@@ -20,15 +20,15 @@ from free_space_cases import REFERENCE, compute_all
 from tolerance import BOUND_ACCURACY, EPS, assert_close
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.bounds import (
+from ris_planner.bounds.compute import (
     REASON_UNDERDETERMINED,
     first_block_profiles,
     path_information,
     underdetermined_reason,
 )
-from ris_planner.cli import main as cli_main
-from ris_planner.codebooks import block_count, block_length
+from ris_planner.cli.main import main as cli_main
 from ris_planner.environment import Scene
+from ris_planner.physics.codebooks import block_count, block_length
 
 SUBLAYOUT_ATOL = 1e-12
 """The masked FIM and the sub-layout's FIM (unit-diagonal scaled) are the same sums of the
@@ -277,7 +277,8 @@ def test_pattern_factor_scales_the_gain(rng: np.random.Generator, q: float) -> N
 
 BOUND_KEYS = ("peb_tx_m", "peb_rx_m", "ceb_m")
 """The reference bounds were inverted by the squared-form LDLᵀ of 0cb7c82; the square-root,
-LOS-referenced inversion of issue 10 (ris_planner.crb) differs from it by the old route's own
+LOS-referenced inversion of issue 10 (ris_planner.inversion.crb) differs from it by the old route's
+own
 rounding, cond(F)·ε per pair (conftest.bounds_rtol, floor 1e-9)."""
 
 STORED_ULPS = 64.0

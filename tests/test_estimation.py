@@ -32,7 +32,7 @@ from ris_planner.estimation.signal import (
     separate_paths,
     signal_setup,
 )
-from ris_planner.geometry import steering_vector
+from ris_planner.physics.geometry import steering_vector
 
 
 def table1(power_dbm: float = 30.0, **system: Any) -> dict[str, Any]:

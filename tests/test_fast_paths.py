@@ -16,8 +16,8 @@ import pytest
 from test_environment_bounds import site_doc
 from threadpoolctl import threadpool_limits
 
-from ris_planner import crb, fim, geometry, ldl, preset_document
-from ris_planner.bounds import (
+from ris_planner import preset_document
+from ris_planner.bounds.compute import (
     compute_bounds,
     kept_states,
     los_path_information,
@@ -32,14 +32,16 @@ from ris_planner.bounds import (
     uses_los_reference,
 )
 from ris_planner.environment import Scene
-from ris_planner.ldl import pack
+from ris_planner.inversion import crb, ldl
+from ris_planner.inversion.ldl import pack
+from ris_planner.model.scenario import load_scenario
+from ris_planner.physics import fim, geometry
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.presets import plan_preset
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites
 from ris_planner.planning.visibility import pair_visibility
-from ris_planner.scenario import load_scenario
 
 FACTOR_GRAM_RTOL = 1e-13
 """The unit-root factor α·R·J and the per-pair eigh factor are two square roots of the same
@@ -294,7 +296,7 @@ def test_unit_root_factor_is_a_square_root_of_the_path_information(
 LIMITER_CHECK = """
 import json
 from threadpoolctl import threadpool_info, threadpool_limits
-from ris_planner import blas
+from ris_planner.runtime import blas
 mine = {lib.filepath for lib in blas._controller().lib_controllers}
 def threads():
     return [i["num_threads"] for i in threadpool_info() if i["filepath"] in mine]

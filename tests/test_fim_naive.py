@@ -7,10 +7,15 @@ import pytest
 from conftest import bounds_rtol, small_scenario_doc
 from naive import channel_parameters, naive_bounds, naive_fim_eta, naive_state_fim
 
-from ris_planner import codebooks
-from ris_planner.bounds import compute_bounds, first_block_profiles, kept_states, path_information
-from ris_planner.scenario import load_scenario
-from ris_planner.units import SPEED_OF_LIGHT
+from ris_planner.bounds.compute import (
+    compute_bounds,
+    first_block_profiles,
+    kept_states,
+    path_information,
+)
+from ris_planner.core.units import SPEED_OF_LIGHT
+from ris_planner.model.scenario import load_scenario
+from ris_planner.physics import codebooks
 
 NAIVE_RTOL = 1e-9
 """Both routes sum the same O(K·G) float64 terms in different orders (relative rounding

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ris_planner import geometry
+from ris_planner.physics import geometry
 
 FD_STEP_M = 1e-6
 FD_RTOL = 1e-7

@@ -19,7 +19,7 @@ rasterio = pytest.importorskip("rasterio")
 pyogrio = pytest.importorskip("pyogrio")
 shapely = pytest.importorskip("shapely")
 
-from ris_planner.cli import main  # noqa: E402
+from ris_planner.cli.main import main  # noqa: E402
 from ris_planner.io.export import (  # noqa: E402
     NODATA,
     closed_ccw_ring,
@@ -29,8 +29,8 @@ from ris_planner.io.export import (  # noqa: E402
 )
 from ris_planner.io.frames import Frame, to_local  # noqa: E402
 from ris_planner.io.geojson_import import OSM_LICENSE as LICENSE  # noqa: E402
+from ris_planner.model.scenario import SystemParams  # noqa: E402
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan  # noqa: E402
-from ris_planner.scenario import SystemParams  # noqa: E402
 
 ORIGIN = (24.949, 60.1655, 0.0)
 FRAME = Frame(ORIGIN)

@@ -12,7 +12,7 @@ import pytest
 
 pyproj = pytest.importorskip("pyproj")
 
-from ris_planner.errors import DocumentFieldError, RisPlannerError  # noqa: E402
+from ris_planner.core.errors import DocumentFieldError, RisPlannerError  # noqa: E402
 from ris_planner.io.frames import MAX_FRAME_RADIUS_M, Frame, to_local  # noqa: E402
 
 GEOD = pyproj.Geod(ellps="WGS84")
@@ -157,7 +157,7 @@ def test_scenario_points_and_batches() -> None:
 
 
 def test_rectangle_walls_become_outward_segments() -> None:
-    from ris_planner.planning.document import PlanDocument
+    from ris_planner.model.plan import PlanDocument
     from ris_planner.planning.sites import expand_sites
 
     origin = (24.949, 60.1655, 0.0)
@@ -257,8 +257,8 @@ def test_malformed_point_names_the_field() -> None:
 def test_bounds_cli_takes_a_geographic_scenario(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ris_planner.cli import main
-    from ris_planner.scenario import preset_document
+    from ris_planner.cli.main import main
+    from ris_planner.model.scenario import preset_document
 
     local = preset_document("paper-table1")
     frame = Frame((24.949, 60.1655, 0.0))
@@ -282,8 +282,8 @@ def test_bounds_cli_takes_a_geographic_scenario(
 def test_power_cli_takes_a_geographic_scenario(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ris_planner.cli import main
-    from ris_planner.scenario import preset_document
+    from ris_planner.cli.main import main
+    from ris_planner.model.scenario import preset_document
 
     local = preset_document("paper-table1")
     local["codebook"] = {"kind": "directional_derivative", "prior": {"sigma_m": 0.1, "samples": 4}}

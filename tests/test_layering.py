@@ -1,22 +1,174 @@
-"""Import layering: the package never loads the web service at import time (``serve`` loads it
-when it runs), and neither the engine nor the job workers import a command-line module."""
+"""Import layering: every import of the package against the layer table of the docs
+(docs/reference/layers.md), no import circle between modules, and the processes that must not
+load the web service or the command line do not (``serve`` loads the service when it runs)."""
 
 from __future__ import annotations
 
+import ast
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+TABLE = ROOT / "docs" / "reference" / "layers.md"
+
+
+def layer_table() -> dict[str, int]:
+    """Package → rank, read from the docs' table (the rule lives there)."""
+    rows = re.findall(r"^\|\s*(\d+)\s*\|\s*`([\w.]+)`\s*\|", TABLE.read_text(), re.M)
+    return {name: int(rank) for rank, name in rows}
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports_of(path: Path) -> set[str]:
+    """Every module a file imports: module level, inside functions, under TYPE_CHECKING."""
+    name = module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ""
+            found.add(module)
+            # "from package import submodule" imports the submodule
+            found.update(f"{module}.{alias.name}" for alias in node.names)
+    return {m for m in found if m.split(".")[0] in {"ris_planner", "api"}}
+
+
+def known_modules() -> set[str]:
+    files = [*ROOT.joinpath("ris_planner").rglob("*.py"), *ROOT.joinpath("api").rglob("*.py")]
+    return {module_name(p) for p in files}
+
+
+def rank_of(module: str, table: dict[str, int]) -> int | None:
+    best = max(
+        (p for p in table if module == p or module.startswith(p + ".")), key=len, default=None
+    )
+    return None if best is None else table[best]
+
+
+def package_files() -> list[Path]:
+    return sorted(
+        [*ROOT.joinpath("ris_planner").rglob("*.py"), *ROOT.joinpath("api").rglob("*.py")]
+    )
+
+
+def test_the_table_names_every_package() -> None:
+    table = layer_table()
+    assert len(table) >= 12 and len(set(table.values())) == len(table)  # a strict order
+    unplaced = sorted(
+        module_name(p)
+        for p in package_files()
+        if module_name(p) != "ris_planner" and rank_of(module_name(p), table) is None
+    )
+    assert unplaced == [], f"modules in no layer of docs/reference/layers.md: {unplaced}"
+
+
+def test_no_import_goes_up_a_layer() -> None:
+    table = layer_table()
+    modules = known_modules()
+    upward = []
+    for path in package_files():
+        name = module_name(path)
+        if name == "ris_planner":
+            continue  # the public surface, at the top
+        mine = rank_of(name, table)
+        assert mine is not None
+        for target in imports_of(path):
+            if target not in modules:
+                continue  # a name imported from a module, already counted as the module
+            if target == "ris_planner":
+                upward.append(f"{name} imports the public surface ris_planner")
+                continue
+            theirs = rank_of(target, table)
+            if theirs is not None and theirs > mine:
+                upward.append(f"{name} (layer {mine}) imports {target} (layer {theirs})")
+    assert upward == [], "\n".join(upward)
+
+
+def test_no_import_circle() -> None:
+    modules = known_modules()
+    graph = {
+        module_name(p): {t for t in imports_of(p) if t in modules and t != module_name(p)}
+        for p in package_files()
+    }
+    # a package's __init__ re-exporting its own modules is not a circle of the modules themselves
+    for name, targets in graph.items():
+        graph[name] = {t for t in targets if not name.startswith(t + ".")}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    circles: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:  # Tarjan's strongly connected components
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    sys.setrecursionlimit(10_000)
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert circles == [], f"import circles: {circles}"
+
+
+def test_the_checker_sees_an_upward_import(tmp_path: Path) -> None:
+    """The rule can fail: a function-level import of the planning layer from physics is caught."""
+    probe = tmp_path / "probe.py"
+    probe.write_text("def f():\n    from ris_planner.planning import search\n")
+    targets = imports_of_text(probe.read_text(), "ris_planner.physics")
+    table = layer_table()
+    assert any((rank_of(t, table) or 0) > table["ris_planner.physics"] for t in targets)
+
+
+def imports_of_text(text: str, package: str) -> set[str]:
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            found.add(node.module)
+            found.update(f"{node.module}.{a.name}" for a in node.names)
+    return found
 
 
 @pytest.mark.parametrize(
     ("module", "forbidden"),
     [
-        ("ris_planner.cli", "api"),  # also after building the parser (every subcommand)
-        ("ris_planner.planning.presets", "ris_planner.cli"),
-        ("ris_planner.planning", "ris_planner.cli"),
-        ("api.worker", "ris_planner.cli"),
-        ("api.main", "ris_planner.cli"),
+        ("ris_planner.cli.main", "api"),  # also after building the parser (every subcommand)
+        ("ris_planner.planning.presets", "ris_planner.cli.main"),
+        ("ris_planner.planning", "ris_planner.cli.main"),
+        ("api.worker", "ris_planner.cli.main"),
+        ("api.main", "ris_planner.cli.main"),
     ],
 )
 def test_import_does_not_load(module: str, forbidden: str) -> None:

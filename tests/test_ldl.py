@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ris_planner import ldl
+from ris_planner.inversion import ldl
 
 INVERSE_RTOL = 1e-11
 """The test matrices have scaled condition numbers ≤ ~1e3; two backward-stable inversions then
@@ -54,12 +54,13 @@ def test_partial_diagonal_is_bit_identical_and_singular_detected(rng: np.random.
 
 
 def test_compiled_ldl_is_bit_identical_to_numpy(rng: np.random.Generator) -> None:
-    """The compiled twin (ris_planner._crb_jit) repeats ldl.py's operations in order, so the
+    """The compiled twin (ris_planner.inversion._crb_jit) repeats ldl.py's operations in order, so
+    the
     diagonal, the singular flags and the trace test of crb_diagonal's fast path are the same
     bits: well and ill conditioned (scaled cond up to ~1e15), singular (a state without
     information, rank one), every state count the known parts leave, and a batch that is not
     a multiple of the kernel's chunk."""
-    from ris_planner.crb import fast_diagonal
+    from ris_planner.inversion.crb import fast_diagonal
 
     for n in (3, 4, 6, 7):
         f = spd_batch(rng, 333, n)

@@ -17,9 +17,9 @@ from api_helpers import api_client
 from test_api_plans import small_plan_doc
 
 from ris_planner import preset_document
-from ris_planner.limits import HEATMAP_MAX_PAIRS, estimate_plan
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.plan import heatmap_rx_index
+from ris_planner.planning.resources import HEATMAP_MAX_PAIRS, estimate_plan
 
 MEMORY_CAP_MB = 1536
 """Address-space cap of the refusing process (imports need ~1 GiB of address space)."""
@@ -129,8 +129,8 @@ import io, json, resource, sys, time
 from contextlib import redirect_stderr
 cap = int(sys.argv[1]) << 20
 resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
-from ris_planner.cli import main
-import ris_planner.planning, ris_planner.validation, ris_planner.power.report  # before the clock
+from ris_planner.cli.main import main
+import ris_planner.planning, ris_planner.planning.resources, ris_planner.power.report  # before the clock
 out = {}
 for name, (command, doc, budget) in json.load(sys.stdin).items():
     import os
@@ -227,8 +227,8 @@ def test_smoke_estimates_cover_the_measured_peak_within_twice() -> None:
 
 
 def _refusal(doc: dict[str, Any], budget_mb: int) -> str:
-    from ris_planner.errors import LimitExceededError
-    from ris_planner.validation import validate_plan
+    from ris_planner.core.errors import LimitExceededError
+    from ris_planner.planning.resources import validate_plan
 
     with pytest.raises(LimitExceededError) as exc:
         validate_plan(doc, memory_mb=budget_mb)
@@ -236,8 +236,8 @@ def _refusal(doc: dict[str, Any], budget_mb: int) -> str:
 
 
 def _fits(doc: dict[str, Any], budget_mb: int) -> bool:
-    from ris_planner.errors import LimitExceededError
-    from ris_planner.validation import validate_plan
+    from ris_planner.core.errors import LimitExceededError
+    from ris_planner.planning.resources import validate_plan
 
     try:
         validate_plan(doc, memory_mb=budget_mb)
@@ -289,7 +289,7 @@ def test_the_users_64x64_plan_of_52_sites_fits_the_default_budget() -> None:
 
 
 def test_cli_and_service_refuse_with_the_advice(tmp_path: Path, monkeypatch: Any) -> None:
-    from ris_planner.cli import main
+    from ris_planner.cli.main import main
 
     src = tmp_path / "plan.json"
     src.write_text(json.dumps(CACHE_DOC))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.paper import FIG10_CURVES, fig10_pairs, paper_curve
+from ris_planner.model.paper import FIG10_CURVES, fig10_pairs, paper_curve
 
 FIG1_RTOL = 0.15
 """Issue acceptance: Fig. 1's CRB curves within 15 % (mean over ≥ 10 codebook seeds)."""

@@ -14,12 +14,13 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from ris_planner.bounds import compute_bounds
-from ris_planner.cli import main
+from ris_planner.bounds.compute import compute_bounds
+from ris_planner.cli.main import main
+from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.environment import Scene
-from ris_planner.errors import LimitExceededError, RisPlannerError
-from ris_planner.geometry import rotation_matrix
-from ris_planner.paper import fig10_pairs
+from ris_planner.model.paper import fig10_pairs
+from ris_planner.model.scenario import Scenario, load_scenario, preset_document
+from ris_planner.physics.geometry import rotation_matrix
 from ris_planner.planning import (
     PLAN_PRESET_NAMES,
     PlanDocument,
@@ -40,11 +41,11 @@ from ris_planner.planning.search import SearchOutcome, exhaustive, greedy
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites, wall_poses
 from ris_planner.planning.visibility import pair_visibility
-from ris_planner.scenario import Scenario, load_scenario, preset_document
 
 GRID = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
 RTOL = 1e-9
-"""The cached score must be the compute_bounds value: both invert through ris_planner.ldl, so
+"""The cached score must be the compute_bounds value: both invert through
+ris_planner.inversion.ldl, so
 only a different summation order of the cached 7×7 matrices could move it (by ≤ cond·ε)."""
 
 

@@ -17,10 +17,12 @@ from conftest import bounds_rtol
 from pydantic import ValidationError
 from test_planning import ring
 
-from ris_planner.bounds import compute_bounds, kept_states
-from ris_planner.environment import Scene, los_clear, ris_serves
-from ris_planner.errors import RisPlannerError
-from ris_planner.geometry import rotation_matrix
+from ris_planner.bounds.compute import compute_bounds, kept_states
+from ris_planner.bounds.paths import los_clear, ris_serves
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.environment import Scene
+from ris_planner.model.scenario import Scenario
+from ris_planner.physics.geometry import rotation_matrix
 from ris_planner.planning import PlanDocument, SerialExecutor, plan_preset, run_plan
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer, objective_value, select_metric
@@ -29,10 +31,10 @@ from ris_planner.planning.report import raster, write_figures
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import Site, expand_sites
 from ris_planner.planning.visibility import pair_visibility, serve_matrix
-from ris_planner.scenario import Scenario
 
 RTOL = 1e-9
-"""Cached score vs the per-pair reference: both invert the same FIM through ris_planner.ldl;
+"""Cached score vs the per-pair reference: both invert the same FIM through
+ris_planner.inversion.ldl;
 only the summation order of the 7×7 matrices (and exact zeros for absent paths) differs, which
 moves a bound by ≤ cond·ε (the free-space planning tests use the same tolerance)."""
 
@@ -514,7 +516,7 @@ def test_bad_environment_input_is_named(doc: dict[str, Any], message: str) -> No
 def test_cli_names_an_unknown_facade_building(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ris_planner.cli import main
+    from ris_planner.cli.main import main
 
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps(env_doc(facades=[{"of": ["b9"], "heights_m": [4], "spacing_m": 5}])))

@@ -1,4 +1,4 @@
-"""The plan's physical RIS element (ris_planner.planning.physics): the default pattern and field
+"""The plan's physical RIS element (ris_planner.model.plan_physics): the default pattern and field
 of view when the document sets none, the document's values when it does, the paper presets
 unchanged (isotropic, explicit), and plan.json's ``physics``."""
 
@@ -11,21 +11,20 @@ import numpy as np
 import pytest
 from tolerance import assert_close
 
-from ris_planner.bounds import compute_bounds
+from ris_planner.bounds.compute import compute_bounds
 from ris_planner.io.site_import import PLAN_DEFAULTS
-from ris_planner.planning import SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.beam_design import layout_scenario, objective_on_pairs
-from ris_planner.planning.document import PlanDocument
-from ris_planner.planning.objectives import objective_value, select_metric
-from ris_planner.planning.physics import (
+from ris_planner.model.plan import PlanDocument, physics_json
+from ris_planner.model.plan_physics import (
     ISOTROPIC_SOURCE,
     PLAN_MAX_ANGLE_DEG,
     PLAN_PATTERN_EXPONENT,
     PLAN_PHYSICS_SOURCE,
-    physics_json,
 )
+from ris_planner.model.scenario import RIS
+from ris_planner.planning import SerialExecutor, plan_preset, run_plan
+from ris_planner.planning.beam_design import layout_scenario, objective_on_pairs
+from ris_planner.planning.objectives import objective_value, select_metric
 from ris_planner.planning.sites import expand_sites
-from ris_planner.scenario import RIS
 
 BOUND_COND = 1e8
 """Scaled condition number of the Fisher informations of these layouts (the heatmap symmetry

@@ -19,7 +19,7 @@ from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.planning import LocalExecutor, SerialExecutor, run_plan
 from ris_planner.planning import search as search_module
-from ris_planner.planning.executor import (
+from ris_planner.runtime.executor import (
     MEMFD_PREFIX,
     SHARE_MIN_BYTES,
     load_shared,

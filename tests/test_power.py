@@ -14,11 +14,12 @@ from conftest import small_scenario_doc
 from test_crb import street_document, street_pairs
 from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
-from ris_planner import ldl
-from ris_planner.beams import codebook_block, gamma_p_powers
-from ris_planner.bounds import compute_bounds, first_block_profiles
-from ris_planner.cli import main
-from ris_planner.errors import RisPlannerError
+from ris_planner.bounds.compute import compute_bounds, first_block_profiles
+from ris_planner.cli.main import main
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.inversion import ldl
+from ris_planner.model.scenario import Scenario, load_scenario, preset_document
+from ris_planner.physics.beams import codebook_block, gamma_p_powers
 from ris_planner.power import run_power
 from ris_planner.power.gamma import search_gamma_p
 from ris_planner.power.information import BeamInformation, PathBlocks, _path_map, beam_information
@@ -30,7 +31,6 @@ from ris_planner.power.sdp import (
     solve_power_sdp,
     whitening,
 )
-from ris_planner.scenario import Scenario, load_scenario, preset_document
 
 SOLVER_RTOL = 1e-6
 """Ordering checks SDP ≤ γ_P ≤ uniform allow the interior-point solver's relative gap

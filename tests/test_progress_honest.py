@@ -11,7 +11,7 @@ from typing import Any
 
 from ris_planner.io.geoplan import plan_document
 from ris_planner.planning import SerialExecutor
-from ris_planner.progress import LAST_BEFORE_END, Stages
+from ris_planner.runtime.progress import LAST_BEFORE_END, Stages
 
 STALL_WALL_SHARE = 0.6
 """No stretch of the run longer than this share of the wall time …"""
@@ -94,7 +94,7 @@ def test_plan_progress_is_honest(tmp_path: Path) -> None:
 def test_progress_bar_redraws_at_a_new_stage() -> None:
     import io
 
-    from ris_planner.progress import ProgressBar
+    from ris_planner.runtime.progress import ProgressBar
 
     out = io.StringIO()
     bar = ProgressBar("plan", stream=out)

@@ -1,5 +1,5 @@
 """Every JSON result names the package version and a hash of its input
-(:mod:`ris_planner.provenance`): the same input gives the same hash through every route and
+(:mod:`ris_planner.runtime.provenance`): the same input gives the same hash through every route and
 spelling, a changed input another."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from ris_planner import load_scenario, preset_document
-from ris_planner.cli import main
-from ris_planner.provenance import canonical_json, input_sha256, package_version, provenance
+from ris_planner.cli.main import main
+from ris_planner.runtime.provenance import canonical_json, input_sha256, package_version, provenance
 
 
 def test_hash_is_the_canonical_json_of_the_validated_document() -> None:

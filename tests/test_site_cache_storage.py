@@ -10,8 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ris_planner import fim
-from ris_planner.bounds import (
+from ris_planner.bounds.compute import (
     compute_bounds,
     los_gradient,
     los_path_information,
@@ -21,10 +20,12 @@ from ris_planner.bounds import (
     ue_on_ris,
 )
 from ris_planner.environment import Scene
-from ris_planner.ldl import unpack
-from ris_planner.limits import CacheLayout
+from ris_planner.inversion.ldl import unpack
+from ris_planner.model.limits import CacheLayout
+from ris_planner.model.plan import PlanDocument
+from ris_planner.model.scenario import Scenario
+from ris_planner.physics import fim
 from ris_planner.planning import SerialExecutor, run_plan
-from ris_planner.planning.document import PlanDocument
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer, select_metric
 from ris_planner.planning.presets import plan_preset
@@ -32,7 +33,6 @@ from ris_planner.planning.search import all_layouts
 from ris_planner.planning.site_cache import build_site_cache
 from ris_planner.planning.sites import expand_sites
 from ris_planner.planning.visibility import pair_visibility
-from ris_planner.scenario import Scenario
 
 UNIT_ROUNDOFF_F32 = 2.0**-24
 """float32 unit roundoff: each stored entry F_s,ij carries a relative error ≤ u."""
@@ -201,7 +201,7 @@ def test_plan_above_the_float64_budget_reports_float32_with_exact_finalists(
 
 def test_storage_blocks_are_the_kernels_chunks() -> None:
     """The cache's pair blocks are the compiled kernel's chunks (it reads them in place)."""
-    from ris_planner import _crb_jit
+    from ris_planner.inversion import _crb_jit
     from ris_planner.planning import site_cache
 
     assert site_cache.CHUNK == _crb_jit.CHUNK

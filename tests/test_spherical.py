@@ -11,10 +11,14 @@ import numpy as np
 import pytest
 from test_planning import plan_doc, reference_metric, setup
 
-from ris_planner import codebooks, spherical
-from ris_planner.bounds import REASON_CHANNEL_SPHERICAL, compute_bounds, first_block_profiles
-from ris_planner.scenario import Scenario, load_scenario, preset_document
-from ris_planner.units import SPEED_OF_LIGHT
+from ris_planner.bounds.compute import (
+    REASON_CHANNEL_SPHERICAL,
+    compute_bounds,
+    first_block_profiles,
+)
+from ris_planner.core.units import SPEED_OF_LIGHT
+from ris_planner.model.scenario import Scenario, load_scenario, preset_document
+from ris_planner.physics import codebooks, spherical
 
 BRUTE_RTOL = 1e-7
 """Brute force vs engine: the complex-step derivatives are exact to rounding (~1e-14), so the

@@ -18,9 +18,9 @@ from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.limits import check_scenario_size
 from api.models import BoundsResponse, scenario_examples
 from api.settings import Settings
-from ris_planner.bounds import bounds_document
+from ris_planner.bounds.compute import bounds_document
 from ris_planner.io.frames import to_local
-from ris_planner.scenario import Scenario
+from ris_planner.model.scenario import Scenario
 
 router = APIRouter(tags=["bounds"])
 

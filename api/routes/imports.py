@@ -17,7 +17,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, StringConstraints
 
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
 from ris_planner.io.dxf_import import LAYER_SPEC_PATTERN, parse_layer_spec
 from ris_planner.io.geojson_import import (
     DEFAULT_AREA_STEP_M,

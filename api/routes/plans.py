@@ -22,7 +22,7 @@ from api.routes.jobs import CONFLICT_RESPONSE, JOB_LINKS, IdempotencyKey, submit
 from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
-from ris_planner.planning.physics import PHYSICS_FIELDS
+from ris_planner.model.plan_physics import PHYSICS_FIELDS
 
 router = APIRouter(tags=["jobs"])
 
@@ -55,7 +55,8 @@ async def post_plan(
     document) and its figures are ``topview``, ``heatmap`` and ``cdf`` (PNG) with the files
     ``geojson``, ``geotiff``, ``points_csv`` (WGS84 / the frame's CRS for a geographic
     document). The checks of ``ris-planner plan`` run here, on the document converted from its
-    frame, before the job is queued (:func:`ris_planner.validation.plan_check`): 422 naming the
+    frame, before the job is queued (:func:`ris_planner.planning.resources.plan_check`): 422 naming
+    the
     field, 413 naming the limit (sites, map points, pairs, sites × pairs, search layouts, the
     job memory budget), 501 for a frame on a server without the GIS extra. The job keeps the
     document as sent (a geographic one in its own coordinates)."""

@@ -20,10 +20,10 @@ from api.settings import Settings
 from api.store import JobStore
 from api.worker import JobRunner
 from ris_planner.io.frames import to_local
-from ris_planner.planning.document import LayoutBeamsDocument
-from ris_planner.power.options import Objective, Solver
-from ris_planner.scenario import Scenario
-from ris_planner.validation import power_check
+from ris_planner.model.plan import LayoutBeamsDocument
+from ris_planner.model.power import Objective, Solver
+from ris_planner.model.scenario import Scenario
+from ris_planner.power.resources import power_check
 
 router = APIRouter(tags=["jobs"])
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ris_planner import codebooks
-from ris_planner.scenario import RIS
+from ris_planner.model.scenario import RIS
+from ris_planner.physics import codebooks
 
 EXPECTED_RANDOM_MIN_BLOCK = 16
 """Below this G/Γ the expected-random bound is more than ~10 % optimistic. Measured with

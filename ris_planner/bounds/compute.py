@@ -23,10 +23,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ris_planner import advice, beams, blas, codebooks, crb, fim, geometry, ldl, spherical
-from ris_planner.environment import Scene, path_presence, pattern_factor
-from ris_planner.provenance import provenance
-from ris_planner.scenario import (
+from ris_planner.bounds import advice
+from ris_planner.bounds.paths import path_presence, pattern_factor
+from ris_planner.environment import Scene
+from ris_planner.inversion import crb, ldl
+from ris_planner.model.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     RIS,
     DirectionalCodebook,
@@ -38,6 +39,9 @@ from ris_planner.scenario import (
     Scenario,
     Wavefront,
 )
+from ris_planner.physics import beams, codebooks, fim, geometry, spherical
+from ris_planner.runtime import blas
+from ris_planner.runtime.provenance import provenance
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -52,7 +56,7 @@ REASON_CHANNEL_SPHERICAL = (
 )
 REASON_NOT_IDENTIFIABLE = "not identifiable"
 """Start of the reason of a pair whose PEB_R is determined but another part is not (a singular
-direction of the information involves only those states, :mod:`ris_planner.crb`)."""
+direction of the information involves only those states, :mod:`ris_planner.inversion.crb`)."""
 PART_STATES = {"tx": range(0, 3), "rx": range(3, 6), "clock": range(6, 7)}
 PART_LABELS = {"tx": "PEB_T", "rx": "PEB_R", "clock": "CEB"}
 
@@ -100,7 +104,8 @@ class PathInfo:
 
     def factor(self, pairs: NDArray[np.int_] | slice = slice(None)) -> FloatArray:
         """Square-root rows [p, m, 7] of :meth:`state_information` for the given pairs
-        (:func:`ris_planner.crb.path_factor`): α·R·J from the one unit root when the EFIM is
+        (:func:`ris_planner.inversion.crb.path_factor`): α·R·J from the one unit root when the EFIM
+        is
         α² Ĩ(1), else from each pair's EFIM."""
         if self.unit_root is not None and self.gain is not None:
             return np.asarray(
@@ -110,7 +115,8 @@ class PathInfo:
 
     def factor_on_channel(self, pairs: NDArray[np.int_]) -> FloatArray:
         """Square-root rows Lᵀ [p, m, m] of the EFIM itself (LLᵀ = Ĩ): α·R from the unit root
-        when Ĩ = α² Ĩ(1), else by :func:`ris_planner.crb.path_factor` of each pair's EFIM."""
+        when Ĩ = α² Ĩ(1), else by :func:`ris_planner.inversion.crb.path_factor` of each pair's
+        EFIM."""
         if self.unit_root is not None and self.gain is not None:
             return np.asarray(self.gain[pairs, None, None] * self.unit_root)
         m = self.efim.shape[-1]
@@ -133,7 +139,7 @@ class BoundsResult:
     known : the state parts treated as known.
     paths_present : per path (``"los"``, ``"ris1"``, …) [P] whether it exists for the pair
         (:func:`scenario_path_presence`); ``"los"`` is False throughout without ``system.los``.
-    warnings : the modelling assumptions that may mislead (:mod:`ris_planner.advice`).
+    warnings : the modelling assumptions that may mislead (:mod:`ris_planner.bounds.advice`).
     """
 
     peb_tx: FloatArray | None
@@ -248,7 +254,7 @@ def ris_path_information(
     wavefront: Wavefront = "planar",
 ) -> tuple[PathInfo, NDArray[np.bool_]]:
     """One RIS path's equivalent FIM on (ξ, ζ, cτ) (planar) or (p_T, p_R, cτ) (spherical,
-    :mod:`ris_planner.spherical`), its Jacobian, and far-field flags [P].
+    :mod:`ris_planner.physics.spherical`), its Jacobian, and far-field flags [P].
 
     profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
     block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks. The gain is
@@ -461,7 +467,8 @@ def bounds_from_state_fim(
     factors [len(idx), n_obs, 7] of the pairs
     idx (:func:`path_factor_rows`); without it they are taken from F itself (correct
     identifiability, but the accuracy of the squared form). The inversion is
-    :func:`ris_planner.crb.crb_diagonal`. ``clock`` [P, 7]: the clock offset as a combination
+    :func:`ris_planner.inversion.crb.crb_diagonal`. ``clock`` [P, 7]: the clock offset as a
+    combination
     of the states of F when F is on other coordinates than [p_T, p_R, B] (the LOS-referenced
     clock of :func:`los_referenced`); default the last state.
     """
@@ -601,7 +608,7 @@ def path_factor_rows(
 
 def channel_bounds(paths: list[PathInfo]) -> dict[str, dict[str, FloatArray]]:
     """DEB [m] and SEBs per path (eqs. DEB, SEB1, SEB2) from the equivalent FIMs, by the one
-    inversion route of the bounds (:func:`ris_planner.crb.crb_diagonal` on each path's m×m
+    inversion route of the bounds (:func:`ris_planner.inversion.crb.crb_diagonal` on each path's m×m
     EFIM with its square root L_ℓ as the factor): a parameter is ``inf`` only when it is not
     identifiable, so a linear (one-row) RIS, whose ζ is unobservable, keeps a finite DEB and
     SEB_ξ (docs/concepts/numerics.md)."""
@@ -666,7 +673,7 @@ def compute_bounds(
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
     With ``scenario.environment`` only the paths present for a pair contribute
     (:func:`scenario_path_presence`, :func:`masked_state_information`). BLAS runs on one
-    thread meanwhile (:mod:`ris_planner.blas`).
+    thread meanwhile (:mod:`ris_planner.runtime.blas`).
     """
     with blas.one_blas_thread():
         return _compute_bounds(scenario, tx, rx, profiles, beam_powers, known)
@@ -760,6 +767,6 @@ def bounds_warnings(scenario: Scenario, *, expected: bool, far: NDArray[np.bool_
 def bounds_document(scenario: Scenario) -> dict[str, Any]:
     """The result document of ``ris-planner bounds`` and ``POST /v1/bounds``: the bounds of
     the scenario's pairs (:meth:`BoundsResult.to_json`) and their provenance
-    (:mod:`ris_planner.provenance`)."""
+    (:mod:`ris_planner.runtime.provenance`)."""
     out = compute_bounds(scenario).to_json(batch=scenario.is_batch)
     return out | {"provenance": provenance(scenario)}

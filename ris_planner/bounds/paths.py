@@ -18,8 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ris_planner.environment.scene import Scene
-from ris_planner.geometry import rotation_matrix
-from ris_planner.scenario import RIS
+from ris_planner.model.scenario import RIS
+from ris_planner.physics.geometry import rotation_matrix
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

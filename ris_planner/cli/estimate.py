@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ris_planner.cli import (
+from ris_planner.cli.main import (
     add_document_arguments,
     finite_float,
     int_in,
@@ -16,9 +16,9 @@ from ris_planner.cli import (
     print_json,
     read_document,
 )
-from ris_planner.errors import RisPlannerError
-from ris_planner.progress import ProgressBar
-from ris_planner.provenance import provenance
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.runtime.progress import ProgressBar
+from ris_planner.runtime.provenance import provenance
 
 
 def _floats(text: str, what: str, count: int | None = None) -> list[float]:
@@ -108,7 +108,7 @@ def write_outputs(result: object, out_dir: Path) -> list[str]:
 def _cmd_blind_area(args: argparse.Namespace) -> int:
     from ris_planner.estimation.blind_area import cost_map
     from ris_planner.estimation.plots import plot_cost_map
-    from ris_planner.scenario import load_scenario
+    from ris_planner.model.scenario import load_scenario
 
     scenario = load_scenario(read_document(args))
     if scenario.is_batch and len(scenario.tx_array) > 1:

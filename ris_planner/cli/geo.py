@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
 
 
 def _read_bytes(path: str) -> bytes:
@@ -100,8 +100,8 @@ def candidate_options_of(args: argparse.Namespace) -> Any:
     flags not given); a bad value is one line naming the option."""
     from pydantic import ValidationError
 
+    from ris_planner.core.io_json import validation_problems
     from ris_planner.io.candidates import CandidateOptions
-    from ris_planner.io_json import validation_problems
 
     given: dict[str, Any] = {}
     for name in ("spacing_m", "corner_clearance_m", "offset_m", "max_angle_deg"):
@@ -126,8 +126,8 @@ def candidate_options_of(args: argparse.Namespace) -> Any:
 
 
 def _cmd_sites(args: argparse.Namespace) -> int:
+    from ris_planner.core.io_json import parse_json_object
     from ris_planner.io.candidates import candidate_sites
-    from ris_planner.io_json import parse_json_object
 
     options = candidate_options_of(args)
     site = parse_json_object(_read_bytes(args.file), args.file)
@@ -158,7 +158,7 @@ def _cmd_sites(args: argparse.Namespace) -> int:
 
 
 def _add_sites(sub: argparse._SubParsersAction) -> None:
-    from ris_planner.cli import finite_float, int_in
+    from ris_planner.cli.main import finite_float, int_in
     from ris_planner.io.candidates import MAX_CANDIDATES_LIMIT, CandidateOptions
 
     d = CandidateOptions()

@@ -18,9 +18,9 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from ris_planner.errors import RisPlannerError
-from ris_planner.io_json import format_validation_error, read_json_object, validation_problems
-from ris_planner.scenario import PRESET_NAMES, Scenario, load_scenario
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.core.io_json import format_validation_error, read_json_object, validation_problems
+from ris_planner.model.scenario import PRESET_NAMES, Scenario, load_scenario
 
 EXIT_INPUT_ERROR = 2
 
@@ -77,7 +77,7 @@ def add_document_arguments(parser: argparse.ArgumentParser) -> None:
 
 def read_document(args: argparse.Namespace) -> dict[str, Any]:
     """The raw JSON document named by ``FILE`` / ``--preset`` (exactly one of them)."""
-    from ris_planner.scenario import preset_document
+    from ris_planner.model.scenario import preset_document
 
     if (args.file is None) == (args.preset is None):
         raise RisPlannerError("give exactly one of FILE or --preset NAME")
@@ -104,7 +104,7 @@ def print_json(obj: Any) -> None:
 
 
 def _cmd_bounds(args: argparse.Namespace) -> int:
-    from ris_planner.bounds import bounds_document
+    from ris_planner.bounds.compute import bounds_document
 
     print_json(bounds_document(read_scenario(args)))
     return 0
@@ -149,12 +149,12 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
 
 
 REGISTRARS: dict[str, tuple[str, ...]] = {
-    "ris_planner.cli:_add_core": ("bounds", "schema"),
-    "ris_planner.power.cli:add_cli": ("power",),
-    "ris_planner.planning.cli:add_cli": ("plan",),
-    "ris_planner.estimation.cli:add_cli": ("simulate", "blind-area"),
-    "ris_planner.io.cli:add_cli": ("import", "sites"),
-    "ris_planner.cli:_add_serve": ("serve",),
+    "ris_planner.cli.main:_add_core": ("bounds", "schema"),
+    "ris_planner.cli.power:add_cli": ("power",),
+    "ris_planner.cli.plan:add_cli": ("plan",),
+    "ris_planner.cli.estimate:add_cli": ("simulate", "blind-area"),
+    "ris_planner.cli.geo:add_cli": ("import", "sites"),
+    "ris_planner.cli.main:_add_serve": ("serve",),
 }
 """Every feature's ``add_cli`` ("module:function") and the subcommands it registers, in help
 order. A run imports only the module of its own subcommand (``ris-planner bounds`` never loads
@@ -199,7 +199,7 @@ def _say(message: str) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; every input error ends with one line on stderr and exit status 2."""
-    from ris_planner import allocator
+    from ris_planner.runtime import allocator
 
     allocator.tune_malloc()  # an entry point: the library itself never changes the process
     argv = list(sys.argv[1:] if argv is None else argv)

@@ -10,8 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from ris_planner.cli import int_in
-from ris_planner.errors import RisPlannerError
+from ris_planner.cli.main import int_in
+from ris_planner.core.errors import RisPlannerError
 
 EXIT_USELESS = 3
 """Exit status of ``ris-planner plan --fail-on-useless`` for a plan diagnosed ``useless``."""
@@ -26,10 +26,10 @@ def rounded(value: float | None, digits: int = 3) -> str:
 def _cmd_plan(args: argparse.Namespace) -> int:
     from ris_planner.io.geoplan import plan_document
     from ris_planner.planning.diagnosis import summary_lines
-    from ris_planner.planning.executor import DaskExecutor, Executor, LocalExecutor
     from ris_planner.planning.presets import load_plan_file, plan_preset
     from ris_planner.planning.report import write_plan_json
-    from ris_planner.progress import ProgressBar
+    from ris_planner.runtime.executor import DaskExecutor, Executor, LocalExecutor
+    from ris_planner.runtime.progress import ProgressBar
 
     if (args.file is None) == (args.preset is None):
         raise RisPlannerError("give exactly one of FILE or --preset NAME")

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from ris_planner.cli import add_document_arguments, print_json, read_document
-from ris_planner.power.options import OBJECTIVES, SOLVERS
-from ris_planner.progress import ProgressBar
+from ris_planner.cli.main import add_document_arguments, print_json, read_document
+from ris_planner.model.power import OBJECTIVES, SOLVERS
+from ris_planner.runtime.progress import ProgressBar
 
 
 def _cmd_power(args: argparse.Namespace) -> int:

@@ -16,7 +16,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.core.errors import LimitExceededError, RisPlannerError
 
 MAX_JSON_DEPTH = 64
 """Deepest nesting of arrays/objects a document may have (the deepest real field, a list of
@@ -62,7 +62,7 @@ def check_depth(value: Any, what: str = "document") -> None:
 def parse_json(text: str | bytes, what: str = "document") -> Any:
     """A JSON value from text, nested at most :data:`MAX_JSON_DEPTH` deep; every failure a
     one-line :class:`MalformedJsonError`, an integer longer than :data:`MAX_NUMBER_DIGITS`
-    digits a :class:`~ris_planner.errors.LimitExceededError` (never the interpreter's own
+    digits a :class:`~ris_planner.core.errors.LimitExceededError` (never the interpreter's own
     message)."""
     try:
         value = json.loads(text)

@@ -1,18 +1,12 @@
 """Obstacles, visibility of legs and fields of view (docs/concepts/environment.md,
 "The contract").
 
-A :class:`Scene` is built once from a document's :class:`~ris_planner.obstacles.Environment`
+A :class:`Scene` is built once from a document's
+:class:`~ris_planner.environment.model.Environment`
 and answers batched questions: which legs (segments) are blocked, which points lie inside a
 prism. The rules and their tolerance are documented in :mod:`ris_planner.environment.scene`.
 """
 
-from ris_planner.environment.paths import (
-    in_field_of_view,
-    los_clear,
-    path_presence,
-    pattern_factor,
-    ris_serves,
-)
 from ris_planner.environment.scene import (
     INSIDE_MARGIN_M,
     VISIBILITY_TOLERANCE_M,
@@ -23,9 +17,4 @@ __all__ = [
     "INSIDE_MARGIN_M",
     "VISIBILITY_TOLERANCE_M",
     "Scene",
-    "in_field_of_view",
-    "los_clear",
-    "path_presence",
-    "pattern_factor",
-    "ris_serves",
 ]

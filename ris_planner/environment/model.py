@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, field_validator, model_validator
 
-from ris_planner.document import MAX_COORDINATE_M, DocumentModel, finite_point
+from ris_planner.core.document import MAX_COORDINATE_M, DocumentModel, finite_point
 
 FloatArray = NDArray[np.float64]
 

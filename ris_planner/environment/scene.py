@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ris_planner.environment._grid import Grid
 from ris_planner.environment._kernels import point_depth, prism_blocks, wall_blocks
-from ris_planner.obstacles import Environment, Prism
+from ris_planner.environment.model import Environment, Prism
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

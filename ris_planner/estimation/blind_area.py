@@ -16,14 +16,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import minimum_filter
 
-from ris_planner.bounds import scenario_path_presence
-from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.bounds.compute import scenario_path_presence
+from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.estimation.channel_estimation import ChannelEstimate
 from ris_planner.estimation.pipeline import present_weights
 from ris_planner.estimation.position_estimation import candidate_costs, channel_model
 from ris_planner.estimation.signal import ris_arrays
-from ris_planner.limits import count
-from ris_planner.scenario import Scenario
+from ris_planner.model.limits import count
+from ris_planner.model.scenario import Scenario
 
 FloatArray = NDArray[np.float64]
 

@@ -26,8 +26,8 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import fim
 from ris_planner.estimation.signal import SignalSetup
+from ris_planner.physics import fim
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]

@@ -13,8 +13,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ris_planner.errors import LimitExceededError
-from ris_planner.scenario import (
+from ris_planner.core.errors import LimitExceededError
+from ris_planner.model.scenario import (
     MIN_UE_RIS_DISTANCE_M,
     DocumentModel,
     Point3,
@@ -216,7 +216,7 @@ class SimulationDocument(DocumentModel):
     def _present_paths(self) -> tuple[bool, int, str]:
         """(LOS present, RIS paths present, a note naming the missing ones) for the pair: in
         an environment the estimator works with the paths that exist (as the bounds do)."""
-        from ris_planner.bounds import scenario_path_presence
+        from ris_planner.bounds.compute import scenario_path_presence
 
         sc = self.scenario
         presence = scenario_path_presence(sc, sc.tx_array[:1], sc.rx_array[:1])

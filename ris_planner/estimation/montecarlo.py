@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import compute_bounds
-from ris_planner.errors import LimitExceededError, RisPlannerError
+from ris_planner.bounds.compute import compute_bounds
+from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.estimation.channel_estimation import ChannelEstimate, wrap
 from ris_planner.estimation.models import SimulationDocument
 from ris_planner.estimation.pipeline import Estimator
@@ -27,7 +27,7 @@ from ris_planner.estimation.signal import (
     separate_paths,
     signal_setup,
 )
-from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
 

@@ -27,11 +27,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
-from ris_planner import geometry
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
 from ris_planner.estimation.channel_estimation import ChannelEstimate, wrap
 from ris_planner.estimation.signal import RisArray
-from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M
+from ris_planner.model.scenario import MIN_UE_RIS_DISTANCE_M
+from ris_planner.physics import geometry
 
 FloatArray = NDArray[np.float64]
 

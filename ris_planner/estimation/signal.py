@@ -21,17 +21,17 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import beams, codebooks, geometry
-from ris_planner.bounds import (
+from ris_planner.bounds.compute import (
     beam_weights,
     first_block_profiles,
     ris_path_gain,
     scenario_path_presence,
 )
+from ris_planner.core.units import SPEED_OF_LIGHT
 from ris_planner.estimation.models import Multipath
-from ris_planner.fim import Radio, subcarrier_wavenumbers
-from ris_planner.scenario import Scenario
-from ris_planner.units import SPEED_OF_LIGHT
+from ris_planner.model.scenario import Scenario
+from ris_planner.physics import beams, codebooks, geometry
+from ris_planner.physics.fim import Radio, subcarrier_wavenumbers
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -144,7 +144,8 @@ def signal_setup(
     """Profiles, codes, pilots and radio constants for a scenario.
 
     beam_powers : [G̃] powers δ² of the first-block beams (repeated over the Γ blocks, as the
-    bounds assume); default the codebook's (:func:`ris_planner.bounds.beam_weights`: γ_P powers
+    bounds assume); default the codebook's (:func:`ris_planner.bounds.compute.beam_weights`: γ_P
+    powers
     of a DIR+DER codebook, else uniform), so the simulated signal and its bounds agree.
     Pilots x_k are unit-modulus with seeded random phases.
     """

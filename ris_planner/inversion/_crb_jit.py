@@ -1,11 +1,15 @@
-"""The compiled inversion kernels (numba): the scaled LDLᵀ of :mod:`ris_planner.ldl` one chunk
+"""The compiled inversion kernels (numba): the scaled LDLᵀ of :mod:`ris_planner.inversion.ldl` one
+chunk
 of matrices at a time, the planning layout score built on it, and the one-sided Jacobi SVD of
-the square-root route of :mod:`ris_planner.crb`. One module, because numba's on-disk cache of a
+the square-root route of :mod:`ris_planner.inversion.crb`. One module, because numba's on-disk
+cache of a
 function does not notice edits to the functions it calls from another file.
 
 **LDLᵀ, bit for bit.** :func:`ldl_chunk` performs the very operations of
-:func:`ris_planner.ldl._factor`, :func:`~ris_planner.ldl._inverse_low_columns` and
-:func:`~ris_planner.ldl.inverse_diagonal_from` (and of ``crb._trace_scaled_inverse``), in the
+:func:`ris_planner.inversion.ldl._factor`, :func:`~ris_planner.inversion.ldl._inverse_low_columns`
+and
+:func:`~ris_planner.inversion.ldl.inverse_diagonal_from` (and of ``crb._trace_scaled_inverse``), in
+the
 same order, entry by entry (a quotient stays a quotient: the channel bounds, which go through
 ldl.py, are pinned bit for bit by the free-space tests), and no multiply-add is fused (numba
 leaves LLVM's floating-point contraction off unless ``fastmath`` is asked for). IEEE-754
@@ -51,7 +55,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from ris_planner.ldl import SINGULAR_RCOND
+from ris_planner.inversion.ldl import SINGULAR_RCOND
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -86,7 +90,7 @@ input from looping."""
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _tri(i: int, j: int) -> int:
-    """Packed slot of entry (i, j), i ≥ j (:func:`ris_planner.ldl.packed_index`)."""
+    """Packed slot of entry (i, j), i ≥ j (:func:`ris_planner.inversion.ldl.packed_index`)."""
     return i * (i + 1) // 2 + j
 
 
@@ -213,7 +217,7 @@ def inverse_diagonal(
     n_tasks: int,
 ) -> None:
     """diag(F⁻¹) [n, N], trace(F̂⁻¹) [N] and singular [N] of packed matrices f [n(n+1)/2, N]
-    (:func:`ris_planner.ldl.inverse_diagonal_from` with ``first=0`` and
+    (:func:`ris_planner.inversion.ldl.inverse_diagonal_from` with ``first=0`` and
     ``crb._trace_scaled_inverse``, bit for bit)."""
     e_n = n * (n + 1) // 2
     size = f.shape[1]
@@ -371,7 +375,8 @@ def sqrt_diagonal(
     n_tasks: int,
 ) -> None:
     """The CRB diagonal diag [N, k] (``inf`` where not identifiable) and rank_deficient [N]
-    of square-root factors a [N, r, k] by the rule of :func:`ris_planner.crb.sqrt_crb_diagonal`
+    of square-root factors a [N, r, k] by the rule of
+    :func:`ris_planner.inversion.crb.sqrt_crb_diagonal`
     (its docstring): a certified QR where no singular value can be near the null-space
     threshold, the Jacobi SVD and the leak rule elsewhere."""
     size, r, k = a.shape

@@ -9,7 +9,8 @@ A_ℓ = L_ℓᵀ J_ℓ are a square-root factor: F = AᵀA for the stack A of al
 The route (one rule for ``compute_bounds`` and the planning scorer, so both give the same
 numbers bit for bit):
 
-1. Fast path: batched LDLᵀ of the symmetrically scaled F (:mod:`ris_planner.ldl`), which is
+1. Fast path: batched LDLᵀ of the symmetrically scaled F (:mod:`ris_planner.inversion.ldl`), which
+is
    accurate to ~ε·cond(F̂). Kept where trace(F̂⁻¹) ≤ :data:`FAST_TRACE_LIMIT` (F̂ = F scaled to
    unit diagonal; cond(F̂) ≤ 7·trace(F̂⁻¹) since λ_max(F̂) ≤ 7).
 2. Everything else (near-singular or singular pairs): SVD of the column-scaled factor
@@ -21,8 +22,9 @@ numbers bit for bit):
    state). A non-identifiable state is ``inf``. So a null direction that involves only the
    clock or the TX does not hide a determined PEB_R.
 
-Both steps are compiled (:mod:`ris_planner._crb_jit`, numba): the LDLᵀ from
-:data:`JIT_MIN_MATRICES` on, with exactly the bits of :mod:`ris_planner.ldl`; the square-root
+Both steps are compiled (:mod:`ris_planner.inversion._crb_jit`, numba): the LDLᵀ from
+:data:`JIT_MIN_MATRICES` on, with exactly the bits of :mod:`ris_planner.inversion.ldl`; the
+square-root
 step always (:func:`sqrt_crb_diagonal`: a certified QR where no singular value can be near the
 threshold, the one-sided Jacobi SVD elsewhere), so ``compute_bounds`` and the planning scorer
 take the same arithmetic for every pair.
@@ -36,7 +38,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import ldl
+from ris_planner.inversion import ldl
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -109,9 +111,10 @@ class _SqrtSVD(NamedTuple):
 
 def svd(a: FloatArray) -> tuple[FloatArray, FloatArray]:
     """(singular values [N, k], descending; Vᵀ [N, k, k]) of a [N, r, k]: the compiled
-    one-sided Jacobi SVD (:func:`ris_planner._crb_jit.svd_jacobi`), per matrix independent of
+    one-sided Jacobi SVD (:func:`ris_planner.inversion._crb_jit.svd_jacobi`), per matrix
+    independent of
     the batch, so ``compute_bounds`` and the scorer agree bit for bit on every pair."""
-    from ris_planner import _crb_jit
+    from ris_planner.inversion import _crb_jit
 
     size, _, k = a.shape
     s = np.empty((size, k))
@@ -150,14 +153,15 @@ def sqrt_crb_diagonal(a: FloatArray) -> tuple[FloatArray, BoolArray]:
 
     Returns (diag [N, k], ``inf`` for states that are not identifiable; rank_deficient [N],
     the pairs whose information has a numerical null space). See the module docstring; the
-    compiled kernel (:func:`ris_planner._crb_jit.sqrt_diagonal`) first tries the Householder
+    compiled kernel (:func:`ris_planner.inversion._crb_jit.sqrt_diagonal`) first tries the
+    Householder
     QR Â = QR: σ_min(Â) ≥ 1/‖R⁻¹‖_F and σ_max(Â) ≤ ‖Â‖_F = √k (unit columns), so where
     :data:`QR_CERT_MARGIN` · SINGULAR_SV_RTOL · √k · ‖R⁻¹‖_F < 1 no singular value can reach the
     null-space threshold, every state is identifiable and diag = Σ_j (R⁻¹)_ij² / ‖A_:,i‖² –
     the SVD's answer, with the same ε·cond(Â) accuracy (both backward stable on Â), at a
     tenth of the cost. Elsewhere the Jacobi SVD and the leak rule decide.
     """
-    from ris_planner import _crb_jit
+    from ris_planner.inversion import _crb_jit
 
     size, _, k = a.shape
     diag = np.empty((size, k))
@@ -236,12 +240,13 @@ def fast_diagonal(
     f_packed: FloatArray, n: int, engine: Engine = "auto"
 ) -> tuple[FloatArray, BoolArray, FloatArray]:
     """(diag(F⁻¹) [n, N] with ``inf`` where singular, singular [N], trace(F̂⁻¹) [N]) of packed
-    matrices [n(n+1)/2, N] by the scaled LDLᵀ: numpy (:mod:`ris_planner.ldl`) or the compiled
-    twin (:func:`ris_planner._crb_jit.inverse_diagonal`), the same bits either way;
+    matrices [n(n+1)/2, N] by the scaled LDLᵀ: numpy (:mod:`ris_planner.inversion.ldl`) or the
+    compiled
+    twin (:func:`ris_planner.inversion._crb_jit.inverse_diagonal`), the same bits either way;
     ``"auto"`` compiles from :data:`JIT_MIN_MATRICES` on."""
     size = f_packed.shape[1]
     if engine == "numba" or (engine == "auto" and size >= JIT_MIN_MATRICES):
-        from ris_planner import _crb_jit
+        from ris_planner.inversion import _crb_jit
 
         diag = np.empty((n, size))
         trace = np.empty(size)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
 
 
 class MissingExtraError(RisPlannerError):

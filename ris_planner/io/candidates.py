@@ -53,19 +53,19 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, ValidationError, field_validator
 
-from ris_planner.document import DocumentModel
+from ris_planner.core.document import DocumentModel
+from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
+from ris_planner.core.io_json import validation_problems
 from ris_planner.environment import Scene
-from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
+from ris_planner.environment.model import Environment, Prism
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import import_features
-from ris_planner.io_json import validation_problems
-from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count, map_points
-from ris_planner.obstacles import Environment, Prism
-from ris_planner.planning.document import Facades, RISDefaults, UEMap, Wall
+from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count
+from ris_planner.model.plan import Facades, RISDefaults, UEMap, Wall, map_points
+from ris_planner.model.scenario import RIS
 from ris_planner.planning.maps import build_map
 from ris_planner.planning.sites import Site, facade_walls, wall_poses
 from ris_planner.planning.visibility import serve_matrix
-from ris_planner.scenario import RIS
 
 FloatArray = NDArray[np.float64]
 

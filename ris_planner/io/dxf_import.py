@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
 from ris_planner.io import require
 
 MIN_WALL_LENGTH_M = 1e-6

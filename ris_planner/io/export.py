@@ -124,8 +124,8 @@ def _pose(orientation: list[float]) -> dict[str, float]:
 
 
 def _ris_size(document: dict[str, Any]) -> dict[str, Any]:
-    from ris_planner.planning.document import RISDefaults
-    from ris_planner.scenario import SystemParams
+    from ris_planner.model.plan import RISDefaults
+    from ris_planner.model.scenario import SystemParams
 
     grid = RISDefaults.model_validate(document.get("ris") or {})
     lam = SystemParams.model_validate(document.get("system") or {}).wavelength

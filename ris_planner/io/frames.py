@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.errors import DocumentFieldError
+from ris_planner.core.errors import DocumentFieldError
 from ris_planner.io import MissingExtraError, require
 
 FloatArray = NDArray[np.float64]
@@ -374,7 +374,7 @@ MAX_LICENSE_CHARS = 2000
 
 def license_of_document(document: Any) -> dict[str, str]:
     """The ``license`` / ``attribution`` of a document (only those present), or a
-    :class:`~ris_planner.errors.DocumentFieldError` naming the field when one is not a text."""
+    :class:`~ris_planner.core.errors.DocumentFieldError` naming the field when one is not a text."""
     out: dict[str, str] = {}
     if not isinstance(document, dict):
         return out
@@ -402,7 +402,8 @@ def to_local(document: Any) -> tuple[Any, Frame | None]:
     ``/v1/power-allocations``) and its plan jobs all convert here, before validation and the
     size limits (which therefore apply to the converted document).
 
-    Raises :class:`~ris_planner.errors.DocumentFieldError` naming the field (its dotted path) of
+    Raises :class:`~ris_planner.core.errors.DocumentFieldError` naming the field (its dotted path)
+    of
     a bad ``frame``, of a point that is not a coordinate pair, lies outside ±180°/±90° or
     farther than :data:`MAX_FRAME_RADIUS_M` from the origin (lat/lon swapped, a wrong CRS), and
     of a UE ``grid`` or ``csv_text`` (not regular in metres in a geographic frame: give points

@@ -17,7 +17,7 @@ from typing import Any
 
 from ris_planner.io import MissingExtraError
 from ris_planner.io.frames import license_of_document, to_local
-from ris_planner.progress import ProgressCallback, Stages, no_progress
+from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.core.io_json import parse_json_object
 from ris_planner.io import require
 from ris_planner.io.dxf_import import LayerSpec, import_dxf
 from ris_planner.io.geojson_import import (
@@ -29,8 +30,7 @@ from ris_planner.io.geojson_import import (
     import_sites,
     osm_xml_features,
 )
-from ris_planner.io_json import parse_json_object
-from ris_planner.planning.physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
+from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 
 IMPORT_FORMATS = ("geojson", "osm", "sites", "dxf")
 """What :func:`import_data` reads."""
@@ -46,7 +46,7 @@ PLAN_DEFAULTS: dict[str, Any] = {
 sampled TX–RX pairs, coverage Pr(PEB_R ≤ 1 m), 2 and 3 RISs (one RIS leaves both UEs
 unlocated), UE heights known (street or
 floor level), and the plan's physical RIS element written out (the unit-cell pattern
-q = 1.5 and the 84.26° field of view of :mod:`ris_planner.planning.physics`, so the planner
+q = 1.5 and the 84.26° field of view of :mod:`ris_planner.model.plan_physics`, so the planner
 sees and may edit them; docs/concepts/planning-physics.md)."""
 
 MAX_DXF_GRID_POINTS = 10_000

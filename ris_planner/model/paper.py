@@ -42,7 +42,7 @@ def fig10_pairs() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
 
 
 def _read(name: str) -> list[dict[str, str]]:
-    text = resources.files("ris_planner.paper_data").joinpath(name).read_text()
+    text = resources.files("ris_planner.model.paper_data").joinpath(name).read_text()
     return list(csv.DictReader(text.splitlines()))
 
 

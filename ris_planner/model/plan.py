@@ -2,7 +2,7 @@
 the REST planning endpoint.
 
 It extends the scenario document (docs/concepts/conventions.md): ``system`` is the scenario's
-:class:`~ris_planner.scenario.SystemParams`, ``ris`` holds the element grid shared by every
+:class:`~ris_planner.model.scenario.SystemParams`, ``ris`` holds the element grid shared by every
 candidate (the scenario's per-RIS ``rows``/``cols``/``spacing_m``), ``codebook`` and ``known``
 mean what they mean there; instead of fixed RISs and UEs it names candidate sites, UE
 probability maps, the pairs to evaluate, an objective, the RIS counts and the search.
@@ -18,11 +18,17 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ris_planner.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS
-from ris_planner.obstacles import Environment, Prism
-from ris_planner.planning.physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
-from ris_planner.power.options import Solver
-from ris_planner.scenario import (
+from ris_planner.environment.model import Environment, Prism
+from ris_planner.model.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS, count, csv_rows
+from ris_planner.model.plan_physics import (
+    ISOTROPIC_SOURCE,
+    PHYSICS_FIELDS,
+    PLAN_MAX_ANGLE_DEG,
+    PLAN_PATTERN_EXPONENT,
+    PLAN_PHYSICS_SOURCE,
+)
+from ris_planner.model.power import Solver
+from ris_planner.model.scenario import (
     RIS,
     DocumentModel,
     KnownPart,
@@ -324,12 +330,12 @@ class PlanCodebook(DocumentModel):
 
 class RISDefaults(RISGrid):
     """The element grid, field of view and pattern of every candidate RIS (the scenario
-    document's per-RIS fields of the same names, :class:`~ris_planner.scenario.RISGrid`).
+    document's per-RIS fields of the same names, :class:`~ris_planner.model.scenario.RISGrid`).
 
     Unlike a scenario's (the paper's isotropic q = 0, 90°), ``pattern_exponent`` and
     ``max_angle_deg`` default to a physical element: the unit-cell power pattern cos³ θ of
     Tang et al. (IEEE TWC 2021) as the amplitude exponent q = 1.5, and a field of view of
-    84.26° (:mod:`ris_planner.planning.physics`, docs/concepts/planning-physics.md). A value
+    84.26° (:mod:`ris_planner.model.plan_physics`, docs/concepts/planning-physics.md). A value
     the document gives always wins (``model_fields_set`` tells them apart)."""
 
     max_angle_deg: float = Field(
@@ -924,3 +930,54 @@ class LayoutBeamsDocument(DocumentModel):
                 f"{len(self.ris)} RISs need at least L+1 = {len(self.ris) + 1} transmissions"
             )
         return self
+
+
+def _road_points(road: Road) -> int:
+    """Lattice points of one road, as :func:`ris_planner.planning.maps.road_points` samples."""
+    lateral = 2 * count(road.width_m / 2 / road.step_m + 1e-9) + 1
+    total, any_segment = 0, False
+    for a, b in zip(road.points, road.points[1:], strict=False):
+        length = math.hypot(b[0] - a[0], b[1] - a[1])
+        if length == 0:
+            continue
+        any_segment = True
+        total += count(math.ceil(length / road.step_m - 1e-9)) * lateral
+    return total + (lateral if any_segment else 1)
+
+
+def map_points(spec: UEMap) -> int:
+    """Points of a UE map before any is built (zero-weight points included)."""
+    n = 0
+    if spec.grid is not None:
+        g = spec.grid
+        n += range_count(g.x, "x") * range_count(g.y, "y") * range_count(g.z, "z")
+    n += len(spec.points or [])
+    n += sum(_road_points(r) for r in spec.roads or [])
+    if spec.csv_text is not None:
+        n += csv_rows(spec.csv_text)
+    return n
+
+
+def physics_json(doc: PlanDocument) -> dict[str, Any]:
+    """plan.json ``physics``: the element pattern exponent and field of view in force, where
+    they come from (``from``: ``default`` when the document sets neither, else ``document``;
+    ``set_in_document`` lists the fields it sets, a value equal to the default included),
+    their ``source`` and the ``wavefront`` model (``system.wavefront``)."""
+    ris = doc.ris
+    given = [f for f in PHYSICS_FIELDS if f in ris.model_fields_set]
+    if not given:
+        source = PLAN_PHYSICS_SOURCE
+    elif ris.pattern_exponent == 0.0 and ris.max_angle_deg == 90.0:
+        source = ISOTROPIC_SOURCE
+    elif len(given) == len(PHYSICS_FIELDS):
+        source = "document"
+    else:
+        source = f"document ({', '.join(given)}); otherwise {PLAN_PHYSICS_SOURCE}"
+    return {
+        "pattern_exponent": ris.pattern_exponent,
+        "max_angle_deg": ris.max_angle_deg,
+        "from": "document" if given else "default",
+        "set_in_document": given,
+        "source": source,
+        "wavefront": doc.system.wavefront,
+    }

@@ -2,7 +2,7 @@
 ``physics`` block of plan.json that states them (docs/concepts/planning-physics.md).
 
 A RIS path's amplitude gain is |ρ_ℓ| = λ²/(16π² d_T d_R) · (cos θ_T cos θ_R)^q (the paper's
-Simulation Parameters with the element pattern of :func:`ris_planner.bounds.ris_path_gain`),
+Simulation Parameters with the element pattern of :func:`ris_planner.bounds.compute.ris_path_gain`),
 and a UE is served only when its angle θ to the RIS normal is strictly below
 ``max_angle_deg``. Scenario documents keep the paper's isotropic model (q = 0, 90°); a plan
 document's shared ``ris`` defaults to the physical pattern below, because a placement search
@@ -30,10 +30,6 @@ below 10⁻³ · cos³ θ_other).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from ris_planner.planning.document import PlanDocument
 
 UNIT_CELL_POWER_EXPONENT = 3.0
 """Exponent of the unit cell's normalised power pattern F(θ) = cos^p θ (Tang et al. 2021)."""
@@ -64,28 +60,3 @@ PLAN_PHYSICS_SOURCE = (
 
 ISOTROPIC_SOURCE = "the paper's isotropic element (q = 0, field of view 90 deg)"
 """What plan.json ``physics.source`` says for q = 0 and 90° set in the document."""
-
-
-def physics_json(doc: PlanDocument) -> dict[str, Any]:
-    """plan.json ``physics``: the element pattern exponent and field of view in force, where
-    they come from (``from``: ``default`` when the document sets neither, else ``document``;
-    ``set_in_document`` lists the fields it sets, a value equal to the default included),
-    their ``source`` and the ``wavefront`` model (``system.wavefront``)."""
-    ris = doc.ris
-    given = [f for f in PHYSICS_FIELDS if f in ris.model_fields_set]
-    if not given:
-        source = PLAN_PHYSICS_SOURCE
-    elif ris.pattern_exponent == 0.0 and ris.max_angle_deg == 90.0:
-        source = ISOTROPIC_SOURCE
-    elif len(given) == len(PHYSICS_FIELDS):
-        source = "document"
-    else:
-        source = f"document ({', '.join(given)}); otherwise {PLAN_PHYSICS_SOURCE}"
-    return {
-        "pattern_exponent": ris.pattern_exponent,
-        "max_angle_deg": ris.max_angle_deg,
-        "from": "document" if given else "default",
-        "set_in_document": given,
-        "source": source,
-        "wavefront": doc.system.wavefront,
-    }

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.errors import RisPlannerError
-from ris_planner.scenario import PositionPrior, Scenario
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.model.scenario import PositionPrior, Scenario
 
 FloatArray = NDArray[np.float64]
 

@@ -26,14 +26,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import codebooks, geometry, priors
-from ris_planner.errors import RisPlannerError
-from ris_planner.scenario import (
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.model import priors
+from ris_planner.model.scenario import (
     RIS,
     DirectionalCodebook,
     DirectionalDerivativeCodebook,
     Scenario,
 )
+from ris_planner.physics import codebooks, geometry
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]

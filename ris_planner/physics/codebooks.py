@@ -11,26 +11,14 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.model.profiles import block_count, block_length
+
+__all__ = [
+    "block_count",
+    "block_length",
+]  # the profile structure, re-exported for the codebooks' users
+
 ComplexArray = NDArray[np.complex128]
-
-
-def block_count(transmissions: int, n_ris: int) -> int:
-    """Γ: the smallest divisor of G that is ≥ L+1.
-
-    Raises ValueError when G has no such divisor (G < L+1).
-    """
-    for gamma in range(n_ris + 1, transmissions + 1):
-        if transmissions % gamma == 0:
-            return gamma
-    raise ValueError(
-        f"G = {transmissions} transmissions cannot hold L+1 = {n_ris + 1} time-orthogonal"
-        " blocks; use G ≥ L+1"
-    )
-
-
-def block_length(transmissions: int, n_ris: int) -> int:
-    """G̃ = G/Γ, the number of beams per RIS in the first block."""
-    return transmissions // block_count(transmissions, n_ris)
 
 
 def orthogonal_code_matrix(transmissions: int, n_ris: int) -> ComplexArray:

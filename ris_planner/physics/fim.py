@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.scenario import SystemParams
-from ris_planner.units import SPEED_OF_LIGHT
+from ris_planner.core.units import SPEED_OF_LIGHT
+from ris_planner.model.scenario import SystemParams
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -112,7 +112,7 @@ block's steering matrix [N, 512] and product [3G̃, 512] stay in cache while the
 def grid_axes(positions: FloatArray) -> tuple[FloatArray, FloatArray] | None:
     """(y of each column [cols], z of each row [rows]) when ``positions`` [N, 3] is a row-major
     grid – element n = r·cols + c at (·, y_c, z_r), the order of
-    :func:`ris_planner.geometry.element_positions` – else ``None`` (checked exactly)."""
+    :func:`ris_planner.physics.geometry.element_positions` – else ``None`` (checked exactly)."""
     y, z = positions[:, 1], positions[:, 2]
     n = y.shape[0]
     changes = np.flatnonzero(z != z[0])
@@ -240,7 +240,7 @@ def planar_transmission_gram(
 def ris_path_fim(q: ComplexArray, alpha: FloatArray, radio: Radio) -> FloatArray:
     """The FIM block of one RIS path on (spatial parameters, r, α, β) (eq. FIM_measurement),
     [P, m+3, m+3]: (ξ, ζ, r, α, β) for the planar model (m = 2), (p_T, p_R, r, α, β) for the
-    spherical one (m = 6, :mod:`ris_planner.spherical`).
+    spherical one (m = 6, :mod:`ris_planner.physics.spherical`).
 
     q : [P, m+1, m+1] or [m+1, m+1] transmission Gram (spatial derivatives first, then the
     response itself); alpha : [P] |ρ_ℓ|. The phase β drops out. Formed with the pairs on the

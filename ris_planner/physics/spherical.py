@@ -17,8 +17,8 @@ from collections.abc import Iterator
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import geometry
-from ris_planner.scenario import RIS
+from ris_planner.model.scenario import RIS
+from ris_planner.physics import geometry
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]

@@ -10,7 +10,7 @@ For a layout (one RIS per chosen site) and the plan's weighted pair set:
    only at UEs it can reach. The number of samples
    per block is the prior codebook's default: G̃ for DIR (one beam per sample) and ⌊G̃/3⌋ for
    DIR+DER (three beams per sample); the block cycles through them when they are fewer than G̃
-   (as :func:`ris_planner.beams.beam_layout`).
+   (as :func:`ris_planner.physics.beams.beam_layout`).
 2. **Design positions of the power allocation** (eq. opt_formulation_2): a reproducible
    weighted subsample of at most ``beams.design_positions`` pairs (seeded; ∝ weight without
    replacement) among those the layout resolves under ``expected_random`` (finite bound), so
@@ -33,17 +33,24 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import codebooks
-from ris_planner.beams import beam_layout, sample_beams
-from ris_planner.bounds import ComplexArray, compute_bounds
-from ris_planner.environment import Scene, ris_serves
-from ris_planner.errors import RisPlannerError
-from ris_planner.planning.document import LayoutBeamsDocument
+from ris_planner.bounds.compute import ComplexArray, compute_bounds
+from ris_planner.bounds.paths import ris_serves
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.environment import Scene
+from ris_planner.model.plan import LayoutBeamsDocument
+from ris_planner.model.power import Objective as PowerObjective
+from ris_planner.model.scenario import (
+    RIS,
+    ExpectedRandomCodebook,
+    KnownPart,
+    Scenario,
+    SystemParams,
+)
+from ris_planner.physics import codebooks
+from ris_planner.physics.beams import beam_layout, sample_beams
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.objectives import objective_value, select_metric
-from ris_planner.power.options import Objective as PowerObjective
-from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import RIS, ExpectedRandomCodebook, KnownPart, Scenario, SystemParams
+from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -224,7 +231,7 @@ def evaluate_layout_beams(
     """Every beam design of a layout, each re-evaluated on all pairs with the plan objective.
 
     scenario : the layout (:func:`layout_scenario`); pairs : the plan's pair set;
-    plan_objective : the plan's :class:`~ris_planner.planning.document.Objective`;
+    plan_objective : the plan's :class:`~ris_planner.model.plan.Objective`;
     expected_metric : [P] the layout's expected-random metric (the search's own score), [2P]
     with ``mirror`` (unordered pairs counted in both directions: the reverse direction's PEB_R
     is the forward PEB_T, :class:`~ris_planner.planning.objectives.Scorer`);

@@ -50,10 +50,10 @@ from ris_planner.planning.certificates import (
     subset_problem,
 )
 from ris_planner.planning.constraints import Feasibility
-from ris_planner.planning.executor import Executor
 from ris_planner.planning.objectives import Scorer, loss_from_metric
 from ris_planner.planning.search import Layout, SearchOutcome, evaluate
 from ris_planner.planning.site_cache import KeptInformation
+from ris_planner.runtime.executor import Executor
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import n_observations
-from ris_planner.ldl import packed_index
+from ris_planner.bounds.compute import n_observations
+from ris_planner.inversion.ldl import packed_index
 from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.objectives import Scorer, loss_from_metric
 from ris_planner.planning.site_cache import KeptInformation

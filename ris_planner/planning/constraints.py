@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.errors import RisPlannerError
-from ris_planner.planning.document import Constraints, CostSpec
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.model.plan import Constraints, CostSpec
 from ris_planner.planning.sites import Site
 
 IntArray = NDArray[np.int_]

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ris_planner.model.plan import Objective, Target
 from ris_planner.planning.certificates import Certificate
-from ris_planner.planning.document import Objective, Target
 from ris_planner.planning.objectives import objective_from_loss
 from ris_planner.planning.search import Layout, SearchOutcome
 

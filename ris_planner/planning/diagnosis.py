@@ -20,7 +20,7 @@ the causes are:
 * ``link_budget`` – pairs with a finite bound above the level carry at least
   :data:`CAUSE_SHARE` of the missing weight: the RIS paths are too weak. For the expected-random
   codebook a RIS path's angle information grows as (N² − N)|ρ|² and its delay information as
-  N|ρ|² with N elements (:func:`ris_planner.fim.steering_gram`; |ρ| per element,
+  N|ρ|² with N elements (:func:`ris_planner.physics.fim.steering_gram`; |ρ| per element,
   eq. RIS_equivalent_gain_xi_zeta), so quadrupling N divides a RIS-only bound by 2 to ≈ 4
   (PEB ∝ N^(−a), ½ ≤ a ≤ 1: 1 while the angle-resolved directions dominate the error, tending
   to ½ at large N where the delay-resolved ones do; a LOS path's fixed information flattens it
@@ -46,8 +46,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.model.plan import Objective, Target
 from ris_planner.planning.beam_design import layout_scenario, metric_on_pairs
-from ris_planner.planning.document import Objective, Target
 from ris_planner.planning.objectives import (
     objective_from_loss,
     objective_value,
@@ -77,7 +77,7 @@ SPHERICAL_PAIR_ELEMENTS = 50_000_000
 """The spherical wavefront's bounds take per-element distances (memory ∝ pairs × elements):
 its size suggestions are re-scored only up to this many pairs × elements (≈ 0.8 GB), which
 caps the side at √(this / pairs). The planar model's expected-random information is closed
-form in the element grid (:func:`ris_planner.fim.steering_gram`), so it has no such cap."""
+form in the element grid (:func:`ris_planner.physics.fim.steering_gram`), so it has no such cap."""
 VERIFY_STEPS = 8
 """Re-scorings the size suggestion may take before it gives up."""
 GROWTH = 1.1

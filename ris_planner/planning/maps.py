@@ -10,9 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.errors import LimitExceededError, RisPlannerError
-from ris_planner.limits import MAX_MAP_POINTS
-from ris_planner.planning.document import (
+from ris_planner.core.errors import LimitExceededError, RisPlannerError
+from ris_planner.model.limits import MAX_MAP_POINTS
+from ris_planner.model.plan import (
     GridMap,
     PairSample,
     PairsSpec,
@@ -20,7 +20,7 @@ from ris_planner.planning.document import (
     UEMap,
     range_count,
 )
-from ris_planner.scenario import MIN_UE_RIS_DISTANCE_M
+from ris_planner.model.scenario import MIN_UE_RIS_DISTANCE_M
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]

@@ -1,14 +1,16 @@
 """Objectives over weighted pairs and the batched layout score.
 
 Scoring a batch of layouts: LOS + Σ cached site matrices on the packed entries of the unknown
-states, then the core's hybrid inversion (:func:`ris_planner.crb.crb_diagonal`: the batched
+states, then the core's hybrid inversion (:func:`ris_planner.inversion.crb.crb_diagonal`: the
+batched
 LDLᵀ, and the square-root route over the cached per-site factors for the ill-conditioned
 combinations) giving the CRB diagonal. :meth:`Scorer.metric` does the sum, the LDLᵀ, the trace
 test and the metric in one compiled pass per (layout, pair)
-(:func:`ris_planner._crb_jit.score_layouts`, the same operations as the numpy route of
+(:func:`ris_planner.inversion._crb_jit.score_layouts`, the same operations as the numpy route of
 :meth:`Scorer.metric_reference`, so the same bits) and sends only the flagged pairs that are
 not ``inf`` anyway on to the square-root route. Known parts (``clock``, ``height``, ``tx``)
-remove their rows before inversion, as :func:`ris_planner.bounds.bounds_from_state_fim` does.
+remove their rows before inversion, as :func:`ris_planner.bounds.compute.bounds_from_state_fim`
+does.
 
 With an environment the cache's per-pair presence masks make a pair ``inf`` in a layout where
 its present paths give fewer geometric channel parameters than unknown states
@@ -31,13 +33,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.bounds import kept_states, n_observations, uses_los_reference
-from ris_planner.crb import FAST_TRACE_LIMIT, crb_diagonal, sqrt_crb_diagonal
-from ris_planner.ldl import packed_index
-from ris_planner.planning.document import Objective
+from ris_planner.bounds.compute import kept_states, n_observations, uses_los_reference
+from ris_planner.inversion.crb import FAST_TRACE_LIMIT, crb_diagonal, sqrt_crb_diagonal
+from ris_planner.inversion.ldl import packed_index
+from ris_planner.model.plan import Objective
+from ris_planner.model.scenario import KnownPart
 from ris_planner.planning.site_cache import N_PACKED, N_STATES, KeptInformation, SiteCache
 from ris_planner.planning.visibility import BoolArray
-from ris_planner.scenario import KnownPart
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
@@ -87,7 +89,7 @@ class Scorer:
 
     def __share_state__(self) -> dict[str, Any]:
         """The state pickled when the arrays are shared, not copied
-        (:func:`ris_planner.planning.executor.share_pickle`): the compiled score's inputs (the
+        (:func:`ris_planner.runtime.executor.share_pickle`): the compiled score's inputs (the
         cache's block storage, referenced, and their small LOS blocks and masks) are built here
         once and go too, so the workers map them instead of each building its own."""
         self._kernel_inputs  # noqa: B018 - the cached property is built, then shared
@@ -142,7 +144,8 @@ class Scorer:
     @property
     def selected_packed(self) -> tuple[KeptInformation, FloatArray | None]:
         """(site information on the kept states, read as float64 [E, F, P] slices, LOS [E, P]
-        or ``None``), packed in :func:`ris_planner.ldl.packed_index` order (the certificates'
+        or ``None``), packed in :func:`ris_planner.inversion.ldl.packed_index` order (the
+        certificates'
         relaxation and branch-and-bound read it)."""
         src = self._src
         los = self.cache.los
@@ -152,10 +155,11 @@ class Scorer:
 
     @cached_property
     def _kernel_inputs(self) -> dict[str, Any]:
-        """The compiled score's fixed arguments (:func:`ris_planner._crb_jit.score_layouts`):
+        """The compiled score's fixed arguments
+        (:func:`ris_planner.inversion._crb_jit.score_layouts`):
         the cache's block storage itself (no copy) with the kept entries' index, the LOS
         information as blocks, masks as uint8, the metric's rows."""
-        from ris_planner._crb_jit import to_blocks
+        from ris_planner.inversion._crb_jit import to_blocks
 
         keep, tx, rx = self.states
         n = len(keep)
@@ -198,7 +202,7 @@ class Scorer:
         }
 
     def _screen_states(self, keep: list[int], metric_rows: list[int], mode: int) -> IntArray:
-        """The coverage screen's sub-problem (:func:`ris_planner._crb_jit.screen_chunk`):
+        """The coverage screen's sub-problem (:func:`ris_planner.inversion._crb_jit.screen_chunk`):
         positions among the kept states of the other UE's height and the clock, then the
         metric's states; empty (no screen) unless a coverage or capped-mean objective scores
         one UE's PEB (their losses see only whether a PEB exceeds the threshold or the cap)."""
@@ -210,7 +214,7 @@ class Scorer:
 
     def _observations(self, n_ris: int) -> int | None:
         """Channel parameters of a layout of ``n_ris`` RISs and the LOS
-        (:func:`ris_planner.bounds.n_observations`; ``None`` for the spherical model)."""
+        (:func:`ris_planner.bounds.compute.n_observations`; ``None`` for the spherical model)."""
         return n_observations(n_ris, self.cache.los is not None, self.cache.wavefront)
 
     def _screen_limit(self, n_ris: int) -> float:
@@ -230,7 +234,7 @@ class Scorer:
         return float(limit**2 * (1 + SCREEN_MARGIN))
 
     def _blind(self, n_ris: int) -> bool:
-        """Whether the layout-wide count of :func:`ris_planner.bounds.n_observations` leaves
+        """Whether the layout-wide count of :func:`ris_planner.bounds.compute.n_observations` leaves
         every pair of an ``n_ris``-RIS layout underdetermined (its metric is then all ``inf``,
         as ``compute_bounds`` reports)."""
         n_obs = self._observations(n_ris)
@@ -249,10 +253,13 @@ class Scorer:
         the screen (``_crb_jit.SCREEN_KEEP``).
 
         Bit for bit what ``compute_bounds`` gives for the layout (same FIM sum, LOS first, same
-        square-root factors, and the core's inversion, :func:`ris_planner.crb.crb_diagonal`):
-        the compiled kernel (:func:`ris_planner._crb_jit.score_layouts`) sums, factors and scores
+        square-root factors, and the core's inversion,
+        :func:`ris_planner.inversion.crb.crb_diagonal`):
+        the compiled kernel (:func:`ris_planner.inversion._crb_jit.score_layouts`) sums, factors
+        and scores
         each (layout, pair) in one pass; the pairs it flags go to the square-root route
-        (:func:`ris_planner.crb.sqrt_crb_diagonal`). :meth:`metric_reference` is the same score
+        (:func:`ris_planner.inversion.crb.sqrt_crb_diagonal`). :meth:`metric_reference` is the same
+        score
         in numpy (identical bits; tested)."""
         layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
         out = np.empty((layouts.shape[0], self.metric_weights.size))
@@ -266,7 +273,7 @@ class Scorer:
         """(first row, [nb, P] metric) of :meth:`metric` for layouts [B, L] (int64), one kernel
         call of ≤ :data:`KERNEL_MATRICES` combinations at a time, written into ``out`` [B, P]
         or, without it, into one reused block (:meth:`loss` never holds the whole [B, P])."""
-        from ris_planner._crb_jit import n_tasks, score_layouts
+        from ris_planner.inversion._crb_jit import n_tasks, score_layouts
 
         (b_all, n_ris), p = layouts.shape, self.cache.n_pairs
         _, tx, rx = self.states
@@ -305,7 +312,8 @@ class Scorer:
 
     def metric_reference(self, layouts: IntArray) -> FloatArray:
         """:meth:`metric` in numpy: the gather-and-add of [E, nb, P] blocks, the batched LDLᵀ of
-        :mod:`ris_planner.ldl` through :func:`ris_planner.crb.crb_diagonal`, and the masks
+        :mod:`ris_planner.inversion.ldl` through :func:`ris_planner.inversion.crb.crb_diagonal`,
+        and the masks
         applied afterwards (the route before the compiled kernel; the same bits)."""
         layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int_))
         out = np.empty((layouts.shape[0], self.metric_weights.size))
@@ -439,7 +447,7 @@ def site_groups(layouts: IntArray, max_sites: int) -> list[tuple[IntArray, IntAr
 def underdetermined(cache: SiteCache, layouts: IntArray, n_states: int) -> BoolArray | None:
     """[nb, P] pairs whose present paths in each layout [nb, L] give fewer geometric channel
     parameters (3 per RIS path, 1 for LOS) than ``n_states`` unknowns; ``None`` in free
-    space (the layout-wide count of :func:`ris_planner.bounds.n_observations` applies).
+    space (the layout-wide count of :func:`ris_planner.bounds.compute.n_observations` applies).
 
     Counted as present RIS paths (uint8 sums, one gather per layout column) against the
     RIS paths each pair needs, ⌈(n_states − LOS present) / 3⌉."""

@@ -10,12 +10,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import advice
-from ris_planner.bounds import compute_bounds
-from ris_planner.environment import Scene, ris_serves
-from ris_planner.errors import RisPlannerError
-from ris_planner.fim import Radio
-from ris_planner.limits import HEATMAP_MAX_PAIRS, cache_layout
+from ris_planner.bounds import advice
+from ris_planner.bounds.compute import compute_bounds
+from ris_planner.bounds.paths import ris_serves
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.environment import Scene
+from ris_planner.model.limits import cache_layout
+from ris_planner.model.plan import Objective, PlanDocument, Sweep, physics_json
+from ris_planner.model.scenario import RandomCodebook, Scenario
+from ris_planner.physics.fim import Radio
 from ris_planner.planning.beam_design import (
     BeamReport,
     evaluate_layout_beams,
@@ -32,8 +35,6 @@ from ris_planner.planning.branch_bound import (
 from ris_planner.planning.certificates import Certificate, relaxation_certificate
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto, ties
-from ris_planner.planning.document import Objective, PlanDocument, Sweep
-from ris_planner.planning.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.planning.finalists import exact_certificate, rescore_finalists
 from ris_planner.planning.maps import (
     PairSet,
@@ -49,8 +50,8 @@ from ris_planner.planning.objectives import (
     select_metric,
     weighted_quantile,
 )
-from ris_planner.planning.physics import physics_json
 from ris_planner.planning.points import heatmap_json, points_json
+from ris_planner.planning.resources import HEATMAP_MAX_PAIRS
 from ris_planner.planning.rollout import plan_rollout
 from ris_planner.planning.search import MIN_TASK_MATRICES, Layout, SearchOutcome, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
@@ -62,9 +63,9 @@ from ris_planner.planning.visibility import (
     serve_warnings,
 )
 from ris_planner.planning.work import plan_work, search_layouts
-from ris_planner.progress import ProgressCallback, Stages, no_progress
-from ris_planner.provenance import provenance
-from ris_planner.scenario import RandomCodebook, Scenario
+from ris_planner.runtime.executor import Executor, LocalExecutor, SerialExecutor
+from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
+from ris_planner.runtime.provenance import provenance
 
 FloatArray = NDArray[np.float64]
 
@@ -525,8 +526,8 @@ class PlanInputs:
 
 def validate_document(document: PlanDocument | dict[str, Any]) -> PlanDocument:
     """The plan document with the CLI's and the service's checks, sizes before work
-    (:func:`ris_planner.validation.validate_plan`)."""
-    from ris_planner.validation import validate_plan
+    (:func:`ris_planner.planning.resources.validate_plan`)."""
+    from ris_planner.planning.resources import validate_plan
 
     return validate_plan(document)
 
@@ -586,7 +587,8 @@ def run_plan(
     already. Progress goes over the stages of :func:`~ris_planner.planning.work.plan_work` by
     their estimated work, 1.0 at the end."""
     from ris_planner.planning.diagnosis import diagnose
-    from ris_planner.planning.sizing import run_sizing, sizing_runs
+    from ris_planner.planning.resources import sizing_runs
+    from ris_planner.planning.sizing import run_sizing
 
     doc = validate_document(document)
     own = executor is None
@@ -620,7 +622,8 @@ def plan_once(
     """One plan run on an executor (no sweep, no sizing, no diagnosis): the base of
     :func:`run_plan`, and each run of a sweep and of the sizing question. ``checked``: a
     validated document whose sizes its parent document already checked (a sweep or sizing run:
-    :func:`ris_planner.limits.plan_runs`; it draws no heatmap, so the heatmap's memory does
+    :func:`ris_planner.planning.resources.plan_runs`; it draws no heatmap, so the heatmap's memory
+    does
     not apply)."""
     doc = (
         document if checked and isinstance(document, PlanDocument) else validate_document(document)

@@ -17,8 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.environment import Scene
-from ris_planner.geometry import rotation_matrix
-from ris_planner.obstacles import Environment, Prism
+from ris_planner.environment.model import Environment, Prism
+from ris_planner.physics.geometry import rotation_matrix
 from ris_planner.planning.plan import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")

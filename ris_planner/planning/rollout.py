@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.model.plan import Objective, SearchSpec
 from ris_planner.planning.constraints import Feasibility
-from ris_planner.planning.document import Objective, SearchSpec
 from ris_planner.planning.objectives import Scorer, objective_from_loss
 
 Layout = tuple[int, ...]

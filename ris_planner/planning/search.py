@@ -12,13 +12,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.errors import LimitExceededError
-from ris_planner.ldl import packed_index
+from ris_planner.core.errors import LimitExceededError
+from ris_planner.inversion.ldl import packed_index
+from ris_planner.model.plan import SearchSpec
 from ris_planner.planning.constraints import Feasibility
-from ris_planner.planning.document import SearchSpec
-from ris_planner.planning.executor import Executor
 from ris_planner.planning.objectives import Scorer, score_chunk, site_groups
 from ris_planner.planning.site_cache import N_STATES, SiteCache
+from ris_planner.runtime.executor import Executor
 
 IntArray = NDArray[np.int_]
 FloatArray = NDArray[np.float64]

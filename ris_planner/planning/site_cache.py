@@ -3,9 +3,11 @@ for every pair, computed once (docs/concepts/scoring.md).
 
 With the ``expected_random`` codebook a RIS path's equivalent FIM after eliminating its gain
 (α, β) by a Schur complement is E[Q]-based with Σ_g δ_g² = Γ·G̃ = G (the core's
-:func:`ris_planner.bounds.ris_path_information` weights it by ``block_count * weights.sum()``),
+:func:`ris_planner.bounds.compute.ris_path_information` weights it by ``block_count *
+weights.sum()``),
 so it does not depend on how many RISs share the time-orthogonal blocks: the cached matrix of a
-site is exactly the contribution :func:`ris_planner.bounds.compute_bounds` adds for that RIS in
+site is exactly the contribution :func:`ris_planner.bounds.compute.compute_bounds` adds for that
+RIS in
 any layout, and a layout's state FIM is the LOS matrix plus the sum of its sites' matrices.
 
 With an environment (:mod:`ris_planner.planning.visibility`) a site's matrix is zero for the
@@ -13,12 +15,14 @@ pairs it cannot serve and the LOS matrix zero where the LOS leg is blocked – a
 zero is removing the path – and ``present`` / ``los_present`` let the scorer count each pair's
 geometric channel parameters per layout (concepts/numerics.md: fewer than the states is ``inf``).
 The RIS pattern factor (cos θ_T cos θ_R)^q is in the path gain
-(:func:`ris_planner.bounds.ris_path_gain`).
+(:func:`ris_planner.bounds.compute.ris_path_gain`).
 Storage (issue 14, memory): the site information is held once, in the pair blocks the compiled
-scorer reads (no per-process re-layout). The square-root rows (:func:`ris_planner.crb.
+scorer reads (no per-process re-layout). The square-root rows (:func:`ris_planner.inversion.crb.
 path_factor`) from which the scorer recomputes the few ill-conditioned (layout, pair)
-combinations (:func:`ris_planner.crb.crb_diagonal`) are stored while they fit the cache budget
-(:func:`ris_planner.limits.cache_layout`); above it :class:`SiteSource` recomputes them for just
+combinations (:func:`ris_planner.inversion.crb.crb_diagonal`) are stored while they fit the cache
+budget
+(:func:`ris_planner.model.limits.cache_layout`); above it :class:`SiteSource` recomputes them for
+just
 those pairs (planar), with the same bits, and further above the blocks are float32, whose
 finalists the plan re-scores exactly on a float64 cache of just their sites.
 """
@@ -31,9 +35,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import fim
-from ris_planner.blas import one_blas_thread
-from ris_planner.bounds import (
+from ris_planner.bounds.compute import (
     los_gradient,
     los_path_information,
     los_referenced,
@@ -43,13 +45,15 @@ from ris_planner.bounds import (
     ue_on_ris,
     uses_los_reference,
 )
-from ris_planner.ldl import pack
-from ris_planner.limits import CacheLayout
+from ris_planner.inversion.ldl import pack
+from ris_planner.model.limits import CacheLayout
+from ris_planner.model.scenario import KnownPart, SystemParams, Wavefront
+from ris_planner.physics import fim
 from ris_planner.planning.maps import PairSet
 from ris_planner.planning.sites import Site
 from ris_planner.planning.visibility import Visibility
-from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.scenario import KnownPart, SystemParams, Wavefront
+from ris_planner.runtime.blas import one_blas_thread
+from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
@@ -62,7 +66,8 @@ FULL = CacheLayout("float64", rows=True)
 
 
 CHUNK = 64
-"""Pairs per storage block (the compiled kernel's chunk, :data:`ris_planner._crb_jit.CHUNK`)."""
+"""Pairs per storage block (the compiled kernel's chunk,
+:data:`ris_planner.inversion._crb_jit.CHUNK`)."""
 
 Storage = Literal["float64", "float32"]
 
@@ -132,7 +137,7 @@ class SiteSource:
 @dataclass(frozen=True)
 class SiteCache:
     """blocks : [⌈P/CHUNK⌉, S, 28, CHUNK] packed 7×7 state information of each site's RIS
-    path, in the pair blocks the compiled scorer reads (:func:`ris_planner._crb_jit.
+    path, in the pair blocks the compiled scorer reads (:func:`ris_planner.inversion._crb_jit.
     score_layouts`: one block holds every site's entries of CHUNK pairs contiguously; zeros
     past P), float64 or float32 (:data:`storage`); the only copy (:meth:`information` gives
     float64 slices in the [E, S, P] layout);
@@ -146,7 +151,7 @@ class SiteCache:
     of pairs would not give the same bits); ``None``: planar above the budget's first tier,
     :attr:`source` recomputes them (:meth:`factor_rows`);
     los_factor : [P, 1, 7] the LOS path's (``None`` when the system has no LOS);
-    los_referenced : the states are [p_T, p_R, B + d_TR] (:func:`ris_planner.bounds.
+    los_referenced : the states are [p_T, p_R, B + d_TR] (:func:`ris_planner.bounds.compute.
     los_referenced`, used with the LOS and an unknown clock, as ``compute_bounds`` does);
     present : [S, P] the site's RIS path exists (``None``: every path does);
     los_present : [P] the LOS path exists (``None``: every pair's does, or no LOS)."""
@@ -293,7 +298,7 @@ class SiteCache:
 @dataclass(frozen=True)
 class KeptInformation:
     """The site information on the kept states (entries ``src`` of the packed 28, in
-    :func:`ris_planner.ldl.packed_index` order) as the numpy readers take it – the sites'
+    :func:`ris_planner.inversion.ldl.packed_index` order) as the numpy readers take it – the sites'
     [E, F, P] or a run of pairs of many sites – read from the block storage as float64 when
     asked (a full [E, S, P] float64 copy would double the cache)."""
 
@@ -347,7 +352,7 @@ def build_site_cache(
     stored site information (float32 halves it; the values are float64 rounded once, the
     LOS stays float64) and whether the square-root rows are stored (planar; spherical ones
     always are). One BLAS thread, as ``compute_bounds``
-    (:mod:`ris_planner.blas`)."""
+    (:mod:`ris_planner.runtime.blas`)."""
     with one_blas_thread():
         return _build_site_cache(system, sites, pairs, progress, visibility, known, layout)
 

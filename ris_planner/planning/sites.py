@@ -9,9 +9,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.obstacles import Prism
-from ris_planner.planning.document import Candidate, Facades, PlanDocument, RISDefaults, Wall
-from ris_planner.scenario import RIS
+from ris_planner.environment.model import Prism
+from ris_planner.model.plan import Candidate, Facades, PlanDocument, RISDefaults, Wall
+from ris_planner.model.scenario import RIS
 
 
 @dataclass(frozen=True)

@@ -14,14 +14,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from ris_planner.planning.document import PlanDocument, Sweep
-from ris_planner.planning.executor import Executor
-from ris_planner.progress import ProgressCallback
-
-
-def sizing_runs(doc: PlanDocument) -> int:
-    """Plan runs the sizing question adds to a document's own (one per RIS size; 0 without)."""
-    return 0 if doc.sizing is None else len(doc.sizing.ris_sizes)
+from ris_planner.model.plan import PlanDocument, Sweep
+from ris_planner.runtime.executor import Executor
+from ris_planner.runtime.progress import ProgressCallback
 
 
 def sizing_document(doc: PlanDocument) -> dict[str, Any]:

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.environment import Scene, in_field_of_view, los_clear
-from ris_planner.errors import RisPlannerError
+from ris_planner.bounds.paths import in_field_of_view, los_clear
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.environment import Scene
 from ris_planner.planning.maps import PairSet, PointMap
 from ris_planner.planning.sites import Site
 

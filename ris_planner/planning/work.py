@@ -1,5 +1,5 @@
 """Estimated work of a plan's stages, in seconds, for honest progress
-(:class:`ris_planner.progress.Stages`; docs/concepts/planning-physics.md, "Progress").
+(:class:`ris_planner.runtime.progress.Stages`; docs/concepts/planning-physics.md, "Progress").
 
 Each stage's share of the progress bar is its estimate over the sum, so the bar moves at a
 roughly even pace and reaches 100 % only when plan.json's figures and exports are written.
@@ -14,7 +14,7 @@ import itertools
 import math
 from typing import TYPE_CHECKING
 
-from ris_planner.limits import HEATMAP_MAX_PAIRS
+from ris_planner.planning.resources import HEATMAP_MAX_PAIRS
 
 if TYPE_CHECKING:
     from ris_planner.planning.plan import PlanInputs

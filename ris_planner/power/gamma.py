@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from ris_planner.beams import gamma_p_powers
-from ris_planner.progress import ProgressCallback, no_progress
+from ris_planner.physics.beams import gamma_p_powers
+from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
 

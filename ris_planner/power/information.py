@@ -18,7 +18,7 @@ SDP's LMI) the per-path per-beam blocks F_ℓ(g̃) and maps T_ℓ are kept:
 
 * the CRBs at given powers (:meth:`BeamInformation.state_bounds`) sum each path's blocks
   (F_ℓ(γ) = Σ_g̃ γ_g̃ F_ℓ(g̃), one product per path), eliminate its gains and take the one
-  inversion route of the bounds (:func:`ris_planner.bounds.bounds_from_paths`,
+  inversion route of the bounds (:func:`ris_planner.bounds.compute.bounds_from_paths`,
   docs/concepts/numerics.md), never the squared full FIM;
 * the square-root factor A(γ) = stack_ℓ L_ℓ(γ)ᵀ T_ℓ with F_ℓ(γ) = L_ℓ L_ℓᵀ
   (:meth:`BeamInformation.factor`) whitens the SDP (:func:`ris_planner.power.sdp.whitening`).
@@ -31,8 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import beams, bounds, codebooks, crb, fim, geometry, spherical
-from ris_planner.scenario import KnownPart, Scenario
+from ris_planner.bounds import compute as bounds
+from ris_planner.inversion import crb
+from ris_planner.model.scenario import KnownPart, Scenario
+from ris_planner.physics import beams, codebooks, fim, geometry, spherical
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -112,7 +114,7 @@ class BeamInformation:
         eigendecomposition of the symmetrically scaled block D⁻¹F_ℓD⁻¹ (D = √diag F_ℓ: the
         path's delay, angles and gains differ in scale by many orders, which an unscaled eigh
         would not resolve), negative rounding eigenvalues clipped
-        (:func:`ris_planner.crb.path_factor`)."""
+        (:func:`ris_planner.inversion.crb.path_factor`)."""
         gp = self.group_powers(powers)
         sel = np.arange(self.stack.shape[0]) if idx is None else idx
         rows = []
@@ -129,7 +131,7 @@ class BeamInformation:
         self, powers: FloatArray
     ) -> tuple[FloatArray | None, FloatArray, FloatArray | None]:
         """(PEB_T or ``None`` when known, PEB_R, CEB or ``None``) [P] at the given first-block
-        powers by the bounds' own route (:func:`ris_planner.bounds.bounds_from_paths`: each
+        powers by the bounds' own route (:func:`ris_planner.bounds.compute.bounds_from_paths`: each
         path's gains eliminated, the LOS-referenced clock, per-parameter identifiability), so
         the values are ``compute_bounds``' (a pair left with fewer channel parameters than
         unknown states by missing paths is ``inf`` as there)."""
@@ -239,7 +241,7 @@ def _beam_information(
         geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
         gain = bounds.ris_path_gain(ris, geo, tx, rx, radio.wavelength)
         if system.wavefront == "spherical":
-            # [P, G̃, 7] t_g = ω_gᵀ [∂a/∂p_T, ∂a/∂p_R, a] (ris_planner.spherical)
+            # [P, G̃, 7] t_g = ω_gᵀ [∂a/∂p_T, ∂a/∂p_R, a] (ris_planner.physics.spherical)
             tv = spherical.transmission_vectors(prof, tx, rx, ris, radio.wavelength)
             jac = spherical.jacobian(geo)
         else:

@@ -15,26 +15,26 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.beams import codebook_block
-from ris_planner.bounds import ComplexArray, compute_bounds, first_block_profiles
-from ris_planner.errors import LimitExceededError, RisPlannerError
-from ris_planner.limits import MAX_DESIGN_BEAMS, MAX_DESIGN_POSITIONS
+from ris_planner.bounds.compute import ComplexArray, compute_bounds, first_block_profiles
+from ris_planner.core.errors import LimitExceededError, RisPlannerError
+from ris_planner.model.limits import MAX_DESIGN_BEAMS, MAX_DESIGN_POSITIONS
+from ris_planner.model.power import Objective
+from ris_planner.model.scenario import (
+    DirectionalCodebook,
+    DirectionalDerivativeCodebook,
+    Scenario,
+)
+from ris_planner.physics.beams import codebook_block
 from ris_planner.power.gamma import GammaSearch, search_gamma_p
 from ris_planner.power.information import beam_information
-from ris_planner.power.options import Objective
 from ris_planner.power.sdp import (
     SdpResult,
     mean_trace_bound,
     objective_index,
     solve_power_sdp,
 )
-from ris_planner.progress import ProgressCallback, no_progress
-from ris_planner.provenance import provenance
-from ris_planner.scenario import (
-    DirectionalCodebook,
-    DirectionalDerivativeCodebook,
-    Scenario,
-)
+from ris_planner.runtime.progress import ProgressCallback, no_progress
+from ris_planner.runtime.provenance import provenance
 
 FloatArray = NDArray[np.float64]
 
@@ -138,7 +138,7 @@ def run_power(
     solver: str = "CLARABEL",
 ) -> PowerResult:
     """Uniform power, the best γ_P (DIR+DER only) and the SDP allocation for a scenario."""
-    from ris_planner.validation import validate_power
+    from ris_planner.power.resources import validate_power
 
     sc = validate_power(scenario, objective)  # the CLI's and the service's checks, sizes first
     progress(0.0, "beams")

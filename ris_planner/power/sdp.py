@@ -13,7 +13,7 @@ PEB² of eq. PEBR — one LMI per position, equivalent to the appendix's three s
 The CRB traces (the objective at given powers, the γ_P search's objective, the scale below)
 take the one inversion route of the bounds (:meth:`BeamInformation.state_bounds`: each path's
 block at the given powers, its gains eliminated, through
-:func:`ris_planner.bounds.bounds_from_paths`, docs/concepts/numerics.md): a position is
+:func:`ris_planner.bounds.compute.bounds_from_paths`, docs/concepts/numerics.md): a position is
 ``inf`` only where the objective's states are not identifiable, so a null direction of the
 information that involves only the clock or the TX does not make a position with a determined
 PEB_R blind, and the values are ``compute_bounds``' to rounding.
@@ -41,10 +41,10 @@ import cvxpy as cp
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner import crb
-from ris_planner.errors import RisPlannerError
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.inversion import crb
+from ris_planner.model.power import SOLVERS, Objective
 from ris_planner.power.information import BeamInformation
-from ris_planner.power.options import SOLVERS, Objective
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -118,7 +118,7 @@ def mean_trace_bound(info: BeamInformation, powers: FloatArray, index: NDArray[n
 
 def whitening(info: BeamInformation, powers: FloatArray) -> tuple[FloatArray, BoolArray]:
     """(W [P, n, n], kept [P, n]): W F(powers) Wᵀ = I on the kept rows, zero rows on the
-    numerical null space of F(powers) (:func:`ris_planner.crb.sqrt_range_whitening` of the
+    numerical null space of F(powers) (:func:`ris_planner.inversion.crb.sqrt_range_whitening` of the
     square-root factor, so the null space is decided by the bounds' rule).
 
     The LMI is congruent under diag(W, I) on range(F): [[W F Wᵀ, W E], [(W E)ᵀ, U]] ⪰ 0 ⟺

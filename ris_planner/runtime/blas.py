@@ -8,7 +8,7 @@ the 100 × 100 spherical Gram took 0.46 s with OpenBLAS's two threads against 0.
 0.16–0.18 s (``benchmarks/bench_bounds.py --blas-threads``). One thread also makes the results
 independent of the machine: a threaded Gram partitions its sums differently (spherical FIMs
 moved by ~5e-15 between 1 and 2 threads). The API and the plan's worker processes already run
-with one thread (``api.settings.blas_threads``, :func:`ris_planner.planning.executor.
+with one thread (``api.settings.blas_threads``, :func:`ris_planner.runtime.executor.
 capped_blas_threads`).
 
 The limit is process-wide while any caller holds it (BLAS has one thread count); nested and

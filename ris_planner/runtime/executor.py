@@ -31,7 +31,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from ris_planner import allocator
+from ris_planner.runtime import allocator
 
 S = TypeVar("S")
 C = TypeVar("C")
@@ -43,7 +43,7 @@ BLAS_THREAD_VARS = (
     "MKL_NUM_THREADS",
     "VECLIB_MAXIMUM_THREADS",
     "NUMEXPR_NUM_THREADS",
-    "NUMBA_NUM_THREADS",  # the compiled scorer's threads (ris_planner._crb_jit)
+    "NUMBA_NUM_THREADS",  # the compiled scorer's threads (ris_planner.inversion._crb_jit)
 )
 
 

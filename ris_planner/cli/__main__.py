@@ -1,0 +1,5 @@
+"""``python -m ris_planner.cli``: the command line."""
+
+from ris_planner.cli.main import main
+
+raise SystemExit(main())
