@@ -236,8 +236,9 @@
     "f-ris-rows", "f-ris-cols", "f-power", "f-wavefront", "f-known", "f-pairs-mode", "f-pairs-sample"];
   const KNOWN_PARTS = ["clock", "height", "tx"];
   const DEFAULT_SAMPLE = 1000; // pairs drawn when a document names no pairs and "sample" is chosen
-  const LEVEL_FIELD = { coverage: "threshold_m", mean_capped: "cap_m", quantile: "q" };
-  const LEVEL_LABEL = { coverage: "Coverage threshold [m]", mean_capped: "Cap on the bound [m]", quantile: "Quantile q (0–1)" };
+  // objective kinds from the server (GET /v1/objectives): name → the field it needs, its label
+  const LEVEL_FIELD = {};
+  const LEVEL_LABEL = {};
 
   const get = (obj, path) => path.split(".").reduce((o, k) => (o && typeof o === "object" ? o[k] : undefined), obj);
 
@@ -324,9 +325,9 @@
     const obj = Object.assign({}, doc.objective || {});
     obj.kind = kind;
     obj.metric = $("f-objective-metric").value;
-    for (const k of Object.values(LEVEL_FIELD)) delete obj[k];
+    for (const k of Object.values(LEVEL_FIELD)) if (k) delete obj[k];
     const level = parseNumber($("f-objective-level").value);
-    if (level !== undefined) obj[LEVEL_FIELD[kind]] = level;
+    if (level !== undefined && LEVEL_FIELD[kind]) obj[LEVEL_FIELD[kind]] = level;
     doc.objective = obj;
     doc.ris = Object.assign({}, doc.ris || {});
     for (const [id, key] of [["f-ris-rows", "rows"], ["f-ris-cols", "cols"]]) {
@@ -490,6 +491,22 @@
       else showBanner(err.message);
     } finally {
       $("submit").disabled = false;
+    }
+  }
+
+  /** The objective kinds the server plans with, into the form's list (before any document). */
+  async function loadObjectives() {
+    try {
+      const body = await api("/v1/objectives");
+      const sel = clear($("f-objective-kind"));
+      for (const o of body.objectives || []) {
+        LEVEL_FIELD[o.name] = o.parameter;
+        LEVEL_LABEL[o.name] = o.parameter_label;
+        sel.append(h("option", { value: o.name, text: o.label }));
+      }
+      if (state.doc) fillForm();
+    } catch (err) {
+      if (err.status !== 0) showBanner(err.message);
     }
   }
 
@@ -2022,7 +2039,7 @@
       api("/v1/jobs?limit=1").then(() => {
         $("api-key-status").textContent = state.apiKey ? "Key accepted by the server." : "The server needs no key.";
       }).catch(() => { /* a 401 says so in the banner and the status */ });
-      loadPresets();
+      loadObjectives().finally(loadPresets);
       refreshJobs();
     });
     for (const id of ["layer-heatmap", "layer-contour", "layer-ues", "layer-candidates", "layer-buildings"]) $(id).addEventListener("change", drawAll);
@@ -2053,7 +2070,7 @@
     drawAll();
     checkHealth();
     inspectServer();
-    loadPresets();
+    loadObjectives().finally(loadPresets);
     refreshJobs();
   }
 

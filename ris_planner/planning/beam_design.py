@@ -40,7 +40,7 @@ from ris_planner.environment import Scene, ris_serves
 from ris_planner.errors import RisPlannerError
 from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.planning.maps import PairSet
-from ris_planner.planning.objectives import objective_value, select_metric
+from ris_planner.planning.objectives import objective_kind, objective_value, select_metric
 from ris_planner.power.options import Objective as PowerObjective
 from ris_planner.progress import ProgressCallback, no_progress
 from ris_planner.scenario import RIS, ExpectedRandomCodebook, KnownPart, Scenario, SystemParams
@@ -361,7 +361,7 @@ def run_layout_beams(
     )
     return {
         "objective_spec": doc.objective.model_dump(),
-        "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
+        "objective_better": objective_kind(doc.objective.kind).better,
         "pairs": pairs.size,
         **report.to_json(),
     }
