@@ -5,7 +5,7 @@ a random objective – median, upper quantile, capped mean or coverage of PEB_R,
 maximum –, LOS or not, random known parts; tests/search_quality.py) and each RIS count 2–4, the
 greedy search's best layout is compared with the exhaustive optimum, for the greedy search as it
 was before the search-quality work (``pre_quality_greedy``, tests/old_search.py) and for
-today's default greedy search, in the same run:
+today's greedy search, each without random restarts and with the default 3, in the same run:
 
 * fraction of counts within 1 % of the optimum, worst gap, mean gap;
 * counts where the search returned an infinite objective while a finite layout exists;
@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from old_search import pre_quality_greedy
-from search_quality import Comparison, compare
+from search_quality import Comparison, compare_many
 
 from ris_planner.planning.document import SearchSpec
 from ris_planner.planning.search import greedy
@@ -63,16 +63,15 @@ def main() -> None:
     runs = (
         ("before, no restarts", pre_quality_greedy, no_restarts),
         ("before (restarts 3)", pre_quality_greedy, None),
+        ("now, no restarts", greedy, no_restarts),
         ("default now", greedy, None),
     )
-    for name, fn, spec in runs:
-        rows: list[Comparison] = []
-        spent = 0.0
-        for s in seeds:
-            r, t = compare(s, fn, spec)
-            rows += r
-            spent += t
-        results[name] = (rows, spent)
+    for name, _, _ in runs:
+        results[name] = ([], 0.0)
+    for s in seeds:
+        rows_s, spent_s = compare_many(s, [(fn, spec) for _, fn, spec in runs])
+        for (name, _, _), r, t in zip(runs, rows_s, spent_s, strict=True):
+            results[name] = (results[name][0] + r, results[name][1] + t)
     print(
         f"{args.instances} random instances × counts 2–4 = {len(results['default now'][0])}"
         " comparisons with exhaustive search"

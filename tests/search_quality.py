@@ -120,32 +120,45 @@ def compare(
     """The instance's counts 2–4 searched by ``greedy_fn`` (each count seeded with the best
     layouts of the smaller ones, as ``run_plan`` does) against exhaustive search; also the
     seconds the searches took."""
+    rows, spent = compare_many(seed, [(greedy_fn, spec)])
+    return rows[0], spent[0]
+
+
+def compare_many(
+    seed: int, searches: list[tuple[GreedyFn, SearchSpec | None]]
+) -> tuple[list[list[Comparison]], list[float]]:
+    """:func:`compare` for several searches on one instance (its site cache and exhaustive
+    optima computed once)."""
     import time
 
     d, sites, _, scorer = setup(quality_instance(seed))
-    spec = spec or d.search
-    out: list[Comparison] = []
-    seeds: list[Layout] = []
-    spent = 0.0
-    for n_ris in COUNTS:
-        ex = exhaustive(scorer, len(sites), n_ris, SerialExecutor())
-        t0 = time.perf_counter()
-        res = greedy_fn(scorer, len(sites), n_ris, spec, SerialExecutor(), None, tuple(seeds))
-        spent += time.perf_counter() - t0
-        best, loss = res.ranked(1)[0]
-        seeds.append(best)
-        out.append(
-            Comparison(
-                seed,
-                _label(scorer),
-                n_ris,
-                float(ex.ranked(1)[0][1]),
-                float(loss),
-                res.evaluated,
-                ex.evaluated,
+    optima = {
+        n: float(exhaustive(scorer, len(sites), n, SerialExecutor()).ranked(1)[0][1])
+        for n in COUNTS
+    }
+    total = {n: math.comb(len(sites), n) for n in COUNTS}
+    rows: list[list[Comparison]] = []
+    spent: list[float] = []
+    for greedy_fn, spec in searches:
+        spec = spec or d.search
+        out: list[Comparison] = []
+        seeds: list[Layout] = []
+        t_all = 0.0
+        for n_ris in COUNTS:
+            t0 = time.perf_counter()
+            res = greedy_fn(scorer, len(sites), n_ris, spec, SerialExecutor(), None, tuple(seeds))
+            t_all += time.perf_counter() - t0
+            best, loss = res.ranked(1)[0]
+            seeds.append(best)
+            label = _label(scorer)
+            out.append(
+                Comparison(
+                    seed, label, n_ris, optima[n_ris], float(loss), res.evaluated, total[n_ris]
+                )
             )
-        )
-    return out, spent
+        rows.append(out)
+        spent.append(t_all)
+    return rows, spent
 
 
 def _label(scorer: Scorer) -> str:

@@ -239,6 +239,9 @@
   // objective kinds from the server (GET /v1/objectives): name → the field it needs, its label
   const LEVEL_FIELD = {};
   const LEVEL_LABEL = {};
+  const OBJECTIVE_UNIT = {};
+  // a fraction (unit ""), shown in %; other kinds in their unit (m when the server is unknown)
+  const isFraction = (kind) => (kind in OBJECTIVE_UNIT ? OBJECTIVE_UNIT[kind] === "" : kind === "coverage");
 
   const get = (obj, path) => path.split(".").reduce((o, k) => (o && typeof o === "object" ? o[k] : undefined), obj);
 
@@ -502,6 +505,7 @@
       for (const o of body.objectives || []) {
         LEVEL_FIELD[o.name] = o.parameter;
         LEVEL_LABEL[o.name] = o.parameter_label;
+        OBJECTIVE_UNIT[o.name] = o.unit;
         sel.append(h("option", { value: o.name, text: o.label }));
       }
       if (state.doc) fillForm();
@@ -977,7 +981,7 @@
   function fmtObjective(v) {
     if (v === null || v === undefined) return "—";
     const kind = state.plan.objective.kind;
-    return kind === "coverage" ? `${(100 * v).toFixed(1)} %` : `${fmtNum(v)} m`;
+    return isFraction(kind) ? `${(100 * v).toFixed(1)} %` : `${fmtNum(v)} ${OBJECTIVE_UNIT[kind] || "m"}`;
   }
 
   function renderResults() {
@@ -1132,7 +1136,8 @@
 
   function fmtGain(g) {
     if (g === null || g === undefined) return "—";
-    return state.plan.objective.kind === "coverage" ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} m`;
+    const kind = state.plan.objective.kind;
+    return isFraction(kind) ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} ${OBJECTIVE_UNIT[kind] || "m"}`;
   }
 
   /** File type of a job's non-PNG files by name (ris_planner.io.export.GIS_FILES). */
@@ -1289,7 +1294,7 @@
     const Y = (v) => m.t + ((top - v) / (top - bottom || 1)) * (H - m.t - m.b);
     const bw = (W - m.l - m.r) / bars.length;
     svg.append(s("line", { x1: m.l, y1: Y(0), x2: W - m.r, y2: Y(0), stroke: "#4d5561" }));
-    const coverage = plan.objective.kind === "coverage";
+    const coverage = isFraction(plan.objective.kind);
     bars.forEach((b, i) => {
       const x = m.l + i * bw + bw * 0.2;
       if (b.g !== null) {
