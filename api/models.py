@@ -208,6 +208,23 @@ class Preset(BaseModel):
     document: dict[str, Any] = Field(description="The full JSON document")
 
 
+class ObjectiveInfo(BaseModel):
+    """A registered objective kind (``objective.kind`` of a plan document)."""
+
+    name: str = Field(description="The kind's JSON name")
+    label: str = Field(description="Short human name")
+    parameter: str | None = Field(description="The objective field it needs (e.g. threshold_m)")
+    parameter_label: str = Field(description="The parameter's label with its unit")
+    higher_is_better: bool = Field(description="Direction of the objective")
+    unit: str = Field(description="Unit of the objective's value ('' for a fraction)")
+
+
+class ObjectiveList(BaseModel):
+    """The objective kinds this service plans with."""
+
+    objectives: list[ObjectiveInfo] = Field(description="Registered kinds, in order")
+
+
 class PresetList(BaseModel):
     """Shipped presets by document type."""
 

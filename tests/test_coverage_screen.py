@@ -127,7 +127,7 @@ def test_extra_candidates_screened_while_they_settle(monkeypatch: Any) -> None:
     """A cap far below every PEB: nearly every pair that sees more RISs than it needs is
     settled, so the kernel keeps screening those too (``_crb_jit.SCREEN_KEEP``), and the
     losses, computed one small kernel block at a time, are still the unscreened ones."""
-    import ris_planner.planning.objectives as objectives
+    import ris_planner.planning.objectives.scoring as objectives
 
     sc = hall_scorer({"kind": "mean_capped", "metric": "rx", "cap_m": 0.02})
     rng = np.random.default_rng(5)

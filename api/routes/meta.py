@@ -1,4 +1,5 @@
-"""Service metadata: ``GET /healthz`` (no API key) and ``GET /v1/presets``."""
+"""Service metadata: ``GET /healthz`` (no API key), ``GET /v1/presets`` and
+``GET /v1/objectives``."""
 
 from __future__ import annotations
 
@@ -11,12 +12,13 @@ from fastapi import APIRouter, Depends, Request
 from fastapi.responses import JSONResponse
 
 from api.deps import get_runner, get_settings, get_store
-from api.models import Health, Preset, PresetList
+from api.models import Health, ObjectiveInfo, ObjectiveList, Preset, PresetList
 from api.settings import Settings
 from api.store import JobStore, StoreUnavailableError
 from api.worker import JobRunner, describe_error
 from ris_planner.model.scenario import PRESET_NAMES, preset_document
 from ris_planner.planning import PLAN_PRESET_NAMES, plan_preset
+from ris_planner.planning.objectives import objective_kind, objective_names
 
 health_router = APIRouter(tags=["service"])
 router = APIRouter(tags=["service"])
@@ -69,4 +71,12 @@ def presets() -> PresetList:
     return PresetList(
         scenarios=[Preset(name=n, document=preset_document(n)) for n in PRESET_NAMES],
         plans=[Preset(name=n, document=plan_preset(n)) for n in PLAN_PRESET_NAMES],
+    )
+
+
+@router.get("/objectives", response_model=ObjectiveList, summary="Objective kinds a plan may use")
+def objectives() -> ObjectiveList:
+    """The registered objective kinds (the web page's list; docs/concepts/scoring.md)."""
+    return ObjectiveList(
+        objectives=[ObjectiveInfo(**objective_kind(n).describe()) for n in objective_names()]
     )

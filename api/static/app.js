@@ -236,8 +236,12 @@
     "f-ris-rows", "f-ris-cols", "f-power", "f-wavefront", "f-known", "f-pairs-mode", "f-pairs-sample"];
   const KNOWN_PARTS = ["clock", "height", "tx"];
   const DEFAULT_SAMPLE = 1000; // pairs drawn when a document names no pairs and "sample" is chosen
-  const LEVEL_FIELD = { coverage: "threshold_m", mean_capped: "cap_m", quantile: "q" };
-  const LEVEL_LABEL = { coverage: "Coverage threshold [m]", mean_capped: "Cap on the bound [m]", quantile: "Quantile q (0–1)" };
+  // objective kinds from the server (GET /v1/objectives): name → the field it needs, its label
+  const LEVEL_FIELD = {};
+  const LEVEL_LABEL = {};
+  const OBJECTIVE_UNIT = {};
+  // a fraction (unit ""), shown in %; other kinds in their unit (m when the server is unknown)
+  const isFraction = (kind) => (kind in OBJECTIVE_UNIT ? OBJECTIVE_UNIT[kind] === "" : kind === "coverage");
 
   const get = (obj, path) => path.split(".").reduce((o, k) => (o && typeof o === "object" ? o[k] : undefined), obj);
 
@@ -324,9 +328,9 @@
     const obj = Object.assign({}, doc.objective || {});
     obj.kind = kind;
     obj.metric = $("f-objective-metric").value;
-    for (const k of Object.values(LEVEL_FIELD)) delete obj[k];
+    for (const k of Object.values(LEVEL_FIELD)) if (k) delete obj[k];
     const level = parseNumber($("f-objective-level").value);
-    if (level !== undefined) obj[LEVEL_FIELD[kind]] = level;
+    if (level !== undefined && LEVEL_FIELD[kind]) obj[LEVEL_FIELD[kind]] = level;
     doc.objective = obj;
     doc.ris = Object.assign({}, doc.ris || {});
     for (const [id, key] of [["f-ris-rows", "rows"], ["f-ris-cols", "cols"]]) {
@@ -490,6 +494,23 @@
       else showBanner(err.message);
     } finally {
       $("submit").disabled = false;
+    }
+  }
+
+  /** The objective kinds the server plans with, into the form's list (before any document). */
+  async function loadObjectives() {
+    try {
+      const body = await api("/v1/objectives");
+      const sel = clear($("f-objective-kind"));
+      for (const o of body.objectives || []) {
+        LEVEL_FIELD[o.name] = o.parameter;
+        LEVEL_LABEL[o.name] = o.parameter_label;
+        OBJECTIVE_UNIT[o.name] = o.unit;
+        sel.append(h("option", { value: o.name, text: o.label }));
+      }
+      if (state.doc) fillForm();
+    } catch (err) {
+      if (err.status !== 0) showBanner(err.message);
     }
   }
 
@@ -960,7 +981,7 @@
   function fmtObjective(v) {
     if (v === null || v === undefined) return "—";
     const kind = state.plan.objective.kind;
-    return kind === "coverage" ? `${(100 * v).toFixed(1)} %` : `${fmtNum(v)} m`;
+    return isFraction(kind) ? `${(100 * v).toFixed(1)} %` : `${fmtNum(v)} ${OBJECTIVE_UNIT[kind] || "m"}`;
   }
 
   function renderResults() {
@@ -1115,7 +1136,8 @@
 
   function fmtGain(g) {
     if (g === null || g === undefined) return "—";
-    return state.plan.objective.kind === "coverage" ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} m`;
+    const kind = state.plan.objective.kind;
+    return isFraction(kind) ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} ${OBJECTIVE_UNIT[kind] || "m"}`;
   }
 
   /** File type of a job's non-PNG files by name (ris_planner.io.export.GIS_FILES). */
@@ -1272,7 +1294,7 @@
     const Y = (v) => m.t + ((top - v) / (top - bottom || 1)) * (H - m.t - m.b);
     const bw = (W - m.l - m.r) / bars.length;
     svg.append(s("line", { x1: m.l, y1: Y(0), x2: W - m.r, y2: Y(0), stroke: "#4d5561" }));
-    const coverage = plan.objective.kind === "coverage";
+    const coverage = isFraction(plan.objective.kind);
     bars.forEach((b, i) => {
       const x = m.l + i * bw + bw * 0.2;
       if (b.g !== null) {
@@ -2022,7 +2044,7 @@
       api("/v1/jobs?limit=1").then(() => {
         $("api-key-status").textContent = state.apiKey ? "Key accepted by the server." : "The server needs no key.";
       }).catch(() => { /* a 401 says so in the banner and the status */ });
-      loadPresets();
+      loadObjectives().finally(loadPresets);
       refreshJobs();
     });
     for (const id of ["layer-heatmap", "layer-contour", "layer-ues", "layer-candidates", "layer-buildings"]) $(id).addEventListener("change", drawAll);
@@ -2053,7 +2075,7 @@
     drawAll();
     checkHealth();
     inspectServer();
-    loadPresets();
+    loadObjectives().finally(loadPresets);
     refreshJobs();
   }
 

@@ -1,4 +1,4 @@
-"""``python -m ris_planner.cli``: the command line."""
+"""``python -m ris_planner.cli.main``: the command line."""
 
 from ris_planner.cli.main import main
 

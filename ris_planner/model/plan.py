@@ -20,6 +20,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ris_planner.environment.model import Environment, Prism
 from ris_planner.model.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS, count, csv_rows
+from ris_planner.model.objectives import objective_kind, objective_names
 from ris_planner.model.plan_physics import (
     ISOTROPIC_SOURCE,
     PHYSICS_FIELDS,
@@ -550,14 +551,26 @@ class Sizing(DocumentModel):
 # ---------------------------------------------------------------------------------------------
 
 
+def _objective_kinds() -> tuple[str, ...]:
+    """The registered objective kinds (when the schema is built: kinds may register later)."""
+    return objective_names()
+
+
+def _kind_schema(schema: dict[str, Any]) -> None:
+    """``objective.kind``'s JSON schema: an enum of the registered kinds (as a Literal gives)."""
+    schema["enum"] = list(_objective_kinds())
+
+
 class Objective(DocumentModel):
     """What a layout is scored on, over the weighted pairs. ``metric``: ``rx`` (PEB_R), ``tx``
     (PEB_T) or ``max`` (max(PEB_T, PEB_R)), in metres. Blind spots (infinite bounds) fail:
-    outside the coverage, at the cap, and at the top of the quantile."""
+    outside the coverage, at the cap, and at the top of the quantile. ``kind`` names a
+    registered objective (:mod:`ris_planner.model.objectives`, docs/concepts/scoring.md)."""
 
-    kind: Literal["coverage", "mean_capped", "quantile"] = Field(
+    kind: str = Field(
         description="coverage: weighted fraction with bound ≤ threshold_m (higher is better);"
-        " mean_capped: weighted mean of min(bound, cap_m) [m]; quantile: weighted q-quantile [m]"
+        " mean_capped: weighted mean of min(bound, cap_m) [m]; quantile: weighted q-quantile [m]",
+        json_schema_extra=_kind_schema,
     )
     metric: Literal["rx", "tx", "max"] = Field("rx", description="Which bound [m]")
     threshold_m: float | None = Field(
@@ -575,17 +588,26 @@ class Objective(DocumentModel):
         " count that meets it (coverage: {'min': fraction}; mean_capped, quantile: {'max': m})",
     )
 
+    @field_validator("kind")
+    @classmethod
+    def _known_kind(cls, kind: str) -> str:
+        objective_kind(kind)  # a ValueError naming the known kinds
+        return kind
+
     @model_validator(mode="after")
     def _check_params(self) -> Objective:
-        need = {"coverage": "threshold_m", "mean_capped": "cap_m", "quantile": "q"}[self.kind]
-        if getattr(self, need) is None:
+        spec = objective_kind(self.kind)
+        need = spec.parameter
+        if need is not None and getattr(self, need) is None:
             raise ValueError(f"objective kind {self.kind!r} needs {need}")
         if self.target is not None:
-            if self.kind == "coverage":
+            if spec.higher_is_better:
                 if self.target.min is None or self.target.max is not None:
-                    raise ValueError("a coverage target is {'min': fraction in [0, 1]}")
-                if self.target.min > 1:
-                    raise ValueError(f"target.min {self.target.min} is a fraction ≤ 1")
+                    raise ValueError(f"a {self.kind} target is {{'min': value}}")
+                if spec.max_value is not None and self.target.min > spec.max_value:
+                    raise ValueError(
+                        f"target.min {self.target.min} is a {self.kind} ≤ {spec.max_value:g}"
+                    )
             elif self.target.max is None or self.target.min is not None:
                 raise ValueError(f"a {self.kind} target is {{'max': bound in metres}}")
         return self
@@ -615,7 +637,12 @@ class SearchSpec(DocumentModel):
     top_k: int = Field(10, ge=1, le=1000, description="Number of ranked layouts reported per count")
     seed: int = Field(0, ge=0, description="Seed of the greedy search's random restarts")
     restarts: int = Field(
-        3, ge=0, le=1000, description="Greedy: random starting layouts besides the greedy one"
+        3,
+        ge=0,
+        le=1000,
+        description="Greedy: random starting layouts besides the greedy one (on random small"
+        " instances 3 bring the search within 1 % of exhaustive search in 98 % of the counts,"
+        " against 93 % with none, for ≈ 2.8× the layouts scored)",
     )
     max_rounds: int = Field(50, ge=1, le=10000, description="Greedy: maximum swap rounds per start")
     tie_rtol: float = Field(
@@ -819,18 +846,20 @@ class PlanDocument(DocumentModel):
         else coverage ≥ :data:`SIZING_COVERAGE_TARGET` (a ValueError naming ``sizing.target``
         for a mean_capped or quantile objective without one)."""
         obj = self.objective
+        spec = objective_kind(obj.kind)
         given = None if self.sizing is None else self.sizing.target
         if given is not None:
-            if obj.kind == "coverage":
-                if given.objective > 1:
+            if spec.higher_is_better:
+                if spec.max_value is not None and given.objective > spec.max_value:
                     raise ValueError(
-                        f"sizing.target.objective {given.objective} is a coverage fraction ≤ 1"
+                        f"sizing.target.objective {given.objective} is a {obj.kind}"
+                        f" ≤ {spec.max_value:g}"
                     )
                 return Target(min=given.objective)
             return Target(max=given.objective)
         if obj.target is not None:
             return obj.target
-        if obj.kind == "coverage":
+        if spec.higher_is_better and spec.max_value == 1.0:  # a fraction: coverage
             return Target(min=SIZING_COVERAGE_TARGET)
         raise ValueError(
             f"sizing.target: a {obj.kind} objective without objective.target needs"

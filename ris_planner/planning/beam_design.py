@@ -49,7 +49,7 @@ from ris_planner.model.scenario import (
 from ris_planner.physics import codebooks
 from ris_planner.physics.beams import beam_layout, sample_beams
 from ris_planner.planning.maps import PairSet
-from ris_planner.planning.objectives import objective_value, select_metric
+from ris_planner.planning.objectives import objective_kind, objective_value, select_metric
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
@@ -368,7 +368,7 @@ def run_layout_beams(
     )
     return {
         "objective_spec": doc.objective.model_dump(),
-        "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
+        "objective_better": objective_kind(doc.objective.kind).better,
         "pairs": pairs.size,
         **report.to_json(),
     }

@@ -50,7 +50,7 @@ from ris_planner.planning.certificates import (
     subset_problem,
 )
 from ris_planner.planning.constraints import Feasibility
-from ris_planner.planning.objectives import Scorer, loss_from_metric
+from ris_planner.planning.objectives import Scorer, objective_kind
 from ris_planner.planning.search import Layout, SearchOutcome, evaluate
 from ris_planner.planning.site_cache import KeptInformation
 from ris_planner.runtime.executor import Executor
@@ -132,7 +132,7 @@ def _child_bounds(
         gr = r.grad[rest]  # [n, P]
         traces.append(base[None, :] + gr + suffix_smallest_sums(gr, m))
     metric = combine_columns(scorer, traces)  # [n, P or 2P]
-    return loss_from_metric(scorer.objective, metric, scorer.metric_weights)
+    return relaxation_loss(scorer, metric)
 
 
 def node_work(iterations: int, n_rest: int) -> float:
@@ -163,7 +163,14 @@ def _subtree(
 def _relaxed_loss(scorer: Scorer, relax: list[RowRelaxation]) -> float:
     """The loss of the relaxation's per-pair bounds."""
     metric = combine_columns(scorer, [r.lower for r in relax])[None, :]
-    return float(loss_from_metric(scorer.objective, metric, scorer.metric_weights)[0])
+    return float(relaxation_loss(scorer, metric)[0])
+
+
+def relaxation_loss(scorer: Scorer, lower: FloatArray) -> FloatArray:
+    """[B] the objective kind's bound on the loss from per-pair metric lower bounds [B, P]
+    (:meth:`~ris_planner.model.objectives.protocol.ObjectiveKind.relaxation_loss`)."""
+    obj = scorer.objective
+    return objective_kind(obj.kind).relaxation_loss(obj, lower, scorer.metric_weights)
 
 
 def branch_and_bound(
@@ -183,6 +190,10 @@ def branch_and_bound(
         tuple(int(s) for s in lay): float(v)
         for lay, v in zip(incumbent.layouts, incumbent.losses, strict=True)
     }
+    # the order of infinite losses (search.ranked_order's tie-break) of every scored layout
+    ties_of: dict[Layout, float] = dict.fromkeys(memo, 0.0)
+    if incumbent.tiebreak is not None:
+        ties_of.update(zip(memo, (float(t) for t in incumbent.tiebreak), strict=True))
     best_lay, best = incumbent.ranked(1)[0]
     problem = subset_problem(scorer, n_ris, feasible)
 
@@ -194,6 +205,7 @@ def branch_and_bound(
             np.array(list(memo.values())),
             method="branch_and_bound" if finished else incumbent.method,
             total_layouts=incumbent.total_layouts,
+            tiebreak=np.array([ties_of[lay] for lay in memo]),
         )
         return BranchBoundOutcome(out, finished, bound, nodes, leaves, root, why)
 
@@ -254,9 +266,11 @@ def branch_and_bound(
             keys = [tuple(int(s) for s in lay) for lay in lays]
             new = [i for i, key in enumerate(keys) if key not in memo]
             if new:
-                vals = evaluate(scorer, lays[new], executor)
+                vals = evaluate(scorer, lays[new], executor, tiebreak=True)
                 leaves += len(new)
-                memo.update(zip([keys[i] for i in new], (float(v) for v in vals), strict=True))
+                fresh = [keys[i] for i in new]
+                memo.update(zip(fresh, (float(v) for v in vals[:, 0]), strict=True))
+                ties_of.update(zip(fresh, (float(t) for t in vals[:, 1]), strict=True))
             for key in keys:
                 if (memo[key], key) < (best, best_lay):
                     best, best_lay = memo[key], key

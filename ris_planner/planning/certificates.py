@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from ris_planner.bounds.compute import n_observations
 from ris_planner.inversion.ldl import packed_index
 from ris_planner.planning.constraints import Feasibility
-from ris_planner.planning.objectives import Scorer, loss_from_metric
+from ris_planner.planning.objectives import Scorer, objective_kind
 from ris_planner.planning.site_cache import KeptInformation
 
 FloatArray = NDArray[np.float64]
@@ -288,15 +288,10 @@ def settle_limits(scorer: Scorer) -> tuple[float, float]:
     """Trace values beyond which a pair's bound no longer moves the objective of the bounds:
     coverage at threshold θ counts lb ≤ θ, so a relaxed value f(z) ≤ θ² stays counted and a
     bound with √lower·(1 − safety) > θ stays uncounted; mean_capped counts min(lb, cap), so a
-    bound ≥ cap is final. Quantiles use every value (no limit)."""
+    bound ≥ cap is final. Quantiles use every value (no limit). The objective kind's
+    :meth:`~ris_planner.model.objectives.protocol.ObjectiveKind.settle_limits`."""
     obj = scorer.objective
-    if obj.kind == "coverage":
-        assert obj.threshold_m is not None
-        return obj.threshold_m**2, (obj.threshold_m / (1.0 - CERT_SAFETY)) ** 2 * (1 + 1e-12)
-    if obj.kind == "mean_capped":
-        assert obj.cap_m is not None
-        return -np.inf, (obj.cap_m / (1.0 - CERT_SAFETY)) ** 2 * (1 + 1e-12)
-    return -np.inf, np.inf
+    return objective_kind(obj.kind).settle_limits(obj, CERT_SAFETY)
 
 
 def to_metric(trace_bound: FloatArray) -> FloatArray:
@@ -369,5 +364,8 @@ def relaxation_certificate(
     """The relaxation bound on the best loss of n_ris RISs (module docstring); pairs stop
     iterating once their bound cannot change the objective (:func:`settle_limits`)."""
     lb = pair_lower_bounds(scorer, n_ris, feasible, iterations, settle=True)
-    loss = float(loss_from_metric(scorer.objective, lb[None, :], scorer.metric_weights)[0])
+    obj = scorer.objective
+    loss = float(
+        objective_kind(obj.kind).relaxation_loss(obj, lb[None, :], scorer.metric_weights)[0]
+    )
     return Certificate(loss, exact=False, method="frank_wolfe_pair_relaxation")

@@ -50,6 +50,7 @@ from ris_planner.model.plan import Objective, Target
 from ris_planner.planning.beam_design import layout_scenario, metric_on_pairs
 from ris_planner.planning.objectives import (
     objective_from_loss,
+    objective_kind,
     objective_value,
     weighted_quantile,
 )
@@ -92,14 +93,10 @@ MAX_POWER_DBM = 100.0
 
 
 def reference_level(obj: Objective) -> float:
-    """The bound [m] a pair must reach to count as served (``inf``: any finite bound)."""
-    if obj.kind == "coverage":
-        assert obj.threshold_m is not None
-        return obj.threshold_m
-    if obj.kind == "mean_capped":
-        assert obj.cap_m is not None
-        return obj.cap_m
-    return obj.target.max if obj.target is not None and obj.target.max is not None else math.inf
+    """The bound [m] a pair must reach to count as served (``inf``: any finite bound): the
+    objective kind's
+    :meth:`~ris_planner.model.objectives.protocol.ObjectiveKind.reference_level`."""
+    return objective_kind(obj.kind).reference_level(obj)
 
 
 def served_fraction(metric: FloatArray, weights: FloatArray, level: float) -> float:

@@ -46,6 +46,7 @@ from ris_planner.planning.maps import (
 from ris_planner.planning.objectives import (
     Scorer,
     objective_from_loss,
+    objective_kind,
     objective_value,
     select_metric,
     weighted_quantile,
@@ -357,7 +358,7 @@ class PlanResult:
         return {
             "dropped_points": dict(self.dropped_points or {"tx": 0, "rx": 0}),
             "objective": doc.objective.model_dump(),
-            "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
+            "objective_better": objective_kind(doc.objective.kind).better,
             "layouts": [stats_of[lay] for _, _, lay in top],
             "by_count": by_count,
             "candidates": [
@@ -401,7 +402,7 @@ class PlanResult:
             gap = 0.0 if c.exact or best_loss == c.loss_bound else best_loss - c.loss_bound
             cert = {
                 "objective_bound": _num(objective_from_loss(obj, c.loss_bound)),
-                "bound_side": "upper" if obj.kind == "coverage" else "lower",
+                "bound_side": "upper" if objective_kind(obj.kind).higher_is_better else "lower",
                 "gap": _num(gap),
                 "relative_gap": 0.0 if gap == 0 else _relative(gap, c.loss_bound),
                 "exact": bool(c.exact or gap == 0),

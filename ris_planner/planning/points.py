@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from ris_planner.planning.objectives import objective_from_loss
+from ris_planner.planning.objectives import objective_from_loss, objective_kind
 
 if TYPE_CHECKING:
     from ris_planner.planning.plan import PlanResult
@@ -117,14 +117,13 @@ def threshold_of(result: PlanResult) -> tuple[dict[str, float | None], str]:
     mean_capped → ``cap_m``, quantile → the best layout's q-quantile itself."""
     obj = result.document.objective
     counts = [str(cr.ris_count) for cr in result.counts]
-    if obj.kind == "coverage":
-        return dict.fromkeys(counts, obj.threshold_m), f"coverage threshold {obj.threshold_m:g} m"
-    if obj.kind == "mean_capped":
-        return dict.fromkeys(counts, obj.cap_m), f"cap {obj.cap_m:g} m"
+    level, label = objective_kind(obj.kind).level_label(obj)
+    if level is not None:
+        return dict.fromkeys(counts, level), label
     levels = {
         str(cr.ris_count): _num(objective_from_loss(obj, cr.ranked[0][1])) for cr in result.counts
     }
-    return levels, f"the layout's {obj.q:g}-quantile"
+    return levels, label
 
 
 def heatmap_json(result: PlanResult) -> dict[str, Any]:

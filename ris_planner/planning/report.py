@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from ris_planner.environment import Scene
 from ris_planner.environment.model import Environment, Prism
 from ris_planner.physics.geometry import rotation_matrix
+from ris_planner.planning.objectives import objective_kind
 from ris_planner.planning.plan import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")
@@ -239,8 +240,9 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
             label=f"{cr.ris_count} RIS {list(cr.ranked[0][0])}",
         )
     obj = result.document.objective
-    if obj.kind == "coverage" and obj.threshold_m is not None:
-        ax.axvline(obj.threshold_m, color="k", ls="--", lw=0.8, label="coverage threshold")
+    level, level_label = objective_kind(obj.kind).level_label(obj)
+    if level is not None:
+        ax.axvline(level, color="k", ls="--", lw=0.8, label=level_label)
     ax.set_xscale("log")
     ax.set_xlabel(f"{label} ε [m]")
     ax.set_ylabel(f"Pr({label} ≤ ε) (weighted)")
@@ -394,9 +396,7 @@ def write_sizing_figure(result: PlanResult, path: Path) -> Path:
             label=f"answer: {answer['count']} × {answer['rows']}×{answer['cols']}",
         )
     ax.set_xlabel("RIS size (elements per RIS)")
-    ax.set_ylabel(
-        f"{obj.kind} of {_metric_label(result)}" + ("" if obj.kind == "coverage" else " [m]")
-    )
+    ax.set_ylabel(f"{obj.kind} of {_metric_label(result)}" + objective_kind(obj.kind).unit_suffix)
     ax.set_title("Sizing: best layout per RIS size and count", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -439,7 +439,7 @@ def write_beams_figure(result: PlanResult, path: Path) -> Path:
         else:
             ax.plot(x + shift, y, marker="os^vD"[k], label=name)
     obj = result.document.objective
-    better = "higher" if obj.kind == "coverage" else "lower"
+    better = objective_kind(obj.kind).better
     ax.set_xticks(x)
     ax.set_xlabel("RIS count (best layout of each)")
     ax.set_ylabel(f"plan objective ({obj.kind}, {better} is better)")
@@ -474,9 +474,7 @@ def write_sweep_figure(result: PlanResult, path: Path) -> Path:
     obj = result.document.objective
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("RIS count")
-    ax.set_ylabel(
-        f"{obj.kind} of {_metric_label(result)}" + ("" if obj.kind == "coverage" else " [m]")
-    )
+    ax.set_ylabel(f"{obj.kind} of {_metric_label(result)}" + objective_kind(obj.kind).unit_suffix)
     if obj.target is not None:
         level = obj.target.min if obj.target.min is not None else obj.target.max
         assert level is not None

@@ -1,5 +1,12 @@
 """Placement search: exhaustive over all C(S, L) layouts within a limit, otherwise greedy
-forward selection plus swap-based local search from seeded random restarts."""
+forward selection plus swap-based local search from seeded random restarts.
+
+Infinite losses (a quantile objective whose blind pairs weigh more than 1 − q) are equal as
+losses; the search orders them by a tie-break (:meth:`Scorer.ranked_loss`: by default the
+weight of the pairs with a finite bound, more first), so greedy steps and swaps climb out of
+an all-infinite region towards a finite layout instead of stopping there, and a finite loss
+always ranks before every infinite one. A NaN loss (no bound) counts as ``inf``.
+docs/concepts/planning.md, "Search"."""
 
 from __future__ import annotations
 
@@ -16,7 +23,7 @@ from ris_planner.core.errors import LimitExceededError
 from ris_planner.inversion.ldl import packed_index
 from ris_planner.model.plan import SearchSpec
 from ris_planner.planning.constraints import Feasibility
-from ris_planner.planning.objectives import Scorer, score_chunk, site_groups
+from ris_planner.planning.objectives import Scorer, score_chunk, score_chunk_ranked, site_groups
 from ris_planner.planning.site_cache import N_STATES, SiteCache
 from ris_planner.runtime.executor import Executor
 
@@ -38,7 +45,12 @@ RANK_RTOL = 1e-6
 ranking: the bounds a loss is made of are accurate to relative 1e-6 (docs/concepts/numerics.md),
 so a smaller difference is rounding – it differs between BLAS kernels, SIMD dispatch and
 processes – and must not pick the recommended layout. Equal losses are ranked by a fixed key
-(the sites' indices, or the site strength in greedy forward steps)."""
+(the sites' indices, or the site strength in greedy forward steps); infinite losses first by
+their tie-break (:data:`TIEBREAK_ATOL`)."""
+
+TIEBREAK_ATOL = 1e-9
+"""Tie-breaks (minus a weight fraction in [−1, 0]) closer than this are equal: far above the
+rounding of a sum of ≤ 10⁷ weights (~1e-12), far below one pair's weight in any plan."""
 
 
 def _site_keys(layouts: IntArray) -> tuple[IntArray, ...]:
@@ -46,12 +58,18 @@ def _site_keys(layouts: IntArray) -> tuple[IntArray, ...]:
     return tuple(layouts[:, c] for c in range(layouts.shape[1] - 1, -1, -1))
 
 
-def ranked_order(losses: FloatArray, keys: tuple[Any, ...], k: int | None = None) -> IntArray:
+def ranked_order(
+    losses: FloatArray,
+    keys: tuple[Any, ...],
+    k: int | None = None,
+    tiebreak: FloatArray | None = None,
+) -> IntArray:
     """Indices of the best ``k`` (all when None) losses [N], lower first, where a loss within
     :data:`RANK_RTOL` of the first loss of its group counts as equal to it: each group (from
     the smallest remaining loss up to that loss + RANK_RTOL·|loss|; every ``inf`` together) is
     ordered by ``keys`` (np.lexsort keys, the last one primary), so the order does not depend
-    on rounding. ``nan`` ranks last."""
+    on rounding; the ``inf`` group first by ``tiebreak`` [N] (lower first, rounded to
+    :data:`TIEBREAK_ATOL`) when given. ``nan`` ranks last."""
     n = losses.shape[0]
     k = n if k is None else min(k, n)
     order = np.lexsort((*keys, losses))
@@ -66,7 +84,10 @@ def ranked_order(losses: FloatArray, keys: tuple[Any, ...], k: int | None = None
             limit = first + (RANK_RTOL * abs(first) if math.isfinite(first) else 0.0)
             j = i + 1 + int(np.searchsorted(ordered[i + 1 :], limit, side="right"))
         group = order[i:j]
-        out.append(group[np.lexsort(tuple(key[group] for key in keys))] if keys else group)
+        gkeys = tuple(key[group] for key in keys)
+        if tiebreak is not None and first == math.inf:
+            gkeys = (*gkeys, np.round(tiebreak[group] / TIEBREAK_ATOL))
+        out.append(group[np.lexsort(gkeys)] if gkeys else group)
         taken += j - i
         i = j
     if not out:
@@ -79,9 +100,19 @@ def improves(new: float, old: float) -> bool:
     step that gains only rounding is not taken)."""
     if math.isnan(new):
         return False
+    if math.isnan(old):
+        return True
     if not math.isfinite(old):
         return new < old
     return new < old - RANK_RTOL * abs(old)
+
+
+def improves_ranked(new: tuple[float, float], old: tuple[float, float]) -> bool:
+    """:func:`improves` on (loss, tie-break) pairs: between two infinite losses, whether the
+    tie-break is lower by more than :data:`TIEBREAK_ATOL`."""
+    if new[0] == math.inf and old[0] == math.inf:
+        return new[1] < old[1] - TIEBREAK_ATOL
+    return improves(new[0], old[0])
 
 
 @dataclass
@@ -93,6 +124,8 @@ class SearchOutcome:
     losses: FloatArray
     method: str = "exhaustive"
     total_layouts: int = 0
+    tiebreak: FloatArray | None = None
+    """[N] the order of infinite losses (:meth:`Scorer.ranked_loss`), or None: by site."""
 
     @property
     def evaluated(self) -> int:
@@ -101,7 +134,7 @@ class SearchOutcome:
     def ranked_index(self, k: int) -> IntArray:
         """Rows of the best k layouts (:func:`ranked_order`: losses equal to
         :data:`RANK_RTOL` ranked by the sites' indices – deterministic on every machine)."""
-        return ranked_order(self.losses, _site_keys(self.layouts), k)
+        return ranked_order(self.losses, _site_keys(self.layouts), k, self.tiebreak)
 
     def ranked(self, k: int) -> list[tuple[Layout, float]]:
         """The best k layouts, equal losses ranked by the sites' indices (deterministic)."""
@@ -140,12 +173,26 @@ def score_block_task(_shared: object, task: tuple[Any, list[SiteCache], IntArray
     """Executor task: the losses of layouts over the site blocks it carries (indices into
     their concatenation), scored on a cache of just the sites the layouts use (gathered once:
     a 6-RIS swap batch uses ~70 of the ~320 sites of its blocks)."""
+    scorer, local = _block_scorer(task)
+    return scorer.loss(local)
+
+
+def score_block_task_ranked(
+    _shared: object, task: tuple[Any, list[SiteCache], IntArray]
+) -> FloatArray:
+    """:func:`score_block_task` giving [B, 2] (loss, tie-break) (:meth:`Scorer.ranked_loss`)."""
+    scorer, local = _block_scorer(task)
+    return scorer.ranked_loss(local)
+
+
+def _block_scorer(task: tuple[Any, list[SiteCache], IntArray]) -> tuple[Scorer, IntArray]:
+    """(a scorer on the cache of the sites a block task's layouts use, the layouts in it)."""
     (weights, objective, known), parts, local = task
     used = np.unique(local)
     start = np.cumsum([0, *(c.n_sites for c in parts)])
     picks = [used[(used >= s0) & (used < s1)] - s0 for s0, s1 in itertools.pairwise(start)]
     cache = SiteCache.concat(parts, picks)
-    return Scorer(cache, weights, objective, known).loss(np.searchsorted(used, local))
+    return Scorer(cache, weights, objective, known), np.searchsorted(used, local)
 
 
 def _evaluate_blocks(
@@ -154,6 +201,7 @@ def _evaluate_blocks(
     executor: Executor,
     on_fraction: Callable[[float], None] | None,
     n_blocks: int = SITE_BLOCKS,
+    tiebreak: bool = False,
 ) -> FloatArray:
     """:func:`evaluate` on a cluster: tasks carry handles of only the site blocks their
     layouts use (each block sent once per executor; layouts grouped by :func:`_task_groups`),
@@ -182,15 +230,14 @@ def _evaluate_blocks(
             local = np.searchsorted(np.concatenate(ranges), layouts[rows])
             tasks.append((base, [blocks[int(b)] for b in carried], local))
             rows_of.append(rows)
-    out = np.empty(layouts.shape[0])
+    out = np.empty((layouts.shape[0], 2) if tiebreak else layouts.shape[0])
 
     def done_t(n: int) -> None:
         if on_fraction is not None:
             on_fraction(n / len(tasks))
 
-    for rows, vals in zip(
-        rows_of, executor.map(score_block_task, None, tasks, done_t), strict=True
-    ):
+    task_fn = score_block_task_ranked if tiebreak else score_block_task
+    for rows, vals in zip(rows_of, executor.map(task_fn, None, tasks, done_t), strict=True):
         out[rows] = vals
     return out
 
@@ -234,22 +281,31 @@ def evaluate(
     layouts: IntArray,
     executor: Executor,
     on_fraction: Callable[[float], None] | None = None,
+    *,
+    tiebreak: bool = False,
 ) -> FloatArray:
-    """Losses of layouts [B, L], split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations
-    (on a cluster, :func:`_evaluate_blocks`: each task carries only its site blocks)."""
+    """Losses [B] of layouts [B, L] (with ``tiebreak``: [B, 2] (loss, tie-break),
+    :meth:`Scorer.ranked_loss`), split into chunks of ≈ :data:`CHUNK_MATRICES` evaluations
+    (on a cluster, :func:`_evaluate_blocks`: each task carries only its site blocks). A NaN
+    loss is returned as ``inf``."""
     b = layouts.shape[0]
     if b == 0:
-        return np.empty(0)
+        return np.empty((0, 2) if tiebreak else 0)
     if executor.site_blocks:
-        return _evaluate_blocks(scorer, layouts, executor, on_fraction)
-    n_chunks = chunk_count(b, scorer.cache.n_pairs, executor.workers)
-    chunks = np.array_split(layouts, n_chunks)  # n_chunks ≤ b: none is empty
+        out = _evaluate_blocks(scorer, layouts, executor, on_fraction, tiebreak=tiebreak)
+    else:
+        n_chunks = chunk_count(b, scorer.cache.n_pairs, executor.workers)
+        chunks = np.array_split(layouts, n_chunks)  # n_chunks ≤ b: none is empty
 
-    def done(n: int) -> None:
-        if on_fraction is not None:
-            on_fraction(n / len(chunks))
+        def done(n: int) -> None:
+            if on_fraction is not None:
+                on_fraction(n / len(chunks))
 
-    return np.concatenate(executor.map(score_chunk, scorer, chunks, done))
+        task = score_chunk_ranked if tiebreak else score_chunk
+        out = np.concatenate(executor.map(task, scorer, chunks, done))
+    loss = out[:, 0] if tiebreak else out
+    loss[np.isnan(loss)] = np.inf
+    return out
 
 
 def all_layouts(n_sites: int, n_ris: int) -> IntArray:
@@ -284,8 +340,14 @@ def exhaustive(
             assert enum is not None
             layouts = enum
     total = int(layouts.shape[0])
-    losses = evaluate(scorer, layouts, executor, on_fraction)
-    return SearchOutcome(layouts, losses, method="exhaustive", total_layouts=total)
+    ranked = evaluate(scorer, layouts, executor, on_fraction, tiebreak=True)
+    return SearchOutcome(
+        layouts,
+        np.ascontiguousarray(ranked[:, 0]),
+        method="exhaustive",
+        total_layouts=total,
+        tiebreak=np.ascontiguousarray(ranked[:, 1]),
+    )
 
 
 def site_strength(scorer: Scorer) -> FloatArray:
@@ -313,8 +375,12 @@ def greedy(
     no swap improves or ``max_rounds``; also from each smaller ``seeds`` layout (e.g. the best
     layout of the previous RIS count) completed greedily, and from ``restarts`` seeded random
     layouts. Under ``feasible`` every step stays inside the feasible layouts (required sites
-    start every layout and are never swapped out)."""
-    memo: dict[Layout, float] = {}
+    start every layout and are never swapped out).
+
+    Every comparison is on (loss, tie-break) (:meth:`Scorer.ranked_loss`): where the losses
+    are infinite, a step or swap towards more pairs with a finite bound is taken, so a start
+    in an all-infinite region does not stop there (:func:`improves_ranked`)."""
+    memo: dict[Layout, tuple[float, float]] = {}
     strength = site_strength(scorer)
     cons = None if feasible is None or feasible.trivial else feasible
 
@@ -324,11 +390,11 @@ def greedy(
         ok = cons.ok(np.array(cands, dtype=int))
         return [c for c, g in zip(cands, ok, strict=True) if g]
 
-    def score(cands: list[Layout]) -> list[float]:
+    def score(cands: list[Layout]) -> list[tuple[float, float]]:
         new = [c for c in dict.fromkeys(cands) if c not in memo]
         if new:
-            vals = evaluate(scorer, np.array(new, dtype=int), executor)
-            memo.update(zip(new, (float(v) for v in vals), strict=True))
+            vals = evaluate(scorer, np.array(new, dtype=int), executor, tiebreak=True)
+            memo.update(zip(new, ((float(v), float(t)) for v, t in vals), strict=True))
         return [memo[c] for c in cands]
 
     def complete(partial: Layout) -> Layout | None:
@@ -346,8 +412,9 @@ def greedy(
             if len(cur) + 1 == n_ris:
                 vals = np.array(score([tuple(int(x) for x in c) for c in cand]))
             else:
-                vals = evaluate(scorer, cand, executor)
-            best = ranked_order(vals, (np.arange(len(rest)), -strength[rest]), 1)[0]
+                vals = evaluate(scorer, cand, executor, tiebreak=True)
+            keys = (np.arange(len(rest)), -strength[rest])
+            best = ranked_order(vals[:, 0], keys, 1, vals[:, 1])[0]
             cur.append(rest[int(best)])
         return tuple(sorted(cur))
 
@@ -392,20 +459,23 @@ def greedy(
             neigh = neighs[i]
             if neigh:
                 nvals = np.array([memo[c] for c in neigh])
-                j = int(ranked_order(nvals, _site_keys(np.array(neigh, dtype=int)), 1)[0])
-                if improves(float(nvals[j]), cur[i][1]):
-                    cur[i] = (neigh[j], float(nvals[j]))
+                keys = _site_keys(np.array(neigh, dtype=int))
+                j = int(ranked_order(nvals[:, 0], keys, 1, nvals[:, 1])[0])
+                if improves_ranked(memo[neigh[j]], cur[i][1]):
+                    cur[i] = (neigh[j], memo[neigh[j]])
                     still.append(i)
                     continue
             n_done += 1
             if on_fraction is not None:
                 on_fraction(n_done / len(starts))
         active = still
+    ranked = np.array(list(memo.values())).reshape(len(memo), 2)
     return SearchOutcome(
         np.array(list(memo), dtype=int).reshape(len(memo), n_ris),
-        np.array(list(memo.values())),
+        np.ascontiguousarray(ranked[:, 0]),
         method="greedy",
         total_layouts=math.comb(n_sites, n_ris),
+        tiebreak=np.ascontiguousarray(ranked[:, 1]),
     )
 
 

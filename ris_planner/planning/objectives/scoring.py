@@ -28,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,10 +36,14 @@ from numpy.typing import NDArray
 from ris_planner.bounds.compute import kept_states, n_observations, uses_los_reference
 from ris_planner.inversion.crb import FAST_TRACE_LIMIT, crb_diagonal, sqrt_crb_diagonal
 from ris_planner.inversion.ldl import packed_index
+from ris_planner.model.objectives.protocol import objective_kind
 from ris_planner.model.plan import Objective
 from ris_planner.model.scenario import KnownPart
 from ris_planner.planning.site_cache import N_PACKED, N_STATES, KeptInformation, SiteCache
 from ris_planner.planning.visibility import BoolArray
+
+if TYPE_CHECKING:
+    from ris_planner.model.plan import Objective
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
@@ -205,8 +209,9 @@ class Scorer:
         """The coverage screen's sub-problem (:func:`ris_planner.inversion._crb_jit.screen_chunk`):
         positions among the kept states of the other UE's height and the clock, then the
         metric's states; empty (no screen) unless a coverage or capped-mean objective scores
-        one UE's PEB (their losses see only whether a PEB exceeds the threshold or the cap)."""
-        if self.objective.kind not in ("coverage", "mean_capped") or mode != 0:
+        one UE's PEB (their losses see only whether a PEB exceeds the threshold or the cap:
+        the kind's :meth:`~ris_planner.model.objectives.protocol.ObjectiveKind.screen_level`)."""
+        if objective_kind(self.objective.kind).screen_level(self.objective) is None or mode != 0:
             return np.zeros(0, dtype=np.int64)
         other_height = 5 if self.objective.metric == "tx" else 2
         nuisance = [i for i, k in enumerate(keep) if k in (other_height, 6)]
@@ -228,8 +233,7 @@ class Scorer:
             return 0.0
         if not args["present"].size and n_obs > len(self.states[0]):
             return 0.0
-        obj = self.objective
-        limit = obj.threshold_m if obj.kind == "coverage" else obj.cap_m
+        limit = objective_kind(self.objective.kind).screen_level(self.objective)
         assert limit is not None
         return float(limit**2 * (1 + SCREEN_MARGIN))
 
@@ -419,8 +423,30 @@ class Scorer:
         """[B] :meth:`loss` from :meth:`exact_metric`."""
         return loss_from_metric(self.objective, self.exact_metric(layouts), self.metric_weights)
 
+    def ranked_loss(self, layouts: IntArray) -> FloatArray:
+        """[B, 2] (:meth:`loss`, tie-break) of each layout: the tie-break orders layouts whose
+        losses are infinite (the kind's
+        :meth:`~ris_planner.model.objectives.protocol.ObjectiveKind.search_tiebreak`:
+        by default minus the weight of the pairs with a finite bound); 0 where the loss is
+        finite."""
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
+        out = np.zeros((layouts.shape[0], 2))
+        weights = self.metric_weights
+        obj = self.objective
+        kind = objective_kind(obj.kind)
+        for b0, block in self._metric_blocks(layouts, screen=True):
+            loss = kind.loss(obj, block, weights)
+            rows = slice(b0, b0 + block.shape[0])
+            out[rows, 0] = loss
+            blind = ~np.isfinite(loss)
+            if np.any(blind):
+                tb = out[rows, 1]
+                tb[blind] = kind.search_tiebreak(obj, block[blind], weights)
+        return out
+
     def loss(self, layouts: IntArray) -> FloatArray:
-        """[B] loss (lower is better) of each layout: the objective, negated for coverage."""
+        """[B] loss (lower is better) of each layout: the objective, negated where higher is
+        better."""
         layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
         losses = np.empty(layouts.shape[0])
         weights = self.metric_weights
@@ -472,48 +498,28 @@ def select_metric(metric: str, peb_tx: FloatArray | None, peb_rx: FloatArray) ->
     return peb_tx if metric == "tx" else np.maximum(peb_tx, peb_rx)
 
 
-def weighted_quantile(values: FloatArray, weights: FloatArray, q: float | FloatArray) -> FloatArray:
-    """Smallest v with Σ_{values ≤ v} w ≥ q·Σw per row of values [B, P] (``inf`` ranks last).
-
-    weights : [P] shared by the rows, or [B, P] (each row's sum > 0);
-    q : scalar or [Q]; returns [B] or [B, Q]."""
-    idx = np.argsort(values, axis=1, kind="stable")
-    w = np.broadcast_to(weights, values.shape)
-    cw = np.cumsum(np.take_along_axis(w, idx, axis=1), axis=1)
-    cw /= cw[:, -1:]
-    qs = np.atleast_1d(np.asarray(q, dtype=float))
-    # tolerance: the cumulative sums carry ~P·ε rounding; a quantile exactly on a step is kept
-    pos = np.empty((values.shape[0], qs.size), dtype=int)
-    for k, qk in enumerate(qs):
-        pos[:, k] = np.argmax(cw >= qk - 1e-12, axis=1)
-    rows = np.arange(values.shape[0])[:, None]
-    out = values[rows, idx[rows, pos]]
-    return out[:, 0] if np.ndim(q) == 0 else out
-
-
 def objective_value(obj: Objective, metric: FloatArray, weights: FloatArray) -> FloatArray:
-    """[B] objective of metric values [B, P] with weights [P] summing to 1."""
-    if obj.kind == "coverage":
-        assert obj.threshold_m is not None
-        return np.asarray(((metric <= obj.threshold_m) * weights).sum(axis=1))
-    if obj.kind == "mean_capped":
-        assert obj.cap_m is not None
-        return np.asarray((np.minimum(metric, obj.cap_m) * weights).sum(axis=1))
-    assert obj.q is not None
-    return weighted_quantile(metric, weights, obj.q)
+    """[B] objective of metric values [B, P] with weights [P] summing to 1 (the registered
+    kind's :meth:`~ris_planner.model.objectives.protocol.ObjectiveKind.value`)."""
+    return objective_kind(obj.kind).value(obj, metric, weights)
 
 
 def loss_from_metric(obj: Objective, metric: FloatArray, weights: FloatArray) -> FloatArray:
-    """Lower-is-better form of :func:`objective_value` (coverage negated)."""
-    val = objective_value(obj, metric, weights)
-    return -val if obj.kind == "coverage" else val
+    """Lower-is-better form of :func:`objective_value` (negated where higher is better)."""
+    return objective_kind(obj.kind).loss(obj, metric, weights)
 
 
 def objective_from_loss(obj: Objective, loss: float) -> float:
     """The objective's value from a loss of :func:`loss_from_metric` (the inverse map)."""
-    return -loss if obj.kind == "coverage" else loss
+    return objective_kind(obj.kind).from_loss(loss)
 
 
 def score_chunk(scorer: Scorer, layouts: IntArray) -> FloatArray:
     """Executor task: losses of a chunk of layouts."""
     return scorer.loss(layouts)
+
+
+def score_chunk_ranked(scorer: Scorer, layouts: IntArray) -> FloatArray:
+    """Executor task: [B, 2] (loss, tie-break) of a chunk of layouts
+    (:meth:`Scorer.ranked_loss`)."""
+    return scorer.ranked_loss(layouts)
