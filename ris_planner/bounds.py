@@ -205,8 +205,8 @@ def first_block_profiles(scenario: Scenario) -> list[ComplexArray] | None:
     if isinstance(cb, ExpectedRandomCodebook):
         return None
     if isinstance(cb, RandomCodebook):
-        rng = np.random.default_rng(cb.seed)
-        return codebooks.random_phases(n_ris, g_tilde, [r.elements for r in scenario.ris], rng)
+        elements = tuple(r.elements for r in scenario.ris)
+        return [p.copy() for p in codebooks.seeded_random_phases(n_ris, g_tilde, elements, cb.seed)]
     if isinstance(cb, ExplicitCodebook):
         return codebooks.phases_to_profiles(cb.phases)
     if isinstance(cb, DirectionalCodebook | DirectionalDerivativeCodebook):
