@@ -87,10 +87,11 @@ def seeded_random_phases(
 def _seeded_random_phases(
     n_ris: int, beams: int, elements: tuple[int, ...], seed: int
 ) -> tuple[ComplexArray, ...]:
-    out = tuple(random_phases(n_ris, beams, list(elements), np.random.default_rng(seed)))
-    for p in out:
+    out = []
+    for p in random_phases(n_ris, beams, list(elements), np.random.default_rng(seed)):
         p.flags.writeable = False
-    return out
+        out.append(p[...])  # a view of a read-only array: cannot be made writeable again
+    return tuple(out)
 
 
 def phases_to_profiles(phases: list[list[list[float]]]) -> list[ComplexArray]:
