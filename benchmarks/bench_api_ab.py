@@ -34,7 +34,7 @@ from ris_planner import preset_document
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from tolerance import BOUND_ACCURACY, assert_close
+from tolerance import BOUND_ACCURACY, assert_close  # noqa: E402
 
 
 def cpu_seconds(pid: int) -> float:
