@@ -65,9 +65,10 @@ def random_phases(
     return [np.exp(1j * rng.uniform(0.0, 2 * np.pi, size=(beams, n))) for n in elements[:n_ris]]
 
 
-RANDOM_PHASES_CACHE_ENTRIES = 1_000_000
+RANDOM_PHASES_CACHE_ENTRIES = 250_000
 """Largest draw (total profile entries G̃·ΣN_ℓ, 16 bytes each) :func:`seeded_random_phases`
-keeps; it keeps the last 8 such draws (≤ 128 MB in the worst case, ~200 KB for Table I)."""
+keeps; it keeps the last 8 such draws (≤ 32 MB in the worst case, 200 kB for Table I; a
+larger draw is small next to the work of the batch that needs it)."""
 
 
 def seeded_random_phases(

@@ -127,8 +127,9 @@ def grid_axes(positions: FloatArray) -> tuple[FloatArray, FloatArray] | None:
     return None
 
 
-PLANAR_MEMO_ENTRIES = 8
-"""Derivative-weighted profiles :func:`planar_weighted` remembers (read-only profiles only)."""
+PLANAR_MEMO_BYTES = 32 << 20
+"""Most bytes of derivative-weighted profiles :func:`planar_weighted` keeps (read-only profiles
+only; the least recently used go first): Table I's two RISs take 0.6 MB."""
 
 _PLANAR_MEMO: OrderedDict[
     tuple[int, bytes, float],
@@ -143,7 +144,7 @@ def planar_weighted(
     """The [3G̃, N] derivative-weighted profiles [ω ⊙ jky; ω ⊙ jkz; ω] of
     :class:`_PlanarProducts` and the grid axes (:func:`grid_axes`) of ``positions``.
 
-    Remembered (the last :data:`PLANAR_MEMO_ENTRIES`) when ``profiles`` is read-only through
+    Remembered (up to :data:`PLANAR_MEMO_BYTES`) when ``profiles`` is read-only through
     and through (the shared seeded draw of :func:`ris_planner.codebooks.seeded_random_phases`:
     nobody can change it, so the same object has the same values): forming them is a fresh
     [3G̃, N] array per call, the largest allocation of a single pair's bounds. The values are
@@ -166,11 +167,11 @@ def planar_weighted(
     y, z = positions[:, 1], positions[:, 2]
     w3 = np.concatenate([profiles * (1j * k * y), profiles * (1j * k * z), profiles], axis=0)
     axes = grid_axes(positions)
-    if key is not None:
+    if key is not None and w3.nbytes <= PLANAR_MEMO_BYTES // 4:
         w3.flags.writeable = False
         with _PLANAR_LOCK:
             _PLANAR_MEMO[key] = (profiles, w3, axes)  # holds profiles: its id stays unique
-            while len(_PLANAR_MEMO) > PLANAR_MEMO_ENTRIES:
+            while sum(v[1].nbytes for v in _PLANAR_MEMO.values()) > PLANAR_MEMO_BYTES:
                 _PLANAR_MEMO.popitem(last=False)
     return w3, axes
 
