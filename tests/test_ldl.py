@@ -76,3 +76,34 @@ def test_compiled_ldl_is_bit_identical_to_numpy(rng: np.random.Generator) -> Non
         np.testing.assert_array_equal(s_jit, s_np)
         np.testing.assert_array_equal(d_jit, d_np)  # inf on the singular ones in both
         np.testing.assert_array_equal(t_jit[~s_np], t_np[~s_np])
+
+
+def test_float_route_of_small_batches_is_bit_identical_to_numpy(rng: np.random.Generator) -> None:
+    """Batches of up to ldl.SCALAR_MAX_BATCH matrices run the same operations on Python floats
+    (a single pair's call costs a numpy call per operation otherwise): every matrix of a large
+    batch (the vector route) gives the same bits alone and in small batches (the float route) –
+    well and ill conditioned, singular, every state count, partial diagonals, the full inverse."""
+    for n in (1, 3, 4, 6, 7):
+        f = spd_batch(rng, 120, n)
+        if n > 1:
+            x = rng.normal(size=(30, n, n - 1))  # rank n − 1, perturbed: cond 1e6 … 1e15
+            eps = np.exp(rng.uniform(np.log(1e-8), np.log(1e-3), 30))[:, None, None]
+            f[:30] = x @ x.transpose(0, 2, 1) + eps**2 * np.eye(n)
+        f[30:40, -1, :] = f[30:40, :, -1] = 0.0  # no information on the last state
+        f[40:45] = np.outer(np.arange(1.0, n + 1), np.arange(1.0, n + 1))  # rank one
+        f[45:50, 0, 0] = -1.0  # a negative diagonal: scaled as zero, singular
+        fp = ldl.pack(f)
+        assert fp.shape[1] > ldl.SCALAR_MAX_BATCH  # the vector route
+        inv, sing = ldl.inverse_from(fp, n)
+        assert sing[30:40].all() and sing[45:50].all() and (n == 1 or sing[40:45].all())
+        for first in range(n):
+            diag, sing_d = ldl.inverse_diagonal_from(fp, n, first)
+            np.testing.assert_array_equal(sing_d, sing)
+            for s in range(0, 120, 7):  # batches of 7, then 1 (≤ SCALAR_MAX_BATCH)
+                part, sing_p = ldl.inverse_diagonal_from(fp[:, s : s + 7], n, first)
+                np.testing.assert_array_equal(part, diag[:, s : s + 7])
+                np.testing.assert_array_equal(sing_p, sing[s : s + 7])
+        for b in range(120):
+            one, sing_1 = ldl.inverse_from(fp[:, b : b + 1], n)
+            np.testing.assert_array_equal(one[:, 0], inv[:, b])
+            assert sing_1[0] == sing[b]

@@ -6,13 +6,12 @@ computation (a 10 MB batch takes a while to validate; ``/healthz`` keeps answeri
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Any
 
 import anyio
-from fastapi import APIRouter, Depends, Request
+from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
-from api.deps import get_settings
 from api.documents import document_body, json_document
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.limits import check_scenario_size
@@ -40,16 +39,20 @@ SCENARIO_BODY = document_body(
     summary="Bounds of one TX–RX pair or a batch of pairs",
     openapi_extra=SCENARIO_BODY,
 )
-async def post_bounds(
-    request: Request, settings: Annotated[Settings, Depends(get_settings)]
-) -> JSONResponse:
+async def post_bounds(request: Request) -> JSONResponse:
     """The same computation and document as ``ris-planner bounds``; 413 when the batch exceeds
-    the configured pair or work limits. Parsing, validation and the computation run in a
-    worker thread (at most ``bounds_concurrency`` at once), never in the event loop."""
+    the configured pair or work limits. Parsing, validation, the computation and the answer's
+    JSON run in a worker thread (at most ``bounds_concurrency`` at once), never in the event
+    loop."""
     body = await request.body()
+    settings: Settings = request.app.state.settings  # (no dependency to solve per request)
     limiter: anyio.CapacityLimiter = request.app.state.bounds_limiter
-    answer = await anyio.to_thread.run_sync(_bounds_json, body, settings, limiter=limiter)
-    return JSONResponse(answer)
+    return await anyio.to_thread.run_sync(_bounds_answer, body, settings, limiter=limiter)
+
+
+def _bounds_answer(body: bytes, settings: Settings) -> JSONResponse:
+    """The answer, rendered here (the JSON text of a batch is not the event loop's work)."""
+    return JSONResponse(_bounds_json(body, settings))
 
 
 def _bounds_json(body: bytes, settings: Settings) -> dict[str, Any]:

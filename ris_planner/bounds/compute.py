@@ -205,14 +205,24 @@ class BoundsResult:
 
 def first_block_profiles(scenario: Scenario) -> list[ComplexArray] | None:
     """The codebook's first block, one [G̃, N_ℓ] per RIS; ``None`` for ``expected_random``."""
+    prof = _codebook_profiles(scenario)
+    if prof is None or scenario.codebook.kind != "random":
+        return prof
+    return [p.copy() for p in prof]  # the caller's own (the seeded draw is shared, read-only)
+
+
+def _codebook_profiles(scenario: Scenario) -> list[ComplexArray] | None:
+    """:func:`first_block_profiles`, a ``random`` codebook's as the shared read-only draw of
+    :func:`ris_planner.codebooks.seeded_random_phases` (what :func:`compute_bounds` reads;
+    the planar products of such a draw are remembered, :func:`ris_planner.fim.planar_weighted`)."""
     cb = scenario.codebook
     n_ris = len(scenario.ris)
     g_tilde = codebooks.block_length(scenario.system.transmissions, n_ris)
     if isinstance(cb, ExpectedRandomCodebook):
         return None
     if isinstance(cb, RandomCodebook):
-        rng = np.random.default_rng(cb.seed)
-        return codebooks.random_phases(n_ris, g_tilde, [r.elements for r in scenario.ris], rng)
+        elements = tuple(r.elements for r in scenario.ris)
+        return list(codebooks.seeded_random_phases(n_ris, g_tilde, elements, cb.seed))
     if isinstance(cb, ExplicitCodebook):
         return codebooks.phases_to_profiles(cb.phases)
     if isinstance(cb, DirectionalCodebook | DirectionalDerivativeCodebook):
@@ -697,7 +707,7 @@ def _compute_bounds(
     bad = _degenerate_pairs(scenario, tx_a, rx_a)
     tx_a, rx_a = stand_ins(tx_a, rx_a, bad)  # evaluated there, reported inf below
     presence = scenario_path_presence(scenario, tx_a, rx_a)
-    prof = first_block_profiles(scenario) if isinstance(profiles, str) else profiles
+    prof = _codebook_profiles(scenario) if isinstance(profiles, str) else profiles
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
     mask = present_path_mask(paths, presence)

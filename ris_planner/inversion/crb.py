@@ -226,7 +226,7 @@ def sqrt_crb_quadratic(a: FloatArray, w: FloatArray) -> FloatArray:
 def _trace_scaled_inverse(f_packed: FloatArray, n: int, diag: FloatArray) -> FloatArray:
     """[N] trace(F̂⁻¹) = Σ_i (F⁻¹)_ii F_ii; ``inf`` or NaN where the LDLᵀ declared F singular
     (its diagonal is ``inf`` there), which the callers' ``~(trace <= limit)`` sends on."""
-    idx = ldl.packed_index(n)
+    idx = ldl.packed_slots(n)
     with np.errstate(invalid="ignore"):  # inf · 0 on singular pairs
         trace = diag[0] * f_packed[idx[0, 0]]
         tmp = np.empty_like(trace)
@@ -286,7 +286,7 @@ def quadratic_form(inv_packed: FloatArray, n: int, w: FloatArray) -> FloatArray:
     and w [N, n], summed term by term in row-major (i, j) order, each term (w_i·(F⁻¹)_ij)·w_j:
     the rounding of the entry-by-entry loop, in three array operations and one reduction.
     Pairs with ``inf`` inverses (singular) give ``inf`` or NaN, silently."""
-    order = ldl.packed_index(n)
+    order = ldl.packed_slots(n)
     slots = np.array([[order[i, j] for j in range(n)] for i in range(n)]).ravel()
     wt = w.T  # [n, N]
     rows = np.repeat(np.arange(n), n)
@@ -306,7 +306,7 @@ def crb_quadratic(
     :func:`crb_diagonal` (``inf`` where wᵀs is not identifiable): the packed LDLᵀ inverse and
     :func:`quadratic_form` on the fast path, :func:`sqrt_crb_quadratic` elsewhere."""
     inv, singular = ldl.inverse_from(f_packed, n)
-    idx = ldl.packed_index(n)
+    idx = ldl.packed_slots(n)
     diag = np.stack([inv[idx[i, i]] for i in range(n)])
     trace = _trace_scaled_inverse(f_packed, n, diag)
     out = quadratic_form(inv, n, w)

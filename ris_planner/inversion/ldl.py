@@ -16,6 +16,10 @@ condition numbers up to ~1e11, where another rounding order moves a bound by ~1e
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
+from functools import cache
+from types import MappingProxyType
 from typing import NamedTuple
 
 import numpy as np
@@ -42,16 +46,30 @@ def packed_index(n: int) -> dict[tuple[int, int], int]:
     return out
 
 
+@cache
+def packed_slots(n: int) -> Mapping[tuple[int, int], int]:
+    """:func:`packed_index` computed once per n, read-only (the per-call loops use it)."""
+    return MappingProxyType(packed_index(n))
+
+
+@cache
+def _tril(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    il = np.tril_indices(n)
+    il[0].flags.writeable = False
+    il[1].flags.writeable = False
+    return il[0], il[1]
+
+
 def pack(f: FloatArray) -> FloatArray:
     """[..., n, n] → [n(n+1)/2, ...] lower triangle (i ≥ j), entry axis first."""
     n = f.shape[-1]
-    il = np.tril_indices(n)
+    il = _tril(n)
     return np.ascontiguousarray(np.moveaxis(f[..., il[0], il[1]], -1, 0))
 
 
 def unpack(p: FloatArray, n: int) -> FloatArray:
     """[n(n+1)/2, ...] packed → [..., n, n] symmetric (lower triangle mirrored)."""
-    il = np.tril_indices(n)
+    il = _tril(n)
     out = np.empty((*p.shape[1:], n, n))
     vals = np.moveaxis(p, 0, -1)
     out[..., il[0], il[1]] = vals
@@ -72,7 +90,7 @@ class _Factor(NamedTuple):
 
 def _factor(f: FloatArray, n: int) -> _Factor:
     """Scaled LDLᵀ of packed symmetric matrices f [n(n+1)/2, N] (left-looking)."""
-    idx = packed_index(n)
+    idx = packed_slots(n)
     size = f.shape[1]
     n_tri = n * (n + 1) // 2
     # one workspace: scaled entries (later L⁻¹), L, pivots, L·D products, scale, scratch
@@ -115,7 +133,7 @@ def _factor(f: FloatArray, n: int) -> _Factor:
 def _inverse_low_columns(fac: _Factor, n: int, first: int) -> None:
     """Columns j ≥ first of M = L⁻¹ (unit lower triangular, M_ii = 1 implicit) into fac.m by
     forward substitution."""
-    idx = packed_index(n)
+    idx = packed_slots(n)
     m, low, tmp = fac.m, fac.low, fac.tmp
     for i in range(first, n):
         for j in range(first, i):
@@ -126,14 +144,122 @@ def _inverse_low_columns(fac: _Factor, n: int, first: int) -> None:
                 acc -= tmp
 
 
+SCALAR_MAX_BATCH = 8
+"""Up to this many matrices, :func:`inverse_diagonal_from` and :func:`inverse_from` run the
+same operations on Python floats, one matrix at a time (:func:`_scalar_factor`): a single
+pair's 7×7 LDLᵀ is ~150 vector operations of length one, each costing a numpy call (~1 µs),
+against ~20 µs for the whole matrix on floats. Python's float +, −, ×, ÷ and ``math.sqrt``
+are the IEEE-754 operations numpy applies elementwise, so both routes give the same bits
+(tests/test_ldl.py checks them against each other)."""
+
+
+def _scalar_route(f: FloatArray) -> bool:
+    """Small finite batches take the float route (non-finite entries keep numpy's
+    propagation rules, and a zero product of scales keeps numpy's division by zero)."""
+    return f.shape[1] <= SCALAR_MAX_BATCH and bool(np.isfinite(f).all())
+
+
+class _ScalarFactor(NamedTuple):
+    """:class:`_Factor` of one matrix on Python floats: M = L⁻¹ (columns ≥ first filled)."""
+
+    m: list[float]
+    inv_piv: list[float]
+    scale: list[float]
+    singular: bool
+
+
+def _scalar_factor(f: list[float], n: int, first: int) -> _ScalarFactor:
+    """:func:`_factor` then :func:`_inverse_low_columns` of one packed matrix, operation by
+    operation in the same order. Raises ZeroDivisionError where numpy would divide by 0."""
+    idx = packed_slots(n)
+    d = [math.sqrt(max(f[idx[j, j]], 0.0)) for j in range(n)]
+    singular = any(v <= 0.0 for v in d)
+    ds = [1.0 if v <= 0.0 else v for v in d]
+    a = [0.0] * len(f)
+    for i in range(n):
+        for j in range(i + 1):
+            a[idx[i, j]] = f[idx[i, j]] / (ds[i] * ds[j])
+    low = [0.0] * len(f)
+    piv = [0.0] * n
+    ld = [0.0] * n
+    for j in range(n):
+        for k in range(j):
+            ld[k] = low[idx[j, k]] * piv[k]
+        pj = a[idx[j, j]]
+        for k in range(j):
+            pj -= low[idx[j, k]] * ld[k]
+        bad = not pj > SINGULAR_RCOND
+        singular = singular or bad
+        piv[j] = 1.0 if bad else pj
+        for i in range(j + 1, n):
+            lij = a[idx[i, j]]
+            for k in range(j):
+                lij -= low[idx[i, k]] * ld[k]
+            low[idx[i, j]] = lij / piv[j]
+    inv_piv = [1.0 / p for p in piv]
+    m = a  # the scaled entries' storage holds L⁻¹ from here on, as in _factor
+    for i in range(first, n):
+        for j in range(first, i):
+            acc = -low[idx[i, j]]
+            for k in range(j + 1, i):
+                acc -= low[idx[i, k]] * m[idx[k, j]]
+            m[idx[i, j]] = acc
+    return _ScalarFactor(m, inv_piv, ds, singular)
+
+
+def _scalar_inverse_diagonal(
+    f: FloatArray, n: int, first: int
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    idx = packed_slots(n)
+    out = np.empty((n - first, f.shape[1]))
+    singular = np.zeros(f.shape[1], dtype=bool)
+    for b, col in enumerate(f.T.tolist()):
+        fac = _scalar_factor(col, n, first)
+        m, inv_piv = fac.m, fac.inv_piv
+        for i in range(first, n):
+            acc = inv_piv[i]
+            for k in range(i + 1, n):
+                acc += (m[idx[k, i]] * m[idx[k, i]]) * inv_piv[k]
+            out[i - first, b] = acc / (fac.scale[i] * fac.scale[i])
+        singular[b] = fac.singular
+    out[:, singular] = np.inf
+    return out, singular
+
+
+def _scalar_inverse(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_]]:
+    idx = packed_slots(n)
+    out = np.empty_like(f)
+    singular = np.zeros(f.shape[1], dtype=bool)
+    for b, col in enumerate(f.T.tolist()):
+        fac = _scalar_factor(col, n, 0)
+        m, inv_piv, scale = fac.m, fac.inv_piv, fac.scale
+        for i in range(n):
+            for j in range(i + 1):
+                acc = 0.0
+                for k in range(i, n):
+                    mki = 1.0 if k == i else m[idx[k, i]]
+                    mkj = 1.0 if k == j else m[idx[k, j]]
+                    acc += (mki * mkj) * inv_piv[k]
+                out[idx[i, j], b] = acc / (scale[i] * scale[j])
+        singular[b] = fac.singular
+    out[:, singular] = np.inf
+    return out, singular
+
+
 def inverse_diagonal_from(
     f: FloatArray, n: int, first: int = 0
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """diag(F⁻¹) of states first … n−1 of packed symmetric matrices, ``inf`` where singular.
 
     f : [n(n+1)/2, N] packed (lower triangle). Returns (diag [n − first, N], singular [N]).
+    Small batches run on floats (:data:`SCALAR_MAX_BATCH`), with the same bits.
     """
-    idx = packed_index(n)
+    if _scalar_route(f):
+        try:
+            return _scalar_inverse_diagonal(f, n, first)
+        except ZeroDivisionError:
+            pass
+    idx = packed_slots(n)
     fac = _factor(f, n)
     _inverse_low_columns(fac, n, first)
     m, inv_piv, tmp = fac.m, fac.inv_piv, fac.tmp
@@ -155,8 +281,14 @@ def inverse_from(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_]]:
     """F⁻¹ of packed symmetric matrices, packed the same way; ``inf`` where singular.
 
     f : [n(n+1)/2, N]. (F⁻¹)_ij = Σ_{k ≥ max(i,j)} M_ki M_kj / (D_k d_i d_j) with M = L⁻¹.
+    Small batches run on floats (:data:`SCALAR_MAX_BATCH`), with the same bits.
     """
-    idx = packed_index(n)
+    if _scalar_route(f):
+        try:
+            return _scalar_inverse(f, n)
+        except ZeroDivisionError:
+            pass
+    idx = packed_slots(n)
     fac = _factor(f, n)
     _inverse_low_columns(fac, n, 0)
     m, inv_piv, tmp = fac.m, fac.inv_piv, fac.tmp

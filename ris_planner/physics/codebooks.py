@@ -8,6 +8,8 @@ smallest divisor of G that is ≥ L+1 (docs/concepts/conventions.md).
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -49,6 +51,36 @@ def random_phases(
 ) -> list[ComplexArray]:
     """Unit-modulus profiles with phases ~ U[0, 2π) (Random Codebook), one [G̃, N_ℓ] per RIS."""
     return [np.exp(1j * rng.uniform(0.0, 2 * np.pi, size=(beams, n))) for n in elements[:n_ris]]
+
+
+RANDOM_PHASES_CACHE_ENTRIES = 250_000
+"""Largest draw (total profile entries G̃·ΣN_ℓ, 16 bytes each) :func:`seeded_random_phases`
+keeps; it keeps the last 8 such draws (≤ 32 MB in the worst case, 200 kB for Table I; a
+larger draw is small next to the work of the batch that needs it)."""
+
+
+def seeded_random_phases(
+    n_ris: int, beams: int, elements: tuple[int, ...], seed: int
+) -> tuple[ComplexArray, ...]:
+    """:func:`random_phases` drawn with ``numpy.random.default_rng(seed)``, remembered for
+    small draws (read-only arrays: copy before changing them). The draw of exp(jφ) for Table I
+    (2 × 64 × 100 phases) costs more than the rest of a single pair's bounds, and a seeded
+    codebook draws the same phases on every call."""
+    if beams * sum(elements[:n_ris]) > RANDOM_PHASES_CACHE_ENTRIES:
+        rng = np.random.default_rng(seed)
+        return tuple(random_phases(n_ris, beams, list(elements), rng))
+    return _seeded_random_phases(n_ris, beams, elements, seed)
+
+
+@lru_cache(maxsize=8)
+def _seeded_random_phases(
+    n_ris: int, beams: int, elements: tuple[int, ...], seed: int
+) -> tuple[ComplexArray, ...]:
+    out = []
+    for p in random_phases(n_ris, beams, list(elements), np.random.default_rng(seed)):
+        p.flags.writeable = False
+        out.append(p[...])  # a view of a read-only array: cannot be made writeable again
+    return tuple(out)
 
 
 def phases_to_profiles(phases: list[list[list[float]]]) -> list[ComplexArray]:

@@ -16,6 +16,8 @@ nuisance gain (α, β) is eliminated by a Schur complement, leaving an equivalen
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,6 +127,55 @@ def grid_axes(positions: FloatArray) -> tuple[FloatArray, FloatArray] | None:
     return None
 
 
+PLANAR_MEMO_BYTES = 32 << 20
+"""Most bytes of derivative-weighted profiles :func:`planar_weighted` keeps (read-only profiles
+only; the least recently used go first): Table I's two RISs take 0.6 MB."""
+
+_PLANAR_MEMO: OrderedDict[
+    tuple[int, bytes, float],
+    tuple[ComplexArray, ComplexArray, tuple[FloatArray, FloatArray] | None],
+] = OrderedDict()
+_PLANAR_LOCK = threading.Lock()
+
+
+def planar_weighted(
+    profiles: ComplexArray, positions: FloatArray, wavelength: float
+) -> tuple[ComplexArray, tuple[FloatArray, FloatArray] | None]:
+    """The [3G̃, N] derivative-weighted profiles [ω ⊙ jky; ω ⊙ jkz; ω] of
+    :class:`_PlanarProducts` and the grid axes (:func:`grid_axes`) of ``positions``.
+
+    Remembered (up to :data:`PLANAR_MEMO_BYTES`) when ``profiles`` is read-only through
+    and through (the shared seeded draw of :func:`ris_planner.codebooks.seeded_random_phases`:
+    nobody can change it, so the same object has the same values): forming them is a fresh
+    [3G̃, N] array per call, the largest allocation of a single pair's bounds. The values are
+    those computed on every call."""
+    key = None
+    base = profiles.base
+    if (
+        not profiles.flags.writeable
+        and isinstance(base, np.ndarray)
+        and base.flags.owndata
+        and not base.flags.writeable
+    ):
+        key = (id(profiles), positions.tobytes(), float(wavelength))
+        with _PLANAR_LOCK:
+            hit = _PLANAR_MEMO.get(key)
+            if hit is not None and hit[0] is profiles:
+                _PLANAR_MEMO.move_to_end(key)
+                return hit[1], hit[2]
+    k = 2 * np.pi / wavelength
+    y, z = positions[:, 1], positions[:, 2]
+    w3 = np.concatenate([profiles * (1j * k * y), profiles * (1j * k * z), profiles], axis=0)
+    axes = grid_axes(positions)
+    if key is not None and w3.nbytes <= PLANAR_MEMO_BYTES // 4:
+        w3.flags.writeable = False
+        with _PLANAR_LOCK:
+            _PLANAR_MEMO[key] = (profiles, w3, axes)  # holds profiles: its id stays unique
+            while sum(v[1].nbytes for v in _PLANAR_MEMO.values()) > PLANAR_MEMO_BYTES:
+                _PLANAR_MEMO.popitem(last=False)
+    return w3, axes
+
+
 class _PlanarProducts:
     """The blocks of t_g = ω_g^T [∂a_R/∂ξ, ∂a_R/∂ζ, a_R] (eq. FIM_measurement's transmission
     part), with ω^T(jk·y ⊙ a) = (jk·y ⊙ ω)^T a: one (3G̃ × N) @ (N × P') product per block.
@@ -138,12 +189,7 @@ class _PlanarProducts:
         self.k = 2 * np.pi / wavelength
         self.y, self.z = positions[:, 1], positions[:, 2]
         self.g = profiles.shape[0]
-        k = self.k
-        # [3G̃, N] derivative-weighted profiles
-        self.w3 = np.concatenate(
-            [profiles * (1j * k * self.y), profiles * (1j * k * self.z), profiles], axis=0
-        )
-        self.axes = grid_axes(positions)
+        self.w3, self.axes = planar_weighted(profiles, positions, wavelength)
 
     def steering(self, xi: FloatArray, zeta: FloatArray) -> ComplexArray:
         """[N, P'] steering vectors a_R(ξ, ζ) of the block's pairs."""

@@ -11,6 +11,7 @@ Fisher matrices well scaled; the delay error bound is then directly in metres.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,6 +26,17 @@ def rotation_matrix(orientation: ArrayLike) -> FloatArray:
     Returns [..., 3, 3]; column 0 is the RIS normal (facing direction) in global coordinates.
     """
     o = np.asarray(orientation, dtype=float)
+    if o.shape == (3,):  # one RIS's: computed once per orientation (the same bits)
+        return _rotation_of(o.tobytes()).copy()
+    return _rotation(o)
+
+
+@lru_cache(maxsize=256)
+def _rotation_of(orientation: bytes) -> FloatArray:
+    return _rotation(np.frombuffer(orientation, dtype=float))
+
+
+def _rotation(o: FloatArray) -> FloatArray:
     cy, sy = np.cos(o[..., 0]), np.sin(o[..., 0])
     cp, sp = np.cos(o[..., 1]), np.sin(o[..., 1])
     cr, sr = np.cos(o[..., 2]), np.sin(o[..., 2])

@@ -1,0 +1,192 @@
+"""The headline workloads, one asv benchmark each (docs/validation/benchmarks.md).
+
+* ``Bounds.time_table1_single_pair``: ``compute_bounds`` of the paper's Table I (one pair);
+* ``Bounds.time_fig10_layout``: the Fig. 10 workload of the 4-RIS layout, ``random``
+  codebook (4753 pairs, :func:`ris_planner.paper.fig10_pairs`);
+* ``Planning.time_hall_plan``: a small hall plan (``run_plan``, serial executor);
+* ``Planning.time_hall_site_cache``: the hall's site cache (every site × pair);
+* ``Estimation.time_estimate``: one run of the estimator (Alg. 1 + 2) on a Table I signal;
+* ``Rest.time_bounds_burst``: 50 concurrent ``POST /v1/bounds`` of Table I against
+  ``ris-planner serve`` on 127.0.0.1 (started in ``setup``, stopped by PID in ``teardown``).
+
+Only the public API that every benchmarked commit has is used (asv runs these suites of the
+working copy against each commit's code). ``asv continuous --factor 1.3 BASE HEAD`` flags a
+workload that became more than 1.3× slower.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import tempfile
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ris_planner import compute_bounds, load_scenario, preset_document
+from ris_planner.paper import fig10_pairs
+
+
+def hall_document(
+    spacing_m: float = 10.0, heights_m: tuple[float, ...] = (3.0,), pairs: int = 400
+) -> dict[str, Any]:
+    """A 40 × 25 m hall, candidate sites on its 4 inner walls (benchmarks/bench_search.py's
+    hall, thinned so a plan takes seconds), a 2 m UE grid at 1.5 m, sampled pairs."""
+    corners = ([0, 0], [40, 0], [40, 25], [0, 25])
+    walls = [
+        {
+            "start": corners[i],
+            "end": corners[(i + 1) % 4],
+            "side": "left",  # counter-clockwise corners: left is inside
+            "heights_m": list(heights_m),
+            "spacing_m": spacing_m,
+        }
+        for i in range(4)
+    ]
+    grid = {"grid": {"x": [2, 38, 2], "y": [2, 23, 2], "z": [1.5, 1.5, 1]}}
+    return {
+        "walls": walls,
+        "tx_map": grid,
+        "rx_map": grid,
+        "pairs": {"sample": pairs, "seed": 0},
+        "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
+        "ris_count": [2],
+    }
+
+
+class Bounds:
+    """The bounds engine: one pair (per-call overheads) and a whole Fig. 10 layout."""
+
+    timeout = 120.0
+
+    def setup(self) -> None:
+        self.table1 = load_scenario(preset_document("paper-table1"))
+        doc = preset_document("4-ris") | {"codebook": {"kind": "random", "seed": 0}}
+        self.fig10 = load_scenario(doc)
+        self.tx, self.rx = fig10_pairs()
+        compute_bounds(self.table1)  # imports and first-call work outside the timing
+
+    def time_table1_single_pair(self) -> None:
+        compute_bounds(self.table1)
+
+    def time_fig10_layout(self) -> None:
+        compute_bounds(self.fig10, tx=self.tx, rx=self.rx)
+
+
+class Planning:
+    """A hall plan end to end, and the site cache that dominates larger ones."""
+
+    timeout = 600.0
+    number = 1
+    repeat = (1, 5, 60.0)
+
+    def setup(self) -> None:
+        from ris_planner.environment import Scene
+        from ris_planner.planning import PlanDocument
+        from ris_planner.planning.maps import build_map, build_pairs
+        from ris_planner.planning.sites import expand_sites
+        from ris_planner.planning.visibility import pair_visibility
+
+        self.plan_doc = hall_document()
+        d = PlanDocument.model_validate(hall_document(spacing_m=5.0, pairs=1600))
+        self.system = d.system
+        self.sites = expand_sites(d)
+        self.pairs = build_pairs(
+            build_map(d.tx_map, "tx"), build_map(d.rx_map, "rx"), d.pairs, 10**6
+        )
+        scene = Scene.from_environment(d.environment)
+        self.visibility = pair_visibility(scene, self.sites, self.pairs, d.system.los)
+        self.time_hall_plan()  # compiled kernels loaded (or compiled) outside the timing
+
+    def time_hall_plan(self) -> None:
+        from ris_planner.planning import SerialExecutor, run_plan
+
+        run_plan(self.plan_doc, executor=SerialExecutor())
+
+    def time_hall_site_cache(self) -> None:
+        from ris_planner.planning.site_cache import build_site_cache
+
+        build_site_cache(self.system, self.sites, self.pairs, visibility=self.visibility, known=())
+
+
+class Estimation:
+    """One estimator run (Alg. 1 + 2) on a simulated Table I signal (seeded)."""
+
+    timeout = 300.0
+    number = 1
+
+    def setup(self) -> None:
+        from ris_planner.estimation.models import EstimatorSettings, Multipath
+        from ris_planner.estimation.pipeline import Estimator
+        from ris_planner.estimation.signal import (
+            realisation_paths,
+            received_signal,
+            separate_paths,
+            signal_setup,
+        )
+
+        doc = preset_document("paper-table1")
+        doc["system"]["noise_figure_db"] = 0.0
+        sc = load_scenario(doc)
+        setup = signal_setup(sc)
+        settings = EstimatorSettings()
+        self.estimator = Estimator(setup, settings, settings.search_area.candidates(sc.tx_array[0]))
+        rng = np.random.default_rng(0)
+        paths = realisation_paths(setup, Multipath(), rng)
+        self.signal = separate_paths(setup, received_signal(setup, paths, rng))
+        self.estimator.estimate(self.signal)  # first-call work outside the timing
+
+    def time_estimate(self) -> None:
+        self.estimator.estimate(self.signal)
+
+
+class Rest:
+    """A burst of 50 concurrent ``POST /v1/bounds`` (Table I) against a real server."""
+
+    timeout = 300.0
+    number = 1
+    repeat = (3, 10, 60.0)
+    concurrency = 50
+
+    def setup(self) -> None:
+        import httpx  # noqa: F401  (the client of the burst; fails early when missing)
+
+        from api.launch import served
+
+        self.stack = ExitStack()
+        tmp = Path(self.stack.enter_context(tempfile.TemporaryDirectory()))
+        here = Path.cwd()
+        os.chdir(tmp)  # ``python -m`` puts the working folder first on the server's path
+        try:
+            self.server = self.stack.enter_context(
+                served(tmp / "jobs.db", env={"RIS_PLANNER_BLAS_THREADS": "1"})
+            )
+        except BaseException:
+            self.stack.close()
+            raise
+        finally:
+            os.chdir(here)
+        self.doc = preset_document("paper-table1")
+        asyncio.run(self._burst(5))  # warm-up
+
+    def teardown(self) -> None:
+        self.stack.close()  # stops the server by its PID (api.launch.served)
+
+    async def _burst(self, n: int) -> None:
+        import httpx
+
+        limits = httpx.Limits(max_connections=n, max_keepalive_connections=n)
+        async with httpx.AsyncClient(
+            base_url=self.server.url, limits=limits, timeout=60.0
+        ) as client:
+            answers = await asyncio.gather(
+                *(client.post("/v1/bounds", json=self.doc) for _ in range(n))
+            )
+        bad = [a.status_code for a in answers if a.status_code != 200]
+        if bad:
+            raise RuntimeError(f"non-200 answers: {bad}")
+
+    def time_bounds_burst(self) -> None:
+        asyncio.run(self._burst(self.concurrency))
