@@ -90,7 +90,7 @@ def kernel_source(n: int) -> str:
     for i in range(n):
         emit(f"diag[{_row(i)}q] = math.inf if sing else g{i}")
     lines = [
-        "@njit(cache=True, nogil=True, error_model=\"numpy\")",
+        '@njit(cache=True, nogil=True, error_model="numpy")',
         f"def ldl_pairs_{n}(",
         "    a: FloatArray, t: int, diag: FloatArray, trace: FloatArray, singular: BoolArray",
         ") -> None:",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 import pytest
 
@@ -167,7 +169,7 @@ def test_generated_kernels_are_up_to_date() -> None:
 class _Counted:
     """A float that counts the arithmetic done on it (for the FLOP model's check)."""
 
-    ops: dict[str, int] = {}
+    ops: ClassVar[dict[str, int]] = {}
 
     def __init__(self, v: float) -> None:
         self.v = float(v)
