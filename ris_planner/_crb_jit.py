@@ -990,6 +990,7 @@ def score_layouts(
     with √bound (a value above the objective's threshold or cap, not the PEB) without the full
     factorisation."""
     n_chunks = blocks.shape[0]
+    n_l = layouts.shape[1]
     e_n = src.shape[0]
     n_tasks = min(n_chunks, max(1, n_tasks))
     for task in prange(n_tasks):
@@ -1005,11 +1006,14 @@ def score_layouts(
         bound = np.empty(CHUNK)
         mat = np.empty((SCREEN_MAX_STATES, SCREEN_MAX_STATES, CHUNK))
         rows = np.empty((SCREEN_MAX_STATES + 3, CHUNK))
+        pre = np.empty((max(n_l - 1, 1), e_n, CHUNK))
+        pre_sites = np.empty(n_l + 1, dtype=np.int64)
         for c in range(task * n_chunks // n_tasks, (task + 1) * n_chunks // n_tasks):
             _score_chunk(
                 blocks, src, los, layouts, n_pairs, n, trace_limit, first, second, mode,
                 degenerate, present, need, out, route, c, a, work, diag, trace, singular,
-                screen, screen_m, screen_limit, a2, slot, count, stats, bound, mat, rows,
+                screen, screen_m, screen_limit, a2, slot, count, stats, bound, mat, rows, pre,
+                pre_sites,
             )  # fmt: skip
 
 
@@ -1046,8 +1050,12 @@ def _score_chunk(
     bound: FloatArray,
     mat: FloatArray,
     rows: FloatArray,
+    pre: FloatArray,
+    pre_sites: IntArray,
 ) -> None:
-    """Every layout on the pairs of block c (:func:`score_layouts`)."""
+    """Every layout on the pairs of block c (:func:`score_layouts`). pre [max(L − 1, 1), E,
+    CHUNK]: the partial sums after columns 0 … L − 2 of the last layout summed, whose sites
+    are pre_sites[:L − 1], pre_sites[L] of them valid (0 at the start of a chunk)."""
     n_b, n_l = layouts.shape
     e_n = src.shape[0]
     has_los = los.shape[0] > 0
@@ -1056,6 +1064,7 @@ def _score_chunk(
     screening = screen_limit > 0.0
     p0 = c * CHUNK
     t = min(CHUNK, n_pairs - p0)
+    pre_sites[n_l] = 0  # no partial sum of this chunk yet
     for b in range(n_b):
         # each pair's kind first: blind (inf, never summed or factored), a screen candidate
         # (at its smallest identifiable count: as many present paths as it needs), an extra
@@ -1110,23 +1119,35 @@ def _score_chunk(
                     slot[q] = FULL
         if n_live == 0:
             continue
-        s0 = layouts[b, 0]
-        if has_los:
-            for e in range(e_n):
-                row = blocks[c, s0, src[e]]
-                for q in range(t):
-                    a[e, q] = los[c, e, q] + row[q]
-        else:
-            for e in range(e_n):
-                row = blocks[c, s0, src[e]]
-                for q in range(t):
-                    a[e, q] = row[q]
-        for col in range(1, n_l):
+        # a = ((LOS + site 0) + site 1) + …: the partial sums after columns 0 … L−2 are kept
+        # in pre (per chunk) and reused by the next layouts that start with the same sites
+        # (lexicographic batches: exhaustive, a greedy step, swaps); the same additions in
+        # the same order, so the same bits
+        same = 0
+        while same < min(pre_sites[n_l], n_l - 1) and pre_sites[same] == layouts[b, same]:
+            same += 1
+        for col in range(same, n_l):
             s = layouts[b, col]
-            for e in range(e_n):
-                row = blocks[c, s, src[e]]
-                for q in range(t):
-                    a[e, q] += row[q]
+            dst = a if col == n_l - 1 else pre[col]
+            if col > 0:
+                prev = pre[col - 1]
+                for e in range(e_n):
+                    row = blocks[c, s, src[e]]
+                    for q in range(t):
+                        dst[e, q] = prev[e, q] + row[q]
+            elif has_los:
+                for e in range(e_n):
+                    row = blocks[c, s, src[e]]
+                    for q in range(t):
+                        dst[e, q] = los[c, e, q] + row[q]
+            else:
+                for e in range(e_n):
+                    row = blocks[c, s, src[e]]
+                    for q in range(t):
+                        dst[e, q] = row[q]
+            if col < n_l - 1:
+                pre_sites[col] = s
+        pre_sites[n_l] = n_l - 1
         n_fact = n_live
         if n_cand > 0:  # screened in place, or the candidates packed to the left of a2
             sa = a
