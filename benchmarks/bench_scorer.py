@@ -13,7 +13,8 @@ Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` t
 * ``junction``: the junction preset plan with and without its environment (issue 9), and
   fixed 3-RIS layouts scored with and without the presence masks, old and new.
 * ``flops`` (issue 22): the compiled kernel alone (``_crb_jit.score_layouts``, no screen, no
-  square-root route) on the hall's layouts of 2, 3 and 4 RISs, as floating-point operations
+  square-root route) on the hall's layouts of 2, 3 and 4 RISs (and of 3 among 24 sites, whose
+  pair blocks fit the L2 cache: the gather's share), as floating-point operations
   per factored layout-pair (the FLOP model :func:`ris_planner._crb_jit.score_flops`, checked
   against an instrumented count in tests/test_ldl.py), flop/s and the fraction of the
   machine's peak – a float64 matrix product by numpy with the same thread count, measured in
@@ -23,7 +24,7 @@ Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` t
   measured throughput and the bound its 63 divisions per pair put on the LDLᵀ.
 
     python benchmarks/bench_scorer.py [--sections hall exhaustive junction flops] [--plan]
-        [--layouts 300] [--repeats 5]
+        [--layouts 300] [--repeats 7] [--flops-layouts 24]
 """
 
 from __future__ import annotations
@@ -247,9 +248,16 @@ def best_times(threads: int, repeats: int, runs: dict[Any, Callable[[], Any]]) -
     return best
 
 
-def flops(n_layouts: int, repeats: int) -> None:
-    """The kernel's flop/s against the peak measured in the same run (module docstring)."""
-    scorer = scorer_of(hall_doc([2, 3, 4], 6400))
+NEAR_SITES = 24
+"""Sites of the ``flops`` run whose pair blocks fit the L2 cache (24 × 28 × 64 × 8 B = 344 KB
+per block, against 2.2 MB for all 156): the difference to the run over all sites is the cost
+of gathering the site blocks from the L3 cache or memory."""
+
+
+def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -> dict[str, float]:
+    """The kernel's flop/s against the peak measured in the same run (module docstring);
+    returns the fractions of the peak by run name (the test suite's fast check)."""
+    scorer = scorer_of(hall_doc([2, 3, 4], n_pairs))
     args = dict(scorer._kernel_inputs)
     n, p, los = args["n"], scorer.cache.n_pairs, args["los"].size > 0
     rows = (len(args["first"]),) if args["mode"] == 0 else (len(args["first"]), len(args["second"]))
@@ -262,47 +270,51 @@ def flops(n_layouts: int, repeats: int) -> None:
     )
     rng = np.random.default_rng(2)
     lays = {}
-    for n_ris in (2, 3, 4):
-        lay = all_layouts(scorer.cache.n_sites, n_ris)
-        lays[n_ris] = lay[np.sort(rng.choice(len(lay), n_layouts, replace=False))]
+    for n_ris, n_drawn in ((2, 0), (3, 0), (4, 0), (3, NEAR_SITES)):
+        lay = all_layouts(n_drawn or scorer.cache.n_sites, n_ris)
+        lays[n_ris, n_drawn] = lay[np.sort(rng.choice(len(lay), n_layouts, replace=False))]
     out = np.empty((n_layouts, p))
     route = np.empty((n_layouts, p), dtype=np.uint8)
     factored = {}
 
-    def kernel(n_ris: int) -> None:
+    def kernel(key: tuple[int, int]) -> None:
         _crb_jit.score_layouts(
-            layouts=lays[n_ris], out=out, route=route, n_tasks=_crb_jit.n_tasks(),
+            layouts=lays[key], out=out, route=route, n_tasks=_crb_jit.n_tasks(),
             screen_limit=0.0, **args,
         )  # fmt: skip
         # factored: flagged for the square-root route (its ``out`` undefined) or finite;
         # the rest are blind (``inf`` from the presence rule: neither summed nor factored)
         slow = route == _crb_jit.SLOW
-        factored[n_ris] = int(np.count_nonzero(slow | np.isfinite(out)))
+        factored[key] = int(np.count_nonzero(slow | np.isfinite(out)))
 
-    kernel(2)
+    kernel((2, 0))
     chunks = np.ascontiguousarray(scorer.cache.blocks[:8, 0, :28])  # one site's 512 pairs
     chunks += np.eye(7)[np.tril_indices(7)][None, :, None]  # regular: no singular pair
-    reps = 1000  # 512 000 matrices: ~15 ms
+    # reps = 1000: 512 000 matrices, ~15 ms
     count = reps * chunks.shape[0] * chunks.shape[2]
     _ldl_loop(chunks, True, 1)
     _ldl_loop(chunks, False, 1)
     runs: dict[Any, Callable[[], Any]] = {k: lambda k=k: kernel(k) for k in lays}
+    fractions: dict[str, float] = {}
     for threads in (1, 2):
         extra = {("ldl", u): lambda u=u: _ldl_loop(chunks, u, reps) for u in (False, True)}
         best = best_times(threads, repeats, {**runs, **(extra if threads == 1 else {})})
         peak = 1.0 / best["peak"]
         print(f"  {threads} thread(s): peak (numpy {PEAK_N}² product) {peak / 1e9:.1f} Gflop/s")
-        for n_ris in lays:
+        for (n_ris, n_drawn), t in ((k, best[k]) for k in lays):
             per = _crb_jit.score_flops(n, n_ris, los, rows)
-            rate = factored[n_ris] * per / best[n_ris]
+            rate = factored[n_ris, n_drawn] * per / t
+            where = f" of the first {n_drawn} sites (blocks in L2)" if n_drawn else ""
+            fractions[f"{threads} threads, L = {n_ris}{where}"] = rate / peak
             print(
-                f"    L = {n_ris}: {n_layouts * p / best[n_ris] / 1e6:.1f} M layout-pairs/s"
-                f" ({factored[n_ris] / (n_layouts * p):.0%} factored, {per} flop each):"
+                f"    L = {n_ris}{where}: {n_layouts * p / t / 1e6:.1f} M layout-pairs/s"
+                f" ({factored[n_ris, n_drawn] / (n_layouts * p):.0%} factored, {per} flop each):"
                 f" {rate / 1e9:.2f} Gflop/s = {rate / peak:.1%} of the peak"
             )
         if threads == 1:
             for unrolled, name in ((False, "loop kernel (before)"), (True, "unrolled kernel")):
                 rate = count * sum(model.values()) / best["ldl", unrolled]
+                fractions[f"LDLᵀ alone, {name}"] = rate / peak
                 print(
                     f"    LDLᵀ alone, {name}: {best['ldl', unrolled] / count * 1e9:.1f} ns per"
                     f" matrix, {rate / 1e9:.2f} Gflop/s = {rate / peak:.1%} of the peak"
@@ -314,6 +326,7 @@ def flops(n_layouts: int, repeats: int) -> None:
                 f" of a pair bound the LDLᵀ to {bound / 1e6:.0f} M matrices/s ="
                 f" {bound * sum(model.values()) / peak:.0%} of the peak"
             )
+    return fractions
 
 
 def model_divisions(n: int) -> int:

@@ -276,3 +276,18 @@ def test_flop_model_matches_an_instrumented_count(
             assert [float(v) for v in diag[:, 0]] == want[:, 0].tolist()  # same bits
     assert jit.score_flops(7, 3, True, (3,)) == 3 * 28 + 384 + 3
     assert jit.score_flops(7, 2, False, (3, 3)) == 28 + 384 + 6
+
+
+def test_bench_scorer_flops_smoke(capsys: pytest.CaptureFixture[str]) -> None:
+    """benchmarks/bench_scorer.py --sections flops on a small hall (200 pairs, 2 layouts, one
+    repeat): it runs, and every run reports a fraction of the peak measured in the same run
+    (no timing is asserted: the machine may be loaded)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from bench_scorer import flops
+
+    got = flops(2, 1, n_pairs=200, reps=20)
+    assert len(got) == 2 * 4 + 2 and all(0.0 < v < 2.0 for v in got.values()), got
+    assert "of the peak" in capsys.readouterr().out
