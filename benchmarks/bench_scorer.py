@@ -12,9 +12,20 @@ Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` t
 * ``exhaustive``: issue 10's 30 candidates × 3 RISs × 4753 pairs, exhaustive, serial executor.
 * ``junction``: the junction preset plan with and without its environment (issue 9), and
   fixed 3-RIS layouts scored with and without the presence masks, old and new.
+* ``flops`` (issue 22): the compiled kernel alone (``_crb_jit.score_layouts``, no screen, no
+  square-root route) on the hall's layouts of 2, 3 and 4 RISs (and of 3 among 24 sites, whose
+  pair blocks fit the L2 cache: the gather's share), as floating-point operations
+  per factored layout-pair (the FLOP model :func:`ris_planner.inversion._crb_jit.score_flops`,
+  checked
+  against an instrumented count in tests/test_ldl.py), flop/s and the fraction of the
+  machine's peak – a float64 matrix product by numpy with the same thread count, measured in
+  the same run, interleaved with the kernel (best of ``--repeats`` each, so a loaded
+  machine's slices count alike) – for 1 and 2 threads; then the LDLᵀ alone, the loop kernel
+  (``ldl_chunk``, before) against the unrolled one (``factor_chunk``), and the divider's
+  measured throughput and the bound its 63 divisions per pair put on the LDLᵀ.
 
-    python benchmarks/bench_scorer.py [--sections hall exhaustive junction] [--plan]
-        [--layouts 300]
+    python benchmarks/bench_scorer.py [--sections hall exhaustive junction flops] [--plan]
+        [--layouts 300] [--repeats 7] [--flops-layouts 24]
 """
 
 from __future__ import annotations
@@ -25,11 +36,14 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import numba
 import numpy as np
 from bench_planning import square_plan  # the script's folder is on sys.path
 from bench_search import hall_doc
+from threadpoolctl import threadpool_limits
 
-from ris_planner.inversion import crb
+from ris_planner.inversion import _crb_jit, crb
+from ris_planner.inversion.ldl import ldl_flops
 from ris_planner.planning import PlanDocument, SerialExecutor, plan_preset, run_plan
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.objectives import Scorer
@@ -165,14 +179,175 @@ def junction(n_layouts: int) -> None:
         )
 
 
+PEAK_N = 1024
+"""Size of the float64 matrix product that measures the peak (2n³ flops: 2.1 Gflop, ~50 ms
+on one core: as long as each kernel run, so that on a loaded machine the best of several
+catches equally quiet slices for both)."""
+
+
+def peak_flops(threads: int) -> float:
+    """flop/s of one n × n float64 product by numpy's BLAS with ``threads`` threads."""
+    rng = np.random.default_rng(0)
+    a, b = rng.random((PEAK_N, PEAK_N)), rng.random((PEAK_N, PEAK_N))
+    with threadpool_limits(threads, user_api="blas"):
+        t, _ = timed(lambda: a @ b)
+    return 2.0 * PEAK_N**3 / t
+
+
+@numba.njit(cache=False, nogil=True, error_model="numpy")
+def _ldl_loop(chunks: np.ndarray, unrolled: bool, reps: int) -> float:
+    """The LDLᵀ of chunks [K, 28, CHUNK], ``reps`` times over, by the loop kernel or the
+    unrolled one; returns a checksum (so nothing is optimised away)."""
+    c = chunks.shape[2]
+    a = np.empty((28, c))
+    work = np.empty((_crb_jit.work_rows(7), c))
+    diag, trace = np.empty((7, c)), np.empty(c)
+    sing = np.empty(c, dtype=np.bool_)
+    acc = 0.0
+    for _ in range(reps):
+        for k in range(chunks.shape[0]):
+            a[:, :] = chunks[k]
+            if unrolled:
+                _crb_jit.factor_chunk(a, 7, c, work, diag, trace, sing)
+            else:
+                _crb_jit.ldl_chunk(a, 7, c, work, diag, trace, sing)
+            acc += diag[6, 0]
+    return acc
+
+
+@numba.njit(cache=False, nogil=True, error_model="numpy")
+def _divider(x: np.ndarray, y: np.ndarray, out: np.ndarray, reps: int) -> float:
+    """``reps`` vector passes of x / y over L1-resident rows: the divider's rate."""
+    acc = 0.0
+    for r in range(reps):
+        for q in range(x.shape[0]):
+            out[q] = x[q] / y[q]
+        acc += out[r % x.shape[0]]
+    return acc
+
+
+def divider_rate() -> float:
+    """Divisions/s of one thread on vectors that stay in the L1 cache."""
+    rng = np.random.default_rng(3)
+    x, y = np.abs(rng.standard_normal(512)) + 1.0, np.abs(rng.standard_normal(512)) + 1.0
+    o = np.empty(512)
+    _divider(x, y, o, 1)
+    t = min(timed(lambda: _divider(x, y, o, 20_000))[0] for _ in range(3))
+    return 20_000 * 512 / t
+
+
+def best_times(threads: int, repeats: int, runs: dict[Any, Callable[[], Any]]) -> dict[Any, float]:
+    """Best of ``repeats`` times of each run with ``threads`` numba threads, the runs
+    interleaved (each repeat runs every one once) so a loaded machine's slices count alike;
+    key "peak": 1 / the peak flop/s, measured among them."""
+    numba.set_num_threads(threads)
+    best: dict[Any, float] = {}
+    for _ in range(repeats):
+        best["peak"] = min(best.get("peak", np.inf), 1.0 / peak_flops(threads))
+        for key, run in runs.items():
+            best[key] = min(best.get(key, np.inf), timed(run)[0])
+    return best
+
+
+NEAR_SITES = 24
+"""Sites of the ``flops`` run whose pair blocks fit the L2 cache (24 × 28 × 64 × 8 B = 344 KB
+per block, against 2.2 MB for all 156): the difference to the run over all sites is the cost
+of gathering the site blocks from the L3 cache or memory."""
+
+
+def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -> dict[str, float]:
+    """The kernel's flop/s against the peak measured in the same run (module docstring);
+    returns the fractions of the peak by run name (the test suite's fast check)."""
+    scorer = scorer_of(hall_doc([2, 3, 4], n_pairs))
+    args = dict(scorer._kernel_inputs)
+    n, p, los = args["n"], scorer.cache.n_pairs, args["los"].size > 0
+    rows = (len(args["first"]),) if args["mode"] == 0 else (len(args["first"]), len(args["second"]))
+    model = ldl_flops(n)
+    print(
+        f"flops: hall ({scorer.cache.n_sites} sites × {p} pairs, n = {n} states, metric PEB over"
+        f" {rows} states): LDLᵀ + diagonal + trace {sum(model.values())} flop per pair {model};"
+        f" sum {n * (n + 1) // 2} per block added; per layout-pair"
+        f" {_crb_jit.score_flops(n, 3, los, rows)} at 3 RISs"
+    )
+    rng = np.random.default_rng(2)
+    lays = {}
+    for n_ris, n_drawn in ((2, 0), (3, 0), (4, 0), (3, NEAR_SITES)):
+        lay = all_layouts(n_drawn or scorer.cache.n_sites, n_ris)
+        lays[n_ris, n_drawn] = lay[np.sort(rng.choice(len(lay), n_layouts, replace=False))]
+    out = np.empty((n_layouts, p))
+    route = np.empty((n_layouts, p), dtype=np.uint8)
+    factored = {}
+
+    def kernel(key: tuple[int, int]) -> None:
+        _crb_jit.score_layouts(
+            layouts=lays[key], out=out, route=route, n_tasks=_crb_jit.n_tasks(),
+            screen_limit=0.0, **args,
+        )  # fmt: skip
+        # factored: flagged for the square-root route (its ``out`` undefined) or finite;
+        # the rest are blind (``inf`` from the presence rule: neither summed nor factored)
+        slow = route == _crb_jit.SLOW
+        factored[key] = int(np.count_nonzero(slow | np.isfinite(out)))
+
+    kernel((2, 0))
+    chunks = np.ascontiguousarray(scorer.cache.blocks[:8, 0, :28])  # one site's 512 pairs
+    chunks += np.eye(7)[np.tril_indices(7)][None, :, None]  # regular: no singular pair
+    # reps = 1000: 512 000 matrices, ~15 ms
+    count = reps * chunks.shape[0] * chunks.shape[2]
+    _ldl_loop(chunks, True, 1)
+    _ldl_loop(chunks, False, 1)
+    runs: dict[Any, Callable[[], Any]] = {k: lambda k=k: kernel(k) for k in lays}
+    fractions: dict[str, float] = {}
+    for threads in (1, 2):
+        extra = {("ldl", u): lambda u=u: _ldl_loop(chunks, u, reps) for u in (False, True)}
+        best = best_times(threads, repeats, {**runs, **(extra if threads == 1 else {})})
+        peak = 1.0 / best["peak"]
+        print(f"  {threads} thread(s): peak (numpy {PEAK_N}² product) {peak / 1e9:.1f} Gflop/s")
+        for (n_ris, n_drawn), t in ((k, best[k]) for k in lays):
+            per = _crb_jit.score_flops(n, n_ris, los, rows)
+            rate = factored[n_ris, n_drawn] * per / t
+            where = f" of the first {n_drawn} sites (blocks in L2)" if n_drawn else ""
+            fractions[f"{threads} threads, L = {n_ris}{where}"] = rate / peak
+            print(
+                f"    L = {n_ris}{where}: {n_layouts * p / t / 1e6:.1f} M layout-pairs/s"
+                f" ({factored[n_ris, n_drawn] / (n_layouts * p):.0%} factored, {per} flop each):"
+                f" {rate / 1e9:.2f} Gflop/s = {rate / peak:.1%} of the peak"
+            )
+        if threads == 1:
+            for unrolled, name in ((False, "loop kernel (before)"), (True, "unrolled kernel")):
+                rate = count * sum(model.values()) / best["ldl", unrolled]
+                fractions[f"LDLᵀ alone, {name}"] = rate / peak
+                print(
+                    f"    LDLᵀ alone, {name}: {best['ldl', unrolled] / count * 1e9:.1f} ns per"
+                    f" matrix, {rate / 1e9:.2f} Gflop/s = {rate / peak:.1%} of the peak"
+                )
+            div = divider_rate()
+            bound = div / model_divisions(n)
+            print(
+                f"    divider: {div / 1e9:.2f} G divisions/s: the {model_divisions(n)} divisions"
+                f" of a pair bound the LDLᵀ to {bound / 1e6:.0f} M matrices/s ="
+                f" {bound * sum(model.values()) / peak:.0%} of the peak"
+            )
+    return fractions
+
+
+def model_divisions(n: int) -> int:
+    """Divisions per LDLᵀ (ldl.ldl_flops: E scale, E − n in L, n pivots, n diagonal)."""
+    e_n = n * (n + 1) // 2
+    return 2 * e_n + n
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
-        "--sections", nargs="+", default=["hall", "exhaustive", "junction"],
-        choices=["hall", "exhaustive", "junction"],
+        "--sections", nargs="+", default=["hall", "exhaustive", "junction", "flops"],
+        choices=["hall", "exhaustive", "junction", "flops"],
     )  # fmt: skip
     ap.add_argument("--plan", action="store_true", help="also the whole hall plan, old and new")
     ap.add_argument("--layouts", type=int, default=300)
+    ap.add_argument("--repeats", type=int, default=7, help="flops: best of this many")
+    ap.add_argument(
+        "--flops-layouts", type=int, default=24, help="flops: layouts per run (~50 ms each)"
+    )
     args = ap.parse_args()
     if "hall" in args.sections:
         hall(args.layouts, args.plan)
@@ -180,6 +355,8 @@ def main() -> None:
         exhaustive_case()
     if "junction" in args.sections:
         junction(args.layouts)
+    if "flops" in args.sections:
+        flops(args.flops_layouts, args.repeats)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ WORKER = r"""
 import json, sys, time
 import ris_planner
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.bounds import bounds_document
+from ris_planner.bounds.compute import bounds_document
 
 doc = preset_document("paper-table1")
 sc = load_scenario(doc)

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
+import pytest
 
 from ris_planner.inversion import ldl
 
@@ -107,3 +110,216 @@ def test_float_route_of_small_batches_is_bit_identical_to_numpy(rng: np.random.G
             one, sing_1 = ldl.inverse_from(fp[:, b : b + 1], n)
             np.testing.assert_array_equal(one[:, 0], inv[:, b])
             assert sing_1[0] == sing[b]
+
+
+def unrolled_inputs(rng: np.random.Generator, count: int) -> np.ndarray:
+    """7 × 7 batches for the unrolled kernel: well conditioned, nearly rank-deficient (scaled
+    cond 1e6 … 1e15), a state without information, rank one, all zero, a negative and a NaN
+    diagonal entry (a corrupted input must be flagged the same way)."""
+    f = spd_batch(rng, count, 7)
+    x = rng.normal(size=(40, 7, 6))
+    eps = np.exp(rng.uniform(np.log(1e-8), np.log(1e-3), 40))[:, None, None]
+    f[:40] = x @ x.transpose(0, 2, 1) + eps**2 * np.eye(7)
+    f[40:50, 4, :] = f[40:50, :, 4] = 0.0
+    f[50:55] = np.outer(np.arange(1.0, 8.0), np.arange(1.0, 8.0))
+    f[55] = 0.0
+    f[56, 2, 2] = -1.0
+    f[57, 5, 5] = np.nan
+    return ldl.pack(f)
+
+
+def kernel_chunks(fp: np.ndarray, fn: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(diag [7, N], trace [N], singular [N]) by ``_crb_jit.ldl_chunk`` (``"loop"``) or
+    ``_crb_jit.factor_chunk`` (the unrolled kernel), chunk by chunk as the scorer calls them
+    (the last chunk partly filled)."""
+    from ris_planner.inversion import _crb_jit as jit
+
+    size, c = fp.shape[1], jit.CHUNK
+    diag, trace, sing = np.empty((7, size)), np.empty(size), np.empty(size, bool)
+    work = np.empty((jit.work_rows(7), c))
+    dg, tr, sg = np.empty((7, c)), np.empty(c), np.empty(c, bool)
+    for p0 in range(0, size, c):
+        t = min(c, size - p0)
+        a = np.zeros((28, c))
+        a[:, :t] = fp[:, p0 : p0 + t]
+        kernel = jit.ldl_chunk if fn == "loop" else jit.factor_chunk
+        kernel(a, 7, t, work, dg, tr, sg)
+        diag[:, p0 : p0 + t], trace[p0 : p0 + t], sing[p0 : p0 + t] = dg[:, :t], tr[:t], sg[:t]
+    return diag, trace, sing
+
+
+def test_unrolled_ldl_is_bit_identical_to_the_loop_kernel(rng: np.random.Generator) -> None:
+    """The generated straight-line kernel (n = 7, vectorised across pairs) performs the loop
+    kernel's operations in the same order: the same bits on every kind of input, and the same
+    singular flags (a NaN or negative diagonal, a zero row, rank one: blind, ``inf``)."""
+    fp = unrolled_inputs(rng, 301)
+    d_loop, t_loop, s_loop = kernel_chunks(fp, "loop")
+    d_new, t_new, s_new = kernel_chunks(fp, "unrolled")
+    assert s_loop[40:58].all() and not s_loop[58:].any()
+    np.testing.assert_array_equal(s_new, s_loop)
+    np.testing.assert_array_equal(d_new, d_loop)  # inf on the singular ones in both
+    np.testing.assert_array_equal(t_new[~s_loop], t_loop[~s_loop])
+    d_np, s_np = ldl.inverse_diagonal_from(fp, 7)  # and so numpy's route
+    np.testing.assert_array_equal(s_new, s_np)
+    np.testing.assert_array_equal(d_new, d_np)
+
+
+def test_unrolled_ldl_against_mpmath(rng: np.random.Generator) -> None:
+    """The unrolled kernel's diagonal of F⁻¹ against a 40-digit inversion (an independent
+    route): within the tolerance rule's ulps · ε · cond on every regular matrix, cond up to
+    ~1e15 included; ``inf`` exactly where the reference is singular to working precision."""
+    import mpmath
+    from tolerance import assert_close, fim_cond
+
+    fp = unrolled_inputs(rng, 120)
+    diag, _, sing = kernel_chunks(fp, "unrolled")
+    f = ldl.unpack(fp, 7)
+    for m in range(fp.shape[1]):
+        if sing[m]:
+            assert np.isinf(diag[:, m]).all()
+            assert m >= 40 or fim_cond(f[m]) > 1 / ldl.SINGULAR_RCOND / 10
+            continue
+        with mpmath.workdps(40):
+            inv = mpmath.inverse(mpmath.matrix(f[m].tolist()))
+            want = np.array([float(inv[i, i]) for i in range(7)])
+        assert_close(diag[:, m], want, cond=fim_cond(f[m]), where=f"matrix {m}")
+
+
+def test_generated_kernels_are_up_to_date() -> None:
+    """_crb_jit.py's generated block is what scripts/gen_ldl_kernels.py writes."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "scripts" / "gen_ldl_kernels.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--check"], capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0, done.stderr
+
+
+class _Counted:
+    """A float that counts the arithmetic done on it (for the FLOP model's check)."""
+
+    ops: ClassVar[dict[str, int]] = {}
+
+    def __init__(self, v: float) -> None:
+        self.v = float(v)
+
+    @classmethod
+    def _op(cls, name: str, v: float) -> _Counted:
+        cls.ops[name] = cls.ops.get(name, 0) + 1
+        return cls(v)
+
+    @staticmethod
+    def _val(x: object) -> float:
+        return x.v if isinstance(x, _Counted) else float(x)  # type: ignore[arg-type]
+
+    def __add__(self, o: object) -> _Counted:
+        return self._op("+", self.v + self._val(o))
+
+    __radd__ = __add__
+
+    def __sub__(self, o: object) -> _Counted:
+        return self._op("-", self.v - self._val(o))
+
+    def __rsub__(self, o: object) -> _Counted:
+        return self._op("-", self._val(o) - self.v)
+
+    def __mul__(self, o: object) -> _Counted:
+        return self._op("*", self.v * self._val(o))
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, o: object) -> _Counted:
+        return self._op("/", self.v / self._val(o))
+
+    def __rtruediv__(self, o: object) -> _Counted:
+        return self._op("/", self._val(o) / self.v)
+
+    def __neg__(self) -> _Counted:
+        return _Counted(-self.v)  # a sign flip: not counted
+
+    def __lt__(self, o: object) -> bool:
+        return self.v < self._val(o)
+
+    def __le__(self, o: object) -> bool:
+        return self.v <= self._val(o)
+
+    def __gt__(self, o: object) -> bool:
+        return self.v > self._val(o)
+
+    def __ge__(self, o: object) -> bool:
+        return self.v >= self._val(o)
+
+    def __ne__(self, o: object) -> bool:
+        return self.v != self._val(o)
+
+    def __eq__(self, o: object) -> bool:
+        return self.v == self._val(o)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __float__(self) -> float:
+        return self.v
+
+
+class _CountingMath:
+    inf = np.inf
+
+    @staticmethod
+    def sqrt(x: object) -> _Counted:
+        return _Counted._op("sqrt", np.sqrt(_Counted._val(x)))
+
+
+def test_flop_model_matches_an_instrumented_count(
+    rng: np.random.Generator, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """ldl.ldl_flops (the benchmark's FLOP model) equals the operations counted by running the
+    kernels' Python source (numba's ``py_func``) on one matrix of counting floats: the loop
+    kernel for every state count, the unrolled one for n = 7; the divisions and square roots
+    separately (what bounds the kernel: docs/validation/benchmarks.md)."""
+    from ris_planner.inversion import _crb_jit as jit
+
+    monkeypatch.setattr(jit, "math", _CountingMath)
+    c = jit.CHUNK
+    for n in range(2, 8):
+        e_n = n * (n + 1) // 2
+        fp = ldl.pack(spd_batch(rng, 1, n))
+        runs = [("loop", n)] + ([("unrolled", n)] if n == 7 else [])
+        for kind, _ in runs:
+            a = np.full((e_n, c), _Counted(0.0), dtype=object)
+            a[:, 0] = [_Counted(v) for v in fp[:, 0]]
+            diag = np.empty((n, c), dtype=object)
+            trace = np.empty(c, dtype=object)
+            sing = np.zeros(c, dtype=bool)
+            _Counted.ops = {}
+            if kind == "loop":
+                work = np.empty((jit.work_rows.py_func(n), c), dtype=object)
+                jit.ldl_chunk.py_func(a, n, 1, work, diag, trace, sing)
+            else:
+                jit.ldl_pairs_7.py_func(a.reshape(-1), 1, diag.reshape(-1), trace, sing)
+            model = ldl.ldl_flops(n)
+            assert sum(_Counted.ops.values()) == sum(model.values()), (kind, n, _Counted.ops)
+            assert _Counted.ops["/"] == e_n + (e_n - n) + 2 * n
+            assert _Counted.ops["sqrt"] == n
+            assert not sing[0]
+            want, _ = ldl.inverse_diagonal_from(fp, n)
+            assert [float(v) for v in diag[:, 0]] == want[:, 0].tolist()  # same bits
+    assert jit.score_flops(7, 3, True, (3,)) == 3 * 28 + 384 + 3
+    assert jit.score_flops(7, 2, False, (3, 3)) == 28 + 384 + 6
+
+
+def test_bench_scorer_flops_smoke(capsys: pytest.CaptureFixture[str]) -> None:
+    """benchmarks/bench_scorer.py --sections flops on a small hall (200 pairs, 2 layouts, one
+    repeat): it runs, and every run reports a fraction of the peak measured in the same run
+    (no timing is asserted: the machine may be loaded)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from bench_scorer import flops
+
+    got = flops(2, 1, n_pairs=200, reps=20)
+    assert len(got) == 2 * 4 + 2 and all(0.0 < v < 2.0 for v in got.values()), got
+    assert "of the peak" in capsys.readouterr().out

@@ -139,6 +139,44 @@ def test_cached_score_equals_compute_bounds(known: list[str], metric: str, los: 
         assert np.all(np.isinf(scorer.metric(np.array([(0, 1)]))))
 
 
+BLOCK = {
+    "kind": "prism",
+    "name": "block",
+    "footprint": [[0.5, 0.5], [2.5, 0.5], [2.5, 2.5], [0.5, 2.5]],
+    "height_m": 3.5,
+}
+"""A tall block: it hides sites from points, so some pairs (and some pair chunks) are blind."""
+
+
+@pytest.mark.parametrize("environment", [None, {"obstacles": [BLOCK]}])
+def test_kernel_reuses_partial_sums_with_the_same_bits(environment: Any) -> None:
+    """The compiled score keeps the partial sums (LOS + the first sites) of the last layout and
+    reuses them for the next layouts that start with the same sites: every layout of an
+    exhaustive (lexicographic) batch – long shared prefixes, chunks where every pair is blind
+    in between – gives the numpy route's bits, and each layout scored alone or in a shuffled
+    batch (no reuse) the same bits again."""
+    from ris_planner.planning.search import all_layouts
+
+    doc = plan_doc(
+        candidates=ring(7),
+        rx_map={**GRID, "points": [ring(7)[0]["position"]]},  # a UE on site 0: degenerate
+        pairs={"sample": 200, "seed": 4},
+        environment=environment,
+    )
+    _, _, _, scorer = setup(doc)
+    for n_ris in (2, 3, 4):
+        lay = all_layouts(7, n_ris)
+        got = scorer.metric(lay)
+        np.testing.assert_array_equal(got, scorer.metric_reference(lay))
+        assert np.isinf(got).any() and np.isfinite(got).any()
+        perm = np.random.default_rng(n_ris).permutation(len(lay))
+        np.testing.assert_array_equal(scorer.metric(lay[perm]), got[perm])
+        for k in (0, len(lay) // 2, len(lay) - 1):
+            np.testing.assert_array_equal(scorer.metric(lay[k : k + 1])[0], got[k])
+    if environment is not None:
+        assert scorer.cache.present is not None and not scorer.cache.present.all()
+
+
 def test_fig10_anchor_search_beats_l_and_parallel_and_more_ris_improve() -> None:
     res = run_plan(plan_preset("fig10-anchors"), executor=SerialExecutor())
     tx, rx = fig10_pairs()

@@ -213,8 +213,9 @@ def first_block_profiles(scenario: Scenario) -> list[ComplexArray] | None:
 
 def _codebook_profiles(scenario: Scenario) -> list[ComplexArray] | None:
     """:func:`first_block_profiles`, a ``random`` codebook's as the shared read-only draw of
-    :func:`ris_planner.codebooks.seeded_random_phases` (what :func:`compute_bounds` reads;
-    the planar products of such a draw are remembered, :func:`ris_planner.fim.planar_weighted`)."""
+    :func:`ris_planner.physics.codebooks.seeded_random_phases` (what :func:`compute_bounds` reads;
+    the planar products of such a draw are remembered,
+    :func:`ris_planner.physics.fim.planar_weighted`)."""
     cb = scenario.codebook
     n_ris = len(scenario.ris)
     g_tilde = codebooks.block_length(scenario.system.transmissions, n_ris)

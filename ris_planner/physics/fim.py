@@ -145,7 +145,8 @@ def planar_weighted(
     :class:`_PlanarProducts` and the grid axes (:func:`grid_axes`) of ``positions``.
 
     Remembered (up to :data:`PLANAR_MEMO_BYTES`) when ``profiles`` is read-only through
-    and through (the shared seeded draw of :func:`ris_planner.codebooks.seeded_random_phases`:
+    and through (the shared seeded draw of
+    :func:`ris_planner.physics.codebooks.seeded_random_phases`:
     nobody can change it, so the same object has the same values): forming them is a fresh
     [3G̃, N] array per call, the largest allocation of a single pair's bounds. The values are
     those computed on every call."""

@@ -2,7 +2,7 @@
 
 * ``Bounds.time_table1_single_pair``: ``compute_bounds`` of the paper's Table I (one pair);
 * ``Bounds.time_fig10_layout``: the Fig. 10 workload of the 4-RIS layout, ``random``
-  codebook (4753 pairs, :func:`ris_planner.paper.fig10_pairs`);
+  codebook (4753 pairs, :func:`ris_planner.model.paper.fig10_pairs`);
 * ``Planning.time_hall_plan``: a small hall plan (``run_plan``, serial executor);
 * ``Planning.time_hall_site_cache``: the hall's site cache (every site × pair);
 * ``Estimation.time_estimate``: one run of the estimator (Alg. 1 + 2) on a Table I signal;
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.paper import fig10_pairs
+from ris_planner.model.paper import fig10_pairs
 
 
 def hall_document(
