@@ -14,9 +14,10 @@ from typing import Any
 
 from api.settings import Settings
 from ris_planner.codebooks import block_length
+from ris_planner.environment.kinds.prism import MAX_FOOTPRINT_VERTICES
+from ris_planner.environment.model import MAX_OBSTACLES, Environment
 from ris_planner.errors import LimitExceededError
 from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES
-from ris_planner.obstacles import MAX_FOOTPRINT_VERTICES, MAX_OBSTACLES, Environment
 from ris_planner.planning.document import LayoutBeamsDocument
 from ris_planner.scenario import Scenario
 
@@ -85,7 +86,7 @@ def check_size(
             settings.max_work,
         )
     if environment is not None:
-        edges = sum(len(ob.footprint) if ob.kind == "prism" else 1 for ob in environment.obstacles)
+        edges = sum(ob.work_units() for ob in environment.obstacles)
         tests = pairs * (1 + 2 * len(elements)) * edges
         if tests > settings.max_work:
             raise LimitExceededError(

@@ -1,5 +1,5 @@
 """The base of every JSON document model and the coordinate rule, shared by the scenario
-document (:mod:`ris_planner.scenario`), its environment (:mod:`ris_planner.obstacles`) and
+document (:mod:`ris_planner.scenario`), its environment (:mod:`ris_planner.environment.model`) and
 the plan and simulation documents."""
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ from ris_planner.document import (
     field_error,
     finite_point,
 )
-from ris_planner.obstacles import Environment
+from ris_planner.environment.model import Environment
 from ris_planner.units import SPEED_OF_LIGHT, db_to_linear, dbm_to_watt
 
 KnownPart = Literal["clock", "height", "tx"]

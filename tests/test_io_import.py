@@ -16,6 +16,8 @@ pytest.importorskip("shapely")
 
 from ris_planner.cli import main
 from ris_planner.environment import Scene
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 from ris_planner.errors import DocumentFieldError, RisPlannerError
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import (
@@ -31,7 +33,6 @@ from ris_planner.io.geojson_import import (
     parse_length,
     yaw_from_azimuth,
 )
-from ris_planner.obstacles import Environment, Prism
 
 ORIGIN = (24.949, 60.1655, 0.0)
 FRAME = Frame(ORIGIN)

@@ -18,9 +18,9 @@ from ris_planner.environment.materials import (
     fresnel_te,
     relative_permittivity,
 )
+from ris_planner.environment.model import Environment
 from ris_planner.environment.reflections import face_table, specular_paths
 from ris_planner.environment.scene import Scene
-from ris_planner.obstacles import Environment
 
 TOL = 1e-3  # the engine's visibility tolerance (environment.VISIBILITY_TOLERANCE_M)
 BAND = 1e-7  # (leg, face) combinations this close to a threshold are skipped (unspecified)

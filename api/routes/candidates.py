@@ -37,11 +37,11 @@ from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from api.documents import GeoFrame, json_document
 from api.routes.web import MapPreview, _map_preview
+from ris_planner.environment.model import Environment
 from ris_planner.errors import DocumentFieldError, RisPlannerError
 from ris_planner.io import require
 from ris_planner.io.frames import WGS84, Frame, parse_frame, to_local
 from ris_planner.io.geojson_import import import_sites
-from ris_planner.obstacles import Environment
 from ris_planner.planning.document import Candidate, UEMap
 from ris_planner.planning.maps import build_map
 

@@ -1,7 +1,7 @@
 """Obstacles, visibility of legs, fields of view and reflections (docs/concepts/environment.md,
 "The contract").
 
-A :class:`Scene` is built once from a document's :class:`~ris_planner.obstacles.Environment`
+A :class:`Scene` is built once from a document's :class:`~ris_planner.environment.model.Environment`
 and answers batched questions: which legs (segments) are blocked, which points lie inside a
 prism. The rules and their tolerance are documented in :mod:`ris_planner.environment.scene`;
 first-order reflections off the obstacles' faces in :mod:`ris_planner.environment.reflections`.

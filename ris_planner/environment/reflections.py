@@ -30,8 +30,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ris_planner.environment.materials import fresnel_te, relative_permittivity
+from ris_planner.environment.model import Environment
 from ris_planner.environment.scene import VISIBILITY_TOLERANCE_M, Scene
-from ris_planner.obstacles import Environment
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]

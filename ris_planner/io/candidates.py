@@ -55,12 +55,13 @@ from pydantic import Field, ValidationError, field_validator
 
 from ris_planner.document import DocumentModel
 from ris_planner.environment import Scene
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import import_features
 from ris_planner.io_json import validation_problems
 from ris_planner.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count, map_points
-from ris_planner.obstacles import Environment, Prism
 from ris_planner.planning.document import Facades, RISDefaults, UEMap, Wall
 from ris_planner.planning.maps import build_map
 from ris_planner.planning.sites import Site, facade_walls, wall_poses

@@ -73,10 +73,10 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.environment.kinds.prism import footprint_problem
 from ris_planner.errors import DocumentFieldError, RisPlannerError
 from ris_planner.io import require
 from ris_planner.io.frames import MAX_FRAME_RADIUS_M, Frame, great_circle_m
-from ris_planner.obstacles import footprint_problem
 
 FloatArray = NDArray[np.float64]
 

@@ -18,8 +18,9 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 from ris_planner.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS
-from ris_planner.obstacles import Environment, Prism
 from ris_planner.planning.physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 from ris_planner.power.options import Solver
 from ris_planner.scenario import (
