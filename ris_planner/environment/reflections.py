@@ -176,42 +176,50 @@ def specular_paths(
     ds = np.where(flip, -ds, ds)
     dt = np.where(flip, -dt, dt)
     front = (ds > tol) & (dt > tol)
-    ds_safe = np.where(front, ds, 1.0)
-    dt_safe = np.where(front, dt, 1.0)
-    sign = np.where(flip, -1.0, 1.0)  # the side the legs are on
-    # [P, K, 3] image of the source: mirrored through the plane (z unchanged)
-    image = np.broadcast_to(src[:, None, :], (p, k, 3)).copy()
-    image[..., 0] -= 2 * ds * sign * n[None, :, 0]
-    image[..., 1] -= 2 * ds * sign * n[None, :, 1]
-    u = ds_safe / (ds_safe + dt_safe)
-    point = image + u[..., None] * (snk[:, None, :] - image)
-    e = faces.end - faces.start
+    # the rest only for the (leg, face) combinations in front: [C] arrays
+    rows, cols = np.nonzero(front)
+    ds_c, dt_c = ds[rows, cols], dt[rows, cols]
+    nc = n[cols] * np.where(flip[rows, cols], -1.0, 1.0)[:, None]  # the legs' side
+    src_c, snk_c = src[rows], snk[rows]
+    image_c = src_c.copy()  # mirrored through the face's plane (z unchanged)
+    image_c[:, :2] -= 2 * ds_c[:, None] * nc
+    u = ds_c / (ds_c + dt_c)
+    point_c = image_c + u[:, None] * (snk_c - image_c)
+    e = faces.end[cols] - faces.start[cols]
     elen = np.hypot(e[:, 0], e[:, 1])
-    along = (
-        (point[..., 0] - faces.start[:, 0]) * e[:, 0]
-        + (point[..., 1] - faces.start[:, 1]) * e[:, 1]
-    ) / elen
-    z = point[..., 2]
-    valid = front & (along >= 0) & (along <= elen) & (z >= faces.base) & (z <= faces.top)
-    rows, cols = np.nonzero(valid)
-    if rows.size and not scene.empty:
-        pts = point[rows, cols]
-        legs_a = np.concatenate([src[rows], pts])
-        legs_b = np.concatenate([pts, snk[rows]])
-        blocked = scene.blocked(legs_a, legs_b).reshape(2, rows.size).any(axis=0)
-        valid[rows[blocked], cols[blocked]] = False
-    length = np.linalg.norm(snk[:, None, :] - image, axis=-1)
-    cos_inc = np.where(valid, (ds_safe + dt_safe) / np.where(valid, length, 1.0), 0.0)
+    rel = point_c[:, :2] - faces.start[cols]
+    along = (rel[:, 0] * e[:, 0] + rel[:, 1] * e[:, 1]) / elen
+    z = point_c[:, 2]
+    ok = (along >= 0) & (along <= elen) & (z >= faces.base[cols]) & (z <= faces.top[cols])
+    if np.any(ok) and not scene.empty:
+        w = np.nonzero(ok)[0]
+        legs_a = np.concatenate([src_c[w], point_c[w]])
+        legs_b = np.concatenate([point_c[w], snk_c[w]])
+        ok[w] = ~scene.blocked(legs_a, legs_b).reshape(2, w.size).any(axis=0)
+    keep = np.nonzero(ok)[0]
+    r, c = rows[keep], cols[keep]
+    length_v = np.linalg.norm(snk_c[keep] - image_c[keep], axis=1)
+    cos_v = (ds_c[keep] + dt_c[keep]) / length_v
     eta = np.array([_permittivity(m, float(carrier_hz)) for m in faces.material], dtype=complex)
-    coefficient = np.where(valid, fresnel_te(np.broadcast_to(eta, (p, k)), cos_inc), 0.0)
-    nan3 = np.where(valid[..., None], 1.0, np.nan)
+    valid = np.zeros((p, k), dtype=bool)
+    valid[r, c] = True
+    point = np.full((p, k, 3), np.nan)
+    point[r, c] = point_c[keep]
+    image = np.full((p, k, 3), np.nan)
+    image[r, c] = image_c[keep]
+    length = np.full((p, k), np.nan)
+    length[r, c] = length_v
+    cos_inc = np.zeros((p, k))
+    cos_inc[r, c] = cos_v
+    coefficient = np.zeros((p, k), dtype=complex)
+    coefficient[r, c] = fresnel_te(eta[c], cos_v)
     return SpecularPaths(
-        point=point * nan3,
+        point=point,
         valid=valid,
-        length=np.where(valid, length, np.nan),
-        coefficient=np.asarray(coefficient, dtype=complex),
+        length=length,
+        coefficient=coefficient,
         cos_incidence=cos_inc,
         obstacle=np.broadcast_to(faces.obstacle, (p, k)).copy(),
         face=np.broadcast_to(faces.face, (p, k)).copy(),
-        image=image * nan3,
+        image=image,
     )
