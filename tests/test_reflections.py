@@ -368,3 +368,18 @@ def test_single_wall_by_hand() -> None:
     assert_close(prism.length[0, k], math.sqrt(29))
     faces = face_table(Environment.model_validate({"obstacles": [box]}))
     assert_close(faces.normal[3], np.array([1.0, 0.0]), atol=1e-16)
+
+
+def test_interface_shapes_broadcasting_and_errors() -> None:
+    """[3] ends broadcast; no environment gives K = 0; bad input is a ValueError."""
+    none = specular_paths(None, [0, 0, 1], np.zeros((4, 3)) + 1, 28e9)
+    assert none.valid.shape == (4, 0) and none.point.shape == (4, 0, 3)
+    wall = {"kind": "wall", "start": [0, -5], "end": [0, 5], "height_m": 3}
+    env = Environment.model_validate({"obstacles": [wall]})
+    one = specular_paths(env, [2, -1, 1.5], np.array([[3, 1, 1.5], [4, 1, 1.5]]), 28e9)
+    assert one.valid.tolist() == [[True], [True]] and one.obstacle.tolist() == [[0], [0]]
+    for bad in ([0, 0], [[np.nan, 0, 0]]):
+        with pytest.raises(ValueError, match="sources and sinks"):
+            specular_paths(env, bad, [1, 1, 1], 28e9)
+    with pytest.raises(ValueError, match="carrier_hz"):
+        specular_paths(env, [2, -1, 1.5], [3, 1, 1.5], 0.0)
