@@ -19,7 +19,6 @@ MAX_OBSTACLES = 100_000
 """Obstacles per environment."""
 
 
-
 def _known_kind(value: Any) -> Any:
     """An obstacle whose ``kind`` is not registered: an error naming the known kinds."""
     if isinstance(value, dict) and "kind" in value and value["kind"] not in KINDS:
