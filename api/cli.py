@@ -1,6 +1,6 @@
 """``ris-planner serve``: run the REST service with uvicorn (127.0.0.1:8000 by default).
 
-The command's arguments are declared in :mod:`ris_planner.cli.main`, which imports this module only
+The command's arguments are declared in :mod:`ris_planner.cli.app`, which imports this module only
 when ``serve`` runs (the package never imports the service at import time).
 """
 

@@ -1,6 +1,6 @@
 """Start the service as a real uvicorn process on 127.0.0.1 (end-to-end tests, benchmarks).
 
-``served(db)`` runs ``python -m ris_planner.cli.main serve`` (or ``python -m uvicorn api.main:app``)
+``served(db)`` runs ``python -m ris_planner.cli serve`` (or ``python -m uvicorn api.main:app``)
 on a free loopback port with its own database, waits until ``/healthz`` answers, and stops the
 server gracefully (SIGINT) on exit.
 """
@@ -55,7 +55,7 @@ def served(
     environ = dict(os.environ) | {"RIS_PLANNER_DB": str(db), "RIS_PLANNER_WORKERS": str(workers)}
     environ |= env or {}
     if via == "serve":
-        cmd = [sys.executable, "-m", "ris_planner.cli.main", "serve", "--port", str(port)]
+        cmd = [sys.executable, "-m", "ris_planner.cli", "serve", "--port", str(port)]
         cmd += ["--log-level", "warning"]
     elif via == "uvicorn":
         cmd = [sys.executable, "-m", "uvicorn", "api.main:app", "--host", HOST]

@@ -14,7 +14,8 @@ from typing import Any
 
 from api.settings import Settings
 from ris_planner.core.errors import LimitExceededError
-from ris_planner.environment.model import MAX_FOOTPRINT_VERTICES, MAX_OBSTACLES, Environment
+from ris_planner.environment.kinds.prism import MAX_FOOTPRINT_VERTICES
+from ris_planner.environment.model import MAX_OBSTACLES, Environment
 from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES
 from ris_planner.model.plan import LayoutBeamsDocument
 from ris_planner.model.scenario import Scenario
@@ -86,7 +87,7 @@ def check_size(
             settings.max_work,
         )
     if environment is not None:
-        edges = sum(len(ob.footprint) if ob.kind == "prism" else 1 for ob in environment.obstacles)
+        edges = sum(ob.work_units() for ob in environment.obstacles)
         tests = pairs * (1 + 2 * len(elements)) * edges
         if tests > settings.max_work:
             raise LimitExceededError(

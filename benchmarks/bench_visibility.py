@@ -30,7 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from visibility_reference import reference_blocked
 
 from ris_planner.environment import Scene
-from ris_planner.environment.model import Environment, Prism
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 
 PITCH_M = 50.0
 STREET_M = 10.0

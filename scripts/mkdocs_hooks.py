@@ -155,7 +155,7 @@ def _subparsers(parser: argparse.ArgumentParser) -> Iterator[tuple[str, argparse
 
 
 def cli() -> str:
-    from ris_planner.cli.main import build_parser
+    from ris_planner.cli.app import build_parser
 
     os.environ["COLUMNS"] = "100"
     parser = build_parser()

@@ -51,7 +51,7 @@ def run(code: str | Path, *args: str, **env: str) -> list[str]:
 CLI_PROBE = """
 import sys
 from ris_planner.runtime import allocator
-from ris_planner.cli import main as cli
+from ris_planner.cli import app as cli
 cli.main(["schema"])
 print(allocator.tuned(), file=sys.stderr)
 """

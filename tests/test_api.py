@@ -14,7 +14,7 @@ from tolerance import BOUND_ACCURACY, assert_close
 from api.main import create_app
 from api.settings import Settings
 from ris_planner import preset_document
-from ris_planner.cli.main import main as cli_main
+from ris_planner.cli import main as cli_main
 from ris_planner.model.paper import fig10_pairs
 
 

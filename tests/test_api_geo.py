@@ -78,7 +78,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 
 def test_geographic_plan_job_writes_the_cli_files(server: str, tmp_path: Path) -> None:
-    from ris_planner.cli.main import main
+    from ris_planner.cli import main
 
     doc = geo_plan_doc()
     r = httpx.post(f"{server}/v1/plans", json=doc, timeout=60)
@@ -236,7 +236,7 @@ def helsinki_site(sites: int = 6) -> dict[str, Any]:
 def test_import_geojson_gives_a_plan_document(
     server: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ris_planner.cli.main import main
+    from ris_planner.cli import main
 
     body = json.dumps(helsinki_site()).encode()
     r = httpx.post(

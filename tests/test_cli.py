@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -104,7 +104,7 @@ def test_plan_from_stdin_and_unusable_output_folder(
 
 LAZY_PROBE = """
 import sys
-from ris_planner.cli import main as cli
+from ris_planner.cli import app as cli
 assert cli.main(["bounds", "--preset", "paper-table1"]) == 0
 loaded = [m for m in ("ris_planner.planning", "ris_planner.power", "ris_planner.estimation",
                       "ris_planner.cli.geo", "api", "scipy.spatial") if m in sys.modules]
@@ -124,7 +124,7 @@ def test_a_command_loads_only_its_own_feature() -> None:
 
 
 def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
-    from ris_planner.cli.main import REGISTRARS
+    from ris_planner.cli.app import REGISTRARS
 
     code, out, _ = run(capsys, "--help")
     assert code == 0
@@ -134,7 +134,7 @@ def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
     # the table names exactly what each feature registers (a run builds only its own)
     import argparse
 
-    from ris_planner.cli.main import _registrar
+    from ris_planner.cli.app import _registrar
 
     for path, names in REGISTRARS.items():
         parser = argparse.ArgumentParser()

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ris_planner.bounds.compute import compute_bounds
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.model.scenario import RIS, SystemParams
 from ris_planner.physics.fim import steering_gram
 from ris_planner.physics.geometry import element_positions

@@ -26,7 +26,7 @@ from ris_planner.bounds.compute import (
     path_information,
     underdetermined_reason,
 )
-from ris_planner.cli.main import main as cli_main
+from ris_planner.cli import main as cli_main
 from ris_planner.environment import Scene
 from ris_planner.physics.codebooks import block_count, block_length
 

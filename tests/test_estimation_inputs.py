@@ -11,7 +11,7 @@ import pytest
 from pydantic import ValidationError
 
 from ris_planner import load_scenario, preset_document
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.estimation.blind_area import cost_map
 from ris_planner.estimation.models import SearchArea, load_simulation

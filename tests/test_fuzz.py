@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ris_planner import preset_document
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 
 FUZZ = settings(
     max_examples=60,
@@ -185,6 +185,6 @@ def test_closed_stdin_and_stdout(tmp_path: Path) -> None:
 
     for redirect, text in [("<&-", "standard input is closed"), (">&-", "standard output")]:
         argv = "bounds -" if redirect == "<&-" else "bounds --preset paper-table1"
-        cmd = f"{sys.executable} -m ris_planner.cli.main {argv} {redirect}"
+        cmd = f"{sys.executable} -m ris_planner.cli {argv} {redirect}"
         out = subprocess.run(cmd, shell=True, capture_output=True, text=True, timeout=120)
         assert out.returncode == 2 and text in out.stderr and "Traceback" not in out.stderr

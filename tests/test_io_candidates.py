@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import shapely
 
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.io.candidates import CandidateOptions, candidate_sites, generate_candidates
 from ris_planner.io.frames import Frame, to_local

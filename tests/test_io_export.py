@@ -19,7 +19,7 @@ rasterio = pytest.importorskip("rasterio")
 pyogrio = pytest.importorskip("pyogrio")
 shapely = pytest.importorskip("shapely")
 
-from ris_planner.cli.main import main  # noqa: E402
+from ris_planner.cli import main  # noqa: E402
 from ris_planner.io.export import (  # noqa: E402
     NODATA,
     closed_ccw_ring,

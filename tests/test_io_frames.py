@@ -257,7 +257,7 @@ def test_malformed_point_names_the_field() -> None:
 def test_bounds_cli_takes_a_geographic_scenario(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ris_planner.cli.main import main
+    from ris_planner.cli import main
     from ris_planner.model.scenario import preset_document
 
     local = preset_document("paper-table1")
@@ -282,7 +282,7 @@ def test_bounds_cli_takes_a_geographic_scenario(
 def test_power_cli_takes_a_geographic_scenario(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ris_planner.cli.main import main
+    from ris_planner.cli import main
     from ris_planner.model.scenario import preset_document
 
     local = preset_document("paper-table1")

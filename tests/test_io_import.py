@@ -14,10 +14,11 @@ import pytest
 pytest.importorskip("pyproj")
 pytest.importorskip("shapely")
 
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.core.errors import DocumentFieldError, RisPlannerError
 from ris_planner.environment import Scene
-from ris_planner.environment.model import Environment, Prism
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import (
     DEFAULT_BUILDING_HEIGHT_M,

@@ -164,11 +164,11 @@ def imports_of_text(text: str, package: str) -> set[str]:
 @pytest.mark.parametrize(
     ("module", "forbidden"),
     [
-        ("ris_planner.cli.main", "api"),  # also after building the parser (every subcommand)
-        ("ris_planner.planning.presets", "ris_planner.cli.main"),
-        ("ris_planner.planning", "ris_planner.cli.main"),
-        ("api.worker", "ris_planner.cli.main"),
-        ("api.main", "ris_planner.cli.main"),
+        ("ris_planner.cli.app", "api"),  # also after building the parser (every subcommand)
+        ("ris_planner.planning.presets", "ris_planner.cli.app"),
+        ("ris_planner.planning", "ris_planner.cli.app"),
+        ("api.worker", "ris_planner.cli.app"),
+        ("api.main", "ris_planner.cli.app"),
     ],
 )
 def test_import_does_not_load(module: str, forbidden: str) -> None:

@@ -129,7 +129,7 @@ import io, json, resource, sys, time
 from contextlib import redirect_stderr
 cap = int(sys.argv[1]) << 20
 resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 import ris_planner.planning, ris_planner.planning.resources  # before the clock
 import ris_planner.power.report
 out = {}
@@ -290,7 +290,7 @@ def test_the_users_64x64_plan_of_52_sites_fits_the_default_budget() -> None:
 
 
 def test_cli_and_service_refuse_with_the_advice(tmp_path: Path, monkeypatch: Any) -> None:
-    from ris_planner.cli.main import main
+    from ris_planner.cli import main
 
     src = tmp_path / "plan.json"
     src.write_text(json.dumps(CACHE_DOC))

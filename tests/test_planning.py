@@ -15,7 +15,7 @@ import pytest
 from pydantic import ValidationError
 
 from ris_planner.bounds.compute import compute_bounds
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.environment import Scene
 from ris_planner.model.paper import fig10_pairs

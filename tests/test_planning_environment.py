@@ -516,7 +516,7 @@ def test_bad_environment_input_is_named(doc: dict[str, Any], message: str) -> No
 def test_cli_names_an_unknown_facade_building(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ris_planner.cli.main import main
+    from ris_planner.cli import main
 
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps(env_doc(facades=[{"of": ["b9"], "heights_m": [4], "spacing_m": 5}])))

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from tolerance import assert_close
 
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.planning import SerialExecutor, run_plan
 from ris_planner.planning.rollout import extend
 

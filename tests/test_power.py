@@ -15,7 +15,7 @@ from test_crb import street_document, street_pairs
 from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
 from ris_planner.bounds.compute import compute_bounds, first_block_profiles
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.inversion import ldl
 from ris_planner.model.scenario import Scenario, load_scenario, preset_document

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from ris_planner import load_scenario, preset_document
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.runtime.provenance import canonical_json, input_sha256, package_version, provenance
 
 

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from api.launch import served
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 from ris_planner.io.frames import to_local
 from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 

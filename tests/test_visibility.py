@@ -13,7 +13,8 @@ from visibility_reference import reference_blocked, reference_inside
 import ris_planner.environment._grid as grid_module
 import ris_planner.environment.scene as scene_module
 from ris_planner.environment import INSIDE_MARGIN_M, VISIBILITY_TOLERANCE_M, Scene
-from ris_planner.environment.model import Environment, Prism
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 
 ENGINES = ("numpy", "numba")
 

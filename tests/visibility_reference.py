@@ -21,7 +21,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.environment.model import Environment, Prism, WallObstacle
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.kinds.wall import WallObstacle
+from ris_planner.environment.model import Environment
 
 SAMPLE_STEP_M = 1e-3
 """Spacing of the depth samples along a leg (1 mm)."""

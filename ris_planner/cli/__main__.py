@@ -1,5 +1,5 @@
-"""``python -m ris_planner.cli.main``: the command line."""
+"""``python -m ris_planner.cli``: the command line."""
 
-from ris_planner.cli.main import main
+from ris_planner.cli import main
 
 raise SystemExit(main())

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ris_planner.cli.main import (
+from ris_planner.cli.app import (
     add_document_arguments,
     finite_float,
     int_in,

@@ -158,7 +158,7 @@ def _cmd_sites(args: argparse.Namespace) -> int:
 
 
 def _add_sites(sub: argparse._SubParsersAction) -> None:
-    from ris_planner.cli.main import finite_float, int_in
+    from ris_planner.cli.app import finite_float, int_in
     from ris_planner.io.candidates import MAX_CANDIDATES_LIMIT, CandidateOptions
 
     d = CandidateOptions()

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ris_planner.cli.main import int_in
+from ris_planner.cli.app import int_in
 from ris_planner.core.errors import RisPlannerError
 
 EXIT_USELESS = 3

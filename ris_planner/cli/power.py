@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ris_planner.cli.main import add_document_arguments, print_json, read_document
+from ris_planner.cli.app import add_document_arguments, print_json, read_document
 from ris_planner.model.power import OBJECTIVES, SOLVERS
 from ris_planner.runtime.progress import ProgressBar
 

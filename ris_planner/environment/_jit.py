@@ -1,5 +1,6 @@
 """The compiled engine (numba): the grid walk of :mod:`~ris_planner.environment._grid` and the
-exact tests of :mod:`~ris_planner.environment._kernels`, one leg at a time in machine code.
+exact tests of the kinds (:mod:`~ris_planner.environment.kinds.prism`,
+:mod:`~ris_planner.environment.kinds.wall`), one leg at a time in machine code.
 
 Same rules, same formulas, same operation order as the numpy engine (tests compare the two
 answer for answer); a leg stops at its first blocking obstacle. Imported lazily by
@@ -15,7 +16,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from ris_planner.environment._kernels import XY_DEGENERATE_M
+from ris_planner.environment.kinds.prism import XY_DEGENERATE_M
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

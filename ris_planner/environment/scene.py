@@ -20,8 +20,11 @@ prism = its distance to the nearest face when inside, ≤ 0 outside):
 The engine (exact float64): a uniform 2-D grid of padded obstacle boxes
 (:mod:`~ris_planner.environment._grid`); every leg walks its cells in order and meets each
 obstacle whose box it enters once, leaving the walk when blocked; the narrow phase is
-:mod:`~ris_planner.environment._kernels`. The same algorithm runs compiled
-(:mod:`~ris_planner.environment._jit`, numba) for large queries, with the same answers.
+:mod:`~ris_planner.environment.kinds` (each obstacle kind's own module: ``prism``, ``wall``;
+an obstacle of an unregistered kind is an error naming the known kinds). The same algorithm
+runs compiled (:mod:`~ris_planner.environment._jit`, numba, which implements the ``prism``
+and ``wall`` kinds) for large queries, with the same answers; a scene holding a kind the
+compiled engine does not implement uses the numpy engine.
 Many points to one or a few sites: :meth:`Scene.blocked_to`.
 """
 
@@ -30,14 +33,15 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 from functools import cache, cached_property
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ris_planner.environment._grid import Grid
-from ris_planner.environment._kernels import point_depth, prism_blocks, wall_blocks
-from ris_planner.environment.model import Environment, Prism
+from ris_planner.environment.kinds import kind_of
+from ris_planner.environment.kinds.base import ObstacleKind
+from ris_planner.environment.model import Environment
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -77,76 +81,73 @@ def _compiled_engine_available() -> bool:
     return True
 
 
-def _bucket(n: int) -> int:
-    """Padded vertex count for a footprint of n vertices (powers of two, at least 4)."""
-    return max(4, 1 << (n - 1).bit_length())
-
-
 @dataclass(frozen=True)
 class _Index:
-    """Obstacle arrays [N, …] in document order, footprints grouped by padded size."""
+    """Obstacle arrays [N, …] in document order: each obstacle's kind (:data:`kinds`, position in
+    ``kinds.KINDS`` order of first appearance) and its row in that kind's packed arrays."""
 
-    is_wall: BoolArray  # [N]
-    base: FloatArray  # [N]
-    top: FloatArray  # [N]
-    wall_start: FloatArray  # [N, 2] (zeros for prisms)
-    wall_end: FloatArray  # [N, 2]
-    bucket: IntArray  # [N] index into verts (−1 for walls)
-    row: IntArray  # [N] row in that bucket
-    verts: list[FloatArray]  # per bucket [Nb, nb, 2], padded by repeating the last vertex
+    kinds: tuple[ObstacleKind, ...]
+    kind_id: IntArray  # [N] index into kinds
+    row: IntArray  # [N] row in that kind's packed arrays
+    packed: tuple[Any, ...]  # per kind, its ``pack`` of its obstacles
     grid: Grid
-    vert_start: IntArray  # [N + 1] CSR offsets into flat (walls: no vertices)
-    flat: FloatArray  # [V, 2] all footprint vertices, obstacle by obstacle
+    obstacles: tuple[Any, ...]
 
     @classmethod
     def build(cls, env: Environment) -> _Index:
         obs = env.obstacles
         n = len(obs)
-        is_wall = np.array([not isinstance(o, Prism) for o in obs])
-        base = np.array([o.base_m for o in obs], dtype=float)
-        top = np.array([o.top_m for o in obs], dtype=float)
-        ws, we = np.zeros((n, 2)), np.zeros((n, 2))
+        found = [kind_of(o) for o in obs]  # unknown kinds fail here, loudly
+        kinds: list[ObstacleKind] = []
+        members: list[list[Any]] = []
+        kind_id, row = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
         lo, hi = np.zeros((n, 3)), np.zeros((n, 3))
-        bucket, row = np.full(n, -1), np.zeros(n, dtype=int)
-        sizes: list[int] = []
-        groups: list[list[FloatArray]] = []
-        for k, o in enumerate(obs):
-            if isinstance(o, Prism):
-                v = o.vertices
-                size = _bucket(v.shape[0])
-                if size not in sizes:
-                    sizes.append(size)
-                    groups.append([])
-                g = sizes.index(size)
-                bucket[k], row[k] = g, len(groups[g])
-                groups[g].append(np.concatenate([v, np.repeat(v[-1:], size - v.shape[0], 0)]))
-            else:
-                v = np.array([o.start, o.end], dtype=float)
-                ws[k], we[k] = v
+        for k, (o, kind) in enumerate(zip(obs, found, strict=True)):
+            if kind not in kinds:
+                kinds.append(kind)
+                members.append([])
+            g = kinds.index(kind)
+            kind_id[k], row[k] = g, len(members[g])
+            members[g].append(o)
+            v = o.outline()
             lo[k] = [*v.min(axis=0), o.base_m]
             hi[k] = [*v.max(axis=0), o.top_m]
-        verts = [np.stack(g) for g in groups]
-        own = [o.vertices if isinstance(o, Prism) else np.zeros((0, 2)) for o in obs]
+        packed = tuple(kind.pack(m) for kind, m in zip(kinds, members, strict=True))
+        return cls(tuple(kinds), kind_id, row, packed, Grid.build(lo, hi), tuple(obs))
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the compiled engine implements every kind present."""
+        return all(k.compiled for k in self.kinds)
+
+    @cached_property
+    def _compiled_arrays(
+        self,
+    ) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray, IntArray, FloatArray]:
+        """The compiled engine's obstacle arrays (it implements the ``wall`` and ``prism``
+        kinds): wall flags, slabs, wall ends [N, 4], footprint vertices in CSR form."""
+        obs = self.obstacles
+        is_wall = np.array([o.kind == "wall" for o in obs], dtype=bool)
+        base = np.array([o.base_m for o in obs], dtype=float)
+        top = np.array([o.top_m for o in obs], dtype=float)
+        ends = np.zeros((len(obs), 4))
+        own = []
+        for k, o in enumerate(obs):
+            if is_wall[k]:
+                ends[k] = [*o.start, *o.end]
+                own.append(np.zeros((0, 2)))
+            else:
+                own.append(o.vertices)
         vert_start = np.concatenate([[0], np.cumsum([v.shape[0] for v in own])]).astype(int)
-        return cls(
-            is_wall,
-            base,
-            top,
-            ws,
-            we,
-            bucket,
-            row,
-            verts,
-            Grid.build(lo, hi),
-            vert_start,
-            np.ascontiguousarray(np.concatenate(own)),
-        )
+        flat = np.ascontiguousarray(np.concatenate(own)) if own else np.zeros((0, 2))
+        return is_wall, base, top, np.ascontiguousarray(ends), vert_start, flat
 
     def walk_compiled(self, a: FloatArray, b: FloatArray, tol: float) -> BoolArray:
         """[M] the same answers as ``grid.walk`` with :meth:`pairs_blocked`, compiled."""
         from ris_planner.environment import _jit
 
         g = self.grid
+        is_wall, base, top, ends, vert_start, flat = self._compiled_arrays
         return np.asarray(
             _jit.walk(
                 a,
@@ -161,35 +162,43 @@ class _Index:
                 g.cell_items,
                 g.box_lo,
                 g.box_hi,
-                self.is_wall,
-                self.base,
-                self.top,
-                np.ascontiguousarray(np.concatenate([self.wall_start, self.wall_end], axis=1)),
-                self.vert_start,
-                self.flat,
+                is_wall,
+                base,
+                top,
+                ends,
+                vert_start,
+                flat,
             )
         )
 
     def pairs_blocked(
         self, a: FloatArray, b: FloatArray, legs: IntArray, ob: IntArray, tol: float
     ) -> BoolArray:
-        """[K] exact test of leg legs[k] (rows of a, b) against obstacle ob[k]."""
+        """[K] exact test of leg legs[k] (rows of a, b) against obstacle ob[k], each kind by its
+        own narrow phase."""
         out = np.zeros(ob.size, dtype=bool)
-        wall = self.is_wall[ob]
-        if np.any(wall):
-            w, o = legs[wall], ob[wall]
-            out[wall] = wall_blocks(
-                a[w], b[w], self.wall_start[o], self.wall_end[o], self.base[o], self.top[o], tol
-            )
-        bucket = self.bucket[ob]
-        for g, verts in enumerate(self.verts):
-            sel = bucket == g
+        kind_id = self.kind_id[ob]
+        for g, kind in enumerate(self.kinds):
+            sel = kind_id == g
             if np.any(sel):
-                w, o = legs[sel], ob[sel]
-                out[sel] = prism_blocks(
-                    a[w], b[w], verts[self.row[o]], self.base[o], self.top[o], tol
-                )
+                w = legs[sel]
+                out[sel] = kind.blocks(self.packed[g], self.row[ob[sel]], a[w], b[w], tol)
         return out
+
+    def depth(self, points: FloatArray, ob: IntArray) -> FloatArray:
+        """[K] how far points[k] lie inside obstacle ob[k] (0 for non-solid kinds)."""
+        out = np.zeros(ob.size)
+        kind_id = self.kind_id[ob]
+        for g, kind in enumerate(self.kinds):
+            sel = np.nonzero(kind_id == g)[0]
+            if sel.size and kind.solid:
+                out[sel] = kind.depth(self.packed[g], self.row[ob[sel]], points[sel])
+        return out
+
+    def solid(self, ob: IntArray) -> BoolArray:
+        """[K] whether obstacle ob[k] is of a solid kind (has an inside)."""
+        solid = np.array([k.solid for k in self.kinds], dtype=bool)
+        return np.asarray(solid[self.kind_id[ob]])
 
 
 @dataclass(frozen=True)
@@ -215,11 +224,17 @@ class Scene:
         return _Index.build(self.environment)
 
     def _compiled(self, legs: int) -> bool:
+        if self.engine == "numba" and not self._index.compiled:
+            raise ValueError(
+                "engine='numba': the compiled engine does not implement the obstacle kinds "
+                + ", ".join(k.name for k in self._index.kinds if not k.compiled)
+                + "; use engine='numpy' or 'auto'"
+            )
         if self.engine != "auto":
             return self.engine == "numba"
         if legs * len(self.environment.obstacles) < AUTO_COMPILED_MIN_WORK:
             return False
-        return _compiled_engine_available()
+        return self._index.compiled and _compiled_engine_available()
 
     def blocked(self, a: ArrayLike, b: ArrayLike, tol: float = VISIBILITY_TOLERANCE_M) -> BoolArray:
         """[M] whether each leg a[i]–b[i] ([M, 3] each, or one of them [3], broadcast) is
@@ -278,16 +293,9 @@ class Scene:
         k = np.arange(row.size) - np.repeat(np.cumsum(counts) - counts, counts)
         ob = grid.cell_items[np.repeat(s, counts) + k]
         p = pts[row]
-        keep = ~index.is_wall[ob] & np.all((p >= grid.box_lo[ob]) & (p <= grid.box_hi[ob]), axis=1)
+        keep = index.solid(ob) & np.all((p >= grid.box_lo[ob]) & (p <= grid.box_hi[ob]), axis=1)
         row, ob, p = row[keep], ob[keep], p[keep]
-        deep = np.zeros(row.size, dtype=bool)
-        bucket = index.bucket[ob]
-        for g, verts in enumerate(index.verts):
-            sel = np.nonzero(bucket == g)[0]
-            if sel.size:
-                o = ob[sel]
-                depth = point_depth(p[sel], verts[index.row[o]], index.base[o], index.top[o])
-                deep[sel] = depth > margin
+        deep = index.depth(p, ob) > margin
         first = np.full(pts.shape[0], np.iinfo(int).max)
         np.minimum.at(first, row[deep], ob[deep])
         hit = first < np.iinfo(int).max

@@ -57,7 +57,8 @@ from ris_planner.core.document import DocumentModel
 from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.core.io_json import validation_problems
 from ris_planner.environment import Scene
-from ris_planner.environment.model import Environment, Prism
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import import_features
 from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count

@@ -74,7 +74,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.core.errors import DocumentFieldError, RisPlannerError
-from ris_planner.environment.model import footprint_problem
+from ris_planner.environment.kinds.prism import footprint_problem
 from ris_planner.io import require
 from ris_planner.io.frames import MAX_FRAME_RADIUS_M, Frame, great_circle_m
 

@@ -18,7 +18,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ris_planner.environment.model import Environment, Prism
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 from ris_planner.model.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS, count, csv_rows
 from ris_planner.model.objectives import objective_kind, objective_names
 from ris_planner.model.plan_physics import (

@@ -17,7 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.environment import Scene
-from ris_planner.environment.model import Environment, Prism
+from ris_planner.environment.kinds.prism import Prism
+from ris_planner.environment.model import Environment
 from ris_planner.physics.geometry import rotation_matrix
 from ris_planner.planning.objectives import objective_kind
 from ris_planner.planning.plan import PlanResult
@@ -63,16 +64,19 @@ def draw_obstacles(ax: Any, environment: Environment | None) -> None:
                     label="obstacle (prism)" if first["prism"] else None,
                 )
             )
-        else:
-            ax.plot(
-                [ob.start[0], ob.end[0]],
-                [ob.start[1], ob.end[1]],
-                color=str(shade * 0.6),
-                linewidth=3.5,
-                solid_capstyle="butt",
-                zorder=1,
-                label="obstacle (wall)" if first["wall"] else None,
-            )
+        else:  # walls (and any kind without an inside): its faces as thick lines
+            faces = ob.faces()
+            for s, e in zip(faces.start, faces.end, strict=True):
+                ax.plot(
+                    [s[0], e[0]],
+                    [s[1], e[1]],
+                    color=str(shade * 0.6),
+                    linewidth=3.5,
+                    solid_capstyle="butt",
+                    zorder=1,
+                    label="obstacle (wall)" if first.get(ob.kind, False) else None,
+                )
+                first[ob.kind] = False
         first[ob.kind] = False
 
 

@@ -9,7 +9,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.environment.model import Prism
+from ris_planner.environment.kinds.prism import Prism
 from ris_planner.model.plan import Candidate, Facades, PlanDocument, RISDefaults, Wall
 from ris_planner.model.scenario import RIS
 

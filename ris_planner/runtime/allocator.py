@@ -11,7 +11,7 @@ against 101–104 ms CPU per layout with the thresholds below (alternating runs,
 and speed of the bounds"); tests/test_allocator.py counts the page faults.
 
 Importing :mod:`ris_planner` changes nothing in the host process: the thresholds are set by
-the entry points – the ``ris-planner`` command line (:func:`ris_planner.cli.main`), the
+the entry points – the ``ris-planner`` command line (:func:`ris_planner.cli.app`), the
 service's startup and its job workers – and, as an opt-in, by a script that calls
 :func:`tune_malloc`. A process that tuned itself marks the environment
 (``RIS_PLANNER_MALLOC_TUNING=1``) so the worker processes it spawns (the local pool) follow it

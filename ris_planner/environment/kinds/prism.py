@@ -1,21 +1,159 @@
-"""Exact float64 narrow-phase kernels: one leg against one obstacle per row, batched over rows.
+"""Obstacle kind ``prism``: a vertical extrusion of a simple polygon ``footprint`` ([x, y] vertices
+in metres, any winding, convex or not) between z = ``base_m`` and z = ``base_m + height_m``
+(docs/concepts/environment.md, "Obstacles"): its model, its faces and its exact float64 narrow
+phase (the rules of :mod:`ris_planner.environment.scene`).
 
-The rules are those of :mod:`ris_planner.environment.scene`. Footprints arrive padded to a
-common vertex count by repeating their last vertex: a repeated vertex makes a zero-length edge,
-which never straddles a line and whose capsule is the vertex's disk, so it changes nothing.
+Footprints are packed into groups of a common padded vertex count (powers of two, at least 4)
+by repeating their last vertex: a repeated vertex makes a zero-length edge, which never
+straddles a line and whose capsule is the vertex's disk, so it changes nothing.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Annotated, Any, ClassVar, Literal
+
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field, field_validator, model_validator
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
+from ris_planner.core.document import finite_point
+from ris_planner.environment.kinds.base import (
+    BoolArray,
+    Faces,
+    FloatArray,
+    IntArray,
+    ObstacleModel,
+    label,
+)
+
+MIN_FOOTPRINT_AREA_M2 = 1e-6
+"""A footprint with a smaller area (1 mm²) is degenerate (collinear or repeated vertices)."""
+
+MIN_EDGE_M = 1e-6
+"""Footprint edges and walls shorter than 1 µm are degenerate."""
+
+MAX_FOOTPRINT_VERTICES = 10_000
+"""Vertices per footprint (OSM buildings have tens; a city block outline a few hundred)."""
 
 XY_DEGENERATE_M = 1e-9
 """A leg whose horizontal extent is below this (1 nm) is treated as vertical: its xy is the
 midpoint's, an error of at most 0.5 nm, far inside the contract's 1 µm–1 cm band."""
+
+Point2 = Annotated[
+    list[float],
+    Field(min_length=2, max_length=2, description="[x, y] in metres (global frame)"),
+]
+
+
+def segments_cross(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) -> NDArray[np.bool_]:
+    """Whether 2-D segments a–b and c–d intersect (touching included), batched [..., 2]."""
+
+    def orient(p: FloatArray, q: FloatArray, r: FloatArray) -> FloatArray:
+        return np.asarray(
+            (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
+            - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+        )
+
+    def on_segment(p: FloatArray, q: FloatArray, r: FloatArray) -> NDArray[np.bool_]:
+        """r within the bounding box of p–q (used when p, q, r are collinear)."""
+        return np.asarray(
+            (np.minimum(p[..., 0], q[..., 0]) <= r[..., 0])
+            & (r[..., 0] <= np.maximum(p[..., 0], q[..., 0]))
+            & (np.minimum(p[..., 1], q[..., 1]) <= r[..., 1])
+            & (r[..., 1] <= np.maximum(p[..., 1], q[..., 1]))
+        )
+
+    o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
+    proper = (np.sign(o1) * np.sign(o2) < 0) & (np.sign(o3) * np.sign(o4) < 0)
+    touch = (
+        ((o1 == 0) & on_segment(a, b, c))
+        | ((o2 == 0) & on_segment(a, b, d))
+        | ((o3 == 0) & on_segment(c, d, a))
+        | ((o4 == 0) & on_segment(c, d, b))
+    )
+    return np.asarray(proper | touch)
+
+
+def footprint_problem(vertices: FloatArray) -> str | None:
+    """Why a footprint [n, 2] is not a simple polygon with area, or ``None``."""
+    n = vertices.shape[0]
+    if n < 3:
+        return f"a footprint needs at least 3 vertices, got {n}"
+    edges = np.roll(vertices, -1, axis=0) - vertices
+    short = np.hypot(edges[:, 0], edges[:, 1]) < MIN_EDGE_M
+    if np.any(short):
+        k = int(np.argmax(short))
+        return f"footprint vertices {k} and {(k + 1) % n} coincide ({vertices[k].tolist()})"
+    if n > 3:
+        a, b = vertices, np.roll(vertices, -1, axis=0)
+        i, j = np.triu_indices(n, k=2)
+        keep = ~((i == 0) & (j == n - 1))  # the first and last edges are adjacent
+        i, j = i[keep], j[keep]
+        hit = segments_cross(a[i], b[i], a[j], b[j])
+        if np.any(hit):
+            k = int(np.argmax(hit))
+            return (
+                f"footprint is self-intersecting: edge {int(i[k])}–{int(i[k]) + 1} crosses"
+                f" edge {int(j[k])}–{(int(j[k]) + 1) % n}"
+            )
+    x, y = vertices[:, 0], vertices[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    if area < MIN_FOOTPRINT_AREA_M2:
+        return f"footprint has zero area ({area:.3g} m²): its vertices are collinear"
+    return None
+
+
+class Prism(ObstacleModel):
+    """A vertical extrusion of a simple polygon between ``base_m`` and ``base_m + height_m``."""
+
+    kind_name: ClassVar[str] = "prism"
+    kind: Literal["prism"] = Field("prism", description="Obstacle kind (discriminator)")
+    footprint: list[Point2] = Field(
+        min_length=1,
+        max_length=MAX_FOOTPRINT_VERTICES,
+        description="Polygon vertices [x, y] in metres, any winding, not closed",
+    )
+
+    @field_validator("footprint")
+    @classmethod
+    def _finite(cls, v: list[list[float]]) -> list[list[float]]:
+        pts = [finite_point(p, "footprint vertex") for p in v]
+        if len(pts) > 3 and pts[0] == pts[-1]:  # a closed ring (GeoJSON habit): open it
+            pts = pts[:-1]
+        return pts
+
+    @model_validator(mode="after")
+    def _simple(self) -> Prism:
+        problem = footprint_problem(np.asarray(self.footprint, dtype=float))
+        if problem is not None:
+            raise ValueError(f"{label('prism', self.name)}: {problem}")
+        return self
+
+    @property
+    def vertices(self) -> FloatArray:
+        """[n, 2] footprint vertices."""
+        return np.asarray(self.footprint, dtype=float)
+
+    def faces(self) -> Faces:
+        """One outward-facing face per footprint edge (edge k from vertex k to k + 1)."""
+        v = self.vertices
+        w = np.roll(v, -1, axis=0)
+        e = w - v
+        area2 = float(np.dot(v[:, 0], w[:, 1]) - np.dot(v[:, 1], w[:, 0]))
+        side = 1.0 if area2 > 0 else -1.0  # counter-clockwise: the outside is on the right
+        length = np.hypot(e[:, 0], e[:, 1])
+        normal = side * np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]
+        return Faces(v, w, normal, False)
+
+    def outline(self) -> FloatArray:
+        return self.vertices
+
+    def work_units(self) -> int:
+        return len(self.footprint)
+
+
+# ---- the narrow phase -------------------------------------------------------------------
 
 
 def point_depth(p: FloatArray, verts: FloatArray, base: FloatArray, top: FloatArray) -> FloatArray:
@@ -201,32 +339,78 @@ def prism_blocks(
     return out
 
 
-def wall_blocks(
-    a: FloatArray,
-    b: FloatArray,
-    start: FloatArray,
-    end: FloatArray,
-    base: FloatArray,
-    top: FloatArray,
-    tol: float,
-) -> BoolArray:
-    """[K] whether leg a[k]–b[k] crosses wall k (start, end [K, 2], base, top [K]): its ends lie
-    on strictly opposite sides of the wall's plane, each more than tol from it, and the
-    crossing point lies inside the rectangle by more than tol from its four edges."""
-    e = end - start
-    length = np.hypot(e[:, 0], e[:, 1])
-    u = e / length[:, None]
-    nx, ny = -u[:, 1], u[:, 0]
-    sa = (a[:, 0] - start[:, 0]) * nx + (a[:, 1] - start[:, 1]) * ny
-    sb = (b[:, 0] - start[:, 0]) * nx + (b[:, 1] - start[:, 1]) * ny
-    cand = (sa * sb < 0) & (np.abs(sa) > tol) & (np.abs(sb) > tol)
-    t = np.where(cand, sa / np.where(cand, sa - sb, 1.0), 0.0)
-    p = a + t[:, None] * (b - a)
-    along = (p[:, 0] - start[:, 0]) * u[:, 0] + (p[:, 1] - start[:, 1]) * u[:, 1]
-    return np.asarray(
-        cand
-        & (along > tol)
-        & (along < length - tol)
-        & (p[:, 2] > base + tol)
-        & (p[:, 2] < top - tol)
-    )
+def _bucket(n: int) -> int:
+    """Padded vertex count for a footprint of n vertices (powers of two, at least 4)."""
+    return max(4, 1 << (n - 1).bit_length())
+
+
+@dataclass(frozen=True)
+class PackedPrisms:
+    """Footprints grouped by padded size: obstacle r is row ``row[r]`` of ``verts[bucket[r]]``
+    ([Nb, nb, 2]); ``base``, ``top`` [N]."""
+
+    bucket: IntArray
+    row: IntArray
+    verts: list[FloatArray]
+    base: FloatArray
+    top: FloatArray
+
+
+class PrismKind:
+    """The ``prism`` kind for the visibility engine (solid; compiled engine: yes)."""
+
+    name: str = "prism"
+    model: type[ObstacleModel] = Prism
+    solid: bool = True
+    compiled: bool = True
+
+    def pack(self, obstacles: list[Any]) -> PackedPrisms:
+        n = len(obstacles)
+        bucket, row = np.full(n, -1), np.zeros(n, dtype=int)
+        sizes: list[int] = []
+        groups: list[list[FloatArray]] = []
+        for k, o in enumerate(obstacles):
+            v = o.vertices
+            size = _bucket(v.shape[0])
+            if size not in sizes:
+                sizes.append(size)
+                groups.append([])
+            g = sizes.index(size)
+            bucket[k], row[k] = g, len(groups[g])
+            groups[g].append(np.concatenate([v, np.repeat(v[-1:], size - v.shape[0], 0)]))
+        return PackedPrisms(
+            bucket,
+            row,
+            [np.stack(g) for g in groups],
+            np.array([o.base_m for o in obstacles], dtype=float),
+            np.array([o.top_m for o in obstacles], dtype=float),
+        )
+
+    def blocks(
+        self, packed: PackedPrisms, rows: IntArray, a: FloatArray, b: FloatArray, tol: float
+    ) -> BoolArray:
+        out = np.zeros(rows.size, dtype=bool)
+        bucket = packed.bucket[rows]
+        for g, verts in enumerate(packed.verts):
+            sel = bucket == g
+            if np.any(sel):
+                o = rows[sel]
+                out[sel] = prism_blocks(
+                    a[sel], b[sel], verts[packed.row[o]], packed.base[o], packed.top[o], tol
+                )
+        return out
+
+    def depth(self, packed: PackedPrisms, rows: IntArray, points: FloatArray) -> FloatArray:
+        out = np.zeros(rows.size)
+        bucket = packed.bucket[rows]
+        for g, verts in enumerate(packed.verts):
+            sel = np.nonzero(bucket == g)[0]
+            if sel.size:
+                o = rows[sel]
+                out[sel] = point_depth(
+                    points[sel], verts[packed.row[o]], packed.base[o], packed.top[o]
+                )
+        return out
+
+
+KIND = PrismKind()

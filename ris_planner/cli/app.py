@@ -149,12 +149,12 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
 
 
 REGISTRARS: dict[str, tuple[str, ...]] = {
-    "ris_planner.cli.main:_add_core": ("bounds", "schema"),
+    "ris_planner.cli.app:_add_core": ("bounds", "schema"),
     "ris_planner.cli.power:add_cli": ("power",),
     "ris_planner.cli.plan:add_cli": ("plan",),
     "ris_planner.cli.estimate:add_cli": ("simulate", "blind-area"),
     "ris_planner.cli.geo:add_cli": ("import", "sites"),
-    "ris_planner.cli.main:_add_serve": ("serve",),
+    "ris_planner.cli.app:_add_serve": ("serve",),
 }
 """Every feature's ``add_cli`` ("module:function") and the subcommands it registers, in help
 order. A run imports only the module of its own subcommand (``ris-planner bounds`` never loads
