@@ -314,6 +314,11 @@ def check_pair(
                 {
                     "draw": d,
                     "cause": cause,
+                    **(
+                        {"ghost": "tx_rx_swap" if swap else "other_solution"}
+                        if cause == "ghost"
+                        else {}
+                    ),
                     "detail": "TX↔RX swap"
                     if swap
                     else f"fit χ² {chi_est:.3g} vs truth {chi_true[d]:.3g} ({n_obs} observations)",
