@@ -215,3 +215,18 @@ def test_cli_validate_prints_the_summary(tmp_path: Path) -> None:
     plan = json.loads((tmp_path / "out" / "plan.json").read_text())
     assert plan["validation"]["pairs"] == 1
     assert (tmp_path / "out" / "validation.png").stat().st_size > 0
+
+
+def test_path_snr_of_the_los_is_its_closed_form() -> None:
+    """The LOS path's integrated SNR ‖μ_0‖²/σ² = P α_0² K Σ_g δ_g² / σ² (|x_k| = |c_g| = 1)."""
+    from ris_planner import geometry
+    from ris_planner.planning.estimator_check import path_snr_db
+
+    sc = load_scenario(preset_document("paper-table1"))
+    setup = signal_setup(sc)
+    d0 = geometry.los_distance(sc.tx_array[:1], sc.rx_array[:1])
+    alpha = float(geometry.los_gain(d0, setup.wavelength)[0])
+    want = setup.tx_power_w * alpha**2 * setup.subcarriers * float(np.sum(setup.delta**2))
+    got = path_snr_db(setup)
+    assert set(got) == {"los", "ris1", "ris2"}
+    assert_close(10 ** (got["los"] / 10), want / setup.noise_variance_w, ulps=1024)

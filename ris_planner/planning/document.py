@@ -702,7 +702,7 @@ class ValidationSpec(DocumentModel):
         0.2, gt=0, le=100, allow_inf_nan=False, description="TX candidate grid step [m]"
     )
     max_candidates: int = Field(
-        200_000,
+        50_000,
         ge=1,
         le=2_000_000,
         description="Largest TX candidate count: the step grows until the region fits",

@@ -58,8 +58,11 @@ from ris_planner.estimation.position_estimation import (
     whitening,
 )
 from ris_planner.estimation.signal import (
+    Paths,
     RisArray,
     SignalSetup,
+    direct_paths,
+    noise_free_signal,
     realisation_paths,
     received_signal,
     separate_paths,
@@ -181,6 +184,21 @@ def layout_base(doc: PlanDocument, ris: list[RIS], seed: int) -> Scenario:
         known=[],
         environment=doc.environment,
     )
+
+
+def path_snr_db(setup: SignalSetup) -> dict[str, float]:
+    """Integrated SNR of each direct path present, ‖μ_m‖²/σ² in dB (μ_m: the path's noise-free
+    signal over all K subcarriers and G transmissions, eq. signal_model): the threshold effect
+    sets in when a path's is near or below ~10–15 dB (the coarse FFT peaks drown in noise)."""
+    sc = setup.scenario
+    paths = direct_paths(setup, sc.tx_array[0], sc.rx_array[0], 0.0, np.zeros(setup.n_ris + 1))
+    out = {}
+    for k in range(paths.ris.size):
+        one = Paths(*(a[k : k + 1] for a in paths.astuple()))
+        energy = float(np.sum(np.abs(noise_free_signal(setup, one)) ** 2))
+        name = "los" if paths.ris[k] == 0 else f"ris{int(paths.ris[k])}"
+        out[name] = 10 * math.log10(max(energy / setup.noise_variance_w, 1e-300))
+    return out
 
 
 def enough_paths(setup: SignalSetup) -> bool:
@@ -385,6 +403,7 @@ def check_layout(
             "tx": [float(v) for v in tx[j]],
             "rx": [float(v) for v in rx[j]],
             "paths": {"los": setup.los, "ris": [int(layout[i]) for i in setup.ris_present]},
+            "path_snr_db": path_snr_db(setup),
             "peb_tx_m": _num(bounds[0]),
             "peb_rx_m": _num(bounds[1]),
             "ceb_m": _num(bounds[2]),
@@ -440,6 +459,7 @@ def check_layout(
     n = len(rows)
     n_covered = sum(r["bound_covered"] for r in rows)
     ratios = [r["ratio"] for r in rows if r["bound_covered"] and r["ratio"] is not None]
+    weakest = [min(r["path_snr_db"].values()) for r in rows if r["shortfall"] and r["path_snr_db"]]
     by_count = next(cr for cr in result.counts if cr.ranked[0][0] == layout)
     return {
         "ris_count": len(layout),
@@ -454,6 +474,7 @@ def check_layout(
             "covered_pairs": n_covered,
             "count": sum(shortfalls.values()),
             "by_cause": {c: shortfalls.get(c, 0) for c in CAUSES},
+            "median_weakest_path_snr_db": _num(float(np.median(weakest))) if weakest else None,
         },
         "median_ratio_covered": _num(float(np.median(ratios))) if ratios else None,
         "seconds_per_estimate": seconds / n_est if n_est else None,
@@ -479,6 +500,8 @@ def summary_lines(validation: dict[str, Any]) -> list[str]:
                 f"; short of the bound (> {sf['ratio']:g}×) at {sf['count']} of"
                 f" {sf['covered_pairs']} covered pairs: {why}"
             )
+            if sf["median_weakest_path_snr_db"] is not None:
+                head += f" (median weakest-path SNR {sf['median_weakest_path_snr_db']:.1f} dB)"
         out = {c: k for c, k in lay["outliers"].items() if k}
         if out:
             head += "; outlier draws: " + ", ".join(f"{c} {k}" for c, k in out.items())
