@@ -230,3 +230,10 @@ def test_path_snr_of_the_los_is_its_closed_form() -> None:
     got = path_snr_db(setup)
     assert set(got) == {"los", "ris1", "ris2"}
     assert_close(10 ** (got["los"] / 10), want / setup.noise_variance_w, ulps=1024)
+
+
+def test_bad_validation_settings_are_refused_with_the_field() -> None:
+    with pytest.raises((ValueError, RisPlannerError), match=r"validation\.multipath\.clusters"):
+        validate_document(table1_plan({"multipath": {"clusters": [{"center": [0, 0]}]}}))
+    with pytest.raises((ValueError, RisPlannerError), match="exceed the limit"):
+        validate_document(table1_plan({"pairs": 1000, "draws": 1000}))

@@ -729,9 +729,16 @@ class ValidationSpec(DocumentModel):
             if reason is not None:
                 raise ValueError(f"validation.reflections: {reason}")
         if self.multipath is not None:
+            from pydantic import ValidationError
+
             from ris_planner.estimation.models import Multipath
 
-            Multipath.model_validate(self.multipath)
+            try:
+                Multipath.model_validate(self.multipath)
+            except ValidationError as exc:
+                first = exc.errors()[0]
+                where = ".".join(str(p) for p in first["loc"])
+                raise ValueError(f"validation.multipath.{where}: {first['msg']}") from None
         return self
 
 
