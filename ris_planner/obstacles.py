@@ -9,13 +9,14 @@ visibility engine that uses them is :mod:`ris_planner.environment`.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, field_validator, model_validator
 
 from ris_planner.document import MAX_COORDINATE_M, DocumentModel, finite_point
+from ris_planner.environment.materials import DEFAULT_MATERIAL, Material
 
 FloatArray = NDArray[np.float64]
 
@@ -35,6 +36,17 @@ Point2 = Annotated[
     list[float],
     Field(min_length=2, max_length=2, description="[x, y] in metres (global frame)"),
 ]
+
+
+class Faces(NamedTuple):
+    """Vertical rectangular faces of one obstacle (between its ``base_m`` and top), [F] rows:
+    face f runs from ``start[f]`` to ``end[f]`` ([F, 2]); ``normal`` [F, 2] the unit horizontal
+    normal of its front (reflecting) side; ``two_sided``: it reflects on both sides."""
+
+    start: FloatArray
+    end: FloatArray
+    normal: FloatArray
+    two_sided: bool
 
 
 def _label(kind: str, name: str | None) -> str:
@@ -111,6 +123,10 @@ class _Heights(DocumentModel):
     height_m: float = Field(
         gt=0, le=1e5, allow_inf_nan=False, description="Vertical extent above base_m [m] (> 0)"
     )
+    material: Material = Field(
+        DEFAULT_MATERIAL,
+        description="Facade material for reflections (ITU-R P.2040-1 Table 3; default concrete)",
+    )
 
     @property
     def top_m(self) -> float:
@@ -147,6 +163,17 @@ class Prism(_Heights):
         """[n, 2] footprint vertices."""
         return np.asarray(self.footprint, dtype=float)
 
+    def faces(self) -> Faces:
+        """One outward-facing face per footprint edge (edge k from vertex k to k + 1)."""
+        v = self.vertices
+        w = np.roll(v, -1, axis=0)
+        e = w - v
+        area2 = float(np.dot(v[:, 0], w[:, 1]) - np.dot(v[:, 1], w[:, 0]))
+        side = 1.0 if area2 > 0 else -1.0  # counter-clockwise: the outside is on the right
+        length = np.hypot(e[:, 0], e[:, 1])
+        normal = side * np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]
+        return Faces(v, w, normal, False)
+
 
 class WallObstacle(_Heights):
     """A zero-thickness vertical rectangle over the segment ``start``–``end``."""
@@ -166,6 +193,13 @@ class WallObstacle(_Heights):
         if length < MIN_EDGE_M:
             raise ValueError(f"{_label('wall', self.name)}: zero length (start = end)")
         return self
+
+    def faces(self) -> Faces:
+        """The wall's rectangle, reflecting on both sides (normal to the left of start→end)."""
+        s = np.asarray([self.start], dtype=float)
+        e = np.asarray([self.end], dtype=float)
+        u = (e - s) / np.hypot(*(e - s)[0])
+        return Faces(s, e, np.column_stack([-u[:, 1], u[:, 0]]), True)
 
 
 Obstacle = Annotated[Prism | WallObstacle, Field(discriminator="kind")]
