@@ -61,14 +61,26 @@ class ScattererCluster(DocumentModel):
 
 
 class Multipath(DocumentModel):
-    """Fixed scattering points and random clusters; empty means no multipath."""
+    """Fixed scattering points, random clusters and the site's own reflections; empty means
+    no multipath.
+
+    ``site_reflections``: add the first-order specular reflections off the scenario's
+    ``environment`` faces (image method, per-leg visibility, Fresnel coefficient of each
+    obstacle's ``material``; docs/concepts/environment.md "Reflections") for the LOS and
+    every TX–RIS and RIS–RX leg. Deterministic (no random draws); the diffuse scatterers and
+    clusters remain optional and combine with it.
+    """
 
     scatterers: list[Scatterer] = Field(default_factory=list, max_length=1000)
     clusters: list[ScattererCluster] = Field(default_factory=list, max_length=100)
+    site_reflections: bool = Field(
+        False,
+        description="Add first-order specular reflections off the environment's faces",
+    )
 
     @property
     def empty(self) -> bool:
-        return not self.scatterers and not self.clusters
+        return not self.scatterers and not self.clusters and not self.site_reflections
 
 
 class SearchArea(DocumentModel):

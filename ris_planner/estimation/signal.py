@@ -11,6 +11,10 @@ the one whose Fisher information the bounds compute. With an ``environment`` the
 those of ``bounds.scenario_path_presence`` for the scenario's pair: a blocked LOS is the
 LOS-blocked mode, a blocked or out-of-view RIS path is absent from the signal (its code column
 stays: Γ is the layout's), and RIS path gains carry the pattern factor as in the bounds.
+
+With ``multipath.site_reflections`` the first-order specular reflections off the environment's
+faces (:func:`ris_planner.environment.reflections.specular_paths`, image method) join the
+signal as multipath (:func:`site_reflection_paths`).
 """
 
 from __future__ import annotations
@@ -28,6 +32,9 @@ from ris_planner.bounds import (
     ris_path_gain,
     scenario_path_presence,
 )
+from ris_planner.environment.paths import in_field_of_view, ris_serves
+from ris_planner.environment.reflections import specular_paths
+from ris_planner.environment.scene import Scene
 from ris_planner.estimation.models import Multipath
 from ris_planner.fim import Radio, subcarrier_wavenumbers
 from ris_planner.scenario import Scenario
@@ -305,6 +312,91 @@ def scatterer_paths(
     )
 
 
+def site_reflection_paths(
+    setup: SignalSetup,
+    tx: FloatArray,
+    rx: FloatArray,
+    clock_offset_m: float,
+    phases: FloatArray,
+) -> Paths:
+    """First-order specular reflections off the environment's faces (image method,
+    docs/concepts/environment.md "Reflections"; docs/guides/estimation.md), as multipath
+    (``direct`` False).
+
+    * LOS (only with ``system.los``): per face reflecting the TX–RX leg, a copy of the LOS path
+      with the image geometry: length L' = |p_R − p_T'| (+ B), gain R · λ/(4π L').
+    * TX–RIS ℓ leg: the RIS sees the TX's image p_T' (the wave arrives from it): ξ, ζ, the
+      pattern factor and the length |p_T' − p_ℓ| + |p_ℓ − p_R| (+ B) are those of a TX at p_T',
+      the gain R · |ρ_ℓ(p_T', p_R)|; it exists when the image is in the RIS's field of view and
+      the RIS serves the RX (the other leg clear).
+    * RIS ℓ–RX leg: the same with the RX's image p_R'.
+
+    R is the face's Fresnel coefficient at the incidence angle. Phases: a reflected copy of
+    path m carries path m's random phase β_m (``phases`` [L+1]) and the carrier phase of its
+    extra length, e^{−j 2π (L' − L)/λ} (L the direct path's length; the delay vectors d_k hold
+    only the subcarrier offsets κ_k): the direct and the reflected copy interfere as on site.
+    """
+    sc = setup.scenario
+    lam = setup.wavelength
+    tx1 = np.asarray(tx, dtype=float).reshape(1, 3)
+    rx1 = np.asarray(rx, dtype=float).reshape(1, 3)
+    scene = Scene.from_environment(sc.environment)
+    centres = np.array([arr.position for arr in setup.ris]).reshape(-1, 3)
+    n_ris = centres.shape[0]
+    # one batched query: TX→RX, TX→RIS ℓ, RX→RIS ℓ (the image is the source's)
+    sources = np.concatenate([tx1, np.repeat(tx1, n_ris, 0), np.repeat(rx1, n_ris, 0)])
+    sinks = np.concatenate([rx1, centres, centres])
+    spec = specular_paths(scene, sources, sinks, sc.system.carrier_hz)
+    ris_idx: list[int] = []
+    length: list[float] = []
+    gain: list[complex] = []
+    xi: list[float] = []
+    zeta: list[float] = []
+    if setup.scenario.system.los:
+        d0 = float(geometry.los_distance(tx1, rx1)[0])
+        for k in np.flatnonzero(spec.valid[0]):
+            lk = float(spec.length[0, k])
+            extra = np.exp(-2j * np.pi * (lk - d0) / lam)
+            ris_idx.append(0)
+            length.append(lk + clock_offset_m)
+            gain.append(complex(spec.coefficient[0, k] * lam / (4 * np.pi * lk) * extra))
+            xi.append(0.0)
+            zeta.append(0.0)
+    for i, arr in enumerate(setup.ris):
+        ris = sc.ris[i]
+        direct = geometry.ris_path_geometry(tx1, rx1, arr.position, arr.orientation)
+        r_direct = float(direct.d_tx[0] + direct.d_rx[0])
+        serves_rx = bool(ris_serves(scene, ris, rx1)[0])
+        serves_tx = bool(ris_serves(scene, ris, tx1)[0])
+        for row, other_ok, tx_side in ((1 + i, serves_rx, True), (1 + n_ris + i, serves_tx, False)):
+            if not other_ok:
+                continue
+            for k in np.flatnonzero(spec.valid[row]):
+                image = spec.image[row, k][None, :]
+                if not in_field_of_view(ris, image)[0]:
+                    continue
+                a, b = (image, rx1) if tx_side else (tx1, image)
+                geo = geometry.ris_path_geometry(a, b, arr.position, arr.orientation)
+                r = float(geo.d_tx[0] + geo.d_rx[0])
+                alpha = float(ris_path_gain(ris, geo, a, b, lam)[0])
+                extra = np.exp(-2j * np.pi * (r - r_direct) / lam)
+                ris_idx.append(i + 1)
+                length.append(r + clock_offset_m)
+                gain.append(complex(spec.coefficient[row, k] * alpha * extra))
+                xi.append(float(geo.xi[0]))
+                zeta.append(float(geo.zeta[0]))
+    idx = np.asarray(ris_idx, dtype=int)
+    ph = np.asarray(phases, dtype=float)[idx]
+    return Paths(
+        ris=idx,
+        length=np.asarray(length, dtype=float),
+        gain=np.asarray(gain, dtype=complex) * np.exp(-1j * ph),
+        xi=np.asarray(xi, dtype=float),
+        zeta=np.asarray(zeta, dtype=float),
+        direct=np.zeros(idx.size, dtype=bool),
+    )
+
+
 def draw_scatterers(
     multipath: Multipath, rng: np.random.Generator
 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
@@ -334,12 +426,17 @@ def draw_scatterers(
 
 
 def realisation_paths(setup: SignalSetup, multipath: Multipath, rng: np.random.Generator) -> Paths:
-    """The true paths of one random realisation: uniform gain phases, SPs drawn per cluster."""
+    """The true paths of one random realisation: uniform gain phases, the site's reflections
+    (``multipath.site_reflections``: deterministic, with the phases of their direct paths),
+    SPs drawn per cluster. The random draws are the same with and without reflections."""
     sc = setup.scenario
     tx, rx = sc.tx_array[0], sc.rx_array[0]
     b = sc.system.clock_offset_m
-    paths = direct_paths(setup, tx, rx, b, rng.uniform(0, 2 * np.pi, setup.n_ris + 1))
-    if multipath.empty:
+    direct_phases = rng.uniform(0, 2 * np.pi, setup.n_ris + 1)
+    paths = direct_paths(setup, tx, rx, b, direct_phases)
+    if multipath.site_reflections:
+        paths = paths + site_reflection_paths(setup, tx, rx, b, direct_phases)
+    if not multipath.scatterers and not multipath.clusters:
         return paths
     sp, rcs, side = draw_scatterers(multipath, rng)
     phases = rng.uniform(0, 2 * np.pi, (len(sp), setup.n_ris + 1))
