@@ -90,8 +90,8 @@ def test_plan_body_limit_is_413(tmp_path: Path) -> None:
 
 
 def test_plan_job_with_validation(tmp_path: Path) -> None:
-    """The document's ``validation`` over REST: plan.json ``validation`` and its figure; the
-    reflections option is refused at submission while the reflection model is missing."""
+    """The document's ``validation`` over REST: plan.json ``validation`` and its figure; bad
+    settings are refused at submission with the field."""
     doc = small_plan_doc(ris_count=[3], validation={"pairs": 2, "draws": 1})
     with api_client(tmp_path, workers=1) as client:
         r = client.post("/v1/plans", json=doc)
@@ -104,6 +104,6 @@ def test_plan_job_with_validation(tmp_path: Path) -> None:
         assert "validation" in view["result"]["timing_s"]
         png = client.get(view["figures"]["validation"])
         assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
-        bad = small_plan_doc(validation={"reflections": True})
+        bad = small_plan_doc(validation={"pairs": 1000, "draws": 1000})
         r = client.post("/v1/plans", json=bad)
-        assert r.status_code == 422 and "not available" in r.json()["message"]
+        assert r.status_code == 422 and "exceed the limit" in r.json()["message"]

@@ -1,8 +1,8 @@
 """Plan validation (issue 23, ris_planner.planning.estimator_check): the two-stage estimator on
 a plan's recommended layout. Table I as a plan (its two RISs the only candidates, its TX and RX
 the only map points): reproducible from its seeds, the exactly-determined geometry's second
-solution and the TX↔RX swap reported as ghosts, too few paths reported as such, reflections
-refused while the model is missing, and the coarse (ξ, ζ) grid that grows with the aperture."""
+solution and the TX↔RX swap reported as ghosts, too few paths reported as such, the site's
+reflections in the signal, and the coarse (ξ, ζ) grid that grows with the aperture."""
 
 from __future__ import annotations
 
@@ -151,9 +151,18 @@ def test_outlier_classification_rules() -> None:
     assert classify_draw(5.0, 1.0, False, 50.0, 5.0, 10, False) == "coarse_failed"
 
 
-def test_reflections_refused_while_not_available() -> None:
-    with pytest.raises((ValueError, RisPlannerError), match="not available"):
-        validate_document(table1_plan({"reflections": True}))
+def test_site_reflections_enter_the_simulated_signal() -> None:
+    """A concrete wall behind Table I's TX: with ``reflections`` its specular copies of the
+    LOS and of the TX–RIS legs join the signal (multipath: biased channel estimates), so the
+    same seeds give other errors than without; the bounds are the same."""
+    wall = {"kind": "wall", "name": "w", "start": [-6, -6], "end": [6, -6], "height_m": 4.0}
+    doc = table1_plan({"draws": 1}) | {"environment": {"obstacles": [wall]}}
+    res = run_plan(doc, executor=SerialExecutor())
+    assert res.validation is not None and not res.validation["reflections"]
+    with_refl = recheck(res, reflections=True)
+    assert with_refl["reflections"] and with_refl["multipath"]
+    a, b = res.validation["layouts"][0]["pairs"][0], with_refl["layouts"][0]["pairs"][0]
+    assert a["peb_rx_m"] == b["peb_rx_m"] and a["rmse_rx_m"] != b["rmse_rx_m"]
 
 
 def test_search_region_defaults_to_the_tx_map_extent_and_respects_the_cap() -> None:

@@ -94,14 +94,16 @@ CAUSES = ("ghost", "threshold_snr", "multipath_bias", "coarse_failed", "not_enou
 def reflections_available() -> str | None:
     """``None`` when site reflections can be simulated, else why not (a message)."""
     try:
-        from ris_planner.environment import reflections  # type: ignore[attr-defined]
+        from ris_planner.environment import reflections
     except ImportError:
         return (
             "site reflections are not available in this build (the module"
             " ris_planner.environment.reflections is missing); leave 'reflections' false"
         )
-    if not hasattr(reflections, "specular_paths"):  # pragma: no cover - partial builds
-        return "site reflections are not available: reflections.specular_paths is missing"
+    if not hasattr(reflections, "specular_paths") or "site_reflections" not in (
+        Multipath.model_fields
+    ):  # pragma: no cover - partial builds
+        return "site reflections are not available: the signal simulation does not take them"
     return None
 
 
@@ -521,11 +523,10 @@ def run_estimator_check(
         reason = reflections_available()
         if reason is not None:
             raise RisPlannerError(f"validation.reflections: {reason}")
-        raise RisPlannerError(  # pragma: no cover - until the reflection model is merged
-            "validation.reflections: the signal simulation does not take reflections yet"
-        )
     threshold = threshold_of(doc)
-    multipath = Multipath.model_validate(spec.multipath or {})
+    multipath = Multipath.model_validate(
+        {**(spec.multipath or {}), **({"site_reflections": True} if spec.reflections else {})}
+    )
     candidates, region = search_candidates(spec, result.tx_map.points)
     tx, rx, _ = sample_pairs(result, spec.pairs, spec.seed)
     layouts = list(dict.fromkeys(cr.ranked[0][0] for cr in result.counts))
