@@ -80,6 +80,9 @@ def main() -> None:
     )
     ap.add_argument("--validate", type=int, default=0, help="estimator check at N pairs (0: off)")
     ap.add_argument("--draws", type=int, default=3, help="noise draws per validated pair")
+    ap.add_argument(
+        "--reflections", action="store_true", help="validate with the site's specular reflections"
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
     if args.smoke:
@@ -88,7 +91,11 @@ def main() -> None:
     if args.smoke:  # 2 RISs of 16×16 on 100 pairs
         doc |= {"ris": {"rows": 16, "cols": 16}, "ris_count": [2]}
     if args.validate:
-        doc["validation"] = {"pairs": args.validate, "draws": args.draws}
+        doc["validation"] = {
+            "pairs": args.validate,
+            "draws": args.draws,
+            "reflections": args.reflections,
+        }
     export_doc = {**doc, "environment": environment}  # buildings in the GIS files either way
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "helsinki_plan.json").write_text(json.dumps(doc, indent=1))

@@ -128,6 +128,9 @@ def test_tx_rx_swap_is_reported_as_a_ghost(table1: PlanResult) -> None:
     v = recheck(table1, search_region=AROUND_RX, draws=1)
     (out,) = v["layouts"][0]["pairs"][0]["outliers"]
     assert out["cause"] == "ghost" and out["ghost"] == "tx_rx_swap"
+    lay = v["layouts"][0]
+    # up to the swap the estimate is right: covered once the roles are known
+    assert lay["estimator_coverage"] == 0.0 and lay["estimator_coverage_swap_resolved"] == 1.0
     assert_close(out["tx_m"], [2.0, 3.0, 0.0], ulps=0, atol=0.1)  # the RX, up to the noise
 
 
