@@ -26,6 +26,7 @@ from ris_planner.estimation.signal import noise_free_signal, realisation_paths, 
 from ris_planner.planning import SerialExecutor
 from ris_planner.planning.estimator_check import (
     OUTLIER_FACTOR,
+    SNR_THRESHOLD_DB,
     classify_draw,
     run_estimator_check,
     search_candidates,
@@ -144,14 +145,18 @@ def test_too_few_paths_are_reported_not_estimated() -> None:
 
 
 def test_outlier_classification_rules() -> None:
-    """classify_draw: within the factor no outlier; the swap first; channel misfit → SNR or
-    multipath; an equally good fit elsewhere → ghost; else the coarse stage's basin."""
-    assert classify_draw(3.9, 1.0, False, 0.0, 0.0, 7, False) is None
-    assert classify_draw(5.0, 1.0, True, 0.0, 100.0, 7, True) == "ghost"
-    assert classify_draw(5.0, 1.0, False, 0.0, 100.0, 7, False) == "threshold_snr"
-    assert classify_draw(5.0, 1.0, False, 0.0, 100.0, 7, True) == "multipath_bias"
-    assert classify_draw(5.0, 1.0, False, 1.0, 5.0, 10, False) == "ghost"
-    assert classify_draw(5.0, 1.0, False, 50.0, 5.0, 10, False) == "coarse_failed"
+    """classify_draw: within the factor no outlier; the swap first; channel misfit → the SNR
+    threshold below it, else multipath (or the coarse stage); an equally good fit elsewhere →
+    ghost; else the coarse stage's basin."""
+    weak, strong = SNR_THRESHOLD_DB - 1, SNR_THRESHOLD_DB + 1
+    assert classify_draw(3.9, 1.0, False, 0.0, 0.0, 7, False, strong) is None
+    assert classify_draw(5.0, 1.0, True, 0.0, 100.0, 7, True, strong) == "ghost"
+    assert classify_draw(5.0, 1.0, False, 0.0, 100.0, 7, True, weak) == "threshold_snr"
+    assert classify_draw(5.0, 1.0, False, 0.0, 100.0, 7, False, weak) == "threshold_snr"
+    assert classify_draw(5.0, 1.0, False, 0.0, 100.0, 7, True, strong) == "multipath_bias"
+    assert classify_draw(5.0, 1.0, False, 0.0, 100.0, 7, False, strong) == "coarse_failed"
+    assert classify_draw(5.0, 1.0, False, 1.0, 5.0, 10, False, strong) == "ghost"
+    assert classify_draw(5.0, 1.0, False, 50.0, 5.0, 10, False, strong) == "coarse_failed"
 
 
 def test_site_reflections_enter_the_simulated_signal() -> None:
