@@ -215,7 +215,15 @@ def path_snr_db(setup: SignalSetup) -> dict[str, float]:
     paths = direct_paths(setup, sc.tx_array[0], sc.rx_array[0], 0.0, np.zeros(setup.n_ris + 1))
     out = {}
     for k in range(paths.ris.size):
-        one = Paths(*(a[k : k + 1] for a in paths.astuple()))
+        sl = slice(k, k + 1)
+        one = Paths(
+            ris=paths.ris[sl],
+            length=paths.length[sl],
+            gain=paths.gain[sl],
+            xi=paths.xi[sl],
+            zeta=paths.zeta[sl],
+            direct=paths.direct[sl],
+        )
         energy = float(np.sum(np.abs(noise_free_signal(setup, one)) ** 2))
         name = "los" if paths.ris[k] == 0 else f"ris{int(paths.ris[k])}"
         out[name] = 10 * math.log10(max(energy / setup.noise_variance_w, 1e-300))
