@@ -8,7 +8,13 @@ measured in the same run: the (ξ, ζ) search as a Python loop over the paper's 
 the delay search as a Python loop over the N_F grid, and the coarse position search as a Python
 loop over the candidates; each checked to pick the same grid point as the fast version.
 
-    python benchmarks/bench_estimation.py [--repeats 20]
+``--sizes 16,64,100`` (issue 23: the apertures plans use) then times one full estimate with
+both RISs of Table I resized to N × N (the (ξ, ζ) FFT grid max(100, 2N) per axis, its
+normaliser in batches: channel_estimation.angle_grid_size), as the median of ``--repeats``
+realisations and as a ratio to the 10 × 10 estimate measured in the same run; each size's
+refined p_R error is printed next to PEB_R (the estimate is right, not only fast).
+
+    python benchmarks/bench_estimation.py [--repeats 20] [--sizes 16,64,100]
 """
 
 from __future__ import annotations
@@ -21,7 +27,6 @@ import numpy as np
 
 from ris_planner import load_scenario, preset_document
 from ris_planner.estimation.channel_estimation import wrap
-from ris_planner.estimation.models import EstimatorSettings, Multipath
 from ris_planner.estimation.pipeline import Estimator
 from ris_planner.estimation.position_estimation import candidate_costs
 from ris_planner.estimation.signal import (
@@ -30,6 +35,7 @@ from ris_planner.estimation.signal import (
     separate_paths,
     signal_setup,
 )
+from ris_planner.model.simulation import EstimatorSettings, Multipath
 
 
 def naive_angles(setup, index, s, m):  # type: ignore[no-untyped-def]
@@ -77,10 +83,62 @@ def timed(fn, repeats):  # type: ignore[no-untyped-def]
     return statistics.median(times), out
 
 
+def size_runs(size: int, repeats: int) -> tuple[float, float, float, float, int]:
+    """(setup s, median full estimate s, median refined ‖Δp_R‖, PEB_R, (ξ, ζ) grid) of Table I
+    with both RISs N × N at 30 dBm, noise figure 0 dB."""
+    from ris_planner.bounds.compute import compute_bounds
+
+    doc = preset_document("paper-table1")
+    doc["system"]["noise_figure_db"] = 0.0
+    for r in doc["ris"]:
+        r["rows"] = r["cols"] = size
+    sc = load_scenario(doc)
+    t0 = time.perf_counter()
+    setup = signal_setup(sc)
+    settings = EstimatorSettings()
+    est = Estimator(setup, settings, settings.search_area.candidates(sc.tx_array[0]))
+    _ = est.channel.angle_normalisers
+    t_setup = time.perf_counter() - t0
+    rng = np.random.default_rng(size)
+    times, errs = [], []
+    for _ in range(repeats):
+        paths = realisation_paths(setup, Multipath(), rng)
+        yt = separate_paths(setup, received_signal(setup, paths, rng))
+        t1 = time.perf_counter()
+        fe = est.estimate(yt)
+        times.append(time.perf_counter() - t1)
+        errs.append(float(np.linalg.norm(fe.position_refined.rx - sc.rx_array[0])))
+    peb_r = float(compute_bounds(sc).peb_rx[0])
+    return (
+        t_setup,
+        statistics.median(times),
+        statistics.median(errs),
+        peb_r,
+        est.channel.angle_sizes[0],
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=20)
+    parser.add_argument(
+        "--sizes", default="", help="comma-separated N of N × N RISs, e.g. 16,64,100"
+    )
     args = parser.parse_args()
+    if args.sizes:
+        ref = size_runs(10, args.repeats)[1]
+        print(
+            f"one full estimate per RIS size (median of {args.repeats}),"
+            f" ratio to 10×10 = {ref * 1e3:.1f} ms"
+        )
+        for n in (int(v) for v in args.sizes.split(",")):
+            t_setup, t_est, err, peb, grid = size_runs(n, args.repeats)
+            print(
+                f"  {n:4d}×{n:<4d} grid {grid:4d}²  setup {t_setup * 1e3:8.1f} ms  estimate"
+                f" {t_est * 1e3:8.1f} ms  ({t_est / ref:5.1f}× 10×10)  median ‖Δp_R‖"
+                f" {err:.2e} m, PEB_R {peb:.2e} m"
+            )
+        return
     doc = preset_document("paper-table1")
     doc["system"]["noise_figure_db"] = 0.0
     sc = load_scenario(doc)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ris_planner import preset_document
-from ris_planner.estimation.models import load_simulation
+from ris_planner.estimation.document import load_simulation
 from ris_planner.estimation.montecarlo import run_monte_carlo
 from ris_planner.estimation.plots import plot_channel_rmse, plot_rmse_vs_power
 from ris_planner.model.paper import paper_curve

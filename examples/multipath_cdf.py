@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from ris_planner import preset_document
-from ris_planner.estimation.models import Multipath, SimulationDocument, paper_clusters
+from ris_planner.estimation.document import SimulationDocument
 from ris_planner.estimation.montecarlo import run_monte_carlo
 from ris_planner.estimation.plots import plot_error_cdf
 from ris_planner.model.scenario import load_scenario
+from ris_planner.model.simulation import Multipath, paper_clusters
 from ris_planner.runtime.progress import ProgressBar
 
 # (label, power dBm, RCS m², height m or None) and the paper's CDF on its ε grid

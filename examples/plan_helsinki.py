@@ -17,7 +17,11 @@ GeoJSON / GeoTIFF / CSV in WGS84.
 The plan document passes ``environment`` to the planner when the planner takes one (the
 environment-aware planning, docs/concepts/planning.md); otherwise the buildings are exported only.
 
-    python examples/plan_helsinki.py --out out/helsinki [--pairs 1500] [--workers 2]
+With ``--validate N`` each recommended layout is also checked by the two-stage estimator at N
+pairs sampled from the streets (``--draws`` noise draws each; plan.json ``validation``,
+``validation.png``, docs/validation/estimator.md).
+
+    python examples/plan_helsinki.py --out out/helsinki [--pairs 1500] [--validate 10]
 """
 
 from __future__ import annotations
@@ -74,6 +78,11 @@ def main() -> None:
         action="store_true",
         help="tiny sizes, output in a temporary folder (seconds; tests/test_examples.py)",
     )
+    ap.add_argument("--validate", type=int, default=0, help="estimator check at N pairs (0: off)")
+    ap.add_argument("--draws", type=int, default=3, help="noise draws per validated pair")
+    ap.add_argument(
+        "--reflections", action="store_true", help="validate with the site's specular reflections"
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
     if args.smoke:
@@ -81,6 +90,12 @@ def main() -> None:
     doc, environment = helsinki_document(args.pairs)
     if args.smoke:  # 2 RISs of 16×16 on 100 pairs
         doc |= {"ris": {"rows": 16, "cols": 16}, "ris_count": [2]}
+    if args.validate:
+        doc["validation"] = {
+            "pairs": args.validate,
+            "draws": args.draws,
+            "reflections": args.reflections,
+        }
     export_doc = {**doc, "environment": environment}  # buildings in the GIS files either way
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "helsinki_plan.json").write_text(json.dumps(doc, indent=1))
@@ -105,6 +120,10 @@ def main() -> None:
             f"{entry['ris_count']} RIS: sites {entry['sites']} coverage {entry['objective']:.3f}"
             f" median PEB_R {'inf (blind)' if median is None else f'{median:.3g} m'}"
         )
+    if result.validation is not None:
+        from ris_planner.planning.estimator_check import summary_lines
+
+        print("\n".join(summary_lines(result.validation)))
     diagnosis = plan["diagnosis"]
     print(f"diagnosis: {diagnosis['verdict']}")
     for cause in diagnosis["causes"]:

@@ -45,7 +45,7 @@ def _cell(text: object) -> str:
 
 
 def schemas() -> str:
-    from ris_planner.estimation.models import SimulationDocument
+    from ris_planner.estimation.document import SimulationDocument
     from ris_planner.model.plan import PlanDocument
     from ris_planner.model.scenario import Scenario
 

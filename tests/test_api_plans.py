@@ -87,3 +87,23 @@ def test_plan_body_limit_is_413(tmp_path: Path) -> None:
         r = client.post("/v1/plans", json=doc)
         assert r.status_code == 413 and r.json()["limit"] == 4096
         assert client.get("/v1/jobs").json()["total"] == 0
+
+
+def test_plan_job_with_validation(tmp_path: Path) -> None:
+    """The document's ``validation`` over REST: plan.json ``validation`` and its figure; bad
+    settings are refused at submission with the field."""
+    doc = small_plan_doc(ris_count=[3], validation={"pairs": 2, "draws": 1})
+    with api_client(tmp_path, workers=1) as client:
+        r = client.post("/v1/plans", json=doc)
+        assert r.status_code == 202
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=300)
+        assert view["status"] == "succeeded", view["error"]
+        v = view["result"]["validation"]
+        assert v["pairs"] == 2 and [lay["ris_count"] for lay in v["layouts"]] == [3]
+        assert len(v["layouts"][0]["pairs"]) == 2 and v["threshold_m"] == 1.0
+        assert "validation" in view["result"]["timing_s"]
+        png = client.get(view["figures"]["validation"])
+        assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+        bad = small_plan_doc(validation={"pairs": 1000, "draws": 1000})
+        r = client.post("/v1/plans", json=bad)
+        assert r.status_code == 422 and "exceed the limit" in r.json()["message"]

@@ -13,14 +13,7 @@ from scipy.stats import chi2
 
 from ris_planner import compute_bounds, load_scenario, preset_document
 from ris_planner.estimation.channel_estimation import ChannelEstimator, wrap
-from ris_planner.estimation.models import (
-    EstimatorSettings,
-    Multipath,
-    Scatterer,
-    SimulationDocument,
-    load_simulation,
-    paper_clusters,
-)
+from ris_planner.estimation.document import SimulationDocument, load_simulation
 from ris_planner.estimation.montecarlo import run_monte_carlo
 from ris_planner.estimation.pipeline import Estimator
 from ris_planner.estimation.signal import (
@@ -32,6 +25,7 @@ from ris_planner.estimation.signal import (
     separate_paths,
     signal_setup,
 )
+from ris_planner.model.simulation import EstimatorSettings, Multipath, Scatterer, paper_clusters
 from ris_planner.physics.geometry import steering_vector
 
 

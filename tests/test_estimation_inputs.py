@@ -14,8 +14,9 @@ from ris_planner import load_scenario, preset_document
 from ris_planner.cli import main
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.estimation.blind_area import cost_map
-from ris_planner.estimation.models import SearchArea, load_simulation
+from ris_planner.estimation.document import load_simulation
 from ris_planner.estimation.montecarlo import run_monte_carlo
+from ris_planner.model.simulation import SearchArea
 
 
 def sim_doc(**parts: Any) -> dict[str, Any]:

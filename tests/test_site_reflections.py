@@ -13,7 +13,7 @@ from importlib import resources
 import numpy as np
 from tolerance import assert_close
 
-from ris_planner.estimation.models import Multipath, load_simulation
+from ris_planner.estimation.document import load_simulation
 from ris_planner.estimation.signal import (
     Paths,
     direct_paths,
@@ -21,6 +21,7 @@ from ris_planner.estimation.signal import (
     realisation_paths,
     signal_setup,
 )
+from ris_planner.model.simulation import Multipath
 
 WALL_Y = -8.0
 EPS0 = 8.8541878128e-12

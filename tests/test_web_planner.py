@@ -305,10 +305,28 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         "message": "8 × 8 elements with 2 RISs reach the objective",
     }
 
+    validation = {  # plan.json validation (ris_planner.planning.estimator_check)
+        "pairs": 10,
+        "draws": 5,
+        "threshold_m": 0.5,
+        "multipath": False,
+        "reflections": False,
+        "layouts": [
+            {
+                "ris_count": 2,
+                "sites": [0, 3],
+                "estimator_coverage": 0.4,
+                "bound_coverage": 0.8,
+                "shortfall": {"count": 3, "covered_pairs": 8, "by_cause": {"ghost": 3}},
+                "outliers": {"ghost": 7, "threshold_snr": 0},
+            }
+        ],
+    }
+
     def with_keys(route: Any) -> None:
         answer = route.fetch()
         body = answer.json()
-        body["result"] |= {"diagnosis": diagnosis, "sizing": sizing}
+        body["result"] |= {"diagnosis": diagnosis, "sizing": sizing, "validation": validation}
         route.fulfill(response=answer, json=body)
 
     pg.route(f"**/v1/jobs/{job_id}", with_keys)
@@ -322,6 +340,11 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(pg.locator("#sizing-answer")).to_contain_text("8 × 8 elements with 2 RIS")
     expect(pg.locator("#sizing-table tbody tr")).to_have_count(2)
     expect(pg.locator("#sizing-table tr.answer")).to_contain_text("yes")
+    row = pg.locator("#estimator-check-table tbody tr")
+    expect(row).to_have_count(1)
+    expect(row).to_contain_text("40 %")
+    expect(row).to_contain_text("80 %")
+    expect(row).to_contain_text("3 of 8 (ghost 3)")
     shots.take(pg, "planner-04-diagnosis-sizing")
     box.get_by_role("button", name="Use 16 × 16 elements").click()
     assert (pg.input_value("#f-ris-rows"), pg.input_value("#f-ris-cols")) == ("16", "16")

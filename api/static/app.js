@@ -7,10 +7,11 @@
  * POST /v1/candidates/convert → the form edits the key fields → POST /v1/plans/validate (422
  * field errors shown next to their inputs; a valid answer previews the expanded sites and UE
  * maps, drawn to scale; POST /v1/site/preview draws a site without candidates) →
- * POST /v1/plans (with "sizing": {} to size the RIS) → progress from GET /v1/jobs/{id}/events
+ * POST /v1/plans (with "sizing": {} to size the RIS, "validation": {"pairs": N} to check the
+ * layouts with the estimator) → progress from GET /v1/jobs/{id}/events
  * (server-sent events, read with fetch so an API key header can be sent; reconnects with
  * backoff) → GET /v1/jobs/{id}: plan.json's by_count, points, heatmap, diagnosis and sizing
- * drawn on the map, in the tables and in the charts.
+ * drawn on the map, in the tables and in the charts; its validation as a table.
  */
 (function () {
   "use strict";
@@ -989,6 +990,7 @@
     $("results").hidden = false;
     renderDiagnosis(plan.diagnosis);
     renderSizing(plan.sizing);
+    renderEstimatorCheck(plan.validation);
     const metric = METRIC_LABEL[plan.objective.metric] || plan.objective.metric;
     const better = plan.objective_better === "higher" ? "higher is better" : "lower is better";
     $("results-note").textContent =
@@ -1132,6 +1134,33 @@
       table.append(tb);
       box.append(h("div", { class: "table-wrap" }, table));
     }
+  }
+
+  /** plan.json's validation: per layout the estimator's coverage next to the bound's, and why
+   * and how often it falls short of the bound. */
+  function renderEstimatorCheck(v) {
+    const box = clear($("estimator-check"));
+    box.hidden = !v;
+    if (!v) return;
+    box.append(h("h3", { text: "Estimator check" }));
+    box.append(h("p", { class: "muted", text: `${v.pairs} pairs × ${v.draws} draws, error ≤ ${fmtNum(v.threshold_m)} m` +
+      (v.multipath ? ", with multipath" : "") + (v.reflections ? ", with site reflections" : "") }));
+    const layouts = Array.isArray(v.layouts) ? v.layouts : [];
+    const pct = (x) => (x === null || x === undefined ? "—" : `${(100 * x).toFixed(0)} %`);
+    const causes = (m) => Object.entries(m || {}).filter(([, k]) => k > 0).map(([c, k]) => `${c.replace(/_/g, " ")} ${k}`).join(", ") || "—";
+    const table = h("table", { id: "estimator-check-table" }, h("caption", { class: "sr-only", text: "Estimator coverage next to the bound's" }),
+      h("thead", {}, h("tr", {}, ["RIS", "Sites", "Estimator coverage", "Bound coverage", "Short of the bound", "Outlier draws"].map((t) => h("th", { scope: "col", text: t })))));
+    const tb = h("tbody");
+    for (const lay of layouts) {
+      const sf = lay.shortfall || {};
+      tb.append(h("tr", {},
+        h("td", { text: String(lay.ris_count) }), h("td", { text: (lay.sites || []).join(", ") }),
+        h("td", { text: pct(lay.estimator_coverage) }), h("td", { text: pct(lay.bound_coverage) }),
+        h("td", { text: `${sf.count || 0} of ${sf.covered_pairs || 0}` + (sf.count ? ` (${causes(sf.by_cause)})` : "") }),
+        h("td", { text: causes(lay.outliers) })));
+    }
+    table.append(tb);
+    box.append(h("div", { class: "table-wrap" }, table));
   }
 
   function fmtGain(g) {
@@ -2052,6 +2081,15 @@
     $("reimport").addEventListener("click", runImport);
     $("generate").addEventListener("click", generateCandidates);
     $("find-size").addEventListener("click", () => submit(null, { sizing: {} }));
+    $("validate-pairs").addEventListener("change", () => {
+      const n = Math.round(Number($("validate-pairs").value));
+      $("validate-pairs").value = String(Math.min(1000, Math.max(1, Number.isFinite(n) ? n : 10)));
+    });
+    $("validate-plan").addEventListener("click", () => {
+      const n = Math.min(1000, Math.max(1, Math.round(Number($("validate-pairs").value)) || 10));
+      const given = (state.doc && state.doc.validation) || {};
+      submit(null, { validation: Object.assign({}, given, { pairs: n }) });
+    });
     $("f-pairs-mode").addEventListener("change", updatePairsField);
     for (const id of ["ce-azimuth", "ce-height", "ce-tilt"]) $(id).addEventListener("change", onEditorInput);
     $("ce-left").addEventListener("click", () => turnSelected(-15));

@@ -58,7 +58,7 @@ def _simulation_document(args: argparse.Namespace) -> dict[str, object]:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from ris_planner.estimation.models import load_simulation
+    from ris_planner.estimation.document import load_simulation
     from ris_planner.estimation.montecarlo import run_monte_carlo
 
     doc = load_simulation(_simulation_document(args))

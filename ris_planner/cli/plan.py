@@ -38,6 +38,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         doc = {**doc, "rollout": "nested"}
     if args.beams and doc.get("beams") is None:
         doc = {**doc, "beams": {}}  # the default beam settings (PlanDocument.beams)
+    if args.validate is not None:  # the document's validation settings, N pairs
+        doc = {**doc, "validation": {**(doc.get("validation") or {}), "pairs": args.validate}}
     if args.sizing and doc.get("sizing") is None:
         doc = {**doc, "sizing": {}}  # the default ladder and target (PlanDocument.sizing)
     executor: Executor = (
@@ -63,6 +65,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         print(f"decision: {plan['decision']['message']}")
     if "sizing" in plan:
         print(f"sizing: {plan['sizing']['message']}")
+    if "validation" in plan:
+        from ris_planner.planning.estimator_check import summary_lines as validation_lines
+
+        for line in validation_lines(plan["validation"]):
+            print(line)
     diagnosis = plan.get("diagnosis")
     if diagnosis is not None:
         for line in summary_lines(diagnosis):
@@ -99,6 +106,15 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="also answer the smallest RIS size × count that reaches the target (the"
         " document's 'sizing' settings, the default ladder 10×10 … 100×100 if absent)",
+    )
+    p.add_argument(
+        "--validate",
+        type=int_in(1, 1000),
+        default=None,
+        metavar="N",
+        help="check each recommended layout with the two-stage estimator at N pairs sampled"
+        " from the maps (the document's 'validation' settings otherwise: draws, seed,"
+        " reflections; plan.json 'validation', validation.png)",
     )
     p.add_argument(
         "--fail-on-useless",

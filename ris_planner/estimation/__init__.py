@@ -6,14 +6,13 @@ Algorithm 2, ``pipeline`` runs both, ``montecarlo`` sweeps power against the CRB
 ``blind_area`` maps the noise-free coarse cost.
 """
 
-from ris_planner.estimation.models import (
+from ris_planner.estimation.document import SimulationDocument, load_simulation
+from ris_planner.model.simulation import (
     EstimatorSettings,
     Multipath,
     Scatterer,
     ScattererCluster,
     SearchArea,
-    SimulationDocument,
-    load_simulation,
     paper_clusters,
 )
 

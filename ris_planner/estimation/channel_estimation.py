@@ -8,7 +8,11 @@ Coarse stage
     with v = Σ_g δ_g conj(ω_g) s_g (s_g = d^H(τ̂) Ĥ_ℓ[:, g]), i.e. the matched filter of eq.
     coarse_ris_xizeta (erratum, docs/concepts/model.md: argmax of the correlation) normalised by
     the beam energy. a^H v over a grid is a zero-padded 2-D FFT of v on the rows × cols
-    aperture; the normaliser is data-independent and computed once per setup.
+    aperture; the normaliser is data-independent and computed once per setup. The grid has
+    max(``angle_fft_size``, 2·max(rows, cols)) points per axis (:func:`angle_grid_size`), so a
+    large aperture (64 × 64, 100 × 100: a main lobe 2/N wide) always has ≥ 2 grid points per
+    lobe and is never cropped by the FFT; the normaliser's FFTs run in batches of beams
+    (:data:`NORMALISER_BATCH_ELEMENTS`), so its memory stays bounded whatever G̃ and the grid.
 
 Refinement (eq. mle_channel_estimation): maximise the concentrated likelihood
 |μ^H ỹ|²/‖μ‖² (the gain ρ̂ = μ^H ỹ/‖μ‖² eliminated) by Fisher scoring: the step is EFIM⁻¹·score,
@@ -35,6 +39,16 @@ ComplexArray = NDArray[np.complex128]
 SCORING_STEP_TOL = 1e-4
 """Fisher scoring stops when the step is below this many CRB standard deviations
 (sqrt(Δ^T·EFIM·Δ)): far below the statistical error, so the iterate is converged."""
+
+
+NORMALISER_BATCH_ELEMENTS = 1 << 22
+"""Complex entries (64 MiB) of one batch of beam spectra in the (ξ, ζ) normaliser."""
+
+
+def angle_grid_size(requested: int, rows: int, cols: int) -> int:
+    """Points per axis of the (ξ, ζ) FFT grid: the requested size, at least 2·max(rows, cols)
+    (half a main lobe 2/N per grid step: the refinement starts inside the lobe)."""
+    return max(int(requested), 2 * max(int(rows), int(cols)))
 
 
 def wrap(value: FloatArray | float, period: FloatArray | float) -> FloatArray:
@@ -85,19 +99,25 @@ class ChannelEstimator:
         self.setup = setup
         self.delay_fft_size = delay_fft_size
         self.angle_fft_size = angle_fft_size
+        self.angle_sizes = tuple(angle_grid_size(angle_fft_size, a.rows, a.cols) for a in setup.ris)
+        """Grid points per axis of each RIS's (ξ, ζ) search (:func:`angle_grid_size`)."""
 
     # ----- coarse ---------------------------------------------------------------------------
 
     @cached_property
     def angle_normalisers(self) -> tuple[FloatArray, ...]:
-        """Σ_g δ_g² |ω_g^T a_R(ξ, ζ)|² on the FFT grid, one [M, M] per RIS."""
-        m = self.angle_fft_size
+        """Σ_g δ_g² |ω_g^T a_R(ξ, ζ)|² on the FFT grid, one [M, M] per RIS (beams in batches
+        of ≤ :data:`NORMALISER_BATCH_ELEMENTS` spectrum entries)."""
         out = []
         dl2 = self.setup.beam_weights
-        for arr, prof in zip(self.setup.ris, self.setup.profiles, strict=True):
+        for arr, prof, m in zip(self.setup.ris, self.setup.profiles, self.angle_sizes, strict=True):
             blocks = np.conj(prof).reshape(-1, arr.rows, arr.cols)
-            spec = np.fft.fft2(blocks, s=(m, m))
-            out.append(np.tensordot(dl2, np.abs(spec) ** 2, axes=1))
+            batch = max(1, NORMALISER_BATCH_ELEMENTS // (m * m))
+            acc = np.zeros((m, m))
+            for b0 in range(0, blocks.shape[0], batch):
+                spec = np.fft.fft2(blocks[b0 : b0 + batch], s=(m, m))
+                acc += np.tensordot(dl2[b0 : b0 + batch], np.abs(spec) ** 2, axes=1)
+            out.append(acc)
         return tuple(out)
 
     def coarse_delay(self, h: ComplexArray) -> float:
@@ -111,7 +131,7 @@ class ChannelEstimator:
     def coarse_angles(self, index: int, s: ComplexArray) -> tuple[float, float]:
         """(ξ̂, ζ̂) of RIS ``index`` from s_g = d^H(τ̂) Ĥ[:, g] by the 2-D FFT matched filter."""
         arr = self.setup.ris[index]
-        m = self.angle_fft_size
+        m = self.angle_sizes[index]
         dl = np.sqrt(self.setup.beam_weights)
         v = np.conj(self.setup.profiles[index]).T @ (dl * s)
         spec = np.fft.fft2(v.reshape(arr.rows, arr.cols), s=(m, m))

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.estimation.channel_estimation import ChannelEstimate, wrap
-from ris_planner.estimation.models import SimulationDocument
+from ris_planner.estimation.document import SimulationDocument
 from ris_planner.estimation.pipeline import Estimator
 from ris_planner.estimation.position_estimation import EstimationError
 from ris_planner.estimation.signal import (

@@ -16,13 +16,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.estimation.channel_estimation import ChannelEstimate, ChannelEstimator
-from ris_planner.estimation.models import EstimatorSettings
 from ris_planner.estimation.position_estimation import (
     PositionEstimate,
     coarse_position,
     refine_position,
 )
 from ris_planner.estimation.signal import SignalSetup
+from ris_planner.model.simulation import EstimatorSettings
 
 ComplexArray = NDArray[np.complex128]
 FloatArray = NDArray[np.float64]

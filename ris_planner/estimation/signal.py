@@ -35,8 +35,8 @@ from ris_planner.bounds.paths import in_field_of_view, ris_serves
 from ris_planner.core.units import SPEED_OF_LIGHT
 from ris_planner.environment.reflections import specular_paths
 from ris_planner.environment.scene import Scene
-from ris_planner.estimation.models import Multipath
 from ris_planner.model.scenario import Scenario
+from ris_planner.model.simulation import Multipath
 from ris_planner.physics import beams, codebooks, geometry
 from ris_planner.physics.fim import Radio, subcarrier_wavenumbers
 

@@ -56,9 +56,12 @@ def plan_document(
     inputs = prepare_plan(local)
     sweep = inputs.document.sweep
     runs = 1 if sweep is None else 1 + len(sweep.values)
-    stages = Stages(
-        progress, {"plan": runs * sum(plan_work(inputs).values()), **report_work(inputs)}
-    )
+    work = runs * sum(plan_work(inputs).values())
+    if inputs.document.validation is not None:  # the validation stage runs inside run_plan
+        from ris_planner.planning.estimator_check import validation_work
+
+        work += validation_work(inputs.document.validation, len(inputs.counts))
+    stages = Stages(progress, {"plan": work, **report_work(inputs)})
     on_plan = stages.callback("plan")
     result = run_plan(local, on_plan, executor, inputs=None if sweep is not None else inputs)
     fill_fields(result, stages.callback("fields"))

@@ -16,7 +16,7 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
@@ -40,6 +40,7 @@ from ris_planner.model.scenario import (
     SystemParams,
     finite_point,
 )
+from ris_planner.model.simulation import Multipath
 
 MAX_PAIRS_LIMIT = 500_000
 """The largest ``max_pairs`` a document may set (memory: a cached site holds 28 floats per pair)."""
@@ -687,6 +688,85 @@ class BeamsSpec(DocumentModel):
     )
 
 
+MAX_VALIDATION_ESTIMATES = 20_000
+"""Pairs × draws of a plan validation above this are refused (≈ 30–100 ms per estimate)."""
+
+
+class SearchRegion(DocumentModel):
+    """A box of TX candidates for the estimator's coarse stage (a prior a deployment knows)."""
+
+    min_m: Point3
+    max_m: Point3
+
+    @model_validator(mode="after")
+    def _check_box(self) -> SearchRegion:
+        lo, hi = np.asarray(self.min_m, float), np.asarray(self.max_m, float)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise ValueError("search_region corners must be finite")
+        if np.any(hi < lo):
+            axis = int(np.argmax(hi < lo))
+            raise ValueError(
+                f"search_region is empty: max_m[{axis}] = {hi[axis]} < min_m[{axis}] = {lo[axis]}"
+            )
+        return self
+
+
+class ValidationSpec(DocumentModel):
+    """Validate the recommended layouts with the paper's two-stage estimator (Algorithms 1
+    and 2) on the plan's own pairs, blockage and multipath (plan.json ``validation``;
+    :mod:`ris_planner.planning.estimator_check`, docs/validation/estimator.md)."""
+
+    pairs: int = Field(20, ge=1, le=1000, description="TX–RX pairs sampled ∝ the plan's weights")
+    draws: int = Field(5, ge=1, le=1000, description="Noise and gain-phase draws per pair")
+    seed: int = Field(0, ge=0, description="Seed of the pair sample, the codebook and the draws")
+    reflections: bool = Field(
+        False,
+        description="Add first-order specular reflections off the environment's facades and"
+        " walls to the simulated signal (ris_planner.environment.reflections)",
+    )
+    multipath: dict[str, Any] | None = Field(
+        None,
+        description="Diffuse scatterers/clusters as in the simulation document's 'multipath'",
+    )
+    search_region: SearchRegion | None = Field(
+        None,
+        description="Box of TX candidates of the coarse position search (a prior); default the"
+        " TX map's extent",
+    )
+    step_m: float = Field(
+        0.2, gt=0, le=100, allow_inf_nan=False, description="TX candidate grid step [m]"
+    )
+    max_candidates: int = Field(
+        50_000,
+        ge=1,
+        le=2_000_000,
+        description="Largest TX candidate count: the step grows until the region fits",
+    )
+    threshold_m: float | None = Field(
+        None,
+        gt=0,
+        allow_inf_nan=False,
+        description="Error threshold of the coverage [m]; default the objective's threshold_m"
+        " (coverage) or cap_m (mean_capped)",
+    )
+
+    @model_validator(mode="after")
+    def _check_spec(self) -> ValidationSpec:
+        if self.pairs * self.draws > MAX_VALIDATION_ESTIMATES:
+            raise ValueError(
+                f"validation: {self.pairs} pairs × {self.draws} draws exceed the limit of"
+                f" {MAX_VALIDATION_ESTIMATES} estimates"
+            )
+        if self.multipath is not None:
+            try:
+                Multipath.model_validate(self.multipath)
+            except ValidationError as exc:
+                first = exc.errors()[0]
+                where = ".".join(str(p) for p in first["loc"])
+                raise ValueError(f"validation.multipath.{where}: {first['msg']}") from None
+        return self
+
+
 class PlanDocument(DocumentModel):
     """A planning request: where UEs are, where RISs may go, what to optimise."""
 
@@ -775,6 +855,11 @@ class PlanDocument(DocumentModel):
     heatmap_tx: Point3 | None = Field(
         None,
         description="Fixed TX position [m] for the heatmap; default: TX averaged over its map",
+    )
+    validation: ValidationSpec | None = Field(
+        None,
+        description="Run the two-stage estimator on each recommended layout at pairs sampled"
+        " from the maps (plan.json 'validation'; docs/validation/estimator.md)",
     )
 
     @field_validator("heatmap_tx")

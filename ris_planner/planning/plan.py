@@ -178,6 +178,9 @@ class PlanResult:
     """Whether the plan is useful, and why not (:func:`ris_planner.planning.diagnosis.diagnose`)."""
     rollout: dict[str, Any] | None = None
     """plan.json ``rollout`` (:func:`~ris_planner.planning.rollout.plan_rollout`)."""
+    validation: dict[str, Any] | None = None
+    """plan.json ``validation`` (:func:`~ris_planner.planning.estimator_check.
+    run_estimator_check`)."""
 
     @property
     def cache(self) -> SiteCache:
@@ -386,6 +389,7 @@ class PlanResult:
             "warnings": self.warnings(),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
             **({"rollout": self.rollout} if self.rollout is not None else {}),
+            **({"validation": self.validation} if self.validation is not None else {}),
             **self._decision_json(),
             "provenance": provenance(doc),
         }
@@ -594,6 +598,7 @@ def run_plan(
     doc = validate_document(document)
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
+    progress, on_check = split_for_validation(doc, progress, inputs)
     try:
         n_runs = 1 + sizing_runs(doc)
         main = progress if n_runs == 1 else lambda f, m: progress(f / n_runs, m)
@@ -607,10 +612,49 @@ def run_plan(
                 doc, lambda f, m: progress((1 + f * (n_runs - 1)) / n_runs, m), ex
             )
         result.diagnosis = diagnose(result)
+        if doc.validation is not None:
+            validation_stage(result, on_check)
         return result
     finally:
         if own:
             ex.close()
+
+
+def split_for_validation(
+    doc: PlanDocument, progress: ProgressCallback, inputs: PlanInputs | None
+) -> tuple[ProgressCallback, ProgressCallback]:
+    """(the plan's progress, the validation stage's) sharing ``progress`` by estimated work
+    (:func:`~ris_planner.planning.work.plan_work`, :func:`~ris_planner.planning.
+    estimator_check.validation_work`); without a validation the plan has it all."""
+    if doc.validation is None:
+        return progress, no_progress
+    from ris_planner.planning.estimator_check import validation_work
+
+    inp = prepare_plan(doc) if inputs is None else inputs
+    w_plan = sum(plan_work(inp).values())
+    w_check = validation_work(doc.validation, len(inp.counts))
+    share = w_plan / (w_plan + w_check)
+
+    def on_plan(f: float, m: str) -> None:
+        progress(share * f, m)
+
+    def on_check(f: float, m: str) -> None:
+        progress(share + (1 - share) * f, f"validation: {m}" if m else "validation")
+
+    return on_plan, on_check
+
+
+def validation_stage(result: PlanResult, progress: ProgressCallback = no_progress) -> None:
+    """The plan-validation stage (``document.validation``): the estimator on each count's best
+    layout (:func:`~ris_planner.planning.estimator_check.run_estimator_check`) into
+    ``result.validation``, its time in ``timing_s["validation"]``."""
+    from ris_planner.planning.estimator_check import run_estimator_check
+
+    t0 = time.perf_counter()
+    progress(0.0, "estimator on the recommended layouts")
+    result.validation = run_estimator_check(result, progress)
+    result.timing["validation"] = time.perf_counter() - t0
+    progress(1.0, "done")
 
 
 def plan_once(

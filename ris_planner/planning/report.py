@@ -261,6 +261,10 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
         paths["beams"] = write_beams_figure(result, out_dir / "beams.png")
     if result.sizing is not None:
         paths[SIZING_FIGURE] = write_sizing_figure(result, out_dir / f"{SIZING_FIGURE}.png")
+    if result.validation is not None:
+        from ris_planner.planning.estimator_check import write_validation_figure
+
+        paths["validation"] = write_validation_figure(result.validation, out_dir / "validation.png")
     return paths
 
 

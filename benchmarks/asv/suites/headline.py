@@ -118,7 +118,6 @@ class Estimation:
     number = 1
 
     def setup(self) -> None:
-        from ris_planner.estimation.models import EstimatorSettings, Multipath
         from ris_planner.estimation.pipeline import Estimator
         from ris_planner.estimation.signal import (
             realisation_paths,
@@ -126,6 +125,7 @@ class Estimation:
             separate_paths,
             signal_setup,
         )
+        from ris_planner.model.simulation import EstimatorSettings, Multipath
 
         doc = preset_document("paper-table1")
         doc["system"]["noise_figure_db"] = 0.0

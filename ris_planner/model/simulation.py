@@ -8,19 +8,16 @@ Parameters: N_F = 2^10 delay bins, a 0.02 step for the (ξ, ζ) grid, a 2×2×2 
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ris_planner.core.errors import LimitExceededError
 from ris_planner.model.scenario import (
-    MIN_UE_RIS_DISTANCE_M,
     DocumentModel,
     Point3,
-    Scenario,
     finite_point,
-    load_scenario,
 )
 
 MAX_SEARCH_CANDIDATES = 2_000_000
@@ -175,102 +172,6 @@ class EstimatorSettings(DocumentModel):
             if not np.all(np.isfinite(arr)) or np.any(arr < 0) or arr.sum() <= 0:
                 raise ValueError(f"weights must be finite, ≥ 0 and not all zero, got {v}")
         return v
-
-
-class SimulationDocument(DocumentModel):
-    """What ``ris-planner simulate`` reads: scenario, multipath and estimator settings."""
-
-    scenario: Scenario
-    multipath: Multipath = Field(default_factory=Multipath)
-    estimator: EstimatorSettings = Field(default_factory=EstimatorSettings)
-
-    @model_validator(mode="after")
-    def _check(self) -> SimulationDocument:
-        sc = self.scenario
-        if sc.is_batch and len(sc.tx_array) > 1:
-            raise ValueError("scenario: the simulator takes one TX–RX pair, not a batch")
-        if sc.known:
-            raise ValueError(
-                f"scenario.known = {sc.known}: the estimator estimates all of p_T, p_R, B;"
-                " leave 'known' empty"
-            )
-        n_ris = len(sc.ris)
-        los, n_used, note = self._present_paths()
-        if not los and n_used < 3:
-            raise ValueError(
-                f"without LOS the estimator needs at least 3 RISs (Remark, Alg. 2){note}"
-            )
-        if n_used < 2:
-            raise ValueError(
-                f"the estimator needs at least 2 RISs (bearing-line intersection){note}"
-            )
-        for i, r in enumerate(sc.ris):
-            if r.spacing_m is not None and r.spacing_m > sc.system.wavelength / 2 * (1 + 1e-9):
-                raise ValueError(
-                    f"ris.{i}.spacing_m = {r.spacing_m} > λ/2: grating lobes make ξ, ζ"
-                    " ambiguous for the estimator"
-                )
-        est = self.estimator
-        if est.pair_weights is not None and len(est.pair_weights) != n_ris * (n_ris - 1) // 2:
-            raise ValueError(
-                f"estimator.pair_weights needs L(L−1)/2 = {n_ris * (n_ris - 1) // 2} values"
-            )
-        if est.path_weights is not None and len(est.path_weights) != n_ris:
-            raise ValueError(f"estimator.path_weights needs L = {n_ris} values")
-        if est.delay_fft_size < sc.system.subcarriers:
-            raise ValueError(
-                f"estimator.delay_fft_size = {est.delay_fft_size} must be ≥ K ="
-                f" {sc.system.subcarriers}"
-            )
-        self._check_scatterers()
-        return self
-
-    def _present_paths(self) -> tuple[bool, int, str]:
-        """(LOS present, RIS paths present, a note naming the missing ones) for the pair: in
-        an environment the estimator works with the paths that exist (as the bounds do)."""
-        from ris_planner.bounds.compute import scenario_path_presence
-
-        sc = self.scenario
-        presence = scenario_path_presence(sc, sc.tx_array[:1], sc.rx_array[:1])
-        present = {name: bool(v[0]) for name, v in presence.items()}
-        layout = (["los"] if sc.system.los else []) + [f"ris{i + 1}" for i in range(len(sc.ris))]
-        missing = [name for name in layout if not present[name]]
-        note = f" (missing paths: {', '.join(missing)} – blocked or out of view)" if missing else ""
-        return present["los"], sum(present.values()) - present["los"], note
-
-    def _check_scatterers(self) -> None:
-        sc = self.scenario
-        ues = {"tx": sc.tx_array[0], "rx": sc.rx_array[0]}
-        fixed = {
-            f"ris {i}": np.asarray(r.position, dtype=float) for i, r in enumerate(sc.ris)
-        } | ues
-        for j, s in enumerate(self.multipath.scatterers):
-            for name, p in fixed.items():
-                if np.linalg.norm(np.asarray(s.position) - p) < MIN_UE_RIS_DISTANCE_M:
-                    raise ValueError(
-                        f"multipath.scatterers.{j}: the SP at {s.position} lies on the {name}"
-                        " (its path gain diverges)"
-                    )
-        for j, c in enumerate(self.multipath.clusters):
-            centre = np.asarray(c.center)
-            for name, p in fixed.items():
-                horiz = float(np.hypot(*(p[:2] - centre[:2])))
-                if abs(p[2] - centre[2]) < MIN_UE_RIS_DISTANCE_M and horiz <= c.radius_m:
-                    raise ValueError(
-                        f"multipath.clusters.{j}: the disk of SPs (centre {c.center}, radius"
-                        f" {c.radius_m} m) contains the {name}; an SP could land on it"
-                    )
-
-
-def load_simulation(source: dict[str, Any] | SimulationDocument | str) -> SimulationDocument:
-    """A :class:`SimulationDocument` from a dict (simulation or plain scenario) or a preset."""
-    if isinstance(source, SimulationDocument):
-        return source
-    if isinstance(source, str):
-        return SimulationDocument(scenario=load_scenario(source))
-    if "scenario" in source:
-        return SimulationDocument.model_validate(source)
-    return SimulationDocument.model_validate({"scenario": source})
 
 
 def paper_clusters(height_m: float = 3.0, rcs_m2: float = 0.5) -> Multipath:
