@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from ris_planner.environment import Scene
 from ris_planner.geometry import rotation_matrix
 from ris_planner.obstacles import Environment, Prism
-from ris_planner.planning.plan import PlanResult
+from ris_planner.planning.result import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")
 SIZING_FIGURE = "sizing"

@@ -58,7 +58,7 @@ def run_sizing(doc: PlanDocument, progress: ProgressCallback, ex: Executor) -> d
 
     ``answer`` is ``{"rows", "cols", "count", "objective", "sites"}`` of :func:`smallest` or
     ``None``; ``table`` one row per (size, searched count) with ``reaches``."""
-    from ris_planner.planning.plan import sweep_rows
+    from ris_planner.planning.pipeline import sweep_rows
 
     assert doc.sizing is not None
     sizes = doc.sizing.ris_sizes

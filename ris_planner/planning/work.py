@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from ris_planner.limits import HEATMAP_MAX_PAIRS
 
 if TYPE_CHECKING:
-    from ris_planner.planning.plan import PlanInputs
+    from ris_planner.planning.inputs import PlanInputs
 
 CACHE_S = 0.05
 CACHE_PER_SITE_PAIR_S = 5e-6
