@@ -148,8 +148,12 @@ class PlanResult:
 
     def layout_stats(self, layout: Layout) -> dict[str, Any]:
         """plan.json's figures of one layout (objective, quantiles, cost, blind and near-field
-        fractions), from its metric."""
-        metric = self.layout_metric(layout)[None, :]
+        fractions), from its metric (:meth:`metric_stats`)."""
+        return self.metric_stats(layout, self.layout_metric(layout))
+
+    def metric_stats(self, layout: Layout, metric: FloatArray) -> dict[str, Any]:
+        """:meth:`layout_stats` of ``layout`` with the metric [P] (or [2P]) given."""
+        metric = metric[None, :]
         w = self.metric_weights
         obj = float(objective_value(self.document.objective, metric, w)[0])
         quant = weighted_quantile(metric, w, np.array(REPORT_QUANTILES))[0]
