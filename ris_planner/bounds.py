@@ -655,6 +655,7 @@ def compute_bounds(
     beam_powers: ArrayLike | None = None,
     known: list[KnownPart] | None = None,
     presence: dict[str, BoolArray] | None = None,
+    channel: bool = True,
 ) -> BoundsResult:
     """PEB_T, PEB_R, CEB, DEB/SEB for arrays of TX–RX pairs (no JSON round trip).
 
@@ -666,7 +667,9 @@ def compute_bounds(
     presence : the paths present per pair as :func:`scenario_path_presence` gives them, when
     the caller has them already (the planner's per-point bounds derive them from each point's
     visibility once for every layout, docs/concepts/planning.md); degenerate pairs are
-    reported ``inf`` whatever their entry.
+    reported ``inf`` whatever their entry; channel : ``False`` leaves the per-path DEB/SEB out
+    (``channel`` empty: a caller that needs the PEBs only, such as the planner's per-point
+    bounds and objective checks, skips their inversions; the PEBs are the same).
 
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
     With ``scenario.environment`` only the paths present for a pair contribute
@@ -674,7 +677,7 @@ def compute_bounds(
     thread meanwhile (:mod:`ris_planner.blas`).
     """
     with blas.one_blas_thread():
-        return _compute_bounds(scenario, tx, rx, profiles, beam_powers, known, presence)
+        return _compute_bounds(scenario, tx, rx, profiles, beam_powers, known, presence, channel)
 
 
 def _compute_bounds(
@@ -685,6 +688,7 @@ def _compute_bounds(
     beam_powers: ArrayLike | None,
     known: list[KnownPart] | None,
     given: dict[str, BoolArray] | None = None,
+    channel: bool = True,
 ) -> BoundsResult:
     tx_a = scenario.tx_array if tx is None else np.atleast_2d(np.asarray(tx, dtype=float))
     rx_a = scenario.rx_array if rx is None else np.atleast_2d(np.asarray(rx, dtype=float))
@@ -716,7 +720,7 @@ def _compute_bounds(
     n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
     peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask, state_fim)
     if system.wavefront == "planar":
-        chan = channel_bounds(paths)
+        chan = channel_bounds(paths) if channel else {}
         mask_channel_bounds(chan, presence)
         # the counting rule of the planar model, per pair with the paths it has
         under, under_reason = underdetermined_pairs(paths, mask, int(kept_states(known_t).size))
@@ -725,7 +729,7 @@ def _compute_bounds(
         keys = {"los": ("deb_m",)}
         chan = {
             p.name: {k: inf.copy() for k in keys.get(p.name, ("deb_m", "seb_xi", "seb_zeta"))}
-            for p in paths
+            for p in (paths if channel else [])
         }
         under = np.zeros(tx_a.shape[0], dtype=bool)
         under_reason = np.full(tx_a.shape[0], None, dtype=object)

@@ -18,9 +18,11 @@ from ris_planner.planning.maps import PairSet
 from ris_planner.planning.objectives import Scorer
 from ris_planner.planning.search import Layout, SearchOutcome
 from ris_planner.planning.sites import Site
+from ris_planner.planning.visibility import Visibility
 from ris_planner.scenario import RandomCodebook, Scenario
 
 FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
 
 RANDOM_CODEBOOK_SEEDS = 5
 """Seeds (0 … 4) of the ``random`` codebooks that re-evaluate each count's best layout beside
@@ -69,13 +71,17 @@ def plan_check_task(scorer: Scorer, task: PlanCheck) -> Certificate | float:
     return objective_task(None, args)
 
 
-ObjectiveTask = tuple[Scenario, FloatArray, FloatArray, FloatArray, Objective, bool]
-"""(scenario, tx [P, 3], rx [P, 3], weights [P], objective, mirror) of :func:`objective_task`."""
+ObjectiveTask = tuple[
+    Scenario, FloatArray, FloatArray, FloatArray, Objective, bool, dict[str, BoolArray] | None
+]
+"""(scenario, tx [P, 3], rx [P, 3], weights [P], objective, mirror, the pairs' paths or None)
+of :func:`objective_task`."""
 
 
 def objective_task(_shared: object, task: ObjectiveTask) -> float:
     """Executor task: :func:`~ris_planner.planning.beam_design.objective_on_pairs`."""
-    return objective_on_pairs(*task)
+    scenario, tx, rx, w, objective, mirror, presence = task
+    return objective_on_pairs(scenario, tx, rx, w, objective, mirror, presence=presence)
 
 
 def random_codebook_tasks(
@@ -85,15 +91,26 @@ def random_codebook_tasks(
     layout: Layout,
     mirror: bool = False,
     seeds: int = RANDOM_CODEBOOK_SEEDS,
+    visibility: Visibility | None = None,
 ) -> list[ObjectiveTask]:
     """The evaluations that re-score ``layout``'s objective with other codebooks (summed up by
     :func:`random_codebook_summary`): the expected-random codebook, then ``random`` codebooks of
-    seeds 0 … seeds−1, on ≤ ``RANDOM_CODEBOOK_MAX_PAIRS`` pairs drawn ∝ weight."""
+    seeds 0 … seeds−1, on ≤ ``RANDOM_CODEBOOK_MAX_PAIRS`` pairs drawn ∝ weight.
+    ``visibility``: the plan's (:func:`~ris_planner.planning.visibility.pair_visibility`, the
+    same rules as ``compute_bounds``' own): each task takes its paths from it instead of
+    walking the legs again."""
     tx, rx, w = pairs.tx, pairs.rx, pairs.weights
+    pick = np.arange(pairs.size)
     if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:
         pick = np.random.default_rng(0).choice(pairs.size, RANDOM_CODEBOOK_MAX_PAIRS, p=w / w.sum())
         tx, rx = tx[pick], rx[pick]
         w = np.full(pick.size, 1.0 / pick.size)
+    presence = None
+    if visibility is not None:
+        los = visibility.los[pick] if visibility.los is not None else np.zeros(pick.size, bool)
+        presence = {"los": los} | {
+            f"ris{j + 1}": visibility.present[s][pick] for j, s in enumerate(layout)
+        }
     base = layout_scenario(doc.system, [sites[s].ris for s in layout], doc.known, doc.environment)
     return [
         (
@@ -103,6 +120,7 @@ def random_codebook_tasks(
             w,
             doc.objective,
             mirror,
+            presence,
         )
         for seed in range(-1, seeds)
     ]

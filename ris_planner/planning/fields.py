@@ -133,7 +133,9 @@ def rx_fields(
         ris = [sites[s].ris for s in layout]
         scenario = layout_scenario(doc.system, ris, list(doc.known), doc.environment)
         # the plan's visibility rules through compute_bounds; degenerate pairs: inf, a reason
-        res = compute_bounds(scenario, tx=tx, rx=rx, profiles=None, presence=presence)
+        res = compute_bounds(
+            scenario, tx=tx, rx=rx, profiles=None, presence=presence, channel=False
+        )
         metric = select_metric(doc.objective.metric, res.peb_tx, res.peb_rx)
         metric = metric.reshape(n_tx, n_rx)
         vals = weighted_quantile(metric.T, w_med, 0.5)  # [M]

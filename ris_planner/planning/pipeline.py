@@ -206,7 +206,8 @@ def plan_once(
         inputs, scorer, ex, stages.callback("search"), clock
     )
     with clock.stage("checks"):
-        counts = checks_stage(inputs, scorer, counts, deferred, ex, stages.callback("checks"))
+        on_checks = stages.callback("checks")
+        counts = checks_stage(inputs, scorer, counts, deferred, ex, on_checks, visibility)
     with clock.stage("rollout"):
         stages.callback("rollout")(0.0, doc.rollout)
         free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
@@ -365,6 +366,7 @@ def checks_stage(
     deferred: list[tuple[int, int]],
     ex: Executor,
     progress: ProgressCallback,
+    visibility: Visibility | None = None,
 ) -> list[CountResult]:
     """The relaxation bounds and every count's codebook evaluations (a task per layout and
     seed) in one executor call: independent checks that keep the pool's workers busy together
@@ -374,7 +376,9 @@ def checks_stage(
     mirror = inputs.directions == "mirror"
     iterations = doc.search.certificate_iterations
     jobs = [
-        random_codebook_tasks(doc, inputs.sites, inputs.pairs, cr.ranked[0][0], mirror)
+        random_codebook_tasks(
+            doc, inputs.sites, inputs.pairs, cr.ranked[0][0], mirror, visibility=visibility
+        )
         for cr in counts
     ]
     tasks: list[PlanCheck] = [
