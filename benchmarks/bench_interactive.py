@@ -157,8 +157,7 @@ def section_end_to_end(opts: argparse.Namespace, work: Path) -> list[str]:
         names = list(dict.fromkeys(k for r in runs["new"] for k in r.timing_s))
         stages = {k: statistics.median(r.timing_s.get(k, 0.0) for r in runs["new"]) for k in names}
         stage_lines.append(
-            f"{case} stages (s, new tree): "
-            + ", ".join(f"{k} {v:.2f}" for k, v in stages.items())
+            f"{case} stages (s, new tree): " + ", ".join(f"{k} {v:.2f}" for k, v in stages.items())
         )
         if "ref" in runs:
             old = {k: statistics.median(r.timing_s.get(k, 0.0) for r in runs["ref"]) for k in names}
@@ -166,7 +165,7 @@ def section_end_to_end(opts: argparse.Namespace, work: Path) -> list[str]:
                 f"{case} stages (s, reference, timed ones only): "
                 + ", ".join(f"{k} {v:.2f}" for k, v in old.items() if v > 0)
             )
-    return lines + [""] + stage_lines
+    return [*lines, "", *stage_lines]
 
 
 def section_smoke(opts: argparse.Namespace, work: Path) -> list[str]:

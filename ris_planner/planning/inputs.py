@@ -15,7 +15,13 @@ from ris_planner.errors import RisPlannerError
 from ris_planner.limits import cache_layout
 from ris_planner.planning.constraints import Feasibility, build_feasibility
 from ris_planner.planning.document import PlanDocument
-from ris_planner.planning.maps import PairSet, PointMap, build_map, build_pairs, unordered_directions
+from ris_planner.planning.maps import (
+    PairSet,
+    PointMap,
+    build_map,
+    build_pairs,
+    unordered_directions,
+)
 from ris_planner.planning.search import MIN_TASK_MATRICES
 from ris_planner.planning.sites import Site, expand_sites
 from ris_planner.planning.visibility import check_sites_outside, drop_inside

@@ -119,7 +119,10 @@ def run_plan(
             inputs = prepare_plan(doc, checked=True)
     own_stages = stages is None
     if stages is None:
-        stages = Stages(progress, pipeline_work(inputs if inputs is not None else prepare_plan(doc, checked=True)))
+        stages = Stages(
+            progress,
+            pipeline_work(inputs if inputs is not None else prepare_plan(doc, checked=True)),
+        )
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
     try:
