@@ -143,7 +143,8 @@ def run_plan(
             result = replace(result, diagnosis=diagnose(result))
     finally:
         if own:
-            ex.close()
+            with clock.stage("workers_close"):
+                ex.close()
     with clock.stage("fields"):
         result = fields_stage(result, stages.callback("fields"))
     with clock.stage("report"):
