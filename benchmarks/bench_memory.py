@@ -149,11 +149,12 @@ with tempfile.TemporaryDirectory() as tmp, SerialExecutor() as ex:
 seconds = time.perf_counter() - t0
 cpu_s = time.process_time() - c0
 stages = {k: round(v, 3) for k, v in done.plan["timing_s"].items()}
+cpu_stages = {k: round(v, 3) for k, v in done.cpu_s.items()}
 status = open("/proc/self/status").read()
 hwm = int(status.split("VmHWM:")[1].split()[0]) * 1024
 print(json.dumps({"estimate": sizes.memory_bytes, "peak": hwm, "seconds": seconds,
                   "cpu_s": cpu_s,
-                  "estimate_s": est_s, "stages_s": stages,
+                  "estimate_s": est_s, "stages_s": stages, "cpu_stages_s": cpu_stages,
                   "estimate_stages_s": {k: round(v, 3) for k, v in est_stages.items()},
                   "layout": list(layout), "storage": done.plan["site_cache"]}))
 """
@@ -204,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"{'case':36} {'tier':13} {'wave':9} {'estimate MiB':>12} {'peak MiB':>9}"
         f" {'ratio':>6} {'memory':>6} {'time s':>7} {'est. s':>7} {'ratio':>6} {'time':>5}"
-        f" {'cpu/wall':>8}"
+        f" {'cpu/wall':>8} {'est/CPU':>7}"
     )
     rows, t0 = [], time.perf_counter()
     for case in cases:
@@ -215,14 +216,16 @@ def main(argv: list[str] | None = None) -> int:
             f" {r['peak'] / 2**20:9.0f} {r['ratio']:6.2f}"
             f" {'pass' if r['memory_passed'] else 'FAIL':>6} {r['seconds']:7.1f}"
             f" {r['estimate_s']:7.1f} {r['time_ratio']:6.2f}"
-            f" {'pass' if r['time_passed'] else 'FAIL':>5} {r['cpu_share']:8.2f}",
+            f" {'pass' if r['time_passed'] else 'FAIL':>5} {r['cpu_share']:8.2f}"
+            f" {r['estimate_s'] / r['cpu_s']:7.2f}",
             flush=True,
         )
         if args.stages:
             est = r["estimate_stages_s"]
+            cpu = r["cpu_stages_s"]
             for name in dict.fromkeys([*r["stages_s"], *est]):
-                t = r["stages_s"].get(name, 0.0)
-                print(f"    {name:16} measured {t:8.3f} s  estimated {est.get(name, 0.0):8.3f} s")
+                t, c, e = r["stages_s"].get(name, 0.0), cpu.get(name, 0.0), est.get(name, 0.0)
+                print(f"    {name:16} measured {t:8.3f} s (CPU {c:8.3f} s)  estimated {e:8.3f} s")
     print(f"{sum(r['passed'] for r in rows)}/{len(rows)} passed, {time.perf_counter() - t0:.0f} s")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))

@@ -11,7 +11,7 @@ when it had a frame, and the document's ``license`` / ``attribution``; ``plan.ge
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,9 @@ class PlanFiles:
     extra, ``geojson``, ``geotiff``, ``points_csv``."""
     note: str | None = None
     """Why the GIS files were skipped (the GIS extra is missing), else None."""
+    cpu_s: dict[str, float] = field(default_factory=dict)
+    """This process's CPU seconds per stage of ``timing_s`` (not in plan.json: the time
+    estimate's calibration, ``benchmarks/bench_memory.py``)."""
 
 
 def plan_document(
@@ -91,4 +94,4 @@ def plan_document(
             note = str(exc)
     plan["timing_s"] = dict(clock.seconds)
     stages.finish("done")
-    return PlanFiles(plan, files, note)
+    return PlanFiles(plan, files, note, dict(clock.cpu))

@@ -60,22 +60,26 @@ from ris_planner.progress import ProgressCallback, Stages, no_progress
 
 
 class StageClock:
-    """Wall seconds per named stage (plan.json ``timing_s``); a stage timed twice adds up."""
+    """Wall seconds per named stage (plan.json ``timing_s``) and this process's CPU seconds
+    in each (``cpu``: the time estimate's calibration on a busy machine,
+    docs/validation/resources.md); a stage timed twice adds up."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
+        self.cpu: dict[str, float] = {}
 
     @contextmanager
     def stage(self, name: str) -> Iterator[None]:
         """Time the block under ``name``."""
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             yield
         finally:
-            self.add(name, time.perf_counter() - t0)
+            self.add(name, time.perf_counter() - t0, time.process_time() - c0)
 
-    def add(self, name: str, seconds: float) -> None:
+    def add(self, name: str, seconds: float, cpu: float = 0.0) -> None:
         self.seconds[name] = self.seconds.get(name, 0.0) + seconds
+        self.cpu[name] = self.cpu.get(name, 0.0) + cpu
 
 
 def pipeline_work(inputs: PlanInputs) -> dict[str, float]:
@@ -284,8 +288,8 @@ def search_stage(
     computes)."""
     doc, feasibility = inputs.document, inputs.feasibility
     n_sites = len(inputs.sites)
-    t_search = time.perf_counter()
-    t_bnb = 0.0
+    t_search, c_search = time.perf_counter(), time.process_time()
+    t_bnb = c_bnb = 0.0
     counts: list[CountResult] = []
     # search effort ∝ the layouts each count evaluates – used only for the progress fractions
     effort = [search_layouts(inputs, c) for c in inputs.counts]
@@ -305,7 +309,7 @@ def search_stage(
         if outcome.losses.size == 0:  # no layout satisfies the constraints
             infeasible.append(c)
             continue
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         bnb = None
         later = False
         if outcome.method == "greedy" and doc.search.method == "auto":
@@ -322,6 +326,7 @@ def search_stage(
             outcome = bnb.outcome
             cert = bnb_certificate(bnb) if doc.search.certificate_iterations else None
             t_bnb += time.perf_counter() - t1
+            c_bnb += time.process_time() - c1
             if bnb.nodes == 0 and not bnb.finished:  # not begun: it would not pay
                 cert, later = search_certificate(outcome, doc.search.certificate_iterations)
         else:
@@ -353,8 +358,9 @@ def search_stage(
             and target.met(objective_from_loss(doc.objective, ranked[0][1]))
         ):
             break
-    clock.add("search", time.perf_counter() - t_search - t_bnb)
-    clock.add("branch_and_bound", t_bnb)
+    cpu = time.process_time() - c_search - c_bnb
+    clock.add("search", time.perf_counter() - t_search - t_bnb, cpu)
+    clock.add("branch_and_bound", t_bnb, c_bnb)
     if not counts:
         raise RisPlannerError(
             f"no layout of {inputs.counts} RISs satisfies the constraints (mounting points,"
