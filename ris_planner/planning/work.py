@@ -29,7 +29,7 @@ MARGIN = 1.3
 """Every stage's model times this: the estimate stays above the measured time on a machine
 somewhat busier than the calibration's (docs/validation/resources.md)."""
 
-INPUTS_S = 0.1
+INPUTS_S = 0.02
 INPUTS_PER_POINT_S = 2e-5
 """Inputs: the document checked, sites and maps built, pairs drawn – per UE map point."""
 
@@ -37,13 +37,18 @@ VISIBILITY_PER_SITE_POINT_S = 2e-6
 VISIBILITY_PER_OBSTACLE = 0.01
 """Visibility: a leg per (site, UE point), each walk longer with more obstacles."""
 
-SPHERICAL_PER_ELEMENT = 1e-3
+SPHERICAL_PER_ELEMENT = 0.16
+SPHERICAL_EXPONENT = 0.75
 """The spherical model's per-pair cost grows with the RIS elements N (its expected Gram and
-Jacobians sum over them): a per-pair term costs 1 + this × N planar ones."""
+Jacobians sum over them, beside fixed per-pair work): a per-pair term costs
+1 + 0.16 · N^0.75 planar ones (≈ 6 at 10 × 10, ≈ 83 at 64 × 64)."""
 
-CACHE_S = 0.05
-CACHE_PER_SITE_PAIR_S = 5e-6
-"""Site cache: fixed cost plus per (site, pair) – junction: 0.135 s for 64 × 400."""
+CACHE_S = 0.02
+CACHE_PER_SITE_PAIR_S = 1.5e-6
+"""Site cache: fixed cost plus per (site, pair)."""
+
+ROLLOUT_S = 0.02
+"""The rollout stage's fixed cost (the nested chain's layouts are search work)."""
 
 SEARCH_S = 0.3
 SEARCH_PER_LAYOUT_PAIR_S = 3e-7
@@ -51,9 +56,9 @@ SEARCH_PER_LAYOUT_PAIR_S = 3e-7
 6 600 layouts × 400 pairs."""
 
 CHECKS_PER_COUNT_S = 0.05
-CODEBOOK_PER_MAC_S = 3e-10
+CODEBOOK_PER_MAC_S = 2e-10
 CHECK_PER_RIS_PAIR_S = 5e-6
-FRANK_WOLFE_PER_SITE_PAIR_S = 1e-6
+FRANK_WOLFE_PER_SITE_PAIR_S = 1e-7
 """Checks: per count the ``random``-codebook evaluations (:func:`codebook_macs` complex
 multiply-adds each, one per seed) and ``compute_bounds`` on the checked pairs (per RIS and
 pair, the expected-random one included); a relaxation bound costs iterations × sites ×
@@ -62,22 +67,22 @@ pairs."""
 BEAMS_PER_LAYOUT_S = 2.0
 """Beam design and power allocation per layout (the SDPs dominate)."""
 
-FIELD_S = 0.1
-FIELD_PER_RIS_PAIR_S = 2.5e-5
+FIELD_S = 0.02
+FIELD_PER_RIS_PAIR_S = 4e-6
 """Per-point bounds of one count's best layout (heatmap, ``points``): compute_bounds over the
-heatmap's TX × RX pairs – junction: 2.0 s for 3 counts (9 RISs) × 126 × 126 pairs."""
+heatmap's TX × RX pairs, per RIS and pair (the visibility decided once per point)."""
 
-REPORT_S = 0.1
-REPORT_PER_LAYOUT_S = 0.03
-"""plan.json's content besides the fields: statistics of every ranked layout (top_k per
-count) – the 6-site test plan: 0.76 s for 2 × 10 layouts."""
+REPORT_S = 0.05
+REPORT_PER_LAYOUT_S = 0.005
+"""The diagnosis, the summary (statistics of every ranked layout: top_k per count) and
+plan.json's formatting."""
 
-FIGURES_S = 2.0
+FIGURES_S = 1.5
 FIGURE_EXTRA_S = 0.5
-"""The three figures (top view, heatmap, CDF) ≈ 1.5 s, 2–4 s with matplotlib's first import;
-beams and sweep figures each more."""
+"""The three figures (top view, heatmap, CDF), with matplotlib's first import; beams and
+sweep figures each more."""
 
-EXPORTS_S = 0.05
+EXPORTS_S = 0.2
 EXPORTS_PER_POINT_S = 1e-5
 """GIS files (GeoJSON, GeoTIFF, points CSV): small, ∝ the heatmap points."""
 
@@ -135,7 +140,7 @@ def stage_seconds(inputs: PlanInputs) -> dict[str, float]:
     n_el = doc.ris.rows * doc.ris.cols
     spherical = doc.system.wavefront == "spherical"
     # the spherical model's expected Gram and Jacobians sum over the elements per pair
-    per_pair = SPHERICAL_PER_ELEMENT * n_el if spherical else 1.0
+    per_pair = 1.0 + SPHERICAL_PER_ELEMENT * n_el**SPHERICAL_EXPONENT if spherical else 1.0
     n_points = len(inputs.tx_map.points) + len(inputs.rx_map.points)
     obstacles = 0 if doc.environment is None else len(doc.environment.obstacles)
     check_pairs = min(n_pairs, RANDOM_CODEBOOK_MAX_PAIRS)
@@ -167,7 +172,7 @@ def stage_seconds(inputs: PlanInputs) -> dict[str, float]:
         # the nested chain (planning.rollout): every superset of the previous count's layout,
         # at most search.max_exhaustive per count (beyond it: a greedy extension, fewer); free
         # mode searches it only when cheap, so this overestimates there at most by that little
-        "rollout": SEARCH_PER_LAYOUT_PAIR_S * chain * n_pairs,
+        "rollout": ROLLOUT_S + SEARCH_PER_LAYOUT_PAIR_S * chain * n_pairs,
         "fields": sum(FIELD_S + FIELD_PER_RIS_PAIR_S * c * hm * per_pair for c in counts),
         "report": REPORT_S + REPORT_PER_LAYOUT_S * len(counts) * doc.search.top_k,
         "figures": FIGURES_S + FIGURE_EXTRA_S * extra,
