@@ -672,6 +672,8 @@ def compute_bounds(
     profiles: list[ComplexArray] | str | None = "codebook",
     beam_powers: ArrayLike | None = None,
     known: list[KnownPart] | None = None,
+    presence: dict[str, BoolArray] | None = None,
+    channel: bool = True,
 ) -> BoundsResult:
     """PEB_T, PEB_R, CEB, DEB/SEB for arrays of TX–RX pairs (no JSON round trip).
 
@@ -679,7 +681,13 @@ def compute_bounds(
     document's; profiles : first-block profiles per RIS, ``None`` for the expected-random FIM,
     or ``"codebook"`` (default) to draw them from the document's codebook; beam_powers : [G̃]
     powers of the first-block beams (default: the codebook's γ_P powers for a DIR+DER
-    codebook with ``gamma_p``, else uniform); known : overrides the document's ``known``.
+    codebook with ``gamma_p``, else uniform); known : overrides the document's ``known``;
+    presence : the paths present per pair as :func:`scenario_path_presence` gives them, when
+    the caller has them already (the planner's per-point bounds derive them from each point's
+    visibility once for every layout, docs/concepts/planning.md); degenerate pairs are
+    reported ``inf`` whatever their entry; channel : ``False`` leaves the per-path DEB/SEB out
+    (``channel`` empty: a caller that needs the PEBs only, such as the planner's per-point
+    bounds and objective checks, skips their inversions; the PEBs are the same).
 
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
     With ``scenario.environment`` only the paths present for a pair contribute
@@ -687,7 +695,7 @@ def compute_bounds(
     thread meanwhile (:mod:`ris_planner.runtime.blas`).
     """
     with blas.one_blas_thread():
-        return _compute_bounds(scenario, tx, rx, profiles, beam_powers, known)
+        return _compute_bounds(scenario, tx, rx, profiles, beam_powers, known, presence, channel)
 
 
 def _compute_bounds(
@@ -697,6 +705,8 @@ def _compute_bounds(
     profiles: list[ComplexArray] | str | None,
     beam_powers: ArrayLike | None,
     known: list[KnownPart] | None,
+    given: dict[str, BoolArray] | None = None,
+    channel: bool = True,
 ) -> BoundsResult:
     tx_a = scenario.tx_array if tx is None else np.atleast_2d(np.asarray(tx, dtype=float))
     rx_a = scenario.rx_array if rx is None else np.atleast_2d(np.asarray(rx, dtype=float))
@@ -707,7 +717,13 @@ def _compute_bounds(
     known_t: tuple[KnownPart, ...] = tuple(scenario.known if known is None else known)
     bad = _degenerate_pairs(scenario, tx_a, rx_a)
     tx_a, rx_a = stand_ins(tx_a, rx_a, bad)  # evaluated there, reported inf below
-    presence = scenario_path_presence(scenario, tx_a, rx_a)
+    if given is None:
+        presence = scenario_path_presence(scenario, tx_a, rx_a)
+    else:
+        names = ["los"] + [f"ris{i + 1}" for i in range(len(scenario.ris))]
+        if set(given) != set(names) or any(given[k].shape != (tx_a.shape[0],) for k in names):
+            raise ValueError(f"presence must hold [P] flags for exactly {names}")
+        presence = {k: np.array(given[k], dtype=bool) for k in names}
     prof = _codebook_profiles(scenario) if isinstance(profiles, str) else profiles
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
     paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
@@ -722,7 +738,7 @@ def _compute_bounds(
     n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
     peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask, state_fim)
     if system.wavefront == "planar":
-        chan = channel_bounds(paths)
+        chan = channel_bounds(paths) if channel else {}
         mask_channel_bounds(chan, presence)
         # the counting rule of the planar model, per pair with the paths it has
         under, under_reason = underdetermined_pairs(paths, mask, int(kept_states(known_t).size))
@@ -731,7 +747,7 @@ def _compute_bounds(
         keys = {"los": ("deb_m",)}
         chan = {
             p.name: {k: inf.copy() for k in keys.get(p.name, ("deb_m", "seb_xi", "seb_zeta"))}
-            for p in paths
+            for p in (paths if channel else [])
         }
         under = np.zeros(tx_a.shape[0], dtype=bool)
         under_reason = np.full(tx_a.shape[0], None, dtype=object)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 from ris_planner.cli.app import int_in
@@ -48,7 +49,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     out = Path(args.out)
     with executor:  # the document is converted from its frame there (ris_planner.io.frames)
         done = plan_document(doc, out, ProgressBar("plan"), executor)
+        t_close = time.perf_counter()
     plan = done.plan
+    # stopping the worker pool is the plan's time too (timing_s sums to the wall time)
+    plan["timing_s"]["workers_close"] = time.perf_counter() - t_close
     plan_path = write_plan_json(plan, out)
     if done.note is not None:
         print(f"note: GIS files skipped: {done.note}", file=sys.stderr)

@@ -11,13 +11,16 @@ when it had a frame, and the document's ``license`` / ``attribution``; ``plan.ge
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ris_planner.io import MissingExtraError
 from ris_planner.io.frames import license_of_document, to_local
 from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
+
+OUTPUTS = ("figures", "exports")
+"""The output stages after plan.json's content, each timed in ``timing_s``."""
 
 
 @dataclass(frozen=True)
@@ -31,6 +34,9 @@ class PlanFiles:
     extra, ``geojson``, ``geotiff``, ``points_csv``."""
     note: str | None = None
     """Why the GIS files were skipped (the GIS extra is missing), else None."""
+    cpu_s: dict[str, float] = field(default_factory=dict)
+    """This process's CPU seconds per stage of ``timing_s`` (not in plan.json: the time
+    estimate's calibration, ``benchmarks/bench_memory.py``)."""
 
 
 def plan_document(
@@ -47,38 +53,45 @@ def plan_document(
     ``fields`` (every count's per-point bounds), ``report`` (plan.json), ``figures`` and
     ``exports``, each with a share
     proportional to its estimated work (:mod:`ris_planner.planning.work`); 1.0 only once the
-    files are written."""
-    from ris_planner.planning.plan import fill_fields, prepare_plan, run_plan
+    files are written. plan.json's ``timing_s`` holds every stage's seconds, these outputs
+    included (:class:`~ris_planner.planning.pipeline.StageClock`): their sum is this call's
+    wall time."""
+    from ris_planner.planning.inputs import prepare_plan
+    from ris_planner.planning.pipeline import StageClock, pipeline_work, run_plan
     from ris_planner.planning.report import write_figures
-    from ris_planner.planning.work import plan_work, report_work
+    from ris_planner.planning.work import report_work
 
-    local, frame = to_local(document)
-    inputs = prepare_plan(local)
-    sweep = inputs.document.sweep
-    runs = 1 if sweep is None else 1 + len(sweep.values)
-    work = runs * sum(plan_work(inputs).values())
-    if inputs.document.validation is not None:  # the validation stage runs inside run_plan
-        from ris_planner.planning.estimator_check import validation_work
-
-        work += validation_work(inputs.document.validation, len(inputs.counts))
-    stages = Stages(progress, {"plan": work, **report_work(inputs)})
-    on_plan = stages.callback("plan")
-    result = run_plan(local, on_plan, executor, inputs=None if sweep is not None else inputs)
-    fill_fields(result, stages.callback("fields"))
-    stages.callback("report")
-    plan = result.to_json()
-    if frame is not None:
-        plan["frame"] = frame.describe()
-    plan.update(license_of_document(document))
-    stages.callback("figures")
-    files = write_figures(result, out_dir)
+    clock = StageClock()
+    with clock.stage("inputs"):
+        local, frame = to_local(document)
+        inputs = prepare_plan(local)
+    stages = Stages(
+        progress, {**pipeline_work(inputs), **{k: report_work(inputs)[k] for k in OUTPUTS}}
+    )
+    result = run_plan(
+        local,
+        executor=executor,
+        inputs=None if inputs.document.sweep is not None else inputs,
+        stages=stages,
+        clock=clock,
+    )
+    with clock.stage("report"):
+        plan = result.to_json()
+        if frame is not None:
+            plan["frame"] = frame.describe()
+        plan.update(license_of_document(document))
+    with clock.stage("figures"):
+        stages.callback("figures")
+        files = write_figures(result, out_dir)
     note = None
-    stages.callback("exports")
-    try:
-        from ris_planner.io.export import plan_outputs
+    with clock.stage("exports"):
+        stages.callback("exports")
+        try:
+            from ris_planner.io.export import plan_outputs
 
-        files.update(plan_outputs(result, plan, document, out_dir))
-    except MissingExtraError as exc:
-        note = str(exc)
+            files.update(plan_outputs(result, plan, document, out_dir))
+        except MissingExtraError as exc:
+            note = str(exc)
+    plan["timing_s"] = dict(clock.seconds)
     stages.finish("done")
-    return PlanFiles(plan, files, note)
+    return PlanFiles(plan, files, note, dict(clock.cpu))

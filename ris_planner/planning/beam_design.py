@@ -166,12 +166,14 @@ def objective_on_pairs(
     mirror: bool = False,
     profiles: list[ComplexArray] | str | None = "codebook",
     beam_powers: FloatArray | None = None,
+    presence: dict[str, BoolArray] | None = None,
 ) -> float:
     """A plan objective of a layout by ``compute_bounds`` on pairs tx, rx [P, 3] with weights
     [P] (sum 1); with ``mirror`` each pair also counts reversed with half the weight (the
-    reverse direction's PEB_R is the forward PEB_T, as the planning scorer counts it)."""
+    reverse direction's PEB_R is the forward PEB_T, as the planning scorer counts it).
+    ``presence``: the pairs' paths when the caller has them (the plan's visibility)."""
     metric, w = metric_on_pairs(
-        scenario, tx, rx, weights, objective.metric, mirror, profiles, beam_powers
+        scenario, tx, rx, weights, objective.metric, mirror, profiles, beam_powers, presence
     )
     return float(objective_value(objective, metric[None, :], w)[0])
 
@@ -185,10 +187,19 @@ def metric_on_pairs(
     mirror: bool = False,
     profiles: list[ComplexArray] | str | None = "codebook",
     beam_powers: FloatArray | None = None,
+    presence: dict[str, BoolArray] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """(metric [P] or [2P] with ``mirror``, its weights): the objective's bound per pair by
     ``compute_bounds``, laid out as the planning scorer's (:attr:`Scorer.metric_weights`)."""
-    res = compute_bounds(scenario, tx, rx, profiles=profiles, beam_powers=beam_powers)
+    res = compute_bounds(
+        scenario,
+        tx,
+        rx,
+        profiles=profiles,
+        beam_powers=beam_powers,
+        presence=presence,
+        channel=False,
+    )
     metric = select_metric(metric_name, res.peb_tx, res.peb_rx)
     w = weights
     if mirror:  # j → i: its PEB_R is the PEB_T of i → j (and vice versa)

@@ -56,7 +56,7 @@ from ris_planner.planning.objectives import (
 )
 
 if TYPE_CHECKING:
-    from ris_planner.planning.plan import PlanResult
+    from ris_planner.planning.result import PlanResult
     from ris_planner.planning.search import Layout
 
 FloatArray = NDArray[np.float64]

@@ -81,7 +81,7 @@ from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 if TYPE_CHECKING:
     from ris_planner.model.plan import PlanDocument, ValidationSpec
-    from ris_planner.planning.plan import PlanResult
+    from ris_planner.planning.result import PlanResult
 
 FloatArray = NDArray[np.float64]
 

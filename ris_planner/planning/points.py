@@ -2,9 +2,10 @@
 point for each RIS count's best layout (``plan.json`` key ``"points"``), and the heatmap grid
 the web page draws its overlay and threshold contour from (key ``"heatmap"``).
 
-Both are pure functions over a :class:`~ris_planner.planning.plan.PlanResult`; the numbers come
-from :meth:`PlanResult.rx_field` – the same computation as the heatmap figure – so a point's
-bound for the largest count is exactly the PNG's value at that point.
+Both are pure functions over a :class:`~ris_planner.planning.result.PlanResult` whose maps
+stage has run; the numbers come from :func:`~ris_planner.planning.fields.rx_fields` – the same
+computation as the heatmap figure – so a point's bound for the largest count is exactly the
+PNG's value at that point.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from scipy.spatial import cKDTree
 from ris_planner.planning.objectives import objective_from_loss, objective_kind
 
 if TYPE_CHECKING:
-    from ris_planner.planning.plan import PlanResult
+    from ris_planner.planning.result import PlanResult
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]

@@ -21,7 +21,7 @@ from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
 from ris_planner.physics.geometry import rotation_matrix
 from ris_planner.planning.objectives import objective_kind
-from ris_planner.planning.plan import PlanResult
+from ris_planner.planning.result import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")
 SIZING_FIGURE = "sizing"

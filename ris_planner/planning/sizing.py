@@ -12,6 +12,7 @@ answer found so far cannot win: it is skipped (and named in the message)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from ris_planner.model.plan import PlanDocument, Sweep
@@ -48,13 +49,19 @@ def smallest(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
     return min(reaching, key=lambda r: (r["rows"] * r["cols"] * r["count"], r["count"], r["rows"]))
 
 
-def run_sizing(doc: PlanDocument, progress: ProgressCallback, ex: Executor) -> dict[str, Any]:
+SweepRows = Callable[[dict[str, Any], Sweep, Any, ProgressCallback, Executor], list[dict[str, Any]]]
+"""The pipeline's sweep runner (:func:`ris_planner.planning.pipeline.sweep_rows`): the rows
+of one sweep value, each RIS count's objective and whether it meets the target."""
+
+
+def run_sizing(
+    doc: PlanDocument, progress: ProgressCallback, ex: Executor, sweep_rows: SweepRows
+) -> dict[str, Any]:
     """``plan.json["sizing"]``: ``{"target", "answer", "table", "skipped", "message"}``.
 
     ``answer`` is ``{"rows", "cols", "count", "objective", "sites"}`` of :func:`smallest` or
-    ``None``; ``table`` one row per (size, searched count) with ``reaches``."""
-    from ris_planner.planning.plan import sweep_rows
-
+    ``None``; ``table`` one row per (size, searched count) with ``reaches``. ``sweep_rows``
+    runs the plans (the pipeline passes its own, so this stage does not import it)."""
     assert doc.sizing is not None
     sizes = doc.sizing.ris_sizes
     target = doc.sizing_target()
