@@ -6,13 +6,19 @@ OUT    ?= out
 # Debian's chromium for the browser tests (tests/test_web.py); override for another binary
 CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: demo test setup lint typecheck unit portable browser-check bench docs clean
+.PHONY: demo test setup warmup lint typecheck unit portable browser-check bench docs clean
 
 $(BIN)/ris-planner: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'
+	# compile and cache every numba kernel now: the first plan pays no compilation
+	$(BIN)/ris-planner warmup
 	touch $@
+
+# after editing a kernel (ris_planner/_crb_jit.py, environment/_jit.py): compile it again now
+warmup: setup
+	$(BIN)/ris-planner warmup
 
 setup: $(BIN)/ris-planner
 

@@ -51,7 +51,10 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
+from ris_planner.allocator import ensure_numba_cache
 from ris_planner.ldl import SINGULAR_RCOND
+
+ensure_numba_cache(__file__)  # before any @njit(cache=True): a writable cache folder
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

@@ -155,6 +155,7 @@ REGISTRARS: dict[str, tuple[str, ...]] = {
     "ris_planner.estimation.cli:add_cli": ("simulate", "blind-area"),
     "ris_planner.io.cli:add_cli": ("import", "sites"),
     "ris_planner.cli:_add_serve": ("serve",),
+    "ris_planner.planning.warmup:add_cli": ("warmup",),
 }
 """Every feature's ``add_cli`` ("module:function") and the subcommands it registers, in help
 order. A run imports only the module of its own subcommand (``ris-planner bounds`` never loads
