@@ -83,7 +83,7 @@ def cached_signatures(dispatcher: Any) -> int:
     try:
         index = cache_file._load_index()
         magic = dispatcher.targetctx.codegen().magic_tuple()
-    except Exception:  # noqa: BLE001 - an unreadable index counts as none
+    except Exception:  # an unreadable index counts as none
         return 0
     return sum(1 for key in index if len(key) > 1 and key[1] == magic)
 
