@@ -39,6 +39,7 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from api.auth import KeyRing
+from api.offload import AnsweredError
 from api.store import StoreUnavailableError
 from ris_planner.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.io import MissingExtraError
@@ -206,16 +207,49 @@ def _validation_answer(exc: RequestValidationError | ValidationError) -> JSONRes
 
 async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, LimitExceededError)
+    return _limit_answer(exc)
+
+
+def _limit_answer(exc: LimitExceededError) -> JSONResponse:
     return error_response(413, "too_large", str(exc), limit=exc.limit)
 
 
 async def _on_missing_extra(request: Request, exc: Exception) -> JSONResponse:
     """A feature of the optional GIS extra on a server without it: not the client's fault."""
+    return _missing_extra_answer(exc)
+
+
+def _missing_extra_answer(exc: Exception) -> JSONResponse:
     return error_response(501, "not_implemented", f"this server cannot do that: {exc}")
+
+
+def exception_answer(exc: Exception) -> JSONResponse | None:
+    """The handlers' answer to a document's error – validation (422, or 400 for text that is
+    not JSON), a limit (413), a missing extra (501), an engine rule (422 / 400) – rendered
+    synchronously (in a parse process, :mod:`api.offload`); None for any other exception."""
+    if isinstance(exc, RequestValidationError | ValidationError):
+        return _validation_answer(exc)
+    if isinstance(exc, LimitExceededError):
+        return _limit_answer(exc)
+    if isinstance(exc, MissingExtraError):
+        return _missing_extra_answer(exc)
+    if isinstance(exc, ValueError):
+        return _engine_answer(exc)
+    return None
+
+
+async def _on_answered(request: Request, exc: Exception) -> Response:
+    """An error a parse process rendered already (:class:`api.offload.AnsweredError`)."""
+    assert isinstance(exc, AnsweredError)
+    return exc.answer.response()
 
 
 async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
     """Every 422 names a field: the rule's own field, else the document as a whole."""
+    return _engine_answer(exc)
+
+
+def _engine_answer(exc: Exception) -> JSONResponse:
     if isinstance(exc, MalformedBodyError | MalformedJsonError):
         return error_response(400, "bad_request", str(exc))
     field, reason = "(document)", str(exc)
@@ -301,6 +335,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(LimitExceededError, _on_limit)
     app.add_exception_handler(MissingExtraError, _on_missing_extra)
     app.add_exception_handler(ValueError, _on_engine_error)  # RisPlannerError and the engine's
+    app.add_exception_handler(AnsweredError, _on_answered)
     app.add_exception_handler(JobNotFoundError, _on_not_found)
     app.add_exception_handler(JobConflictError, _on_conflict)
     app.add_exception_handler(StarletteHTTPException, _on_http)

@@ -50,6 +50,7 @@ from typing import Any
 from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
+from api.offload import WORKER_MODULES
 from api.store import BUSY_TIMEOUT_S, RETRY_S, FileIdentity, JobStore, StoreUnavailableError
 from ris_planner import allocator
 from ris_planner.errors import RisPlannerError
@@ -58,8 +59,15 @@ from ris_planner.progress import LAST_BEFORE_END, ProgressCallback
 
 log = logging.getLogger("api.worker")
 
-PRELOAD_MODULES = ["api.worker", "api.kinds", "ris_planner.planning", "ris_planner.power.report"]
-"""Imported once by the forkserver so each job's process starts without re-importing them."""
+PRELOAD_MODULES = [
+    "api.worker",
+    "api.kinds",
+    "ris_planner.planning",
+    "ris_planner.power.report",
+    *WORKER_MODULES,
+]
+"""Imported once by the forkserver so each job's process (and each parse process,
+:mod:`api.offload`) starts without re-importing them."""
 
 PROGRESS_INTERVAL_S = 0.2
 """A worker writes progress to SQLite at most this often (and always on completion)."""
@@ -167,6 +175,30 @@ def _close_inherited_alive_pipe() -> None:
         fs._forkserver_alive_fd = None  # type: ignore[attr-defined]
 
 
+def _own_process_group() -> None:
+    """Make this worker the leader of a process group of its own: the plan's process pool
+    (:class:`ris_planner.planning.LocalExecutor`) starts in it, so :func:`terminate_job` stops
+    the job and every process it started at once."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.setpgid(0, 0)
+
+
+def terminate_job(proc: BaseProcess, sig: int = signal.SIGTERM) -> None:
+    """``sig`` to a job's process group (the worker and its pool, :func:`_own_process_group`);
+    to the worker alone while it has not made its group yet."""
+    pid = proc.pid
+    if pid is None:
+        return
+    try:
+        if os.getpgid(pid) == pid:
+            os.killpg(pid, sig)
+            return
+    except (ProcessLookupError, PermissionError, AttributeError):
+        pass
+    with contextlib.suppress(ProcessLookupError):
+        os.kill(pid, sig)
+
+
 def _pid_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -227,6 +259,7 @@ def execute_job(
 ) -> None:
     """Run one job to its end state (the body of a worker process)."""
     allocator.tune_malloc()  # a service process (ris_planner.allocator)
+    _own_process_group()
     _close_inherited_alive_pipe()
     set_parent_death_signal()
     if memory_mb is not None:
@@ -366,7 +399,7 @@ class JobRunner:
         with self._lock:
             proc = self._procs.get(job_id)
             if applied and proc is not None and proc.is_alive():
-                proc.terminate()
+                terminate_job(proc)
             self._lock.notify_all()
         return applied
 
@@ -421,8 +454,11 @@ class JobRunner:
         with self._lock:
             for job_id, proc in self._procs.items():
                 if proc.is_alive():
-                    proc.terminate()
+                    terminate_job(proc)
                 proc.join(timeout_s)
+                if proc.is_alive():  # not daemonic: the interpreter's exit would wait for it
+                    terminate_job(proc, signal.SIGKILL)
+                    proc.join(timeout_s)
                 _remove(staging_dir(self.figures_dir, job_id))
                 try:
                     self.store.requeue(job_id)
@@ -461,7 +497,10 @@ class JobRunner:
                 self.memory_mb,
             ),
             name=f"job-{job_id}",
-            daemon=True,
+            # not daemonic: a plan job starts its own process pool (a daemonic process may not
+            # have children); stop() terminates every worker, and a worker whose server died
+            # exits on its own (set_parent_death_signal, _exit_when_orphaned)
+            daemon=False,
         )
         proc.start()
         self._procs[job_id] = proc
@@ -499,7 +538,7 @@ class JobRunner:
         )
         for job_id, proc in list(self._procs.items()):
             if proc.is_alive():
-                proc.terminate()
+                terminate_job(proc)
             proc.join(10.0)
             del self._procs[job_id]
             _remove(staging_dir(self.figures_dir, job_id))
