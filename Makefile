@@ -8,11 +8,12 @@ CHROMIUM ?= /usr/bin/chromium
 
 .PHONY: demo test setup warmup lint typecheck unit portable browser-check bench docs clean
 
+# the install compiles and caches every numba kernel (ris-planner warmup): the first plan
+# pays no compilation
 $(BIN)/ris-planner: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'
-	# compile and cache every numba kernel now: the first plan pays no compilation
 	$(BIN)/ris-planner warmup
 	touch $@
 
