@@ -114,6 +114,8 @@ class ParsePool:
     def __init__(self, workers: int) -> None:
         self.workers = workers
         self.limiter = anyio.CapacityLimiter(workers)
+        self._closed = False
+        self._starter: threading.Thread | None = None
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
@@ -132,9 +134,12 @@ class ParsePool:
         def spawn() -> None:
             with contextlib.suppress(RuntimeError):  # closed meanwhile
                 for _ in range(self.workers):
+                    if self._closed:
+                        return
                     self._pool.submit(_ready)
 
-        threading.Thread(target=spawn, name="parse-pool-start", daemon=True).start()
+        self._starter = threading.Thread(target=spawn, name="parse-pool-start", daemon=True)
+        self._starter.start()
 
     def pids(self) -> list[int]:
         procs = self._pool._processes or {}
@@ -162,7 +167,12 @@ class ParsePool:
         return out
 
     def close(self, timeout_s: float = 10.0) -> None:
-        """Stop every process now (a parse in progress is abandoned)."""
+        """Stop every process now (a parse in progress is abandoned). The start-up thread is
+        waited for first: a process it started after the others were terminated would wait
+        forever for the task queue's lock that a terminated one held."""
+        self._closed = True
+        if self._starter is not None:
+            self._starter.join(timeout_s)
         self._terminate(self._pool, timeout_s)
 
     @staticmethod
@@ -175,3 +185,6 @@ class ParsePool:
         for p in procs:
             with contextlib.suppress(OSError, ValueError):
                 p.join(timeout_s)
+                if p.is_alive():
+                    p.kill()
+                    p.join(timeout_s)
