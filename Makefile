@@ -6,13 +6,20 @@ OUT    ?= out
 # Debian's chromium for the browser tests (tests/test_web.py); override for another binary
 CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: demo test setup lint typecheck unit portable browser-check bench docs clean
+.PHONY: demo test setup warmup lint typecheck unit portable browser-check bench docs clean
 
+# the install compiles and caches every numba kernel (ris-planner warmup): the first plan
+# pays no compilation
 $(BIN)/ris-planner: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'
+	$(BIN)/ris-planner warmup
 	touch $@
+
+# after editing a kernel (ris_planner/inversion/_crb_jit.py, environment/_jit.py): compile it again now
+warmup: setup
+	$(BIN)/ris-planner warmup
 
 setup: $(BIN)/ris-planner
 

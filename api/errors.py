@@ -206,16 +206,43 @@ def _validation_answer(exc: RequestValidationError | ValidationError) -> JSONRes
 
 async def _on_limit(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, LimitExceededError)
+    return _limit_answer(exc)
+
+
+def _limit_answer(exc: LimitExceededError) -> JSONResponse:
     return error_response(413, "too_large", str(exc), limit=exc.limit)
 
 
 async def _on_missing_extra(request: Request, exc: Exception) -> JSONResponse:
     """A feature of the optional GIS extra on a server without it: not the client's fault."""
+    return _missing_extra_answer(exc)
+
+
+def _missing_extra_answer(exc: Exception) -> JSONResponse:
     return error_response(501, "not_implemented", f"this server cannot do that: {exc}")
+
+
+def exception_answer(exc: Exception) -> JSONResponse | None:
+    """The handlers' answer to a document's error – validation (422, or 400 for text that is
+    not JSON), a limit (413), a missing extra (501), an engine rule (422 / 400) – rendered
+    synchronously (in a parse process, :mod:`api.offload`); None for any other exception."""
+    if isinstance(exc, RequestValidationError | ValidationError):
+        return _validation_answer(exc)
+    if isinstance(exc, LimitExceededError):
+        return _limit_answer(exc)
+    if isinstance(exc, MissingExtraError):
+        return _missing_extra_answer(exc)
+    if isinstance(exc, ValueError):
+        return _engine_answer(exc)
+    return None
 
 
 async def _on_engine_error(request: Request, exc: Exception) -> JSONResponse:
     """Every 422 names a field: the rule's own field, else the document as a whole."""
+    return _engine_answer(exc)
+
+
+def _engine_answer(exc: Exception) -> JSONResponse:
     if isinstance(exc, MalformedBodyError | MalformedJsonError):
         return error_response(400, "bad_request", str(exc))
     field, reason = "(document)", str(exc)

@@ -16,15 +16,20 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     plan.json content and the figures ``topview``, ``heatmap``, ``cdf`` (PNG) and, with the
     GIS extra, the files ``geojson`` (plan.geojson), ``geotiff`` (heatmap.tif) and
     ``points_csv`` (points.csv) of ``ris-planner plan --out`` – the same function writes both
-    (:func:`ris_planner.io.geoplan.plan_document`). The search runs serially inside this
-    worker process (parallelism comes from the service's job workers), or on the Dask cluster
-    of ``RIS_PLANNER_DASK_SCHEDULER``."""
+    (:func:`ris_planner.io.geoplan.plan_document`). The search runs on a local process pool
+    started by this worker, as on the command line (``RIS_PLANNER_PLAN_WORKERS`` processes,
+    default one per core: the same executor, so the same results), or on the Dask cluster
+    of ``RIS_PLANNER_DASK_SCHEDULER``. The pool's processes are in the worker's process
+    group: cancelling the job stops them with it (:func:`api.worker.terminate_job`)."""
     from api.settings import Settings
     from ris_planner.io.geoplan import plan_document
-    from ris_planner.planning import DaskExecutor, Executor, SerialExecutor
+    from ris_planner.planning import DaskExecutor, Executor, LocalExecutor
 
-    address = Settings().dask_scheduler
-    executor: Executor = DaskExecutor(address) if address else SerialExecutor()
+    settings = Settings()
+    address = settings.dask_scheduler
+    executor: Executor = (
+        DaskExecutor(address) if address else LocalExecutor(settings.plan_workers or None)
+    )
     with executor:
         done = plan_document(document, out_dir, progress, executor)
     return JobOutput(done.plan, done.files)

@@ -25,6 +25,7 @@ from api.errors import (
     install_error_handlers,
 )
 from api.kinds import JOB_KINDS
+from api.offload import ParsePool, install_answered_handler
 from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
 from api.security import SecurityHeadersMiddleware
 from api.settings import API_KEY_HEADER, Settings
@@ -84,12 +85,17 @@ def create_app(
             app.state.runner = runner
             app.state.bounds_limiter = anyio.CapacityLimiter(current.bounds_concurrency)
             app.state.parse_limiter = anyio.CapacityLimiter(current.parse_concurrency)
+            # the document routes' parsing and validation, in processes (api.offload)
+            parse_pool = ParsePool(current.parse_concurrency)
+            app.state.parse_pool = parse_pool
             app.state.health_limiter = anyio.CapacityLimiter(2)  # never behind request work
             blas = threadpool_limits(limits=current.blas_threads)  # this process's threads
             runner.start()
+            parse_pool.start()
             try:
                 yield
             finally:
+                parse_pool.close()
                 runner.stop()
                 blas.restore_original_limits()
                 sys.setswitchinterval(switch)
@@ -105,6 +111,7 @@ def create_app(
     )
     app.state.settings = settings
     install_error_handlers(app)
+    install_answered_handler(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     keys = KeyRing(settings)
     app.state.keys = keys

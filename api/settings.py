@@ -20,6 +20,7 @@ RIS_PLANNER_PARSE_CONCURRENCY 4                         request bodies parsed/va
 RIS_PLANNER_DB_BUSY_TIMEOUT_S 10                        SQLite lock wait per attempt [s]
 RIS_PLANNER_DB_RETRY_S   60                             retries of a failing store call [s]
 RIS_PLANNER_JOB_MEMORY_MB 4096                          memory budget of one job worker [MiB]
+RIS_PLANNER_PLAN_WORKERS 0                              a plan job's pool processes (0: one a core)
 RIS_PLANNER_DASK_SCHEDULER (unset: in the job worker)   Dask scheduler (tcp://host:8786) for plans
 ======================== ============================== =========================================
 """
@@ -115,6 +116,13 @@ class Settings(BaseSettings):
         ge=1,
         le=256,
         description="Request bodies parsed and validated at once (threads); others wait",
+    )
+    plan_workers: int = Field(
+        0,
+        ge=0,
+        le=256,
+        description="Processes of a plan job's local pool (its layout search and checks, as"
+        " `ris-planner plan --workers`); 0: one per core, as the command line",
     )
     dask_scheduler: str | None = Field(
         None,

@@ -246,6 +246,11 @@ class Job(JobHead):
         )
 
 
+class JsonText(str):
+    """A request document as its JSON text (what the store keeps), for :meth:`JobStore.
+    create_once`."""
+
+
 class JobStore:
     """Jobs in one SQLite file; the schema is created when the store is opened.
 
@@ -378,17 +383,20 @@ class JobStore:
     def create_once(
         self,
         kind: str,
-        request: dict[str, Any],
+        request: dict[str, Any] | JsonText,
         *,
         owner: str | None = None,
         idempotency_key: str | None = None,
     ) -> tuple[Job, bool]:
         """A new ``queued`` job holding the (validated) request document, owned by ``owner``
         (an API key's name; None without keys); ``(job, True)``. With an ``idempotency_key``
-        already used by the same owner, the job created then and ``False`` (nothing new)."""
+        already used by the same owner, the job created then and ``False`` (nothing new).
+        ``request`` may be the document's JSON text already (:class:`JsonText`, rendered by a
+        parse process: the server never holds the parsed document); the new job's ``request``
+        is then empty (the caller has the document)."""
         job_id = uuid.uuid4().hex
         created_at = utc_now()
-        text = json.dumps(request, allow_nan=False)
+        text = request if isinstance(request, JsonText) else json.dumps(request, allow_nan=False)
 
         def work(con: sqlite3.Connection) -> sqlite3.Row | None:
             if idempotency_key is not None:
@@ -420,7 +428,7 @@ class JobStore:
             started_at=None,
             finished_at=None,
             owner=owner,
-            request=request,
+            request={} if isinstance(request, JsonText) else request,
             result=None,
             figures={},
         )

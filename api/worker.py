@@ -13,7 +13,8 @@ that records the fault and backs off, and a final state the store cannot take no
 busy) is kept and written once the store answers again. A worker ends with its server: it
 closes the forkserver's "alive" pipe it inherits (so the forkserver exits when the server
 does), asks the kernel for SIGKILL when its parent dies (Linux ``PR_SET_PDEATHSIG``) and checks
-the server's pid every :data:`ORPHAN_CHECK_S` (the fallback elsewhere). Figures are written to
+the server's pid every :data:`api.processes.ORPHAN_CHECK_S` (the fallback elsewhere). Figures are
+written to
 a hidden folder and moved in place only when the job succeeds: a cancelled or failed job leaves
 no partial figures.
 
@@ -50,6 +51,11 @@ from typing import Any
 from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
+from api.processes import (
+    WORKER_MODULES,
+    close_inherited_alive_pipe,
+    exit_when_orphaned,
+)
 from api.store import BUSY_TIMEOUT_S, RETRY_S, FileIdentity, JobStore, StoreUnavailableError
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.core.io_json import one_line_validation_error
@@ -58,8 +64,15 @@ from ris_planner.runtime.progress import LAST_BEFORE_END, ProgressCallback
 
 log = logging.getLogger("api.worker")
 
-PRELOAD_MODULES = ["api.worker", "api.kinds", "ris_planner.planning", "ris_planner.power.report"]
-"""Imported once by the forkserver so each job's process starts without re-importing them."""
+PRELOAD_MODULES = [
+    "api.worker",
+    "api.kinds",
+    "ris_planner.planning",
+    "ris_planner.power.report",
+    *WORKER_MODULES,
+]
+"""Imported once by the forkserver so each job's process (and each parse process,
+:mod:`api.offload`) starts without re-importing them."""
 
 PROGRESS_INTERVAL_S = 0.2
 """A worker writes progress to SQLite at most this often (and always on completion)."""
@@ -134,9 +147,6 @@ def describe_error(exc: BaseException) -> str:
     return redact_paths(" ".join(text.split()))[:2000]
 
 
-ORPHAN_CHECK_S = 1.0
-"""A worker checks this often whether its server (and its parent) are gone, and exits if so."""
-
 EXIT_STORE_UNAVAILABLE = 75
 """A worker's exit status when the job database did not answer within its retry time."""
 EXIT_STORE_GONE = 76
@@ -147,7 +157,7 @@ _PR_SET_PDEATHSIG = 1
 
 def set_parent_death_signal(sig: int = signal.SIGKILL) -> bool:
     """Linux: deliver ``sig`` to this process when its parent dies (``prctl``); False where
-    unavailable (other systems rely on :func:`_exit_when_orphaned`)."""
+    unavailable (other systems rely on :func:`api.processes.exit_when_orphaned`)."""
     if not sys.platform.startswith("linux"):
         return False
     try:
@@ -157,35 +167,28 @@ def set_parent_death_signal(sig: int = signal.SIGKILL) -> bool:
         return False
 
 
-def _close_inherited_alive_pipe() -> None:
-    """A forkserver child inherits the write end of the forkserver's "alive" pipe; holding it
-    keeps the forkserver running after its server died, so the worker closes it."""
-    fs = multiprocessing.forkserver._forkserver
-    fd = getattr(fs, "_forkserver_alive_fd", None)
-    if fd is not None:
-        with contextlib.suppress(OSError):
-            os.close(fd)
-        fs._forkserver_alive_fd = None  # type: ignore[attr-defined]
+def _own_process_group() -> None:
+    """Make this worker the leader of a process group of its own: the plan's process pool
+    (:class:`ris_planner.planning.LocalExecutor`) starts in it, so :func:`terminate_job` stops
+    the job and every process it started at once."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.setpgid(0, 0)
 
 
-def _pid_alive(pid: int) -> bool:
+def terminate_job(proc: BaseProcess, sig: int = signal.SIGTERM) -> None:
+    """``sig`` to a job's process group (the worker and its pool, :func:`_own_process_group`);
+    to the worker alone while it has not made its group yet."""
+    pid = proc.pid
+    if pid is None:
+        return
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _exit_when_orphaned(server_pid: int) -> None:
-    """Daemon thread: a worker whose server (or parent, the forkserver) is gone stops instead
-    of computing on; the restarted server marks its job failed."""
-    parent = os.getppid()
-    while True:
-        if os.getppid() != parent or not _pid_alive(server_pid):
-            os._exit(1)
-        time.sleep(ORPHAN_CHECK_S)
+        if os.getpgid(pid) == pid:
+            os.killpg(pid, sig)
+            return
+    except (ProcessLookupError, PermissionError, AttributeError):
+        pass
+    with contextlib.suppress(ProcessLookupError):
+        os.kill(pid, sig)
 
 
 def _remove(path: Path) -> None:
@@ -228,13 +231,14 @@ def execute_job(
 ) -> None:
     """Run one job to its end state (the body of a worker process)."""
     allocator.tune_malloc()  # a service process (ris_planner.runtime.allocator)
-    _close_inherited_alive_pipe()
+    _own_process_group()
+    close_inherited_alive_pipe()
     set_parent_death_signal()
     if memory_mb is not None:
         cap_memory(memory_mb)
     server = os.getppid() if server_pid is None else server_pid
     threading.Thread(
-        target=_exit_when_orphaned, args=(server,), name="orphan-watch", daemon=True
+        target=exit_when_orphaned, args=(server,), name="orphan-watch", daemon=True
     ).start()
     threadpool_limits(limits=blas_threads)
     try:
@@ -367,7 +371,7 @@ class JobRunner:
         with self._lock:
             proc = self._procs.get(job_id)
             if applied and proc is not None and proc.is_alive():
-                proc.terminate()
+                terminate_job(proc)
             self._lock.notify_all()
         return applied
 
@@ -422,8 +426,11 @@ class JobRunner:
         with self._lock:
             for job_id, proc in self._procs.items():
                 if proc.is_alive():
-                    proc.terminate()
+                    terminate_job(proc)
                 proc.join(timeout_s)
+                if proc.is_alive():  # not daemonic: the interpreter's exit would wait for it
+                    terminate_job(proc, signal.SIGKILL)
+                    proc.join(timeout_s)
                 _remove(staging_dir(self.figures_dir, job_id))
                 try:
                     self.store.requeue(job_id)
@@ -462,7 +469,10 @@ class JobRunner:
                 self.memory_mb,
             ),
             name=f"job-{job_id}",
-            daemon=True,
+            # not daemonic: a plan job starts its own process pool (a daemonic process may not
+            # have children); stop() terminates every worker, and a worker whose server died
+            # exits on its own (set_parent_death_signal, exit_when_orphaned)
+            daemon=False,
         )
         proc.start()
         self._procs[job_id] = proc
@@ -500,7 +510,7 @@ class JobRunner:
         )
         for job_id, proc in list(self._procs.items()):
             if proc.is_alive():
-                proc.terminate()
+                terminate_job(proc)
             proc.join(10.0)
             del self._procs[job_id]
             _remove(staging_dir(self.figures_dir, job_id))

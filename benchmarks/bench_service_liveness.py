@@ -9,7 +9,8 @@ per load: the probes' p50, p99 and max latency and the load's answers by status.
 * ``prisms`` – one ``POST /v1/plans`` with P prisms (above the obstacle limit: refused before
   validation) and one with P/2 (validated);
 * ``import`` – a GeoJSON import of V building vertices (``POST /v1/import``);
-* ``events`` – S job event streams open (``GET /v1/jobs/{id}/events``) for a few seconds.
+* ``events`` – S job event streams open (``GET /v1/jobs/{id}/events``) for a few seconds;
+* ``idle`` – no load at all, first: the probes' own latency in the same run (the reference).
 
     python benchmarks/bench_service_liveness.py            # 300 plans, 100 001 prisms, 400k
                                                            #   vertices, 100 streams
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import tempfile
 import threading
@@ -94,11 +96,12 @@ def run_load(url: str, name: str, load: Callable[[str], Counter[int]]) -> dict[s
         "p50_s": round(percentile(lat, 50), 4),
         "p99_s": round(percentile(lat, 99), 4),
         "max_s": round(max(lat), 4),
+        "load_average_1min": round(os.getloadavg()[0], 2),
     }
     print(
         f"{name:<34} {wall:6.1f} s  answers {dict(answers)}  /healthz: {len(lat)} probes,"
         f" p50 {out['p50_s'] * 1e3:6.1f} ms, p99 {out['p99_s'] * 1e3:6.1f} ms,"
-        f" max {out['max_s'] * 1e3:6.1f} ms",
+        f" max {out['max_s'] * 1e3:6.1f} ms (load average {out['load_average_1min']})",
         flush=True,
     )
     return out
@@ -176,8 +179,20 @@ def event_streams(n: int, seconds: float) -> Callable[[str], Counter[int]]:
     return load
 
 
-def measure(smoke: bool, only: str | None = None) -> list[dict[str, Any]]:
-    """Every load against one server; the figures."""
+def idle(seconds: float) -> Callable[[str], Counter[int]]:
+    """No load: the probes alone (the reference of the same run)."""
+
+    def load(url: str) -> Counter[int]:
+        time.sleep(seconds)
+        return Counter()
+
+    return load
+
+
+def measure(smoke: bool, only: str | tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+    """Every load (those whose name contains ``only`` or one of its texts) against one server;
+    the figures."""
+    wanted = (only,) if isinstance(only, str) else only
     n_plans, n_prisms, n_vertices, n_streams = (
         (30, 20_000, 40_000, 20) if smoke else (300, 100_001, 400_000, 100)
     )
@@ -187,6 +202,7 @@ def measure(smoke: bool, only: str | None = None) -> list[dict[str, Any]]:
         url = server.url
         plan = json.dumps(small_plan_doc()).encode()
         loads: list[tuple[str, Callable[[], Callable[[str], Counter[int]]]]] = [
+            ("idle server (no load, the reference)", lambda: idle(3.0 if smoke else 10.0)),
             (
                 f"{n_plans} concurrent plan submissions",
                 lambda: concurrent_posts("/v1/plans", [plan] * n_plans, n_plans),
@@ -211,7 +227,7 @@ def measure(smoke: bool, only: str | None = None) -> list[dict[str, Any]]:
             ),
         ]
         for name, make in loads:
-            if only is not None and only not in name:
+            if wanted is not None and not any(text in name for text in wanted):
                 continue
             results.append(run_load(url, name, make()))
     return results

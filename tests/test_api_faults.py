@@ -99,8 +99,16 @@ def next_job_runs(url: str) -> None:
 
 
 def worker_pids(server_pid: int) -> list[int]:
-    """The job workers: children of the server's forkserver (a child of the server)."""
-    return [w for fs in children(server_pid) for w in children(fs)]
+    """The job workers: children of the server's forkserver (a child of the server) that lead
+    their own process group (the parse processes, its other children, do not)."""
+    return [w for fs in children(server_pid) for w in children(fs) if _group_leader(w)]
+
+
+def _group_leader(pid: int) -> bool:
+    try:
+        return os.getpgid(pid) == pid
+    except ProcessLookupError:
+        return False
 
 
 def hold_lock(db: Path, seconds: float) -> str:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import json
-import sys
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -18,7 +18,6 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from api_helpers import api_client
 from test_api_e2e import poll
 from test_api_plans import small_plan_doc, without_timing
 from test_io_import import _floor_plan
@@ -212,15 +211,23 @@ def test_a_point_swapped_far_away_names_the_field(server: str) -> None:
     assert httpx.get(f"{server}/v1/jobs?kind=plan", timeout=30).json()["total"] <= 1
 
 
-def test_without_pyproj_a_frame_is_a_501(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(sys.modules, "pyproj", None)  # import pyproj → ImportError
-    doc = geo_plan_doc() | {"frame": {"origin": [24.93851, 60.16991, 0.0]}}  # not cached yet
-    with api_client(tmp_path, workers=1) as client:
-        for path in ("/v1/plans", "/v1/plans/validate"):
-            r = client.post(path, json=doc)
+def test_without_pyproj_a_frame_is_a_501(tmp_path: Path) -> None:
+    """A server whose processes cannot import pyproj (a module of that name first on the path
+    that raises ImportError, as a missing package does; the documents are converted in the
+    parse processes, api.offload, so the server runs in its own process here)."""
+    fake = tmp_path / "nogis"
+    (fake / "pyproj").mkdir(parents=True)
+    (fake / "pyproj" / "__init__.py").write_text("raise ImportError('No module named pyproj')\n")
+    root = Path(__file__).resolve().parent.parent
+    path = os.pathsep.join(p for p in (str(fake), str(root), os.environ.get("PYTHONPATH")) if p)
+    doc = geo_plan_doc() | {"frame": {"origin": [24.93851, 60.16991, 0.0]}}
+    with served(tmp_path / "jobs.db", env={"PYTHONPATH": path}) as server:
+        for route in ("/v1/plans", "/v1/plans/validate"):
+            r = httpx.post(f"{server.url}{route}", json=doc, timeout=120)
             assert r.status_code == 501, r.text
             assert "pip install 'ris_planner[gis]'" in r.json()["message"]
-        assert client.post("/v1/plans/validate", json=small_plan_doc()).status_code == 200
+        ok = httpx.post(f"{server.url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
+        assert ok.status_code == 200
 
 
 # --- POST /v1/import -------------------------------------------------------------------------

@@ -163,6 +163,9 @@ def test_list_sizes_refused_before_validation(tmp_path: Path) -> None:
     doc["environment"] = {"obstacles": [prism] * 100_001}
     body = json.dumps(doc)
     with served(tmp_path / "jobs.db", env={"RIS_PLANNER_MAX_BODY_BYTES": "20000000"}) as server:
+        # the parse processes started (they boot with the server, in the background)
+        small = httpx.post(f"{server.url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
+        assert small.status_code == 200, small.text[:300]
         for route in ("/v1/plans", "/v1/plans/validate", "/v1/bounds"):
             t0 = time.monotonic()
             r = httpx.post(f"{server.url}{route}", content=body, timeout=60)
@@ -256,14 +259,19 @@ def test_delete_of_a_running_job_cancels_and_removes_it(tmp_path: Path) -> None:
 
 
 def test_healthz_answers_under_load() -> None:
-    """A bounded version of ``benchmarks/bench_service_liveness.py``: 30 concurrent plan
-    submissions and 20 open event streams; ``/healthz`` p99 below 0.5 s during each."""
+    """A bounded version of ``benchmarks/bench_service_liveness.py`` on one server: 30
+    concurrent plan submissions, a plan of 20 000 prisms (1.6 MB), the validation of 10 000,
+    a GeoJSON import of 40 000 vertices and 20 open event streams; ``/healthz`` p99 below
+    0.5 s during each (the documents are parsed in the parse processes, api.offload)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
     from bench_service_liveness import measure
 
-    for figures in measure(smoke=True, only="concurrent") + measure(smoke=True, only="streams"):
-        assert set(figures["health_statuses"]) == {200}, figures
-        assert figures["p99_s"] < 0.5, figures
+    loads = ("idle", "concurrent", "prisms", "import", "streams")
+    figures = measure(smoke=True, only=loads)
+    assert len(figures) == 6
+    for load in figures:
+        assert set(load["health_statuses"]) == {200}, load
+        assert load["p99_s"] < 0.5, load
 
 
 def test_every_sqlite_error_is_503(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -56,6 +56,27 @@ def server_exiting() -> bool:
     return bool(getattr(server, "should_exit", False))
 
 
+_HEADS: dict[tuple[int, str], tuple[float, JobHead | None]] = {}
+"""The last state read per (store, job) and when: the streams of one job share one read per
+:data:`EVENT_CHECK_S` (100 streams on a job: one store query a tick, not 100)."""
+
+
+async def shared_head(store: JobStore, job_id: str, max_age_s: float) -> JobHead | None:
+    """The job's state, read from the store unless another stream of the job read it less
+    than ``max_age_s`` ago."""
+    key = (id(store), job_id)
+    hit = _HEADS.get(key)
+    if hit is not None and time.monotonic() - hit[0] < max_age_s:
+        return hit[1]
+    job = await anyio.to_thread.run_sync(store.head, job_id)
+    now = time.monotonic()
+    _HEADS[key] = (now, job)
+    if len(_HEADS) > 1024:  # forget states nobody asked for lately
+        for k in [k for k, (t, _) in _HEADS.items() if now - t > 10 * max_age_s]:
+            del _HEADS[k]
+    return job
+
+
 def _event(name: str, job: JobHead, seq: int) -> str:
     data = json.dumps(JobSummary.of_head(job).model_dump(mode="json"))
     return f"id: {seq}\nevent: {name}\ndata: {data}\n\n"
@@ -70,7 +91,7 @@ async def job_events(
     seq = 0
     started = sent = time.monotonic()
     while True:
-        job = await anyio.to_thread.run_sync(store.head, job_id)
+        job = await shared_head(store, job_id, check_s / 2)
         if job is None:  # deleted meanwhile: nothing more will come
             return
         state = (job.status, job.progress, job.message)

@@ -11,12 +11,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-import anyio
 from fastapi import APIRouter, Query, Request
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field, StringConstraints
 
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
+from api.offload import Answer, ParsePool
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.io.dxf_import import LAYER_SPEC_PATTERN, parse_layer_spec
 from ris_planner.io.geojson_import import (
@@ -188,7 +188,7 @@ async def post_import(
             " when read as [lat, lon]); the per-feature and origin checks always run"
         ),
     ] = True,
-) -> JSONResponse:
+) -> Response:
     """The options are those of ``ris-planner import`` (``docs/guides/import.md``). 422 naming
     the feature by index, id, name and lon/lat in its message and ``features.N`` as its field
     (an invalid outline with ``invalid=error``, lat/lon swapped, a site without azimuth), the
@@ -209,16 +209,28 @@ async def post_import(
         swap_check=swap_check,
     )
     content_type = request.headers.get("content-type")
+    pool: ParsePool = request.app.state.parse_pool
+    args = (body, format, content_type, tuple(layer or ()), options, origin, units)
+    answer: Answer = await pool.run(import_answer, *args)
+    return answer.response()
 
-    def run() -> dict[str, Any]:
-        fmt = format or detect_format(content_type, body)
-        layers = dict(parse_layer_spec(s) for s in layer or [])
-        fragment, summary = import_data(
-            body, fmt, options, parse_origin(origin), layers, units, what="request body"
-        )
-        document, report = plan_from_import(fragment, fmt, summary, options)
-        answer = ImportAnswer(document=document, fragment=fragment, report=report.to_json())
-        return answer.model_dump(mode="json")
 
-    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
-    return JSONResponse(await anyio.to_thread.run_sync(run, limiter=limiter))
+def import_answer(
+    body: bytes,
+    format: Format | None,
+    content_type: str | None,
+    layer: tuple[str, ...],
+    options: ImportOptions,
+    origin: str | None,
+    units: Any,
+) -> Answer:
+    """The import's answer, rendered (a parse process runs it, :mod:`api.offload`: the parsed
+    file and the document never exist in the server process)."""
+    fmt = format or detect_format(content_type, body)
+    layers = dict(parse_layer_spec(s) for s in layer)
+    fragment, summary = import_data(
+        body, fmt, options, parse_origin(origin), layers, units, what="request body"
+    )
+    document, report = plan_from_import(fragment, fmt, summary, options)
+    answer = ImportAnswer(document=document, fragment=fragment, report=report.to_json())
+    return Answer.of(JSONResponse(answer.model_dump(mode="json")))

@@ -8,6 +8,7 @@ the admin key all. ``POST /v1/jobs/{id}/cancel`` cancels (the job stays, ``cance
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -20,7 +21,7 @@ from api.deps import get_principal, get_runner, get_settings, get_store
 from api.errors import ErrorBody, JobConflictError, JobNotFoundError
 from api.models import JobPage, JobSummary, JobView
 from api.settings import Settings
-from api.store import Job, JobHead, JobStatus, JobStore
+from api.store import Job, JobHead, JobStatus, JobStore, JsonText
 from api.worker import JobRunner
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -84,12 +85,12 @@ CONFLICT_RESPONSE: dict[int | str, dict[str, Any]] = {
 
 def submit_job(
     kind: str,
-    document: dict[str, Any],
+    document: dict[str, Any] | JsonText,
     store: JobStore,
     runner: JobRunner,
     principal: Principal | None = None,
     idempotency_key: str | None = None,
-) -> JSONResponse:
+) -> Response:
     """Store a queued job owned by ``principal``'s key, hand it to the runner, answer 202 with
     its view and Location; with an ``idempotency_key`` this key used before, the job created
     then (nothing new is queued; 409 if that job holds another document or kind)."""
@@ -99,7 +100,8 @@ def submit_job(
     if created:
         runner.submit(job.id, kind)
     else:
-        if job.kind != kind or job.request != document:
+        sent = json.loads(document) if isinstance(document, JsonText) else document
+        if job.kind != kind or job.request != sent:
             raise JobConflictError(
                 f"the Idempotency-Key was used for another submission (job {job.id}, kind"
                 f" {job.kind}); use a new key for a new document"
@@ -107,7 +109,13 @@ def submit_job(
         headers["Idempotent-Replayed"] = "true"
     view = JobView.of(job)
     headers["Location"] = view.url
-    return JSONResponse(view.model_dump(mode="json"), status_code=202, headers=headers)
+    if not (created and isinstance(document, JsonText)):
+        return JSONResponse(view.model_dump(mode="json"), status_code=202, headers=headers)
+    # the document as its text (never parsed in this process): the view's other fields, then
+    # "request" with the text as sent to the store
+    rest = JSONResponse(view.model_dump(mode="json", exclude={"request"})).body
+    body = bytes(rest[:-1]) + b',"request":' + document.encode() + b"}"
+    return Response(body, status_code=202, headers=headers, media_type="application/json")
 
 
 def owned_job(store: JobStore, job_id: str, principal: Principal) -> Job:

@@ -2,25 +2,27 @@
 
 The body is read here (not declared to FastAPI) so that a document with a geographic
 ``frame`` is converted to local metres before validation (:mod:`api.documents`); parsing,
-conversion and validation run in a worker thread, off the event loop.
+conversion and validation run in a parse process (:mod:`api.offload`), never in the server's.
 """
 
 from __future__ import annotations
 
+import json
 from typing import Annotated
 
 import anyio
 from fastapi import APIRouter, Depends, Request
-from fastapi.responses import JSONResponse
+from fastapi.responses import Response
 
 from api.auth import Principal
 from api.deps import get_principal, get_runner, get_settings, get_store
 from api.documents import document_body, json_document, local_plan
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.models import JobView, plan_examples
+from api.offload import ParsePool
 from api.routes.jobs import CONFLICT_RESPONSE, JOB_LINKS, IdempotencyKey, submit_job
 from api.settings import Settings
-from api.store import JobStore
+from api.store import JobStore, JsonText
 from api.worker import JobRunner
 from ris_planner.model.plan_physics import PHYSICS_FIELDS
 
@@ -49,7 +51,7 @@ async def post_plan(
     settings: Annotated[Settings, Depends(get_settings)],
     principal: Annotated[Principal, Depends(get_principal)],
     idempotency_key: IdempotencyKey = None,
-) -> JSONResponse:
+) -> Response:
     """202 with the queued job. Its result is the ``plan.json`` of ``ris-planner plan`` (ranked
     layouts per RIS count, coverage and CDF figures of merit; ``frame`` for a geographic
     document) and its figures are ``topview``, ``heatmap`` and ``cdf`` (PNG) with the files
@@ -61,16 +63,22 @@ async def post_plan(
     job memory budget), 501 for a frame on a server without the GIS extra. The job keeps the
     document as sent (a geographic one in its own coordinates)."""
     body = await request.body()
-    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
+    pool: ParsePool = request.app.state.parse_pool
+    stored = await pool.run(plan_submission, body, settings.job_memory_mb)
 
-    def submit() -> JSONResponse:
-        document = json_document(body)
-        plan, frame = local_plan(document, settings.job_memory_mb)
-        # the RIS element fields the document leaves unset stay unset: plan.json physics.from
-        unset = {f for f in PHYSICS_FIELDS if f not in plan.ris.model_fields_set}
-        stored = (
-            document if frame is not None else plan.model_dump(mode="json", exclude={"ris": unset})
-        )
+    def submit() -> Response:
         return submit_job("plan", stored, store, runner, principal, idempotency_key)
 
-    return await anyio.to_thread.run_sync(submit, limiter=limiter)
+    return await anyio.to_thread.run_sync(submit)
+
+
+def plan_submission(body: bytes, memory_mb: int) -> JsonText:
+    """A plan body → the document the job keeps, as JSON text: parsed, converted from its
+    frame, validated and checked (:func:`api.documents.local_plan`); a geographic document is
+    kept as sent, a local one with the RIS element fields it leaves unset still unset
+    (plan.json ``physics.from``). Runs in a parse process (:mod:`api.offload`)."""
+    document = json_document(body)
+    plan, frame = local_plan(document, memory_mb)
+    unset = {f for f in PHYSICS_FIELDS if f not in plan.ris.model_fields_set}
+    stored = document if frame is not None else plan.model_dump(mode="json", exclude={"ris": unset})
+    return JsonText(json.dumps(stored, allow_nan=False))

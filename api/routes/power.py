@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import json
 from typing import Annotated, Any
 
 import anyio
 from fastapi import APIRouter, Depends, Query, Request
-from fastapi.responses import JSONResponse
+from fastapi.responses import Response
 from pydantic import Discriminator, Tag, TypeAdapter
 
 from api.auth import Principal
@@ -15,9 +16,10 @@ from api.documents import document_body, json_document
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.limits import check_layout_beams_size, check_scenario_size
 from api.models import JobView, power_examples
+from api.offload import ParsePool
 from api.routes.jobs import CONFLICT_RESPONSE, JOB_LINKS, IdempotencyKey, submit_job
 from api.settings import Settings
-from api.store import JobStore
+from api.store import JobStore, JsonText
 from api.worker import JobRunner
 from ris_planner.io.frames import to_local
 from ris_planner.model.plan import LayoutBeamsDocument
@@ -73,7 +75,7 @@ async def post_power(
     ] = "rx",
     solver: Annotated[Solver, Query(description="SDP solver (cvxpy)")] = "CLARABEL",
     idempotency_key: IdempotencyKey = None,
-) -> JSONResponse:
+) -> Response:
     """202 with the queued job; its result is the JSON of ``ris-planner power`` (uniform power,
     the best γ_P for DIR+DER codebooks, the SDP allocation, each objective re-evaluated by the
     bounds code), or for a layout + UE maps document the beam report of
@@ -83,17 +85,29 @@ async def post_power(
     without the GIS extra); engine or solver failures end the job as failed with a message.
     The job keeps a geographic document as sent."""
     body = await request.body()
+    pool: ParsePool = request.app.state.parse_pool
+    stored = await pool.run(power_submission, body, settings, objective, solver)
 
-    def submit() -> JSONResponse:
-        document = json_document(body)
-        local, frame = to_local(document)
-        parsed = POWER_ADAPTER.validate_python(local)
-        if isinstance(parsed, LayoutBeamsDocument):
-            check_layout_beams_size(parsed, settings)
-            layout = document if frame is not None else parsed.model_dump(mode="json")
-            return submit_job(
-                "power", {"layout": layout}, store, runner, principal, idempotency_key
-            )
+    def submit() -> Response:
+        return submit_job("power", stored, store, runner, principal, idempotency_key)
+
+    return await anyio.to_thread.run_sync(submit)
+
+
+def power_submission(
+    body: bytes, settings: Settings, objective: Objective, solver: Solver
+) -> JsonText:
+    """A power body → the job's document as JSON text: parsed, converted from its frame,
+    validated and checked as ``ris-planner power`` (a parse process runs it, :mod:`api.offload`;
+    a geographic document is kept as sent)."""
+    document = json_document(body)
+    local, frame = to_local(document)
+    parsed = POWER_ADAPTER.validate_python(local)
+    job: dict[str, Any]
+    if isinstance(parsed, LayoutBeamsDocument):
+        check_layout_beams_size(parsed, settings)
+        job = {"layout": document if frame is not None else parsed.model_dump(mode="json")}
+    else:
         check_scenario_size(parsed, settings)
         power_check(parsed, objective, settings.job_memory_mb)  # ris-planner power's checks
         job = {
@@ -101,7 +115,4 @@ async def post_power(
             "objective": objective,
             "solver": solver,
         }
-        return submit_job("power", job, store, runner, principal, idempotency_key)
-
-    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
-    return await anyio.to_thread.run_sync(submit, limiter=limiter)
+    return JsonText(json.dumps(job, allow_nan=False))

@@ -18,7 +18,6 @@ import re
 from pathlib import Path
 from typing import Annotated, Any
 
-import anyio
 import numpy as np
 from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.openapi.docs import (
@@ -26,7 +25,7 @@ from fastapi.openapi.docs import (
     get_swagger_ui_html,
     get_swagger_ui_oauth2_redirect_html,
 )
-from fastapi.responses import FileResponse, HTMLResponse
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
 
@@ -34,6 +33,7 @@ from api.deps import get_settings
 from api.documents import document_body, json_document, local_plan
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
 from api.models import plan_examples
+from api.offload import Answer, ParsePool
 from api.security import PAGE_CSP, docs_csp
 from api.settings import Settings
 from ris_planner.planning.maps import PointMap
@@ -125,19 +125,25 @@ def _map_preview(pm: PointMap) -> MapPreview:
 )
 async def validate_plan(
     request: Request, settings: Annotated[Settings, Depends(get_settings)]
-) -> PlanPreview:
+) -> Response:
     """The validation of ``POST /v1/plans`` (a geographic document converted from its frame
     first; 422 with the field paths, 413 naming the limit, 501 without the GIS extra) plus the
     checks the job makes before it computes anything (RIS counts against the sites, pair and
     site-cache limits: 422 / 413); nothing is queued. The answer previews the expanded sites,
     maps and obstacles in local metres, with the document's frame."""
     body = await request.body()
-    limiter: anyio.CapacityLimiter = request.app.state.parse_limiter
-    return await anyio.to_thread.run_sync(_preview, body, settings, limiter=limiter)
+    pool: ParsePool = request.app.state.parse_pool
+    answer: Answer = await pool.run(preview_answer, body, settings.job_memory_mb)
+    return answer.response()
 
 
-def _preview(body: bytes, settings: Settings) -> PlanPreview:
-    document, frame = local_plan(json_document(body), settings.job_memory_mb)
+def preview_answer(body: bytes, memory_mb: int) -> Answer:
+    """:func:`_preview` rendered (in a parse process, :mod:`api.offload`)."""
+    return Answer.of(JSONResponse(_preview(body, memory_mb).model_dump(mode="json")))
+
+
+def _preview(body: bytes, memory_mb: int) -> PlanPreview:
+    document, frame = local_plan(json_document(body), memory_mb)
     inputs = prepare_plan(document)
     n_sites = len(inputs.sites)
     search = inputs.document.search

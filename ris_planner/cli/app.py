@@ -155,6 +155,7 @@ REGISTRARS: dict[str, tuple[str, ...]] = {
     "ris_planner.cli.estimate:add_cli": ("simulate", "blind-area"),
     "ris_planner.cli.geo:add_cli": ("import", "sites"),
     "ris_planner.cli.app:_add_serve": ("serve",),
+    "ris_planner.cli.warmup:add_cli": ("warmup",),
 }
 """Every feature's ``add_cli`` ("module:function") and the subcommands it registers, in help
 order. A run imports only the module of its own subcommand (``ris-planner bounds`` never loads

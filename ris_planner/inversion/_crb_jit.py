@@ -62,6 +62,9 @@ from numba import njit, prange
 from numpy.typing import NDArray
 
 from ris_planner.inversion.ldl import SINGULAR_RCOND
+from ris_planner.runtime.allocator import ensure_numba_cache
+
+ensure_numba_cache(__file__)  # before any @njit(cache=True): a writable cache folder
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

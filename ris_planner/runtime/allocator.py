@@ -79,3 +79,35 @@ def tune_worker() -> bool:
 def tuned() -> bool:
     """Whether this process runs with the thresholds."""
     return _STATE["tuned"]
+
+
+# ----- numba's on-disk cache ------------------------------------------------------------------
+
+NUMBA_FALLBACK_CACHE = "ris_planner-numba-cache"
+"""Folder (under the system's temporary directory, one per user) of the compiled kernels when
+neither the package's own ``__pycache__`` nor the user's cache folder is writable."""
+
+
+def ensure_numba_cache(source_file: str) -> str | None:
+    """Make sure numba can cache the kernels of ``source_file`` (called by each kernel module
+    before its ``@njit(cache=True)`` functions are defined: without a writable location numba
+    refuses to define them). Numba writes next to the source (``__pycache__``) when that is
+    writable, else in the user's cache folder (``~/.cache/numba``); when neither is (a
+    read-only install run by a user without a writable home) this sets numba's cache folder
+    to a stable per-user folder under the temporary directory. ``NUMBA_CACHE_DIR`` set by the
+    user always wins. Returns the folder set, or None when numba's own choice stands
+    (docs/getting-started.md, "Compiled kernels")."""
+    import tempfile
+
+    from numba.core import caching, config
+
+    if config.CACHE_DIR:  # type: ignore[attr-defined]
+        return None
+    for locator in (caching.InTreeCacheLocator, caching.UserWideCacheLocator):
+        if locator.from_function(ensure_numba_cache, source_file) is not None:
+            return None
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    path = os.path.join(tempfile.gettempdir(), f"{NUMBA_FALLBACK_CACHE}-{uid}")
+    os.makedirs(path, mode=0o700, exist_ok=True)
+    config.CACHE_DIR = path  # type: ignore[attr-defined]
+    return path

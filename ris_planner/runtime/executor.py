@@ -20,6 +20,8 @@ import mmap
 import multiprocessing
 import os
 import pickle
+import threading
+import time
 import uuid
 import weakref
 from abc import ABC, abstractmethod
@@ -286,9 +288,31 @@ def load_shared(payload: SharedPickle) -> Any:
 
 _WORKER_SHARED: dict[str, Any] = {}
 
+PARENT_CHECK_S = 0.5
+"""A pool worker checks this often whether the process that started it is gone (and exits)."""
 
-def _init_worker(shared: Any) -> None:
+
+def _exit_with_parent(parent: int) -> None:
+    """Daemon thread of a pool worker: exit as soon as its parent process (pid ``parent``, the
+    pool's owner: passed in, since it may die while the worker still starts) is gone. A worker
+    blocks on its task queue, whose write end it holds itself, so it would never notice a
+    parent killed without closing the pool (a cancelled service job, a killed command line)."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_CHECK_S)
+    os._exit(1)
+
+
+def _start_parent_watch(parent: int) -> None:
+    if os.getppid() != parent:
+        os._exit(1)
+    threading.Thread(
+        target=_exit_with_parent, args=(parent,), name="parent-watch", daemon=True
+    ).start()
+
+
+def _init_worker(shared: Any, parent: int) -> None:
     allocator.tune_worker()
+    _start_parent_watch(parent)
     _WORKER_SHARED["shared"] = shared
 
 
@@ -296,9 +320,10 @@ def _run_task(fn: Callable[[Any, Any], Any], chunk: Any) -> Any:
     return fn(_WORKER_SHARED["shared"], chunk)
 
 
-def _warm_worker(modules: tuple[str, ...]) -> None:
+def _warm_worker(modules: tuple[str, ...], parent: int) -> None:
     """Pool initializer of the sharing pool: import the task modules now."""
     allocator.tune_worker()
+    _start_parent_watch(parent)
     for name in modules:
         importlib.import_module(name)
 
@@ -343,7 +368,7 @@ class LocalExecutor(Executor):
                 max_workers=self.workers,
                 mp_context=multiprocessing.get_context("spawn"),
                 initializer=initializer,
-                initargs=initargs,
+                initargs=(*initargs, os.getpid()),
             )
             # start every worker now, while the thread caps are in the environment (the pool
             # spawns a process per submitted task until it has them all)
