@@ -17,10 +17,10 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import models_json_schema
 
-from api.limits import prescan_document
 from ris_planner.core.io_json import parse_json
 from ris_planner.io.candidates import CandidateOptions
 from ris_planner.io.frames import MAX_CRS_CHARS, Frame, to_local
+from ris_planner.model.limits import prescan_document
 from ris_planner.model.plan import LayoutBeamsDocument
 from ris_planner.model.scenario import Scenario
 from ris_planner.planning import PlanDocument
@@ -130,7 +130,7 @@ def install_document_schemas(app: FastAPI) -> None:
 def json_document(body: bytes) -> Any:
     """The JSON value of a request body: 422 ``body: Field required`` when empty, 400 when it is
     not JSON (the shapes FastAPI gives a declared body), 413 when a list exceeds its limit
-    (:func:`api.limits.prescan_document`, before validation)."""
+    (:func:`ris_planner.model.limits.prescan_document`, before validation)."""
     if not body.strip():
         raise RequestValidationError(
             [{"type": "missing", "loc": ("body",), "msg": "Field required"}]

@@ -32,7 +32,13 @@ from pathlib import Path
 from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from ris_planner.model.limits import JOB_MEMORY_MB_DEFAULT
+from ris_planner.model.limits import (
+    JOB_MEMORY_MB_DEFAULT,
+    MAX_ARRAY_ELEMENTS,
+    MAX_REQUEST_PAIRS,
+    MAX_WORK,
+    RequestLimits,
+)
 
 API_KEY_HEADER = "X-API-Key"
 
@@ -61,14 +67,14 @@ class Settings(BaseSettings):
         description="POST /v1/bounds computations running at once (threads); others wait, so"
         " memory stays bounded under a burst of large batches",
     )
-    max_pairs: int = Field(10_000, ge=1, description="TX–RX pairs per bounds request")
+    max_pairs: int = Field(MAX_REQUEST_PAIRS, ge=1, description="TX–RX pairs per bounds request")
     max_array_elements: int = Field(
-        20_000_000,
+        MAX_ARRAY_ELEMENTS,
         ge=1000,
         description="Largest engine array per request: max over RISs of pairs·N, 3G̃·N, 3G̃·pairs",
     )
     max_work: int = Field(
-        1_000_000_000,
+        MAX_WORK,
         ge=1000,
         description="Complex products per request: Σ_ℓ 3·G̃·N_ℓ·pairs; also the visibility tests"
         " (legs × obstacle edges) of a request with an environment",
@@ -129,6 +135,11 @@ class Settings(BaseSettings):
         pattern=r"^(tcp|tls|inproc|ucx)://\S+$",
         description="Dask scheduler address; plan jobs send their layout search there",
     )
+
+    @property
+    def request_limits(self) -> RequestLimits:
+        """The limits of one bounds or power request, as the engine checks them."""
+        return RequestLimits(self.max_pairs, self.max_array_elements, self.max_work)
 
     @property
     def figures_dir(self) -> Path:

@@ -14,10 +14,10 @@ from fastapi.responses import JSONResponse
 
 from api.documents import document_body, json_document
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
-from api.limits import check_scenario_size
 from api.models import BoundsResponse, scenario_examples
 from api.settings import Settings
 from ris_planner.bounds.compute import bounds_document
+from ris_planner.bounds.resources import check_scenario_size
 from ris_planner.io.frames import to_local
 from ris_planner.model.scenario import Scenario
 
@@ -60,5 +60,5 @@ def _bounds_json(body: bytes, settings: Settings) -> dict[str, Any]:
     size (413), compute."""
     local, _ = to_local(json_document(body))
     scenario = Scenario.model_validate(local)
-    check_scenario_size(scenario, settings)
+    check_scenario_size(scenario, settings.request_limits)
     return bounds_document(scenario)

@@ -14,17 +14,18 @@ from api.auth import Principal
 from api.deps import get_principal, get_runner, get_settings, get_store
 from api.documents import document_body, json_document
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
-from api.limits import check_layout_beams_size, check_scenario_size
 from api.models import JobView, power_examples
 from api.offload import ParsePool
 from api.routes.jobs import CONFLICT_RESPONSE, JOB_LINKS, IdempotencyKey, submit_job
 from api.settings import Settings
 from api.store import JobStore, JsonText
 from api.worker import JobRunner
+from ris_planner.bounds.resources import check_scenario_size
 from ris_planner.io.frames import to_local
 from ris_planner.model.plan import LayoutBeamsDocument
 from ris_planner.model.power import Objective, Solver
 from ris_planner.model.scenario import Scenario
+from ris_planner.planning.resources import check_layout_beams_size
 from ris_planner.power.resources import power_check
 
 router = APIRouter(tags=["jobs"])
@@ -105,10 +106,10 @@ def power_submission(
     parsed = POWER_ADAPTER.validate_python(local)
     job: dict[str, Any]
     if isinstance(parsed, LayoutBeamsDocument):
-        check_layout_beams_size(parsed, settings)
+        check_layout_beams_size(parsed, settings.request_limits)
         job = {"layout": document if frame is not None else parsed.model_dump(mode="json")}
     else:
-        check_scenario_size(parsed, settings)
+        check_scenario_size(parsed, settings.request_limits)
         power_check(parsed, objective, settings.job_memory_mb)  # ris-planner power's checks
         job = {
             "scenario": document if frame is not None else parsed.model_dump(mode="json"),

@@ -15,9 +15,11 @@ import math
 import os
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
+from ris_planner.environment.kinds.prism import MAX_FOOTPRINT_VERTICES
+from ris_planner.environment.model import MAX_OBSTACLES
 
 JOB_MEMORY_MB_DEFAULT = 6144
 """Memory budget of one job [MiB]: the 24 GiB machine runs two job workers beside the server
@@ -256,3 +258,71 @@ def rounded(value: float) -> int:
 def csv_rows(text: str) -> int:
     """An upper bound on the data rows of CSV text (its lines after the header)."""
     return max(0, text.count("\n") + 1 - 1)
+
+
+MAX_REQUEST_PAIRS = 10_000
+"""Default TX–RX pairs of one bounds or power request (``RIS_PLANNER_MAX_PAIRS``)."""
+
+MAX_ARRAY_ELEMENTS = 20_000_000
+"""Default largest engine array of one request [elements]: max over RISs of pairs·N, 3G̃·N,
+3G̃·pairs (``RIS_PLANNER_MAX_ARRAY_ELEMENTS``)."""
+
+MAX_WORK = 1_000_000_000
+"""Default complex products of one request, Σ_ℓ 3·G̃·N_ℓ·pairs, and its visibility tests
+(legs × obstacle edges) (``RIS_PLANNER_MAX_WORK``)."""
+
+
+@dataclass(frozen=True)
+class RequestLimits:
+    """The limits of one bounds or power request (the service reads them from its settings;
+    :func:`ris_planner.bounds.resources.check_bounds_size` applies them)."""
+
+    max_pairs: int = MAX_REQUEST_PAIRS
+    max_array_elements: int = MAX_ARRAY_ELEMENTS
+    max_work: int = MAX_WORK
+
+
+LIST_LIMITS: dict[str, tuple[int, str]] = {
+    "obstacles": (MAX_OBSTACLES, "obstacles"),
+    "footprint": (MAX_FOOTPRINT_VERTICES, "footprint vertices"),
+    "features": (MAX_OBSTACLES, "features"),
+    "points": (MAX_MAP_POINTS, "points"),
+    "sites": (MAX_SITES, "sites"),
+}
+"""The lists a document may carry in bulk, by field name, with their limits (the models'
+``max_length``); :func:`prescan_document` refuses longer ones before validation."""
+
+MAX_LIST_ITEMS = MAX_MAP_POINTS
+"""Longest list of any other name (no field of a document takes more)."""
+
+MAX_COORDINATES = 4 * MAX_MAP_POINTS
+"""Numbers inside the lists of :data:`LIST_LIMITS` together (vertices, points: 2–3 each)."""
+
+
+def prescan_document(value: Any, what: str = "request body") -> None:
+    """Refuse a parsed JSON document whose lists exceed their limits – obstacles, footprint
+    vertices, features, points, sites (:data:`LIST_LIMITS`), any list above
+    :data:`MAX_LIST_ITEMS`, or more than :data:`MAX_COORDINATES` numbers in them together –
+    with :class:`LimitExceededError` (413) in one pass over the decoded value, before the
+    (much slower) model validation. Iterative: no recursion limit (depth was checked when it
+    was parsed)."""
+    numbers = 0
+    stack: list[tuple[Any, str]] = [(value, "")]
+    while stack:
+        item, name = stack.pop()
+        if isinstance(item, dict):
+            stack.extend((v, str(k)) for k, v in item.items())
+            continue
+        if not isinstance(item, list):
+            numbers += isinstance(item, int | float)
+            continue
+        limit, label = LIST_LIMITS.get(name, (MAX_LIST_ITEMS, f"items in {name or 'a list'}"))
+        if len(item) > limit:
+            raise LimitExceededError(
+                f"{what}: {len(item)} {label} exceed the limit of {limit}", limit
+            )
+        if numbers > MAX_COORDINATES:
+            raise LimitExceededError(
+                f"{what}: more than {MAX_COORDINATES} numbers in one document", MAX_COORDINATES
+            )
+        stack.extend((v, name) for v in item)  # a list's items keep the list's field name

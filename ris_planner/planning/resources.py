@@ -23,10 +23,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
+from ris_planner.bounds.resources import check_bounds_size
 from ris_planner.core.errors import DocumentFieldError, LimitExceededError
 from ris_planner.model.limits import (
     BASE_BYTES,
     MAX_SEARCH_LAYOUTS,
+    RequestLimits,
     Sizes,
     budget_mb,
     cache_layout,
@@ -35,7 +37,8 @@ from ris_planner.model.limits import (
     grouped,
     rounded,
 )
-from ris_planner.model.plan import PlanDocument, Wall, map_points
+from ris_planner.model.plan import LayoutBeamsDocument, PlanDocument, Wall, map_points
+from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.sites import facade_walls
 
 # peak bytes per item (see the module docstring and docs/validation/resources.md)
@@ -423,3 +426,22 @@ def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
         explain=lambda budget: explain_plan_memory(shape, budget),
     )
     return sizes
+
+
+def check_layout_beams_size(document: LayoutBeamsDocument, limits: RequestLimits) -> None:
+    """The limits of a layout + UE-map power allocation: its pairs are evaluated by the bounds
+    engine once per beam design (the maps' point counts are checked against their limit
+    before they are expanded, :func:`ris_planner.model.plan.map_points`)."""
+    # the maps' sizes before any is built (a road step of 5e-324 would build forever)
+    sizes = Sizes(tx_points=map_points(document.tx_map), rx_points=map_points(document.rx_map))
+    check_sizes(sizes, memory_mb=None)
+    tx_map = build_map(document.tx_map, "tx_map")
+    rx_map = build_map(document.rx_map, "rx_map")
+    pairs = build_pairs(tx_map, rx_map, document.pairs, document.max_pairs)
+    check_bounds_size(
+        pairs.size,
+        document.system.transmissions,
+        [r.elements for r in document.ris],
+        limits,
+        document.environment,
+    )
