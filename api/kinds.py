@@ -22,7 +22,7 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     of ``RIS_PLANNER_DASK_SCHEDULER``. The pool's processes are in the worker's process
     group: cancelling the job stops them with it (:func:`api.worker.terminate_job`)."""
     from api.settings import Settings
-    from ris_planner.io.geoplan import plan_document
+    from ris_planner.io.geoplan import plan_on
     from ris_planner.planning import DaskExecutor, Executor, LocalExecutor
 
     settings = Settings()
@@ -30,8 +30,7 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     executor: Executor = (
         DaskExecutor(address) if address else LocalExecutor(settings.plan_workers or None)
     )
-    with executor:
-        done = plan_document(document, out_dir, progress, executor)
+    done = plan_on(executor, document, out_dir, progress)
     return JobOutput(done.plan, done.files)
 
 

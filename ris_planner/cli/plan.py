@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 from ris_planner.cli.app import int_in
@@ -25,7 +24,7 @@ def rounded(value: float | None, digits: int = 3) -> str:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from ris_planner.io.geoplan import plan_document
+    from ris_planner.io.geoplan import plan_on
     from ris_planner.planning.diagnosis import summary_lines
     from ris_planner.planning.presets import load_plan_file, plan_preset
     from ris_planner.planning.report import write_plan_json
@@ -47,12 +46,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
     )
     out = Path(args.out)
-    with executor:  # the document is converted from its frame there (ris_planner.io.frames)
-        done = plan_document(doc, out, ProgressBar("plan"), executor)
-        t_close = time.perf_counter()
+    done = plan_on(executor, doc, out, ProgressBar("plan"))
     plan = done.plan
-    # stopping the worker pool is the plan's time too (timing_s sums to the wall time)
-    plan["timing_s"]["workers_close"] = time.perf_counter() - t_close
     plan_path = write_plan_json(plan, out)
     if done.note is not None:
         print(f"note: GIS files skipped: {done.note}", file=sys.stderr)

@@ -11,6 +11,7 @@ when it had a frame, and the document's ``license`` / ``attribution``; ``plan.ge
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -95,3 +96,19 @@ def plan_document(
     plan["timing_s"] = dict(clock.seconds)
     stages.finish("done")
     return PlanFiles(plan, files, note, dict(clock.cpu))
+
+
+def plan_on(
+    executor: Any,
+    document: dict[str, Any],
+    out_dir: Path,
+    progress: ProgressCallback = no_progress,
+) -> PlanFiles:
+    """:func:`plan_document` on ``executor``, which it closes afterwards: stopping the worker
+    pool is the plan's time too (``timing_s["workers_close"]``, so that ``timing_s`` sums to
+    the wall time of the command line's and a job's plan alike)."""
+    with executor:  # the document is converted from its frame there (ris_planner.io.frames)
+        done = plan_document(document, out_dir, progress, executor)
+        t_close = time.perf_counter()
+    done.plan["timing_s"]["workers_close"] = time.perf_counter() - t_close
+    return done
