@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import ris_planner
-from ris_planner.cli import REGISTRARS, build_parser
+from ris_planner.cli.app import REGISTRARS, build_parser
 from ris_planner.planning import warmup
 from ris_planner.runtime import allocator
 
@@ -82,7 +82,7 @@ def test_warmup_compiles_every_kernel_and_a_plan_then_compiles_nothing() -> None
         "    def on_end(self, ev): pass\n"
         "event.register('numba:compile', L())\n"
         "from ris_planner.planning import SerialExecutor, run_plan\n"
-        "from ris_planner import crb\n"
+        "from ris_planner.inversion import crb\n"
         "import numpy as np\n"
         f"run_plan({plan!r}, executor=SerialExecutor())\n"
         "a = np.random.default_rng(1).standard_normal((4, 3, 7))\n"
