@@ -502,6 +502,7 @@
   async function loadObjectives() {
     try {
       const body = await api("/v1/objectives");
+      const chosen = $("f-objective-kind").value; // the user's choice, kept across the rebuild
       const sel = clear($("f-objective-kind"));
       for (const o of body.objectives || []) {
         LEVEL_FIELD[o.name] = o.parameter;
@@ -509,7 +510,15 @@
         OBJECTIVE_UNIT[o.name] = o.unit;
         sel.append(h("option", { value: o.name, text: o.label }));
       }
-      if (state.doc) fillForm();
+      // the list may arrive after the user has edited the form: rebuild the kind's choice and
+      // its level field only, never the other fields (a late fillForm() undid their edits)
+      const doc = state.doc || {};
+      const kind = chosen || (doc.objective && doc.objective.kind) || "coverage";
+      if ([...sel.options].some((o) => o.value === kind)) sel.value = kind;
+      updateLevelField();
+      const level = $("f-objective-level"); // filled before the kinds were known: the document's
+      const lv = doc.objective && sel.value === doc.objective.kind ? doc.objective[LEVEL_FIELD[kind]] : undefined;
+      if (level.value === "" && lv !== undefined && lv !== null) level.value = String(lv);
     } catch (err) {
       if (err.status !== 0) showBanner(err.message);
     }
