@@ -18,6 +18,7 @@ import asyncio
 import math
 import os
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -28,6 +29,9 @@ from threadpoolctl import threadpool_limits
 
 from api.launch import served
 from ris_planner import compute_bounds, load_scenario, preset_document
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from tolerance import BOUND_ACCURACY, assert_close
 
 
 async def one_round(url: str, doc: dict[str, Any], n: int) -> tuple[float, list[float], list]:  # type: ignore[type-arg]
@@ -59,7 +63,7 @@ def engine_time(doc: dict[str, Any], expected: dict[str, Any], repeats: int = 50
         t0 = time.perf_counter()
         got = compute_bounds(load_scenario(doc)).to_json(batch=False)
         times.append(time.perf_counter() - t0)
-        assert got == expected
+        assert got == expected  # the same process and route: the same bits
     return statistics.median(times)
 
 
@@ -74,7 +78,8 @@ def serve_rounds(doc: dict[str, Any], expected: dict[str, Any], n: int, rounds: 
             wall, lat, responses = asyncio.run(one_round(server.url, doc, n))
             bad = [r.status_code for r in responses if r.status_code != 200]
             assert not bad, f"non-200 answers: {bad}"
-            assert all(r.json() == expected for r in responses), "answer differs from the CLI's"
+            for r in responses:  # another process: the bounds' accuracy rule (tests/tolerance.py)
+                assert_close(r.json(), expected, accuracy=BOUND_ACCURACY, where="answer")
             rates.append(n / wall)
             p95s.append(percentile(lat, 95))
             print(
