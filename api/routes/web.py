@@ -36,8 +36,8 @@ from api.models import plan_examples
 from api.offload import Answer, ParsePool
 from api.security import PAGE_CSP, docs_csp
 from api.settings import Settings
+from ris_planner.planning.inputs import prepare_plan
 from ris_planner.planning.maps import PointMap
-from ris_planner.planning.plan import prepare_plan
 from ris_planner.planning.sites import candidate_json
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
