@@ -68,6 +68,10 @@ PRELOAD_MODULES = [
     "api.worker",
     "api.kinds",
     "ris_planner.planning",
+    # the package loads its names on first use: what a plan job runs, preloaded here
+    "ris_planner.io.geoplan",
+    "ris_planner.planning.pipeline",
+    "ris_planner.planning.report",
     "ris_planner.power.report",
     *WORKER_MODULES,
 ]

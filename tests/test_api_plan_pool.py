@@ -26,7 +26,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def pool_doc(n_sites: int = 12, pairs: int = 1500, counts: tuple[int, ...] = (2, 3)) -> dict:
     """A plan big enough that the search splits its batches over 2 workers
-    (``plan.needs_workers``: C(12, 3) · 1500 ≥ 2 · 250 000 layout-pairs)."""
+    (``plan.needs_workers``: C(12, 3) · 1500 ≥ 2 · 250 000 layout-pairs), on its workers
+    whatever its size (``search.pool_min_work`` 0)."""
     candidates = []
     for k in range(n_sites):
         phi = 2 * math.pi * k / n_sites + 0.1
@@ -43,7 +44,7 @@ def pool_doc(n_sites: int = 12, pairs: int = 1500, counts: tuple[int, ...] = (2,
         "pairs": {"sample": pairs, "seed": 1},
         "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
         "ris_count": list(counts),
-        "search": {"max_exhaustive": 10_000},
+        "search": {"max_exhaustive": 10_000, "pool_min_work": 0},
     }
 
 

@@ -59,3 +59,63 @@ def test_presence_must_name_every_path() -> None:
     found = scenario_path_presence(scenario, tx, rx)
     with pytest.raises(ValueError, match="presence must hold"):
         compute_bounds(scenario, tx, rx, presence={"los": found["los"]})
+
+
+def _full_route(scenario, tx, rx, presence, profiles):  # type: ignore[no-untyped-def]
+    """The bounds before the present-pairs routes: every pair's codebook products, every pair
+    inverted, the settled pairs overwritten afterwards (what compute_bounds did)."""
+    from ris_planner.bounds.compute import (
+        bounds_from_paths,
+        masked_state_information,
+        n_observations,
+        path_information,
+        present_path_mask,
+    )
+
+    paths, _ = path_information(scenario, tx, rx, profiles)
+    mask = present_path_mask(paths, presence)
+    n_obs = n_observations(len(scenario.ris), scenario.system.los)
+    return bounds_from_paths(paths, (), n_obs, mask, lambda: masked_state_information(paths, mask))
+
+
+@pytest.mark.parametrize("preset", ["paper-table1", "4-ris"])
+def test_codebook_products_of_present_pairs_only_keep_the_bounds(preset: str) -> None:
+    """A random codebook's products are formed for the pairs a RIS serves only (the cost of a
+    plan's codebook checks in a blind area); a missing pair carries a stand-in that nothing
+    reads. Against the full route of every pair: the same PEBs and CEB to the bounds'
+    accuracy, the same inf pattern (the settled pairs cost nothing and are inf)."""
+    from tolerance import BOUND_ACCURACY, assert_close
+
+    from ris_planner.bounds.compute import _codebook_profiles
+
+    scenario = load_scenario(preset_document(preset))
+    tx, rx = pairs(60)
+    found = scenario_path_presence(scenario, tx, rx)
+    rng = np.random.default_rng(11)
+    # about a third of each RIS path missing, as blockage would remove it
+    given = {k: v & (rng.random(v.size) > 0.35) if k != "los" else v for k, v in found.items()}
+    profiles = _codebook_profiles(scenario)
+    assert profiles is not None  # a random codebook: products per pair
+    got = compute_bounds(scenario, tx, rx, presence=given, channel=False)
+    want_tx, want_rx, want_ceb, _ = _full_route(scenario, tx, rx, given, profiles)
+    settled = ~np.isfinite(got.peb_rx)
+    assert settled.any() and (~settled).any()  # both kinds of pair occur
+    for g, w in ((got.peb_rx, want_rx), (got.peb_tx, want_tx), (got.ceb, want_ceb)):
+        assert g is not None and w is not None
+        live = np.isfinite(w) & ~settled
+        assert_close(g[live], w[live], accuracy=BOUND_ACCURACY)
+    # a settled pair is underdetermined by its paths (a reason) or the full route's inf
+    for i in np.flatnonzero(settled):
+        assert got.reason[i] is not None or not np.isfinite(want_rx[i])
+
+
+def test_unique_rows_is_numpys_unique_by_rows() -> None:
+    from ris_planner.bounds.compute import unique_rows
+
+    rng = np.random.default_rng(5)
+    for k in (1, 2, 5, 9, 63, 64):
+        flags = rng.random((500, k)) < 0.3
+        want, inverse = np.unique(flags, axis=0, return_inverse=True)
+        got, got_inverse = unique_rows(flags)
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(got_inverse, inverse.ravel())

@@ -61,6 +61,7 @@ def test_local_process_pool_gives_identical_losses(monkeypatch: pytest.MonkeyPat
     # small chunks so the 35 layouts of 3 RISs go to the two workers in several tasks
     monkeypatch.setattr(search_module, "CHUNK_MATRICES", 2000)
     doc = small_plan()
+    doc["search"] = {**doc["search"], "pool_min_work": 0}  # the workers, however small
     serial = run_plan(doc, executor=SerialExecutor())
     with LocalExecutor(2) as ex:
         pooled = run_plan(doc, executor=ex)

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from tolerance import BOUND_ACCURACY, assert_close
 
+from ris_planner.model.plan import POOL_MIN_WORK
 from ris_planner.planning import LocalExecutor, SerialExecutor, run_plan
 from ris_planner.planning import search as search_module
 from ris_planner.runtime.executor import (
@@ -53,7 +54,7 @@ def hall_like_plan() -> dict[str, Any]:
         "pairs": {"sample": 300, "seed": 0},
         "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
         "ris_count": [2, 3],
-        "search": {"max_exhaustive": 2000, "restarts": 2},
+        "search": {"max_exhaustive": 2000, "restarts": 2, "pool_min_work": 0},
     }
 
 
@@ -266,6 +267,12 @@ def test_only_a_plan_that_splits_its_batches_starts_workers(
     with LocalExecutor(2) as ex:
         run_plan(small, executor=ex)
     run_plan(small)  # the default executor too
+    # below the document's search.pool_min_work (default: minutes of scoring) a plan whose
+    # batches would split runs in-process too: the scorer's threads use the cores
+    default = {**big, "search": {"max_exhaustive": 2000}}
+    assert not needs_workers(prepare_plan(default), 2000, 2, POOL_MIN_WORK)
+    with LocalExecutor(2) as ex:
+        run_plan(default, executor=ex)
 
 
 def test_shared_arrays_never_closed_are_closed_with_their_object() -> None:

@@ -90,6 +90,11 @@ class PathInfo:
     gain: FloatArray | None = None
     """[P] α of ``unit_root`` (Ĩ = α² RᵀR)."""
 
+    def take(self, pairs: NDArray[np.int_]) -> PathInfo:
+        """The same path for the pairs ``pairs`` only (each pair's values are its own)."""
+        gain = None if self.gain is None else self.gain[pairs]
+        return replace(self, efim=self.efim[pairs], jacobian=self.jacobian[pairs], gain=gain)
+
     def state_information(self) -> FloatArray:
         """J^T Ĩ J, the path's 7×7 contribution to the information on [p_T, p_R, B]. With one
         channel parameter (the LOS path) the products have one term each, (J_i Ĩ) J_j, formed
@@ -263,6 +268,7 @@ def ris_path_information(
     weights: FloatArray,
     name: str = "ris",
     wavefront: Wavefront = "planar",
+    present: NDArray[np.bool_] | None = None,
 ) -> tuple[PathInfo, NDArray[np.bool_]]:
     """One RIS path's equivalent FIM on (ξ, ζ, cτ) (planar) or (p_T, p_R, cτ) (spherical,
     :mod:`ris_planner.physics.spherical`), its Jacobian, and far-field flags [P].
@@ -270,6 +276,11 @@ def ris_path_information(
     profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
     block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks. The gain is
     |ρ_ℓ| = λ²/(16π² d_T d_R) · (cos θ_T cos θ_R)^q (:func:`ris_path_gain`).
+    ``present`` [P]: the pairs the path exists for (:func:`scenario_path_presence`); with
+    profiles, the transmission Gram – a [3G̃, N] @ [N, P] product, the cost of a codebook's
+    bounds – is formed for those pairs only, and a missing pair carries the expected-random
+    Gram instead (finite, and never read: a missing path contributes nothing,
+    :func:`masked_state_information`, and its DEB/SEB are ``inf``).
     """
     pos = beams.ris_element_positions(ris, radio.wavelength)
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
@@ -281,8 +292,17 @@ def ris_path_information(
             gram = spherical.expected_gram(tx, rx, ris, radio.wavelength)
             q = block_count * weights.sum() * gram
         else:
-            t = spherical.transmission_vectors(profile, tx, rx, ris, radio.wavelength)
-            q = block_count * fim.transmission_gram(t, weights)
+
+            def gram(idx: NDArray[np.int_]) -> ComplexArray:
+                t = spherical.transmission_vectors(profile, tx[idx], rx[idx], ris, radio.wavelength)
+                return fim.transmission_gram(t, weights)
+
+            def stand_in(idx: NDArray[np.int_]) -> ComplexArray:
+                return weights.sum() * spherical.expected_gram(
+                    tx[idx], rx[idx], ris, radio.wavelength
+                )
+
+            q = block_count * _present_gram(tx.shape[0], present, gram, stand_in)
         efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 7)
         jacobian = spherical.jacobian(geo)
     elif profile is None:
@@ -294,11 +314,39 @@ def ris_path_information(
         root = crb.path_factor(unit, np.eye(3)[None])[0]
         return PathInfo(name, efim, jacobian, root, alpha), _far_field(ris, geo, radio)
     else:
-        gram = fim.planar_transmission_gram(
-            profile, pos, geo.xi, geo.zeta, radio.wavelength, weights
-        )
+
+        def planar(idx: NDArray[np.int_]) -> ComplexArray:
+            return fim.planar_transmission_gram(
+                profile, pos, geo.xi[idx], geo.zeta[idx], radio.wavelength, weights
+            )
+
+        def expected(idx: NDArray[np.int_]) -> ComplexArray:
+            q0 = fim.transmission_gram_expected(pos, radio.wavelength, float(weights.sum()))
+            return np.broadcast_to(q0, (idx.size, 3, 3))
+
+        gram = _present_gram(tx.shape[0], present, planar, expected)
         efim = fim.eliminate_nuisance(fim.ris_path_fim(block_count * gram, alpha, radio), 3)
     return PathInfo(name, efim, jacobian), _far_field(ris, geo, radio)
+
+
+def _present_gram(
+    n_pairs: int,
+    present: NDArray[np.bool_] | None,
+    gram: Callable[[NDArray[np.int_]], ComplexArray],
+    stand_in: Callable[[NDArray[np.int_]], ComplexArray],
+) -> ComplexArray:
+    """[P, m, m] transmission Grams: ``gram(idx)`` of the present pairs (all without
+    ``present``), ``stand_in(idx)`` of the others (:func:`ris_path_information`)."""
+    if present is None or np.all(present):
+        return gram(np.arange(n_pairs))
+    on, off = np.flatnonzero(present), np.flatnonzero(~present)
+    first = gram(on) if on.size else stand_in(off)
+    q = np.empty((n_pairs, *first.shape[1:]), dtype=complex)
+    if on.size:
+        q[on] = first
+    if off.size:
+        q[off] = stand_in(off)
+    return q
 
 
 def _far_field(ris: RIS, geo: geometry.RisPathGeometry, radio: fim.Radio) -> BoolArray:
@@ -334,12 +382,15 @@ def path_information(
     rx: FloatArray,
     profiles: list[ComplexArray] | None,
     beam_powers: FloatArray | None = None,
+    presence: dict[str, BoolArray] | None = None,
 ) -> tuple[list[PathInfo], NDArray[np.bool_]]:
     """Every path's equivalent FIM and Jacobian, and the far-field flags [P, L].
 
     tx, rx : [P, 3]; profiles : first-block profiles per RIS or ``None`` (expected random);
     beam_powers : [G̃] powers δ² of the first-block beams (:func:`beam_weights`); default all
-    ones.
+    ones; presence : the paths present per pair (:func:`scenario_path_presence`), when known:
+    a RIS path's codebook products are then formed for its present pairs only
+    (:func:`ris_path_information`).
     """
     system = scenario.system
     radio = fim.Radio.from_system(system)
@@ -352,8 +403,18 @@ def path_information(
     far = np.zeros((tx.shape[0], n_ris), dtype=bool)
     for idx, ris in enumerate(scenario.ris):
         prof = None if profiles is None else profiles[idx]
+        name = f"ris{idx + 1}"
         info, far[:, idx] = ris_path_information(
-            ris, tx, rx, radio, prof, gamma, weights, f"ris{idx + 1}", system.wavefront
+            ris,
+            tx,
+            rx,
+            radio,
+            prof,
+            gamma,
+            weights,
+            name,
+            system.wavefront,
+            None if presence is None else presence[name],
         )
         paths.append(info)
     return paths, far
@@ -438,7 +499,7 @@ def underdetermined_pairs(
     reason = np.full(mask.shape[0], None, dtype=object)
     if np.any(flagged):
         # one message per distinct presence pattern (few), not per pair
-        patterns, inverse = np.unique(mask[flagged], axis=0, return_inverse=True)
+        patterns, inverse = unique_rows(mask[flagged])
         texts = np.array(
             [
                 underdetermined_reason(
@@ -452,6 +513,21 @@ def underdetermined_pairs(
         )
         reason[flagged] = texts[inverse.ravel()]
     return flagged, reason
+
+
+def unique_rows(flags: BoolArray) -> tuple[BoolArray, NDArray[np.int_]]:
+    """``np.unique(flags, axis=0, return_inverse=True)`` of [P, K] flags (the same sorted
+    patterns and indices): each row read as a K-bit integer (a sort of P integers instead of a
+    lexicographic sort of rows) when K ≤ 62, else by rows."""
+    k = flags.shape[1]
+    if k > 62:
+        patterns, inverse = np.unique(flags, axis=0, return_inverse=True)
+        return patterns, inverse.ravel()
+    # bit k−1−j for column j: integer order = the rows' lexicographic order (False < True)
+    codes = flags.astype(np.int64) @ (np.int64(1) << np.arange(k - 1, -1, -1, dtype=np.int64))
+    values, inverse = np.unique(codes, return_inverse=True)
+    patterns = ((values[:, None] >> np.arange(k - 1, -1, -1, dtype=np.int64)) & 1).astype(bool)
+    return patterns, inverse.ravel()
 
 
 def mask_channel_bounds(
@@ -595,6 +671,43 @@ def bounds_from_paths(
     return bounds_from_state_fim(f, known, n_observations, path_factor_rows(paths, present), clock)
 
 
+def live_bounds(
+    paths: list[PathInfo],
+    known: list[KnownPart] | tuple[KnownPart, ...],
+    n_observations: int | None,
+    present: NDArray[np.bool_],
+    state_fim: Callable[[], FloatArray],
+    settled: NDArray[np.bool_],
+) -> tuple[FloatArray | None, FloatArray, FloatArray | None, NDArray[np.object_]]:
+    """:func:`bounds_from_paths` of the pairs not ``settled`` ([P] flags: pairs whose bounds
+    are ``inf`` whatever the inversion says – underdetermined by the paths they have, or
+    degenerate – and whose reason the caller sets); settled pairs get ``inf`` and no reason.
+    Each pair's inversion is its own, so the live pairs' values are those of the whole batch;
+    in a blind area most pairs are settled and cost nothing."""
+    if not np.any(settled):
+        return bounds_from_paths(paths, known, n_observations, present, state_fim)
+    live = np.flatnonzero(~settled)
+    sub = [p.take(live) for p in paths]
+    mask = present[live]
+    parts = bounds_from_paths(
+        sub, known, n_observations, mask, lambda: masked_state_information(sub, mask)
+    )
+    n = settled.shape[0]
+
+    def spread(values: FloatArray | None) -> FloatArray | None:
+        if values is None:
+            return None
+        out = np.full(n, np.inf)
+        out[live] = values
+        return out
+
+    peb_tx, peb_rx, ceb = (spread(v) for v in parts[:3])
+    reason = np.full(n, None, dtype=object)
+    reason[live] = parts[3]
+    assert peb_rx is not None  # RX is never known
+    return peb_tx, peb_rx, ceb, reason
+
+
 def _factors_of_fim(f: FloatArray) -> Callable[[NDArray[np.int_]], FloatArray]:
     """Square-root factors [p, 7, 7] of F itself (a symmetric square root by eigh)."""
 
@@ -726,7 +839,7 @@ def _compute_bounds(
         presence = {k: np.array(given[k], dtype=bool) for k in names}
     prof = _codebook_profiles(scenario) if isinstance(profiles, str) else profiles
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
-    paths, far = path_information(scenario, tx_a, rx_a, prof, powers)
+    paths, far = path_information(scenario, tx_a, rx_a, prof, powers, presence)
     mask = present_path_mask(paths, presence)
 
     @cache
@@ -736,12 +849,16 @@ def _compute_bounds(
 
     system = scenario.system
     n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
-    peb_tx, peb_rx, ceb, reason = bounds_from_paths(paths, known_t, n_obs, mask, state_fim)
+    if system.wavefront == "planar":
+        # the counting rule of the planar model, per pair with the paths it has
+        under, under_reason = underdetermined_pairs(paths, mask, int(kept_states(known_t).size))
+    else:
+        under = np.zeros(tx_a.shape[0], dtype=bool)
+        under_reason = np.full(tx_a.shape[0], None, dtype=object)
+    peb_tx, peb_rx, ceb, reason = live_bounds(paths, known_t, n_obs, mask, state_fim, under | bad)
     if system.wavefront == "planar":
         chan = channel_bounds(paths) if channel else {}
         mask_channel_bounds(chan, presence)
-        # the counting rule of the planar model, per pair with the paths it has
-        under, under_reason = underdetermined_pairs(paths, mask, int(kept_states(known_t).size))
     else:  # null with REASON_CHANNEL_SPHERICAL in JSON; singularity decided numerically
         inf = np.full(tx_a.shape[0], np.inf)
         keys = {"los": ("deb_m",)}
@@ -749,8 +866,6 @@ def _compute_bounds(
             p.name: {k: inf.copy() for k in keys.get(p.name, ("deb_m", "seb_xi", "seb_zeta"))}
             for p in (paths if channel else [])
         }
-        under = np.zeros(tx_a.shape[0], dtype=bool)
-        under_reason = np.full(tx_a.shape[0], None, dtype=object)
     for flags, why in ((under, under_reason), (bad, REASON_DEGENERATE)):
         if np.any(flags):
             for arr in (peb_tx, peb_rx, ceb):

@@ -627,6 +627,14 @@ CERTIFICATE_ITERATIONS = 20
 0.311 at L = 2), at twice the time (≈ 0.3 s per iteration for 156 sites × 6400 pairs)."""
 
 
+POOL_MIN_WORK = 2_000_000_000
+"""Default ``search.pool_min_work``: below 2·10⁹ layout-pair evaluations (minutes of scoring on
+2 cores) a local plan runs in-process. Measured on 2 cores, in-process against 2 workers in the
+same run: the Kamppi block 5.1 s against 10.0 s (+1.2 s closing the pool), the hall 5.0 s
+against 9.9 s (+1.0 s) – the compiled scorer already uses every core by threads, and a worker
+pays its interpreter, imports and kernels before its first task."""
+
+
 class SearchSpec(DocumentModel):
     """The placement search."""
 
@@ -653,6 +661,15 @@ class SearchSpec(DocumentModel):
         le=1,
         allow_inf_nan=False,
         description="Layouts whose objective lies within tie_rtol·|best| of the best tie",
+    )
+    pool_min_work: int = Field(
+        POOL_MIN_WORK,
+        ge=0,
+        le=10**15,
+        description="Layout × pair evaluations of the search (summed over the counts) below"
+        " which a plan on a local executor runs in its own process, the compiled scorer on"
+        " every core by threads, and starts no worker processes (their start-up costs more"
+        " than they save: docs/validation/benchmarks.md); 0: workers whenever a batch splits",
     )
     certificate_iterations: int = Field(
         CERTIFICATE_ITERATIONS,

@@ -52,7 +52,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.core.errors import RisPlannerError
@@ -108,6 +107,15 @@ CAUSES = (
     "not_enough_paths",
     "few_draws",
 )
+
+
+def chi2_quantile(probability: float, dof: int) -> float:
+    """The χ² distribution's ``probability`` quantile with ``dof`` degrees of freedom
+    (scipy.stats.chi2.ppf; imported here, on first use: scipy.stats costs a plan that does
+    not validate ~1 s of start-up)."""
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(probability, dof))
 
 
 def validation_work(spec: ValidationSpec, n_layouts: int) -> float:
@@ -256,11 +264,11 @@ def classify_draw(
         return None
     if swap:
         return "ghost"
-    if chi_true > chi2.ppf(CHI2_PROBABILITY, n_obs):  # the channel estimates are off
+    if chi_true > chi2_quantile(CHI2_PROBABILITY, n_obs):  # the channel estimates are off
         if weakest_snr_db < SNR_THRESHOLD_DB:
             return "threshold_snr"
         return "multipath_bias" if biased_signal else "coarse_failed"
-    if chi_est <= max(chi_true, chi2.ppf(CHI2_PROBABILITY, max(n_obs - 7, 1))):
+    if chi_est <= max(chi_true, chi2_quantile(CHI2_PROBABILITY, max(n_obs - 7, 1))):
         return "ghost"
     return "coarse_failed"
 
@@ -374,7 +382,7 @@ def check_pair(
     rmse = np.sqrt(np.mean(errors**2, axis=0))
     error = _metric(metric_name, float(rmse[0]), float(rmse[1]))
     biased_channel = bool(
-        biased and np.nanmean(chi_true) > chi2.ppf(CHI2_PROBABILITY, n_obs)
+        biased and np.nanmean(chi_true) > chi2_quantile(CHI2_PROBABILITY, n_obs)
         if np.any(np.isfinite(chi_true))
         else False
     )

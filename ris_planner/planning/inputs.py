@@ -107,11 +107,14 @@ def _drop_points(
     return tx_map, n_tx, rx_map, n_rx
 
 
-def needs_workers(inputs: PlanInputs, max_exhaustive: int, workers: int) -> bool:
-    """Whether the search will split a batch over the workers (:func:`~ris_planner.planning.
-    search.chunk_count`): some count's layouts – all of them, or ``max_exhaustive`` as many as
-    a greedy search's rounds come to at most – times the pairs reach one minimal task per
-    worker. Small plans then never start a pool (their batches run in-process)."""
+def needs_workers(inputs: PlanInputs, max_exhaustive: int, workers: int, min_work: int = 0) -> bool:
+    """Whether the plan starts its executor's workers: the search will split a batch over
+    them (:func:`~ris_planner.planning.search.chunk_count`: some count's layouts – all of
+    them, or ``max_exhaustive`` as many as a greedy search's rounds come to at most – times
+    the pairs reach one minimal task per worker) and the whole search's layout-pair
+    evaluations reach ``min_work`` (``search.pool_min_work``). Otherwise every batch runs
+    in-process."""
     n_sites, n_pairs = len(inputs.sites), inputs.pairs.size
-    work = max((min(math.comb(n_sites, c), max_exhaustive) for c in inputs.counts), default=0)
-    return workers > 1 and work * n_pairs >= workers * MIN_TASK_MATRICES
+    per_count = [min(math.comb(n_sites, c), max_exhaustive) * n_pairs for c in inputs.counts]
+    splits = max(per_count, default=0) >= workers * MIN_TASK_MATRICES
+    return workers > 1 and splits and sum(per_count) >= min_work

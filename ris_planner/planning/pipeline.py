@@ -209,9 +209,14 @@ def plan_once(
             else validate_document(document)
         )
         inputs = prepare_plan(doc, checked=checked) if inputs is None else inputs
-        if needs_workers(inputs, doc.search.max_exhaustive, ex.workers):
+        search = doc.search
+        if needs_workers(inputs, search.max_exhaustive, ex.workers, search.pool_min_work):
             # the workers start (and import) while this process builds the site cache
             ex.start()
+        elif isinstance(ex, LocalExecutor) and not ex.started:
+            # below search.pool_min_work the workers cost more than they save: every batch
+            # runs here, the compiled scorer on every core by threads
+            ex = SerialExecutor()
     stages = Stages(progress, plan_work(inputs))
     with clock.stage("visibility"):
         visibility, warnings = visibility_stage(inputs)

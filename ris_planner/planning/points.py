@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from ris_planner.planning.objectives import objective_from_loss, objective_kind
 
@@ -70,6 +69,8 @@ def raster_cells(xy: FloatArray) -> tuple[dict[str, float | int], IntArray]:
     uniq = np.unique(np.round(xy, 9), axis=0)  # [U, 2]
     span = float(np.ptp(uniq, axis=0).max()) if len(uniq) > 1 else 0.0
     if len(uniq) > 1:
+        from scipy.spatial import cKDTree  # on first use: a plan's start-up skips it
+
         dist, _ = cKDTree(uniq).query(uniq, k=2)
         cell = float(np.median(dist[:, 1]))
     else:
