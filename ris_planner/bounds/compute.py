@@ -293,7 +293,7 @@ def ris_path_information(
             q = block_count * weights.sum() * gram
         else:
 
-            def gram(idx: NDArray[np.int_]) -> ComplexArray:
+            def products(idx: NDArray[np.int_]) -> ComplexArray:
                 t = spherical.transmission_vectors(profile, tx[idx], rx[idx], ris, radio.wavelength)
                 return fim.transmission_gram(t, weights)
 
@@ -302,7 +302,7 @@ def ris_path_information(
                     tx[idx], rx[idx], ris, radio.wavelength
                 )
 
-            q = block_count * _present_gram(tx.shape[0], present, gram, stand_in)
+            q = block_count * _present_gram(tx.shape[0], present, products, stand_in)
         efim = fim.eliminate_nuisance(fim.ris_path_fim(q, alpha, radio), 7)
         jacobian = spherical.jacobian(geo)
     elif profile is None:
