@@ -74,12 +74,17 @@ def _full_route(scenario, tx, rx, presence, profiles):  # type: ignore[no-untype
 
     paths, _ = path_information(scenario, tx, rx, profiles)
     mask = present_path_mask(paths, presence)
-    n_obs = n_observations(len(scenario.ris), scenario.system.los)
+    n_obs = n_observations(len(scenario.ris), scenario.system.los, scenario.system.wavefront)
     return bounds_from_paths(paths, (), n_obs, mask, lambda: masked_state_information(paths, mask))
 
 
-@pytest.mark.parametrize("preset", ["paper-table1", "4-ris"])
-def test_codebook_products_of_present_pairs_only_keep_the_bounds(preset: str) -> None:
+@pytest.mark.parametrize(
+    ("preset", "wavefront"),
+    [("paper-table1", "planar"), ("4-ris", "planar"), ("paper-table1", "spherical")],
+)
+def test_codebook_products_of_present_pairs_only_keep_the_bounds(
+    preset: str, wavefront: str
+) -> None:
     """A random codebook's products are formed for the pairs a RIS serves only (the cost of a
     plan's codebook checks in a blind area); a missing pair carries a stand-in that nothing
     reads. Against the full route of every pair: the same PEBs and CEB to the bounds'
@@ -89,6 +94,8 @@ def test_codebook_products_of_present_pairs_only_keep_the_bounds(preset: str) ->
     from ris_planner.bounds.compute import _codebook_profiles
 
     scenario = load_scenario(preset_document(preset))
+    system = scenario.system.model_copy(update={"wavefront": wavefront})
+    scenario = scenario.model_copy(update={"system": system})
     tx, rx = pairs(60)
     found = scenario_path_presence(scenario, tx, rx)
     rng = np.random.default_rng(11)
