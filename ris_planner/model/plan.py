@@ -733,6 +733,19 @@ class ValidationSpec(DocumentModel):
         description="Box of TX candidates of the coarse position search (a prior); default the"
         " TX map's extent",
     )
+    codebook: Literal["plan", "random"] = Field(
+        "plan",
+        description="plan: the layout's designed beams and powers when the document has"
+        " 'beams' (the design named by 'design'), else a random codebook of seed 'seed';"
+        " random: always the seeded random codebook",
+    )
+    design: Literal["best", "directional", "dir_der_uniform", "dir_der_gamma_p", "dir_der_sdp"] = (
+        Field(
+            "best",
+            description="The designed codebook simulated with codebook 'plan': best = the one"
+            " with the best plan objective on all pairs (plan.json by_count[i].beams.objective)",
+        )
+    )
     step_m: float = Field(
         0.2, gt=0, le=100, allow_inf_nan=False, description="TX candidate grid step [m]"
     )
