@@ -41,7 +41,10 @@ def sim_doc(multipath: dict[str, Any]) -> dict[str, Any]:
 def test_cluster_disk_distance_is_to_its_nearest_point() -> None:
     """The distance of a point to a cluster is to the nearest point of its disk."""
     mp = Multipath.model_validate(
-        {"clusters": [{"center": [0, 0, 1], "radius_m": 2}], "scatterers": [{"position": [0, 0, 5]}]}
+        {
+            "clusters": [{"center": [0, 0, 1], "radius_m": 2}],
+            "scatterers": [{"position": [0, 0, 5]}],
+        }
     )
     pts = np.array([[3.0, 4.0, 1.0], [1.0, 0.0, 1.0], [6.0, 8.0, 4.0]])
     (_, fixed), (_, disk) = scatterer_distances(mp, pts)
