@@ -135,3 +135,137 @@ def test_rest_refuses_a_validation_cluster_over_a_map_point(tmp_path: Path) -> N
     body = r.json()
     assert body["fields"][0]["field"] == "validation.multipath.clusters.0"
     assert "tx_map point 0" in r.text and "Traceback" not in r.text
+
+
+# --- search_region in lon/lat ------------------------------------------------------------------
+
+ORIGIN = [24.94, 60.17, 10.0]
+"""A frame origin (Helsinki, 10 m above the ellipsoid)."""
+REGION = {"min_m": [-3.5, -5.0, -0.4], "max_m": [-1.2, -2.8, 0.6]}
+"""test_estimator_check's prior box around Table I's TX."""
+
+
+def framed_plan(region: dict[str, Any] | None) -> dict[str, Any]:
+    """Table I as a plan with a frame: every point in [lon, lat, h], the search region as
+    given (``None``: none)."""
+    from ris_planner.io.frames import Frame
+
+    frame = Frame(tuple(ORIGIN))  # type: ignore[arg-type]
+    doc = table1_plan({"draws": 1})
+
+    def geo(p: list[float]) -> list[float]:
+        return [float(v) for v in frame.to_geographic(np.array([p], dtype=float))[0]]
+
+    for c in doc["candidates"]:
+        c["position"] = geo(c["position"])
+    for m in ("tx_map", "rx_map"):
+        doc[m] = {"points": [geo(p) for p in doc[m]["points"]]}
+    doc["validation"].pop("search_region")
+    if region is not None:
+        doc["validation"]["search_region"] = region
+    return {"frame": {"origin": ORIGIN}, **doc}
+
+
+def lonlat_region() -> dict[str, Any]:
+    """REGION's corners in [lon, lat, h] (h = z + the origin's height)."""
+    from ris_planner.io.frames import Frame
+
+    frame = Frame(tuple(ORIGIN))  # type: ignore[arg-type]
+    lo = frame.to_geographic(np.array([REGION["min_m"]], dtype=float))[0]
+    hi = frame.to_geographic(np.array([REGION["max_m"]], dtype=float))[0]
+    return {"min_lonlat": [float(v) for v in lo], "max_lonlat": [float(v) for v in hi]}
+
+
+def test_lonlat_search_region_is_converted_through_the_frame() -> None:
+    """The lon/lat box's local box: REGION again up to the parallels' curvature in the local
+    frame (a parallel through a corner x from the meridian of the origin bends by
+    ≈ x²·tan φ/(2R) ≈ 1.6 µm at x = 3.5 m), z = h − h_origin."""
+    from ris_planner.io.frames import to_local
+
+    local, frame = to_local(framed_plan(lonlat_region()))
+    assert frame is not None
+    region = local["validation"]["search_region"]
+    assert set(region) == {"min_m", "max_m"}
+    assert_close(region["min_m"], REGION["min_m"], ulps=0, atol=1e-5)
+    assert_close(region["max_m"], REGION["max_m"], ulps=0, atol=1e-5)
+    doc = validate_document(local)
+    assert doc.validation is not None and doc.validation.search_region is not None
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "message"),
+    [
+        (lambda r: r | {"min_m": [0, 0, 0]}, SEARCH := "validation.search_region", "not both"),
+        (lambda r: {"min_lonlat": r["min_lonlat"]}, SEARCH, "give both"),
+        (  # the corners swapped: south-west ↔ north-east
+            lambda r: {"min_lonlat": r["max_lonlat"], "max_lonlat": r["min_lonlat"]},
+            SEARCH,
+            "the box is empty: max_lonlat lon",
+        ),
+        (  # written [lat, lon, h]
+            lambda r: r | {"min_lonlat": [r["min_lonlat"][1], r["min_lonlat"][0], 10.0]},
+            f"{SEARCH}.min_lonlat",
+            "lat/lon swapped?",
+        ),
+        (lambda r: r | {"max_lonlat": [24.9, 60.1]}, f"{SEARCH}.max_lonlat", "expected 3 numbers"),
+    ],
+)
+def test_bad_lonlat_search_regions_name_the_field(change: Any, field: str, message: str) -> None:
+    from ris_planner.io.frames import to_local
+
+    with pytest.raises(DocumentFieldError) as exc:
+        to_local(framed_plan(change(lonlat_region())))
+    assert exc.value.field == field and message in str(exc.value)
+
+
+def test_lonlat_search_region_without_a_frame_is_refused() -> None:
+    doc = table1_plan({"search_region": lonlat_region()})
+    with pytest.raises(ValidationError, match="this document has none: add"):
+        validate_document(doc)
+
+
+def test_rest_refuses_bad_lonlat_search_regions_with_422(tmp_path: Path) -> None:
+    region = lonlat_region()
+    swapped = {"min_lonlat": region["max_lonlat"], "max_lonlat": region["min_lonlat"]}
+    with api_client(tmp_path) as client:
+        no_frame = client.post("/v1/plans", json=table1_plan({"search_region": region}))
+        empty = client.post("/v1/plans", json=framed_plan(swapped))
+    assert no_frame.status_code == 422, no_frame.text
+    assert "search_region" in no_frame.json()["fields"][0]["field"]
+    assert "frame" in no_frame.text and "Traceback" not in no_frame.text
+    assert empty.status_code == 422, empty.text
+    assert empty.json()["fields"][0]["field"] == "validation.search_region"
+    assert "corners swapped?" in empty.text
+
+
+def test_cli_refuses_a_swapped_lonlat_corner_with_exit_2(tmp_path: Path) -> None:
+    region = lonlat_region()
+    region["max_lonlat"] = [region["max_lonlat"][1], region["max_lonlat"][0], 10.0]
+    path = tmp_path / "plan.json"
+    path.write_text(json.dumps(framed_plan(region)))
+    out = subprocess.run(
+        [*CLI, "plan", str(path), "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+    )
+    assert out.returncode == 2, out.stderr[-2000:]
+    assert "validation.search_region.max_lonlat" in out.stderr and "swapped?" in out.stderr
+
+
+def test_plan_json_echoes_the_region_in_metres_and_lonlat(tmp_path: Path) -> None:
+    """A framed plan validated with a lon/lat region: plan.json's validation.search_region
+    gives the box in local metres and in [lon, lat, h], and the corners as given."""
+    from ris_planner.io.geoplan import plan_document
+    from ris_planner.planning import SerialExecutor
+
+    region = lonlat_region()
+    done = plan_document(framed_plan(region), tmp_path, executor=SerialExecutor())
+    got = done.plan["validation"]["search_region"]
+    assert got["source"] == "search_region" and got["given"] == region
+    assert_close(got["min_m"], REGION["min_m"], ulps=0, atol=1e-5)
+    # the local min corner is the given south-west bottom corner (to the projection's round trip)
+    assert_close(got["min_lonlat"], region["min_lonlat"], ulps=0, atol=1e-9)
+    assert_close(got["max_lonlat"], region["max_lonlat"], ulps=0, atol=1e-9)
+    assert done.plan["frame"]["origin"] == ORIGIN

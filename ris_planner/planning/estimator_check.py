@@ -129,6 +129,7 @@ def search_candidates(
     TXs may be, not where this one is); the grid step is ``spec.step_m``, grown by factors of
     1.25 until the grid holds ≤ ``spec.max_candidates`` points."""
     if spec.search_region is not None:
+        assert spec.search_region.min_m is not None  # the lon/lat form is converted before
         lo = np.asarray(spec.search_region.min_m, float)
         hi = np.asarray(spec.search_region.max_m, float)
         source = "search_region"
