@@ -339,3 +339,26 @@ def test_a_plan_without_beams_is_validated_with_the_seeded_random_codebook(
     assert v is not None
     assert v["codebook"] == {"kind": "random", "seed": 0}
     assert v["layouts"][0]["codebook"] == {"kind": "random", "seed": 0}
+
+
+def test_designed_beams_on_a_spread_map_reach_their_bound() -> None:
+    """3 × 3 map points 0.6 m apart around each of Table I's UEs: the best design (diverse
+    beams) is validated, its bound below the random codebook's, and the estimator reaches it
+    (no outlier, no shortfall); with the one-point map the same design fails the coarse stage
+    (docs/validation/estimator.md, "Designed beams")."""
+    doc = table1_plan({"draws": 2, "pairs": 3}) | {
+        "beams": {"design_positions": 16, "random_seeds": 1}
+    }
+    for m in ("tx_map", "rx_map"):
+        x, y, z = doc[m]["points"][0]
+        steps = (-0.6, 0.0, 0.6)
+        doc[m] = {"points": [[x + dx, y + dy, z] for dx in steps for dy in steps]}
+    doc["validation"]["search_region"] = {"min_m": [-3.5, -5.5, -0.4], "max_m": [-0.5, -2.5, 0.6]}
+    res = run_plan(doc, executor=SerialExecutor())
+    assert res.validation is not None
+    lay = res.validation["layouts"][0]
+    assert lay["codebook"]["kind"] == "designed"
+    assert sum(lay["outliers"].values()) == 0 and lay["shortfall"]["count"] == 0
+    rand = recheck(res, codebook="random")["layouts"][0]
+    for p, q in zip(lay["pairs"], rand["pairs"], strict=True):
+        assert p["peb_rx_m"] < q["peb_rx_m"] / 2
