@@ -469,7 +469,9 @@ def _search_region_to_local(doc: dict[str, Any], frame: Frame) -> None:
     beyond :data:`MAX_FRAME_RADIUS_M` ("swapped?" when it would be one read as [lat, lon]),
     and an empty box (``min`` above ``max`` on an axis: the corners swapped)."""
     val = doc.get("validation")
-    region = val.get("search_region") if isinstance(val, dict) else None
+    if not isinstance(val, dict):
+        return
+    region = val.get("search_region")
     if not isinstance(region, dict) or not {"min_lonlat", "max_lonlat"} & set(region):
         return
     if {"min_m", "max_m"} & set(region):

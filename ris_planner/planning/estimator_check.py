@@ -225,7 +225,8 @@ def layout_codebook(
     if spec.codebook == "random" or report is None:
         return None, random
     best = report.best_design(objective_kind(doc.objective.kind).better)
-    name, note = spec.design, None
+    name: str | None = spec.design
+    note = None
     if name == "best" or name not in report.codebooks:
         if name != "best":
             note = f"design {name!r} is not available for this layout; the best design used"
