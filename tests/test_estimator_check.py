@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from tolerance import assert_close
+from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner import load_scenario, preset_document
 from ris_planner.core.errors import RisPlannerError
@@ -254,3 +254,111 @@ def test_bad_validation_settings_are_refused_with_the_field() -> None:
         validate_document(table1_plan({"multipath": {"clusters": [{"center": [0, 0]}]}}))
     with pytest.raises((ValueError, RisPlannerError), match="exceed the limit"):
         validate_document(table1_plan({"pairs": 1000, "draws": 1000}))
+
+
+@pytest.fixture(scope="module")
+def table1_beams() -> PlanResult:
+    """Table I as a plan that designs its beams (``beams``): validated with the design."""
+    doc = table1_plan({"draws": 1}) | {"beams": {"design_positions": 4, "random_seeds": 1}}
+    return run_plan(doc, executor=SerialExecutor())
+
+
+def _designed_bounds(result: PlanResult, name: str, pair: dict[str, Any]) -> tuple[float, float]:
+    """(PEB_T, PEB_R) of one validated pair by compute_bounds with the layout's designed
+    profiles and beam powers kept in memory (nothing known, as the estimator)."""
+    from ris_planner.bounds.compute import compute_bounds
+    from ris_planner.planning.beam_design import layout_scenario
+
+    doc = result.document
+    design = result.beams[(0, 1)].codebooks[name]
+    sc = layout_scenario(doc.system, [result.sites[s].ris for s in (0, 1)], [], doc.environment)
+    res = compute_bounds(
+        sc, [pair["tx"]], [pair["rx"]], profiles=design.profiles, beam_powers=design.powers
+    )
+    assert res.peb_tx is not None
+    return float(res.peb_tx[0]), float(res.peb_rx[0])
+
+
+def test_designed_beams_are_validated_with_their_profiles_and_powers(
+    table1_beams: PlanResult,
+) -> None:
+    """A plan with ``beams``: the signal and the bounds use the design with the best plan
+    objective (its profiles and beam powers), plan.json says which; seeds reproduce."""
+    v = table1_beams.validation
+    assert v is not None
+    report = table1_beams.beams[(0, 1)]
+    name = report.best_design("higher")  # coverage: higher is better
+    assert name is not None
+    lay = v["layouts"][0]
+    cb = lay["codebook"]
+    assert cb["kind"] == "designed" and cb["name"] == name
+    assert cb["sha256_16"] == report.codebooks[name].digest()
+    assert v["codebook"]["kind"] == "designed" and v["codebook"]["names"] == [name]
+    pair = lay["pairs"][0]
+    peb_tx, peb_rx = _designed_bounds(table1_beams, name, pair)
+    assert_close(pair["peb_tx_m"], peb_tx, accuracy=BOUND_ACCURACY)
+    assert_close(pair["peb_rx_m"], peb_rx, accuracy=BOUND_ACCURACY)
+    rand = recheck(table1_beams, codebook="random")
+    assert rand["codebook"] == {"kind": "random", "seed": 0}
+    assert rand["layouts"][0]["codebook"] == {"kind": "random", "seed": 0}
+    # the random codebook's bound is another number: the design is what was compared to
+    assert abs(rand["layouts"][0]["pairs"][0]["peb_rx_m"] / peb_rx - 1) > 0.01
+    assert _strip(recheck(table1_beams)) == _strip(v)
+
+
+def test_a_named_design_is_validated_and_a_missing_one_falls_back() -> None:
+    """``validation.design`` picks one design (here DIR+DER with uniform power); its bound is
+    compute_bounds with those profiles and powers. A design the layout lacks (the SDP did not
+    solve) falls back to the best one and says so."""
+    doc = table1_plan({"draws": 1, "design": "dir_der_uniform"}) | {
+        "beams": {"design_positions": 4, "random_seeds": 1}
+    }
+    res = run_plan(doc, executor=SerialExecutor())
+    assert res.validation is not None
+    lay = res.validation["layouts"][0]
+    assert lay["codebook"]["name"] == "dir_der_uniform" and lay["codebook"]["design"] == "dir+der"
+    assert lay["codebook"]["powers"] == "uniform" and lay["codebook"]["beam_power_max"] == 1.0
+    pair = lay["pairs"][0]
+    peb_tx, peb_rx = _designed_bounds(res, "dir_der_uniform", pair)
+    assert_close(pair["peb_rx_m"], peb_rx, accuracy=BOUND_ACCURACY)
+    assert_close(pair["peb_tx_m"], peb_tx, accuracy=BOUND_ACCURACY)
+    codebooks = dict(res.beams[(0, 1)].codebooks)
+    codebooks.pop("dir_der_sdp", None)
+    beams = {(0, 1): dataclasses.replace(res.beams[(0, 1)], codebooks=codebooks)}
+    missing = dataclasses.replace(res, beams=beams)
+    again = recheck(missing, design="dir_der_sdp")
+    cb = again["layouts"][0]["codebook"]
+    assert "'dir_der_sdp' is not available" in cb["note"]
+    assert cb["kind"] == "designed" and cb["name"] != "dir_der_sdp"
+
+
+def test_a_plan_without_beams_is_validated_with_the_seeded_random_codebook(
+    table1: PlanResult,
+) -> None:
+    v = table1.validation
+    assert v is not None
+    assert v["codebook"] == {"kind": "random", "seed": 0}
+    assert v["layouts"][0]["codebook"] == {"kind": "random", "seed": 0}
+
+
+def test_designed_beams_on_a_spread_map_reach_their_bound() -> None:
+    """3 × 3 map points 0.6 m apart around each of Table I's UEs: the best design (diverse
+    beams) is validated, its bound below the random codebook's, and the estimator reaches it
+    (no outlier, no shortfall); with the one-point map the same design fails the coarse stage
+    (docs/validation/estimator.md, "Designed beams")."""
+    doc = table1_plan({"draws": 2, "pairs": 3}) | {
+        "beams": {"design_positions": 16, "random_seeds": 1}
+    }
+    for m in ("tx_map", "rx_map"):
+        x, y, z = doc[m]["points"][0]
+        steps = (-0.6, 0.0, 0.6)
+        doc[m] = {"points": [[x + dx, y + dy, z] for dx in steps for dy in steps]}
+    doc["validation"]["search_region"] = {"min_m": [-3.5, -5.5, -0.4], "max_m": [-0.5, -2.5, 0.6]}
+    res = run_plan(doc, executor=SerialExecutor())
+    assert res.validation is not None
+    lay = res.validation["layouts"][0]
+    assert lay["codebook"]["kind"] == "designed"
+    assert sum(lay["outliers"].values()) == 0 and lay["shortfall"]["count"] == 0
+    rand = recheck(res, codebook="random")["layouts"][0]
+    for p, q in zip(lay["pairs"], rand["pairs"], strict=True):
+        assert p["peb_rx_m"] < q["peb_rx_m"] / 2

@@ -311,6 +311,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         "threshold_m": 0.5,
         "multipath": False,
         "reflections": False,
+        "codebook": {"kind": "designed", "names": ["dir_der_sdp"]},
         "layouts": [
             {
                 "ris_count": 2,
@@ -345,6 +346,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(row).to_contain_text("40 %")
     expect(row).to_contain_text("80 %")
     expect(row).to_contain_text("3 of 8 (ghost 3)")
+    expect(pg.locator("#estimator-check")).to_contain_text("designed beams (dir der sdp)")
     shots.take(pg, "planner-04-diagnosis-sizing")
     box.get_by_role("button", name="Use 16 × 16 elements").click()
     assert (pg.input_value("#f-ris-rows"), pg.input_value("#f-ris-cols")) == ("16", "16")

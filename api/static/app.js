@@ -1145,6 +1145,15 @@
     }
   }
 
+  /** The codebook the estimator check simulated (plan.json validation.codebook): the plan's
+   * designed beams and powers, or a seeded random codebook. */
+  function codebookText(cb) {
+    if (!cb) return "";
+    if (cb.kind === "designed") return `, designed beams (${(cb.names || []).join(", ").replace(/_/g, " ")})`;
+    if (cb.kind === "random") return `, random codebook (seed ${cb.seed})`;
+    return ", designed beams for some layouts, random for the others";
+  }
+
   /** plan.json's validation: per layout the estimator's coverage next to the bound's, and why
    * and how often it falls short of the bound. */
   function renderEstimatorCheck(v) {
@@ -1153,7 +1162,7 @@
     if (!v) return;
     box.append(h("h3", { text: "Estimator check" }));
     box.append(h("p", { class: "muted", text: `${v.pairs} pairs × ${v.draws} draws, error ≤ ${fmtNum(v.threshold_m)} m` +
-      (v.multipath ? ", with multipath" : "") + (v.reflections ? ", with site reflections" : "") }));
+      (v.multipath ? ", with multipath" : "") + (v.reflections ? ", with site reflections" : "") + codebookText(v.codebook) }));
     const layouts = Array.isArray(v.layouts) ? v.layouts : [];
     const pct = (x) => (x === null || x === undefined ? "—" : `${(100 * x).toFixed(0)} %`);
     const causes = (m) => Object.entries(m || {}).filter(([, k]) => k > 0).map(([c, k]) => `${c.replace(/_/g, " ")} ${k}`).join(", ") || "—";

@@ -12,7 +12,13 @@ from pydantic import Field, model_validator
 from ris_planner.bounds.compute import scenario_path_presence
 from ris_planner.core.document import DocumentModel
 from ris_planner.model.scenario import MIN_UE_RIS_DISTANCE_M, Scenario, load_scenario
-from ris_planner.model.simulation import EstimatorSettings, Multipath
+from ris_planner.model.simulation import (
+    MIN_SCATTERER_DISTANCE_M,
+    EstimatorSettings,
+    Multipath,
+    describe_scatterer,
+    scatterer_too_close,
+)
 
 
 class SimulationDocument(DocumentModel):
@@ -75,27 +81,39 @@ class SimulationDocument(DocumentModel):
         return present["los"], sum(present.values()) - present["los"], note
 
     def _check_scatterers(self) -> None:
+        """No SP may come within :data:`MIN_SCATTERER_DISTANCE_M` of the TX or RX, nor within
+        :data:`MIN_UE_RIS_DISTANCE_M` of a RIS centre (a cluster: the nearest point of its
+        disk, :func:`scatterer_distances`)."""
         sc = self.scenario
-        ues = {"tx": sc.tx_array[0], "rx": sc.rx_array[0]}
-        fixed = {
-            f"ris {i}": np.asarray(r.position, dtype=float) for i, r in enumerate(sc.ris)
-        } | ues
-        for j, s in enumerate(self.multipath.scatterers):
-            for name, p in fixed.items():
-                if np.linalg.norm(np.asarray(s.position) - p) < MIN_UE_RIS_DISTANCE_M:
-                    raise ValueError(
-                        f"multipath.scatterers.{j}: the SP at {s.position} lies on the {name}"
-                        " (its path gain diverges)"
-                    )
-        for j, c in enumerate(self.multipath.clusters):
-            centre = np.asarray(c.center)
-            for name, p in fixed.items():
-                horiz = float(np.hypot(*(p[:2] - centre[:2])))
-                if abs(p[2] - centre[2]) < MIN_UE_RIS_DISTANCE_M and horiz <= c.radius_m:
-                    raise ValueError(
-                        f"multipath.clusters.{j}: the disk of SPs (centre {c.center}, radius"
-                        f" {c.radius_m} m) contains the {name}; an SP could land on it"
-                    )
+        mp = self.multipath
+        checks = [
+            ("tx", sc.tx_array[:1], MIN_SCATTERER_DISTANCE_M),
+            ("rx", sc.rx_array[:1], MIN_SCATTERER_DISTANCE_M),
+            *(
+                (f"ris {i}", np.asarray([r.position], dtype=float), MIN_UE_RIS_DISTANCE_M)
+                for i, r in enumerate(sc.ris)
+            ),
+        ]
+        for who, point, limit in checks:
+            hit = scatterer_too_close(mp, point, limit)
+            if hit is None:
+                continue
+            name, _, dist = hit
+            at = f"the {who} {[float(v) for v in point[0]]}"
+            fixed = name.startswith("scatterers")
+            if dist < MIN_UE_RIS_DISTANCE_M:
+                where = f"lies on {at}" if fixed else f"contains {at}"
+            else:
+                where = (
+                    f"lies {dist:.3g} m from {at}"
+                    if fixed
+                    else f"comes within {dist:.3g} m of {at}"
+                )
+            raise ValueError(
+                f"multipath.{name}: {describe_scatterer(mp, name)} {where}; an SP must stay"
+                f" ≥ {limit:g} m from it (its path gain ∝ 1/d diverges, its delay and angles"
+                " degenerate)"
+            )
 
 
 def load_simulation(source: dict[str, Any] | SimulationDocument | str) -> SimulationDocument:

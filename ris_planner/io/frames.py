@@ -434,6 +434,7 @@ def to_local(document: Any) -> tuple[Any, Frame | None]:
         doc["walls"] = [
             w for i, wall in enumerate(doc["walls"]) for w in _split_rectangle(wall, f"walls.{i}")
         ]
+    _search_region_to_local(doc, frame)
     horizontal: list[tuple[str, Any, Any, list[float]]] = []
     for where, holder, key, kind in _iter_fields(doc):
         value = holder[key]
@@ -454,6 +455,81 @@ def to_local(document: Any) -> tuple[Any, Frame | None]:
         for (_, holder, key, v), (x, y) in zip(horizontal, xy, strict=True):
             holder[key] = [float(x), float(y)] + ([v[2] - frame.origin[2]] if len(v) == 3 else [])
     return doc, frame
+
+
+SEARCH_REGION = "validation.search_region"
+
+
+def _search_region_to_local(doc: dict[str, Any], frame: Frame) -> None:
+    """``validation.search_region``'s ``min_lonlat``/``max_lonlat`` ([lon, lat, h], WGS84 in
+    GeoJSON order, whatever the frame's CRS) → ``min_m``/``max_m`` in place: the local
+    axis-aligned box holding the four corners of the lon/lat box (the lon/lat box's edges are
+    not quite local x, y lines: meridians converge), z = h − h_origin. Refused, naming the
+    field: both forms, one corner missing, a corner that is no [lon, lat] position or lies
+    beyond :data:`MAX_FRAME_RADIUS_M` ("swapped?" when it would be one read as [lat, lon]),
+    and an empty box (``min`` above ``max`` on an axis: the corners swapped)."""
+    val = doc.get("validation")
+    if not isinstance(val, dict):
+        return
+    region = val.get("search_region")
+    if not isinstance(region, dict) or not {"min_lonlat", "max_lonlat"} & set(region):
+        return
+    if {"min_m", "max_m"} & set(region):
+        raise DocumentFieldError(
+            SEARCH_REGION,
+            "give min_m/max_m (local metres) or min_lonlat/max_lonlat ([lon, lat, h]), not both",
+        )
+    if "min_lonlat" not in region or "max_lonlat" not in region:
+        raise DocumentFieldError(SEARCH_REGION, "give both min_lonlat and max_lonlat")
+    lo = _numbers(region["min_lonlat"], (3,), f"{SEARCH_REGION}.min_lonlat")
+    hi = _numbers(region["max_lonlat"], (3,), f"{SEARCH_REGION}.max_lonlat")
+    for where, v in ((f"{SEARCH_REGION}.min_lonlat", lo), (f"{SEARCH_REGION}.max_lonlat", hi)):
+        lon, lat = v[0], v[1]
+        if not (-180 <= lon <= 180 and -90 <= lat <= 90):
+            hint = (
+                " – lat/lon swapped? (GeoJSON order is [lon, lat])"
+                if abs(lon) <= 90 and abs(lat) <= 180
+                else ""
+            )
+            raise DocumentFieldError(
+                where,
+                f"[{lon}, {lat}] is not [lon, lat] in degrees (lon within ±180, lat within"
+                f" ±90){hint}",
+            )
+        arc = float(great_circle_m(np.array([v[:2]]), frame.origin)[0])
+        if arc > MAX_FRAME_RADIUS_M:
+            raise _far_error(where, v, arc, frame)
+    names = ("lon", "lat", "h")
+    for axis in range(3):
+        if hi[axis] < lo[axis]:
+            raise DocumentFieldError(
+                SEARCH_REGION,
+                f"the box is empty: max_lonlat {names[axis]} {hi[axis]} < min_lonlat"
+                f" {names[axis]} {lo[axis]} (corners swapped? min_lonlat is the south-west"
+                " bottom corner, max_lonlat the north-east top one)",
+            )
+    corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    xy = frame.from_geographic(corners)
+    low = [*(float(v) for v in xy.min(axis=0)), lo[2] - frame.origin[2]]
+    high = [*(float(v) for v in xy.max(axis=0)), hi[2] - frame.origin[2]]
+    rest = {k: v for k, v in region.items() if k not in ("min_lonlat", "max_lonlat")}
+    val["search_region"] = {**rest, "min_m": low, "max_m": high}
+
+
+def search_region_lonlat(frame: Frame, region: dict[str, Any], given: Any = None) -> dict[str, Any]:
+    """plan.json ``validation.search_region`` with the box also in WGS84: ``min_lonlat`` /
+    ``max_lonlat`` [lon, lat, h] of its local min and max corners, and ``given`` the document's
+    own ``min_lonlat``/``max_lonlat`` when it gave the region so."""
+    lo = frame.to_geographic(np.array([region["min_m"]], dtype=float))[0]
+    hi = frame.to_geographic(np.array([region["max_m"]], dtype=float))[0]
+    out = {
+        **region,
+        "min_lonlat": [float(v) for v in lo],
+        "max_lonlat": [float(v) for v in hi],
+    }
+    if isinstance(given, dict) and "min_lonlat" in given and "max_lonlat" in given:
+        out["given"] = {"min_lonlat": given["min_lonlat"], "max_lonlat": given["max_lonlat"]}
+    return out
 
 
 def _split_rectangle(wall: Any, where: str) -> list[Any]:

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ris_planner.io import MissingExtraError
-from ris_planner.io.frames import license_of_document, to_local
+from ris_planner.io.frames import license_of_document, search_region_lonlat, to_local
 from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
 
 OUTPUTS = ("figures", "exports")
@@ -80,6 +80,10 @@ def plan_document(
         plan = result.to_json()
         if frame is not None:
             plan["frame"] = frame.describe()
+            if isinstance(plan.get("validation"), dict):
+                val = plan["validation"]
+                given = (document.get("validation") or {}).get("search_region")
+                val["search_region"] = search_region_lonlat(frame, val["search_region"], given)
         plan.update(license_of_document(document))
     with clock.stage("figures"):
         stages.callback("figures")

@@ -709,14 +709,49 @@ MAX_VALIDATION_ESTIMATES = 20_000
 """Pairs × draws of a plan validation above this are refused (≈ 30–100 ms per estimate)."""
 
 
-class SearchRegion(DocumentModel):
-    """A box of TX candidates for the estimator's coarse stage (a prior a deployment knows)."""
+LonLatH = Annotated[
+    list[float],
+    Field(
+        min_length=3,
+        max_length=3,
+        description="[lon, lat, h]: WGS84 degrees in GeoJSON order and a height in metres (as"
+        " every 3-D point of a document with a frame)",
+    ),
+]
 
-    min_m: Point3
-    max_m: Point3
+
+class SearchRegion(DocumentModel):
+    """A box of TX candidates for the estimator's coarse stage (a prior a deployment knows):
+    ``min_m``/``max_m`` in the plan's local metres, or – in a document with a ``frame`` –
+    ``min_lonlat``/``max_lonlat`` as [lon, lat, h] (WGS84, GeoJSON order; converted at the
+    document boundary by :func:`ris_planner.io.frames.to_local` into the local box that holds
+    the lon/lat box, so the model here sees ``min_m``/``max_m``). Exactly one of the forms."""
+
+    min_m: Point3 | None = None
+    max_m: Point3 | None = None
+    min_lonlat: LonLatH | None = None
+    max_lonlat: LonLatH | None = None
 
     @model_validator(mode="after")
     def _check_box(self) -> SearchRegion:
+        metric = self.min_m is not None or self.max_m is not None
+        geo = self.min_lonlat is not None or self.max_lonlat is not None
+        if metric and geo:
+            raise ValueError(
+                "search_region: give min_m/max_m (local metres) or min_lonlat/max_lonlat"
+                " ([lon, lat, h] with the document's frame), not both"
+            )
+        if geo:
+            raise ValueError(
+                "search_region.min_lonlat/max_lonlat are [lon, lat, h] of a document with a"
+                " 'frame' (its origin places them); this document has none: add"
+                ' "frame": {"origin": [lon, lat, h]} or give min_m/max_m in local metres'
+            )
+        if self.min_m is None or self.max_m is None:
+            raise ValueError(
+                "search_region needs both min_m and max_m (or, with a frame,"
+                " min_lonlat and max_lonlat)"
+            )
         lo, hi = np.asarray(self.min_m, float), np.asarray(self.max_m, float)
         if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
             raise ValueError("search_region corners must be finite")
@@ -749,6 +784,19 @@ class ValidationSpec(DocumentModel):
         None,
         description="Box of TX candidates of the coarse position search (a prior); default the"
         " TX map's extent",
+    )
+    codebook: Literal["plan", "random"] = Field(
+        "plan",
+        description="plan: the layout's designed beams and powers when the document has"
+        " 'beams' (the design named by 'design'), else a random codebook of seed 'seed';"
+        " random: always the seeded random codebook",
+    )
+    design: Literal["best", "directional", "dir_der_uniform", "dir_der_gamma_p", "dir_der_sdp"] = (
+        Field(
+            "best",
+            description="The designed codebook simulated with codebook 'plan': best = the one"
+            " with the best plan objective on all pairs (plan.json by_count[i].beams.objective)",
+        )
     )
     step_m: float = Field(
         0.2, gt=0, le=100, allow_inf_nan=False, description="TX candidate grid step [m]"

@@ -57,6 +57,55 @@ class ScattererCluster(DocumentModel):
         return finite_point(v, "cluster center")
 
 
+MIN_SCATTERER_DISTANCE_M = 0.5
+"""Closest a scattering point may come to a UE (TX or RX). The TX–SP–RX and SP–RIS paths of
+eq. channel_LOS_MP have gains ∝ 1/(d₁d₂) (radar equation): an SP at a UE makes the gain
+diverge and its delay and angles at the UE degenerate (NaN at d = 0), and the point-scatterer
+model holds only in the scatterer's far field (≳ its size √c ≈ 0.7 m for the default
+c = 0.5 m²). The paper's clusters stay ≥ 1.2 m from its UEs. A document whose scatterer or
+cluster disk comes closer to a UE is refused (:func:`scatterer_too_close`)."""
+
+
+def scatterer_distances(multipath: Multipath, points: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """(``scatterers.j`` / ``clusters.j``, the closest distance [P] of each point [P, 3] to
+    it): a fixed SP's Euclidean distance; a cluster's to the nearest point of its horizontal
+    disk (√(max(ρ − R, 0)² + Δz²), ρ the horizontal distance to the centre), where an SP
+    may land."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    out = []
+    for j, s in enumerate(multipath.scatterers):
+        out.append((f"scatterers.{j}", np.linalg.norm(pts - np.asarray(s.position), axis=-1)))
+    for j, c in enumerate(multipath.clusters):
+        centre = np.asarray(c.center, dtype=float)
+        rho = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
+        out.append(
+            (f"clusters.{j}", np.hypot(np.maximum(rho - c.radius_m, 0.0), pts[:, 2] - centre[2]))
+        )
+    return out
+
+
+def scatterer_too_close(
+    multipath: Multipath, points: np.ndarray, min_distance_m: float = MIN_SCATTERER_DISTANCE_M
+) -> tuple[str, int, float] | None:
+    """The first (``scatterers.j`` / ``clusters.j``, point index, distance) whose SPs may come
+    closer than ``min_distance_m`` to one of ``points`` [P, 3], or ``None``."""
+    for name, dist in scatterer_distances(multipath, points):
+        close = np.flatnonzero(dist < min_distance_m)
+        if close.size:
+            k = int(close[np.argmin(dist[close])])
+            return name, k, float(dist[k])
+    return None
+
+
+def describe_scatterer(multipath: Multipath, name: str) -> str:
+    """``the SP at [x, y, z]`` or ``the disk of SPs (centre …, radius … m)`` of an entry."""
+    kind, j = name.split(".")
+    if kind == "scatterers":
+        return f"the SP at {multipath.scatterers[int(j)].position}"
+    c = multipath.clusters[int(j)]
+    return f"the disk of SPs (centre {c.center}, radius {c.radius_m} m)"
+
+
 class Multipath(DocumentModel):
     """Fixed scattering points, random clusters and the site's own reflections; empty means
     no multipath.

@@ -25,6 +25,7 @@ For a layout (one RIS per chosen site) and the plan's weighted pair set:
 
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -142,15 +143,76 @@ def design_positions(
     return np.asarray(np.sort(idx[pick]))
 
 
+DESIGNS: dict[str, tuple[str, str]] = {
+    "directional": ("dir", "uniform"),
+    "dir_der_uniform": ("dir+der", "uniform"),
+    "dir_der_gamma_p": ("dir+der", "gamma_p"),
+    "dir_der_sdp": ("dir+der", "sdp"),
+}
+"""The designed codebooks of a :class:`BeamReport` (its ``objective`` keys): (beams, powers)."""
+
+
+@dataclass(frozen=True)
+class DesignedCodebook:
+    """One designed codebook of a layout, as the RISs would apply it: first-block profiles
+    (one [G̃, N_ℓ] per RIS, unit modulus) and the beam powers δ² [G̃] (sum G̃)."""
+
+    name: str
+    profiles: list[ComplexArray]
+    powers: FloatArray
+
+    def digest(self) -> str:
+        """SHA-256 (first 16 hex digits) of the profiles and powers (little-endian complex128
+        and float64 bytes, RIS by RIS): names the codebook in plan.json without its phases."""
+        h = hashlib.sha256()
+        for p in self.profiles:
+            h.update(np.ascontiguousarray(p, dtype="<c16").tobytes())
+        h.update(np.ascontiguousarray(self.powers, dtype="<f8").tobytes())
+        return h.hexdigest()[:16]
+
+    def describe(self) -> dict[str, Any]:
+        """plan.json's summary of the codebook (``validation.codebook``): design, powers,
+        beams per block, the power range and the digest."""
+        beams, powers = DESIGNS[self.name]
+        return {
+            "kind": "designed",
+            "name": self.name,
+            "design": beams,
+            "powers": powers,
+            "beams_per_block": int(self.powers.size),
+            "beam_power_min": float(np.min(self.powers)),
+            "beam_power_max": float(np.max(self.powers)),
+            "sha256_16": self.digest(),
+        }
+
+
 @dataclass
 class BeamReport:
-    """Objective of one layout on the plan's full pair set under each beam design."""
+    """Objective of one layout on the plan's full pair set under each beam design, and the
+    designed codebooks themselves (in memory only, never in plan.json: ``codebooks``)."""
 
     objective: dict[str, float | None] = field(default_factory=dict)
     detail: dict[str, Any] = field(default_factory=dict)
+    codebooks: dict[str, DesignedCodebook] = field(default_factory=dict)
+    """The designed codebooks by :data:`DESIGNS` name (``dir_der_sdp`` only when the SDP
+    solved)."""
 
     def to_json(self) -> dict[str, Any]:
         return {"objective": self.objective, **self.detail}
+
+    def best_design(self, better: str) -> str | None:
+        """The designed codebook with the best plan objective on all pairs (``better``:
+        ``"higher"`` or ``"lower"``); ties go to the first of :data:`DESIGNS` reversed (the SDP
+        first); ``None`` when none has a finite objective."""
+        best: tuple[float, str] | None = None
+        for name in reversed(DESIGNS):
+            value = self.objective.get(name)
+            if name not in self.codebooks or value is None:
+                continue
+            key = -value if better == "higher" else value
+            if best is None or key < best[0]:
+                best = (key, name)
+        return None if best is None else best[1]
 
 
 def _num(x: float | None) -> float | None:
@@ -309,6 +371,23 @@ def evaluate_layout_beams(
     obj["dir_der_sdp"] = (
         None if sdp.powers is None else _num(on_pairs(beams.derivative, sdp.powers))
     )
+    ones = np.ones(g_tilde)
+    report.codebooks = {
+        "directional": DesignedCodebook("directional", beams.directional, ones),
+        "dir_der_uniform": DesignedCodebook("dir_der_uniform", beams.derivative, ones),
+        "dir_der_gamma_p": DesignedCodebook(
+            "dir_der_gamma_p", beams.derivative, np.asarray(gamma.powers, dtype=float)
+        ),
+        **(
+            {}
+            if sdp.powers is None
+            else {
+                "dir_der_sdp": DesignedCodebook(
+                    "dir_der_sdp", beams.derivative, np.asarray(sdp.powers, dtype=float)
+                )
+            }
+        ),
+    }
     report.detail = {
         "random_seeds": random_seeds,
         "seed": seed,

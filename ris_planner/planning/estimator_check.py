@@ -7,8 +7,11 @@ One stage of :func:`~ris_planner.planning.plan.run_plan` (:func:`run_estimator_c
 * ``pairs`` TX–RX pairs are drawn with replacement ∝ the plan's pair weights (seed
   ``[seed, 0]``; with mirrored unordered pairs each draw also picks its direction), the same
   pairs for every layout;
-* the layout's codebook is a ``random`` codebook of seed ``seed`` (the plan scores with the
-  expected-random FIM, which is an expectation, not profiles a RIS can apply);
+* the layout's codebook (:func:`layout_codebook`) is, when the plan designed its beams
+  (``beams``) and ``codebook`` is ``"plan"``, the designed profiles and beam powers of
+  ``design`` (default the one with the best plan objective on all pairs), else a ``random``
+  codebook of seed ``seed`` (the plan scores with the expected-random FIM, which is an
+  expectation, not profiles a RIS can apply); the signal and the bounds use the same one;
 * the received signal (eq. signal_model) is simulated with the environment's blockage (a
   blocked or out-of-view leg carries no path), the document's diffuse ``multipath`` and, with
   ``reflections``, the site's first-order specular reflections; gain phases and noise come
@@ -18,8 +21,8 @@ One stage of :func:`~ris_planner.planning.plan.run_plan` (:func:`run_estimator_c
   coarsened until it holds ≤ ``max_candidates`` points (:func:`search_candidates`);
 * each pair's error (RMSE over the draws of the objective's metric: ‖p̂_R − p_R‖,
   ‖p̂_T − p_T‖ or their max) is set next to PEB_T, PEB_R, CEB of the same configuration
-  (``compute_bounds`` with that codebook, nothing known: the estimator estimates all of
-  p_T, p_R, B).
+  (``compute_bounds`` with that codebook and its powers, nothing known: the estimator
+  estimates all of p_T, p_R, B).
 
 Outliers (a draw whose error exceeds :data:`OUTLIER_FACTOR` × the pair's bound) get a cause
 (:func:`classify_draw`): ``ghost`` (another solution of the position equations fits the
@@ -74,13 +77,15 @@ from ris_planner.estimation.signal import (
     separate_paths,
     signal_setup,
 )
-from ris_planner.model.scenario import RIS, RandomCodebook, Scenario
+from ris_planner.model.scenario import RIS, ExplicitCodebook, RandomCodebook, Scenario
 from ris_planner.model.simulation import EstimatorSettings, Multipath
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 if TYPE_CHECKING:
     from ris_planner.model.plan import PlanDocument, ValidationSpec
+    from ris_planner.planning.beam_design import DesignedCodebook
     from ris_planner.planning.result import PlanResult
+    from ris_planner.planning.search import Layout
 
 FloatArray = NDArray[np.float64]
 
@@ -132,6 +137,7 @@ def search_candidates(
     TXs may be, not where this one is); the grid step is ``spec.step_m``, grown by factors of
     1.25 until the grid holds ≤ ``spec.max_candidates`` points."""
     if spec.search_region is not None:
+        assert spec.search_region.min_m is not None  # the lon/lat form is converted before
         lo = np.asarray(spec.search_region.min_m, float)
         hi = np.asarray(spec.search_region.max_m, float)
         source = "search_region"
@@ -186,17 +192,62 @@ def pair_scenario(base: Scenario, tx: FloatArray, rx: FloatArray) -> Scenario:
     )
 
 
-def layout_base(doc: PlanDocument, ris: list[RIS], seed: int) -> Scenario:
-    """The layout's scenario with a seeded random codebook and nothing known."""
+def layout_base(
+    doc: PlanDocument, ris: list[RIS], seed: int, design: DesignedCodebook | None = None
+) -> Scenario:
+    """The layout's scenario with nothing known and a seeded random codebook, or the designed
+    codebook's profiles as an ``explicit`` one (their phases: the profiles are unit modulus)."""
+    codebook: RandomCodebook | ExplicitCodebook = (
+        RandomCodebook(seed=seed)
+        if design is None
+        else ExplicitCodebook.model_construct(
+            kind="explicit", phases=[np.angle(p).tolist() for p in design.profiles]
+        )
+    )
     return Scenario.model_construct(
         system=doc.system,
         ris=ris,
         tx=[0.0, 0.0, 0.0],
         rx=[1.0, 0.0, 0.0],
-        codebook=RandomCodebook(seed=seed),
+        codebook=codebook,
         known=[],
         environment=doc.environment,
     )
+
+
+def layout_codebook(
+    result: PlanResult, layout: Layout
+) -> tuple[DesignedCodebook | None, dict[str, Any]]:
+    """(the designed codebook the layout is validated with or ``None`` for the seeded random
+    one, plan.json's description of it). With ``validation.codebook = "plan"`` and the
+    layout's beams designed (``document.beams``): ``validation.design``, ``best`` = the design
+    with the best plan objective on all pairs (:meth:`BeamReport.best_design`); a design that
+    is missing (the SDP did not solve) falls back to the best one, said in ``note``."""
+    from ris_planner.planning.objectives import objective_kind
+
+    doc = result.document
+    spec = doc.validation
+    assert spec is not None
+    random = {"kind": "random", "seed": spec.seed}
+    report = result.beams.get(layout)
+    if spec.codebook == "random" or report is None:
+        return None, random
+    best = report.best_design(objective_kind(doc.objective.kind).better)
+    name: str | None = spec.design
+    note = None
+    if name == "best" or name not in report.codebooks:
+        if name != "best":
+            note = f"design {name!r} is not available for this layout; the best design used"
+        name = best
+    if name is None:
+        return None, {**random, "note": "no designed codebook with a finite objective"}
+    design = report.codebooks[name]
+    return design, {
+        **design.describe(),
+        "seed": doc.beams.seed if doc.beams is not None else None,
+        "objective_on_pairs": report.objective.get(name),
+        **({"note": note} if note else {}),
+    }
 
 
 def path_snr_db(setup: SignalSetup) -> dict[str, float]:
@@ -245,8 +296,27 @@ def fit_chi2(
     for w, arr in enumerate(ris):
         i = at + 3 * w
         e[i : i + 2] = wrap(e[i : i + 2], arr.period(wavelength))
-    wmat = whitening(channel, los, "crb")
+    try:
+        wmat = whitening(channel, los, "crb")
+    except np.linalg.LinAlgError:
+        # a singular EFIM (a designed codebook whose beams all point one way carries no angle
+        # information off its beam): the same misfit as the quadratic form eᵀ F e, which
+        # counts only the directions the channel estimate informs
+        return _quadratic_misfit(channel, los, e)
     return float(np.sum((wmat @ e) ** 2))
+
+
+def _quadratic_misfit(channel: ChannelEstimate, los: bool, e: FloatArray) -> float:
+    """eᵀ F e with F the block-diagonal EFIM of the channel estimate (as :func:`whitening`
+    lays it out), for a positive semidefinite F."""
+    assert channel.efim is not None
+    blocks = [b for b in (channel.efim if los else channel.efim[1:]) if b is not None]
+    total, at = 0.0, 0
+    for b in blocks:
+        m = b.shape[0]
+        total += float(e[at : at + m] @ b @ e[at : at + m])
+        at += m
+    return max(total, 0.0)
 
 
 def classify_draw(
@@ -425,8 +495,10 @@ def check_layout(
     spec = doc.validation
     assert spec is not None
     metric_name = doc.objective.metric
-    base = layout_base(doc, [result.sites[s].ris for s in layout], spec.seed)
-    bres = compute_bounds(base, tx=tx, rx=rx)
+    design, codebook = layout_codebook(result, layout)
+    powers = None if design is None else design.powers
+    base = layout_base(doc, [result.sites[s].ris for s in layout], spec.seed, design)
+    bres = compute_bounds(base, tx=tx, rx=rx, beam_powers=powers)
     peb_tx = bres.peb_tx if bres.peb_tx is not None else np.full(len(tx), np.inf)
     ceb = bres.ceb if bres.ceb is not None else np.full(len(tx), np.inf)
     rows: list[dict[str, Any]] = []
@@ -435,7 +507,7 @@ def check_layout(
     seconds, n_est = 0.0, 0
     for j in range(len(tx)):
         progress(j / len(tx), f"{len(layout)} RISs: pair {j + 1}/{len(tx)}")
-        setup = signal_setup(pair_scenario(base, tx[j], rx[j]))
+        setup = signal_setup(pair_scenario(base, tx[j], rx[j]), beam_powers=powers)
         bounds = (float(peb_tx[j]), float(bres.peb_rx[j]), float(ceb[j]))
         bound = _metric(metric_name, bounds[0], bounds[1])
         row: dict[str, Any] = {
@@ -509,6 +581,7 @@ def check_layout(
     return {
         "ris_count": len(layout),
         "sites": [int(s) for s in layout],
+        "codebook": codebook,
         "estimator_coverage": sum(r["estimator_covered"] for r in rows) / n,
         "bound_coverage": n_covered / n,
         "estimator_coverage_swap_resolved": sum(
@@ -560,6 +633,27 @@ def summary_lines(validation: dict[str, Any]) -> list[str]:
     return lines
 
 
+def overall_codebook(spec: ValidationSpec, layouts: list[dict[str, Any]]) -> dict[str, Any]:
+    """plan.json ``validation.codebook``: ``{"kind": "random", "seed"}`` when every layout ran
+    the seeded random codebook, ``{"kind": "designed", "design", "powers", …}`` when every
+    one ran a design (each layout's own in ``layouts[i].codebook``), else ``"mixed"``."""
+    kinds = {lay["codebook"]["kind"] for lay in layouts}
+    if kinds == {"designed"}:
+        names = sorted({lay["codebook"]["name"] for lay in layouts})
+        first = layouts[0]["codebook"]
+        return {
+            "kind": "designed",
+            "setting": spec.design,
+            "names": names,
+            "design": first["design"] if len(names) == 1 else "per layout",
+            "powers": first["powers"] if len(names) == 1 else "per layout",
+            "seed": first["seed"],
+        }
+    if kinds <= {"random"}:
+        return {"kind": "random", "seed": spec.seed}
+    return {"kind": "mixed", "setting": spec.design, "seed": spec.seed}
+
+
 def run_estimator_check(
     result: PlanResult, progress: ProgressCallback = no_progress
 ) -> dict[str, Any]:
@@ -589,7 +683,7 @@ def run_estimator_check(
         "seed": spec.seed,
         "metric": doc.objective.metric,
         "threshold_m": threshold,
-        "codebook": {"kind": "random", "seed": spec.seed},
+        "codebook": overall_codebook(spec, out),
         "multipath": not multipath.empty,
         "reflections": spec.reflections,
         "search_region": region,

@@ -38,6 +38,12 @@ from ris_planner.model.limits import (
     rounded,
 )
 from ris_planner.model.plan import LayoutBeamsDocument, PlanDocument, Wall, map_points
+from ris_planner.model.simulation import (
+    MIN_SCATTERER_DISTANCE_M,
+    Multipath,
+    describe_scatterer,
+    scatterer_too_close,
+)
 from ris_planner.planning.maps import build_map, build_pairs
 from ris_planner.planning.sites import facade_walls
 
@@ -425,7 +431,36 @@ def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
         memory_mb=budget_mb(memory_mb),
         explain=lambda budget: explain_plan_memory(shape, budget),
     )
+    check_validation_scatterers(doc)
     return sizes
+
+
+def check_validation_scatterers(doc: PlanDocument) -> None:
+    """``validation.multipath``: no scatterer or cluster disk may come within
+    :data:`~ris_planner.model.simulation.MIN_SCATTERER_DISTANCE_M` of a point of the TX or RX
+    map (every point may be a sampled UE; docs/validation/estimator.md): a
+    :class:`DocumentFieldError` naming the entry, the map and the point. Runs after the size
+    checks (it builds the maps)."""
+    spec = doc.validation
+    if spec is None or not spec.multipath:
+        return
+    mp = Multipath.model_validate(spec.multipath)
+    if not mp.scatterers and not mp.clusters:
+        return
+    maps = [("tx_map", doc.tx_map)] + ([] if doc.rx_map == doc.tx_map else [("rx_map", doc.rx_map)])
+    for what, spec_map in maps:
+        points = build_map(spec_map, what).points
+        hit = scatterer_too_close(mp, points)
+        if hit is not None:
+            name, k, dist = hit
+            raise DocumentFieldError(
+                f"validation.multipath.{name}",
+                f"{describe_scatterer(mp, name)} comes within {dist:.3g} m of {what} point {k}"
+                f" {[round(float(v), 3) for v in points[k]]}; an SP must stay"
+                f" ≥ {MIN_SCATTERER_DISTANCE_M:g} m from every map point (a sampled UE:"
+                " its path gain ∝ 1/d diverges, its delay and angles degenerate): move or"
+                " raise the cluster, or shrink its radius_m",
+            )
 
 
 def check_layout_beams_size(document: LayoutBeamsDocument, limits: RequestLimits) -> None:
