@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -141,3 +142,43 @@ def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
         sub = parser.add_subparsers()
         _registrar(path)(sub)
         assert tuple(sub.choices) == names, path
+
+
+def test_plan_process_exits_fast_with_its_status_and_output(tmp_path: Path) -> None:
+    """``python -m ris_planner.cli plan`` ends without the interpreter's teardown
+    (``app.FAST_EXIT``): its files are written, stdout and stderr arrive in full (flushed
+    before the exit), and the status is the command's – 0 for a plan, 2 for bad input."""
+    doc = tmp_path / "plan.json"
+    ring = [
+        {"position": [6 * math.cos(a), 6 * math.sin(a), 2.0], "orientation": [a + math.pi, 0.3, 0]}
+        for a in (2 * math.pi * k / 5 for k in range(5))
+    ]
+    grid = {"grid": {"x": [-3, 3, 1.5], "y": [-3, 3, 1.5], "z": [0, 0, 1]}}
+    doc.write_text(
+        json.dumps(
+            {
+                "ris": {"rows": 6, "cols": 6},
+                "candidates": ring,
+                "tx_map": grid,
+                "rx_map": grid,
+                "pairs": {"sample": 60, "seed": 1},
+                "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
+                "ris_count": [2],
+            }
+        )
+    )
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "ris_planner.cli", "plan", str(doc), "--out", str(out)]
+    ok = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    assert ok.returncode == 0, ok.stderr[-2000:]
+    assert "2 RIS: sites" in ok.stdout  # the summary, flushed before the fast exit
+    assert f"wrote {out / 'plan.json'}" in ok.stderr
+    assert json.loads((out / "plan.json").read_text())["by_count"][0]["ris_count"] == 2
+    bad = subprocess.run(
+        [*cmd[:4], str(tmp_path / "missing.json"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert bad.returncode == 2 and bad.stderr.startswith("error:")

@@ -1,5 +1,5 @@
 """``python -m ris_planner.cli``: the command line."""
 
-from ris_planner.cli import main
+from ris_planner.cli import run
 
-raise SystemExit(main())
+run()

@@ -12,9 +12,10 @@ import contextlib
 import importlib
 import json
 import math
+import os
 import sys
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 from pydantic import ValidationError
 
@@ -234,5 +235,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     return status
 
 
+FAST_EXIT = frozenset({"plan"})
+"""Subcommands whose process ends without the interpreter's teardown once their files are
+written and their streams flushed (:func:`run`): freeing every module, the compiled kernels and
+their thread pool took ≈ 0.5 s after a plan's last file (a city block's end-to-end time,
+docs/validation/benchmarks.md). They hold no child process by then (a plan's worker pool is
+closed with its executor); ``serve`` and the others exit normally."""
+
+
+def run() -> NoReturn:
+    """The ``ris-planner`` entry point and ``python -m ris_planner.cli``: :func:`main` on
+    ``sys.argv``, then the exit (:data:`FAST_EXIT`)."""
+    status = main()
+    if _command(sys.argv[1:]) in FAST_EXIT:
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None and not stream.closed:
+                with contextlib.suppress(OSError, ValueError):
+                    stream.flush()
+        os._exit(status)
+    sys.exit(status)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    run()
