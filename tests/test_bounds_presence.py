@@ -116,6 +116,29 @@ def test_codebook_products_of_present_pairs_only_keep_the_bounds(
         assert got.reason[i] is not None or not np.isfinite(want_rx[i])
 
 
+def test_settled_pairs_withhold_their_information_only() -> None:
+    """Without the channel bounds, a pair the counting rule settles (too few paths present) or
+    a degenerate pair gets no codebook products: its information is NaN (never a stand-in's
+    finite number), its bounds inf with a reason; every other pair's information is the one
+    the full call forms, to the bounds' accuracy."""
+    from tolerance import BOUND_ACCURACY, assert_close
+
+    scenario = load_scenario(preset_document("paper-table1"))
+    tx, rx = pairs(60)
+    rx[0] = tx[0]  # TX = RX: degenerate
+    found = scenario_path_presence(scenario, tx, rx)
+    rng = np.random.default_rng(2)
+    given = {k: v & (rng.random(v.size) > 0.4) if k != "los" else v for k, v in found.items()}
+    full = compute_bounds(scenario, tx, rx, presence=given)
+    lean = compute_bounds(scenario, tx, rx, presence=given, channel=False)
+    withheld = np.isnan(lean.fim).any(axis=(1, 2))
+    assert withheld[0] and withheld.any() and (~withheld).any()
+    assert np.all(np.isinf(lean.peb_rx[withheld])) and all(lean.reason[withheld] != None)  # noqa: E711
+    assert np.all(np.isfinite(full.fim[withheld]))  # the full call forms them
+    assert_close(lean.fim[~withheld], full.fim[~withheld], accuracy=BOUND_ACCURACY)
+    np.testing.assert_array_equal(np.isinf(lean.peb_rx), np.isinf(full.peb_rx))
+
+
 def test_unique_rows_is_numpys_unique_by_rows() -> None:
     from ris_planner.bounds.compute import unique_rows
 

@@ -140,7 +140,9 @@ class BoundsResult:
     channel : per path (``"los"``, ``"ris1"``, …) a dict of [P] arrays: ``deb_m``
         (c·sqrt(CRB_τ)), and for RIS paths ``seb_xi``, ``seb_zeta`` (unitless).
     far_field : [P, L] whether d_T d_R/(d_T + d_R) ≥ 2D²/λ for each RIS (footnote 3).
-    fim : [P, 7, 7] information on [p_T, p_R, B] (gains eliminated, nothing known removed).
+    fim : [P, 7, 7] information on [p_T, p_R, B] (gains eliminated, nothing known removed);
+        NaN for the pairs whose codebook products a ``channel=False`` call left out (those the
+        counting rule or a degenerate geometry settles: their bounds are ``inf`` anyway).
     known : the state parts treated as known.
     paths_present : per path (``"los"``, ``"ris1"``, …) [P] whether it exists for the pair
         (:func:`scenario_path_presence`); ``"los"`` is False throughout without ``system.los``.
@@ -162,7 +164,8 @@ class BoundsResult:
 
     @cached_property
     def fim(self) -> FloatArray:
-        """[P, 7, 7] information on [p_T, p_R, B] (gains eliminated, nothing known removed)."""
+        """[P, 7, 7] information on [p_T, p_R, B] (gains eliminated, nothing known removed);
+        NaN for the pairs a ``channel=False`` call settled without their codebook products."""
         return self.fim_source()
 
     @property
@@ -485,6 +488,19 @@ def masked_state_information(paths: Sequence[PathInfo], mask: BoolArray) -> Floa
     return total
 
 
+def path_observations(names: Sequence[str]) -> NDArray[np.int_]:
+    """Geometric channel parameters of each named path (:data:`PATH_OBSERVATIONS`)."""
+    return np.array([PATH_OBSERVATIONS["los" if n == "los" else "ris"] for n in names])
+
+
+def short_pairs(mask: BoolArray, per_path: NDArray[np.int_], n_unknown: int) -> BoolArray:
+    """[P] pairs whose present paths (mask [P, n_paths]) carry fewer geometric channel
+    parameters than ``n_unknown`` states while some path is missing (the planar counting
+    rule per pair)."""
+    n_obs = mask.astype(int) @ per_path  # [P] parameters of the paths present
+    return np.asarray((n_obs < n_unknown) & ~np.all(mask, axis=1))
+
+
 def underdetermined_pairs(
     paths: Sequence[PathInfo], mask: BoolArray, n_unknown: int
 ) -> tuple[BoolArray, NDArray[np.object_]]:
@@ -492,10 +508,8 @@ def underdetermined_pairs(
     some of the layout's ``paths`` are missing ([P] flags) and their reasons ([P] objects,
     ``None`` elsewhere). A layout that is underdetermined with all its paths keeps the reason
     of :func:`bounds_from_state_fim` (nothing is missing for it)."""
-    per_path = np.array([PATH_OBSERVATIONS["los" if p.name == "los" else "ris"] for p in paths])
-    # [P] geometric channel parameters of the paths present
-    n_obs = mask.astype(int) @ per_path
-    flagged = (n_obs < n_unknown) & ~np.all(mask, axis=1)
+    per_path = path_observations([p.name for p in paths])
+    flagged = short_pairs(mask, per_path, n_unknown)
     reason = np.full(mask.shape[0], None, dtype=object)
     if np.any(flagged):
         # one message per distinct presence pattern (few), not per pair
@@ -800,7 +814,8 @@ def compute_bounds(
     visibility once for every layout, docs/concepts/planning.md); degenerate pairs are
     reported ``inf`` whatever their entry; channel : ``False`` leaves the per-path DEB/SEB out
     (``channel`` empty: a caller that needs the PEBs only, such as the planner's per-point
-    bounds and objective checks, skips their inversions; the PEBs are the same).
+    bounds and objective checks, skips their inversions, and the codebook products of the
+    pairs whose bounds are ``inf`` by the counting rule; the PEBs are the same).
 
     Pairs with a UE on a RIS (or TX = RX with LOS) get ``inf`` with a reason, never NaN.
     With ``scenario.environment`` only the paths present for a pair contribute
@@ -839,15 +854,30 @@ def _compute_bounds(
         presence = {k: np.array(given[k], dtype=bool) for k in names}
     prof = _codebook_profiles(scenario) if isinstance(profiles, str) else profiles
     powers = beam_weights(scenario, beam_powers, codebook_default=isinstance(profiles, str))
-    paths, far = path_information(scenario, tx_a, rx_a, prof, powers, presence)
+    system = scenario.system
+    products, withheld = presence, np.zeros(tx_a.shape[0], dtype=bool)
+    if not channel and system.wavefront == "planar":
+        # a pair the counting rule settles (inf whatever its information) needs no codebook
+        # products: only the per-path DEB/SEB, left out here, would read them
+        names = (["los"] if system.los else []) + [f"ris{i + 1}" for i in range(len(scenario.ris))]
+        short = short_pairs(
+            np.stack([presence[n] for n in names], axis=1),
+            path_observations(names),
+            int(kept_states(known_t).size),
+        )
+        withheld = short | bad
+        if np.any(withheld):
+            products = {k: v & ~withheld for k, v in presence.items()}
+    paths, far = path_information(scenario, tx_a, rx_a, prof, powers, products)
     mask = present_path_mask(paths, presence)
 
     @cache
     def state_fim() -> FloatArray:  # on [p_T, p_R, B], as reported: once, when first needed
         with blas.one_blas_thread():
-            return masked_state_information(paths, mask)
+            f = masked_state_information(paths, mask)
+        f[withheld] = np.nan  # settled pairs whose products were not formed
+        return f
 
-    system = scenario.system
     n_obs = n_observations(len(scenario.ris), system.los, system.wavefront)
     if system.wavefront == "planar":
         # the counting rule of the planar model, per pair with the paths it has

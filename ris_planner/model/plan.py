@@ -727,10 +727,22 @@ class SearchRegion(DocumentModel):
     document boundary by :func:`ris_planner.io.frames.to_local` into the local box that holds
     the lon/lat box, so the model here sees ``min_m``/``max_m``). Exactly one of the forms."""
 
-    min_m: Point3 | None = None
-    max_m: Point3 | None = None
-    min_lonlat: LonLatH | None = None
-    max_lonlat: LonLatH | None = None
+    min_m: Point3 | None = Field(
+        None, description="lower corner [x, y, z] of the TX box in local metres"
+    )
+    max_m: Point3 | None = Field(
+        None, description="upper corner [x, y, z] of the TX box in local metres"
+    )
+    min_lonlat: LonLatH | None = Field(
+        None,
+        description="lower corner [lon, lat, h] (WGS84 degrees, metres; needs the document's"
+        " frame): the local box holds the lon/lat box",
+    )
+    max_lonlat: LonLatH | None = Field(
+        None,
+        description="upper corner [lon, lat, h] (WGS84 degrees, metres; needs the document's"
+        " frame)",
+    )
 
     @model_validator(mode="after")
     def _check_box(self) -> SearchRegion:
