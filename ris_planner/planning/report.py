@@ -122,7 +122,7 @@ def raster(
 
 def _site_label(result: PlanResult, s: int) -> str:
     ris = result.sites[s].ris
-    return f"{s}: {ris.position[2]:g} m, tilt {ris.orientation[1]:.2f}"
+    return f"{s}: {ris.position[2]:g} m, tilt {np.degrees(ris.orientation[1]):.0f}°"
 
 
 def _metric_label(result: PlanResult) -> str:
@@ -137,6 +137,16 @@ def write_plan_json(plan: dict[str, Any], out_dir: Path) -> Path:
     path = out_dir / "plan.json"
     path.write_text(json.dumps(plan, indent=1, allow_nan=False))
     return path
+
+
+TOPVIEW_MARGINS = {"left": 0.08, "right": 0.70, "bottom": 0.09, "top": 0.94}
+"""Fixed margins of the top view (figure fractions; the legend sits in the right 30 %). A
+plan's figures are laid out by fixed margins, not ``tight_layout``: that draws every figure
+once more to measure its texts (≈ 1 s of a city block's plan, docs/validation/benchmarks.md)."""
+HEATMAP_MARGINS = {"left": 0.09, "right": 0.97, "bottom": 0.17, "top": 0.87}
+"""Fixed margins of the heatmap: three title lines above, the legend's rows below."""
+CDF_MARGINS = {"left": 0.12, "right": 0.97, "bottom": 0.12, "top": 0.96}
+"""Fixed margins of the CDF figure."""
 
 
 def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
@@ -222,7 +232,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     ax.set_ylabel("y [m]")
     ax.set_title("UE maps, candidate sites and chosen RISs (arrows: facing)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
-    fig.tight_layout()
+    fig.subplots_adjust(**TOPVIEW_MARGINS)
     fig.savefig(paths["topview"], dpi=110)
     plt.close(fig)
 
@@ -252,7 +262,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     ax.set_ylabel(f"Pr({label} ≤ ε) (weighted)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(**CDF_MARGINS)
     fig.savefig(paths["cdf"], dpi=110)
     if result.sweep is not None:
         paths[SWEEP_FIGURE] = write_sweep_figure(result, out_dir / f"{SWEEP_FIGURE}.png")
@@ -299,6 +309,7 @@ def write_heatmap(result: PlanResult, path: Path) -> Path:
     label = _metric_label(result)
     pts, vals, lay = result.heatmap()
     fig, ax = plt.subplots(figsize=(8.5, 6))
+    fig.subplots_adjust(**HEATMAP_MARGINS)  # before the colour bar, which takes its room
     x_edges, y_edges, grid, empty = raster(pts, vals, result.scene)
     finite = np.isfinite(grid) & ~empty
     blind = np.isinf(grid) & ~empty
@@ -364,7 +375,6 @@ def write_heatmap(result: PlanResult, path: Path) -> Path:
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

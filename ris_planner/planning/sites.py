@@ -52,7 +52,7 @@ def wall_poses(wall: Wall) -> list[tuple[list[float], list[float], str]]:
             for h in wall.heights_m:
                 for tilt in wall.tilts_rad:
                     side_txt = f"side {w_idx} " if wall.rectangle is not None else ""
-                    label = f"{side_txt}at ({xy[0]:.1f}, {xy[1]:.1f}, {h:g}) tilt {tilt:.2f}"
+                    label = f"{side_txt}at ({xy[0]:.1f}, {xy[1]:.1f}, {h:g}) tilt {tilt:.2f} rad"
                     out.append(([float(xy[0]), float(xy[1]), float(h)], [yaw, tilt, 0.0], label))
     return out
 
