@@ -1,6 +1,7 @@
 """Every stage of a plan is timed (issue 22): plan.json's ``timing_s`` names each stage of the
 pipeline – inputs to the GIS exports – and its sum is the plan's wall time, on the command line
-(measured around the CLI's ``main`` in this process) and for a REST job (its ``started_at`` to
+(measured around the CLI's ``main`` in this process, and around the command's own process
+with its ``startup``) and for a REST job (its ``started_at`` to
 ``finished_at``); the benchmark's smoke mode runs."""
 
 from __future__ import annotations
@@ -85,6 +86,36 @@ def test_cli_stage_times_sum_to_the_wall_time(tmp_path: Path) -> None:
     timing = json.loads((out / "plan.json").read_text())["timing_s"]
     assert "workers_close" in timing  # the command line's own stage
     check_sum(timing, wall)
+
+
+def test_cli_process_stage_times_sum_to_its_wall_time(tmp_path: Path) -> None:
+    """The command as a process: ``startup`` (the interpreter, the imports, reading the
+    document) and the stages account for the process's whole wall time, measured outside
+    it; only the process runs the clock from its start (in-process calls above have none)."""
+    doc = tmp_path / "plan.json"
+    doc.write_text(json.dumps(timed_plan()))
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "ris_planner.cli", "plan", str(doc), "--out", str(out)]
+    t0 = time.perf_counter()
+    proc = subprocess.run([*cmd, "--workers", "1"], capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    timing = json.loads((out / "plan.json").read_text())["timing_s"]
+    assert timing["startup"] > 0
+    check_sum(timing, wall)
+
+
+def test_process_age_counts_from_the_process_start() -> None:
+    code = (
+        "import time; time.sleep(0.4)\n"
+        "from ris_planner.runtime.process import process_age_s; print(process_age_s())"
+    )
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    wall = time.perf_counter() - t0
+    age = float(proc.stdout)
+    # the kernel's start time has a clock tick's resolution (10 ms)
+    assert 0.4 <= age <= wall + 0.02, (age, wall)
 
 
 def test_rest_job_stage_times_sum_to_the_job_time(tmp_path: Path) -> None:

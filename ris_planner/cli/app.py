@@ -243,9 +243,20 @@ docs/validation/benchmarks.md). They hold no child process by then (a plan's wor
 closed with its executor); ``serve`` and the others exit normally."""
 
 
+_AS_PROCESS = {"yes": False}
+
+
+def launched_as_process() -> bool:
+    """Whether this process is the command line itself (:func:`run`), not a host that calls
+    :func:`main` (a test, a script): only then is the process's age the command's start-up
+    (``timing_s["startup"]`` of a plan)."""
+    return _AS_PROCESS["yes"]
+
+
 def run() -> NoReturn:
     """The ``ris-planner`` entry point and ``python -m ris_planner.cli``: :func:`main` on
     ``sys.argv``, then the exit (:data:`FAST_EXIT`)."""
+    _AS_PROCESS["yes"] = True
     status = main()
     if _command(sys.argv[1:]) in FAST_EXIT:
         for stream in (sys.stdout, sys.stderr):
