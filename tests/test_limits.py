@@ -320,3 +320,57 @@ def test_a_ris_size_sweep_is_estimated_at_its_largest_run() -> None:
     big = estimate_plan(PlanDocument.model_validate(base | {"ris": {"rows": 100, "cols": 100}}))
     small = estimate_plan(PlanDocument.model_validate(base))
     assert swept.memory_bytes == big.memory_bytes > small.memory_bytes
+
+
+# --- the time model and its fit ---------------------------------------------------------------
+
+
+def test_time_model_fit_recovers_covering_coefficients() -> None:
+    """benchmarks/fit_time_model.py on rows whose stage times are a known model of the smoke
+    cases' sizes (each stage its work.py coefficients times a per-stage factor): every case
+    lands in [low, high], and each fitted stage reproduces its rows to the fit's accuracy
+    (a linear model of the same terms exists, so the L1 residual is ~0)."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
+    from bench_memory import FULL, SMOKE, cache_budget_mb, case_document
+    from fit_time_model import fit
+    from tolerance import assert_close
+
+    from ris_planner.planning import PlanDocument
+    from ris_planner.planning.inputs import prepare_plan
+    from ris_planner.planning.work import TIME_COEFFICIENTS, stage_terms
+
+    factor = {st: 0.5 + 0.1 * i for i, st in enumerate(TIME_COEFFICIENTS)}
+    rows = []
+    for case in [*SMOKE, *FULL[:3]]:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setenv("RIS_PLANNER_CACHE_MEMORY_MB", str(cache_budget_mb(case)))
+            terms = stage_terms(prepare_plan(PlanDocument.model_validate(case_document(case))))
+        cpu = {
+            st: factor[st] * sum(TIME_COEFFICIENTS[st][t] * v for t, v in sz.items())
+            for st, sz in terms.items()
+        }
+        rows.append(
+            {
+                "case": {"name": case.name},
+                "terms": terms,
+                "cpu_stages_s": cpu,
+                "seconds": sum(cpu.values()),
+            }
+        )
+    coef, ratios = fit(rows, 1.08, 1.85)
+    assert all(1.08 - 1e-9 <= q <= 1.85 + 1e-9 for q in ratios), ratios
+    for r in rows:
+        for st, sz in r["terms"].items():
+            model = sum(coef[st][t] * v for t, v in sz.items())
+            # coefficients are rounded to 3 significant digits: 0.5 % per term at most
+            assert_close(model, r["cpu_stages_s"][st], accuracy=5e-3, atol=1e-9, where=st)
+
+
+def test_bench_memory_rows_carry_the_time_model_terms() -> None:
+    """A bench_memory row holds the sizes the time model used (``terms``), the fit's input."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
+    from bench_memory import SMOKE, run_case
+
+    got = run_case(SMOKE[0], timeout=120)
+    assert set(got["terms"]) == set(got["estimate_stages_s"]) - {"beams"}
+    assert got["terms"]["search"]["per_layout_pair"] > 0

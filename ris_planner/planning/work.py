@@ -30,62 +30,51 @@ MARGIN = 1.3
 """Every stage's model times this: the estimate stays above the measured time on a machine
 somewhat busier than the calibration's (docs/validation/resources.md)."""
 
-INPUTS_S = 0.02
-INPUTS_PER_POINT_S = 2e-5
-"""Inputs: the document checked, sites and maps built, pairs drawn – per UE map point."""
-
-VISIBILITY_PER_SITE_POINT_S = 2e-6
-VISIBILITY_PER_OBSTACLE = 0.01
-"""Visibility: a leg per (site, UE point), each walk longer with more obstacles."""
-
-SPHERICAL_PER_ELEMENT = 0.16
-SPHERICAL_EXPONENT = 0.75
-"""The spherical model's per-pair cost grows with the RIS elements N (its expected Gram and
-Jacobians sum over them, beside fixed per-pair work): a per-pair term costs
-1 + 0.16 · N^0.75 planar ones (≈ 6 at 10 × 10, ≈ 83 at 64 × 64)."""
-
-CACHE_S = 0.02
-CACHE_PER_SITE_PAIR_S = 1.5e-6
-"""Site cache: fixed cost plus per (site, pair)."""
-
-ROLLOUT_S = 0.02
-"""The rollout stage's fixed cost (the nested chain's layouts are search work)."""
-
-SEARCH_S = 0.3
-SEARCH_PER_LAYOUT_PAIR_S = 3e-7
-"""Search per RIS count: fixed cost plus per (evaluated layout, pair) – hall: 0.84 s for
-6 600 layouts × 400 pairs."""
-
-CHECKS_PER_COUNT_S = 0.05
-CODEBOOK_PER_MAC_S = 2e-10
-CHECK_PER_RIS_PAIR_S = 5e-6
-FRANK_WOLFE_PER_SITE_PAIR_S = 1e-7
-"""Checks: per count the ``random``-codebook evaluations (:func:`codebook_macs` complex
-multiply-adds each, one per seed) and ``compute_bounds`` on the checked pairs (per RIS and
-pair, the expected-random one included); a relaxation bound costs iterations × sites ×
-pairs."""
+TIME_COEFFICIENTS: dict[str, dict[str, float]] = {
+    "inputs": {"const": 0.0857, "per_site": 0.000207},
+    "visibility": {"per_site_point": 2.22e-09, "per_site_point_obstacle": 2e-08},
+    "cache": {
+        "const": 0.0195,
+        "per_site_pair": 1.45e-06,
+        "per_site_pair_element_spherical": 2.32e-08,
+    },
+    "search": {"per_count": 0.37, "per_layout_pair": 2.03e-07, "per_rescored_site_pair": 2.56e-06},
+    "checks": {
+        "per_codebook_mac": 5.12e-10,
+        "per_checked_ris_pair": 1.47e-05,
+        "per_checked_ris_pair_element_spherical": 5.64e-07,
+        "per_rescored_site_pair": 4.72e-06,
+        "per_relaxation_site_pair": 0,
+    },
+    "rollout": {"const": 0.002, "per_layout_pair": 2e-07},
+    "fields": {
+        "per_ris_pair": 5.14e-06,
+        "per_ris_pair_element_spherical": 1.33e-08,
+        "per_rx_point": 1.77e-05,
+    },
+    "report": {
+        "const": 0.0734,
+        "per_pair": 6.08e-06,
+        "per_rx_point": 9.72e-07,
+        "per_rescored_site_pair": 1.46e-06,
+    },
+    "figures": {"const": 1.28, "per_rx_point": 2.34e-05, "per_extra_figure": 0.5},
+    "exports": {"const": 0.132, "per_rx_point": 8.48e-05},
+}
+"""Seconds per unit of each size that drives a stage (:func:`stage_terms` names the sizes),
+fitted to the per-stage times of ``python benchmarks/bench_memory.py --stages --json F``
+by ``python benchmarks/fit_time_model.py F`` (docs/validation/resources.md, "The time
+estimate per stage"): ``const`` once, ``per_count`` per RIS count, the rest per unit of the
+size of the same name. ``…_element_spherical`` terms are the spherical model's (its expected
+Gram and Jacobians sum over the N elements per pair), ``per_rescored_site_pair`` the float32
+cache's float64 re-score of the reported layouts (their sites × pairs, per count), and
+``per_relaxation_site_pair`` the Frank–Wolfe bounds (iterations × sites × pairs; fitted to 0:
+its cost hides in the others on these cases). The visibility's obstacle term is not fitted
+(no calibration case has obstacles: the walk's cost per obstacle, 1 % of a leg's, as
+measured on the hall)."""
 
 BEAMS_PER_LAYOUT_S = 2.0
 """Beam design and power allocation per layout (the SDPs dominate)."""
-
-FIELD_S = 0.02
-FIELD_PER_RIS_PAIR_S = 4e-6
-"""Per-point bounds of one count's best layout (heatmap, ``points``): compute_bounds over the
-heatmap's TX × RX pairs, per RIS and pair (the visibility decided once per point)."""
-
-REPORT_S = 0.05
-REPORT_PER_LAYOUT_S = 0.005
-"""The diagnosis, the summary (statistics of every ranked layout: top_k per count) and
-plan.json's formatting."""
-
-FIGURES_S = 1.5
-FIGURE_EXTRA_S = 0.5
-"""The three figures (top view, heatmap, CDF), with matplotlib's first import; beams and
-sweep figures each more."""
-
-EXPORTS_S = 0.2
-EXPORTS_PER_POINT_S = 1e-5
-"""GIS files (GeoJSON, GeoTIFF, points CSV): small, ∝ the heatmap points."""
 
 
 def greedy_layouts(n_sites: int, count: int, restarts: int, rounds: int) -> int:
@@ -130,57 +119,94 @@ def codebook_macs(inputs: PlanInputs, count: int) -> float:
     return float(count * 3 * g_tilde * n_el * pairs)
 
 
-def stage_seconds(inputs: PlanInputs) -> dict[str, float]:
-    """Estimated seconds of each stage of :func:`~ris_planner.planning.pipeline.run_plan` and
-    of the outputs (plan.json ``timing_s`` names), :data:`MARGIN` included."""
+def stage_terms(inputs: PlanInputs) -> dict[str, dict[str, float]]:
+    """The sizes that drive each stage's time, by the names of :data:`TIME_COEFFICIENTS`."""
+    from ris_planner.model.limits import cache_layout
     from ris_planner.planning.checks import RANDOM_CODEBOOK_MAX_PAIRS, RANDOM_CODEBOOK_SEEDS
 
     doc = inputs.document
     n_sites, n_pairs = len(inputs.sites), inputs.pairs.size
     counts = inputs.counts
     n_el = doc.ris.rows * doc.ris.cols
-    spherical = doc.system.wavefront == "spherical"
-    # the spherical model's expected Gram and Jacobians sum over the elements per pair
-    per_pair = 1.0 + SPHERICAL_PER_ELEMENT * n_el**SPHERICAL_EXPONENT if spherical else 1.0
+    wave = doc.system.wavefront
+    sph = float(n_el if wave == "spherical" else 0)
+    planar = float(wave != "spherical")
     n_points = len(inputs.tx_map.points) + len(inputs.rx_map.points)
+    n_rx = min(len(inputs.rx_map.points), heatmap_pairs(inputs))
     obstacles = 0 if doc.environment is None else len(doc.environment.obstacles)
-    check_pairs = min(n_pairs, RANDOM_CODEBOOK_MAX_PAIRS)
-    checks = sum(
-        CHECKS_PER_COUNT_S
-        + CODEBOOK_PER_MAC_S * RANDOM_CODEBOOK_SEEDS * codebook_macs(inputs, c)
-        + CHECK_PER_RIS_PAIR_S * (1 + RANDOM_CODEBOOK_SEEDS) * c * check_pairs * per_pair
-        for c in counts
+    checked = (1 + RANDOM_CODEBOOK_SEEDS) * sum(counts) * min(n_pairs, RANDOM_CODEBOOK_MAX_PAIRS)
+    try:
+        float32 = cache_layout(n_sites * n_pairs, wave).storage == "float32"
+    except ValueError:  # above every tier: the guard refuses the plan before any work
+        float32 = False
+    # a float32 cache re-scores the reported layouts in float64: their sites × the pairs
+    rescored = (
+        float(sum(min(n_sites, doc.search.top_k * c) for c in counts) * n_pairs) if float32 else 0.0
     )
-    checks += FRANK_WOLFE_PER_SITE_PAIR_S * doc.search.certificate_iterations * n_sites * n_pairs
     chain = sum(
         min(math.comb(n_sites - a, b - a), doc.search.max_exhaustive)
         for a, b in itertools.pairwise(counts)
     )
-    hm = heatmap_pairs(inputs)
-    extra = (doc.beams is not None) + (doc.sweep is not None)
+    ris_hm = float(sum(counts) * heatmap_pairs(inputs))
+    return {
+        "inputs": {"const": 1.0, "per_site": n_sites},
+        "visibility": {
+            "per_site_point": n_sites * n_points,
+            "per_site_point_obstacle": n_sites * n_points * obstacles,
+        },
+        "cache": {
+            "const": 1.0,
+            "per_site_pair": planar * n_sites * n_pairs,
+            "per_site_pair_element_spherical": sph * n_sites * n_pairs,
+        },
+        "search": {
+            "per_count": len(counts),
+            "per_layout_pair": float(sum(search_layouts(inputs, c) for c in counts) * n_pairs),
+            "per_rescored_site_pair": rescored,
+        },
+        "checks": {
+            "per_codebook_mac": planar
+            * RANDOM_CODEBOOK_SEEDS
+            * sum(codebook_macs(inputs, c) for c in counts),
+            "per_checked_ris_pair": planar * checked,
+            "per_checked_ris_pair_element_spherical": sph * checked,
+            "per_rescored_site_pair": rescored,
+            "per_relaxation_site_pair": float(
+                doc.search.certificate_iterations * n_sites * n_pairs
+            ),
+        },
+        "rollout": {"const": 1.0, "per_layout_pair": float(chain * n_pairs)},
+        "fields": {
+            "per_ris_pair": planar * ris_hm,
+            "per_ris_pair_element_spherical": sph * ris_hm,
+            "per_rx_point": n_rx,
+        },
+        "report": {
+            "const": 1.0,
+            "per_pair": n_pairs,
+            "per_rx_point": n_rx,
+            "per_rescored_site_pair": rescored,
+        },
+        "figures": {
+            "const": 1.0,
+            "per_rx_point": n_rx,
+            "per_extra_figure": float((doc.beams is not None) + (doc.sweep is not None)),
+        },
+        "exports": {"const": 1.0, "per_rx_point": n_rx},
+    }
+
+
+def stage_seconds(inputs: PlanInputs) -> dict[str, float]:
+    """Estimated seconds of each stage of :func:`~ris_planner.planning.pipeline.run_plan` and
+    of the outputs (plan.json ``timing_s`` names): :data:`TIME_COEFFICIENTS` times
+    :func:`stage_terms`, :data:`MARGIN` included."""
+    doc = inputs.document
     work = {
-        "inputs": INPUTS_S + INPUTS_PER_POINT_S * n_points,
-        "visibility": VISIBILITY_PER_SITE_POINT_S
-        * n_sites
-        * n_points
-        * (1 + VISIBILITY_PER_OBSTACLE * obstacles),
-        "cache": CACHE_S + CACHE_PER_SITE_PAIR_S * n_sites * n_pairs * per_pair,
-        "search": sum(
-            SEARCH_S + SEARCH_PER_LAYOUT_PAIR_S * search_layouts(inputs, c) * n_pairs
-            for c in counts
-        ),
-        "checks": checks,
-        # the nested chain (planning.rollout): every superset of the previous count's layout,
-        # at most search.max_exhaustive per count (beyond it: a greedy extension, fewer); free
-        # mode searches it only when cheap, so this overestimates there at most by that little
-        "rollout": ROLLOUT_S + SEARCH_PER_LAYOUT_PAIR_S * chain * n_pairs,
-        "fields": sum(FIELD_S + FIELD_PER_RIS_PAIR_S * c * hm * per_pair for c in counts),
-        "report": REPORT_S + REPORT_PER_LAYOUT_S * len(counts) * doc.search.top_k,
-        "figures": FIGURES_S + FIGURE_EXTRA_S * extra,
-        "exports": EXPORTS_S + EXPORTS_PER_POINT_S * min(len(inputs.rx_map.points), hm),
+        stage: sum(TIME_COEFFICIENTS[stage][term] * size for term, size in sizes.items())
+        for stage, sizes in stage_terms(inputs).items()
     }
     if doc.beams is not None:
-        work["beams"] = BEAMS_PER_LAYOUT_S * (len(counts) + len(doc.beams.layouts))
+        work["beams"] = BEAMS_PER_LAYOUT_S * (len(inputs.counts) + len(doc.beams.layouts))
     return {k: MARGIN * v for k, v in work.items()}
 
 
