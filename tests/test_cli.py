@@ -182,3 +182,22 @@ def test_plan_process_exits_fast_with_its_status_and_output(tmp_path: Path) -> N
         check=False,
     )
     assert bad.returncode == 2 and bad.stderr.startswith("error:")
+
+
+def test_readable_json_is_the_json_modules_document_one_member_per_line() -> None:
+    """core.io_json.readable_json: the same value as json.dumps (keys of every kind, empty
+    containers, nesting below the broken levels), strict (NaN refused), the outer levels one
+    member per line."""
+    import json
+
+    from ris_planner.core.io_json import readable_json
+
+    value = {"a": [1, 2.5, {"x": [1, None]}], "b": {"c": {"d": "é"}}, "e": [], "f": {}, 3: True}
+    text = readable_json(value)
+    assert json.loads(text) == json.loads(json.dumps(value))
+    assert text.splitlines()[:3] == ["{", ' "a": [', "  1,"]
+    assert '{"x": [1, null]}' in text  # level 2: one line
+    for key in (1, 1.5, True, None):
+        assert json.loads(readable_json({key: 0})) == json.loads(json.dumps({key: 0}))
+    with pytest.raises(ValueError):
+        readable_json({"x": float("nan")})

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
-import json
 import math
 import os
 import sys
@@ -20,7 +19,12 @@ from typing import Any, NoReturn
 from pydantic import ValidationError
 
 from ris_planner.core.errors import RisPlannerError
-from ris_planner.core.io_json import format_validation_error, read_json_object, validation_problems
+from ris_planner.core.io_json import (
+    format_validation_error,
+    read_json_object,
+    readable_json,
+    validation_problems,
+)
 from ris_planner.model.scenario import PRESET_NAMES, Scenario, load_scenario
 
 EXIT_INPUT_ERROR = 2
@@ -97,7 +101,7 @@ def read_scenario(args: argparse.Namespace) -> Scenario:
 
 def print_json(obj: Any) -> None:
     """The result document on stdout (serialised first, so a failure prints nothing)."""
-    text = json.dumps(obj, indent=2, allow_nan=False)
+    text = readable_json(obj, indent=2)
     if sys.stdout is None or sys.stdout.closed:
         raise RisPlannerError("standard output is closed")
     sys.stdout.write(text + "\n")

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ris_planner.core.errors import RisPlannerError
+from ris_planner.core.io_json import readable_json
 
 
 def _read_bytes(path: str) -> bytes:
@@ -78,7 +79,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
     if args.plan:
         fragment, report = plan_from_import(fragment, args.format, summary, opts)
         summary = report.to_json()
-    text = json.dumps(fragment, indent=1, allow_nan=False)
+    text = readable_json(fragment)
     if args.out:
         Path(args.out).write_text(text + "\n")
     else:
@@ -132,7 +133,7 @@ def _cmd_sites(args: argparse.Namespace) -> int:
     options = candidate_options_of(args)
     site = parse_json_object(_read_bytes(args.file), args.file)
     collection, summary = candidate_sites(site, options)
-    text = json.dumps(collection, indent=1, allow_nan=False)
+    text = readable_json(collection)
     if args.out:
         Path(args.out).write_text(text + "\n")
     else:

@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.core.io_json import readable_json
 from ris_planner.io import require
 from ris_planner.io.frames import Frame, license_of_document, to_local
 
@@ -378,14 +379,13 @@ def write_gis_files(
 ) -> dict[str, Path]:
     """Write ``plan.geojson``, and with per-point results (``plan["points"]`` or ``points``)
     ``heatmap.tif`` and ``points.csv``; returns :data:`GIS_FILES` name → path."""
-    import json
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     pts = plan.get("points") or points
     paths = {"geojson": out_dir / GIS_FILES["geojson"]}
     fc = plan_geojson(plan, document, pts)
-    paths["geojson"].write_text(json.dumps(fc, indent=1, allow_nan=False))
+    paths["geojson"].write_text(readable_json(fc))
     if pts:
         paths["geotiff"] = write_geotiff(out_dir / GIS_FILES["geotiff"], pts, document)
         paths["points_csv"] = out_dir / GIS_FILES["points_csv"]

@@ -9,13 +9,13 @@ above, purple where the layout is blind), with a colour bar in metres and a lege
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.core.io_json import readable_json
 from ris_planner.environment import Scene
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
@@ -135,7 +135,7 @@ def write_plan_json(plan: dict[str, Any], out_dir: Path) -> Path:
     """``out_dir/plan.json`` from :meth:`PlanResult.to_json` (strict JSON: no NaN/inf)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "plan.json"
-    path.write_text(json.dumps(plan, indent=1, allow_nan=False))
+    path.write_text(readable_json(plan))
     return path
 
 
