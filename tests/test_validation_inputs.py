@@ -30,6 +30,14 @@ from ris_planner.planning.plan import validate_document
 
 ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "ris_planner.cli"]
+
+
+def cli_plan(path: Path, out: Path) -> subprocess.CompletedProcess[str]:
+    """``ris-planner plan PATH --out OUT`` as a process (its status and streams)."""
+    cmd = [*CLI, "plan", str(path), "--out", str(out)]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, check=False)
+
+
 TX = [-2.0, -4.0, 0.0]
 """Table I's TX (its RX is [2, 3, 0])."""
 
@@ -116,13 +124,7 @@ def test_plan_refuses_a_cluster_over_an_rx_map_point_on_the_cli(tmp_path: Path) 
     doc = table1_plan({"multipath": {"scatterers": [{"position": [2, 3, 0.1]}]}})
     path = tmp_path / "plan.json"
     path.write_text(json.dumps(doc))
-    out = subprocess.run(
-        [*CLI, "plan", str(path), "--out", str(tmp_path / "out")],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=ROOT,
-    )
+    out = cli_plan(path, tmp_path / "out")
     assert out.returncode == 2, out.stderr[-2000:]
     assert "validation.multipath.scatterers.0" in out.stderr and "rx_map point 0" in out.stderr
     assert "Traceback" not in out.stderr
@@ -243,13 +245,7 @@ def test_cli_refuses_a_swapped_lonlat_corner_with_exit_2(tmp_path: Path) -> None
     region["max_lonlat"] = [region["max_lonlat"][1], region["max_lonlat"][0], 10.0]
     path = tmp_path / "plan.json"
     path.write_text(json.dumps(framed_plan(region)))
-    out = subprocess.run(
-        [*CLI, "plan", str(path), "--out", str(tmp_path / "out")],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=ROOT,
-    )
+    out = cli_plan(path, tmp_path / "out")
     assert out.returncode == 2, out.stderr[-2000:]
     assert "validation.search_region.max_lonlat" in out.stderr and "swapped?" in out.stderr
 

@@ -323,6 +323,19 @@ def _origin_error(frame: Frame, src: FloatArray, dist_m: FloatArray) -> Document
     )
 
 
+def check_lonlat(where: str, lon: float, lat: float) -> None:
+    """Raise :class:`DocumentFieldError` at ``where`` unless [lon, lat] are degrees within
+    range, with ``swapped?`` when the pair is one read as [lat, lon]."""
+    if -180 <= lon <= 180 and -90 <= lat <= 90:
+        return
+    swapped = abs(lon) <= 90 and abs(lat) <= 180  # in range as [lat, lon]
+    hint = " – lat/lon swapped? (GeoJSON order is [lon, lat])" if swapped else ""
+    raise DocumentFieldError(
+        where,
+        f"[{lon}, {lat}] is not [lon, lat] in degrees (lon within ±180, lat within ±90){hint}",
+    )
+
+
 def _convert(frame: Frame, items: list[tuple[str, list[float]]]) -> FloatArray:
     """Source x, y of each (field, point) → local x, y [N, 2]. Checks in this order, so the
     error names the field at fault: a point that is no [lon, lat] position (``swapped?`` when
@@ -331,18 +344,7 @@ def _convert(frame: Frame, items: list[tuple[str, list[float]]]) -> FloatArray:
     src = np.array([v[:2] for _, v in items], dtype=float)
     if frame.source_crs == WGS84:
         for where, v in items:
-            lon, lat = v[0], v[1]
-            if not (-180 <= lon <= 180 and -90 <= lat <= 90):
-                hint = (
-                    " – lat/lon swapped? (GeoJSON order is [lon, lat])"
-                    if abs(lon) <= 90 and abs(lat) <= 180
-                    else ""
-                )
-                raise DocumentFieldError(
-                    where,
-                    f"[{lon}, {lat}] is not [lon, lat] in degrees (lon within ±180, lat"
-                    f" within ±90){hint}",
-                )
+            check_lonlat(where, v[0], v[1])
         arc = great_circle_m(src, frame.origin)
         if not np.any(arc <= MAX_FRAME_RADIUS_M):
             raise _origin_error(frame, src, arc)
@@ -484,18 +486,7 @@ def _search_region_to_local(doc: dict[str, Any], frame: Frame) -> None:
     lo = _numbers(region["min_lonlat"], (3,), f"{SEARCH_REGION}.min_lonlat")
     hi = _numbers(region["max_lonlat"], (3,), f"{SEARCH_REGION}.max_lonlat")
     for where, v in ((f"{SEARCH_REGION}.min_lonlat", lo), (f"{SEARCH_REGION}.max_lonlat", hi)):
-        lon, lat = v[0], v[1]
-        if not (-180 <= lon <= 180 and -90 <= lat <= 90):
-            hint = (
-                " – lat/lon swapped? (GeoJSON order is [lon, lat])"
-                if abs(lon) <= 90 and abs(lat) <= 180
-                else ""
-            )
-            raise DocumentFieldError(
-                where,
-                f"[{lon}, {lat}] is not [lon, lat] in degrees (lon within ±180, lat within"
-                f" ±90){hint}",
-            )
+        check_lonlat(where, v[0], v[1])
         arc = float(great_circle_m(np.array([v[:2]]), frame.origin)[0])
         if arc > MAX_FRAME_RADIUS_M:
             raise _far_error(where, v, arc, frame)
