@@ -196,3 +196,9 @@ class ParsePool:
                 if p.is_alive():
                     p.kill()
                     p.join(timeout_s)
+        # the pool's manager thread closes its wake-up pipe on its way out; the interpreter's
+        # exit hook writes to that pipe, and on Python 3.11 the two race (EBADF, a traceback
+        # in the server's log at shutdown): let the thread finish first
+        manager = getattr(pool, "_executor_manager_thread", None)
+        if manager is not None:
+            manager.join(timeout_s)
