@@ -17,6 +17,7 @@ machine; the ratios are the figures to compare.
     python benchmarks/bench_rest_vs_cli.py                 # the hall, 1 round
     python benchmarks/bench_rest_vs_cli.py --repeats 3 --json out.json
     python benchmarks/bench_rest_vs_cli.py --preset fig10-anchors
+    python benchmarks/bench_rest_vs_cli.py --file block.json   # a plan document
 """
 
 from __future__ import annotations
@@ -40,10 +41,11 @@ from ris_planner.planning import plan_preset
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def cli_plan(preset: str, out: Path) -> float:
-    """Wall seconds of ``ris-planner plan --preset`` in a fresh process."""
+def cli_plan(source: list[str], out: Path) -> float:
+    """Wall seconds of ``ris-planner plan SOURCE`` (``--preset NAME`` or a file) in a fresh
+    process."""
     path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
-    cmd = [sys.executable, "-m", "ris_planner.cli", "plan", "--preset", preset, "--out", str(out)]
+    cmd = [sys.executable, "-m", "ris_planner.cli", "plan", *source, "--out", str(out)]
     t0 = time.perf_counter()
     run = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=path))
     wall = time.perf_counter() - t0
@@ -72,9 +74,11 @@ def rest_plan(url: str, document: dict[str, Any], timeout_s: float = 1800) -> tu
     return wall, view["result"]
 
 
-def measure(preset: str, repeats: int) -> dict[str, Any]:
-    """The three routes, alternating, ``repeats`` rounds; the figures."""
-    document = plan_preset(preset)
+def measure(preset: str, repeats: int, file: Path | None = None) -> dict[str, Any]:
+    """The three routes, alternating, ``repeats`` rounds; the figures (of the plan document
+    ``file`` when given, else of the preset)."""
+    document = plan_preset(preset) if file is None else json.loads(file.read_text())
+    source = ["--preset", preset] if file is None else [str(file)]
     times: dict[str, list[float]] = {"cli": [], "rest": [], "rest-serial": []}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
@@ -83,7 +87,7 @@ def measure(preset: str, repeats: int) -> dict[str, Any]:
             served(root / "serial.db", env={"RIS_PLANNER_PLAN_WORKERS": "1"}) as serial_server,
         ):
             for r in range(repeats):
-                times["cli"].append(cli_plan(preset, root / f"cli-{r}"))
+                times["cli"].append(cli_plan(source, root / f"cli-{r}"))
                 times["rest"].append(rest_plan(pool_server.url, document)[0])
                 times["rest-serial"].append(rest_plan(serial_server.url, document)[0])
                 print(
@@ -94,7 +98,7 @@ def measure(preset: str, repeats: int) -> dict[str, Any]:
     med = {k: statistics.median(v) for k, v in times.items()}
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     return {
-        "preset": preset,
+        "plan": preset if file is None else str(file),
         "cores": os.cpu_count(),
         "seconds": {k: [round(x, 3) for x in v] for k, v in times.items()},
         "median_s": {k: round(v, 3) for k, v in med.items()},
@@ -107,13 +111,14 @@ def measure(preset: str, repeats: int) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--preset", default="hall", help="the plan preset (default: hall)")
+    parser.add_argument("--file", type=Path, help="a plan document instead of the preset")
     parser.add_argument("--repeats", type=int, default=1, help="rounds of the three routes")
     parser.add_argument("--json", type=Path, help="write the figures here")
     args = parser.parse_args()
-    res = measure(args.preset, args.repeats)
+    res = measure(args.preset, args.repeats, args.file)
     med = res["median_s"]
     print(
-        f"{args.preset}: cli {med['cli']:.2f} s, rest {med['rest']:.2f} s (rest / cli"
+        f"{res['plan']}: cli {med['cli']:.2f} s, rest {med['rest']:.2f} s (rest / cli"
         f" {res['rest_over_cli']}), rest with a serial job {med['rest-serial']:.2f} s"
         f" ({res['serial_over_rest']}× the pooled job); load average {res['load_average_1min']}"
     )
