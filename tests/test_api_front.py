@@ -2,7 +2,8 @@
 does: every request below is sent to an application with the fast path and to one without
 (``create_app(fast_paths=False)``, every request through FastAPI's route), and the status,
 headers and JSON bodies must be the same – 200, 400, 401, 413 (declared, streamed, pairs),
-422 (document, empty body, engine rule, unknown query parameter) and 500."""
+422 (document, empty body, engine rule, unknown query parameter), 500, and the bare 400 of a
+client gone before its body."""
 
 from __future__ import annotations
 
@@ -160,3 +161,45 @@ def test_fast_path_is_taken_and_the_route_still_documented(
         ops = c.get("/openapi.json").json()["paths"]["/v1/bounds"]["post"]
         assert {"200", "400", "401", "413", "422"} <= set(ops["responses"])
         assert ops["requestBody"]["content"]["application/json"]
+
+
+def test_client_gone_before_its_body_is_the_same_400(tmp_path: Path) -> None:
+    """A client that announces a body and disconnects first: one log line and a bare 400 from
+    both paths (driven through the ASGI interface: a test client cannot disconnect)."""
+    import asyncio
+
+    from starlette.types import Message
+
+    async def post(fast_paths: bool) -> list[Message]:
+        app = create_app(settings(tmp_path, f"gone{fast_paths}"), fast_paths=fast_paths)
+        scope = {
+            "type": "http",
+            "asgi": {"version": "3.0"},
+            "http_version": "1.1",
+            "method": "POST",
+            "scheme": "http",
+            "path": "/v1/bounds",
+            "raw_path": b"/v1/bounds",
+            "root_path": "",
+            "query_string": b"",
+            "headers": [(b"host", b"t"), (b"content-length", b"600"), (b"x-api-key", KEY.encode())],
+            "client": ("127.0.0.1", 5000),
+            "server": ("127.0.0.1", 8000),
+        }
+        sent: list[Message] = []
+
+        async def receive() -> Message:
+            return {"type": "http.disconnect"}
+
+        async def send(message: Message) -> None:
+            sent.append(message)
+
+        async with app.router.lifespan_context(app):
+            await app(scope, receive, send)
+        return sent
+
+    fast, route = (asyncio.run(post(f)) for f in (True, False))
+    assert [m["type"] for m in fast] == [m["type"] for m in route]
+    assert fast[0]["status"] == route[0]["status"] == 400
+    assert fast[0]["headers"] == route[0]["headers"]
+    assert b"".join(m.get("body", b"") for m in fast[1:]) == b""
