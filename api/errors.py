@@ -17,6 +17,9 @@ a readable ``message``, the offending ``fields`` (validation) and the ``limit`` 
   a SQLite error) → 503 with ``Retry-After`` (one handler, every route);
 * a client that disconnects before sending its whole body → one info log line, no traceback;
 * anything else → 500 with an error id and no traceback (the traceback goes to the log).
+
+The API-key check (401) and the body limit (400 for an invalid ``Content-Length``, 413) run in
+:class:`api.front.FrontMiddleware`, before anything reads a body.
 """
 
 from __future__ import annotations
@@ -36,9 +39,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.requests import ClientDisconnect
 from starlette.responses import Response
 from starlette.routing import Match
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from api.auth import KeyRing
 from api.store import StoreUnavailableError
 from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.core.io_json import MalformedJsonError
@@ -335,85 +336,3 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(sqlite3.Error, _on_store_unavailable)
     app.add_exception_handler(ClientDisconnect, _on_disconnect)
     app.add_exception_handler(Exception, _on_unexpected)
-
-
-class BodyLimitMiddleware:
-    """Pure ASGI middleware: 413 before reading a body whose Content-Length exceeds the limit;
-    a streamed (chunked) body is counted as it arrives and stopped at the limit."""
-
-    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
-        self.app = app
-        self.max_bytes = max_bytes
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        for name, value in scope.get("headers", []):
-            if name == b"content-length":
-                try:
-                    length = int(value)
-                except ValueError:
-                    length = -1
-                if length < 0:
-                    response = error_response(400, "bad_request", "invalid Content-Length header")
-                    await response(scope, receive, send)
-                    return
-                if length > self.max_bytes:
-                    response = error_response(
-                        413,
-                        "too_large",
-                        f"request body of {length} bytes exceeds the limit of"
-                        f" {self.max_bytes} bytes",
-                        limit=self.max_bytes,
-                    )
-                    await response(scope, receive, send)
-                    return
-        received = 0
-
-        async def limited_receive() -> Message:
-            nonlocal received
-            message = await receive()
-            if message["type"] == "http.request":
-                received += len(message.get("body", b""))
-                if received > self.max_bytes:
-                    raise BodyTooLargeError(self.max_bytes)
-            return message
-
-        await self.app(scope, limited_receive, send)
-
-
-class ApiKeyMiddleware:
-    """Pure ASGI middleware: with keys configured (:class:`api.auth.KeyRing`), a ``/v1``
-    request without a known ``X-API-Key`` gets 401 before anything reads or parses its body;
-    a known key's :class:`api.auth.Principal` goes to ``scope["state"]["principal"]``."""
-
-    def __init__(self, app: ASGIApp, keys: KeyRing, header: str, prefix: str = "/v1") -> None:
-        self.app = app
-        self.keys = keys
-        self.header = header.lower().encode("latin-1")
-        self.header_name = header
-        self.prefix = prefix
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        path = scope.get("path", "")
-        if (
-            not self.keys.enabled
-            or scope["type"] != "http"
-            or not (path == self.prefix or path.startswith(self.prefix + "/"))
-        ):
-            await self.app(scope, receive, send)
-            return
-        given = next((v for k, v in scope.get("headers", []) if k == self.header), None)
-        principal = self.keys.lookup(given)
-        if principal is None:
-            response = error_response(
-                401,
-                "unauthorized",
-                f"missing or wrong API key: send it in the {self.header_name} header",
-                headers={"WWW-Authenticate": "ApiKey"},
-            )
-            await response(scope, receive, send)
-            return
-        scope.setdefault("state", {})["principal"] = principal
-        await self.app(scope, receive, send)

@@ -18,16 +18,11 @@ from threadpoolctl import threadpool_limits
 from api.auth import KeyRing
 from api.deps import reject_unknown_query, require_api_key
 from api.documents import install_document_schemas
-from api.errors import (
-    V1_ERROR_RESPONSES,
-    ApiKeyMiddleware,
-    BodyLimitMiddleware,
-    install_error_handlers,
-)
+from api.errors import V1_ERROR_RESPONSES, install_error_handlers
+from api.front import FrontMiddleware
 from api.kinds import JOB_KINDS
 from api.offload import ParsePool, install_answered_handler
 from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
-from api.security import SecurityHeadersMiddleware
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
@@ -51,10 +46,14 @@ GIL_SWITCH_S = 0.001
 
 
 def create_app(
-    settings: Settings | None = None, kinds: Mapping[str, JobFunction] | None = None
+    settings: Settings | None = None,
+    kinds: Mapping[str, JobFunction] | None = None,
+    *,
+    fast_paths: bool = True,
 ) -> FastAPI:
     """A configured application; ``settings`` default to the environment's, ``kinds`` (job
-    kind → function run by the workers) to :data:`api.kinds.JOB_KINDS`."""
+    kind → function run by the workers) to :data:`api.kinds.JOB_KINDS`; ``fast_paths=False``
+    sends ``POST /v1/bounds`` through its route too (:mod:`api.front`; the tests compare)."""
     settings = settings if settings is not None else Settings()
     job_kinds = dict(JOB_KINDS if kinds is None else kinds)
 
@@ -112,12 +111,18 @@ def create_app(
     app.state.settings = settings
     install_error_handlers(app)
     install_answered_handler(app)
-    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     keys = KeyRing(settings)
     app.state.keys = keys
-    app.add_middleware(ApiKeyMiddleware, keys=keys, header=API_KEY_HEADER)
-    # outermost: its headers go on every answer, the 401 and 413 of the middlewares too
-    app.add_middleware(SecurityHeadersMiddleware, store_wait_s=settings.request_store_wait_s)
+    # one layer: security headers (on the 401 and 413 it answers too), the store wait bound,
+    # the API key, the body limit, and the fast path of POST /v1/bounds (api.front)
+    app.add_middleware(
+        FrontMiddleware,
+        keys=keys,
+        header=API_KEY_HEADER,
+        max_bytes=settings.max_body_bytes,
+        store_wait_s=settings.request_store_wait_s,
+        fast_bounds=fast_paths,
+    )
     app.include_router(meta.health_router)
     web.install_web(app)
     v1 = [Depends(require_api_key), Depends(reject_unknown_query)]

@@ -1,6 +1,7 @@
 """Old vs new ``POST /v1/bounds`` in the same run: ``bench_api.py``'s burst (``--concurrency``
-concurrent requests of Table I, one connection each) against a ``ris-planner serve`` of this
-checkout and one of ``--old-tree`` (another checkout, e.g. ``git worktree add ../base <commit>``),
+concurrent requests of Table I, on keep-alive connections unless ``--fresh-connections``)
+against a ``ris-planner serve`` of this checkout and one of ``--old-tree`` (another checkout,
+e.g. ``git worktree add ../base <commit>`` or ``git archive <commit> | tar -x -C ../base``),
 alternating ``--alternations`` times, ``--rounds`` bursts per server start.
 
 Per server and burst: requests/s, p95 latency, and the **server's CPU time per request**
@@ -26,7 +27,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from bench_api import one_round, percentile  # the script's folder is on sys.path
+from bench_api import timed_rounds  # the script's folder is on sys.path
 
 from api.launch import Server, served
 from ris_planner import preset_document
@@ -37,19 +38,15 @@ sys.path.insert(0, str(ROOT / "tests"))
 from tolerance import BOUND_ACCURACY, assert_close  # noqa: E402
 
 
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU seconds of a process (Linux ``/proc/<pid>/stat``)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
 @contextmanager
-def served_from(tree: Path, db: Path) -> Iterator[Server]:
-    """A ``ris-planner serve`` importing ``tree``'s code (its folder first on the path)."""
+def served_from(tree: Path, db: Path, blocked: Path | None = None) -> Iterator[Server]:
+    """A ``ris-planner serve`` importing ``tree``'s code (its folder first on the path); with
+    ``blocked``, a folder of modules that refuse to import, before it."""
     here = Path.cwd()
     os.chdir(tree)  # ``python -m`` puts the working folder first on sys.path
     try:
-        env = {"PYTHONPATH": str(tree), "RIS_PLANNER_BLAS_THREADS": "1"}
+        path = str(tree) if blocked is None else f"{blocked}{os.pathsep}{tree}"
+        env = {"PYTHONPATH": path, "RIS_PLANNER_BLAS_THREADS": "1"}
         with served(db, env=env) as server:
             os.chdir(here)
             yield server
@@ -57,22 +54,25 @@ def served_from(tree: Path, db: Path) -> Iterator[Server]:
         os.chdir(here)
 
 
-def bursts(server: Server, doc: dict[str, Any], n: int, rounds: int) -> dict[str, Any]:
-    """Warm up, then ``rounds`` bursts of ``n``: rates, p95s, CPU per request, one answer."""
-    asyncio.run(one_round(server.url, doc, 5))
-    rates, p95s, answer = [], [], None
-    cpu0 = cpu_seconds(server.process.pid)
-    for _ in range(rounds):
-        wall, lat, responses = asyncio.run(one_round(server.url, doc, n))
-        bad = [r.status_code for r in responses if r.status_code != 200]
-        assert not bad, f"non-200 answers: {bad}"
-        first = responses[0].json()
-        assert all(r.json() == first for r in responses), "answers differ within a burst"
-        answer = first
-        rates.append(n / wall)
-        p95s.append(percentile(lat, 95))
-    cpu = (cpu_seconds(server.process.pid) - cpu0) / (n * rounds)
-    return {"rates": rates, "p95s": p95s, "cpu": cpu, "answer": answer}
+def pure_python_http(folder: Path) -> Path:
+    """A folder whose ``httptools`` and ``uvloop`` refuse to import: uvicorn's "auto" then
+    takes h11 and asyncio – a server as installed without ``uvicorn[standard]``."""
+    for name in ("httptools", "uvloop"):
+        (folder / f"{name}.py").write_text(f"raise ImportError('{name} blocked (bench_api_ab)')\n")
+    return folder
+
+
+def bursts(server: Server, doc: dict[str, Any], n: int, rounds: int, fresh: bool) -> dict[str, Any]:
+    """Warm up, then ``rounds`` bursts of ``n`` (bench_api.py's): rates, p95s, server CPU per
+    request, one answer."""
+    answers: list[dict[str, Any]] = []
+    figures = asyncio.run(
+        timed_rounds(server.url, server.process.pid, doc, None, n, rounds, fresh, answers)
+    )
+    first = answers[0]
+    assert all(a == first for a in answers), "answers differ between requests"
+    rates, p95s = figures.rates, figures.p95s
+    return {"rates": rates, "p95s": p95s, "cpu": figures.server_cpu, "answer": first}
 
 
 def main() -> None:
@@ -81,14 +81,30 @@ def main() -> None:
     parser.add_argument("--concurrency", type=int, default=50)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--alternations", type=int, default=3)
+    parser.add_argument(
+        "--fresh-connections",
+        action="store_true",
+        help="one new connection per request (issue 24's measurement) instead of keep-alive",
+    )
+    parser.add_argument(
+        "--old-without-standard",
+        action="store_true",
+        help="the old server without httptools and uvloop (h11, asyncio), as before"
+        " uvicorn[standard] was a dependency",
+    )
     args = parser.parse_args()
     doc = preset_document("paper-table1")
+    blocks = Path(tempfile.mkdtemp(prefix="bench-api-ab-"))
+    blocked = {"old": pure_python_http(blocks) if args.old_without_standard else None, "new": None}
     trees = {"old": args.old_tree.resolve(), "new": ROOT}
     runs: dict[str, list[dict[str, Any]]] = {"old": [], "new": []}
     for i in range(args.alternations):
         for name, tree in trees.items():
-            with tempfile.TemporaryDirectory() as tmp, served_from(tree, Path(tmp) / "j.db") as s:
-                r = bursts(s, doc, args.concurrency, args.rounds)
+            with (
+                tempfile.TemporaryDirectory() as tmp,
+                served_from(tree, Path(tmp) / "j.db", blocked[name]) as s,
+            ):
+                r = bursts(s, doc, args.concurrency, args.rounds, args.fresh_connections)
             runs[name].append(r)
             print(
                 f"{i + 1} {name}: {statistics.median(r['rates']):6.1f} req/s,"

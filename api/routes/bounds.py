@@ -2,6 +2,9 @@
 
 The body is read on the event loop but parsed and validated in a worker thread with the
 computation (a 10 MB batch takes a while to validate; ``/healthz`` keeps answering meanwhile).
+A request without a query string is answered by :class:`api.front.FrontMiddleware`'s fast path
+with this module's :func:`bounds_answer`; the route answers the others and lists the operation
+in the OpenAPI document.
 """
 
 from __future__ import annotations
@@ -47,11 +50,12 @@ async def post_bounds(request: Request) -> JSONResponse:
     body = await request.body()
     settings: Settings = request.app.state.settings  # (no dependency to solve per request)
     limiter: anyio.CapacityLimiter = request.app.state.bounds_limiter
-    return await anyio.to_thread.run_sync(_bounds_answer, body, settings, limiter=limiter)
+    return await anyio.to_thread.run_sync(bounds_answer, body, settings, limiter=limiter)
 
 
-def _bounds_answer(body: bytes, settings: Settings) -> JSONResponse:
-    """The answer, rendered here (the JSON text of a batch is not the event loop's work)."""
+def bounds_answer(body: bytes, settings: Settings) -> JSONResponse:
+    """The answer, rendered here (the JSON text of a batch is not the event loop's work); also
+    the fast path's (:class:`api.front.FrontMiddleware`)."""
     return JSONResponse(_bounds_json(body, settings))
 
 

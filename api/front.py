@@ -1,0 +1,201 @@
+"""The service's one ASGI middleware: every request's per-request work in one layer, and the
+fast path of ``POST /v1/bounds``.
+
+Per HTTP request, in this order (each was a middleware of its own until issue 24's profile
+showed the layers' cost; docs/validation/speed-guard.md):
+
+1. the response headers of :mod:`api.security` on every answer (``nosniff``; the page policy
+   on HTML) and the job database's wait bound of the request (:data:`api.store.CALL_BUDGET_S`,
+   set for everything the request runs: thread pools copy the context);
+2. with API keys configured (:class:`api.auth.KeyRing`), a ``/v1`` request without a known
+   ``X-API-Key`` gets 401 before anything reads its body; a known key's
+   :class:`api.auth.Principal` goes to ``scope["state"]["principal"]``;
+3. 400 for an invalid ``Content-Length``, 413 before reading a body whose ``Content-Length``
+   exceeds ``max_bytes``; a streamed (chunked) body is counted as it arrives and stopped at the
+   limit (:class:`api.errors.BodyTooLargeError`, 413).
+
+The fast path: ``POST /v1/bounds`` without a query string is answered here, without FastAPI's
+routing, dependency solving and response machinery, by the route's own function
+(:func:`api.routes.bounds.bounds_answer`: parse, validate, check the size, compute, render the
+JSON, in a worker thread under the same limiter). The route's dependencies have nothing to do
+for such a request (the key was checked in step 2; no query parameter to reject), and its
+errors go to the application's own exception handlers, so the answers – 200, 400, 401, 413,
+422, 501 and their bodies – are those of the route (``tests/test_api_front.py`` compares
+both). Any other request, a query string included, takes the route.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import anyio
+from starlette.datastructures import MutableHeaders
+from starlette.requests import Request
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from api.auth import KeyRing
+from api.errors import BodyTooLargeError, error_response
+from api.security import PAGE_CSP
+from api.store import CALL_BUDGET_S
+
+log = logging.getLogger("api")
+
+BOUNDS_PATH = "/v1/bounds"
+"""The route that has a fast path."""
+
+
+def _security_headers(message: Message) -> None:
+    """The headers of :mod:`api.security` on a response start message (in place)."""
+    headers = MutableHeaders(scope=message)
+    headers.setdefault("X-Content-Type-Options", "nosniff")
+    if headers.get("content-type", "").startswith("text/html"):
+        headers.setdefault("Content-Security-Policy", PAGE_CSP)
+        headers.setdefault("X-Frame-Options", "DENY")
+        headers.setdefault("Referrer-Policy", "no-referrer")
+
+
+class FrontMiddleware:
+    """Pure ASGI middleware: the per-request work above, and the fast path of
+    ``POST /v1/bounds`` (``fast_bounds=False`` sends it through the route like any other)."""
+
+    def __init__(
+        self,
+        app: ASGIApp,
+        *,
+        keys: KeyRing,
+        header: str,
+        max_bytes: int,
+        store_wait_s: float,
+        prefix: str = "/v1",
+        fast_bounds: bool = True,
+    ) -> None:
+        self.app = app
+        self.keys = keys
+        self.header = header.lower().encode("latin-1")
+        self.header_name = header
+        self.max_bytes = max_bytes
+        self.store_wait_s = store_wait_s
+        self.prefix = prefix
+        self.fast_bounds = fast_bounds
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                _security_headers(message)
+            await send(message)
+
+        token = CALL_BUDGET_S.set(self.store_wait_s)
+        try:
+            await self._http(scope, receive, send_with_headers)
+        finally:
+            CALL_BUDGET_S.reset(token)
+
+    async def _http(self, scope: Scope, receive: Receive, send: Send) -> None:
+        path: str = scope.get("path", "")
+        if self.keys.enabled and (path == self.prefix or path.startswith(self.prefix + "/")):
+            given = next((v for k, v in scope.get("headers", []) if k == self.header), None)
+            principal = self.keys.lookup(given)
+            if principal is None:
+                response = error_response(
+                    401,
+                    "unauthorized",
+                    f"missing or wrong API key: send it in the {self.header_name} header",
+                    headers={"WWW-Authenticate": "ApiKey"},
+                )
+                await response(scope, receive, send)
+                return
+            scope.setdefault("state", {})["principal"] = principal
+        for name, value in scope.get("headers", []):
+            if name == b"content-length":
+                try:
+                    length = int(value)
+                except ValueError:
+                    length = -1
+                if length < 0:
+                    response = error_response(400, "bad_request", "invalid Content-Length header")
+                    await response(scope, receive, send)
+                    return
+                if length > self.max_bytes:
+                    response = error_response(
+                        413,
+                        "too_large",
+                        f"request body of {length} bytes exceeds the limit of"
+                        f" {self.max_bytes} bytes",
+                        limit=self.max_bytes,
+                    )
+                    await response(scope, receive, send)
+                    return
+        if (
+            self.fast_bounds
+            and path == BOUNDS_PATH
+            and scope["method"] == "POST"
+            and not scope.get("query_string")
+            and not scope.get("root_path")
+        ):
+            await self._bounds(scope, receive, send)
+            return
+        received = 0
+
+        async def limited_receive() -> Message:
+            nonlocal received
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > self.max_bytes:
+                    raise BodyTooLargeError(self.max_bytes)
+            return message
+
+        await self.app(scope, limited_receive, send)
+
+    async def _bounds(self, scope: Scope, receive: Receive, send: Send) -> None:
+        """``POST /v1/bounds``: the route's work and answers without the route's machinery."""
+        from api.routes.bounds import bounds_answer
+
+        app: Any = scope["app"]  # the application (Starlette puts itself there)
+        try:
+            body = await self._read_body(receive)
+            response = await anyio.to_thread.run_sync(
+                bounds_answer, body, app.state.settings, limiter=app.state.bounds_limiter
+            )
+        except Exception as exc:
+            handler = _handler(app.exception_handlers, exc)
+            if handler is None:  # → ServerErrorMiddleware: 500 with an error id, as the route's
+                raise
+            response = await handler(Request(scope, receive), exc)
+        await response(scope, receive, send)
+
+    async def _read_body(self, receive: Receive) -> bytes:
+        """The whole body (``Request.body``), stopped at the limit."""
+        from starlette.requests import ClientDisconnect
+
+        chunks: list[bytes] = []
+        received = 0
+        while True:
+            message = await receive()
+            if message["type"] == "http.request":
+                chunk = message.get("body", b"")
+                received += len(chunk)
+                if received > self.max_bytes:
+                    raise BodyTooLargeError(self.max_bytes)
+                chunks.append(chunk)
+                if not message.get("more_body", False):
+                    return b"".join(chunks)
+            elif message["type"] == "http.disconnect":
+                raise ClientDisconnect()
+
+
+def _handler(handlers: dict[Any, Any], exc: Exception) -> Any:
+    """The application's handler of ``exc`` by its class's MRO, as Starlette's
+    ``ExceptionMiddleware`` finds it (the catch-all ``Exception`` handler is the
+    ``ServerErrorMiddleware``'s, outside this middleware: None)."""
+    for cls in type(exc).__mro__:
+        if cls is Exception:
+            return None
+        if cls in handlers:
+            return handlers[cls]
+    return None
