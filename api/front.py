@@ -15,13 +15,17 @@ showed the layers' cost; docs/validation/speed-guard.md):
    limit (:class:`api.errors.BodyTooLargeError`, 413).
 
 The fast path: ``POST /v1/bounds`` without a query string is answered here, without FastAPI's
-routing, dependency solving and response machinery, by the route's own function
-(:func:`api.routes.bounds.bounds_answer`: parse, validate, check the size, compute, render the
-JSON, in a worker thread under the same limiter). The route's dependencies have nothing to do
-for such a request (the key was checked in step 2; no query parameter to reject), and its
-errors go to the application's own exception handlers, so the answers – 200, 400, 401, 413,
-422, 501 and their bodies – are those of the route (``tests/test_api_front.py`` compares
-both). Any other request, a query string included, takes the route.
+routing, dependency solving and response machinery, by the route's own functions
+(:mod:`api.routes.bounds`: parse, validate, check the size, compute, render the JSON). A body of
+at most :data:`api.settings.INLINE_MAX_BODY_BYTES` is parsed on the event loop, and a request
+whose work (:func:`ris_planner.bounds.resources.request_work`) is at most the setting
+``bounds_inline_work`` is answered there too (≈ 1 ms: a worker thread's hand-off and GIL
+switches cost more); larger ones run in a worker thread under the route's limiter. The
+route's dependencies have nothing to do for such a request (the key was checked in step 2; no
+query parameter to reject), and its errors go to the application's own exception handlers, so
+the answers – 200, 400, 401, 413, 422, 501 and their bodies – are those of the route
+(``tests/test_api_front.py`` compares both). Any other request, a query string included,
+takes the route.
 """
 
 from __future__ import annotations
@@ -154,14 +158,28 @@ class FrontMiddleware:
 
     async def _bounds(self, scope: Scope, receive: Receive, send: Send) -> None:
         """``POST /v1/bounds``: the route's work and answers without the route's machinery."""
-        from api.routes.bounds import bounds_answer
+        from api.routes.bounds import bounds_answer, bounds_scenario, scenario_answer
+        from api.settings import INLINE_MAX_BODY_BYTES
+        from ris_planner.bounds.resources import request_work
 
         app: Any = scope["app"]  # the application (Starlette puts itself there)
+        settings = app.state.settings
+        limiter = app.state.bounds_limiter
         try:
             body = await self._read_body(receive)
-            response = await anyio.to_thread.run_sync(
-                bounds_answer, body, app.state.settings, limiter=app.state.bounds_limiter
-            )
+            if settings.bounds_inline_work > 0 and len(body) <= INLINE_MAX_BODY_BYTES:
+                # a small text: parsed and validated here; a small request answered here too
+                scenario = bounds_scenario(body, settings)
+                if request_work(scenario) <= settings.bounds_inline_work:
+                    response = scenario_answer(scenario)
+                else:
+                    response = await anyio.to_thread.run_sync(
+                        scenario_answer, scenario, limiter=limiter
+                    )
+            else:
+                response = await anyio.to_thread.run_sync(
+                    bounds_answer, body, settings, limiter=limiter
+                )
         except Exception as exc:
             handler = _handler(app.exception_handlers, exc)
             if handler is None:  # → ServerErrorMiddleware: 500 with an error id, as the route's

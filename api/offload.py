@@ -202,3 +202,9 @@ class ParsePool:
         manager = getattr(pool, "_executor_manager_thread", None)
         if manager is not None:
             manager.join(timeout_s)
+        # and close that pipe here, once the thread is done with it: the exit hook skips a
+        # closed one (its descriptor may be gone already: the hook's write then failed, EBADF)
+        wakeup = getattr(pool, "_executor_manager_thread_wakeup", None)
+        if wakeup is not None and (manager is None or not manager.is_alive()):
+            with contextlib.suppress(OSError):
+                wakeup.close()

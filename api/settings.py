@@ -8,6 +8,7 @@ RIS_PLANNER_DATA_DIR     ``<DB>.data``                  job figures (PNG files),
 RIS_PLANNER_WORKERS      2                              job worker processes (1–64)
 RIS_PLANNER_BLAS_THREADS 1                              BLAS threads per request / job worker
 RIS_PLANNER_BOUNDS_CONCURRENCY 4                        bounds computations at once (others wait)
+RIS_PLANNER_BOUNDS_INLINE_WORK 1000000                  small bounds requests on the event loop
 RIS_PLANNER_MAX_PAIRS    10000                          TX–RX pairs per ``POST /v1/bounds``
 RIS_PLANNER_MAX_ARRAY_ELEMENTS 20000000                 largest engine array of a request [elements]
 RIS_PLANNER_MAX_WORK     1000000000                     Σ_ℓ 3·G̃·N_ℓ·pairs; legs × obstacle edges
@@ -42,6 +43,15 @@ from ris_planner.model.limits import (
 
 API_KEY_HEADER = "X-API-Key"
 
+BOUNDS_INLINE_WORK = 1_000_000
+"""Default ``bounds_inline_work``: 26 × Table I's 38 400 products (a batch of a few dozen
+such pairs), about a millisecond of the event loop per request. Answering Table I on the
+loop instead of a worker thread took the server's CPU per request from 4.6–5.1 to 2.6–2.9 ms
+and the 50-request bursts from 178–187 to 281–321 requests/s (docs/validation/speed-guard.md):
+the thread hand-off and its GIL switches cost more than the work."""
+INLINE_MAX_BODY_BYTES = 64 * 1024
+"""A bounds body is parsed and validated on the event loop only up to this size."""
+
 
 class Settings(BaseSettings):
     """Configuration of one service instance (see the module docstring for the variables)."""
@@ -66,6 +76,15 @@ class Settings(BaseSettings):
         le=256,
         description="POST /v1/bounds computations running at once (threads); others wait, so"
         " memory stays bounded under a burst of large batches",
+    )
+    bounds_inline_work: int = Field(
+        BOUNDS_INLINE_WORK,
+        ge=0,
+        le=10**9,
+        description="POST /v1/bounds requests of at most this much work (planar complex"
+        " products Σ 3·G̃·N·pairs, ×32 for the spherical model, plus visibility tests) and a"
+        " body of at most 64 KiB are answered on the event loop instead of a worker thread"
+        " (≈ 1 ms each: the thread hand-off cost more than the work); 0: always a thread",
     )
     max_pairs: int = Field(MAX_REQUEST_PAIRS, ge=1, description="TX–RX pairs per bounds request")
     max_array_elements: int = Field(

@@ -203,3 +203,47 @@ def test_client_gone_before_its_body_is_the_same_400(tmp_path: Path) -> None:
     assert fast[0]["status"] == route[0]["status"] == 400
     assert fast[0]["headers"] == route[0]["headers"]
     assert b"".join(m.get("body", b"") for m in fast[1:]) == b""
+
+
+@pytest.mark.parametrize(
+    ("inline_work", "pairs", "threaded"),
+    [
+        (1_000_000, 1, []),  # Table I: parsed, checked and answered on the event loop
+        (10, 1, ["scenario_answer"]),  # parsed on the loop, its work above the setting
+        (0, 1, ["bounds_answer"]),  # 0: always a worker thread
+        (1_000_000, 2500, ["bounds_answer"]),  # a body above 64 KiB: parsed in the thread
+    ],
+)
+def test_small_requests_are_answered_on_the_event_loop(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    inline_work: int,
+    pairs: int,
+    threaded: list[str],
+) -> None:
+    """The fast path answers a request of at most ``bounds_inline_work`` (and a body of at
+    most 64 KiB) without a worker thread – the hand-off cost more than Table I's work – and
+    everything else in one; the answers are the same numbers either way."""
+    import anyio.to_thread
+
+    from ris_planner import compute_bounds, load_scenario
+
+    calls: list[str] = []
+    real = anyio.to_thread.run_sync
+
+    async def counting(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        calls.append(fn.__name__)
+        return await real(fn, *args, **kwargs)
+
+    monkeypatch.setattr(anyio.to_thread, "run_sync", counting)
+    doc = doc_with(tx=[[-2.0, -4.0, 0.0]] * pairs, rx=[[2.0, 3.0, 0.0]] * pairs)
+    body = json.dumps(doc).encode()
+    assert (len(body) > 64 * 1024) == (pairs > 1)
+    config = Settings(db=tmp_path / "jobs.db", bounds_inline_work=inline_work, workers=1)
+    with TestClient(create_app(config)) as client:
+        calls.clear()  # the application's start-up may use threads
+        r = client.post("/v1/bounds", content=body, headers=JSON)
+    assert r.status_code == 200, r.text
+    assert [c for c in calls if c in ("scenario_answer", "bounds_answer")] == threaded
+    want = compute_bounds(load_scenario(doc)).peb_rx
+    assert_close(r.json()["peb_rx_m"], want.tolist(), accuracy=BOUND_ACCURACY)

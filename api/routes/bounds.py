@@ -1,15 +1,15 @@
 """``POST /v1/bounds``: PEB_T, PEB_R, CEB and channel bounds of a scenario, synchronously.
 
-The body is read on the event loop but parsed and validated in a worker thread with the
-computation (a 10 MB batch takes a while to validate; ``/healthz`` keeps answering meanwhile).
+The body is read on the event loop; a large one is parsed and validated in a worker thread
+with the computation (a 10 MB batch takes a while to validate; ``/healthz`` keeps answering
+meanwhile).
 A request without a query string is answered by :class:`api.front.FrontMiddleware`'s fast path
-with this module's :func:`bounds_answer`; the route answers the others and lists the operation
-in the OpenAPI document.
+with this module's functions – a small one (body ≤ 64 KiB, work ≤ ``bounds_inline_work``) on the
+event loop itself, where a worker thread's hand-off cost more than its millisecond of work –;
+the route answers the others and lists the operation in the OpenAPI document.
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import anyio
 from fastapi import APIRouter, Request
@@ -56,13 +56,18 @@ async def post_bounds(request: Request) -> JSONResponse:
 def bounds_answer(body: bytes, settings: Settings) -> JSONResponse:
     """The answer, rendered here (the JSON text of a batch is not the event loop's work); also
     the fast path's (:class:`api.front.FrontMiddleware`)."""
-    return JSONResponse(_bounds_json(body, settings))
+    return scenario_answer(bounds_scenario(body, settings))
 
 
-def _bounds_json(body: bytes, settings: Settings) -> dict[str, Any]:
+def bounds_scenario(body: bytes, settings: Settings) -> Scenario:
     """Parse (400 for text that is not JSON), convert from a frame, validate (422), check the
-    size (413), compute."""
+    size (413)."""
     local, _ = to_local(json_document(body))
     scenario = Scenario.model_validate(local)
     check_scenario_size(scenario, settings.request_limits)
-    return bounds_document(scenario)
+    return scenario
+
+
+def scenario_answer(scenario: Scenario) -> JSONResponse:
+    """Compute and render the answer of a checked scenario."""
+    return JSONResponse(bounds_document(scenario))

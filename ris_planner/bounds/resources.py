@@ -17,6 +17,38 @@ from ris_planner.model.limits import RequestLimits
 from ris_planner.model.profiles import block_length
 from ris_planner.model.scenario import Scenario
 
+SPHERICAL_WORK_FACTOR = 32
+"""How many planar complex products one of the spherical model's counts as in
+:func:`request_work` (its expected Gram and Jacobians sum over the elements per pair)."""
+
+
+def product_work(pairs: int, transmissions: int, elements: list[int]) -> int:
+    """The codebook products of a request: Σ_ℓ 3·G̃·N_ℓ·pairs complex multiply-adds."""
+    g3 = 3 * block_length(transmissions, len(elements))
+    return sum(g3 * n * pairs for n in elements)
+
+
+def visibility_tests(pairs: int, n_ris: int, environment: Environment) -> int:
+    """Segment tests of a request's legs against the obstacles: (1 + 2L) legs per pair times
+    the obstacles' edges (a wall is one)."""
+    edges = sum(ob.work_units() for ob in environment.obstacles)
+    return pairs * (1 + 2 * n_ris) * edges
+
+
+def request_work(scenario: Scenario) -> int:
+    """A bounds request's work in planar complex products: its codebook products (×
+    :data:`SPHERICAL_WORK_FACTOR` for the spherical model) plus its visibility tests – what
+    the service compares with ``bounds_inline_work`` to answer a small request on its event
+    loop (docs/guides/service-operations.md)."""
+    pairs = int(scenario.tx_array.shape[0])
+    elements = [r.elements for r in scenario.ris]
+    work = product_work(pairs, scenario.system.transmissions, elements)
+    if scenario.system.wavefront == "spherical":
+        work *= SPHERICAL_WORK_FACTOR
+    if scenario.environment is not None:
+        work += visibility_tests(pairs, len(elements), scenario.environment)
+    return work
+
 
 def check_scenario_size(scenario: Scenario, limits: RequestLimits) -> None:
     """Raise :class:`LimitExceededError` if the scenario exceeds a configured limit."""
@@ -52,7 +84,7 @@ def check_bounds_size(
             f" {limits.max_array_elements}); use fewer pairs, elements or transmissions",
             limits.max_array_elements,
         )
-    work = sum(g3 * n * pairs for n in elements)
+    work = product_work(pairs, transmissions, elements)
     if work > limits.max_work:
         raise LimitExceededError(
             f"the request needs {work} complex products Σ 3·G̃·N·pairs (limit"
@@ -60,8 +92,7 @@ def check_bounds_size(
             limits.max_work,
         )
     if environment is not None:
-        edges = sum(ob.work_units() for ob in environment.obstacles)
-        tests = pairs * (1 + 2 * len(elements)) * edges
+        tests = visibility_tests(pairs, len(elements), environment)
         if tests > limits.max_work:
             raise LimitExceededError(
                 f"the request needs {tests} visibility tests (legs × obstacle edges; limit"
