@@ -20,10 +20,7 @@ request (the HTTP server's parsing and socket I/O are not included:
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -31,6 +28,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from timing import run_in_tree  # noqa: E402  (the script's folder is on sys.path)
 from tolerance import BOUND_ACCURACY, assert_close  # noqa: E402
 
 WORKER = r"""
@@ -111,17 +109,7 @@ print(json.dumps(res))
 
 
 def run(tree: Path, repeats: int) -> dict[str, Any]:
-    env = dict(os.environ) | {"PYTHONPATH": str(tree)}
-    out = subprocess.run(
-        [sys.executable, "-c", WORKER, str(repeats)],
-        cwd=tree,
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
-    return result
+    return run_in_tree(tree, WORKER, str(repeats))
 
 
 def main() -> None:

@@ -15,10 +15,7 @@ The two trees' answers must agree (``tests/tolerance.py``, ``BOUND_ACCURACY``).
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -26,6 +23,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from timing import run_in_tree  # noqa: E402  (the script's folder is on sys.path)
 from tolerance import BOUND_ACCURACY, assert_close  # noqa: E402
 
 WORKER = r"""
@@ -60,17 +58,7 @@ print(json.dumps(res))
 
 def run(tree: Path, repeats: int) -> dict[str, Any]:
     """One fresh process importing ``tree``'s ris_planner."""
-    env = dict(os.environ) | {"PYTHONPATH": str(tree)}
-    out = subprocess.run(
-        [sys.executable, "-c", WORKER, str(repeats)],
-        cwd=tree,
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    )
-    res: dict[str, Any] = json.loads(out.stdout)
+    res = run_in_tree(tree, WORKER, str(repeats))
     assert Path(res["file"]).resolve().is_relative_to(tree), res["file"]
     return res
 
