@@ -35,13 +35,16 @@ from typing import Any
 
 import anyio
 from starlette.datastructures import MutableHeaders
-from starlette.requests import Request
+from starlette.requests import ClientDisconnect, Request
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from api.auth import KeyRing
 from api.errors import BodyTooLargeError, error_response
+from api.routes.bounds import bounds_answer, bounds_scenario, scenario_answer
 from api.security import PAGE_CSP
+from api.settings import INLINE_MAX_BODY_BYTES
 from api.store import CALL_BUDGET_S
+from ris_planner.bounds.resources import request_work
 
 log = logging.getLogger("api")
 
@@ -158,10 +161,6 @@ class FrontMiddleware:
 
     async def _bounds(self, scope: Scope, receive: Receive, send: Send) -> None:
         """``POST /v1/bounds``: the route's work and answers without the route's machinery."""
-        from api.routes.bounds import bounds_answer, bounds_scenario, scenario_answer
-        from api.settings import INLINE_MAX_BODY_BYTES
-        from ris_planner.bounds.resources import request_work
-
         app: Any = scope["app"]  # the application (Starlette puts itself there)
         settings = app.state.settings
         limiter = app.state.bounds_limiter
@@ -189,8 +188,6 @@ class FrontMiddleware:
 
     async def _read_body(self, receive: Receive) -> bytes:
         """The whole body (``Request.body``), stopped at the limit."""
-        from starlette.requests import ClientDisconnect
-
         chunks: list[bytes] = []
         received = 0
         while True:

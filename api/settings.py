@@ -46,9 +46,10 @@ API_KEY_HEADER = "X-API-Key"
 BOUNDS_INLINE_WORK = 1_000_000
 """Default ``bounds_inline_work``: 26 × Table I's 38 400 products (a batch of a few dozen
 such pairs), about a millisecond of the event loop per request. Answering Table I on the
-loop instead of a worker thread took the server's CPU per request from 4.6–5.1 to 2.6–2.9 ms
-and the 50-request bursts from 178–187 to 281–321 requests/s (docs/validation/speed-guard.md):
-the thread hand-off and its GIL switches cost more than the work."""
+loop instead of a worker thread took the server's CPU per request from 3.8–4.0 to 2.5–2.6 ms
+and the 50-request bursts from 232–241 to 334–353 requests/s on the quiet machine
+(docs/validation/speed-guard.md): the thread hand-off and its GIL switches cost more than the
+work."""
 INLINE_MAX_BODY_BYTES = 64 * 1024
 """A bounds body is parsed and validated on the event loop only up to this size."""
 

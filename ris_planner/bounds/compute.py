@@ -859,7 +859,7 @@ def _compute_bounds(
     if not channel and system.wavefront == "planar":
         # a pair the counting rule settles (inf whatever its information) needs no codebook
         # products: only the per-path DEB/SEB, left out here, would read them
-        names = (["los"] if system.los else []) + [f"ris{i + 1}" for i in range(len(scenario.ris))]
+        names = [k for k in presence if k != "los" or system.los]  # the paths that count
         short = short_pairs(
             np.stack([presence[n] for n in names], axis=1),
             path_observations(names),

@@ -132,9 +132,7 @@ options builds an encoder per call, a third of the time for 90 000 small feature
 def _key(key: Any) -> str:
     """An object key as the json module writes it (strings as they are, numbers and
     booleans by their JSON text)."""
-    if isinstance(key, str):
-        return json.dumps(key)
-    return json.dumps(json.dumps(key) if not isinstance(key, float) else repr(key))
+    return json.dumps(key if isinstance(key, str) else json.dumps(key))
 
 
 def readable_json(value: Any, levels: int = 2, indent: int = 1) -> str:

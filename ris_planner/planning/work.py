@@ -70,8 +70,8 @@ Gram and Jacobians sum over the N elements per pair), ``per_rescored_site_pair``
 cache's float64 re-score of the reported layouts (their sites × pairs, per count), and
 ``per_relaxation_site_pair`` the Frank–Wolfe bounds (iterations × sites × pairs; fitted to 0:
 its cost hides in the others on these cases). The visibility's obstacle term is not fitted
-(no calibration case has obstacles: the walk's cost per obstacle, 1 % of a leg's, as
-measured on the hall)."""
+(no calibration case has obstacles): 2·10⁻⁸ s per leg and obstacle, the earlier hand-set
+model's figure, kept until a case with buildings is in the calibration table."""
 
 BEAMS_PER_LAYOUT_S = 2.0
 """Beam design and power allocation per layout (the SDPs dominate)."""
