@@ -429,6 +429,8 @@
     if (first && focus) first.focus();
   }
 
+  let validationSeq = 0;  // the newest validate() call (see there)
+
   /** Dry run of the job (POST /v1/plans/validate); ``opts.auto`` (after a map edit): the
    * errors are shown without moving the focus away from the map. */
   async function validate(opts) {
@@ -436,9 +438,13 @@
     if (!state.doc) { $("validation-status").textContent = "Load a preset or upload a document first."; return null; }
     clearErrors();
     $("validation-status").textContent = "Validating…";
+    // only the newest validation speaks: an earlier one (an automatic one after a map edit,
+    // with the form as it was) that answers later must not overwrite its result
+    const seq = ++validationSeq;
     try {
       const doc = await documentFromForm();
       const preview = await api("/v1/plans/validate", { method: "POST", json: doc });
+      if (seq !== validationSeq) return doc;  // valid; the newer call shows its own result
       state.preview = preview;
       state.previewExplicit = Array.isArray(doc.candidates) ? doc.candidates.length : 0;
       renderCandSummary();
@@ -448,6 +454,7 @@
       if (!state.plan) drawAll();
       return doc;
     } catch (err) {
+      if (seq !== validationSeq) return null;
       $("validation-status").textContent = "";
       state.preview = null;
       await loadSitePreview();
