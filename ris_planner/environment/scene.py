@@ -42,6 +42,7 @@ from ris_planner.environment._grid import Grid
 from ris_planner.environment.kinds import kind_of
 from ris_planner.environment.kinds.base import ObstacleKind
 from ris_planner.environment.model import Environment
+from ris_planner.runtime.kernels import parallel_kernel
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -148,8 +149,8 @@ class _Index:
 
         g = self.grid
         is_wall, base, top, ends, vert_start, flat = self._compiled_arrays
-        return np.asarray(
-            _jit.walk(
+        with parallel_kernel():
+            blocked = _jit.walk(
                 a,
                 b,
                 tol,
@@ -169,7 +170,7 @@ class _Index:
                 vert_start,
                 flat,
             )
-        )
+        return np.asarray(blocked)
 
     def pairs_blocked(
         self, a: FloatArray, b: FloatArray, legs: IntArray, ob: IntArray, tol: float

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.inversion import ldl
+from ris_planner.runtime.kernels import parallel_kernel
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -167,15 +168,16 @@ def sqrt_crb_diagonal(a: FloatArray) -> tuple[FloatArray, BoolArray]:
     diag = np.empty((size, k))
     deficient = np.zeros(size, dtype=bool)
     if size:
-        _crb_jit.sqrt_diagonal(
-            np.ascontiguousarray(a, dtype=np.float64),
-            SINGULAR_SV_RTOL,
-            NULL_LEAK_TOL,
-            QR_CERT_MARGIN,
-            diag,
-            deficient,
-            _crb_jit.n_tasks(),
-        )
+        with parallel_kernel():
+            _crb_jit.sqrt_diagonal(
+                np.ascontiguousarray(a, dtype=np.float64),
+                SINGULAR_SV_RTOL,
+                NULL_LEAK_TOL,
+                QR_CERT_MARGIN,
+                diag,
+                deficient,
+                _crb_jit.n_tasks(),
+            )
     return diag, deficient
 
 
@@ -252,7 +254,8 @@ def fast_diagonal(
         trace = np.empty(size)
         singular = np.empty(size, dtype=bool)
         f = np.ascontiguousarray(f_packed, dtype=np.float64)
-        _crb_jit.inverse_diagonal(f, n, diag, trace, singular, _crb_jit.n_tasks())
+        with parallel_kernel():
+            _crb_jit.inverse_diagonal(f, n, diag, trace, singular, _crb_jit.n_tasks())
         return diag, singular, trace
     diag, singular = ldl.inverse_diagonal_from(f_packed, n, 0)
     return diag, singular, _trace_scaled_inverse(f_packed, n, diag)

@@ -51,15 +51,17 @@ def plan_document(
     (the command line writes it, a job stores it as its result).
 
     Progress goes over the stages ``plan`` (the search: cache, search, checks, beams),
-    ``fields`` (every count's per-point bounds), ``report`` (plan.json), ``figures`` and
-    ``exports``, each with a share
+    ``fields`` (every count's per-point bounds), ``report`` (the summary and plan.json),
+    ``figures`` and ``exports``, each with a share
     proportional to its estimated work (:mod:`ris_planner.planning.work`); 1.0 only once the
     files are written. plan.json's ``timing_s`` holds every stage's seconds, these outputs
     included (:class:`~ris_planner.planning.pipeline.StageClock`): their sum is this call's
-    wall time."""
+    wall time. Checks that run on a thread (:class:`~ris_planner.planning.checks.PendingChecks`)
+    run beside the fields and the figures; ``timing_s["checks"]`` is the part of them that
+    those stages did not hide (the wait before plan.json)."""
     t0, c0 = time.perf_counter(), time.process_time()  # the imports: the inputs' time too
     from ris_planner.planning.inputs import prepare_plan
-    from ris_planner.planning.pipeline import StageClock, pipeline_work, run_plan
+    from ris_planner.planning.pipeline import StageClock, pipeline_work, run_plan, settle_checks
     from ris_planner.planning.report import write_figures
     from ris_planner.planning.work import report_work
 
@@ -77,7 +79,17 @@ def plan_document(
         inputs=None if inputs.document.sweep is not None else inputs,
         stages=stages,
         clock=clock,
+        settle=False,
     )
+    try:  # the figures while the checks may still run on their thread
+        with clock.stage("figures"):
+            stages.callback("figures")
+            files = write_figures(result, out_dir)
+        result = settle_checks(result, clock)
+    except BaseException:
+        if result.pending_checks is not None:
+            result.pending_checks.cancel()
+        raise
     with clock.stage("report"):
         plan = result.to_json()
         if frame is not None:
@@ -87,9 +99,6 @@ def plan_document(
                 given = (document.get("validation") or {}).get("search_region")
                 val["search_region"] = search_region_lonlat(frame, val["search_region"], given)
         plan.update(license_of_document(document))
-    with clock.stage("figures"):
-        stages.callback("figures")
-        files = write_figures(result, out_dir)
     note = None
     with clock.stage("exports"):
         stages.callback("exports")

@@ -5,7 +5,10 @@ objective the search used."""
 
 from __future__ import annotations
 
-from typing import Any
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +23,9 @@ from ris_planner.planning.objectives import Scorer
 from ris_planner.planning.search import Layout, SearchOutcome
 from ris_planner.planning.sites import Site
 from ris_planner.planning.visibility import Visibility
+
+if TYPE_CHECKING:
+    from ris_planner.planning.result import CountResult
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -138,3 +144,44 @@ def random_codebook_summary(values: list[float], n_pairs: int) -> dict[str, Any]
         "min": _num(float(v.min())),
         "max": _num(float(v.max())),
     }
+
+
+class PendingChecks:
+    """The checks stage running on a thread beside the stages after it (:func:`start_checks`).
+
+    A plan too small for the worker pool ran its checks – the random codebooks' [3G̃, N] @
+    [N, P] products and phase draws, in BLAS and numpy's ``exp``, which release the GIL – in
+    this process after the search, with the fields and the figures (mostly Python) waiting
+    behind them on one core. On a thread they run beside those stages, on the second core
+    (a city block: −1.3 s of 7.3, docs/validation/benchmarks.md). The answers are the same
+    (the same tasks, the same code; :mod:`ris_planner.runtime.kernels` keeps the compiled
+    kernels one at a time). :meth:`settle` waits for them; :meth:`cancel` stops the thread
+    after its current task."""
+
+    def __init__(
+        self,
+        scorer: Scorer,
+        tasks: list[PlanCheck],
+        finish: Callable[[list[Any]], list[CountResult]],
+    ) -> None:
+        self._stop = threading.Event()
+        self._finish = finish
+        pool = ThreadPoolExecutor(1, thread_name_prefix="plan-checks")
+        self._future = pool.submit(self._run, scorer, tasks)
+        pool.shutdown(wait=False)  # the thread ends with its one task
+
+    def _run(self, scorer: Scorer, tasks: list[PlanCheck]) -> list[Any]:
+        values = []
+        for task in tasks:
+            if self._stop.is_set():
+                raise RuntimeError("plan checks cancelled")
+            values.append(plan_check_task(scorer, task))
+        return values
+
+    def settle(self) -> list[CountResult]:
+        """Every count with its checks (waits for the thread; its error is raised here)."""
+        return self._finish(self._future.result())
+
+    def cancel(self) -> None:
+        """Stop after the current task (the plan failed or was cancelled meanwhile)."""
+        self._stop.set()

@@ -36,6 +36,7 @@ from ris_planner.planning.beam_design import (
 from ris_planner.planning.branch_bound import BNB_MIN_WORK, BNB_WORK_FACTOR, branch_and_bound
 from ris_planner.planning.certificates import Certificate
 from ris_planner.planning.checks import (
+    PendingChecks,
     PlanCheck,
     bnb_certificate,
     plan_check_task,
@@ -106,6 +107,7 @@ def run_plan(
     *,
     stages: Stages | None = None,
     clock: StageClock | None = None,
+    settle: bool = True,
 ) -> PlanResult:
     """Run a plan document through every stage up to its frozen result: inputs, the search
     stages (:func:`plan_once`), the sweep and sizing runs, the diagnosis
@@ -117,7 +119,12 @@ def run_plan(
     stages ``plan``, [``validation``], ``fields``, ``report`` of :func:`pipeline_work`, 1.0 at the
     end; with
     ``stages`` (the caller's :class:`Stages` holding those three) the caller finishes it.
-    ``clock`` collects the stage times (the caller's, to add its own stages)."""
+    ``clock`` collects the stage times (the caller's, to add its own stages).
+
+    A plan whose checks run in this process runs them on a thread beside the stages after the
+    search (:class:`PendingChecks`); ``settle=False`` returns before they are done
+    (``result.pending_checks``: the caller overlaps its own stages – the figures – and then
+    calls :func:`settle_checks`)."""
     from ris_planner.planning.diagnosis import diagnose
     from ris_planner.planning.resources import sizing_runs
     from ris_planner.planning.sizing import run_sizing
@@ -135,38 +142,49 @@ def run_plan(
         )
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
+    pending: list[PendingChecks] = []  # the checks' thread, to stop if a later stage fails
     try:
-        n_runs = 1 + sizing_runs(doc)
-        on_plan = stages.callback("plan")
-        main = on_plan if n_runs == 1 else lambda f, m: on_plan(f / n_runs, m)
-        if doc.sweep is not None:
-            result = _run_sweep(doc, main, ex, clock)
-        else:
-            result = plan_once(doc, main, ex, checked=True, inputs=inputs, clock=clock)
-        if doc.sizing is not None:
-            with clock.stage("sizing"):
-                sizing = run_sizing(
-                    doc,
-                    lambda f, m: on_plan((1 + f * (n_runs - 1)) / n_runs, m),
-                    ex,
-                    sweep_rows,
+        try:
+            n_runs = 1 + sizing_runs(doc)
+            on_plan = stages.callback("plan")
+            main = on_plan if n_runs == 1 else lambda f, m: on_plan(f / n_runs, m)
+            if doc.sweep is not None:
+                result = _run_sweep(doc, main, ex, clock)
+            else:
+                result = plan_once(
+                    doc, main, ex, checked=True, inputs=inputs, clock=clock, background_checks=True
                 )
-            result = replace(result, sizing=sizing)
-        with clock.stage("diagnosis"):
-            result = replace(result, diagnosis=diagnose(result))
-        if doc.validation is not None:
-            with clock.stage("validation"):
-                on_check = stages.callback("validation")
-                result = replace(result, validation=run_estimator_check(result, on_check))
-    finally:
-        if own:
-            with clock.stage("workers_close"):
-                ex.close()
-    with clock.stage("fields"):
-        result = fields_stage(result, stages.callback("fields"))
-    with clock.stage("report"):
-        stages.callback("report")
-        result = replace(result, summary=summarise(result))
+                pending += [result.pending_checks] if result.pending_checks else []
+            if doc.sizing is not None:
+                with clock.stage("sizing"):
+                    sizing = run_sizing(
+                        doc,
+                        lambda f, m: on_plan((1 + f * (n_runs - 1)) / n_runs, m),
+                        ex,
+                        sweep_rows,
+                    )
+                result = replace(result, sizing=sizing)
+            with clock.stage("diagnosis"):
+                result = replace(result, diagnosis=diagnose(result))
+            if doc.validation is not None:
+                with clock.stage("validation"):
+                    on_check = stages.callback("validation")
+                    result = replace(result, validation=run_estimator_check(result, on_check))
+        finally:
+            if own:
+                with clock.stage("workers_close"):
+                    ex.close()
+        with clock.stage("fields"):
+            result = fields_stage(result, stages.callback("fields"))
+        with clock.stage("report"):
+            stages.callback("report")
+            result = replace(result, summary=summarise(result))
+        if settle:
+            result = settle_checks(result, clock)
+    except BaseException:
+        for p in pending:
+            p.cancel()
+        raise
     result = replace(result, timing=dict(clock.seconds))
     if own_stages:
         stages.finish("done")
@@ -194,13 +212,15 @@ def plan_once(
     checked: bool = False,
     inputs: PlanInputs | None = None,
     clock: StageClock | None = None,
+    background_checks: bool = False,
 ) -> PlanResult:
     """One plan run on an executor, the search stages only (no sweep, no sizing, no diagnosis,
     no per-point bounds): the base of :func:`run_plan`, and each run of a sweep and of the
     sizing question. ``checked``: a validated document whose sizes its parent document
     already checked (a sweep or sizing run: :func:`ris_planner.planning.resources.plan_runs`; it
-    draws no
-    heatmap, so the heatmap's memory does not apply)."""
+    draws no heatmap, so the heatmap's memory does not apply). ``background_checks``: checks
+    that would run in this process run on a thread instead (``result.pending_checks``,
+    :class:`PendingChecks`; :func:`settle_checks` completes the result)."""
     clock = StageClock() if clock is None else clock
     with clock.stage("inputs"):
         doc = (
@@ -232,41 +252,51 @@ def plan_once(
     counts, infeasible, deferred = search_stage(
         inputs, scorer, ex, stages.callback("search"), clock
     )
+    pending = None
     with clock.stage("checks"):
         on_checks = stages.callback("checks")
-        counts = checks_stage(inputs, scorer, counts, deferred, ex, on_checks, visibility)
-    with clock.stage("rollout"):
-        stages.callback("rollout")(0.0, doc.rollout)
-        free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
-        searched = sum(cr.outcome.evaluated for cr in counts) * inputs.pairs.size
-        rollout = plan_rollout(
-            doc.rollout,
+        if background_checks and not _checks_on_pool(ex):
+            pending = start_checks(inputs, scorer, counts, deferred, on_checks, visibility)
+        else:
+            counts = checks_stage(inputs, scorer, counts, deferred, ex, on_checks, visibility)
+    try:
+        with clock.stage("rollout"):
+            stages.callback("rollout")(0.0, doc.rollout)
+            free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
+            searched = sum(cr.outcome.evaluated for cr in counts) * inputs.pairs.size
+            rollout = plan_rollout(
+                doc.rollout,
+                scorer,
+                inputs.feasibility,
+                free,
+                doc.search,
+                inputs.pairs.size,
+                searched,
+            )
+        result = PlanResult(
+            doc,
+            inputs.sites,
+            inputs.tx_map,
+            inputs.rx_map,
+            inputs.pairs,
             scorer,
-            inputs.feasibility,
-            free,
-            doc.search,
-            inputs.pairs.size,
-            searched,
+            counts,
+            clock.seconds,
+            scene=inputs.scene,
+            dropped_points=inputs.dropped,
+            site_warnings=warnings,
+            feasibility=inputs.feasibility,
+            infeasible_counts=tuple(infeasible),
+            rollout=rollout,
+            pending_checks=pending,
         )
-    result = PlanResult(
-        doc,
-        inputs.sites,
-        inputs.tx_map,
-        inputs.rx_map,
-        inputs.pairs,
-        scorer,
-        counts,
-        clock.seconds,
-        scene=inputs.scene,
-        dropped_points=inputs.dropped,
-        site_warnings=warnings,
-        feasibility=inputs.feasibility,
-        infeasible_counts=tuple(infeasible),
-        rollout=rollout,
-    )
-    if doc.beams is not None:
-        with clock.stage("beams"):
-            result = replace(result, beams=plan_beams(result, stages.callback("beams")))
+        if doc.beams is not None:
+            with clock.stage("beams"):
+                result = replace(result, beams=plan_beams(result, stages.callback("beams")))
+    except BaseException:
+        if pending is not None:
+            pending.cancel()
+        raise
     stages.finish("done")
     return replace(result, timing=dict(clock.seconds))
 
@@ -401,10 +431,29 @@ def checks_stage(
     seed) in one executor call: independent checks that keep the pool's workers busy together
     when the search started them (else, and on a cluster, whose tasks carry site blocks, not
     the whole scorer: in this process)."""
+    tasks, jobs = _check_tasks(inputs, counts, deferred, visibility)
+    on = ex if _checks_on_pool(ex) else SerialExecutor()
+    progress(0.0, f"{len(deferred)} relaxation bounds, {len(tasks)} tasks")
+    return _checked_counts(counts, deferred, jobs, on.map(plan_check_task, scorer, tasks))
+
+
+def _checks_on_pool(ex: Executor) -> bool:
+    """Whether the checks run on ``ex``'s workers (started by the search, not a cluster's)."""
+    return ex.started and not ex.site_blocks
+
+
+def _check_tasks(
+    inputs: PlanInputs,
+    counts: list[CountResult],
+    deferred: list[tuple[int, int]],
+    visibility: Visibility | None,
+) -> tuple[list[PlanCheck], list[list[Any]]]:
+    """(the checks' tasks: the deferred relaxation bounds, then every count's codebook
+    evaluations; those evaluations per count)."""
     doc = inputs.document
     mirror = inputs.directions == "mirror"
     iterations = doc.search.certificate_iterations
-    jobs = [
+    jobs: list[list[Any]] = [
         random_codebook_tasks(
             doc, inputs.sites, inputs.pairs, cr.ranked[0][0], mirror, visibility=visibility
         )
@@ -414,9 +463,16 @@ def checks_stage(
         ("certificate", (c, inputs.feasibility, iterations)) for _, c in deferred
     ]
     tasks += [("codebook", t) for job in jobs for t in job]
-    on = ex if ex.started and not ex.site_blocks else SerialExecutor()
-    progress(0.0, f"{len(deferred)} relaxation bounds, {len(tasks)} tasks")
-    values = on.map(plan_check_task, scorer, tasks)
+    return tasks, jobs
+
+
+def _checked_counts(
+    counts: list[CountResult],
+    deferred: list[tuple[int, int]],
+    jobs: list[list[Any]],
+    values: list[Any],
+) -> list[CountResult]:
+    """``counts`` with the checks' answers (``values`` in the order of :func:`_check_tasks`)."""
     out = list(counts)
     for (i, _), bound in zip(deferred, values[: len(deferred)], strict=True):
         assert isinstance(bound, Certificate)
@@ -427,6 +483,32 @@ def checks_stage(
         summary = random_codebook_summary(codebook[i * n : (i + 1) * n], len(jobs[i][0][1]))
         out[i] = replace(cr, random_codebook=summary)
     return out
+
+
+def start_checks(
+    inputs: PlanInputs,
+    scorer: Scorer,
+    counts: list[CountResult],
+    deferred: list[tuple[int, int]],
+    progress: ProgressCallback,
+    visibility: Visibility | None = None,
+) -> PendingChecks:
+    """:func:`checks_stage` in this process, on a thread (:class:`PendingChecks`)."""
+    tasks, jobs = _check_tasks(inputs, counts, deferred, visibility)
+    progress(0.0, f"{len(deferred)} relaxation bounds, {len(tasks)} tasks (beside the next stages)")
+    return PendingChecks(scorer, tasks, lambda v: _checked_counts(counts, deferred, jobs, v))
+
+
+def settle_checks(result: PlanResult, clock: StageClock | None = None) -> PlanResult:
+    """``result`` with its checks done (:class:`PendingChecks`); the wait is timed as
+    ``checks`` (the stage's part that the stages after it did not hide)."""
+    pending = result.pending_checks
+    if pending is None:
+        return result
+    clock = StageClock() if clock is None else clock
+    with clock.stage("checks"):
+        counts = pending.settle()
+    return replace(result, counts=counts, pending_checks=None, timing=dict(clock.seconds))
 
 
 def _run_sweep(

@@ -23,6 +23,7 @@ from ris_planner.model.plan import PlanDocument, physics_json
 from ris_planner.physics.fim import Radio
 from ris_planner.planning.beam_design import BeamReport
 from ris_planner.planning.certificates import Certificate
+from ris_planner.planning.checks import PendingChecks
 from ris_planner.planning.constraints import Feasibility
 from ris_planner.planning.decisions import CountAnswer, decision_json, pareto
 from ris_planner.planning.fields import RxField, heatmap_rx_index, heatmap_tx
@@ -126,6 +127,10 @@ class PlanResult:
     """The maps stage: plan.json ``points`` and ``heatmap`` (:mod:`ris_planner.planning.points`)."""
     summary: Summary | None = None
     """The summary stage (:func:`summarise`)."""
+    pending_checks: PendingChecks | None = None
+    """The checks still running on their thread (each count's ``certificate`` and
+    ``random_codebook`` are not set yet): :func:`~ris_planner.planning.pipeline.settle_checks`
+    waits for them; :meth:`to_json` refuses a result with pending checks."""
 
     @property
     def cache(self) -> SiteCache:
@@ -233,6 +238,8 @@ class PlanResult:
         pipeline.run_plan` runs both)."""
         if self.maps is None or self.summary is None:
             raise ValueError("plan.json needs the maps and summary stages (run_plan runs them)")
+        if self.pending_checks is not None:
+            raise ValueError("plan.json needs the checks: settle_checks(result) first")
         doc = self.document
         summ = self.summary
         top: list[tuple[float, int, Layout]] = []

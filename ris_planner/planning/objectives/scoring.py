@@ -41,6 +41,7 @@ from ris_planner.model.plan import Objective
 from ris_planner.model.scenario import KnownPart
 from ris_planner.planning.site_cache import N_PACKED, N_STATES, KeptInformation, SiteCache
 from ris_planner.planning.visibility import BoolArray
+from ris_planner.runtime.kernels import parallel_kernel
 
 if TYPE_CHECKING:
     from ris_planner.model.plan import Objective
@@ -295,14 +296,15 @@ class Scorer:
                 yield b0, block
                 continue
             lay = np.ascontiguousarray(layouts[b0 : b0 + nb])
-            score_layouts(
-                layouts=lay,
-                out=block,
-                route=route[:nb],
-                n_tasks=n_tasks(),
-                screen_limit=limit,
-                **self._kernel_inputs,
-            )
+            with parallel_kernel():
+                score_layouts(
+                    layouts=lay,
+                    out=block,
+                    route=route[:nb],
+                    n_tasks=n_tasks(),
+                    screen_limit=limit,
+                    **self._kernel_inputs,
+                )
             slow = np.flatnonzero(route[:nb])
             if slow.size:
                 diag, _ = sqrt_crb_diagonal(self._gathered_rows(lay, slow))
