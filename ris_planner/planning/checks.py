@@ -8,7 +8,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from typing import TYPE_CHECKING, Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,10 +24,8 @@ from ris_planner.planning.search import Layout, SearchOutcome
 from ris_planner.planning.sites import Site
 from ris_planner.planning.visibility import Visibility
 
-if TYPE_CHECKING:
-    from ris_planner.planning.result import CountResult
-
 FloatArray = NDArray[np.float64]
+T = TypeVar("T")
 BoolArray = NDArray[np.bool_]
 
 RANDOM_CODEBOOK_SEEDS = 5
@@ -146,14 +144,14 @@ def random_codebook_summary(values: list[float], n_pairs: int) -> dict[str, Any]
     }
 
 
-class PendingChecks:
+class PendingChecks(Generic[T]):
     """The checks stage running on a thread beside the stages after it (:func:`start_checks`).
 
     A plan too small for the worker pool ran its checks – the random codebooks' [3G̃, N] @
     [N, P] products and phase draws, in BLAS and numpy's ``exp``, which release the GIL – in
     this process after the search, with the fields and the figures (mostly Python) waiting
     behind them on one core. On a thread they run beside those stages, on the second core
-    (a city block: −1.3 s of 7.3, docs/validation/benchmarks.md). The answers are the same
+    (a city block: 7.3 → 5.1 s, docs/validation/benchmarks.md). The answers are the same
     (the same tasks, the same code; :mod:`ris_planner.runtime.kernels` keeps the compiled
     kernels one at a time). :meth:`settle` waits for them; :meth:`cancel` stops the thread
     after its current task."""
@@ -162,7 +160,7 @@ class PendingChecks:
         self,
         scorer: Scorer,
         tasks: list[PlanCheck],
-        finish: Callable[[list[Any]], list[CountResult]],
+        finish: Callable[[list[Any]], T],
     ) -> None:
         self._stop = threading.Event()
         self._finish = finish
@@ -178,8 +176,9 @@ class PendingChecks:
             values.append(plan_check_task(scorer, task))
         return values
 
-    def settle(self) -> list[CountResult]:
-        """Every count with its checks (waits for the thread; its error is raised here)."""
+    def settle(self) -> T:
+        """``finish`` of the checks' answers – every count with its checks (waits for the
+        thread; its error is raised here)."""
         return self._finish(self._future.result())
 
     def cancel(self) -> None:

@@ -142,7 +142,9 @@ def run_plan(
         )
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
-    pending: list[PendingChecks] = []  # the checks' thread, to stop if a later stage fails
+    pending: list[
+        PendingChecks[list[CountResult]]
+    ] = []  # the checks' thread, to stop if a later stage fails
     try:
         try:
             n_runs = 1 + sizing_runs(doc)
@@ -492,7 +494,7 @@ def start_checks(
     deferred: list[tuple[int, int]],
     progress: ProgressCallback,
     visibility: Visibility | None = None,
-) -> PendingChecks:
+) -> PendingChecks[list[CountResult]]:
     """:func:`checks_stage` in this process, on a thread (:class:`PendingChecks`)."""
     tasks, jobs = _check_tasks(inputs, counts, deferred, visibility)
     progress(0.0, f"{len(deferred)} relaxation bounds, {len(tasks)} tasks (beside the next stages)")

@@ -127,7 +127,7 @@ class PlanResult:
     """The maps stage: plan.json ``points`` and ``heatmap`` (:mod:`ris_planner.planning.points`)."""
     summary: Summary | None = None
     """The summary stage (:func:`summarise`)."""
-    pending_checks: PendingChecks | None = None
+    pending_checks: PendingChecks[list[CountResult]] | None = None
     """The checks still running on their thread (each count's ``certificate`` and
     ``random_codebook`` are not set yet): :func:`~ris_planner.planning.pipeline.settle_checks`
     waits for them; :meth:`to_json` refuses a result with pending checks."""

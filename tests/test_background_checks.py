@@ -1,0 +1,137 @@
+"""A plan's checks on a thread beside the later stages (issue 22: a city block in seconds):
+the same answers as in line, plan.json only once they are in, a failed stage stops the thread,
+and numba's parallel kernels one at a time (its workqueue layer aborts on concurrent
+launches)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from test_plan_timing import timed_plan
+from tolerance import assert_close
+
+from ris_planner.planning import pipeline
+from ris_planner.planning.checks import plan_check_task
+from ris_planner.planning.pipeline import plan_once, run_plan, settle_checks
+from ris_planner.runtime.executor import SerialExecutor
+from ris_planner.runtime.progress import no_progress
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def checks_of(result: pipeline.PlanResult) -> list[tuple[object, ...]]:
+    """Each count's random-codebook summary and certificate."""
+    return [
+        (cr.ris_count, cr.random_codebook, cr.certificate and cr.certificate.loss_bound)
+        for cr in result.counts
+    ]
+
+
+def test_checks_on_a_thread_give_the_in_line_answers() -> None:
+    doc = timed_plan()
+    inline = plan_once(doc, no_progress, SerialExecutor())
+    assert inline.pending_checks is None
+    background = plan_once(doc, no_progress, SerialExecutor(), background_checks=True)
+    assert background.pending_checks is not None  # they did run on the thread
+    assert all(cr.random_codebook is None for cr in background.counts)
+    settled = settle_checks(background)
+    assert settled.pending_checks is None
+    got, want = checks_of(settled), checks_of(inline)
+    assert [g[0] for g in got] == [w[0] for w in want]
+    for (count, g_cb, g_cert), (_, w_cb, w_cert) in zip(got, want, strict=True):
+        assert isinstance(g_cb, dict) and isinstance(w_cb, dict)
+        assert_close(g_cb, w_cb, where=f"random codebooks of {count} RISs")
+        assert_close(g_cert, w_cert, where=f"certificate of {count} RISs")
+    # the layouts and objectives are the search's: untouched by where the checks ran
+    ranked = [[[list(lay), v] for lay, v in cr.ranked] for cr in settled.counts]
+    assert_close(ranked, [[[list(lay), v] for lay, v in cr.ranked] for cr in inline.counts])
+
+
+def test_plan_json_waits_for_the_checks() -> None:
+    result = run_plan(timed_plan(), executor=SerialExecutor(), settle=False)
+    assert result.pending_checks is not None
+    with pytest.raises(ValueError, match="settle_checks"):
+        result.to_json()
+    done = settle_checks(result)
+    plan = done.to_json()
+    assert all(entry["random_codebook"] is not None for entry in plan["by_count"])
+
+
+def test_a_failed_stage_stops_the_checks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fields stage fails at once: the checks' thread stops after its current task
+    instead of running every remaining one (each made slow here, so a run of all of them
+    would be seen)."""
+    ran: list[int] = []
+
+    def slow_task(scorer: object, task: object) -> object:
+        time.sleep(0.2)
+        ran.append(1)
+        return plan_check_task(scorer, task)  # type: ignore[arg-type]
+
+    def failing_fields(*_: object, **__: object) -> None:
+        raise RuntimeError("fields failed")
+
+    monkeypatch.setattr("ris_planner.planning.checks.plan_check_task", slow_task)
+    monkeypatch.setattr(pipeline, "fields_stage", failing_fields)
+    with pytest.raises(RuntimeError, match="fields failed"):
+        run_plan(timed_plan(), executor=SerialExecutor())
+    deadline = time.monotonic() + 30
+    while any(t.name.startswith("plan-checks") for t in threading.enumerate()):
+        assert time.monotonic() < deadline, "the checks' thread did not stop"
+        time.sleep(0.05)
+    n_tasks = 2 * 6  # two counts × (expected + 5 seeds)
+    assert 1 <= len(ran) <= 3 < n_tasks
+
+
+CONCURRENT_KERNELS = textwrap.dedent(
+    """
+    import threading
+    import numba
+    import numpy as np
+    from ris_planner.inversion import crb
+
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((20_000, 9, 7))
+    f = np.einsum("pri,prj->pij", x, x)
+    il = np.tril_indices(7)
+    packed = np.ascontiguousarray(np.moveaxis(f[:, il[0], il[1]], 0, 1))
+    want = crb.fast_diagonal(packed, 7, engine="numba")[0]
+    bad = []
+
+    def run():
+        for _ in range(20):
+            if not np.array_equal(crb.fast_diagonal(packed, 7, engine="numba")[0], want):
+                bad.append(1)
+
+    threads = [threading.Thread(target=run) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    print(numba.threading_layer(), len(bad))
+    """
+)
+
+
+def test_parallel_kernels_from_two_threads_on_the_workqueue_layer() -> None:
+    """Two threads launch the compiled CRB kernel 20 times each under numba's workqueue layer,
+    which aborts the process on a concurrent launch (without runtime.kernels' lock this
+    process dies with SIGABRT); every answer equals the first (same process, same code)."""
+    env = {**os.environ, "NUMBA_THREADING_LAYER": "workqueue", "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run(
+        [sys.executable, "-c", CONCURRENT_KERNELS],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split() == ["workqueue", "0"]
