@@ -222,7 +222,9 @@ def plan_once(
     already checked (a sweep or sizing run: :func:`ris_planner.planning.resources.plan_runs`; it
     draws no heatmap, so the heatmap's memory does not apply). ``background_checks``: checks
     that would run in this process run on a thread instead (``result.pending_checks``,
-    :class:`PendingChecks`; :func:`settle_checks` completes the result)."""
+    :class:`PendingChecks`; :func:`settle_checks` completes the result) – the codebook
+    evaluations only: a relaxation bound (a count searched greedily) keeps them in line, its
+    memory being the scorer's (:func:`ris_planner.planning.work.checks_beside`)."""
     clock = StageClock() if clock is None else clock
     with clock.stage("inputs"):
         doc = (
@@ -257,7 +259,7 @@ def plan_once(
     pending = None
     with clock.stage("checks"):
         on_checks = stages.callback("checks")
-        if background_checks and not _checks_on_pool(ex):
+        if background_checks and not deferred and not _checks_on_pool(ex):
             pending = start_checks(inputs, scorer, counts, deferred, on_checks, visibility)
         else:
             counts = checks_stage(inputs, scorer, counts, deferred, ex, on_checks, visibility)

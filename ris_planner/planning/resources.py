@@ -105,6 +105,19 @@ BYTES_PER_PROFILE_ELEMENT = 64
 their weighted copies (G̃·L ≤ G rows)."""
 
 
+CHECKS_BESIDE_BYTES = 48 << 20
+"""The codebook checks' working set while they run on their thread beside the fields and the
+figures (:class:`ris_planner.planning.checks.PendingChecks`): the tasks' pair arrays, scenario
+and FIM temporaries (tracemalloc peak 14–47 MB on the calibration cases,
+docs/validation/resources.md)."""
+
+
+BYTES_PER_CHECK_ELEMENT = 2 * 512 * 16
+"""Per RIS element, the same checks' steering block and its product (two [N, 512] complex
+arrays of :func:`ris_planner.physics.fim.planar_transmission_gram`'s chunk): 57 MB measured at
+64 × 64 elements, 143 MB at 100 × 100."""
+
+
 CSV_BYTES_PER_ROW_PARSED = 250
 
 
@@ -195,7 +208,8 @@ def plan_memory(shape: PlanShape) -> dict[str, int]:
     (its :func:`cache_layout` and masks), ``cache build`` (one site's path information at a
     time), ``search`` (memoised layouts), ``heatmap`` (the largest count's ``compute_bounds``
     on the heatmap pairs, and the per-point results), ``elements`` (the per-element arrays:
-    random-codebook profiles, spherical point terms and chunks)."""
+    random-codebook profiles, spherical point terms and chunks), ``checks`` (the codebook
+    checks, which may run beside the heatmap: :data:`CHECKS_BESIDE_BYTES`)."""
     w = shape.wavefront
     spherical = w == "spherical"
     n_el = shape.elements
@@ -231,6 +245,7 @@ def plan_memory(shape: PlanShape) -> dict[str, int]:
         * (BYTES_PER_HEATMAP_PAIR[w] + ris_in_layout * BYTES_PER_HEATMAP_PAIR_RIS)
         + heat_rx * (BYTES_PER_HEATMAP_POINT + shape.counts * BYTES_PER_HEATMAP_POINT_COUNT),
         "elements": elements,
+        "checks": CHECKS_BESIDE_BYTES + n_el * BYTES_PER_CHECK_ELEMENT,
     }
 
 

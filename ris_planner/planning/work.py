@@ -26,6 +26,12 @@ from ris_planner.planning.resources import HEATMAP_MAX_PAIRS
 if TYPE_CHECKING:
     from ris_planner.planning.inputs import PlanInputs
 
+CHECKS_BESIDE_SHARE = 0.25
+"""Of checks that run on their thread beside the fields and the figures (:func:`checks_beside`),
+the share of the overlapped time that still lengthens the plan (the GIL and the core they
+share): ``checks`` is estimated as the part the later stages do not hide plus this share of
+the rest (docs/validation/resources.md)."""
+
 MARGIN = 1.3
 """Every stage's model times this: the estimate stays above the measured time on a machine
 somewhat busier than the calibration's (docs/validation/resources.md)."""
@@ -196,10 +202,31 @@ def stage_terms(inputs: PlanInputs) -> dict[str, dict[str, float]]:
     }
 
 
+def checks_beside(inputs: PlanInputs) -> bool:
+    """Whether the plan's checks will run on a thread beside the fields and the figures
+    (:class:`ris_planner.planning.checks.PendingChecks`): every count is searched exhaustively
+    (so no relaxation bound is deferred to the checks) and in this process (no worker pool at
+    this machine's core count)."""
+    import os
+
+    from ris_planner.planning.inputs import needs_workers
+
+    spec = inputs.document.search
+    n_sites = len(inputs.sites)
+    exhaustive = spec.method != "greedy" and all(
+        math.comb(n_sites, c) <= spec.max_exhaustive for c in inputs.counts
+    )
+    workers = os.cpu_count() or 1
+    return exhaustive and not needs_workers(
+        inputs, spec.max_exhaustive, workers, spec.pool_min_work
+    )
+
+
 def stage_seconds(inputs: PlanInputs) -> dict[str, float]:
     """Estimated seconds of each stage of :func:`~ris_planner.planning.pipeline.run_plan` and
     of the outputs (plan.json ``timing_s`` names): :data:`TIME_COEFFICIENTS` times
-    :func:`stage_terms`, :data:`MARGIN` included."""
+    :func:`stage_terms`, :data:`MARGIN` included; checks that run beside the later stages
+    (:func:`checks_beside`) count only what those do not hide (:data:`CHECKS_BESIDE_SHARE`)."""
     doc = inputs.document
     work = {
         stage: sum(TIME_COEFFICIENTS[stage][term] * size for term, size in sizes.items())
@@ -207,6 +234,9 @@ def stage_seconds(inputs: PlanInputs) -> dict[str, float]:
     }
     if doc.beams is not None:
         work["beams"] = BEAMS_PER_LAYOUT_S * (len(inputs.counts) + len(doc.beams.layouts))
+    if checks_beside(inputs):
+        hidden = min(work["checks"], work["fields"] + work["figures"])
+        work["checks"] -= (1.0 - CHECKS_BESIDE_SHARE) * hidden
     return {k: MARGIN * v for k, v in work.items()}
 
 
