@@ -49,6 +49,9 @@ class Case:
     ris_count: tuple[int, ...] = (1, 2)
     rx_grid: int = 0
     """RX grid points per axis when they differ from ``grid`` (a large heatmap)."""
+    search: str = "greedy"
+    """``greedy`` (few rounds) or ``auto`` (exhaustive here: the checks run on their thread
+    beside the fields and the figures, :func:`ris_planner.planning.work.checks_beside`)."""
 
 
 SMOKE = [
@@ -68,6 +71,10 @@ FULL = [
     Case("16x16 10 sites 5e4 pairs f32", 16, 10, 50_000, tier="float32", grid=40),
     Case("40x40 20 sites 5e3 spherical", 40, 20, 5000, wavefront="spherical", grid=20),
     Case("64x64 10 sites 1e3 spherical", 64, 10, 1000, wavefront="spherical", grid=12),
+    Case(
+        "64x64 26 sites 1e3 pairs auto", 64, 26, 1000, grid=20, ris_count=(2, 3, 4), search="auto"
+    ),
+    Case("32x32 40 sites 1e4 pairs auto", 32, 40, 10_000, grid=30, search="auto"),
 ]
 
 
@@ -87,7 +94,8 @@ def ring(n: int, radius: float = 6.0) -> list[dict[str, Any]]:
 
 def case_document(case: Case) -> dict[str, Any]:
     """The plan document of a case: grid maps of ``grid``² points inside the ring, sampled
-    pairs, a greedy search of few rounds (the search's memory does not grow with its rounds)."""
+    pairs, a greedy search of few rounds (the search's memory does not grow with its rounds)
+    or the case's ``search`` method."""
 
     def grid(g: int) -> dict[str, Any]:
         step = 8.0 / (g - 1)
@@ -103,7 +111,11 @@ def case_document(case: Case) -> dict[str, Any]:
         "max_pairs": max(case.pairs, 20_000),
         "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 1.0},
         "ris_count": list(case.ris_count),
-        "search": {"method": "greedy", "restarts": 0, "max_rounds": 2},
+        "search": (
+            {"method": "greedy", "restarts": 0, "max_rounds": 2}
+            if case.search == "greedy"
+            else {"method": case.search}
+        ),
     }
 
 

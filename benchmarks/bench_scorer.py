@@ -22,7 +22,7 @@ Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` t
   the same run, interleaved with the kernel (best of ``--repeats`` each, so a loaded
   machine's slices count alike) – for 1 and 2 threads; then the LDLᵀ alone, the loop kernel
   (``ldl_chunk``, before) against the unrolled one (``factor_chunk``), and the divider's
-  measured throughput and the bound its 63 divisions per pair put on the LDLᵀ.
+  measured throughput and the bound its 14 divisions per pair put on the LDLᵀ.
 
     python benchmarks/bench_scorer.py [--sections hall exhaustive junction flops] [--plan]
         [--layouts 300] [--repeats 7] [--flops-layouts 24]
@@ -244,15 +244,66 @@ def best_times(threads: int, repeats: int, runs: dict[Any, Callable[[], Any]]) -
     best: dict[Any, float] = {}
     for _ in range(repeats):
         best["peak"] = min(best.get("peak", np.inf), 1.0 / peak_flops(threads))
+        time.sleep(BLAS_PARK_S)  # OpenBLAS's threads spin after a product: let them park
         for key, run in runs.items():
             best[key] = min(best.get(key, np.inf), timed(run)[0])
     return best
 
 
+BLAS_PARK_S = 0.3
+"""Pause after each peak measurement: OpenBLAS's worker threads keep spinning for a while
+after a threaded product (``OPENBLAS_THREAD_TIMEOUT``: 2²⁸ cycles, ~0.1 s), and a kernel
+started meanwhile shares its cores with them (measured: 2 threads gave the layouts 1.2× the
+rate of 1 without the pause)."""
+
+
 NEAR_SITES = 24
-"""Sites of the ``flops`` run whose pair blocks fit the L2 cache (24 × 28 × 64 × 8 B = 344 KB
-per block, against 2.2 MB for all 156): the difference to the run over all sites is the cost
+"""Sites of the ``flops`` runs whose pair blocks fit the L2 cache (24 × 28 × 64 × 8 B = 344 KB
+per block, against 2.2 MB for all 156): the difference to the runs over all sites is the cost
 of gathering the site blocks from the L3 cache or memory."""
+
+
+def summed_columns(layouts: np.ndarray) -> int:
+    """Site blocks :func:`ris_planner.inversion._crb_jit.score_layouts` adds per pair over the
+    batch ``layouts`` [B, L] (every pair live): each chunk starts afresh (all L columns), and a
+    layout that shares its first k < L sites with the one before reuses their partial sum
+    (the search's lexicographic batches: about one column per layout)."""
+    b_all, n_l = layouts.shape
+    total = n_l if b_all else 0
+    for b in range(1, b_all):
+        same = 0
+        while same < n_l - 1 and layouts[b, same] == layouts[b - 1, same]:
+            same += 1
+        total += n_l - same
+    return total
+
+
+def batch_flops(layouts: np.ndarray, n: int, los: bool, rows: tuple[int, ...]) -> int:
+    """Floating-point operations per pair of scoring the batch ``layouts`` (all pairs live
+    and factored): E additions per site block added (:func:`summed_columns`; the first
+    column is a copy without LOS), plus :func:`~ris_planner.inversion._crb_jit.score_flops`'s
+    LDLᵀ and metric per layout."""
+    e_n = n * (n + 1) // 2
+    per_layout = _crb_jit.score_flops(n, 0, los, rows) + (0 if los else e_n)
+    columns = summed_columns(layouts)
+    if not los:  # a chunk's first layout copies its first block (no additions)
+        columns -= 1
+    return layouts.shape[0] * per_layout + columns * e_n
+
+
+RUNS = (
+    ("search", 2, NEAR_SITES),
+    ("search", 3, NEAR_SITES),
+    ("search", 4, NEAR_SITES),
+    ("random", 2, 0),
+    ("random", 3, 0),
+    ("random", 4, 0),
+)
+"""The ``flops`` runs: (kind, L, sites drawn from; 0 = all). ``search``: the first layouts of
+an exhaustive search over the first :data:`NEAR_SITES` sites, in its lexicographic order (each
+layout adds about one site block to the partial sum of the one before: the search's own
+batches, blocks in the L2 cache); ``random``: layouts drawn at random among all the hall's
+sites (every block added, from memory: the worst case)."""
 
 
 def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -> dict[str, float]:
@@ -266,19 +317,24 @@ def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -
     print(
         f"flops: hall ({scorer.cache.n_sites} sites × {p} pairs, n = {n} states, metric PEB over"
         f" {rows} states): LDLᵀ + diagonal + trace {sum(model.values())} flop per pair {model};"
-        f" sum {n * (n + 1) // 2} per block added; per layout-pair"
-        f" {_crb_jit.score_flops(n, 3, los, rows)} at 3 RISs"
+        f" sum {n * (n + 1) // 2} per site block added; every block added:"
+        f" {_crb_jit.score_flops(n, 3, los, rows)} per layout-pair at 3 RISs"
     )
     rng = np.random.default_rng(2)
     lays = {}
-    for n_ris, n_drawn in ((2, 0), (3, 0), (4, 0), (3, NEAR_SITES)):
+    for kind, n_ris, n_drawn in RUNS:
         lay = all_layouts(n_drawn or scorer.cache.n_sites, n_ris)
-        lays[n_ris, n_drawn] = lay[np.sort(rng.choice(len(lay), n_layouts, replace=False))]
+        if kind == "search":
+            lays[kind, n_ris, n_drawn] = lay[:n_layouts]
+        else:
+            lays[kind, n_ris, n_drawn] = lay[
+                np.sort(rng.choice(len(lay), n_layouts, replace=False))
+            ]
     out = np.empty((n_layouts, p))
     route = np.empty((n_layouts, p), dtype=np.uint8)
     factored = {}
 
-    def kernel(key: tuple[int, int]) -> None:
+    def kernel(key: tuple[str, int, int]) -> None:
         _crb_jit.score_layouts(
             layouts=lays[key], out=out, route=route, n_tasks=_crb_jit.n_tasks(),
             screen_limit=0.0, **args,
@@ -288,7 +344,7 @@ def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -
         slow = route == _crb_jit.SLOW
         factored[key] = int(np.count_nonzero(slow | np.isfinite(out)))
 
-    kernel((2, 0))
+    kernel(RUNS[0])
     chunks = np.ascontiguousarray(scorer.cache.blocks[:8, 0, :28])  # one site's 512 pairs
     chunks += np.eye(7)[np.tril_indices(7)][None, :, None]  # regular: no singular pair
     # reps = 1000: 512 000 matrices, ~15 ms
@@ -302,15 +358,21 @@ def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -
         best = best_times(threads, repeats, {**runs, **(extra if threads == 1 else {})})
         peak = 1.0 / best["peak"]
         print(f"  {threads} thread(s): peak (numpy {PEAK_N}² product) {peak / 1e9:.1f} Gflop/s")
-        for (n_ris, n_drawn), t in ((k, best[k]) for k in lays):
-            per = _crb_jit.score_flops(n, n_ris, los, rows)
-            rate = factored[n_ris, n_drawn] * per / t
-            where = f" of the first {n_drawn} sites (blocks in L2)" if n_drawn else ""
-            fractions[f"{threads} threads, L = {n_ris}{where}"] = rate / peak
+        for (kind, n_ris, n_drawn), t in ((k, best[k]) for k in lays):
+            key = (kind, n_ris, n_drawn)
+            assert factored[key] == n_layouts * p, "every pair live and factored"
+            per = batch_flops(lays[key], n, los, rows) / n_layouts
+            rate = factored[key] * per / t
+            where = (
+                f"exhaustive's first {n_layouts} layouts of {n_drawn} sites (blocks in L2)"
+                if kind == "search"
+                else "random layouts of all sites (blocks from memory)"
+            )
+            fractions[f"{threads} threads, L = {n_ris}, {kind}"] = rate / peak
             print(
-                f"    L = {n_ris}{where}: {n_layouts * p / t / 1e6:.1f} M layout-pairs/s"
-                f" ({factored[n_ris, n_drawn] / (n_layouts * p):.0%} factored, {per} flop each):"
-                f" {rate / 1e9:.2f} Gflop/s = {rate / peak:.1%} of the peak"
+                f"    L = {n_ris}, {where}: {n_layouts * p / t / 1e6:.1f} M layout-pairs/s"
+                f" ({per:.0f} flop each): {rate / 1e9:.2f} Gflop/s = {rate / peak:.1%} of the"
+                " peak"
             )
         if threads == 1:
             for unrolled, name in ((False, "loop kernel (before)"), (True, "unrolled kernel")):
@@ -331,9 +393,9 @@ def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -
 
 
 def model_divisions(n: int) -> int:
-    """Divisions per LDLᵀ (ldl.ldl_flops: E scale, E − n in L, n pivots, n diagonal)."""
-    e_n = n * (n + 1) // 2
-    return 2 * e_n + n
+    """Divisions per LDLᵀ (ldl.ldl_flops: the n inverse scales 1/d_i and the n inverse pivots
+    1/D_j; every other quotient is a product by one of them)."""
+    return 2 * n
 
 
 def main() -> None:

@@ -54,10 +54,10 @@ def kernel_source(n: int) -> str:
         emit("s = math.sqrt(v if not v < 0.0 else 0.0)")
         emit("zero = s <= 0.0")
         emit("bad = 1.0 if zero else bad")
-        emit(f"d{i} = 1.0 if zero else s")
+        emit(f"d{i} = 1.0 / (1.0 if zero else s)")
     for i in range(n):
         for j in range(i + 1):
-            emit(f"a{i}_{j} = a[{_row(_tri(i, j))}q] / (d{i} * d{j})")
+            emit(f"a{i}_{j} = a[{_row(_tri(i, j))}q] * (d{i} * d{j})")
     # left-looking LDLᵀ: ld_k = L_jk D_k, pivot D_j, column j of L
     for j in range(n):
         for k in range(j):
@@ -68,25 +68,24 @@ def kernel_source(n: int) -> str:
         emit(f"ok = pj > {_RCOND}")
         emit("bad = bad if ok else 1.0")
         emit(f"p{j} = pj if ok else 1.0")
+        emit(f"r{j} = 1.0 / p{j}")
         for i in range(j + 1, n):
             emit(f"lij = a{i}_{j}")
             for k in range(j):
                 emit(f"lij = lij - l{i}_{k} * ld{k}")
-            emit(f"l{i}_{j} = lij / p{j}")
-    for j in range(n):
-        emit(f"r{j} = 1.0 / p{j}")
+            emit(f"l{i}_{j} = lij * r{j}")
     # M = L⁻¹ below the diagonal (forward substitution)
     for i in range(n):
         for j in range(i):
             emit(f"m{i}_{j} = -l{i}_{j}")
             for k in range(j + 1, i):
                 emit(f"m{i}_{j} = m{i}_{j} - l{i}_{k} * m{k}_{j}")
-    # diag_i = (1/D_i + Σ_{k>i} M_ki² / D_k) / d_i², trace = Σ_i diag_i F_ii
+    # diag_i = (1/D_i + Σ_{k>i} M_ki² / D_k) · (1/d_i)², trace = Σ_i diag_i F_ii
     for i in range(n):
         emit(f"g{i} = r{i}")
         for k in range(i + 1, n):
             emit(f"g{i} = g{i} + (m{k}_{i} * m{k}_{i}) * r{k}")
-        emit(f"g{i} = g{i} / (d{i} * d{i})")
+        emit(f"g{i} = g{i} * (d{i} * d{i})")
     emit("tr = g0 * f0")
     for i in range(1, n):
         emit(f"tr = tr + g{i} * f{i}")

@@ -301,13 +301,13 @@ def test_flop_model_matches_an_instrumented_count(
                 jit.ldl_pairs_7.py_func(a.reshape(-1), 1, diag.reshape(-1), trace, sing)
             model = ldl.ldl_flops(n)
             assert sum(_Counted.ops.values()) == sum(model.values()), (kind, n, _Counted.ops)
-            assert _Counted.ops["/"] == e_n + (e_n - n) + 2 * n
+            assert _Counted.ops["/"] == 2 * n  # 1/d_i and 1/D_j: the rest are products
             assert _Counted.ops["sqrt"] == n
             assert not sing[0]
             want, _ = ldl.inverse_diagonal_from(fp, n)
             assert [float(v) for v in diag[:, 0]] == want[:, 0].tolist()  # same bits
-    assert jit.score_flops(7, 3, True, (3,)) == 3 * 28 + 384 + 3
-    assert jit.score_flops(7, 2, False, (3, 3)) == 28 + 384 + 6
+    assert jit.score_flops(7, 3, True, (3,)) == 3 * 28 + 391 + 3
+    assert jit.score_flops(7, 2, False, (3, 3)) == 28 + 391 + 6
 
 
 def test_bench_scorer_flops_smoke(capsys: pytest.CaptureFixture[str]) -> None:
@@ -321,5 +321,29 @@ def test_bench_scorer_flops_smoke(capsys: pytest.CaptureFixture[str]) -> None:
     from bench_scorer import flops
 
     got = flops(2, 1, n_pairs=200, reps=20)
-    assert len(got) == 2 * 4 + 2 and all(0.0 < v < 2.0 for v in got.values()), got
+    assert len(got) == 2 * 6 + 2 and all(0.0 < v < 2.0 for v in got.values()), got
     assert "of the peak" in capsys.readouterr().out
+
+
+def test_bench_scorer_counts_the_blocks_the_kernel_adds() -> None:
+    """The benchmark's FLOP count of a batch follows the kernel's partial sums: a layout adds
+    the site blocks after the prefix it shares with the layout before (a chunk's first layout
+    all of them); with LOS every added block is E additions, without it the first is a copy."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from bench_scorer import batch_flops, summed_columns
+
+    from ris_planner.inversion import _crb_jit as jit
+
+    lay = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3], [1, 2, 4]])
+    assert summed_columns(lay) == 3 + 1 + 2 + 3 + 1
+    assert summed_columns(lay[:1]) == 3 and summed_columns(lay[:0]) == 0
+    ldl_and_metric = jit.score_flops(7, 0, True, (3,))
+    assert ldl_and_metric == sum(ldl.ldl_flops(7).values()) + 3  # LDLᵀ and one PEB, no block
+    assert batch_flops(lay, 7, True, (3,)) == 5 * ldl_and_metric + 10 * 28
+    assert batch_flops(lay, 7, False, (3,)) == 5 * ldl_and_metric + 9 * 28
+    # every block added (random layouts sharing no prefix): score_flops' own count
+    spread = np.array([[0, 1, 2], [3, 4, 5]])
+    assert batch_flops(spread, 7, True, (3,)) == 2 * jit.score_flops(7, 3, True, (3,))

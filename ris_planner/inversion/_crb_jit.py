@@ -120,14 +120,15 @@ def ldl_chunk(
     the callers send to the square-root route; elsewhere bit for bit what ldl.py gives."""
     e_n = n * (n + 1) // 2
     low = work[:e_n]
-    d = work[e_n : e_n + n]  # d_i
-    piv = work[e_n + n : e_n + 2 * n]  # D_j, then 1 / D_j
+    d = work[e_n : e_n + n]  # 1 / d_i
+    piv = work[e_n + n : e_n + 2 * n]  # D_j
     ld = work[e_n + 2 * n : e_n + 3 * n]
     fdiag = work[e_n + 3 * n : e_n + 4 * n]
-    bad = work[e_n + 4 * n]  # 1.0 where singular (a float row: branch-free vector loops)
+    rpiv = work[e_n + 4 * n : e_n + 5 * n]  # 1 / D_j
+    bad = work[e_n + 5 * n]  # 1.0 where singular (a float row: branch-free vector loops)
     for q in range(t):
         bad[q] = 0.0
-    # d_i = sqrt(max(F_ii, 0)); a zero scale is singular and replaced by 1
+    # d_i = sqrt(max(F_ii, 0)); a zero scale is singular and replaced by 1; kept: 1 / d_i
     for i in range(n):
         ii = _tri(i, i)
         for q in range(t):
@@ -136,12 +137,12 @@ def ldl_chunk(
             s = math.sqrt(v if v >= 0.0 or v != v else 0.0)
             zero = s <= 0.0
             bad[q] = 1.0 if zero else bad[q]
-            d[i, q] = 1.0 if zero else s
+            d[i, q] = 1.0 / (1.0 if zero else s)
     for i in range(n):
         for j in range(i + 1):
             ij = _tri(i, j)
             for q in range(t):
-                a[ij, q] = a[ij, q] / (d[i, q] * d[j, q])
+                a[ij, q] = a[ij, q] * (d[i, q] * d[j, q])
     # left-looking LDLᵀ: pivot D_j, then column j of L (each entry's subtractions in k order)
     for j in range(n):
         for k in range(j):
@@ -160,6 +161,7 @@ def ldl_chunk(
             ok = pj[q] > SINGULAR_RCOND
             bad[q] = bad[q] if ok else 1.0
             piv[j, q] = pj[q] if ok else 1.0
+            rpiv[j, q] = 1.0 / piv[j, q]
         for i in range(j + 1, n):
             ij = _tri(i, j)
             lij = low[ij]
@@ -170,10 +172,7 @@ def ldl_chunk(
                 for q in range(t):
                     lij[q] -= low[ik, q] * ld[k, q]
             for q in range(t):
-                lij[q] /= piv[j, q]
-    for j in range(n):
-        for q in range(t):
-            piv[j, q] = 1.0 / piv[j, q]
+                lij[q] *= rpiv[j, q]
     # M = L⁻¹ below the diagonal, into a (forward substitution, as ldl.py)
     for i in range(n):
         for j in range(i):
@@ -186,18 +185,18 @@ def ldl_chunk(
                 kj = _tri(k, j)
                 for q in range(t):
                     acc[q] -= low[ik, q] * a[kj, q]
-    # diag_i = (1/D_i + Σ_{k>i} M_ki² / D_k) / d_i², trace = Σ_i diag_i F_ii
+    # diag_i = (1/D_i + Σ_{k>i} M_ki² / D_k) · (1/d_i)², trace = Σ_i diag_i F_ii
     for i in range(n):
         acc = diag[i]
         for q in range(t):
-            acc[q] = piv[i, q]
+            acc[q] = rpiv[i, q]
         for k in range(i + 1, n):
             ki = _tri(k, i)
             for q in range(t):
                 m = a[ki, q]
-                acc[q] += (m * m) * piv[k, q]
+                acc[q] += (m * m) * rpiv[k, q]
         for q in range(t):
-            acc[q] /= d[i, q] * d[i, q]
+            acc[q] *= d[i, q] * d[i, q]
     for q in range(t):
         trace[q] = diag[0, q] * fdiag[0, q]
     for i in range(1, n):
@@ -213,7 +212,7 @@ def ldl_chunk(
 @njit(cache=True, nogil=True, error_model="numpy")
 def work_rows(n: int) -> int:
     """Rows of :func:`ldl_chunk`'s scratch for n states."""
-    return n * (n + 1) // 2 + 4 * n + 1
+    return n * (n + 1) // 2 + 5 * n + 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -251,108 +250,110 @@ def ldl_pairs_7(
         s = math.sqrt(v if not v < 0.0 else 0.0)
         zero = s <= 0.0
         bad = 1.0 if zero else bad
-        d0 = 1.0 if zero else s
+        d0 = 1.0 / (1.0 if zero else s)
         v = a[2 * CHUNK + q]
         f1 = v
         s = math.sqrt(v if not v < 0.0 else 0.0)
         zero = s <= 0.0
         bad = 1.0 if zero else bad
-        d1 = 1.0 if zero else s
+        d1 = 1.0 / (1.0 if zero else s)
         v = a[5 * CHUNK + q]
         f2 = v
         s = math.sqrt(v if not v < 0.0 else 0.0)
         zero = s <= 0.0
         bad = 1.0 if zero else bad
-        d2 = 1.0 if zero else s
+        d2 = 1.0 / (1.0 if zero else s)
         v = a[9 * CHUNK + q]
         f3 = v
         s = math.sqrt(v if not v < 0.0 else 0.0)
         zero = s <= 0.0
         bad = 1.0 if zero else bad
-        d3 = 1.0 if zero else s
+        d3 = 1.0 / (1.0 if zero else s)
         v = a[14 * CHUNK + q]
         f4 = v
         s = math.sqrt(v if not v < 0.0 else 0.0)
         zero = s <= 0.0
         bad = 1.0 if zero else bad
-        d4 = 1.0 if zero else s
+        d4 = 1.0 / (1.0 if zero else s)
         v = a[20 * CHUNK + q]
         f5 = v
         s = math.sqrt(v if not v < 0.0 else 0.0)
         zero = s <= 0.0
         bad = 1.0 if zero else bad
-        d5 = 1.0 if zero else s
+        d5 = 1.0 / (1.0 if zero else s)
         v = a[27 * CHUNK + q]
         f6 = v
         s = math.sqrt(v if not v < 0.0 else 0.0)
         zero = s <= 0.0
         bad = 1.0 if zero else bad
-        d6 = 1.0 if zero else s
-        a0_0 = a[q] / (d0 * d0)
-        a1_0 = a[CHUNK + q] / (d1 * d0)
-        a1_1 = a[2 * CHUNK + q] / (d1 * d1)
-        a2_0 = a[3 * CHUNK + q] / (d2 * d0)
-        a2_1 = a[4 * CHUNK + q] / (d2 * d1)
-        a2_2 = a[5 * CHUNK + q] / (d2 * d2)
-        a3_0 = a[6 * CHUNK + q] / (d3 * d0)
-        a3_1 = a[7 * CHUNK + q] / (d3 * d1)
-        a3_2 = a[8 * CHUNK + q] / (d3 * d2)
-        a3_3 = a[9 * CHUNK + q] / (d3 * d3)
-        a4_0 = a[10 * CHUNK + q] / (d4 * d0)
-        a4_1 = a[11 * CHUNK + q] / (d4 * d1)
-        a4_2 = a[12 * CHUNK + q] / (d4 * d2)
-        a4_3 = a[13 * CHUNK + q] / (d4 * d3)
-        a4_4 = a[14 * CHUNK + q] / (d4 * d4)
-        a5_0 = a[15 * CHUNK + q] / (d5 * d0)
-        a5_1 = a[16 * CHUNK + q] / (d5 * d1)
-        a5_2 = a[17 * CHUNK + q] / (d5 * d2)
-        a5_3 = a[18 * CHUNK + q] / (d5 * d3)
-        a5_4 = a[19 * CHUNK + q] / (d5 * d4)
-        a5_5 = a[20 * CHUNK + q] / (d5 * d5)
-        a6_0 = a[21 * CHUNK + q] / (d6 * d0)
-        a6_1 = a[22 * CHUNK + q] / (d6 * d1)
-        a6_2 = a[23 * CHUNK + q] / (d6 * d2)
-        a6_3 = a[24 * CHUNK + q] / (d6 * d3)
-        a6_4 = a[25 * CHUNK + q] / (d6 * d4)
-        a6_5 = a[26 * CHUNK + q] / (d6 * d5)
-        a6_6 = a[27 * CHUNK + q] / (d6 * d6)
+        d6 = 1.0 / (1.0 if zero else s)
+        a0_0 = a[q] * (d0 * d0)
+        a1_0 = a[CHUNK + q] * (d1 * d0)
+        a1_1 = a[2 * CHUNK + q] * (d1 * d1)
+        a2_0 = a[3 * CHUNK + q] * (d2 * d0)
+        a2_1 = a[4 * CHUNK + q] * (d2 * d1)
+        a2_2 = a[5 * CHUNK + q] * (d2 * d2)
+        a3_0 = a[6 * CHUNK + q] * (d3 * d0)
+        a3_1 = a[7 * CHUNK + q] * (d3 * d1)
+        a3_2 = a[8 * CHUNK + q] * (d3 * d2)
+        a3_3 = a[9 * CHUNK + q] * (d3 * d3)
+        a4_0 = a[10 * CHUNK + q] * (d4 * d0)
+        a4_1 = a[11 * CHUNK + q] * (d4 * d1)
+        a4_2 = a[12 * CHUNK + q] * (d4 * d2)
+        a4_3 = a[13 * CHUNK + q] * (d4 * d3)
+        a4_4 = a[14 * CHUNK + q] * (d4 * d4)
+        a5_0 = a[15 * CHUNK + q] * (d5 * d0)
+        a5_1 = a[16 * CHUNK + q] * (d5 * d1)
+        a5_2 = a[17 * CHUNK + q] * (d5 * d2)
+        a5_3 = a[18 * CHUNK + q] * (d5 * d3)
+        a5_4 = a[19 * CHUNK + q] * (d5 * d4)
+        a5_5 = a[20 * CHUNK + q] * (d5 * d5)
+        a6_0 = a[21 * CHUNK + q] * (d6 * d0)
+        a6_1 = a[22 * CHUNK + q] * (d6 * d1)
+        a6_2 = a[23 * CHUNK + q] * (d6 * d2)
+        a6_3 = a[24 * CHUNK + q] * (d6 * d3)
+        a6_4 = a[25 * CHUNK + q] * (d6 * d4)
+        a6_5 = a[26 * CHUNK + q] * (d6 * d5)
+        a6_6 = a[27 * CHUNK + q] * (d6 * d6)
         pj = a0_0
         ok = pj > SINGULAR_RCOND
         bad = bad if ok else 1.0
         p0 = pj if ok else 1.0
+        r0 = 1.0 / p0
         lij = a1_0
-        l1_0 = lij / p0
+        l1_0 = lij * r0
         lij = a2_0
-        l2_0 = lij / p0
+        l2_0 = lij * r0
         lij = a3_0
-        l3_0 = lij / p0
+        l3_0 = lij * r0
         lij = a4_0
-        l4_0 = lij / p0
+        l4_0 = lij * r0
         lij = a5_0
-        l5_0 = lij / p0
+        l5_0 = lij * r0
         lij = a6_0
-        l6_0 = lij / p0
+        l6_0 = lij * r0
         ld0 = l1_0 * p0
         pj = a1_1
         pj = pj - l1_0 * ld0
         ok = pj > SINGULAR_RCOND
         bad = bad if ok else 1.0
         p1 = pj if ok else 1.0
+        r1 = 1.0 / p1
         lij = a2_1
         lij = lij - l2_0 * ld0
-        l2_1 = lij / p1
+        l2_1 = lij * r1
         lij = a3_1
         lij = lij - l3_0 * ld0
-        l3_1 = lij / p1
+        l3_1 = lij * r1
         lij = a4_1
         lij = lij - l4_0 * ld0
-        l4_1 = lij / p1
+        l4_1 = lij * r1
         lij = a5_1
         lij = lij - l5_0 * ld0
-        l5_1 = lij / p1
+        l5_1 = lij * r1
         lij = a6_1
         lij = lij - l6_0 * ld0
-        l6_1 = lij / p1
+        l6_1 = lij * r1
         ld0 = l2_0 * p0
         ld1 = l2_1 * p1
         pj = a2_2
@@ -361,22 +362,23 @@ def ldl_pairs_7(
         ok = pj > SINGULAR_RCOND
         bad = bad if ok else 1.0
         p2 = pj if ok else 1.0
+        r2 = 1.0 / p2
         lij = a3_2
         lij = lij - l3_0 * ld0
         lij = lij - l3_1 * ld1
-        l3_2 = lij / p2
+        l3_2 = lij * r2
         lij = a4_2
         lij = lij - l4_0 * ld0
         lij = lij - l4_1 * ld1
-        l4_2 = lij / p2
+        l4_2 = lij * r2
         lij = a5_2
         lij = lij - l5_0 * ld0
         lij = lij - l5_1 * ld1
-        l5_2 = lij / p2
+        l5_2 = lij * r2
         lij = a6_2
         lij = lij - l6_0 * ld0
         lij = lij - l6_1 * ld1
-        l6_2 = lij / p2
+        l6_2 = lij * r2
         ld0 = l3_0 * p0
         ld1 = l3_1 * p1
         ld2 = l3_2 * p2
@@ -387,21 +389,22 @@ def ldl_pairs_7(
         ok = pj > SINGULAR_RCOND
         bad = bad if ok else 1.0
         p3 = pj if ok else 1.0
+        r3 = 1.0 / p3
         lij = a4_3
         lij = lij - l4_0 * ld0
         lij = lij - l4_1 * ld1
         lij = lij - l4_2 * ld2
-        l4_3 = lij / p3
+        l4_3 = lij * r3
         lij = a5_3
         lij = lij - l5_0 * ld0
         lij = lij - l5_1 * ld1
         lij = lij - l5_2 * ld2
-        l5_3 = lij / p3
+        l5_3 = lij * r3
         lij = a6_3
         lij = lij - l6_0 * ld0
         lij = lij - l6_1 * ld1
         lij = lij - l6_2 * ld2
-        l6_3 = lij / p3
+        l6_3 = lij * r3
         ld0 = l4_0 * p0
         ld1 = l4_1 * p1
         ld2 = l4_2 * p2
@@ -414,18 +417,19 @@ def ldl_pairs_7(
         ok = pj > SINGULAR_RCOND
         bad = bad if ok else 1.0
         p4 = pj if ok else 1.0
+        r4 = 1.0 / p4
         lij = a5_4
         lij = lij - l5_0 * ld0
         lij = lij - l5_1 * ld1
         lij = lij - l5_2 * ld2
         lij = lij - l5_3 * ld3
-        l5_4 = lij / p4
+        l5_4 = lij * r4
         lij = a6_4
         lij = lij - l6_0 * ld0
         lij = lij - l6_1 * ld1
         lij = lij - l6_2 * ld2
         lij = lij - l6_3 * ld3
-        l6_4 = lij / p4
+        l6_4 = lij * r4
         ld0 = l5_0 * p0
         ld1 = l5_1 * p1
         ld2 = l5_2 * p2
@@ -440,13 +444,14 @@ def ldl_pairs_7(
         ok = pj > SINGULAR_RCOND
         bad = bad if ok else 1.0
         p5 = pj if ok else 1.0
+        r5 = 1.0 / p5
         lij = a6_5
         lij = lij - l6_0 * ld0
         lij = lij - l6_1 * ld1
         lij = lij - l6_2 * ld2
         lij = lij - l6_3 * ld3
         lij = lij - l6_4 * ld4
-        l6_5 = lij / p5
+        l6_5 = lij * r5
         ld0 = l6_0 * p0
         ld1 = l6_1 * p1
         ld2 = l6_2 * p2
@@ -463,12 +468,6 @@ def ldl_pairs_7(
         ok = pj > SINGULAR_RCOND
         bad = bad if ok else 1.0
         p6 = pj if ok else 1.0
-        r0 = 1.0 / p0
-        r1 = 1.0 / p1
-        r2 = 1.0 / p2
-        r3 = 1.0 / p3
-        r4 = 1.0 / p4
-        r5 = 1.0 / p5
         r6 = 1.0 / p6
         m1_0 = -l1_0
         m2_0 = -l2_0
@@ -533,34 +532,34 @@ def ldl_pairs_7(
         g0 = g0 + (m4_0 * m4_0) * r4
         g0 = g0 + (m5_0 * m5_0) * r5
         g0 = g0 + (m6_0 * m6_0) * r6
-        g0 = g0 / (d0 * d0)
+        g0 = g0 * (d0 * d0)
         g1 = r1
         g1 = g1 + (m2_1 * m2_1) * r2
         g1 = g1 + (m3_1 * m3_1) * r3
         g1 = g1 + (m4_1 * m4_1) * r4
         g1 = g1 + (m5_1 * m5_1) * r5
         g1 = g1 + (m6_1 * m6_1) * r6
-        g1 = g1 / (d1 * d1)
+        g1 = g1 * (d1 * d1)
         g2 = r2
         g2 = g2 + (m3_2 * m3_2) * r3
         g2 = g2 + (m4_2 * m4_2) * r4
         g2 = g2 + (m5_2 * m5_2) * r5
         g2 = g2 + (m6_2 * m6_2) * r6
-        g2 = g2 / (d2 * d2)
+        g2 = g2 * (d2 * d2)
         g3 = r3
         g3 = g3 + (m4_3 * m4_3) * r4
         g3 = g3 + (m5_3 * m5_3) * r5
         g3 = g3 + (m6_3 * m6_3) * r6
-        g3 = g3 / (d3 * d3)
+        g3 = g3 * (d3 * d3)
         g4 = r4
         g4 = g4 + (m5_4 * m5_4) * r5
         g4 = g4 + (m6_4 * m6_4) * r6
-        g4 = g4 / (d4 * d4)
+        g4 = g4 * (d4 * d4)
         g5 = r5
         g5 = g5 + (m6_5 * m6_5) * r6
-        g5 = g5 / (d5 * d5)
+        g5 = g5 * (d5 * d5)
         g6 = r6
-        g6 = g6 / (d6 * d6)
+        g6 = g6 * (d6 * d6)
         tr = g0 * f0
         tr = tr + g1 * f1
         tr = tr + g2 * f2
@@ -594,7 +593,7 @@ def inverse_diagonal(
 ) -> None:
     """diag(F⁻¹) [n, N], trace(F̂⁻¹) [N] and singular [N] of packed matrices f [n(n+1)/2, N]
     (:func:`ris_planner.inversion.ldl.inverse_diagonal_from` with ``first=0`` and
-    ``crb._trace_scaled_inverse``, bit for bit)."""
+    ``crb._trace_scaled_inverse``, bit for bit), by :func:`factor_chunk`."""
     e_n = n * (n + 1) // 2
     size = f.shape[1]
     n_chunks = (size + CHUNK - 1) // CHUNK
@@ -611,7 +610,7 @@ def inverse_diagonal(
             for e in range(e_n):
                 for q in range(t):
                     a[e, q] = f[e, p0 + q]
-            ldl_chunk(a, n, t, work, dg, tr, sg)
+            factor_chunk(a, n, t, work, dg, tr, sg)
             for i in range(n):
                 for q in range(t):
                     diag[i, p0 + q] = dg[i, q]
@@ -920,6 +919,59 @@ def screen_chunk(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _peb_rows(diag: FloatArray, rows: IntArray, t: int, acc: FloatArray) -> None:
+    """acc[:t] = √ of the sum of the rows ``rows`` of diag [n, CHUNK], in that order (what
+    :func:`_peb` computes per pair, as vector loops)."""
+    first = diag[rows[0]]
+    for q in range(t):
+        acc[q] = first[q]
+    for r in range(1, rows.shape[0]):
+        row = diag[rows[r]]
+        for q in range(t):
+            acc[q] += row[q]
+    for q in range(t):
+        acc[q] = math.sqrt(acc[q])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chunk_metric(
+    diag: FloatArray,
+    trace: FloatArray,
+    singular: BoolArray,
+    t: int,
+    trace_limit: float,
+    first: IntArray,
+    second: IntArray,
+    mode: int,
+    n_pairs: int,
+    p0: int,
+    out: FloatArray,
+    route: UInt8Array,
+    v1: FloatArray,
+    v2: FloatArray,
+) -> None:
+    """The metric of a chunk whose t pairs were all factored (columns 0 … t − 1 of diag): out
+    and route of one layout from pair p0 on, as :func:`_score_chunk`'s per-pair loop writes
+    them (``out`` is left undefined where route = SLOW); v1, v2 [CHUNK] scratch."""
+    _peb_rows(diag, first, t, v1)
+    if mode != 0:
+        _peb_rows(diag, second, t, v2)
+    for q in range(t):
+        slow = singular[q] or not (trace[q] <= trace_limit)
+        route[p0 + q] = SLOW if slow else 0
+    if mode == 0:
+        for q in range(t):
+            out[p0 + q] = v1[q]
+    elif mode == 1:
+        for q in range(t):
+            out[p0 + q] = v1[q] if v1[q] >= v2[q] else v2[q]
+    else:
+        for q in range(t):
+            out[p0 + q] = v1[q]
+            out[n_pairs + p0 + q] = v2[q]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _peb(diag: FloatArray, rows: IntArray, q: int) -> float:
     acc = diag[rows[0], q]
     for r in range(1, rows.shape[0]):
@@ -933,7 +985,7 @@ def score_flops(n: int, n_sites: int, los: bool, metric_rows: tuple[int, ...]) -
     :func:`ris_planner.inversion.ldl.ldl_flops` for the LDLᵀ, diagonal and trace, and per PEB of the
     metric (``metric_rows``: the state count of each, e.g. (3,) for PEB_R, (3, 3) for the
     maximum or the mirrored pair) its m − 1 additions and one square root (the maximum is a
-    comparison). n = 7, LOS, 3 sites, PEB_R: 84 + 384 + 3 = 471. Blind pairs (neither summed
+    comparison). n = 7, LOS, 3 sites, PEB_R: 84 + 391 + 3 = 478. Blind pairs (neither summed
     nor factored) and screened ones do less; the benchmark counts only the factored ones."""
     from ris_planner.inversion.ldl import ldl_flops
 
@@ -1199,6 +1251,12 @@ def _score_chunk(
                         a2[e, t2] = a[e, q]
                     t2 += 1
             factor_chunk(a2, n, t2, work, diag, trace, singular)
+        if n_fact == t:  # every pair factored in place: the metric in branch-free vector loops
+            _chunk_metric(
+                diag, trace, singular, t, trace_limit, first, second, mode, n_pairs, p0,
+                out[b], route[b], rows[0], rows[1],
+            )  # fmt: skip
+            continue
         for q in range(t):
             p = p0 + q
             j = slot[q]

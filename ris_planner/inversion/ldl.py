@@ -82,7 +82,7 @@ class _Factor(NamedTuple):
 
     low: FloatArray  # [n(n+1)/2, N]: L_ij in the packed slot of (i, j), i > j
     inv_piv: FloatArray  # [n, N]: 1 / D_j (pivots of singular matrices replaced by 1)
-    scale: FloatArray  # [n, N]: d_i (zeros replaced by 1)
+    inv_scale: FloatArray  # [n, N]: 1 / d_i (zero scales replaced by 1)
     singular: NDArray[np.bool_]  # [N]
     m: FloatArray  # [n(n+1)/2, N] workspace for the columns of L⁻¹
     tmp: FloatArray  # [N] scratch
@@ -93,21 +93,24 @@ def _factor(f: FloatArray, n: int) -> _Factor:
     idx = packed_slots(n)
     size = f.shape[1]
     n_tri = n * (n + 1) // 2
-    # one workspace: scaled entries (later L⁻¹), L, pivots, L·D products, scale, scratch
-    work = np.empty((2 * n_tri + 3 * n + 2, size))
+    # one workspace: scaled entries (later L⁻¹), L, pivots and their inverses, L·D products,
+    # inverse scales, scratch
+    work = np.empty((2 * n_tri + 4 * n + 2, size))
     a, low = work[:n_tri], work[n_tri : 2 * n_tri]
-    piv, ld, d_safe = (work[2 * n_tri + k * n : 2 * n_tri + (k + 1) * n] for k in range(3))
+    piv, inv_piv, ld, inv_d = (
+        work[2 * n_tri + k * n : 2 * n_tri + (k + 1) * n] for k in range(4)
+    )
     tmp, pj = work[-2], work[-1]
     d = np.stack([f[idx[j, j]] for j in range(n)])
     np.clip(d, 0.0, None, out=d)
     np.sqrt(d, out=d)
     singular = np.any(d <= 0.0, axis=0)
-    np.copyto(d_safe, d)
-    d_safe[d <= 0.0] = 1.0
+    d[d <= 0.0] = 1.0
+    np.divide(1.0, d, out=inv_d)
     for i in range(n):
         for j in range(i + 1):
-            np.multiply(d_safe[i], d_safe[j], out=tmp)
-            np.divide(f[idx[i, j]], tmp, out=a[idx[i, j]])
+            np.multiply(inv_d[i], inv_d[j], out=tmp)
+            np.multiply(f[idx[i, j]], tmp, out=a[idx[i, j]])
     for j in range(n):
         for k in range(j):
             np.multiply(low[idx[j, k]], piv[k], out=ld[k])
@@ -119,15 +122,15 @@ def _factor(f: FloatArray, n: int) -> _Factor:
         singular |= bad
         np.copyto(piv[j], pj)
         piv[j][bad] = 1.0
+        np.divide(1.0, piv[j], out=inv_piv[j])
         for i in range(j + 1, n):
             lij = low[idx[i, j]]
             np.copyto(lij, a[idx[i, j]])
             for k in range(j):
                 np.multiply(low[idx[i, k]], ld[k], out=tmp)
                 lij -= tmp
-            lij /= piv[j]
-    inv_piv = np.divide(1.0, piv, out=piv)
-    return _Factor(low, inv_piv, d_safe, singular, a, tmp)
+            lij *= inv_piv[j]
+    return _Factor(low, inv_piv, inv_d, singular, a, tmp)
 
 
 def _inverse_low_columns(fac: _Factor, n: int, first: int) -> None:
@@ -164,23 +167,25 @@ class _ScalarFactor(NamedTuple):
 
     m: list[float]
     inv_piv: list[float]
-    scale: list[float]
+    inv_scale: list[float]
     singular: bool
 
 
 def _scalar_factor(f: list[float], n: int, first: int) -> _ScalarFactor:
     """:func:`_factor` then :func:`_inverse_low_columns` of one packed matrix, operation by
-    operation in the same order. Raises ZeroDivisionError where numpy would divide by 0."""
+    operation in the same order. Raises ZeroDivisionError where numpy would divide by 0 (no
+    divisor here can be 0: kept for the contract of the float route)."""
     idx = packed_slots(n)
     d = [math.sqrt(max(f[idx[j, j]], 0.0)) for j in range(n)]
     singular = any(v <= 0.0 for v in d)
-    ds = [1.0 if v <= 0.0 else v for v in d]
+    inv_d = [1.0 / (1.0 if v <= 0.0 else v) for v in d]
     a = [0.0] * len(f)
     for i in range(n):
         for j in range(i + 1):
-            a[idx[i, j]] = f[idx[i, j]] / (ds[i] * ds[j])
+            a[idx[i, j]] = f[idx[i, j]] * (inv_d[i] * inv_d[j])
     low = [0.0] * len(f)
     piv = [0.0] * n
+    inv_piv = [0.0] * n
     ld = [0.0] * n
     for j in range(n):
         for k in range(j):
@@ -191,12 +196,12 @@ def _scalar_factor(f: list[float], n: int, first: int) -> _ScalarFactor:
         bad = not pj > SINGULAR_RCOND
         singular = singular or bad
         piv[j] = 1.0 if bad else pj
+        inv_piv[j] = 1.0 / piv[j]
         for i in range(j + 1, n):
             lij = a[idx[i, j]]
             for k in range(j):
                 lij -= low[idx[i, k]] * ld[k]
-            low[idx[i, j]] = lij / piv[j]
-    inv_piv = [1.0 / p for p in piv]
+            low[idx[i, j]] = lij * inv_piv[j]
     m = a  # the scaled entries' storage holds L⁻¹ from here on, as in _factor
     for i in range(first, n):
         for j in range(first, i):
@@ -204,7 +209,7 @@ def _scalar_factor(f: list[float], n: int, first: int) -> _ScalarFactor:
             for k in range(j + 1, i):
                 acc -= low[idx[i, k]] * m[idx[k, j]]
             m[idx[i, j]] = acc
-    return _ScalarFactor(m, inv_piv, ds, singular)
+    return _ScalarFactor(m, inv_piv, inv_d, singular)
 
 
 def _scalar_inverse_diagonal(
@@ -220,7 +225,7 @@ def _scalar_inverse_diagonal(
             acc = inv_piv[i]
             for k in range(i + 1, n):
                 acc += (m[idx[k, i]] * m[idx[k, i]]) * inv_piv[k]
-            out[i - first, b] = acc / (fac.scale[i] * fac.scale[i])
+            out[i - first, b] = acc * (fac.inv_scale[i] * fac.inv_scale[i])
         singular[b] = fac.singular
     out[:, singular] = np.inf
     return out, singular
@@ -232,7 +237,7 @@ def _scalar_inverse(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_
     singular = np.zeros(f.shape[1], dtype=bool)
     for b, col in enumerate(f.T.tolist()):
         fac = _scalar_factor(col, n, 0)
-        m, inv_piv, scale = fac.m, fac.inv_piv, fac.scale
+        m, inv_piv, inv_scale = fac.m, fac.inv_piv, fac.inv_scale
         for i in range(n):
             for j in range(i + 1):
                 acc = 0.0
@@ -240,7 +245,7 @@ def _scalar_inverse(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_
                     mki = 1.0 if k == i else m[idx[k, i]]
                     mkj = 1.0 if k == j else m[idx[k, j]]
                     acc += (mki * mkj) * inv_piv[k]
-                out[idx[i, j], b] = acc / (scale[i] * scale[j])
+                out[idx[i, j], b] = acc * (inv_scale[i] * inv_scale[j])
         singular[b] = fac.singular
     out[:, singular] = np.inf
     return out, singular
@@ -271,8 +276,8 @@ def inverse_diagonal_from(
             np.square(m[idx[k, i]], out=tmp)
             tmp *= inv_piv[k]
             acc += tmp
-        np.square(fac.scale[i], out=tmp)
-        acc /= tmp
+        np.square(fac.inv_scale[i], out=tmp)
+        acc *= tmp
     out[:, fac.singular] = np.inf
     return out, fac.singular
 
@@ -305,8 +310,8 @@ def inverse_from(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_]]:
                 np.multiply(m_entry(k, i), m_entry(k, j), out=tmp)
                 tmp *= inv_piv[k]
                 acc += tmp
-            np.multiply(fac.scale[i], fac.scale[j], out=tmp)
-            acc /= tmp
+            np.multiply(fac.inv_scale[i], fac.inv_scale[j], out=tmp)
+            acc *= tmp
     out[:, fac.singular] = np.inf
     return out, fac.singular
 
@@ -318,17 +323,19 @@ def ldl_flops(n: int) -> dict[str, int]:
     counts
     one; comparisons, selections and sign flips (−L_ij) count none. With E = n(n+1)/2:
 
-    * ``scale`` – d_i = √F_ii, F_ij / (d_i d_j): n + 2E;
+    * ``scale`` – d_i = √F_ii, e_i = 1/d_i, F_ij · (e_i e_j): 2n + 2E;
     * ``factor`` – the left-looking LDLᵀ: per column j, j products L_jk D_k, 2j for the pivot
-      and (2j + 1) for each of the n − 1 − j entries below it: Σ_j [3j + (n−1−j)(2j+1)];
+      and (2j + 1) for each of the n − 1 − j entries below it (the last a product by 1/D_j):
+      Σ_j [3j + (n−1−j)(2j+1)];
     * ``inverse`` – 1/D_j and the columns of L⁻¹ by forward substitution: n + Σ_{i>j} 2(i−j−1);
-    * ``diagonal`` – (1/D_i + Σ_{k>i} M_ki²/D_k) / d_i²: 3·n(n−1)/2 + 2n;
+    * ``diagonal`` – (1/D_i + Σ_{k>i} M_ki²/D_k) · e_i²: 3·n(n−1)/2 + 2n;
     * ``trace`` – Σ_i diag_i F_ii: 2n − 1.
 
-    n = 7: 63 + 154 + 77 + 77 + 13 = 384 (of them 63 divisions and 7 square roots)."""
+    n = 7: 70 + 154 + 77 + 77 + 13 = 391, of them 14 divisions (1/d_i and 1/D_j: every other
+    quotient is a product by one of them) and 7 square roots."""
     e_n = n * (n + 1) // 2
     return {
-        "scale": n + 2 * e_n,
+        "scale": 2 * n + 2 * e_n,
         "factor": sum(3 * j + (n - 1 - j) * (2 * j + 1) for j in range(n)),
         "inverse": n + sum(2 * (i - j - 1) for i in range(n) for j in range(i)),
         "diagonal": 3 * n * (n - 1) // 2 + 2 * n,

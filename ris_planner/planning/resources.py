@@ -105,10 +105,11 @@ BYTES_PER_PROFILE_ELEMENT = 64
 their weighted copies (G̃·L ≤ G rows)."""
 
 
-CHECKS_BESIDE_BYTES = 48 << 20
-"""The codebook checks' working set while they run on their thread beside the fields and the
-figures (:class:`ris_planner.planning.checks.PendingChecks`): the tasks' pair arrays, scenario
-and FIM temporaries (tracemalloc peak 14–47 MB on the calibration cases,
+BYTES_PER_CHECK_PAIR = 24 << 10
+"""Per pair of the codebook checks (≤ ``RANDOM_CODEBOOK_MAX_PAIRS``), their working set while
+they run on a thread beside the fields and the figures
+(:class:`ris_planner.planning.checks.PendingChecks`): the tasks' pair arrays, scenario copies
+and FIM temporaries (tracemalloc peaks 14 MB at 1000 pairs, 47 MB at 2000,
 docs/validation/resources.md)."""
 
 
@@ -209,7 +210,8 @@ def plan_memory(shape: PlanShape) -> dict[str, int]:
     time), ``search`` (memoised layouts), ``heatmap`` (the largest count's ``compute_bounds``
     on the heatmap pairs, and the per-point results), ``elements`` (the per-element arrays:
     random-codebook profiles, spherical point terms and chunks), ``checks`` (the codebook
-    checks, which may run beside the heatmap: :data:`CHECKS_BESIDE_BYTES`)."""
+    checks, which may run beside the heatmap: :data:`BYTES_PER_CHECK_PAIR`,
+    :data:`BYTES_PER_CHECK_ELEMENT`)."""
     w = shape.wavefront
     spherical = w == "spherical"
     n_el = shape.elements
@@ -245,7 +247,8 @@ def plan_memory(shape: PlanShape) -> dict[str, int]:
         * (BYTES_PER_HEATMAP_PAIR[w] + ris_in_layout * BYTES_PER_HEATMAP_PAIR_RIS)
         + heat_rx * (BYTES_PER_HEATMAP_POINT + shape.counts * BYTES_PER_HEATMAP_POINT_COUNT),
         "elements": elements,
-        "checks": CHECKS_BESIDE_BYTES + n_el * BYTES_PER_CHECK_ELEMENT,
+        "checks": min(shape.pairs, RANDOM_CODEBOOK_PAIRS) * BYTES_PER_CHECK_PAIR
+        + n_el * BYTES_PER_CHECK_ELEMENT,
     }
 
 
