@@ -13,16 +13,18 @@ Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` t
 * ``junction``: the junction preset plan with and without its environment (issue 9), and
   fixed 3-RIS layouts scored with and without the presence masks, old and new.
 * ``flops`` (issue 22): the compiled kernel alone (``_crb_jit.score_layouts``, no screen, no
-  square-root route) on the hall's layouts of 2, 3 and 4 RISs (and of 3 among 24 sites, whose
-  pair blocks fit the L2 cache: the gather's share), as floating-point operations
-  per factored layout-pair (the FLOP model :func:`ris_planner.inversion._crb_jit.score_flops`,
-  checked
-  against an instrumented count in tests/test_ldl.py), flop/s and the fraction of the
-  machine's peak – a float64 matrix product by numpy with the same thread count, measured in
-  the same run, interleaved with the kernel (best of ``--repeats`` each, so a loaded
-  machine's slices count alike) – for 1 and 2 threads; then the LDLᵀ alone, the loop kernel
-  (``ldl_chunk``, before) against the unrolled one (``factor_chunk``), and the divider's
-  measured throughput and the bound its 14 divisions per pair put on the LDLᵀ.
+  square-root route) on the hall's pairs: the search's own batches (the first layouts of an
+  exhaustive search over 24 sites, whose pair blocks fit the L2 cache: each layout adds about
+  one site block to the partial sum of the one before) and random layouts of 2, 3 and 4 RISs
+  among all 156 sites (every block added, from memory), as floating-point operations per
+  layout-pair – the blocks the kernel adds (:func:`batch_flops`) and the FLOP model
+  :func:`ris_planner.inversion._crb_jit.score_flops`, checked against an instrumented count in
+  tests/test_ldl.py –, flop/s and the fraction of the machine's peak – a float64 matrix product
+  by numpy with the same thread count, measured in the same run, interleaved with the kernel
+  (best of ``--repeats`` each, so a loaded machine's slices count alike; OpenBLAS's threads
+  given :data:`BLAS_PARK_S` to stop spinning) – for 1 and 2 threads; then the LDLᵀ alone, the
+  loop kernel against the unrolled one (``factor_chunk``), and the divider's measured
+  throughput and the bound its 14 divisions per pair put on the LDLᵀ.
 
     python benchmarks/bench_scorer.py [--sections hall exhaustive junction flops] [--plan]
         [--layouts 300] [--repeats 7] [--flops-layouts 24]
