@@ -149,7 +149,7 @@ parsed = PlanDocument.model_validate(doc)
 sizes = estimate_plan(parsed)
 layout = cache_layout(sizes.cache_entries, c.wavefront)
 from ris_planner.planning.inputs import prepare_plan
-from ris_planner.planning.work import stage_seconds, stage_terms
+from ris_planner.planning.work import checks_beside, stage_seconds, stage_terms
 inputs = prepare_plan(parsed)
 est_stages = stage_seconds(inputs)
 terms = stage_terms(inputs)
@@ -171,7 +171,7 @@ print(json.dumps({"estimate": sizes.memory_bytes, "peak": hwm, "seconds": second
                   "cpu_s": cpu_s,
                   "estimate_s": est_s, "stages_s": stages, "cpu_stages_s": cpu_stages,
                   "estimate_stages_s": {k: round(v, 3) for k, v in est_stages.items()},
-                  "terms": terms,
+                  "terms": terms, "beside": checks_beside(inputs),
                   "layout": list(layout), "storage": done.plan["site_cache"]}))
 """
 

@@ -7,6 +7,11 @@ A linear programme over the coefficients (all ≥ 0): minimise the sum over case
 to ``--low`` ≤ MARGIN · model / wall ≤ ``--high`` for every case's whole plan (the estimate's
 contract: never below the measured time, within 2× of it, with room on both sides for another
 machine's load). Prints the coefficients as Python for ``work.py`` and the ratios they give.
+A case whose checks ran beside the fields and the figures (``"beside"``: their CPU seconds are
+counted in those stages) is fitted per stage only for :data:`BEFORE_CHECKS`, and its whole
+plan with ``work.py``'s overlap rule
+(:data:`~ris_planner.planning.work.CHECKS_BESIDE_SHARE`; which of the checks and the later
+stages is the shorter is read from ``work.py``'s coefficients, so the rule stays linear).
 A coefficient of a term that no case exercises (all its sizes 0) or in :data:`NOT_FITTED`
 stays what ``work.py`` has.
 
@@ -24,11 +29,45 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linprog
 
-from ris_planner.planning.work import MARGIN, TIME_COEFFICIENTS
+from ris_planner.planning.work import CHECKS_BESIDE_SHARE, MARGIN, TIME_COEFFICIENTS
 
-NOT_FITTED = {("visibility", "per_site_point_obstacle"), ("rollout", "per_layout_pair")}
-"""Terms kept at work.py's value: no case has obstacles, and the nested chain's layouts cost
-what the search's do (no case runs a nested roll-out)."""
+LATER = ("fields", "figures")
+"""The stages that hide checks which run beside them (``work.stage_seconds``)."""
+
+BEFORE_CHECKS = {"inputs", "visibility", "cache", "search", "branch_and_bound", "exports"}
+"""Stages whose CPU seconds the checks' thread does not share (before it starts, or after it
+has been waited for): a case whose checks ran beside keeps its per-stage fit for these."""
+
+
+def whole_plan_weights(r: dict[str, Any], cols: list[tuple[str, str]]) -> np.ndarray:
+    """Per coefficient, its weight in the case's whole-plan model: its size, and for a case
+    whose checks ran beside the later stages the overlap rule's subtraction of
+    (1 − share) × the shorter of the checks and the later stages (as ``work.py``'s
+    coefficients order them)."""
+    sizes = np.array([r["terms"].get(st, {}).get(t, 0.0) for st, t in cols])
+    if not r.get("beside"):
+        return sizes
+    model = {st: 0.0 for st, _ in cols}
+    for (st, t), v in zip(cols, sizes, strict=True):
+        model[st] += TIME_COEFFICIENTS[st][t] * v
+    hidden = ("checks",) if model["checks"] <= sum(model[st] for st in LATER) else LATER
+    return np.array(
+        [
+            v * (CHECKS_BESIDE_SHARE if st in hidden else 1.0)
+            for (st, _), v in zip(cols, sizes, strict=True)
+        ]
+    )
+
+
+NOT_FITTED = {
+    ("visibility", "per_site_point_obstacle"),
+    ("rollout", "per_layout_pair"),
+    ("search", "per_exhaustive_layout_pair"),
+}
+"""Terms kept at work.py's value: no case has obstacles, the nested chain's layouts cost what
+the search's do (no case runs a nested roll-out), and an exhaustive search's layout-pairs are
+the measured rate of its lexicographic batches (the 64 × 64, 26-site case: 2.27 CPU s for
+1.79·10⁷ layout-pairs)."""
 
 
 def fit(
@@ -53,6 +92,7 @@ def fit(
         for j, (st, t) in enumerate(cols):
             if not used[j]:
                 fixed[st] += TIME_COEFFICIENTS[st][t] * sizes[j]
+        weights = whole_plan_weights(r, cols)
         for st in stages:
             a = np.zeros(n_x + n_slack)
             for i, j in enumerate(free):
@@ -60,6 +100,8 @@ def fit(
                     a[i] = sizes[j]
             y = r["cpu_stages_s"].get(st, 0.0) - fixed[st]
             scale = max(r["cpu_stages_s"].get(st, 0.0), 0.05)
+            if r.get("beside") and st not in BEFORE_CHECKS:  # CPU shared with the checks' thread
+                a, y = np.zeros_like(a), 0.0
             for sign in (1.0, -1.0):
                 row = sign * a / scale
                 row[k] = -1.0
@@ -67,8 +109,10 @@ def fit(
                 b_ub.append(sign * y / scale)
             k += 1
         whole = np.zeros(n_x + n_slack)
-        whole[:n_x] = [sizes[j] for j in free]
-        rest = sum(fixed.values())
+        whole[:n_x] = [weights[j] for j in free]
+        rest = sum(
+            TIME_COEFFICIENTS[st][t] * weights[j] for j, (st, t) in enumerate(cols) if not used[j]
+        )
         wall = r["seconds"]
         a_ub.append(-MARGIN * whole / wall)
         b_ub.append(-low + MARGIN * rest / wall)
@@ -83,7 +127,7 @@ def fit(
         coef[st][t] = float(f"{res.x[i]:.3g}")
     ratios = [
         MARGIN
-        * sum(coef[st][t] * v for st, sz in r["terms"].items() for t, v in sz.items())
+        * sum(coef[st][t] * w for (st, t), w in zip(cols, whole_plan_weights(r, cols), strict=True))
         / r["seconds"]
         for r in rows
     ]

@@ -97,9 +97,7 @@ def _factor(f: FloatArray, n: int) -> _Factor:
     # inverse scales, scratch
     work = np.empty((2 * n_tri + 4 * n + 2, size))
     a, low = work[:n_tri], work[n_tri : 2 * n_tri]
-    piv, inv_piv, ld, inv_d = (
-        work[2 * n_tri + k * n : 2 * n_tri + (k + 1) * n] for k in range(4)
-    )
+    piv, inv_piv, ld, inv_d = (work[2 * n_tri + k * n : 2 * n_tri + (k + 1) * n] for k in range(4))
     tmp, pj = work[-2], work[-1]
     d = np.stack([f[idx[j, j]] for j in range(n)])
     np.clip(d, 0.0, None, out=d)

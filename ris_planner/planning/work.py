@@ -44,7 +44,12 @@ TIME_COEFFICIENTS: dict[str, dict[str, float]] = {
         "per_site_pair": 1.45e-06,
         "per_site_pair_element_spherical": 2.32e-08,
     },
-    "search": {"per_count": 0.37, "per_layout_pair": 2.03e-07, "per_rescored_site_pair": 2.56e-06},
+    "search": {
+        "per_count": 0.37,
+        "per_layout_pair": 2.03e-07,
+        "per_exhaustive_layout_pair": 1.27e-07,
+        "per_rescored_site_pair": 2.56e-06,
+    },
     "checks": {
         "per_codebook_mac": 5.12e-10,
         "per_checked_ris_pair": 1.47e-05,
@@ -90,13 +95,20 @@ def greedy_layouts(n_sites: int, count: int, restarts: int, rounds: int) -> int:
     return count * n_sites + (restarts + 1) * min(rounds, 3) * swaps
 
 
+def searched_exhaustively(inputs: PlanInputs, count: int) -> bool:
+    """Whether the search for ``count`` RISs is exhaustive (``auto`` within
+    ``max_exhaustive`` layouts)."""
+    s = inputs.document.search
+    total = math.comb(len(inputs.sites), count)
+    return s.method == "exhaustive" or (s.method == "auto" and total <= s.max_exhaustive)
+
+
 def search_layouts(inputs: PlanInputs, count: int) -> int:
     """Layouts the search for ``count`` RISs evaluates (all of them when exhaustive)."""
     s = inputs.document.search
     n = len(inputs.sites)
     total = math.comb(n, count)
-    exhaustive = s.method == "exhaustive" or (s.method == "auto" and total <= s.max_exhaustive)
-    if exhaustive:
+    if searched_exhaustively(inputs, count):
         return total
     return min(total, greedy_layouts(n, count, s.restarts, s.max_rounds))
 
@@ -154,6 +166,7 @@ def stage_terms(inputs: PlanInputs) -> dict[str, dict[str, float]]:
         for a, b in itertools.pairwise(counts)
     )
     ris_hm = float(sum(counts) * heatmap_pairs(inputs))
+    exhaustive = {c: searched_exhaustively(inputs, c) for c in counts}
     return {
         "inputs": {"const": 1.0, "per_site": n_sites},
         "visibility": {
@@ -167,7 +180,12 @@ def stage_terms(inputs: PlanInputs) -> dict[str, dict[str, float]]:
         },
         "search": {
             "per_count": len(counts),
-            "per_layout_pair": float(sum(search_layouts(inputs, c) for c in counts) * n_pairs),
+            "per_layout_pair": float(
+                sum(search_layouts(inputs, c) for c in counts if not exhaustive[c]) * n_pairs
+            ),
+            "per_exhaustive_layout_pair": float(
+                sum(search_layouts(inputs, c) for c in counts if exhaustive[c]) * n_pairs
+            ),
             "per_rescored_site_pair": rescored,
         },
         "checks": {
@@ -212,10 +230,7 @@ def checks_beside(inputs: PlanInputs) -> bool:
     from ris_planner.planning.inputs import needs_workers
 
     spec = inputs.document.search
-    n_sites = len(inputs.sites)
-    exhaustive = spec.method != "greedy" and all(
-        math.comb(n_sites, c) <= spec.max_exhaustive for c in inputs.counts
-    )
+    exhaustive = all(searched_exhaustively(inputs, c) for c in inputs.counts)
     workers = os.cpu_count() or 1
     return exhaustive and not needs_workers(
         inputs, spec.max_exhaustive, workers, spec.pool_min_work
