@@ -16,7 +16,7 @@ A coefficient of a term that no case exercises (all its sizes 0) or in :data:`NO
 stays what ``work.py`` has.
 
     python benchmarks/bench_memory.py --stages --json runs.json
-    python benchmarks/fit_time_model.py runs.json [--low 1.08 --high 1.85]
+    python benchmarks/fit_time_model.py runs.json [--low 1.15 --high 1.9]
 """
 
 from __future__ import annotations
@@ -140,8 +140,8 @@ def fit(
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", type=Path, help="bench_memory.py --stages --json output")
-    ap.add_argument("--low", type=float, default=1.08)
-    ap.add_argument("--high", type=float, default=1.85)
+    ap.add_argument("--low", type=float, default=1.15)
+    ap.add_argument("--high", type=float, default=1.9)
     opts = ap.parse_args(argv)
     rows = [r for r in json.loads(opts.runs.read_text()) if "terms" in r]
     coef, ratios = fit(rows, opts.low, opts.high)

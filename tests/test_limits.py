@@ -332,7 +332,7 @@ def test_time_model_fit_recovers_covering_coefficients() -> None:
     (a linear model of the same terms exists, so the L1 residual is ~0)."""
     sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
     from bench_memory import FULL, SMOKE, cache_budget_mb, case_document
-    from fit_time_model import fit
+    from fit_time_model import NOT_FITTED, fit
     from tolerance import assert_close
 
     from ris_planner.planning import PlanDocument
@@ -361,6 +361,8 @@ def test_time_model_fit_recovers_covering_coefficients() -> None:
     assert all(1.08 - 1e-9 <= q <= 1.85 + 1e-9 for q in ratios), ratios
     for r in rows:
         for st, sz in r["terms"].items():
+            if any((st, t) in NOT_FITTED and v > 0 for t, v in sz.items()):
+                continue  # kept at work.py's value: not the rows' scaled one
             model = sum(coef[st][t] * v for t, v in sz.items())
             # coefficients are rounded to 3 significant digits: 0.5 % per term at most
             assert_close(model, r["cpu_stages_s"][st], accuracy=5e-3, atol=1e-9, where=st)

@@ -37,40 +37,40 @@ MARGIN = 1.3
 somewhat busier than the calibration's (docs/validation/resources.md)."""
 
 TIME_COEFFICIENTS: dict[str, dict[str, float]] = {
-    "inputs": {"const": 0.028, "per_site": 0.000225},
+    "inputs": {"const": 0.0302, "per_site": 0.000224},
     "visibility": {"per_site_point": 2.22e-09, "per_site_point_obstacle": 2e-08},
     "cache": {
-        "const": 0.00967,
+        "const": 0.0137,
         "per_site_pair": 1.63e-06,
-        "per_site_pair_element_spherical": 2.53e-08,
+        "per_site_pair_element_spherical": 2.58e-08,
     },
     "search": {
-        "per_count": 0.31,
-        "per_layout_pair": 2.31e-07,
+        "per_count": 0.319,
+        "per_layout_pair": 2.83e-07,
         "per_exhaustive_layout_pair": 1.27e-07,
-        "per_rescored_site_pair": 1.62e-06,
+        "per_rescored_site_pair": 1.46e-06,
     },
     "checks": {
-        "per_codebook_mac": 3.02e-10,
-        "per_checked_ris_pair": 2.3e-05,
-        "per_checked_ris_pair_element_spherical": 4.75e-07,
-        "per_rescored_site_pair": 5.71e-06,
-        "per_relaxation_site_pair": 3.99e-09,
+        "per_codebook_mac": 4.06e-10,
+        "per_checked_ris_pair": 1.68e-05,
+        "per_checked_ris_pair_element_spherical": 4.45e-07,
+        "per_rescored_site_pair": 5.21e-06,
+        "per_relaxation_site_pair": 2.89e-08,
     },
     "rollout": {"const": 0, "per_layout_pair": 2e-07},
     "fields": {
-        "per_ris_pair": 5.61e-06,
-        "per_ris_pair_element_spherical": 1.38e-08,
-        "per_rx_point": 8.45e-06,
+        "per_ris_pair": 5.09e-06,
+        "per_ris_pair_element_spherical": 2.68e-08,
+        "per_rx_point": 7.39e-06,
     },
     "report": {
-        "const": 0.0231,
-        "per_pair": 4.89e-06,
+        "const": 0.0229,
+        "per_pair": 5.06e-06,
         "per_rx_point": 0,
-        "per_rescored_site_pair": 1.37e-06,
+        "per_rescored_site_pair": 1.65e-06,
     },
     "figures": {"const": 1.29, "per_rx_point": 1.71e-05, "per_extra_figure": 0.5},
-    "exports": {"const": 0.145, "per_rx_point": 4.3e-05},
+    "exports": {"const": 0.145, "per_rx_point": 4.24e-05},
 }
 """Seconds per unit of each size that drives a stage (:func:`stage_terms` names the sizes),
 fitted to the per-stage times of ``python benchmarks/bench_memory.py --stages --json F``
