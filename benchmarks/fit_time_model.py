@@ -29,10 +29,12 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linprog
 
-from ris_planner.planning.work import CHECKS_BESIDE_SHARE, MARGIN, TIME_COEFFICIENTS
-
-LATER = ("fields", "figures")
-"""The stages that hide checks which run beside them (``work.stage_seconds``)."""
+from ris_planner.planning.work import (
+    CHECKS_BESIDE_SHARE,
+    CHECKS_HIDDEN_BY,
+    MARGIN,
+    TIME_COEFFICIENTS,
+)
 
 BEFORE_CHECKS = {"inputs", "visibility", "cache", "search", "branch_and_bound", "exports"}
 """Stages whose CPU seconds the checks' thread does not share (before it starts, or after it
@@ -50,7 +52,8 @@ def whole_plan_weights(r: dict[str, Any], cols: list[tuple[str, str]]) -> np.nda
     model = {st: 0.0 for st, _ in cols}
     for (st, t), v in zip(cols, sizes, strict=True):
         model[st] += TIME_COEFFICIENTS[st][t] * v
-    hidden = ("checks",) if model["checks"] <= sum(model[st] for st in LATER) else LATER
+    later = CHECKS_HIDDEN_BY
+    hidden = ("checks",) if model["checks"] <= sum(model[st] for st in later) else later
     return np.array(
         [
             v * (CHECKS_BESIDE_SHARE if st in hidden else 1.0)

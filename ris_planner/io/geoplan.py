@@ -60,6 +60,7 @@ def plan_document(
     run beside the fields and the figures; ``timing_s["checks"]`` is the part of them that
     those stages did not hide (the wait before plan.json)."""
     t0, c0 = time.perf_counter(), time.process_time()  # the imports: the inputs' time too
+    from ris_planner.planning.checks import cancelled_on_error
     from ris_planner.planning.inputs import prepare_plan
     from ris_planner.planning.pipeline import StageClock, pipeline_work, run_plan, settle_checks
     from ris_planner.planning.report import write_figures
@@ -81,15 +82,11 @@ def plan_document(
         clock=clock,
         settle=False,
     )
-    try:  # the figures while the checks may still run on their thread
+    with cancelled_on_error(result.pending_checks):  # the figures beside the pending checks
         with clock.stage("figures"):
             stages.callback("figures")
             files = write_figures(result, out_dir)
         result = settle_checks(result, clock)
-    except BaseException:
-        if result.pending_checks is not None:
-            result.pending_checks.cancel()
-        raise
     with clock.stage("report"):
         plan = result.to_json()
         if frame is not None:

@@ -6,8 +6,9 @@ objective the search used."""
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import Any, Generic, TypeVar
 
 import numpy as np
@@ -25,8 +26,8 @@ from ris_planner.planning.sites import Site
 from ris_planner.planning.visibility import Visibility
 
 FloatArray = NDArray[np.float64]
-T = TypeVar("T")
 BoolArray = NDArray[np.bool_]
+T = TypeVar("T")
 
 RANDOM_CODEBOOK_SEEDS = 5
 """Seeds (0 … 4) of the ``random`` codebooks that re-evaluate each count's best layout beside
@@ -184,3 +185,15 @@ class PendingChecks(Generic[T]):
     def cancel(self) -> None:
         """Stop after the current task (the plan failed or was cancelled meanwhile)."""
         self._stop.set()
+
+
+@contextmanager
+def cancelled_on_error(pending: PendingChecks[Any] | None) -> Iterator[None]:
+    """Run the block; if it raises, stop ``pending``'s thread (:meth:`PendingChecks.cancel`)
+    before the error goes on. ``None``: no checks pending, nothing to stop."""
+    try:
+        yield
+    except BaseException:
+        if pending is not None:
+            pending.cancel()
+        raise

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import replace
 from typing import Any
 
@@ -39,6 +39,7 @@ from ris_planner.planning.checks import (
     PendingChecks,
     PlanCheck,
     bnb_certificate,
+    cancelled_on_error,
     plan_check_task,
     random_codebook_summary,
     random_codebook_tasks,
@@ -142,10 +143,7 @@ def run_plan(
         )
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
-    pending: list[
-        PendingChecks[list[CountResult]]
-    ] = []  # the checks' thread, to stop if a later stage fails
-    try:
+    with ExitStack() as on_error:  # stops the checks' thread if a later stage fails
         try:
             n_runs = 1 + sizing_runs(doc)
             on_plan = stages.callback("plan")
@@ -156,7 +154,7 @@ def run_plan(
                 result = plan_once(
                     doc, main, ex, checked=True, inputs=inputs, clock=clock, background_checks=True
                 )
-                pending += [result.pending_checks] if result.pending_checks else []
+                on_error.enter_context(cancelled_on_error(result.pending_checks))
             if doc.sizing is not None:
                 with clock.stage("sizing"):
                     sizing = run_sizing(
@@ -183,10 +181,6 @@ def run_plan(
             result = replace(result, summary=summarise(result))
         if settle:
             result = settle_checks(result, clock)
-    except BaseException:
-        for p in pending:
-            p.cancel()
-        raise
     result = replace(result, timing=dict(clock.seconds))
     if own_stages:
         stages.finish("done")
@@ -260,10 +254,10 @@ def plan_once(
     with clock.stage("checks"):
         on_checks = stages.callback("checks")
         if background_checks and not deferred and not _checks_on_pool(ex):
-            pending = start_checks(inputs, scorer, counts, deferred, on_checks, visibility)
+            pending = start_checks(inputs, scorer, counts, on_checks, visibility)
         else:
             counts = checks_stage(inputs, scorer, counts, deferred, ex, on_checks, visibility)
-    try:
+    with cancelled_on_error(pending):
         with clock.stage("rollout"):
             stages.callback("rollout")(0.0, doc.rollout)
             free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in counts]
@@ -297,10 +291,6 @@ def plan_once(
         if doc.beams is not None:
             with clock.stage("beams"):
                 result = replace(result, beams=plan_beams(result, stages.callback("beams")))
-    except BaseException:
-        if pending is not None:
-            pending.cancel()
-        raise
     stages.finish("done")
     return replace(result, timing=dict(clock.seconds))
 
@@ -493,14 +483,14 @@ def start_checks(
     inputs: PlanInputs,
     scorer: Scorer,
     counts: list[CountResult],
-    deferred: list[tuple[int, int]],
     progress: ProgressCallback,
     visibility: Visibility | None = None,
 ) -> PendingChecks[list[CountResult]]:
-    """:func:`checks_stage` in this process, on a thread (:class:`PendingChecks`)."""
-    tasks, jobs = _check_tasks(inputs, counts, deferred, visibility)
-    progress(0.0, f"{len(deferred)} relaxation bounds, {len(tasks)} tasks (beside the next stages)")
-    return PendingChecks(scorer, tasks, lambda v: _checked_counts(counts, deferred, jobs, v))
+    """:func:`checks_stage` without relaxation bounds (those stay in line: their memory is the
+    scorer's), in this process, on a thread (:class:`PendingChecks`)."""
+    tasks, jobs = _check_tasks(inputs, counts, [], visibility)
+    progress(0.0, f"{len(tasks)} codebook tasks beside the next stages")
+    return PendingChecks(scorer, tasks, lambda v: _checked_counts(counts, [], jobs, v))
 
 
 def settle_checks(result: PlanResult, clock: StageClock | None = None) -> PlanResult:

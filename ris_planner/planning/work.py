@@ -26,6 +26,9 @@ from ris_planner.planning.resources import HEATMAP_MAX_PAIRS
 if TYPE_CHECKING:
     from ris_planner.planning.inputs import PlanInputs
 
+CHECKS_HIDDEN_BY = ("fields", "figures")
+"""The stages that checks running beside them (:func:`checks_beside`) overlap."""
+
 CHECKS_BESIDE_SHARE = 0.25
 """Of checks that run on their thread beside the fields and the figures (:func:`checks_beside`),
 the share of the overlapped time that still lengthens the plan (the GIL and the core they
@@ -250,7 +253,7 @@ def stage_seconds(inputs: PlanInputs) -> dict[str, float]:
     if doc.beams is not None:
         work["beams"] = BEAMS_PER_LAYOUT_S * (len(inputs.counts) + len(doc.beams.layouts))
     if checks_beside(inputs):
-        hidden = min(work["checks"], work["fields"] + work["figures"])
+        hidden = min(work["checks"], sum(work[st] for st in CHECKS_HIDDEN_BY))
         work["checks"] -= (1.0 - CHECKS_BESIDE_SHARE) * hidden
     return {k: MARGIN * v for k, v in work.items()}
 
