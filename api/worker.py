@@ -74,9 +74,11 @@ PRELOAD_MODULES = [
     "ris_planner.planning.report",
     "ris_planner.power.report",
     *WORKER_MODULES,
+    "api.preload",
 ]
 """Imported once by the forkserver so each job's process (and each parse process,
-:mod:`api.offload`) starts without re-importing them."""
+:mod:`api.offload`) starts without re-importing them; the last, :mod:`api.preload`, also sets
+up matplotlib and numba's runtime there."""
 
 PROGRESS_INTERVAL_S = 0.2
 """A worker writes progress to SQLite at most this often (and always on completion)."""

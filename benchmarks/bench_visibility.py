@@ -13,6 +13,12 @@ the ratios. The answers on the subsample must agree wherever the reference decid
 Target on the 2-core machine: ≤ 0.5 s for 10⁶ legs.
 
     python benchmarks/bench_visibility.py [--points 50000] [--sites 20] [--reference-legs 200]
+    python benchmarks/bench_visibility.py --warm
+
+``--warm`` measures ``engine="auto"``'s threshold once the process has loaded compiled code
+(another kernel first, as a plan's search does): for growing queries, the walk's first call
+(its load from the cache), its later calls and the numpy engine, with the engine ``auto``
+picks (:data:`ris_planner.environment.scene.AUTO_COMPILED_WARM_MIN_WORK`).
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -122,6 +129,38 @@ def timed(fn):  # type: ignore[no-untyped-def]
     return out, time.perf_counter() - w, time.process_time() - c
 
 
+def warm_crossover(env: Environment, rng: np.random.Generator) -> None:
+    """The ``--warm`` table (module docstring)."""
+    from ris_planner.environment import scene as scene_module
+    from ris_planner.inversion import _crb_jit
+    from ris_planner.runtime.kernels import compiled_code_loaded
+
+    _crb_jit.work_rows(7)  # compiled code loaded, not the walk: a plan after its search
+    assert compiled_code_loaded()
+    n_ob = len(env.obstacles)
+    print(
+        f"{n_ob} obstacles; compiled code loaded; warm threshold "
+        f"{scene_module.AUTO_COMPILED_WARM_MIN_WORK:,} legs × obstacles"
+    )
+    print(f"{'legs':>8} {'legs×obst':>11} {'first numba':>16} {'numba':>9} {'numpy':>9}  auto")
+    first = True
+    for n in (10, 100, 1_000, 10_000, 100_000):
+        a, b = street_points(rng, n), street_points(rng, n)
+        fast_scene, slow_scene = Scene(env, engine="numba"), Scene(env, engine="numpy")
+        w = time.perf_counter()
+        fast = fast_scene.blocked(a, b)  # the index, and the first time the walk's load
+        t_first = time.perf_counter() - w
+        _, t_nb, _ = timed(partial(fast_scene.blocked, a, b))
+        slow, t_np, _ = timed(partial(slow_scene.blocked, a, b))
+        assert np.array_equal(fast, slow), "the numpy and numba engines disagree"
+        pick = "numba" if Scene(env)._compiled(n) else "numpy"
+        label = f"{t_first * 1e3:.1f} ms" + (" (load)" if first else "")
+        first = False
+        print(
+            f"{n:8d} {n * n_ob:11,d} {label:>16} {t_nb * 1e3:6.1f} ms {t_np * 1e3:6.1f} ms  {pick}"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=50_000)
@@ -129,9 +168,13 @@ def main() -> None:
     ap.add_argument("--numpy-legs", type=int, default=100_000)
     ap.add_argument("--reference-legs", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--warm", action="store_true", help="the warm threshold's table only")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     env = city(rng)
+    if args.warm:
+        warm_crossover(env, rng)
+        return
     pts = street_points(rng, args.points)
     sites = facade_sites(rng, env, args.sites)
     a = np.repeat(sites, pts.shape[0], axis=0)  # [M, 3] legs site → point

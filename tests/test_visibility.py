@@ -4,6 +4,9 @@ walls), for both engines (numpy and the compiled one), which must agree answer f
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -317,9 +320,60 @@ def test_auto_engine_compiles_only_large_queries(monkeypatch: pytest.MonkeyPatch
         return compiled(self, a, b, tol)
 
     monkeypatch.setattr(scene_module._Index, "walk_compiled", spy)
+    monkeypatch.setattr(scene_module, "compiled_code_loaded", lambda: False)  # a fresh process
     scene = Scene(Environment(obstacles=[U_NOTCH]))
     a, b = np.tile([[-5.0, 5, 2]], (20, 1)), np.tile([[15.0, 5, 2]], (20, 1))
     assert scene.blocked(a, b).all() and calls == []
     monkeypatch.setattr(scene_module, "AUTO_COMPILED_MIN_WORK", 20)
     assert scene.blocked(a, b).all() and calls == [20]
     assert Scene(scene.environment, engine="numpy").blocked(a, b).all() and calls == [20]
+
+
+def test_auto_engine_threshold_drops_once_compiled_code_is_loaded(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    calls: list[int] = []
+    compiled = scene_module._Index.walk_compiled
+
+    def spy(self: Any, a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray:
+        calls.append(a.shape[0])
+        return compiled(self, a, b, tol)
+
+    monkeypatch.setattr(scene_module._Index, "walk_compiled", spy)
+    scene = Scene(Environment(obstacles=[U_NOTCH]))
+    n = scene_module.AUTO_COMPILED_WARM_MIN_WORK  # one obstacle: legs × obstacles = n
+    assert n < scene_module.AUTO_COMPILED_MIN_WORK
+    a, b = np.tile([[-5.0, 5, 2]], (n, 1)), np.tile([[15.0, 5, 2]], (n, 1))
+    monkeypatch.setattr(scene_module, "compiled_code_loaded", lambda: False)
+    assert scene.blocked(a, b).all() and calls == []
+    monkeypatch.setattr(scene_module, "compiled_code_loaded", lambda: True)
+    assert scene.blocked(a[1:], b[1:]).all() and calls == []  # one leg below the threshold
+    assert scene.blocked(a, b).all() and calls == [n]
+
+
+def test_compiled_code_loaded_turns_true_with_the_first_kernel() -> None:
+    code = (
+        "import numba\n"
+        "from ris_planner.runtime.kernels import compiled_code_loaded\n"
+        "assert not compiled_code_loaded()\n"
+        "from ris_planner.inversion import _crb_jit\n"
+        "assert not compiled_code_loaded()\n"
+        "_crb_jit.work_rows(7)\n"
+        "assert compiled_code_loaded()\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+
+
+def test_bench_visibility_warm_table_runs() -> None:
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, str(root / "benchmarks" / "bench_visibility.py"), "--warm"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    rows = [line.split() for line in done.stdout.splitlines()[2:]]
+    assert [r[-1] for r in rows] == ["numpy", "numpy", "numba", "numba", "numba"], done.stdout

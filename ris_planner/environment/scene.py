@@ -42,7 +42,7 @@ from ris_planner.environment._grid import Grid
 from ris_planner.environment.kinds import kind_of
 from ris_planner.environment.kinds.base import ObstacleKind
 from ris_planner.environment.model import Environment
-from ris_planner.runtime.kernels import parallel_kernel
+from ris_planner.runtime.kernels import compiled_code_loaded, parallel_kernel
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -51,9 +51,18 @@ IntArray = NDArray[np.int_]
 Engine = Literal["auto", "numba", "numpy"]
 
 AUTO_COMPILED_MIN_WORK = 10_000_000
-"""``engine="auto"`` compiles (numba) from this many legs × obstacles per query on: below it
-the numpy engine answers faster than loading the compiled code (≈ 1–2 s once per process; the
-first compilation after an install takes 10–40 s and is cached)."""
+"""``engine="auto"`` compiles (numba) from this many legs × obstacles per query on while the
+process has loaded no compiled code: below it the numpy engine answers faster than setting numba
+up (≈ 1–2 s once per process; the first compilation after an install takes 10–40 s and is
+cached)."""
+
+AUTO_COMPILED_WARM_MIN_WORK = 50_000
+"""The same threshold once the process has loaded compiled code
+(:func:`ris_planner.runtime.kernels.compiled_code_loaded`: a plan after its search, a service
+that answered a plan): the walk then loads from the cache in ≈ 20 ms and runs 30–40× faster
+than the numpy engine (29 obstacles of a city block: 1000 legs 0.5 against 12 ms, 200 000 legs
+28 against 1100 ms, ``benchmarks/bench_visibility.py --warm``); below this numpy's ≈ 10 ms
+beats the first load."""
 
 VISIBILITY_TOLERANCE_M = 1e-3
 """Legs that enter a prism or cross a wall by no more than this (1 mm) are clear; the contract
@@ -210,7 +219,8 @@ class Scene:
     environment: Environment
     engine: Engine = "auto"
     """``"numba"`` (compiled), ``"numpy"``, or ``"auto"`` (numba for large queries, see
-    :data:`AUTO_COMPILED_MIN_WORK`); all give the same answers."""
+    :data:`AUTO_COMPILED_MIN_WORK` and :data:`AUTO_COMPILED_WARM_MIN_WORK`); all give the same
+    answers."""
 
     @classmethod
     def from_environment(cls, environment: Environment | None) -> Scene:
@@ -233,7 +243,8 @@ class Scene:
             )
         if self.engine != "auto":
             return self.engine == "numba"
-        if legs * len(self.environment.obstacles) < AUTO_COMPILED_MIN_WORK:
+        floor = AUTO_COMPILED_WARM_MIN_WORK if compiled_code_loaded() else AUTO_COMPILED_MIN_WORK
+        if legs * len(self.environment.obstacles) < floor:
             return False
         return self._index.compiled and _compiled_engine_available()
 

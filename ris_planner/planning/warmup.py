@@ -219,6 +219,24 @@ def _cache_dir(dispatcher: Any) -> str:
     return str(getattr(cache, "cache_path", getattr(cache, "_cache_path", "?")))
 
 
+def prepare_process() -> None:
+    """Set up, in this process, what each plan would otherwise set up in its own: matplotlib on
+    its Agg backend (the figures' import, ≈ 0.4 s) and numba's runtime with the scorer's and
+    the walk's kernel modules (≈ 0.5–0.8 s before the first kernel of a process runs; the
+    kernels themselves then load from the cache in milliseconds). Runs no parallel kernel and
+    so starts no thread: the process may fork afterwards – the service's forkserver calls it
+    once and every plan job, a fork of it, starts with both (docs/guides/service-operations.md,
+    "Job processes")."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    importlib.import_module("matplotlib.pyplot")
+    from ris_planner.environment import _jit  # noqa: F401 - the walk's kernels, imported
+    from ris_planner.inversion import _crb_jit
+
+    _crb_jit.work_rows(7)  # a serial kernel from the cache: numba's runtime is set up
+
+
 def warm_up(say: Callable[[str], None] | None = None) -> WarmupReport:
     """Run :data:`WORKLOADS` (compiling and caching every kernel they reach), then check that
     every kernel of the package has a compiled signature; :class:`WarmupError` names any that

@@ -13,6 +13,7 @@ waiting costs nothing that running both at once would have saved.
 
 from __future__ import annotations
 
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -25,3 +26,19 @@ def parallel_kernel() -> Iterator[None]:
     """Hold the process's parallel-kernel lock for the block (module docstring)."""
     with _LOCK:
         yield
+
+
+def compiled_code_loaded() -> bool:
+    """Whether this process has already loaded compiled code (numba's runtime is initialised:
+    some kernel ran). The first kernel of a process pays ≈ 0.5–1 s to set numba up; each
+    further one loads from the on-disk cache in milliseconds (an obstacle walk: ≈ 20 ms), so
+    ``engine="auto"`` visibility compiles from a far smaller query once this holds
+    (:data:`ris_planner.environment.scene.AUTO_COMPILED_WARM_MIN_WORK`). False where numba is
+    not imported or its runtime cannot say."""
+    if "numba" not in sys.modules:
+        return False
+    try:
+        from numba.core.runtime import rtsys
+    except ImportError:  # pragma: no cover - numba's layout changed
+        return False
+    return bool(getattr(rtsys, "_init", False))
