@@ -9,9 +9,13 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ris_planner.cli.app import int_in, launched_as_process
 from ris_planner.core.errors import RisPlannerError
+
+if TYPE_CHECKING:
+    from ris_planner.planning.figure_process import FigureProcess
 
 EXIT_USELESS = 3
 """Exit status of ``ris-planner plan --fail-on-useless`` for a plan diagnosed ``useless``."""
@@ -24,6 +28,16 @@ def rounded(value: float | None, digits: int = 3) -> str:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    if (args.file is None) == (args.preset is None):
+        raise RisPlannerError("give exactly one of FILE or --preset NAME")
+    from ris_planner.planning.figure_process import FigureProcess
+
+    # started first: it imports matplotlib while this process reads the document and searches
+    with FigureProcess() as figures:
+        return _plan(args, figures)
+
+
+def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     from ris_planner.io.geoplan import plan_on
     from ris_planner.planning.diagnosis import summary_lines
     from ris_planner.planning.presets import load_plan_file, plan_preset
@@ -32,8 +46,6 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from ris_planner.runtime.process import process_age_s
     from ris_planner.runtime.progress import ProgressBar
 
-    if (args.file is None) == (args.preset is None):
-        raise RisPlannerError("give exactly one of FILE or --preset NAME")
     doc = plan_preset(args.preset) if args.preset is not None else load_plan_file(args.file)
     if args.nested:
         doc = {**doc, "rollout": "nested"}
@@ -49,13 +61,15 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     out = Path(args.out)
     # the interpreter's start, the imports and reading the document, before the first stage
     startup = process_age_s() if launched_as_process() else None
-    done = plan_on(executor, doc, out, ProgressBar("plan"))
+    done = plan_on(executor, doc, out, ProgressBar("plan"), figures=figures)
     plan = done.plan
     if startup is not None:
         plan["timing_s"] = {"startup": startup, **plan["timing_s"]}
     plan_path = write_plan_json(plan, out)
     if done.note is not None:
         print(f"note: GIS files skipped: {done.note}", file=sys.stderr)
+    if figures.note is not None:
+        print(f"note: figures drawn in this process: {figures.note}", file=sys.stderr)
     print(f"wrote {plan_path}", file=sys.stderr)
     for p in done.files.values():
         print(f"wrote {p}", file=sys.stderr)

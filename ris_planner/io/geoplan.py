@@ -14,11 +14,14 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ris_planner.io import MissingExtraError
 from ris_planner.io.frames import license_of_document, search_region_lonlat, to_local
 from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
+
+if TYPE_CHECKING:
+    from ris_planner.planning.figure_process import FigureProcess
 
 OUTPUTS = ("figures", "exports")
 """The output stages after plan.json's content, each timed in ``timing_s``."""
@@ -45,6 +48,7 @@ def plan_document(
     out_dir: Path,
     progress: ProgressCallback = no_progress,
     executor: Any = None,
+    figures: FigureProcess | None = None,
 ) -> PlanFiles:
     """Convert, plan (:func:`~ris_planner.planning.plan.run_plan` with ``executor``), write
     the figures and GIS files into ``out_dir``; ``plan.json`` itself is the caller's to write
@@ -58,7 +62,10 @@ def plan_document(
     included (:class:`~ris_planner.planning.pipeline.StageClock`): their sum is this call's
     wall time. Checks that run on a thread (:class:`~ris_planner.planning.checks.PendingChecks`)
     run beside the fields and the figures; ``timing_s["checks"]`` is the part of them that
-    those stages did not hide (the wait before plan.json)."""
+    those stages did not hide (the wait before plan.json). With ``figures`` (the command
+    line's :class:`~ris_planner.planning.figure_process.FigureProcess`) a helper process draws
+    the figures beside the checks, the report and the exports; ``timing_s["figures"]`` is then
+    the hand-over plus the wait for the helper at the end."""
     t0, c0 = time.perf_counter(), time.process_time()  # the imports: the inputs' time too
     from ris_planner.planning.checks import cancelled_on_error
     from ris_planner.planning.inputs import prepare_plan
@@ -85,7 +92,11 @@ def plan_document(
     with cancelled_on_error(result.pending_checks):  # the figures beside the pending checks
         with clock.stage("figures"):
             stages.callback("figures")
-            files = write_figures(result, out_dir)
+            if figures is None:
+                files = write_figures(result, out_dir)
+            else:  # drawn by the helper beside the checks, plan.json and the exports
+                figures.submit(result, out_dir)
+                files = {}
         result = settle_checks(result, clock)
     with clock.stage("report"):
         plan = result.to_json()
@@ -105,6 +116,9 @@ def plan_document(
             files.update(plan_outputs(result, plan, document, out_dir))
         except MissingExtraError as exc:
             note = str(exc)
+    if figures is not None:
+        with clock.stage("figures"):  # the wait for the helper: what the stages above left
+            files = {**figures.files(), **files}
     plan["timing_s"] = dict(clock.seconds)
     stages.finish("done")
     return PlanFiles(plan, files, note, dict(clock.cpu))
@@ -115,12 +129,13 @@ def plan_on(
     document: dict[str, Any],
     out_dir: Path,
     progress: ProgressCallback = no_progress,
+    figures: FigureProcess | None = None,
 ) -> PlanFiles:
     """:func:`plan_document` on ``executor``, which it closes afterwards: stopping the worker
     pool is the plan's time too (``timing_s["workers_close"]``, so that ``timing_s`` sums to
     the wall time of the command line's and a job's plan alike)."""
     with executor:  # the document is converted from its frame there (ris_planner.io.frames)
-        done = plan_document(document, out_dir, progress, executor)
+        done = plan_document(document, out_dir, progress, executor, figures)
         t_close = time.perf_counter()
     done.plan["timing_s"]["workers_close"] = time.perf_counter() - t_close
     return done

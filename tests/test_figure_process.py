@@ -1,0 +1,126 @@
+"""A command-line plan's figures drawn by a helper process (issue 22: a city block in seconds):
+the same files as drawn in-process, the parent draws them itself when the helper cannot, and
+the helper never outlives its plan."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+from test_plan_timing import timed_plan
+
+from ris_planner.io.geoplan import plan_document
+from ris_planner.planning import figure_process
+from ris_planner.planning.figure_process import FigureProcess
+from ris_planner.runtime.executor import SerialExecutor
+
+FIGURES = {"topview", "heatmap", "cdf"}
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _ended(pid: int, within_s: float = 10.0) -> bool:
+    deadline = time.monotonic() + within_s
+    while time.monotonic() < deadline:
+        if not _alive(pid):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _pixels(path: Path) -> np.ndarray:
+    return np.asarray(imread(path))
+
+
+def test_the_helper_draws_the_in_process_figures(tmp_path: Path) -> None:
+    doc = timed_plan()
+    here = plan_document(doc, tmp_path / "here", executor=SerialExecutor())
+    with FigureProcess() as figures:
+        pid = figures.pid
+        assert pid is not None
+        there = plan_document(doc, tmp_path / "there", executor=SerialExecutor(), figures=figures)
+        assert figures.note is None, figures.note
+    assert _ended(pid)
+    assert set(here.files) >= FIGURES and set(there.files) >= FIGURES
+    assert list(there.files)[:3] == list(here.files)[:3]  # the figures first, as before
+    for name in FIGURES:
+        assert there.files[name].parent == tmp_path / "there"
+        a, b = _pixels(here.files[name]), _pixels(there.files[name])
+        # the same code on the same data, rasterised by the same Agg in two processes
+        assert a.shape == b.shape, name
+        assert np.count_nonzero(np.any(a != b, axis=-1)) <= 1e-4 * a.shape[0] * a.shape[1], name
+    # the stages still sum to the wall time: the wait for the helper is "figures"
+    assert "figures" in there.plan["timing_s"]
+
+
+def test_the_parent_draws_when_the_helper_does_not_start(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(figure_process.sys, "executable", str(tmp_path / "no-python"))
+    with FigureProcess() as figures:
+        assert figures.pid is None and figures.note is not None
+        done = plan_document(timed_plan(), tmp_path, executor=SerialExecutor(), figures=figures)
+    assert "did not start" in (figures.note or "")
+    assert set(done.files) >= FIGURES and all(done.files[n].is_file() for n in FIGURES)
+
+
+def test_the_parent_draws_when_the_helper_dies(tmp_path: Path) -> None:
+    with FigureProcess() as figures:
+        pid = figures.pid
+        assert pid is not None
+        os.kill(pid, 9)
+        deadline = time.monotonic() + 10.0
+        while figures.pid is not None and time.monotonic() < deadline:  # reaped by its poll
+            time.sleep(0.05)
+        assert figures.pid is None
+        done = plan_document(timed_plan(), tmp_path, executor=SerialExecutor(), figures=figures)
+    assert figures.note is not None and "figure process" in figures.note
+    assert set(done.files) >= FIGURES and all(done.files[n].is_file() for n in FIGURES)
+
+
+def test_the_helper_stops_with_a_failed_plan(tmp_path: Path) -> None:
+    with pytest.raises(ValueError), FigureProcess() as figures:  # an invalid document
+        pid = figures.pid
+        assert pid is not None
+        plan_document({"not": "a plan"}, tmp_path, executor=SerialExecutor(), figures=figures)
+    assert _ended(pid, 2 * figure_process.STOP_TIMEOUT_S)
+
+
+def test_the_helper_exits_when_its_parent_goes(tmp_path: Path) -> None:
+    parent = (
+        "from ris_planner.planning.figure_process import FigureProcess\n"
+        "import os\n"
+        "f = FigureProcess()\n"
+        "print(f.pid, flush=True)\n"
+        "os._exit(0)\n"  # no clean-up: the helper sees its stdin close
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", parent], capture_output=True, text=True, timeout=60, check=True
+    )
+    pid = int(done.stdout.strip())
+    assert _ended(pid, 30.0), "the helper outlived its parent"
+
+
+def test_cli_plan_draws_with_the_helper(tmp_path: Path) -> None:
+    import json
+
+    doc = tmp_path / "plan.json"
+    doc.write_text(json.dumps(timed_plan()))
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "ris_planner.cli", "plan", str(doc), "--out", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "figures drawn in this process" not in done.stderr
+    assert all((out / f"{name}.png").is_file() for name in FIGURES)
