@@ -86,6 +86,11 @@ def measure(preset: str, repeats: int, file: Path | None = None) -> dict[str, An
             served(root / "pool.db", env={"RIS_PLANNER_PLAN_WORKERS": "0"}) as pool_server,
             served(root / "serial.db", env={"RIS_PLANNER_PLAN_WORKERS": "1"}) as serial_server,
         ):
+            # one untimed job per server first: the forkserver starts with the server and
+            # preloads the engine, matplotlib and numba (api/preload.py), ≈ 2 s of CPU that
+            # would otherwise land on the first timed round of every route
+            for server in (pool_server, serial_server):
+                rest_plan(server.url, document)
             for r in range(repeats):
                 times["cli"].append(cli_plan(source, root / f"cli-{r}"))
                 times["rest"].append(rest_plan(pool_server.url, document)[0])
