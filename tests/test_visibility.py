@@ -311,7 +311,10 @@ def test_inside_margin_and_first_prism() -> None:
     assert VISIBILITY_TOLERANCE_M < INSIDE_MARGIN_M
 
 
-def test_auto_engine_compiles_only_large_queries(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.fixture
+def walk_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The leg counts of the compiled walk's calls (the engine ``auto`` picked), as they
+    happen."""
     calls: list[int] = []
     compiled = scene_module._Index.walk_compiled
 
@@ -320,6 +323,13 @@ def test_auto_engine_compiles_only_large_queries(monkeypatch: pytest.MonkeyPatch
         return compiled(self, a, b, tol)
 
     monkeypatch.setattr(scene_module._Index, "walk_compiled", spy)
+    return calls
+
+
+def test_auto_engine_compiles_only_large_queries(
+    monkeypatch: pytest.MonkeyPatch, walk_calls: list[int]
+) -> None:
+    calls = walk_calls
     monkeypatch.setattr(scene_module, "compiled_code_loaded", lambda: False)  # a fresh process
     scene = Scene(Environment(obstacles=[U_NOTCH]))
     a, b = np.tile([[-5.0, 5, 2]], (20, 1)), np.tile([[15.0, 5, 2]], (20, 1))
@@ -330,16 +340,9 @@ def test_auto_engine_compiles_only_large_queries(monkeypatch: pytest.MonkeyPatch
 
 
 def test_auto_engine_threshold_drops_once_compiled_code_is_loaded(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, walk_calls: list[int]
 ) -> None:
-    calls: list[int] = []
-    compiled = scene_module._Index.walk_compiled
-
-    def spy(self: Any, a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray:
-        calls.append(a.shape[0])
-        return compiled(self, a, b, tol)
-
-    monkeypatch.setattr(scene_module._Index, "walk_compiled", spy)
+    calls = walk_calls
     scene = Scene(Environment(obstacles=[U_NOTCH]))
     n = scene_module.AUTO_COMPILED_WARM_MIN_WORK  # one obstacle: legs × obstacles = n
     assert n < scene_module.AUTO_COMPILED_MIN_WORK
