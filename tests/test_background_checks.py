@@ -90,6 +90,50 @@ def test_a_failed_stage_stops_the_checks(monkeypatch: pytest.MonkeyPatch) -> Non
     assert 1 <= len(ran) <= 3 < n_tasks
 
 
+def test_settle_runs_the_tasks_left_beside_the_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The caller of settle() takes the tasks the thread has not started (it has nothing else
+    to do): both threads run some, and every answer lands at its task's place."""
+    from ris_planner.planning import checks
+
+    runners: dict[int, str] = {}
+
+    def task_of(scorer: object, task: object) -> object:
+        time.sleep(0.05)
+        runners[int(task)] = threading.current_thread().name  # type: ignore[call-overload]
+        return 10 * int(task)  # type: ignore[call-overload]
+
+    monkeypatch.setattr(checks, "plan_check_task", task_of)
+    pending = checks.PendingChecks(None, list(range(12)), list)  # type: ignore[arg-type]
+    assert pending.settle() == [10 * i for i in range(12)]
+    names = set(runners.values())
+    assert threading.current_thread().name in names, "settle() only waited"
+    assert any(n.startswith("plan-checks") for n in names), "the thread ran nothing"
+    assert sorted(runners) == list(range(12))  # each task once
+
+
+def test_a_failing_task_in_settle_stops_the_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    from ris_planner.planning import checks
+
+    ran: list[int] = []
+
+    def task_of(scorer: object, task: object) -> object:
+        time.sleep(0.05)
+        ran.append(int(task))  # type: ignore[call-overload]
+        if threading.current_thread() is threading.main_thread():
+            raise ValueError("a task failed")
+        return task
+
+    monkeypatch.setattr(checks, "plan_check_task", task_of)
+    pending = checks.PendingChecks(None, list(range(40)), list)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="a task failed"):
+        pending.settle()
+    deadline = time.monotonic() + 30
+    while any(t.name.startswith("plan-checks") for t in threading.enumerate()):
+        assert time.monotonic() < deadline, "the checks' thread did not stop"
+        time.sleep(0.05)
+    assert len(ran) <= 4 < 40
+
+
 CONCURRENT_KERNELS = textwrap.dedent(
     """
     import threading

@@ -154,8 +154,10 @@ class PendingChecks(Generic[T]):
     behind them on one core. On a thread they run beside those stages, on the second core
     (a city block: 7.3 → 5.1 s, docs/validation/benchmarks.md). The answers are the same
     (the same tasks, the same code; :mod:`ris_planner.runtime.kernels` keeps the compiled
-    kernels one at a time). :meth:`settle` waits for them; :meth:`cancel` stops the thread
-    after its current task."""
+    kernels one at a time). :meth:`settle` takes the tasks the thread has not started yet
+    itself – the caller has nothing else to do by then, so the checks' tail runs on both
+    cores – and waits for the thread's last one; :meth:`cancel` stops the thread after its
+    current task."""
 
     def __init__(
         self,
@@ -165,22 +167,40 @@ class PendingChecks(Generic[T]):
     ) -> None:
         self._stop = threading.Event()
         self._finish = finish
+        self._scorer = scorer
+        self._tasks = tasks
+        self._values: list[Any] = [None] * len(tasks)
+        self._next = 0
+        self._lock = threading.Lock()
         pool = ThreadPoolExecutor(1, thread_name_prefix="plan-checks")
-        self._future = pool.submit(self._run, scorer, tasks)
+        self._future = pool.submit(self._work)
         pool.shutdown(wait=False)  # the thread ends with its one task
 
-    def _run(self, scorer: Scorer, tasks: list[PlanCheck]) -> list[Any]:
-        values = []
-        for task in tasks:
+    def _take(self) -> int | None:
+        """The index of the next task nobody has started, or ``None`` when all have been."""
+        with self._lock:
             if self._stop.is_set():
                 raise RuntimeError("plan checks cancelled")
-            values.append(plan_check_task(scorer, task))
-        return values
+            if self._next >= len(self._tasks):
+                return None
+            self._next += 1
+            return self._next - 1
+
+    def _work(self) -> None:
+        """Run tasks until none is left (the thread, then also :meth:`settle`'s caller)."""
+        while (i := self._take()) is not None:
+            self._values[i] = plan_check_task(self._scorer, self._tasks[i])
 
     def settle(self) -> T:
-        """``finish`` of the checks' answers – every count with its checks (waits for the
-        thread; its error is raised here)."""
-        return self._finish(self._future.result())
+        """``finish`` of the checks' answers – every count with its checks: runs the tasks the
+        thread has not started here, then waits for the thread (its error is raised here)."""
+        try:
+            self._work()
+        except BaseException:
+            self._stop.set()  # the thread stops after its current task
+            raise
+        self._future.result()
+        return self._finish(self._values)
 
     def cancel(self) -> None:
         """Stop after the current task (the plan failed or was cancelled meanwhile)."""
