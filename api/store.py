@@ -516,13 +516,14 @@ class JobStore:
         changed: int = self._run(lambda con: con.execute(sql, (*args, job_id)).rowcount)
         return changed == 1
 
-    def start(self, job_id: str) -> bool:
-        """queued → running (False if the job was cancelled or taken meanwhile)."""
+    def start(self, job_id: str, at: str | None = None) -> bool:
+        """queued → running (False if the job was cancelled or taken meanwhile); ``at``: the
+        start's timestamp (:func:`utc_now` when it is written, by default)."""
         return self._update(
             job_id,
             "UPDATE jobs SET status = 'running', started_at = ?, message = 'started'"
             " WHERE status = 'queued' AND id = ?",
-            (utc_now(),),
+            (at or utc_now(),),
         )
 
     def set_progress(self, job_id: str, fraction: float, message: str) -> bool:
@@ -534,14 +535,16 @@ class JobStore:
             (frac, str(message)[:500]),
         )
 
-    def succeed(self, job_id: str, result: dict[str, Any], figures: dict[str, str]) -> bool:
+    def succeed(
+        self, job_id: str, result: dict[str, Any], figures: dict[str, str], at: str | None = None
+    ) -> bool:
         """running → succeeded with the result document and its figures (name → file name in
-        the job's figure folder)."""
+        the job's figure folder); ``at``: the end's timestamp (:func:`utc_now` by default)."""
         return self._update(
             job_id,
             "UPDATE jobs SET status = 'succeeded', progress = 1, message = 'done', result = ?,"
             " figures = ?, finished_at = ? WHERE status = 'running' AND id = ?",
-            (json.dumps(result, allow_nan=False), json.dumps(figures), utc_now()),
+            (json.dumps(result, allow_nan=False), json.dumps(figures), at or utc_now()),
         )
 
     def fail(self, job_id: str, error: str) -> bool:

@@ -56,7 +56,14 @@ from api.processes import (
     close_inherited_alive_pipe,
     exit_when_orphaned,
 )
-from api.store import BUSY_TIMEOUT_S, RETRY_S, FileIdentity, JobStore, StoreUnavailableError
+from api.store import (
+    BUSY_TIMEOUT_S,
+    RETRY_S,
+    FileIdentity,
+    JobStore,
+    StoreUnavailableError,
+    utc_now,
+)
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.core.io_json import one_line_validation_error
 from ris_planner.runtime import allocator
@@ -79,6 +86,12 @@ PRELOAD_MODULES = [
 """Imported once by the forkserver so each job's process (and each parse process,
 :mod:`api.offload`) starts without re-importing them; the last, :mod:`api.preload`, also sets
 up matplotlib and numba's runtime there."""
+
+JOB_STAGE = "job"
+"""The ``timing_s`` entry a job adds to a plan's stages: its own bookkeeping in the worker –
+recording its start in the store, before the plan, and moving its figures in place, after it
+–, so that a plan job's ``timing_s`` sums to ``finished_at − started_at`` as a command-line
+plan's sums to the command's wall time (docs/concepts/planning.md, "Pipeline")."""
 
 PROGRESS_INTERVAL_S = 0.2
 """A worker writes progress to SQLite at most this often (and always on completion)."""
@@ -272,13 +285,16 @@ def _execute(
         retry_s=store_options.get("retry_s", RETRY_S),
     )
     job = store.get(job_id)
-    if job is None or not store.start(job_id):
+    t_start, started = time.perf_counter(), utc_now()
+    if job is None or not store.start(job_id, started):
         return  # cancelled (or taken) before it started
     staging, final = staging_dir(figures_dir, job_id), figures_dir / job_id
     _remove(staging)
     progress = StoreProgress(store, job_id)
     try:
+        t_func = time.perf_counter()
         output = func(job.request, progress, staging)
+        t_done = time.perf_counter()
         figures = {name: str(path.relative_to(staging)) for name, path in output.figures.items()}
     except JobCancelledError:
         _remove(staging)
@@ -294,7 +310,11 @@ def _execute(
     if figures:
         _remove(final)
         staging.rename(final)
-    if not store.succeed(job_id, output.result, figures):
+    t_end, finished = time.perf_counter(), utc_now()
+    timing = output.result.get("timing_s")
+    if isinstance(timing, dict):  # a plan: the job's own bookkeeping is a stage of its time
+        timing[JOB_STAGE] = (t_func - t_start) + (t_end - t_done)
+    if not store.succeed(job_id, output.result, figures, finished):
         _remove(final)  # cancelled while it finished: no figures for a cancelled job
     _remove(staging)
 

@@ -132,7 +132,9 @@ def test_rest_job_stage_times_sum_to_the_job_time(tmp_path: Path) -> None:
         assert view["status"] == "succeeded", view["error"]
     start = datetime.fromisoformat(view["started_at"])
     end = datetime.fromisoformat(view["finished_at"])
-    check_sum(view["result"]["timing_s"], (end - start).total_seconds())
+    timing = view["result"]["timing_s"]
+    assert timing["job"] > 0  # the worker's own bookkeeping, timed (api.worker.JOB_STAGE)
+    check_sum(timing, (end - start).total_seconds())
 
 
 def test_bench_interactive_smoke() -> None:
@@ -145,3 +147,23 @@ def test_bench_interactive_smoke() -> None:
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "sum(timing_s) / wall" in proc.stdout
+
+
+def test_reports_between_stages_are_timed_once() -> None:
+    """A progress report made between stages is timed as ``progress``; one made inside a
+    stage only by that stage (a service job writes each report to its store)."""
+    from ris_planner.planning.pipeline import BETWEEN_STAGES, StageClock
+    from ris_planner.runtime.progress import Stages
+
+    def slow_report(fraction: float, message: str) -> None:
+        time.sleep(0.02)
+
+    clock = StageClock()
+    stages = Stages(slow_report, {"a": 1.0, "b": 1.0}, clock)
+    on_a = stages.callback("a")  # before the stage's timer: between stages
+    with clock.stage("a"):
+        on_a(0.5, "half")  # inside: the stage's own time
+    stages.finish()
+    assert clock.seconds[BETWEEN_STAGES] >= 0.04  # the start and the end
+    assert clock.seconds["a"] >= 0.02
+    assert sum(clock.seconds.values()) < 0.06 + 0.05  # nothing counted twice

@@ -79,7 +79,7 @@ def plan_document(
         local, frame = to_local(document)
         inputs = prepare_plan(local)
     stages = Stages(
-        progress, {**pipeline_work(inputs), **{k: report_work(inputs)[k] for k in OUTPUTS}}
+        progress, {**pipeline_work(inputs), **{k: report_work(inputs)[k] for k in OUTPUTS}}, clock
     )
     result = run_plan(
         local,
@@ -119,8 +119,8 @@ def plan_document(
     if figures is not None:
         with clock.stage("figures"):  # the wait for the helper: what the stages above left
             files = {**figures.files(), **files}
+    stages.finish("done")  # timed as the reports between stages (a job writes it)
     plan["timing_s"] = dict(clock.seconds)
-    stages.finish("done")
     return PlanFiles(plan, files, note, dict(clock.cpu))
 
 

@@ -61,6 +61,10 @@ from ris_planner.planning.work import plan_work, report_work, search_layouts
 from ris_planner.runtime.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
 
+BETWEEN_STAGES = "progress"
+"""The ``timing_s`` entry of the progress reports made between stages (each stage's start is
+reported before its timer runs): a service job writes every report to its store."""
+
 
 class StageClock:
     """Wall seconds per named stage (plan.json ``timing_s``) and this process's CPU seconds
@@ -70,15 +74,28 @@ class StageClock:
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
         self.cpu: dict[str, float] = {}
+        self._depth = 0  # stages being timed now (nested: an inner one adds to its own too)
 
     @contextmanager
     def stage(self, name: str) -> Iterator[None]:
         """Time the block under ``name``."""
         t0, c0 = time.perf_counter(), time.process_time()
+        self._depth += 1
         try:
             yield
         finally:
+            self._depth -= 1
             self.add(name, time.perf_counter() - t0, time.process_time() - c0)
+
+    @contextmanager
+    def between(self) -> Iterator[None]:
+        """Time the block under :data:`BETWEEN_STAGES` unless a stage is timing it already
+        (:class:`~ris_planner.runtime.progress.Stages` reports a stage's start before it)."""
+        if self._depth:
+            yield
+        else:
+            with self.stage(BETWEEN_STAGES):
+                yield
 
     def add(self, name: str, seconds: float, cpu: float = 0.0) -> None:
         self.seconds[name] = self.seconds.get(name, 0.0) + seconds
@@ -140,6 +157,7 @@ def run_plan(
         stages = Stages(
             progress,
             pipeline_work(inputs if inputs is not None else prepare_plan(doc, checked=True)),
+            clock,
         )
     own = executor is None
     ex = LocalExecutor() if executor is None else executor
@@ -235,7 +253,7 @@ def plan_once(
             # below search.pool_min_work the workers cost more than they save: every batch
             # runs here, the compiled scorer on every core by threads
             ex = SerialExecutor()
-    stages = Stages(progress, plan_work(inputs))
+    stages = Stages(progress, plan_work(inputs), clock)
     with clock.stage("visibility"):
         visibility, warnings = visibility_stage(inputs)
     with clock.stage("cache"):

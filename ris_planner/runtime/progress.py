@@ -9,7 +9,8 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
-from typing import TextIO
+from contextlib import AbstractContextManager, nullcontext
+from typing import Protocol, TextIO
 
 ProgressCallback = Callable[[float, str], None]
 
@@ -52,6 +53,15 @@ LAST_BEFORE_END = 0.999
 end)."""
 
 
+class StageTimer(Protocol):
+    """What :class:`Stages` needs of a plan's clock
+    (:class:`ris_planner.planning.pipeline.StageClock`)."""
+
+    def between(self) -> AbstractContextManager[None]:
+        """Time the block as the reports between stages, unless a stage is timing it."""
+        ...
+
+
 class Stages:
     """A progress callback split over consecutive named stages, each holding a share of the bar
     proportional to its estimated work (seconds, :mod:`ris_planner.planning.work`).
@@ -61,10 +71,18 @@ class Stages:
     back (a later stage's call below an earlier one repeats the earlier fraction), stay below
     1 (at most :data:`LAST_BEFORE_END`) until :meth:`finish` reports 1.0, so a bar shows 100 %
     only once everything – figures and exports included – is written. Stages may be nested:
-    an inner :class:`Stages` on an outer stage's callback finishes at that stage's end."""
+    an inner :class:`Stages` on an outer stage's callback finishes at that stage's end.
 
-    def __init__(self, progress: ProgressCallback, work: dict[str, float]) -> None:
+    ``clock``: the plan's; a report made between its stages (a stage's start is reported
+    before the stage's own timer runs, the end after the last) is timed by it too – a service
+    job writes every report to its store, so plan.json's ``timing_s`` still sums to the
+    plan's time."""
+
+    def __init__(
+        self, progress: ProgressCallback, work: dict[str, float], clock: StageTimer | None = None
+    ) -> None:
         self.progress = progress
+        self.clock = clock
         total = sum(max(w, 0.0) for w in work.values())
         self.start: dict[str, float] = {}
         self.share: dict[str, float] = {}
@@ -79,7 +97,11 @@ class Stages:
         """Report stage ``name`` at its own ``fraction``."""
         f = self.start[name] + self.share[name] * min(max(fraction, 0.0), 1.0)
         self.fraction = max(self.fraction, min(f, LAST_BEFORE_END))
-        self.progress(self.fraction, f"{name}: {message}" if message else name)
+        with self._timed():
+            self.progress(self.fraction, f"{name}: {message}" if message else name)
+
+    def _timed(self) -> AbstractContextManager[None]:
+        return self.clock.between() if self.clock is not None else nullcontext()
 
     def callback(self, name: str) -> ProgressCallback:
         """The progress callback of stage ``name`` (reports its start at once)."""
@@ -93,4 +115,5 @@ class Stages:
     def finish(self, message: str = "done") -> None:
         """Report the end: 1.0."""
         self.fraction = 1.0
-        self.progress(1.0, message)
+        with self._timed():
+            self.progress(1.0, message)
