@@ -124,3 +124,19 @@ def test_cli_plan_draws_with_the_helper(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr[-2000:]
     assert "figures drawn in this process" not in done.stderr
     assert all((out / f"{name}.png").is_file() for name in FIGURES)
+
+
+def test_the_hand_over_leaves_the_site_cache_behind() -> None:
+    """The helper gets what the figures read, not the scorer's site cache (hundreds of MB for a
+    large plan): the hand-over's size follows the maps and fields."""
+    import pickle
+
+    from ris_planner.planning.pipeline import run_plan
+
+    result = run_plan(timed_plan(), executor=SerialExecutor())
+    job = figure_process.figure_job(result)
+    data = pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL)
+    assert b"SiteCache" not in data and b"planning.objectives" not in data  # no Scorer
+    assert len(data) < result.cache.blocks.nbytes
+    assert np.array_equal(job.cache.far_field, result.cache.far_field)
+    assert np.array_equal(job.metric_weights, result.metric_weights)

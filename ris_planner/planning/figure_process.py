@@ -29,10 +29,15 @@ import struct
 import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any
+from typing import IO, Any, cast
 
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.planning.objectives import Scorer
 from ris_planner.planning.result import PlanResult
 
 _HEADER = struct.Struct("<Q")
@@ -60,6 +65,28 @@ def _receive(stream: IO[bytes]) -> Any:
     if len(data) < size:
         return None
     return pickle.loads(data)  # from our own parent (or helper), over a private pipe
+
+
+@dataclass(frozen=True)
+class _CacheView:
+    far_field: NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class _ScorerView:
+    """What the figures read of a plan's scorer: its sites' far-field flags and the metric's
+    column weights – not the site cache itself (hundreds of MB for a large plan)."""
+
+    cache: _CacheView
+    metric_weights: NDArray[np.float64]
+
+
+def figure_job(result: PlanResult) -> PlanResult:
+    """``result`` as the helper needs it: without its pending checks (they stay here) and with
+    a view of its scorer that holds only what the figures read (:class:`_ScorerView`), so the
+    hand-over's size follows the maps and fields, not the site cache."""
+    view = _ScorerView(_CacheView(result.cache.far_field), result.metric_weights)
+    return dataclasses.replace(result, pending_checks=None, scorer=cast(Scorer, view))
 
 
 def _draw(result: PlanResult, out_dir: Path) -> dict[str, Path]:
@@ -96,9 +123,9 @@ class FigureProcess:
         return None if self._proc is None or self._proc.poll() is not None else self._proc.pid
 
     def submit(self, result: PlanResult, out_dir: Path) -> None:
-        """Hand the helper the figures of ``result`` (its pending checks stay here: the figures
-        do not read them) to draw into ``out_dir``; returns at once."""
-        job = dataclasses.replace(result, pending_checks=None)
+        """Hand the helper the figures of ``result`` (:func:`figure_job`: what they read) to
+        draw into ``out_dir``; returns at once."""
+        job = figure_job(result)
         self._job = (job, out_dir)
         if self._proc is None or self._proc.stdin is None:
             return
