@@ -219,6 +219,20 @@ def staging_dir(figures_dir: Path, job_id: str) -> Path:
     return figures_dir / f".{job_id}.partial"
 
 
+JOB_NICENESS = 5
+"""A job's process runs this much nicer than the server (``os.nice``; its threads and its plan's
+worker pool inherit it): when jobs fill the cores, the server – its ``/healthz`` threads, the
+event loop – and the parse processes, which answer requests, get the CPU first
+(docs/guides/service-operations.md, "Liveness under load"). On an idle machine it changes
+nothing."""
+
+
+def lower_priority(niceness: int = JOB_NICENESS) -> None:
+    """Make this process ``niceness`` nicer (no-op where the platform refuses)."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.nice(niceness)
+
+
 def cap_memory(budget_mb: int) -> None:
     """Cap this process's address space at its current size plus ``budget_mb`` (Linux
     ``RLIMIT_AS``): a job that outgrows its budget gets MemoryError (its job fails with "out of
@@ -253,6 +267,7 @@ def execute_job(
     _own_process_group()
     close_inherited_alive_pipe()
     set_parent_death_signal()
+    lower_priority()
     if memory_mb is not None:
         cap_memory(memory_mb)
     server = os.getppid() if server_pid is None else server_pid

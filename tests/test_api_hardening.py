@@ -291,3 +291,27 @@ def test_every_sqlite_error_is_503(tmp_path: Path, monkeypatch: pytest.MonkeyPat
         for r in (client.post("/v1/plans", json=small_plan_doc()), client.get("/v1/jobs")):
             assert r.status_code == 503 and r.headers["retry-after"] == "5", r.text
             assert "disk is full" in r.json()["message"]
+
+
+def _niceness(pid: int) -> int:
+    """The process's nice value (field 19 of /proc/PID/stat)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return int(fields[16])
+
+
+def test_job_processes_run_nicer_than_the_server(tmp_path: Path) -> None:
+    """A job's process yields the CPU to the server and its parse processes (liveness)."""
+    from test_api_faults import long_plan, worker_pids
+
+    from api.worker import JOB_NICENESS
+
+    with served(tmp_path / "jobs.db") as server:
+        url = server.url
+        job = httpx.post(f"{url}/v1/plans", json=long_plan(), timeout=30).json()["id"]
+        poll(url, job, ("running",))
+        workers = worker_pids(server.process.pid)
+        assert workers
+        base = _niceness(server.process.pid)
+        assert all(_niceness(w) == min(19, base + JOB_NICENESS) for w in workers)
+        assert httpx.delete(f"{url}/v1/jobs/{job}", timeout=10).status_code == 204
+        wait_gone(workers)
