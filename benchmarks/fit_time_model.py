@@ -52,8 +52,11 @@ def whole_plan_weights(r: dict[str, Any], cols: list[tuple[str, str]]) -> np.nda
     model = {st: 0.0 for st, _ in cols}
     for (st, t), v in zip(cols, sizes, strict=True):
         model[st] += TIME_COEFFICIENTS[st][t] * v
-    later = CHECKS_HIDDEN_BY
-    hidden = ("checks",) if model["checks"] <= sum(model[st] for st in later) else later
+    hidden = (
+        ("checks",)
+        if model["checks"] <= sum(model[st] for st in CHECKS_HIDDEN_BY)
+        else CHECKS_HIDDEN_BY
+    )
     return np.array(
         [
             v * (CHECKS_BESIDE_SHARE if st in hidden else 1.0)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import importlib
 import pickle
 import struct
 import subprocess
@@ -197,11 +196,9 @@ class FigureProcess:
 def main() -> int:
     """The helper: import the figure code, wait for one plan on stdin, draw it, answer with the
     paths (or the error's one line) on stdout."""
-    import matplotlib
+    from ris_planner.planning.warmup import prepare_figures
 
-    matplotlib.use("Agg")
-    for module in ("matplotlib.pyplot", "ris_planner.planning.report"):  # while the parent
-        importlib.import_module(module)  # reads the document and searches
+    prepare_figures()  # while the parent reads the document and searches
 
     job = _receive(sys.stdin.buffer)
     if job is None:  # the parent went away or drew the figures itself

@@ -219,6 +219,17 @@ def _cache_dir(dispatcher: Any) -> str:
     return str(getattr(cache, "cache_path", getattr(cache, "_cache_path", "?")))
 
 
+def prepare_figures() -> None:
+    """matplotlib on its Agg backend with pyplot and the plan's figure code imported (≈ 0.4 s
+    of a process's first figure): for :func:`prepare_process` and the command line's figure
+    helper (:mod:`ris_planner.planning.figure_process`), which set it up before it is needed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    for module in ("matplotlib.pyplot", "ris_planner.planning.report"):
+        importlib.import_module(module)
+
+
 def prepare_process() -> None:
     """Set up, in this process, what each plan would otherwise set up in its own: matplotlib on
     its Agg backend (the figures' import, ≈ 0.4 s) and numba's runtime with the scorer's and
@@ -227,10 +238,7 @@ def prepare_process() -> None:
     so starts no thread: the process may fork afterwards – the service's forkserver calls it
     once and every plan job, a fork of it, starts with both (docs/guides/service-operations.md,
     "Job processes")."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    importlib.import_module("matplotlib.pyplot")
+    prepare_figures()
     from ris_planner.environment import _jit  # noqa: F401 - the walk's kernels, imported
     from ris_planner.inversion import _crb_jit
 
