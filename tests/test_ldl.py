@@ -164,6 +164,45 @@ def test_unrolled_ldl_is_bit_identical_to_the_loop_kernel(rng: np.random.Generat
     np.testing.assert_array_equal(d_new, d_np)
 
 
+@pytest.mark.parametrize("block_dtype", [np.float64, np.float32])
+def test_summed_kernel_is_bit_identical_to_factoring_the_stored_sum(
+    rng: np.random.Generator, block_dtype: type
+) -> None:
+    """``factor_summed_7`` (the scorer's last site summed inside the factorisation, in calls of
+    ``PREFETCH_PAIRS`` pairs framed by prefetches of the next block) gives the bits of
+    ``a = base + block`` stored and factored by ``factor_chunk``: on every kind of input
+    (singular, negative and NaN diagonals included), with a float32 block (widened exactly), a
+    partly filled last chunk (t not a multiple of PREFETCH_PAIRS), and any next block."""
+    from ris_planner.inversion import _crb_jit as jit
+
+    c = jit.CHUNK
+    fp = unrolled_inputs(rng, 301)
+    part = np.abs(rng.normal(size=fp.shape)) * np.abs(fp).max(axis=0)  # a site's share
+    part[:, 40:58] = 0.0  # the flagged inputs stay as they are
+    block_all = (part * 0.3).astype(block_dtype)
+    base_all = fp - block_all  # base + block ≈ fp: the same kinds of matrices
+    work = np.empty((jit.work_rows(7), c))
+    ends = [min(p0 + c, fp.shape[1]) for p0 in range(0, fp.shape[1], c)]
+    assert (ends[-1] - ends[-2]) % jit.PREFETCH_PAIRS != 0  # the short call is exercised
+    for p0, end in zip(range(0, fp.shape[1], c), ends, strict=True):
+        t = end - p0
+        base, block = np.zeros((28, c)), np.zeros((28, c), dtype=block_dtype)
+        base[:, :t], block[:, :t] = base_all[:, p0:end], block_all[:, p0:end]
+        nxt = block[:, ::-1].copy() if p0 else block  # any block: only prefetched
+        got = np.empty((7, c)), np.empty(c), np.empty(c, bool)
+        jit.factor_summed_7(base, block, nxt, t, *got)
+        want = np.empty((7, c)), np.empty(c), np.empty(c, bool)
+        jit.factor_chunk(base + block, 7, t, work, *want)
+        np.testing.assert_array_equal(got[2][:t], want[2][:t])
+        np.testing.assert_array_equal(got[0][:, :t], want[0][:, :t])
+        regular = ~want[2][:t]
+        np.testing.assert_array_equal(got[1][:t][regular], want[1][:t][regular])
+        if p0 == 0:  # the flagged inputs and the well-conditioned ones, in this chunk
+            assert want[2][40:58].all() and regular[58:].all()
+        else:
+            assert regular.all()
+
+
 def test_unrolled_ldl_against_mpmath(rng: np.random.Generator) -> None:
     """The unrolled kernel's diagonal of F⁻¹ against a 40-digit inversion (an independent
     route): within the tolerance rule's ulps · ε · cond on every regular matrix, cond up to
@@ -301,6 +340,16 @@ def test_flop_model_matches_an_instrumented_count(
                 jit.ldl_pairs_7.py_func(a.reshape(-1), 1, diag.reshape(-1), trace, sing)
             model = ldl.ldl_flops(n)
             assert sum(_Counted.ops.values()) == sum(model.values()), (kind, n, _Counted.ops)
+            if kind == "unrolled":  # summed: the same plus one addition per packed entry
+                before = dict(_Counted.ops)
+                _Counted.ops = {}
+                zero = np.full((e_n, c), _Counted(0.0), dtype=object)
+                summed = np.empty((n, c), dtype=object)
+                jit.ldl_sum_pairs_7.py_func(
+                    a.reshape(-1), zero.reshape(-1), 1, summed.reshape(-1), trace, sing
+                )
+                assert _Counted.ops == {**before, "+": before.get("+", 0) + e_n}
+                assert [float(v) for v in summed[:, 0]] == [float(v) for v in diag[:, 0]]
             assert _Counted.ops["/"] == 2 * n  # 1/d_i and 1/D_j: the rest are products
             assert _Counted.ops["sqrt"] == n
             assert not sing[0]
