@@ -29,7 +29,9 @@ cached packed information, :func:`ldl_chunk`, the fast-path test of ``crb_diagon
 metric, so the sums never leave the cache. The sum is the core's: LOS + RIS 1, then + RIS 2, …
 in the layout's column order (``compute_bounds`` sums its paths in that order; the partial sums
 of the first L − 1 sites are kept per pair block and reused by the next layout that starts with
-the same sites); the metric is
+the same sites; where a block's pairs are all factored, :func:`factor_summed_7` adds the last
+site inside the factorisation while prefetching the next layout's block – the same bits,
+docs/concepts/scoring.md); the metric is
 ``sqrt`` of the summed diagonal entries in state order (``diag[:, cols].sum(axis=1)``) and
 ``np.maximum`` of PEB_T and PEB_R. Pairs that are ``inf`` anyway (a UE on a chosen site, or
 fewer present channel parameters than unknown states: ``objectives.underdetermined``) are
