@@ -24,7 +24,7 @@ Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` t
   (best of ``--repeats`` each, so a loaded machine's slices count alike; OpenBLAS's threads
   given :data:`BLAS_PARK_S` to stop spinning) – for 1 and 2 threads; then the LDLᵀ alone, the
   loop kernel against the unrolled one (``factor_chunk``), and the divider's measured
-  throughput and the bound its 14 divisions per pair put on the LDLᵀ.
+  throughput and the bound its 7 divisions per pair put on the LDLᵀ.
 
     python benchmarks/bench_scorer.py [--sections hall exhaustive junction flops] [--plan]
         [--layouts 300] [--repeats 7] [--flops-layouts 24]
@@ -395,9 +395,9 @@ def flops(n_layouts: int, repeats: int, n_pairs: int = 6400, reps: int = 1000) -
 
 
 def model_divisions(n: int) -> int:
-    """Divisions per LDLᵀ (ldl.ldl_flops: the n inverse scales 1/d_i and the n inverse pivots
-    1/D_j; every other quotient is a product by one of them)."""
-    return 2 * n
+    """Divisions per LDLᵀ (ldl.ldl_flops: the n inverse pivots 1/D_j; every other quotient is a
+    product by one of them)."""
+    return n
 
 
 def main() -> None:

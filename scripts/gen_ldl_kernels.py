@@ -11,7 +11,9 @@ which LLVM vectorises across pairs with the intermediate values in registers.
 Every statement is one of :func:`~ris_planner.inversion._crb_jit.ldl_chunk` (and so of
 :mod:`ris_planner.inversion.ldl`), in the same order, with the same operands: IEEE-754 rounds each
 +, −, ×, ÷, √ exactly and nothing is fused (no ``fastmath``), so the results are the same bits
-(tested: ``tests/test_ldl.py``).
+(tested: ``tests/test_ldl.py``). One step is left out: a singular pair's pivot is not replaced
+by 1 before its division (its diagonal is ``inf`` and its trace undefined whatever the pivot),
+which keeps that selection off the chain of divisions.
 
     python scripts/gen_ldl_kernels.py          # rewrite the generated block
     python scripts/gen_ldl_kernels.py --check  # exit 1 if the file differs from the generator
@@ -62,34 +64,27 @@ def kernel_source(n: int, summed: bool = False) -> str:
 
     loaded: set[int] = set()
     emit("bad = 0.0")
-    for i in range(n):
-        emit(f"v = {entry(_tri(i, i), True)}")
-        emit(f"f{i} = v")
-        emit("s = math.sqrt(v if not v < 0.0 else 0.0)")
-        emit("zero = s <= 0.0")
-        emit("bad = 1.0 if zero else bad")
-        emit(f"d{i} = 1.0 / (1.0 if zero else s)")
-    for i in range(n):
-        for j in range(i + 1):
-            emit(f"a{i}_{j} = {entry(_tri(i, j), i == j)} * (d{i} * d{j})")
-    # left-looking LDLᵀ: ld_k = L_jk D_k, pivot D_j, column j of L
+    # left-looking LDLᵀ keeping U_ij = L_ij D_j: pivot D_j = F_jj − Σ_k U_jk² / D_k (the
+    # chain from one division to the next is a product and a subtraction), row j of L, then
+    # U_ij = F_ij − Σ_k U_ik L_jk below the pivot. A singular pair's pivot is not replaced
+    # (its outputs are inf and undefined anyway), which keeps the selection off the chain
     for j in range(n):
+        emit(f"f{j} = {entry(_tri(j, j), True)}")
+        emit(f"bad = bad if f{j} > 0.0 else 1.0")
+        emit(f"pj = f{j}")
         for k in range(j):
-            emit(f"ld{k} = l{j}_{k} * p{k}")
-        emit(f"pj = a{j}_{j}")
+            emit(f"pj = pj - (u{j}_{k} * u{j}_{k}) * r{k}")
+        emit(f"bad = bad if pj > f{j} * {_RCOND} else 1.0")
+        emit(f"r{j} = 1.0 / pj")
         for k in range(j):
-            emit(f"pj = pj - l{j}_{k} * ld{k}")
-        emit(f"ok = pj > {_RCOND}")
-        emit("bad = bad if ok else 1.0")
-        emit(f"p{j} = pj if ok else 1.0")
-        emit(f"r{j} = 1.0 / p{j}")
+            emit(f"l{j}_{k} = u{j}_{k} * r{k}")
         for i in range(j + 1, n):
-            emit(f"lij = a{i}_{j}")
+            emit(f"uij = {entry(_tri(i, j), False)}")
             for k in range(j):
-                emit(f"lij = lij - l{i}_{k} * ld{k}")
-            emit(f"l{i}_{j} = lij * r{j}")
-    # column j of M = L⁻¹ (forward substitution), then diag_j = (1/D_j + Σ_{k>j} M_kj² / D_k)
-    # · (1/d_j)² and its term of trace = Σ_j diag_j F_jj, column after column: each value is
+                emit(f"uij = uij - u{i}_{k} * l{j}_{k}")
+            emit(f"u{i}_{j} = uij")
+    # column j of M = L⁻¹ (forward substitution), then diag_j = 1/D_j + Σ_{k>j} M_kj² / D_k
+    # and its term of trace = Σ_j diag_j F_jj, column after column: each value is
     # the same operations in the same order as in ldl_chunk (so the same bits), but a column of
     # M is dead once its diagonal entry is out (fewer values in flight: 4–5 % faster, measured)
     emit("sing = bad != 0.0")
@@ -101,7 +96,6 @@ def kernel_source(n: int, summed: bool = False) -> str:
         emit(f"g{j} = r{j}")
         for k in range(j + 1, n):
             emit(f"g{j} = g{j} + (m{k}_{j} * m{k}_{j}) * r{k}")
-        emit(f"g{j} = g{j} * (d{j} * d{j})")
         emit("tr = g0 * f0" if j == 0 else f"tr = tr + g{j} * f{j}")
         emit(f"diag[{_row(j)}q] = math.inf if sing else g{j}")
     emit("trace[q] = tr")

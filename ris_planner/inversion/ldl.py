@@ -3,11 +3,24 @@ engine (bounds, power allocation and layout scoring all go through it).
 
 Matrices are stored packed and batch-last: one contiguous vector over the batch per
 lower-triangle entry (row-major, i ≥ j), so every step of the factorisation is one vector
-operation over all pairs (or all layout-pair combinations), and buffers are reused. Each matrix
-is first scaled symmetrically to unit diagonal, F = diag(d) L diag(D) Lᵀ diag(d), and declared
-singular (a blind spot) when a pivot D_j ≤ :data:`SINGULAR_RCOND`.
+operation over all pairs (or all layout-pair combinations), and buffers are reused.
 
-diag(F⁻¹)_i = Σ_{k≥i} (L⁻¹)_{ki}² / (D_k d_i²) needs only the columns ≥ i of L⁻¹, so
+The factorisation F = L D Lᵀ is left-looking and keeps the products U_ij = L_ij D_j of the
+entries below the diagonal: column j is U_ij = F_ij − Σ_{k<j} U_ik L_jk (i > j), with the pivot
+D_j = F_jj − Σ_{k<j} U_jk² / D_k and row j of L, L_jk = U_jk / D_k, formed as soon as 1/D_k is
+known. A pivot thus waits for one product and one subtraction after the previous division; that
+chain is what bounds the compiled kernels (docs/concepts/scoring.md, "The pivot chain").
+
+No equilibration is applied: scaling F symmetrically by powers of two would change no rounding
+at all (every intermediate is scaled exactly), and a scaling by √F_ii only reorders roundings of
+the same size (the accuracy tests against mpmath hold either way). Only magnitudes beyond
+~1e150, far from any information in 1/m², could overflow U_jk²; a pivot that overflows is NaN
+or −∞ and is declared singular (the square-root route then decides). A matrix is singular (a
+blind spot) when a diagonal entry is not positive or a pivot D_j ≤ :data:`SINGULAR_RCOND` ·
+F_jj: the pivot of F scaled to unit diagonal is D_j / F_jj, so this is "a pivot of the
+unit-diagonal matrix below 1e-12".
+
+diag(F⁻¹)_i = Σ_{k≥i} (L⁻¹)_{ki}² / D_k needs only the columns ≥ i of L⁻¹, so
 :func:`inverse_diagonal_from` forms just the columns the wanted entries need; layout scoring
 asks for the p_R (or p_T) block only. Because the core and the planner call the same code, a
 cached layout score equals ``compute_bounds`` bit for bit even for near-blind pairs (scaled
@@ -16,7 +29,6 @@ condition numbers up to ~1e11, where another rounding order moves a bound by ~1e
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from functools import cache
 from types import MappingProxyType
@@ -28,10 +40,11 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 SINGULAR_RCOND = 1e-12
-"""A Fisher matrix is singular when, after symmetric scaling to unit diagonal, a pivot of its
-LDLᵀ factorisation falls below this value. Every pivot is ≥ λ_min of the scaled matrix, so a
-pivot this small means cond ≥ 1e12: the inverse would be dominated by rounding (float64
-ε ≈ 2.2e-16 times a 7×7 accumulation leaves ≥ 3 orders of margin)."""
+"""A Fisher matrix is singular when a pivot of its LDLᵀ factorisation is ≤ this fraction of
+its diagonal entry, D_j ≤ 1e-12 · F_jj: D_j / F_jj is the pivot of the matrix scaled to unit
+diagonal, and every such pivot is ≥ λ_min of the scaled matrix, so a pivot this small means
+cond ≥ 1e12: the inverse would be dominated by rounding (float64 ε ≈ 2.2e-16 times a 7×7
+accumulation leaves ≥ 3 orders of margin)."""
 
 
 def packed_index(n: int) -> dict[tuple[int, int], int]:
@@ -82,53 +95,46 @@ class _Factor(NamedTuple):
 
     low: FloatArray  # [n(n+1)/2, N]: L_ij in the packed slot of (i, j), i > j
     inv_piv: FloatArray  # [n, N]: 1 / D_j (pivots of singular matrices replaced by 1)
-    inv_scale: FloatArray  # [n, N]: 1 / d_i (zero scales replaced by 1)
     singular: NDArray[np.bool_]  # [N]
     m: FloatArray  # [n(n+1)/2, N] workspace for the columns of L⁻¹
     tmp: FloatArray  # [N] scratch
 
 
 def _factor(f: FloatArray, n: int) -> _Factor:
-    """Scaled LDLᵀ of packed symmetric matrices f [n(n+1)/2, N] (left-looking)."""
+    """LDLᵀ of packed symmetric matrices f [n(n+1)/2, N] (left-looking, the products
+    U_ij = L_ij D_j kept: see the module docstring)."""
     idx = packed_slots(n)
     size = f.shape[1]
     n_tri = n * (n + 1) // 2
-    # one workspace: scaled entries (later L⁻¹), L, pivots and their inverses, L·D products,
-    # inverse scales, scratch
-    work = np.empty((2 * n_tri + 4 * n + 2, size))
-    a, low = work[:n_tri], work[n_tri : 2 * n_tri]
-    piv, inv_piv, ld, inv_d = (work[2 * n_tri + k * n : 2 * n_tri + (k + 1) * n] for k in range(4))
+    # one workspace: U = L·D (later L⁻¹), L, pivots and their inverses, scratch
+    work = np.empty((2 * n_tri + 2 * n + 2, size))
+    u, low = work[:n_tri], work[n_tri : 2 * n_tri]
+    piv, inv_piv = work[2 * n_tri : 2 * n_tri + n], work[2 * n_tri + n : 2 * n_tri + 2 * n]
     tmp, pj = work[-2], work[-1]
-    d = np.stack([f[idx[j, j]] for j in range(n)])
-    np.clip(d, 0.0, None, out=d)
-    np.sqrt(d, out=d)
-    singular = np.any(d <= 0.0, axis=0)
-    d[d <= 0.0] = 1.0
-    np.divide(1.0, d, out=inv_d)
-    for i in range(n):
-        for j in range(i + 1):
-            np.multiply(inv_d[i], inv_d[j], out=tmp)
-            np.multiply(f[idx[i, j]], tmp, out=a[idx[i, j]])
+    singular = np.zeros(size, dtype=bool)
     for j in range(n):
+        fjj = f[idx[j, j]]
+        singular |= ~(fjj > 0.0)
+        np.copyto(pj, fjj)
         for k in range(j):
-            np.multiply(low[idx[j, k]], piv[k], out=ld[k])
-        np.copyto(pj, a[idx[j, j]])
-        for k in range(j):
-            np.multiply(low[idx[j, k]], ld[k], out=tmp)
+            np.square(u[idx[j, k]], out=tmp)
+            tmp *= inv_piv[k]
             pj -= tmp
-        bad = ~(pj > SINGULAR_RCOND)
+        np.multiply(fjj, SINGULAR_RCOND, out=tmp)
+        bad = ~(pj > tmp)
         singular |= bad
         np.copyto(piv[j], pj)
         piv[j][bad] = 1.0
         np.divide(1.0, piv[j], out=inv_piv[j])
+        for k in range(j):
+            np.multiply(u[idx[j, k]], inv_piv[k], out=low[idx[j, k]])
         for i in range(j + 1, n):
-            lij = low[idx[i, j]]
-            np.copyto(lij, a[idx[i, j]])
+            uij = u[idx[i, j]]
+            np.copyto(uij, f[idx[i, j]])
             for k in range(j):
-                np.multiply(low[idx[i, k]], ld[k], out=tmp)
-                lij -= tmp
-            lij *= inv_piv[j]
-    return _Factor(low, inv_piv, inv_d, singular, a, tmp)
+                np.multiply(u[idx[i, k]], low[idx[j, k]], out=tmp)
+                uij -= tmp
+    return _Factor(low, inv_piv, singular, u, tmp)
 
 
 def _inverse_low_columns(fac: _Factor, n: int, first: int) -> None:
@@ -165,7 +171,6 @@ class _ScalarFactor(NamedTuple):
 
     m: list[float]
     inv_piv: list[float]
-    inv_scale: list[float]
     singular: bool
 
 
@@ -174,40 +179,36 @@ def _scalar_factor(f: list[float], n: int, first: int) -> _ScalarFactor:
     operation in the same order. Raises ZeroDivisionError where numpy would divide by 0 (no
     divisor here can be 0: kept for the contract of the float route)."""
     idx = packed_slots(n)
-    d = [math.sqrt(max(f[idx[j, j]], 0.0)) for j in range(n)]
-    singular = any(v <= 0.0 for v in d)
-    inv_d = [1.0 / (1.0 if v <= 0.0 else v) for v in d]
-    a = [0.0] * len(f)
-    for i in range(n):
-        for j in range(i + 1):
-            a[idx[i, j]] = f[idx[i, j]] * (inv_d[i] * inv_d[j])
+    singular = False
+    u = [0.0] * len(f)
     low = [0.0] * len(f)
     piv = [0.0] * n
     inv_piv = [0.0] * n
-    ld = [0.0] * n
     for j in range(n):
+        fjj = f[idx[j, j]]
+        singular = singular or not fjj > 0.0
+        pj = fjj
         for k in range(j):
-            ld[k] = low[idx[j, k]] * piv[k]
-        pj = a[idx[j, j]]
-        for k in range(j):
-            pj -= low[idx[j, k]] * ld[k]
-        bad = not pj > SINGULAR_RCOND
+            pj -= (u[idx[j, k]] * u[idx[j, k]]) * inv_piv[k]
+        bad = not pj > fjj * SINGULAR_RCOND
         singular = singular or bad
         piv[j] = 1.0 if bad else pj
         inv_piv[j] = 1.0 / piv[j]
+        for k in range(j):
+            low[idx[j, k]] = u[idx[j, k]] * inv_piv[k]
         for i in range(j + 1, n):
-            lij = a[idx[i, j]]
+            uij = f[idx[i, j]]
             for k in range(j):
-                lij -= low[idx[i, k]] * ld[k]
-            low[idx[i, j]] = lij * inv_piv[j]
-    m = a  # the scaled entries' storage holds L⁻¹ from here on, as in _factor
+                uij -= u[idx[i, k]] * low[idx[j, k]]
+            u[idx[i, j]] = uij
+    m = u  # U's storage holds L⁻¹ from here on, as in _factor
     for i in range(first, n):
         for j in range(first, i):
             acc = -low[idx[i, j]]
             for k in range(j + 1, i):
                 acc -= low[idx[i, k]] * m[idx[k, j]]
             m[idx[i, j]] = acc
-    return _ScalarFactor(m, inv_piv, inv_d, singular)
+    return _ScalarFactor(m, inv_piv, singular)
 
 
 def _scalar_inverse_diagonal(
@@ -223,7 +224,7 @@ def _scalar_inverse_diagonal(
             acc = inv_piv[i]
             for k in range(i + 1, n):
                 acc += (m[idx[k, i]] * m[idx[k, i]]) * inv_piv[k]
-            out[i - first, b] = acc * (fac.inv_scale[i] * fac.inv_scale[i])
+            out[i - first, b] = acc
         singular[b] = fac.singular
     out[:, singular] = np.inf
     return out, singular
@@ -235,7 +236,7 @@ def _scalar_inverse(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_
     singular = np.zeros(f.shape[1], dtype=bool)
     for b, col in enumerate(f.T.tolist()):
         fac = _scalar_factor(col, n, 0)
-        m, inv_piv, inv_scale = fac.m, fac.inv_piv, fac.inv_scale
+        m, inv_piv = fac.m, fac.inv_piv
         for i in range(n):
             for j in range(i + 1):
                 acc = 0.0
@@ -243,7 +244,7 @@ def _scalar_inverse(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_
                     mki = 1.0 if k == i else m[idx[k, i]]
                     mkj = 1.0 if k == j else m[idx[k, j]]
                     acc += (mki * mkj) * inv_piv[k]
-                out[idx[i, j], b] = acc * (inv_scale[i] * inv_scale[j])
+                out[idx[i, j], b] = acc
         singular[b] = fac.singular
     out[:, singular] = np.inf
     return out, singular
@@ -274,8 +275,6 @@ def inverse_diagonal_from(
             np.square(m[idx[k, i]], out=tmp)
             tmp *= inv_piv[k]
             acc += tmp
-        np.square(fac.inv_scale[i], out=tmp)
-        acc *= tmp
     out[:, fac.singular] = np.inf
     return out, fac.singular
 
@@ -283,7 +282,7 @@ def inverse_diagonal_from(
 def inverse_from(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_]]:
     """F⁻¹ of packed symmetric matrices, packed the same way; ``inf`` where singular.
 
-    f : [n(n+1)/2, N]. (F⁻¹)_ij = Σ_{k ≥ max(i,j)} M_ki M_kj / (D_k d_i d_j) with M = L⁻¹.
+    f : [n(n+1)/2, N]. (F⁻¹)_ij = Σ_{k ≥ max(i,j)} M_ki M_kj / D_k with M = L⁻¹.
     Small batches run on floats (:data:`SCALAR_MAX_BATCH`), with the same bits.
     """
     if _scalar_route(f):
@@ -308,34 +307,28 @@ def inverse_from(f: FloatArray, n: int) -> tuple[FloatArray, NDArray[np.bool_]]:
                 np.multiply(m_entry(k, i), m_entry(k, j), out=tmp)
                 tmp *= inv_piv[k]
                 acc += tmp
-            np.multiply(fac.inv_scale[i], fac.inv_scale[j], out=tmp)
-            acc *= tmp
     out[:, fac.singular] = np.inf
     return out, fac.singular
 
 
 def ldl_flops(n: int) -> dict[str, int]:
-    """Floating-point operations of one n × n matrix through the scaled LDLᵀ and the inverse's
+    """Floating-point operations of one n × n matrix through the LDLᵀ and the inverse's
     diagonal and trace as :func:`inverse_diagonal_from` (``first=0``) and the compiled kernels
     (:mod:`ris_planner.inversion._crb_jit`) perform them, step by step: every +, −, ×, ÷ and √
-    counts
-    one; comparisons, selections and sign flips (−L_ij) count none. With E = n(n+1)/2:
+    counts one; comparisons, selections and sign flips (−L_ij) count none. Per column j:
 
-    * ``scale`` – d_i = √F_ii, e_i = 1/d_i, F_ij · (e_i e_j): 2n + 2E;
-    * ``factor`` – the left-looking LDLᵀ: per column j, j products L_jk D_k, 2j for the pivot
-      and (2j + 1) for each of the n − 1 − j entries below it (the last a product by 1/D_j):
-      Σ_j [3j + (n−1−j)(2j+1)];
+    * ``factor`` – the pivot, 3j + 1 (each U_jk² / D_k as a square, a product by 1/D_k and a
+      subtraction; the threshold SINGULAR_RCOND · F_jj), row j of L, j products U_jk · (1/D_k),
+      and 2j for each of the n − 1 − j entries U_ij below the pivot: Σ_j [4j + 1 + 2j(n−1−j)];
     * ``inverse`` – 1/D_j and the columns of L⁻¹ by forward substitution: n + Σ_{i>j} 2(i−j−1);
-    * ``diagonal`` – (1/D_i + Σ_{k>i} M_ki²/D_k) · e_i²: 3·n(n−1)/2 + 2n;
+    * ``diagonal`` – 1/D_i + Σ_{k>i} M_ki² / D_k (a square, a product, an addition): 3·n(n−1)/2;
     * ``trace`` – Σ_i diag_i F_ii: 2n − 1.
 
-    n = 7: 70 + 154 + 77 + 77 + 13 = 391, of them 14 divisions (1/d_i and 1/D_j: every other
-    quotient is a product by one of them) and 7 square roots."""
-    e_n = n * (n + 1) // 2
+    n = 7: 161 + 77 + 63 + 13 = 314, of them 7 divisions (1/D_j: every other quotient is a
+    product by one of them) and no square root."""
     return {
-        "scale": 2 * n + 2 * e_n,
-        "factor": sum(3 * j + (n - 1 - j) * (2 * j + 1) for j in range(n)),
+        "factor": sum(4 * j + 1 + 2 * j * (n - 1 - j) for j in range(n)),
         "inverse": n + sum(2 * (i - j - 1) for i in range(n) for j in range(i)),
-        "diagonal": 3 * n * (n - 1) // 2 + 2 * n,
+        "diagonal": 3 * n * (n - 1) // 2,
         "trace": 2 * n - 1,
     }
