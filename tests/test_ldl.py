@@ -209,10 +209,11 @@ def test_summed_kernel_is_bit_identical_to_factoring_the_stored_sum(
     rng: np.random.Generator, block_dtype: type
 ) -> None:
     """``factor_summed_7`` (the scorer's last site summed inside the factorisation, in calls of
-    ``PREFETCH_PAIRS`` pairs framed by prefetches of the next block) gives the bits of
+    ``PREFETCH_PAIRS`` pairs framed by prefetches of the next blocks) gives the bits of
     ``a = base + block`` stored and factored by ``factor_chunk``: on every kind of input
     (singular, negative and NaN diagonals included), with a float32 block (widened exactly), a
-    partly filled last chunk (t not a multiple of PREFETCH_PAIRS), and any next block."""
+    partly filled last chunk (t not a multiple of PREFETCH_PAIRS), and any blocks ahead (none,
+    one or two)."""
     from ris_planner.inversion import _crb_jit as jit
 
     c = jit.CHUNK
@@ -228,9 +229,10 @@ def test_summed_kernel_is_bit_identical_to_factoring_the_stored_sum(
         t = end - p0
         base, block = np.zeros((28, c)), np.zeros((28, c), dtype=block_dtype)
         base[:, :t], block[:, :t] = base_all[:, p0:end], block_all[:, p0:end]
-        nxt = block[:, ::-1].copy() if p0 else block  # any block: only prefetched
+        ahead = np.stack([block, block[:, ::-1]])  # any blocks: only prefetched
+        sites = np.arange(min(p0 // c, 2), dtype=np.int64)  # none, one, both
         got = np.empty((7, c)), np.empty(c), np.empty(c, bool)
-        jit.factor_summed_7(base, block, nxt, t, *got)
+        jit.factor_summed_7(base, block, ahead, sites, t, *got)
         want = np.empty((7, c)), np.empty(c), np.empty(c, bool)
         jit.factor_chunk(base + block, 7, t, work, *want)
         np.testing.assert_array_equal(got[2][:t], want[2][:t])
