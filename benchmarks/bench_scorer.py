@@ -33,6 +33,7 @@ Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` t
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -410,7 +411,10 @@ def main() -> None:
     ap.add_argument("--layouts", type=int, default=300)
     ap.add_argument("--repeats", type=int, default=7, help="flops: best of this many")
     ap.add_argument(
-        "--flops-layouts", type=int, default=24, help="flops: layouts per run (~50 ms each)"
+        "--flops-layouts",
+        type=int,
+        default=24,
+        help=f"flops: layouts per run, ≤ C({NEAR_SITES}, 2) (24: ~50 ms each)",
     )
     args = ap.parse_args()
     if "hall" in args.sections:
@@ -420,6 +424,9 @@ def main() -> None:
     if "junction" in args.sections:
         junction(args.layouts)
     if "flops" in args.sections:
+        most = math.comb(NEAR_SITES, 2)  # the smallest search run: every L = 2 layout
+        if not 1 <= args.flops_layouts <= most:
+            ap.error(f"--flops-layouts must be 1 … {most} (the L = 2 search run's layouts)")
         flops(args.flops_layouts, args.repeats)
 
 

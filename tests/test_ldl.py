@@ -416,6 +416,19 @@ def test_bench_scorer_flops_smoke(capsys: pytest.CaptureFixture[str]) -> None:
     assert "of the peak" in capsys.readouterr().out
 
 
+def test_bench_scorer_refuses_more_layouts_than_the_search_run_has() -> None:
+    """--flops-layouts above C(24, 2) would leave rows of the L = 2 search run unscored (and
+    miscounted): refused before any work, with the limit in the message."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_scorer.py"
+    cmd = [sys.executable, str(script), "--sections", "flops", "--flops-layouts", "277"]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    assert res.returncode == 2 and "1 … 276" in res.stderr, res.stderr
+
+
 def test_bench_scorer_counts_the_blocks_the_kernel_adds() -> None:
     """The benchmark's FLOP count of a batch follows the kernel's partial sums: a layout adds
     the site blocks after the prefix it shares with the layout before (a chunk's first layout
