@@ -18,7 +18,9 @@ the same size (the accuracy tests against mpmath hold either way). Only magnitud
 or −∞ and is declared singular (the square-root route then decides). A matrix is singular (a
 blind spot) when a diagonal entry is not positive or a pivot D_j ≤ :data:`SINGULAR_RCOND` ·
 F_jj: the pivot of F scaled to unit diagonal is D_j / F_jj, so this is "a pivot of the
-unit-diagonal matrix below 1e-12".
+unit-diagonal matrix below 1e-12". A kept pivot is positive: while the earlier ones are,
+D_j ≤ F_jj, so D_j > 1e-12 · F_jj needs F_jj > 0 (the explicit test of the diagonal states the
+rule; it never decides alone).
 
 diag(F⁻¹)_i = Σ_{k≥i} (L⁻¹)_{ki}² / D_k needs only the columns ≥ i of L⁻¹, so
 :func:`inverse_diagonal_from` forms just the columns the wanted entries need; layout scoring
