@@ -53,23 +53,21 @@ def kernel_source(n: int, summed: bool = False) -> str:
     body: list[str] = []
     emit = body.append
 
-    def entry(e: int, diagonal: bool) -> str:
-        """Packed entry e as an operand (summed: its sum, emitted at its first use)."""
+    def entry(e: int) -> str:
+        """Packed entry e as an operand (summed: its sum, emitted here; every entry is read
+        once)."""
         if not summed:
             return f"a[{_row(e)}q]"
-        if not diagonal or e not in loaded:
-            emit(f"x{e} = base[{_row(e)}q] + block[{_row(e)}q]")
-            loaded.add(e)
+        emit(f"x{e} = base[{_row(e)}q] + block[{_row(e)}q]")
         return f"x{e}"
 
-    loaded: set[int] = set()
     emit("bad = 0.0")
     # left-looking LDLᵀ keeping U_ij = L_ij D_j: pivot D_j = F_jj − Σ_k U_jk² / D_k (the
     # chain from one division to the next is a product and a subtraction), row j of L, then
     # U_ij = F_ij − Σ_k U_ik L_jk below the pivot. A singular pair's pivot is not replaced
     # (its outputs are inf and undefined anyway), which keeps the selection off the chain
     for j in range(n):
-        emit(f"f{j} = {entry(_tri(j, j), True)}")
+        emit(f"f{j} = {entry(_tri(j, j))}")
         emit(f"bad = bad if f{j} > 0.0 else 1.0")
         emit(f"pj = f{j}")
         for k in range(j):
@@ -79,7 +77,7 @@ def kernel_source(n: int, summed: bool = False) -> str:
         for k in range(j):
             emit(f"l{j}_{k} = u{j}_{k} * r{k}")
         for i in range(j + 1, n):
-            emit(f"uij = {entry(_tri(i, j), False)}")
+            emit(f"uij = {entry(_tri(i, j))}")
             for k in range(j):
                 emit(f"uij = uij - u{i}_{k} * l{j}_{k}")
             emit(f"u{i}_{j} = uij")

@@ -1383,6 +1383,16 @@ def score_layouts(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _shared_prefix(kept: IntArray, row: IntArray, limit: int) -> int:
+    """How many leading sites (≤ limit) the layout ``row`` shares with the sites ``kept`` of
+    the partial sums held: the columns whose sums it can reuse."""
+    same = 0
+    while same < limit and kept[same] == row[same]:
+        same += 1
+    return same
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _score_chunk(
     blocks: FloatArray,
     src: IntArray,
@@ -1494,9 +1504,7 @@ def _score_chunk(
         # in pre (per chunk) and reused by the next layouts that start with the same sites
         # (lexicographic batches: exhaustive, a greedy step, swaps); the same additions in
         # the same order, so the same bits
-        same = 0
-        while same < min(pre_sites[n_l], n_l - 1) and pre_sites[same] == layouts[b, same]:
-            same += 1
+        same = _shared_prefix(pre_sites, layouts[b], min(pre_sites[n_l], n_l - 1))
         for col in range(same, n_l - 1 if fused else n_l):
             s = layouts[b, col]
             dst = a if col == n_l - 1 else pre[col]
@@ -1525,14 +1533,9 @@ def _score_chunk(
             prefetch_write(route[b], p0)
             # the next layout's blocks: the columns it does not share with this one's partial
             # sums (lexicographic batches: only the last) are fetched while this one factors
-            same_next = 0
-            while (
-                b + 1 < n_b
-                and same_next < n_l - 1
-                and layouts[b + 1, same_next] == layouts[b, same_next]
-            ):
-                same_next += 1
-            ahead = layouts[b + 1, same_next:] if b + 1 < n_b else layouts[b, n_l:]
+            ahead = layouts[b, n_l:]  # none after the last layout
+            if b + 1 < n_b:
+                ahead = layouts[b + 1, _shared_prefix(pre_sites, layouts[b + 1], n_l - 1) :]
             factor_summed_7(
                 pre[n_l - 2] if n_l > 1 else los[c], blocks[c, layouts[b, n_l - 1]],
                 blocks[c], ahead, t, diag, trace, singular,

@@ -108,10 +108,10 @@ def _factor(f: FloatArray, n: int) -> _Factor:
     idx = packed_slots(n)
     size = f.shape[1]
     n_tri = n * (n + 1) // 2
-    # one workspace: U = L·D (later L⁻¹), L, pivots and their inverses, scratch
-    work = np.empty((2 * n_tri + 2 * n + 2, size))
+    # one workspace: U = L·D (later L⁻¹), L, inverse pivots, scratch
+    work = np.empty((2 * n_tri + n + 2, size))
     u, low = work[:n_tri], work[n_tri : 2 * n_tri]
-    piv, inv_piv = work[2 * n_tri : 2 * n_tri + n], work[2 * n_tri + n : 2 * n_tri + 2 * n]
+    inv_piv = work[2 * n_tri : 2 * n_tri + n]
     tmp, pj = work[-2], work[-1]
     singular = np.zeros(size, dtype=bool)
     for j in range(n):
@@ -125,9 +125,8 @@ def _factor(f: FloatArray, n: int) -> _Factor:
         np.multiply(fjj, SINGULAR_RCOND, out=tmp)
         bad = ~(pj > tmp)
         singular |= bad
-        np.copyto(piv[j], pj)
-        piv[j][bad] = 1.0
-        np.divide(1.0, piv[j], out=inv_piv[j])
+        pj[bad] = 1.0
+        np.divide(1.0, pj, out=inv_piv[j])
         for k in range(j):
             np.multiply(u[idx[j, k]], inv_piv[k], out=low[idx[j, k]])
         for i in range(j + 1, n):
@@ -184,7 +183,6 @@ def _scalar_factor(f: list[float], n: int, first: int) -> _ScalarFactor:
     singular = False
     u = [0.0] * len(f)
     low = [0.0] * len(f)
-    piv = [0.0] * n
     inv_piv = [0.0] * n
     for j in range(n):
         fjj = f[idx[j, j]]
@@ -194,8 +192,7 @@ def _scalar_factor(f: list[float], n: int, first: int) -> _ScalarFactor:
             pj -= (u[idx[j, k]] * u[idx[j, k]]) * inv_piv[k]
         bad = not pj > fjj * SINGULAR_RCOND
         singular = singular or bad
-        piv[j] = 1.0 if bad else pj
-        inv_piv[j] = 1.0 / piv[j]
+        inv_piv[j] = 1.0 / (1.0 if bad else pj)
         for k in range(j):
             low[idx[j, k]] = u[idx[j, k]] * inv_piv[k]
         for i in range(j + 1, n):
