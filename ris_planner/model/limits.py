@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
-from typing import Any, Literal, NamedTuple
+from typing import Any, Generic, Literal, NamedTuple, TypeVar
 
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.environment.kinds.prism import MAX_FOOTPRINT_VERTICES
@@ -206,6 +206,145 @@ def budget_mb(memory_mb: int | None) -> int:
     return job_memory_mb() if memory_mb is None else memory_mb
 
 
+S = TypeVar("S")
+"""The shape of a memory estimate: the quantities its terms grow with (a plan's
+:class:`~ris_planner.planning.resources.PlanShape`, a power allocation's
+:class:`~ris_planner.power.resources.PowerShape`)."""
+
+
+def _count_text(shape: object, value: int) -> str:
+    return grouped(value)
+
+
+@dataclass(frozen=True)
+class Knob(Generic[S]):
+    """A quantity of a shape that lowers a memory term (the estimate grows with it).
+    ``span(shape)`` is its smallest value and its value now (nothing to lower when now ≤
+    smallest), ``make(shape, v)`` the shape with the value ``v``; ``fits`` says the largest value
+    that fits, ``{}`` standing for ``show(shape, v)``."""
+
+    fits: str
+    span: Callable[[S], tuple[int, int]]
+    make: Callable[[S, int], S]
+    show: Callable[[S, int], str] = _count_text
+
+
+@dataclass(frozen=True)
+class MemoryTerm(Generic[S]):
+    """One term of a memory estimate, with everything its refusal says about it: its bytes for
+    a shape, ``what`` it holds (a phrase that contains the term's name, with the shape's
+    quantities), the knobs that lower it (tried in order, :func:`advise_memory`) and
+    ``otherwise``: the settings to change when no value of a knob fits. ``fixed``: a term no
+    document lowers (the interpreter), named only when it alone is above the budget.
+
+    An estimate is a table of these keyed by term name (a plan's ``PLAN_MEMORY_TERMS``, a power
+    allocation's ``POWER_MEMORY_TERMS``) and is their sum, so a term cannot be counted without
+    its description."""
+
+    bytes: Callable[[S], int]
+    what: Callable[[S], str]
+    otherwise: str
+    knobs: tuple[Knob[S], ...] = ()
+    fixed: bool = False
+
+
+def memory_terms(terms: Mapping[str, MemoryTerm[S]], shape: S) -> dict[str, int]:
+    """Each term's bytes for ``shape``; the estimate is their sum."""
+    return {name: term.bytes(shape) for name, term in terms.items()}
+
+
+def _mib(n_bytes: int) -> str:
+    return grouped(math.ceil(n_bytes / (1 << 20)))
+
+
+def largest_fitting(
+    terms: Mapping[str, MemoryTerm[S]], knob: Knob[S], shape: S, budget_bytes: int
+) -> int | None:
+    """The largest value of ``knob`` (between its smallest and its value now) whose shape's
+    estimate fits ``budget_bytes``, by bisection on the estimate (which grows with the value);
+    None when the knob cannot be lowered or not even its smallest value fits."""
+
+    def fits(value: int) -> bool:
+        return sum(memory_terms(terms, knob.make(shape, value)).values()) <= budget_bytes
+
+    low, now = knob.span(shape)
+    if now <= low or not fits(low):
+        return None
+    if fits(now):
+        return now
+    lo, hi = low, now  # fits(lo), not fits(hi)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if fits(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@dataclass(frozen=True)
+class MemoryAdvice(Generic[S]):
+    """What a memory refusal says (:func:`advise_memory`): the term it names, the knob and the
+    largest value of it that fits (None: none fits), and the text."""
+
+    term: str
+    knob: Knob[S] | None
+    value: int | None
+    text: str
+
+
+def advise_memory(
+    terms: Mapping[str, MemoryTerm[S]], shape: S, budget_bytes: int
+) -> MemoryAdvice[S]:
+    """Why ``shape``'s estimate is above ``budget_bytes`` and what fits: the largest term that
+    a document can lower (or a ``fixed`` term that alone is at or above the budget) with its
+    bytes, then the first of its knobs that has a value that fits – "dominated by the site
+    cache (52 sites × 20 000 pairs): 392 MiB; the largest pair count that fits is 10 509" – or,
+    when none has, that nothing fits by lowering it alone, the other terms' bytes, the term's
+    settings and, when the other terms alone are above the budget, the largest of them with
+    its settings (docs/validation/resources.md)."""
+    sizes = memory_terms(terms, shape)
+    fixed = [name for name, term in terms.items() if term.fixed]
+    work = {name: b for name, b in sizes.items() if not terms[name].fixed}
+    if fixed and (not work or sum(sizes[n] for n in fixed) >= budget_bytes):
+        name = max(fixed, key=sizes.__getitem__)
+        term = terms[name]
+        return MemoryAdvice(
+            name,
+            None,
+            None,
+            f"dominated by {term.what(shape)}: {_mib(sizes[name])} MiB, at or above the budget"
+            f" by itself; {term.otherwise}",
+        )
+    name = max(work, key=work.__getitem__)
+    term = terms[name]
+    head = f"dominated by {term.what(shape)}: {_mib(sizes[name])} MiB"
+    for knob in term.knobs:
+        best = largest_fitting(terms, knob, shape, budget_bytes)
+        if best is not None:
+            return MemoryAdvice(
+                name, knob, best, f"{head}; {knob.fits.format(knob.show(shape, best))}"
+            )
+    rest = sum(sizes.values()) - sizes[name]
+    text = (
+        f"{head}; nothing fits by lowering it alone (the other terms need {_mib(rest)} MiB):"
+        f" {term.otherwise}"
+    )
+    others = {n: b for n, b in work.items() if n != name}
+    if rest >= budget_bytes and others:
+        nxt = max(others, key=others.__getitem__)
+        text += (
+            f"; the next largest is {terms[nxt].what(shape)}: {_mib(sizes[nxt])} MiB"
+            f" ({terms[nxt].otherwise})"
+        )
+    return MemoryAdvice(name, None, None, text)
+
+
+def explain_memory(terms: Mapping[str, MemoryTerm[S]], shape: S, budget_bytes: int) -> str:
+    """The text of :func:`advise_memory` (``check_sizes``'s ``explain``)."""
+    return advise_memory(terms, shape, budget_bytes).text
+
+
 def check_sizes(
     sizes: Sizes,
     *,
@@ -216,7 +355,7 @@ def check_sizes(
     """Raise :class:`LimitExceededError` naming the first quantity above its limit (the limit
     and how to get below it in the message), then the memory estimate against ``memory_mb``
     (None: no budget); ``explain(budget_bytes)`` says what drives the estimate and what fits
-    (:func:`explain_plan_memory`)."""
+    (:func:`explain_memory` on the estimate's table of terms)."""
     values = sizes.to_json()
     if max_pairs is not None and sizes.pairs > max_pairs:
         raise LimitExceededError(

@@ -10,16 +10,17 @@ service accepts is one the job can run.
 
 The per-item byte costs below are the arrays each stage holds at its peak (float64, with the
 temporaries of building them), rounded up; Python objects (sites, memo entries) are measured
-sizes on CPython 3.11. A plan's memory is the sum of :func:`plan_memory`'s terms; a refusal
-names the largest term and the largest value of its quantity that fits
-(:func:`explain_plan_memory`). ``benchmarks/bench_memory.py`` checks the estimate against the
-measured peak resident memory of real runs (docs/validation/resources.md).
+sizes on CPython 3.11. A plan's memory is the sum of :func:`plan_memory`'s terms, one table
+(:data:`PLAN_MEMORY_TERMS`) that holds each term's bytes with what a refusal says about it; a
+refusal names the largest term and the largest value of its quantity that fits, or that none
+does and which settings to change (:func:`explain_plan_memory`). ``benchmarks/bench_memory.py``
+checks the estimate against the measured peak resident memory of real runs
+(docs/validation/resources.md).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -27,14 +28,19 @@ from ris_planner.bounds.resources import check_bounds_size
 from ris_planner.core.errors import DocumentFieldError, LimitExceededError
 from ris_planner.model.limits import (
     BASE_BYTES,
+    JOB_MEMORY_ENV,
     MAX_SEARCH_LAYOUTS,
+    Knob,
+    MemoryTerm,
     RequestLimits,
     Sizes,
     budget_mb,
     cache_layout,
     check_sizes,
     csv_rows,
+    explain_memory,
     grouped,
+    memory_terms,
     rounded,
 )
 from ris_planner.model.plan import LayoutBeamsDocument, PlanDocument, Wall, map_points
@@ -201,30 +207,35 @@ class PlanShape:
         return heat_rx, min(self.tx_points, max(1, HEATMAP_MAX_PAIRS // max(heat_rx, 1)))
 
 
-def plan_memory(shape: PlanShape) -> dict[str, int]:
-    """Peak bytes of a plan run (plan, figures and GIS files in one process, as a service job
-    runs it), term by term; the estimate is their sum (docs/validation/resources.md).
+RANDOM_CODEBOOK_PAIRS = 2_000
+"""Pairs of the random-codebook re-evaluation (``planning.plan.RANDOM_CODEBOOK_MAX_PAIRS``)."""
 
-    Terms: ``base`` (interpreter and imports), ``maps``, ``pairs``, ``sites``, ``site cache``
-    (its :func:`cache_layout` and masks), ``cache build`` (one site's path information at a
-    time), ``search`` (memoised layouts), ``heatmap`` (the largest count's ``compute_bounds``
-    on the heatmap pairs, and the per-point results), ``elements`` (the per-element arrays:
-    random-codebook profiles, spherical point terms and chunks), ``checks`` (the codebook
-    checks, which may run beside the heatmap: :data:`BYTES_PER_CHECK_PAIR`,
-    :data:`BYTES_PER_CHECK_ELEMENT`)."""
-    w = shape.wavefront
-    spherical = w == "spherical"
-    n_el = shape.elements
-    heat_rx, heat_tx = shape.heatmap
-    heat_pairs = heat_rx * heat_tx
-    ris_in_layout = min(shape.max_count, max(shape.sites, 1))
-    entries = shape.sites * shape.pairs
+
+def _ris_in_layout(shape: PlanShape) -> int:
+    return min(shape.max_count, max(shape.sites, 1))
+
+
+def _site_cache_bytes(shape: PlanShape) -> int:
+    w, entries = shape.wavefront, shape.sites * shape.pairs
     try:
-        cache = cache_layout(entries, w).bytes(entries, w) + entries * BYTES_PER_CACHE_MASKS
+        return cache_layout(entries, w).bytes(entries, w) + entries * BYTES_PER_CACHE_MASKS
     except LimitExceededError:
-        cache = 0  # refused by its own budget (check_sizes)
+        return 0  # refused by its own budget (check_sizes)
+
+
+def _heatmap_bytes(shape: PlanShape) -> int:
+    heat_rx, heat_tx = shape.heatmap
+    per_pair = BYTES_PER_HEATMAP_PAIR[shape.wavefront]
+    per_pair += _ris_in_layout(shape) * BYTES_PER_HEATMAP_PAIR_RIS
+    per_point = BYTES_PER_HEATMAP_POINT + shape.counts * BYTES_PER_HEATMAP_POINT_COUNT
+    return heat_rx * heat_tx * per_pair + heat_rx * per_point
+
+
+def _element_bytes(shape: PlanShape) -> int:
+    n_el = shape.elements
     elements = shape.transmissions * n_el * BYTES_PER_PROFILE_ELEMENT
-    if spherical:
+    if shape.wavefront == "spherical":
+        heat_rx, heat_tx = shape.heatmap
         positions = shape.tx_points + shape.rx_points
         rc_pairs = min(shape.pairs, RANDOM_CODEBOOK_PAIRS)
         # the largest of: the heatmap's positions, the cache's, the codebook re-evaluation's
@@ -234,41 +245,176 @@ def plan_memory(shape: PlanShape) -> dict[str, int]:
         )
         elements += points * n_el * BYTES_PER_POINT_ELEMENT
         elements += min(rc_pairs * n_el, SPHERICAL_CHUNK_BYTES // 250) * 250
-    return {
-        "base": BASE_BYTES,
-        "maps": (shape.tx_points + shape.rx_points) * BYTES_PER_MAP_POINT
-        + shape.csv_rows * CSV_BYTES_PER_ROW_PARSED,
-        "pairs": shape.pairs * BYTES_PER_PAIR,
-        "sites": shape.sites * BYTES_PER_SITE,
-        "site cache": cache,
-        "cache build": shape.pairs * BYTES_PER_CACHE_BUILD_PAIR[w],
-        "search": min(shape.layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT,
-        "heatmap": heat_pairs
-        * (BYTES_PER_HEATMAP_PAIR[w] + ris_in_layout * BYTES_PER_HEATMAP_PAIR_RIS)
-        + heat_rx * (BYTES_PER_HEATMAP_POINT + shape.counts * BYTES_PER_HEATMAP_POINT_COUNT),
-        "elements": elements,
-        "checks": min(shape.pairs, RANDOM_CODEBOOK_PAIRS) * BYTES_PER_CHECK_PAIR
-        + n_el * BYTES_PER_CHECK_ELEMENT,
-    }
+    return elements
+
+
+def _check_bytes(shape: PlanShape) -> int:
+    pairs = min(shape.pairs, RANDOM_CODEBOOK_PAIRS)
+    return pairs * BYTES_PER_CHECK_PAIR + shape.elements * BYTES_PER_CHECK_ELEMENT
+
+
+def _side(shape: PlanShape, side: int) -> PlanShape:
+    """The shape with RISs whose longer side is ``side`` elements, the other one in the
+    document's proportion."""
+    r0, c0 = shape.ris_side
+    if r0 >= c0:
+        rows, cols = side, max(1, round(side * c0 / r0))
+    else:
+        rows, cols = max(1, round(side * r0 / c0)), side
+    return replace(shape, ris_side=(rows, cols), elements=rows * cols)
+
+
+# the quantities a plan refusal may lower (advise_memory tries a term's knobs in order)
+_PAIRS: Knob[PlanShape] = Knob(
+    "the largest pair count that fits is {}",
+    lambda s: (1, s.pairs),
+    lambda s, v: replace(s, pairs=v),
+)
+_SITES: Knob[PlanShape] = Knob(
+    "the most candidate sites that fit are {}",
+    lambda s: (max(1, s.max_count), s.sites),
+    lambda s, v: replace(s, sites=v),
+)
+_RIS_COUNT: Knob[PlanShape] = Knob(
+    "the largest RIS count that fits is {}",
+    lambda s: (1, _ris_in_layout(s)),
+    lambda s, v: replace(s, max_count=v),
+)
+_FIXED_HEATMAP_TX: Knob[PlanShape] = Knob(
+    "it fits with a fixed heatmap_tx (one TX point per RX point of the heatmap)",
+    lambda s: (0, 0 if s.fixed_heatmap_tx else 1),
+    lambda s, v: s if v else replace(s, fixed_heatmap_tx=True),
+)
+_HEATMAP_RX: Knob[PlanShape] = Knob(
+    "the largest RX map that fits has {} points (with a fixed heatmap_tx)",
+    lambda s: (1, s.rx_points),
+    lambda s, v: replace(s, fixed_heatmap_tx=True, rx_points=v),
+)
+_RX_MAP: Knob[PlanShape] = Knob(
+    "the largest RX map that fits has {} points",
+    lambda s: (1, s.rx_points),
+    lambda s, v: replace(s, rx_points=v),
+)
+_TX_MAP: Knob[PlanShape] = Knob(
+    "the largest TX map that fits has {} points",
+    lambda s: (1, s.tx_points),
+    lambda s, v: replace(s, tx_points=v),
+)
+_LAYOUTS: Knob[PlanShape] = Knob(
+    "at most {} searched layouts fit (search.restarts, search.max_rounds, the sites)",
+    lambda s: (1, min(s.layouts, MAX_SEARCH_LAYOUTS)),
+    lambda s, v: replace(s, layouts=v),
+)
+_RIS_SIDE: Knob[PlanShape] = Knob(
+    "the largest RIS that fits is {}",
+    lambda s: (1, max(s.ris_side)),
+    _side,
+    lambda s, v: "{} × {}".format(*_side(s, v).ris_side),
+)
+
+_FEWER_PAIRS = "sample fewer pairs (pairs.sample, max_pairs) or use coarser UE maps"
+_SMALLER_RIS = "use smaller RISs (ris.rows × ris.cols)"
+
+PLAN_MEMORY_TERMS: dict[str, MemoryTerm[PlanShape]] = {
+    "base": MemoryTerm(
+        lambda s: BASE_BYTES,
+        lambda s: "the base (the interpreter and its imports)",
+        f"a plan needs a job memory budget above {BASE_BYTES >> 20} MiB ({JOB_MEMORY_ENV})",
+        fixed=True,
+    ),
+    "maps": MemoryTerm(
+        lambda s: (
+            (s.tx_points + s.rx_points) * BYTES_PER_MAP_POINT
+            + s.csv_rows * CSV_BYTES_PER_ROW_PARSED
+        ),
+        lambda s: (
+            f"the UE maps ({grouped(s.tx_points)} + {grouped(s.rx_points)} points,"
+            f" {grouped(s.csv_rows)} CSV rows)"
+        ),
+        "use coarser tx_map and rx_map (grid steps, road step_m, fewer points or CSV rows)",
+        (_RX_MAP, _TX_MAP),
+    ),
+    "pairs": MemoryTerm(
+        lambda s: s.pairs * BYTES_PER_PAIR,
+        lambda s: f"the pairs ({grouped(s.pairs)})",
+        _FEWER_PAIRS,
+        (_PAIRS,),
+    ),
+    "sites": MemoryTerm(
+        lambda s: s.sites * BYTES_PER_SITE,
+        lambda s: f"the candidate sites ({grouped(s.sites)})",
+        "use fewer candidates, walls or facades (a larger spacing_m, fewer heights_m or tilts_rad)",
+        (_SITES,),
+    ),
+    "site cache": MemoryTerm(
+        _site_cache_bytes,
+        lambda s: f"the site cache ({grouped(s.sites)} sites × {grouped(s.pairs)} pairs)",
+        f"{_FEWER_PAIRS}, or fewer candidate sites",
+        (_PAIRS, _SITES),
+    ),
+    "cache build": MemoryTerm(
+        lambda s: s.pairs * BYTES_PER_CACHE_BUILD_PAIR[s.wavefront],
+        lambda s: (
+            f"the cache build (one site's path information for {grouped(s.pairs)} pairs,"
+            f" {s.wavefront} wavefront)"
+        ),
+        _FEWER_PAIRS,
+        (_PAIRS,),
+    ),
+    "search": MemoryTerm(
+        lambda s: min(s.layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT,
+        lambda s: f"the search's memoised layouts ({grouped(min(s.layouts, MAX_SEARCH_LAYOUTS))})",
+        "use fewer search.restarts or search.max_rounds, fewer candidate sites or smaller"
+        " ris_count",
+        (_LAYOUTS,),
+    ),
+    "heatmap": MemoryTerm(
+        _heatmap_bytes,
+        lambda s: (
+            f"the heatmap ({grouped(s.heatmap[0] * s.heatmap[1])} TX–RX pairs"
+            f" × {_ris_in_layout(s)} RISs, {grouped(s.heatmap[0])} RX points)"
+        ),
+        "use a smaller ris_count, a fixed heatmap_tx or a coarser rx_map",
+        (_RIS_COUNT, _FIXED_HEATMAP_TX, _HEATMAP_RX),
+    ),
+    "elements": MemoryTerm(
+        _element_bytes,
+        lambda s: (
+            f"the per-element arrays ({s.ris_side[0]} × {s.ris_side[1]} elements per"
+            f" RIS, {s.wavefront} wavefront, {grouped(s.transmissions)} transmissions)"
+        ),
+        f"{_SMALLER_RIS} or fewer system.transmissions",
+        (_RIS_SIDE,),
+    ),
+    "checks": MemoryTerm(
+        _check_bytes,
+        lambda s: (
+            f"the codebook checks ({s.ris_side[0]} × {s.ris_side[1]} elements per RIS,"
+            f" {grouped(min(s.pairs, RANDOM_CODEBOOK_PAIRS))} checked pairs)"
+        ),
+        _SMALLER_RIS,
+        (_RIS_SIDE, _PAIRS),
+    ),
+}
+"""The terms of a plan's memory estimate (:func:`plan_memory`), each with what its refusal
+says (:class:`~ris_planner.model.limits.MemoryTerm`): ``base`` (interpreter and imports),
+``maps``, ``pairs``, ``sites``, ``site cache`` (its :func:`cache_layout` and masks), ``cache
+build`` (one site's path information at a time), ``search`` (memoised layouts), ``heatmap``
+(the largest count's ``compute_bounds`` on the heatmap pairs, and the per-point results),
+``elements`` (the per-element arrays: random-codebook profiles, spherical point terms and
+chunks), ``checks`` (the codebook checks, which may run beside the heatmap:
+:data:`BYTES_PER_CHECK_PAIR`, :data:`BYTES_PER_CHECK_ELEMENT`)."""
+
+
+def plan_memory(shape: PlanShape) -> dict[str, int]:
+    """Peak bytes of a plan run (plan, figures and GIS files in one process, as a service job
+    runs it), term by term (:data:`PLAN_MEMORY_TERMS`); the estimate is their sum
+    (docs/validation/resources.md)."""
+    return memory_terms(PLAN_MEMORY_TERMS, shape)
 
 
 def _memory(shape: PlanShape) -> int:
     return sum(plan_memory(shape).values())
-
-
-def _largest(make: Callable[[int], PlanShape], low: int, now: int, budget: int) -> int:
-    """The largest value ``low`` ≤ v ≤ ``now`` whose shape ``make(v)`` fits ``budget`` bytes
-    (the memory grows with v); 0 when not even ``low`` fits."""
-    if _memory(make(low)) > budget:
-        return 0
-    lo, hi = low, now  # fits(lo); hi: the current value, which does not fit
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if _memory(make(mid)) <= budget:
-            lo = mid
-        else:
-            hi = mid
-    return lo
 
 
 def sizing_runs(doc: PlanDocument) -> int:
@@ -284,82 +430,12 @@ def plan_runs(doc: PlanDocument) -> int:
     return 1 + sizing_runs(doc)
 
 
-def _side(shape: PlanShape, rows: int) -> PlanShape:
-    r0, c0 = shape.ris_side
-    cols = max(1, round(rows * c0 / r0))
-    return replace(shape, ris_side=(rows, cols), elements=rows * cols)
-
-
 def explain_plan_memory(shape: PlanShape, budget_bytes: int) -> str:
-    """What drives a plan's memory estimate (its largest term of :func:`plan_memory` but the
-    base) and the largest value of that quantity that fits ``budget_bytes`` – "dominated by
-    the site cache (52 sites × 1 000 000 pairs); the largest pair count that fits is 860 000"
-    (docs/validation/resources.md)."""
-    terms = plan_memory(shape)
-    work = {k: v for k, v in terms.items() if k != "base"}
-    name = max(work, key=lambda k: work[k])
-    mib = grouped(math.ceil(work[name] / (1 << 20)))
-    heat_rx, heat_tx = shape.heatmap
-    ris_in_layout = min(shape.max_count, max(shape.sites, 1))
-    rows, cols = shape.ris_side
-    what = {
-        "maps": f"the UE maps ({grouped(shape.tx_points)} + {grouped(shape.rx_points)} points)",
-        "pairs": f"the pairs ({grouped(shape.pairs)})",
-        "sites": f"the candidate sites ({grouped(shape.sites)})",
-        "site cache": f"the site cache ({grouped(shape.sites)} sites"
-        f" × {grouped(shape.pairs)} pairs)",
-        "cache build": f"building the site cache ({grouped(shape.pairs)} pairs)",
-        "search": "the search's memoised layouts"
-        f" ({grouped(min(shape.layouts, MAX_SEARCH_LAYOUTS))})",
-        "heatmap": f"the heatmap ({grouped(heat_rx * heat_tx)} TX–RX pairs × {ris_in_layout} RISs,"
-        f" {grouped(heat_rx)} RX points)",
-        "elements": f"the per-element arrays ({rows} × {cols} elements per RIS,"
-        f" {shape.wavefront} wavefront)",
-    }[name]
-    fixed = replace(shape, fixed_heatmap_tx=True)
-    pairs = ("pairs", lambda v: replace(shape, pairs=v), 1, shape.pairs)
-    sites = ("sites", lambda v: replace(shape, sites=v), max(1, shape.max_count), shape.sites)
-    knobs: dict[str, list[tuple[str, Callable[[int], PlanShape], int, int]]] = {
-        "pairs": [pairs],
-        "site cache": [pairs, sites],
-        "cache build": [pairs],
-        "sites": [sites],
-        "heatmap": [
-            ("count", lambda v: replace(shape, max_count=v), 1, ris_in_layout),
-            ("fixed", lambda v: fixed if v else shape, 0, 1),
-            ("rx", lambda v: replace(fixed, rx_points=v), 1, shape.rx_points),
-        ],
-        "elements": [("side", lambda v: _side(shape, v), 1, rows)],
-        "maps": [("rx", lambda v: replace(shape, rx_points=v), 1, shape.rx_points)],
-    }
-    text = {
-        "pairs": "the largest pair count that fits is {}",
-        "sites": "the most candidate sites that fit are {}",
-        "count": "the largest RIS count that fits is {}",
-        "fixed": "it fits with a fixed heatmap_tx (one TX point per RX point of the heatmap)",
-        "rx": "the largest RX map that fits has {} points (with a fixed heatmap_tx)",
-        "side": "the largest RIS that fits is {}",
-    }
-    out = f"dominated by {what}: {mib} MiB"
-    for knob, make, low, now in knobs.get(name, []):
-        if now <= low and knob != "fixed":
-            continue
-        if knob == "fixed" and shape.fixed_heatmap_tx:
-            continue
-        best = _largest(make, low, now, budget_bytes) if knob != "fixed" else 0
-        if knob == "fixed" and _memory(fixed) <= budget_bytes:
-            return f"{out}; {text[knob]}"
-        if best >= 1:
-            value = (
-                "{} × {}".format(*_side(shape, best).ris_side) if knob == "side" else grouped(best)
-            )
-            return f"{out}; {text[knob].format(value)}"
-    rest = grouped(math.ceil((sum(terms.values()) - work[name]) / (1 << 20)))
-    return f"{out}; the rest of the run alone needs {rest} MiB"
-
-
-RANDOM_CODEBOOK_PAIRS = 2_000
-"""Pairs of the random-codebook re-evaluation (``planning.plan.RANDOM_CODEBOOK_MAX_PAIRS``)."""
+    """What drives a plan's memory estimate and what fits ``budget_bytes``
+    (:func:`~ris_planner.model.limits.advise_memory` on :data:`PLAN_MEMORY_TERMS`) – "dominated
+    by the site cache (52 sites × 20 000 pairs): 392 MiB; the largest pair count that fits is
+    8 275" for a budget of 700 MiB (docs/validation/resources.md)."""
+    return explain_memory(PLAN_MEMORY_TERMS, shape, budget_bytes)
 
 
 def plan_shape(doc: PlanDocument) -> PlanShape:
