@@ -80,7 +80,9 @@ def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False)
         check_sites_outside(scene, sites)
         tx_map, dropped["tx"], rx_map, dropped["rx"] = _drop_points(scene, doc, tx_map, rx_map)
     directions = unordered_directions(doc.pairs, doc.objective.metric, tuple(doc.known))
-    pairs = build_pairs(tx_map, rx_map, doc.pairs, doc.max_pairs, directions == "explicit")
+    pairs = build_pairs(
+        tx_map, rx_map, doc.pairs, doc.max_pairs, directions == "explicit", scene=scene
+    )
     cache_layout(len(sites) * pairs.size, doc.system.wavefront)  # the budget, before any work
     return PlanInputs(
         doc, sites, tx_map, rx_map, pairs, scene, dropped, directions, wanted, feasibility

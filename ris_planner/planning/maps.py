@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
+from ris_planner.environment import Scene
 from ris_planner.model.limits import MAX_MAP_POINTS
 from ris_planner.model.plan import (
     GridMap,
@@ -21,17 +22,31 @@ from ris_planner.model.plan import (
     range_count,
 )
 from ris_planner.model.scenario import MIN_UE_RIS_DISTANCE_M
+from ris_planner.planning.separation import draw_near, near_combinations
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
 
 
+STREET_COLUMNS = 6
+"""Columns of :attr:`PointMap.street`: the centre-line segment's ends (ax, ay, bx, by), the
+distance along it from (ax, ay) and the signed lateral offset [m]."""
+
+
 @dataclass(frozen=True)
 class PointMap:
-    """Positions [M, 3] and relative weights [M] (all ≥ 0, not all zero)."""
+    """Positions [M, 3] and relative weights [M] (all ≥ 0, not all zero); ``street`` [M, 6]
+    places each point on its road (:data:`STREET_COLUMNS`; a row of NaN for a point that is
+    not on a road), ``None`` when no point is."""
 
     points: FloatArray
     weights: FloatArray
+    street: FloatArray | None = None
+
+    def subset(self, keep: NDArray[np.bool_]) -> PointMap:
+        """The points where ``keep`` is true."""
+        street = None if self.street is None else self.street[keep]
+        return PointMap(self.points[keep], self.weights[keep], street)
 
 
 def range_values(r: list[float], what: str) -> FloatArray:
@@ -60,8 +75,8 @@ def road_points(road: Road) -> PointMap:
         )
     n_lat = int(np.floor(half + 1e-9))
     lateral = road.step_m * np.arange(-n_lat, n_lat + 1)
-    pts: list[FloatArray] = []
-    normal = None  # of the last segment with a length: the end vertex's lateral direction
+    rows: list[FloatArray] = []  # [n, 2 + STREET_COLUMNS]: x, y and the street columns
+    last = None  # the last segment with a length: the end vertex's lateral direction
     for a, b in itertools.pairwise(verts):
         seg = b - a
         length = float(np.hypot(*seg))
@@ -72,16 +87,37 @@ def road_points(road: Road) -> PointMap:
             raise LimitExceededError(
                 f"road samples exceed the limit of {MAX_MAP_POINTS} map points; raise step_m"
             )
-        s = np.arange(n_along) * road.step_m / length
-        direction = seg / length
-        normal = np.array([-direction[1], direction[0]])
-        centre = a + s[:, None] * seg
-        xy = centre[:, None, :] + lateral[None, :, None] * normal
-        pts.append(xy.reshape(-1, 2))
-    tail = verts[-1:] if normal is None else verts[-1] + lateral[:, None] * normal
-    xy_all = np.concatenate([*pts, tail])
-    xyz = np.column_stack([xy_all, np.full(len(xy_all), road.height_m)])
-    return PointMap(xyz, np.full(len(xyz), road.weight))
+        last = (a, b, length)
+        along = np.arange(n_along) * float(road.step_m)
+        rows.append(_lattice(a, b, length, along, a + (along / length)[:, None] * seg, lateral))
+    if last is None:
+        tail = np.column_stack([verts[-1:], np.full((1, STREET_COLUMNS), np.nan)])
+    else:
+        a, b, length = last
+        tail = _lattice(a, b, length, np.array([length]), verts[-1:], lateral)
+    table = np.concatenate([*rows, tail])
+    xyz = np.column_stack([table[:, :2], np.full(len(table), road.height_m)])
+    return PointMap(xyz, np.full(len(xyz), road.weight), table[:, 2:])
+
+
+def _lattice(
+    a: FloatArray,
+    b: FloatArray,
+    length: float,
+    along: NDArray[np.floating],
+    centre: NDArray[np.floating],
+    lateral: NDArray[np.floating],
+) -> FloatArray:
+    """[len(along) · len(lateral), 2 + STREET_COLUMNS]: the points at the ``centre`` points
+    (``along`` the segment a–b from ``a``) and ``lateral`` offsets to their left (x-major),
+    each with its street columns."""
+    direction = (b - a) / length
+    normal = np.array([-direction[1], direction[0]])
+    # [n_along, n_lat, 2]
+    xy = centre[:, None, :] + lateral[None, :, None] * normal
+    s, o = (g.ravel() for g in np.meshgrid(along, lateral, indexing="ij"))
+    ends = np.broadcast_to(np.concatenate([a, b]), (len(s), 4))
+    return np.column_stack([xy.reshape(-1, 2), ends, s, o])
 
 
 def csv_points(text: str) -> PointMap:
@@ -131,10 +167,18 @@ def build_map(spec: UEMap, what: str) -> PointMap:
     w = np.concatenate([p.weights for p in parts])
     if len(pts) > MAX_MAP_POINTS:
         raise LimitExceededError(f"{what} has {len(pts)} points, above the limit {MAX_MAP_POINTS}")
+    street = None
+    if any(p.street is not None for p in parts):
+        street = np.concatenate(
+            [
+                np.full((len(p.points), STREET_COLUMNS), np.nan) if p.street is None else p.street
+                for p in parts
+            ]
+        )
     keep = w > 0
     if not np.any(keep):
         raise RisPlannerError(f"{what} is empty: no point has a positive weight")
-    return PointMap(pts[keep], w[keep])
+    return PointMap(pts, w, street).subset(keep)
 
 
 @dataclass(frozen=True)
@@ -177,17 +221,22 @@ def build_pairs(
     spec: PairsSpec,
     max_pairs: int,
     both_directions: bool = False,
+    scene: Scene | None = None,
 ) -> PairSet:
     """Pairs per the document's ``pairs`` (see :class:`PlanDocument`); raises
     :class:`LimitExceededError` naming ``max_pairs`` when there are too many.
-    ``both_directions`` (``unordered`` only): every pair i < j also as j → i, weights halved."""
+    ``both_directions`` (``unordered`` only): every pair i < j also as j → i, weights halved.
+    ``scene``: the environment a ``line_of_sight`` sample checks its TX–RX legs against
+    (absent: free space)."""
     n_t, n_r = len(tx_map.points), len(rx_map.points)
     if isinstance(spec, PairSample):
         if spec.sample > max_pairs:
             raise LimitExceededError(
                 f"pairs.sample = {spec.sample} exceeds max_pairs = {max_pairs}"
             )
-        return _sample_pairs(tx_map, rx_map, spec)
+        if spec.max_separation_m is None and not spec.line_of_sight:
+            return _sample_pairs(tx_map, rx_map, spec)
+        return _sample_near(tx_map, rx_map, spec, scene or Scene.from_environment(None))
     count = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
     if spec == "unordered" and both_directions:
         count *= 2
@@ -253,3 +302,14 @@ def _sample_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairSample) -> PairS
         raise RisPlannerError("cannot sample pairs with distinct TX and RX positions")
     n = len(it)
     return PairSet(tx_map.points[it], rx_map.points[ir], np.full(n, 1.0 / n), it, ir)
+
+
+def _sample_near(tx_map: PointMap, rx_map: PointMap, spec: PairSample, scene: Scene) -> PairSet:
+    """Sidelink pairs (:mod:`ris_planner.planning.separation`): drawn ∝ w_i · w_j among the
+    combinations within the separation (and with a clear TX–RX leg with ``line_of_sight``)."""
+    it, ir = near_combinations(tx_map.points, rx_map.points, tx_map.street, rx_map.street, spec)
+    w = unit_scaled(tx_map.weights)[it] * unit_scaled(rx_map.weights)[ir]
+    pick = draw_near(tx_map.points, rx_map.points, it, ir, w, spec, scene)
+    a, b = it[pick], ir[pick]
+    n = len(pick)
+    return PairSet(tx_map.points[a], rx_map.points[b], np.full(n, 1.0 / n), a, b)
