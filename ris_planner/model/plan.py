@@ -45,6 +45,12 @@ from ris_planner.model.simulation import Multipath
 MAX_PAIRS_LIMIT = 500_000
 """The largest ``max_pairs`` a document may set (memory: a cached site holds 28 floats per pair)."""
 
+MAX_LAYOUT_RIS = 16
+"""The most RISs in a layout of the exhaustive and greedy searches."""
+
+MAX_DISTRICT_RIS = 200
+"""The most RISs in a layout of the district search (search.method 'district')."""
+
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
 
@@ -191,11 +197,39 @@ class UEMap(DocumentModel):
 
 
 class PairSample(DocumentModel):
-    """A seeded weighted sample: TX and RX drawn independently with probabilities ∝ their map
-    weights (pairs with coinciding positions redrawn); every sampled pair weighs 1."""
+    """A seeded weighted sample of TX–RX pairs; every sampled pair weighs 1.
+
+    Without ``max_separation_m`` TX and RX are drawn independently with probabilities ∝ their
+    map weights (pairs with coinciding positions redrawn). With it, a sidelink pair is two UEs
+    near each other: the pair (i, j) is drawn with probability ∝ w_i · w_j among the pairs at
+    most ``max_separation_m`` apart – a straight line, or with ``separation: "street"`` the
+    shortest way along the roads of the maps (both UEs on a road) – and with
+    ``line_of_sight`` only among those whose TX–RX leg is clear of the environment
+    (docs/concepts/planning.md, "Pairs")."""
 
     sample: int = Field(ge=1, le=MAX_PAIRS_LIMIT, description="Number of pairs to draw")
     seed: int = Field(0, ge=0, description="Seed of the draw (numpy default_rng)")
+    max_separation_m: float | None = Field(
+        None,
+        gt=0,
+        le=100_000,
+        allow_inf_nan=False,
+        description="Largest TX–RX separation [m] of a drawn pair (absent: any separation)",
+    )
+    separation: Literal["straight", "street"] = Field(
+        "straight",
+        description="How the separation is measured: straight: the 3D distance; street: along"
+        " the maps' roads (centre lines, plus each UE's lateral offset), both UEs on a road",
+    )
+    line_of_sight: bool = Field(
+        False, description="Only pairs whose TX–RX leg is clear of the environment's obstacles"
+    )
+
+    @model_validator(mode="after")
+    def _check_separation(self) -> PairSample:
+        if self.separation == "street" and self.max_separation_m is None:
+            raise ValueError('separation "street" needs max_separation_m')
+        return self
 
 
 PairsSpec = Literal["all", "unordered"] | PairSample
@@ -638,8 +672,11 @@ pays its interpreter, imports and kernels before its first task."""
 class SearchSpec(DocumentModel):
     """The placement search."""
 
-    method: Literal["auto", "exhaustive", "greedy"] = Field(
-        "auto", description="auto: exhaustive when the layout count ≤ max_exhaustive, else greedy"
+    method: Literal["auto", "exhaustive", "greedy", "district"] = Field(
+        "auto",
+        description="auto: exhaustive when the layout count ≤ max_exhaustive, else greedy;"
+        " district: tens of RISs from thousands of candidates by locality, each count with a"
+        " certified coverage gap (coverage objectives; docs/concepts/district.md)",
     )
     max_exhaustive: int = Field(
         100_000, ge=1, le=5_000_000, description="Largest layout count searched exhaustively"
@@ -898,7 +935,13 @@ class PlanDocument(DocumentModel):
         " max_ris and stop at the smallest count that meets objective.target (default: target"
         " when ris_count is omitted)",
     )
-    max_ris: int = Field(6, ge=1, le=16, description="target mode: the largest RIS count searched")
+    max_ris: int = Field(
+        6,
+        ge=1,
+        le=MAX_DISTRICT_RIS,
+        description="target mode: the largest RIS count searched (above"
+        f" {MAX_LAYOUT_RIS}: search.method 'district')",
+    )
     constraints: Constraints = Field(
         default_factory=Constraints, description="Allowed layouts (mounting points, spacing …)"
     )
@@ -984,6 +1027,14 @@ class PlanDocument(DocumentModel):
             )
         if self.pairs == "unordered" and self.tx_map != self.rx_map:
             raise ValueError("pairs 'unordered' needs tx_map and rx_map to be the same map")
+        largest = max(self.max_counts)
+        if largest > MAX_LAYOUT_RIS and self.search.method != "district":
+            raise ValueError(
+                f"{largest} RISs in a layout need search.method 'district' (the other searches"
+                f" take at most {MAX_LAYOUT_RIS})"
+            )
+        if largest > MAX_DISTRICT_RIS:
+            raise ValueError(f"ris_count {largest} is above the limit of {MAX_DISTRICT_RIS}")
         if self.ris_count is None and self.objective.target is None:
             raise ValueError("give ris_count, or objective.target to search for the count")
         if self.target_mode and self.objective.target is None:
