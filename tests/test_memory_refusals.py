@@ -69,9 +69,22 @@ POWER_SHAPE = PowerShape(beams=64, positions=100, elements=800)
 
 TABLES: dict[str, tuple[dict[str, Any], Any]] = {
     "plan": (PLAN_MEMORY_TERMS, PLAN_SHAPE),
+    "district": (PLAN_MEMORY_TERMS, replace(PLAN_SHAPE, district=True)),
     "power": (POWER_MEMORY_TERMS, POWER_SHAPE),
 }
-TERMS = [(table, name) for table, (terms, _) in TABLES.items() for name in terms]
+"""Each estimate's table with a shape; a plan's terms split between the searches that
+enumerate layouts and the district search (search.method 'district')."""
+TERMS = [
+    (table, name)
+    for table, (terms, shape) in TABLES.items()
+    for name, size in memory_terms(terms, shape).items()
+    if size > 0
+]
+
+
+def test_every_term_is_tried_in_some_table() -> None:
+    for terms, _ in TABLES.values():
+        assert set(terms) <= {name for _, name in TERMS}
 
 
 def _total(terms: dict[str, MemoryTerm[Any]], shape: Any) -> int:

@@ -163,6 +163,8 @@ def _search_layouts(doc: PlanDocument, sites: int) -> int:
     total = 0
     for i, n_ris in enumerate(c for c in doc.max_counts if c <= sites):
         spec = doc.search
+        if spec.method == "district":
+            return 0  # no layout is enumerated: the district term counts its work
         layouts = math.comb(sites, n_ris) if sites >= n_ris else 0
         if spec.method == "exhaustive" or (
             spec.method == "auto" and layouts <= spec.max_exhaustive
@@ -197,6 +199,9 @@ class PlanShape:
     transmissions: int
     wavefront: str
     fixed_heatmap_tx: bool
+    district: bool = False
+    """search.method 'district': sparse information per (pair, serving site), no site cache,
+    no heatmap, no codebook checks (:mod:`ris_planner.planning.district`)."""
 
     @property
     def heatmap(self) -> tuple[int, int]:
@@ -215,7 +220,29 @@ def _ris_in_layout(shape: PlanShape) -> int:
     return min(shape.max_count, max(shape.sites, 1))
 
 
+DISTRICT_ENTRIES_PER_PAIR = 64
+"""The serving sites per pair the district estimate assumes at most (a sidelink pair on a
+street sees a handful: 5 on the Helsinki example, docs/concepts/district.md)."""
+
+BYTES_PER_DISTRICT_ENTRY = 320
+"""Bytes per (pair, serving site) of the district search: packed information and square-root
+rows on up to 7 states (2 × 28 floats at most), indices, gains and their temporaries."""
+
+BYTES_PER_DISTRICT_MASK = 3
+"""Bytes per (pair, site) of the district search's visibility: the two gathered serve masks
+and their conjunction."""
+
+
+def _district_bytes(shape: PlanShape) -> int:
+    if not shape.district:
+        return 0
+    entries = shape.pairs * min(shape.sites, DISTRICT_ENTRIES_PER_PAIR)
+    return entries * BYTES_PER_DISTRICT_ENTRY + shape.pairs * shape.sites * BYTES_PER_DISTRICT_MASK
+
+
 def _site_cache_bytes(shape: PlanShape) -> int:
+    if shape.district:
+        return 0
     w, entries = shape.wavefront, shape.sites * shape.pairs
     try:
         return cache_layout(entries, w).bytes(entries, w) + entries * BYTES_PER_CACHE_MASKS
@@ -224,6 +251,8 @@ def _site_cache_bytes(shape: PlanShape) -> int:
 
 
 def _heatmap_bytes(shape: PlanShape) -> int:
+    if shape.district:
+        return 0
     heat_rx, heat_tx = shape.heatmap
     per_pair = BYTES_PER_HEATMAP_PAIR[shape.wavefront]
     per_pair += _ris_in_layout(shape) * BYTES_PER_HEATMAP_PAIR_RIS
@@ -249,6 +278,8 @@ def _element_bytes(shape: PlanShape) -> int:
 
 
 def _check_bytes(shape: PlanShape) -> int:
+    if shape.district:
+        return 0
     pairs = min(shape.pairs, RANDOM_CODEBOOK_PAIRS)
     return pairs * BYTES_PER_CHECK_PAIR + shape.elements * BYTES_PER_CHECK_ELEMENT
 
@@ -352,6 +383,16 @@ PLAN_MEMORY_TERMS: dict[str, MemoryTerm[PlanShape]] = {
         f"{_FEWER_PAIRS}, or fewer candidate sites",
         (_PAIRS, _SITES),
     ),
+    "district": MemoryTerm(
+        _district_bytes,
+        lambda s: (
+            f"the district search's information ({grouped(s.pairs)} pairs × up to"
+            f" {min(s.sites, DISTRICT_ENTRIES_PER_PAIR)} serving sites, {grouped(s.sites)}"
+            " candidates)"
+        ),
+        f"{_FEWER_PAIRS}, or fewer candidate sites",
+        (_PAIRS, _SITES),
+    ),
     "cache build": MemoryTerm(
         lambda s: s.pairs * BYTES_PER_CACHE_BUILD_PAIR[s.wavefront],
         lambda s: (
@@ -398,7 +439,8 @@ PLAN_MEMORY_TERMS: dict[str, MemoryTerm[PlanShape]] = {
 }
 """The terms of a plan's memory estimate (:func:`plan_memory`), each with what its refusal
 says (:class:`~ris_planner.model.limits.MemoryTerm`): ``base`` (interpreter and imports),
-``maps``, ``pairs``, ``sites``, ``site cache`` (its :func:`cache_layout` and masks), ``cache
+``maps``, ``pairs``, ``sites``, ``site cache`` (its :func:`cache_layout` and masks),
+``district`` (the district search's sparse information, :data:`BYTES_PER_DISTRICT_ENTRY`), ``cache
 build`` (one site's path information at a time), ``search`` (memoised layouts), ``heatmap``
 (the largest count's ``compute_bounds`` on the heatmap pairs, and the per-point results),
 ``elements`` (the per-element arrays: random-codebook profiles, spherical point terms and
@@ -461,6 +503,7 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         transmissions=doc.system.transmissions,
         wavefront=doc.system.wavefront,
         fixed_heatmap_tx=doc.heatmap_tx is not None,
+        district=doc.search.method == "district",
     )
 
 
