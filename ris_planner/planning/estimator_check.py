@@ -50,7 +50,6 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -695,60 +694,3 @@ def run_estimator_check(
     }
     body["summary"] = summary_lines(body)
     return body
-
-
-def write_validation_figure(validation: dict[str, Any], path: Path) -> Path:
-    """Error vs bound per pair (log–log, the 1× and 1.5× lines) and the CDFs of error and
-    bound per layout, as a PNG (matplotlib, as the plan's other figures)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.5))
-    finite: list[float] = []
-    for k, lay in enumerate(validation["layouts"]):
-        colour = f"C{k}"
-        label = f"{lay['ris_count']} RIS"
-        pts = [(p["bound_m"], p["error_m"]) for p in lay["pairs"] if p["bound_m"] is not None]
-        b = np.array([p[0] for p in pts], dtype=float)
-        e = np.array([np.inf if p[1] is None else p[1] for p in pts], dtype=float)
-        finite += list(b[np.isfinite(b)]) + list(e[np.isfinite(e)])
-        ok = np.isfinite(e)
-        ax.scatter(b[ok], e[ok], s=14, color=colour, label=label)
-        if np.any(~ok):
-            ax.scatter(b[~ok], np.full((~ok).sum(), np.nan), color=colour)
-        for vals, style, name in ((e, "-", "estimator"), (b, "--", "bound")):
-            v = np.sort(vals)
-            prob = np.arange(1, v.size + 1) / max(v.size, 1)
-            bx.step(
-                v[np.isfinite(v)],
-                prob[np.isfinite(v)],
-                style,
-                color=colour,
-                where="post",
-                label=f"{label} {name}",
-            )
-    if finite:
-        lo, hi = max(min(finite) / 2, 1e-6), max(finite) * 2
-        xs = np.array([lo, hi])
-        ax.plot(xs, xs, "k-", lw=0.8, label="error = bound")
-        ax.plot(xs, 1.5 * xs, "k:", lw=0.8, label="1.5 × bound")
-    thr = validation["threshold_m"]
-    ax.axvline(thr, color="grey", lw=0.6)
-    ax.axhline(thr, color="grey", lw=0.6)
-    bx.axvline(thr, color="grey", lw=0.6)
-    ax.set(
-        xscale="log",
-        yscale="log",
-        xlabel="bound [m]",
-        ylabel="estimator RMSE [m]",
-        title=f"{validation['metric']} error vs bound per pair",
-    )
-    bx.set(xscale="log", xlabel="[m]", ylabel="fraction of sampled pairs", title="CDF")
-    ax.legend(fontsize=7)
-    bx.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

@@ -1,6 +1,6 @@
 """The maps stage of a plan (docs/concepts/planning.md, "Pipeline"): each needed layout's bound
-at every RX map point against the heatmap's TX population – plan.json's ``points`` and
-``heatmap`` and the heatmap figure.
+at every RX map point against the heatmap's TX population, and the fraction of those TX
+partners it serves – plan.json's ``points`` and ``heatmap`` and the heatmap figure.
 
 The bounds are :func:`ris_planner.bounds.compute.compute_bounds`' (the plan's visibility rules, the
 expected-random FIM). What a point's paths are does not depend on the layout: each site's
@@ -22,7 +22,7 @@ from ris_planner.environment import Scene
 from ris_planner.model.plan import PlanDocument
 from ris_planner.planning.beam_design import layout_scenario
 from ris_planner.planning.maps import PointMap
-from ris_planner.planning.objectives import select_metric, weighted_quantile
+from ris_planner.planning.objectives import objective_kind, select_metric, weighted_quantile
 from ris_planner.planning.resources import HEATMAP_MAX_PAIRS
 from ris_planner.planning.search import Layout
 from ris_planner.planning.sites import Site
@@ -45,6 +45,29 @@ class RxField:
     """[M] why the bound is infinite (the dominant reason over TX) or absent; None otherwise."""
     serving: list[list[int]]
     """[M] the layout's sites (candidate indices) with a RIS path to the point from ≥ 1 TX."""
+    served: FloatArray
+    """[M] weighted fraction of the point's TX partners whose metric is finite and at or below
+    the objective's reference level (:func:`served_level`); NaN = no TX."""
+
+
+def served_level(doc: PlanDocument) -> float:
+    """The bound [m] a pair must reach to count as served – the diagnosis' level (the objective
+    kind's ``reference_level``, as :func:`ris_planner.planning.diagnosis.reference_level`:
+    ``threshold_m`` of coverage, ``cap_m`` of mean_capped, ``target.max`` of quantile);
+    ``inf``: any finite bound."""
+    return objective_kind(doc.objective.kind).reference_level(doc.objective)
+
+
+def served_fractions(metric: FloatArray, weights: FloatArray, level: float) -> FloatArray:
+    """[M] per row of ``metric`` [M, T] (an RX point's bounds against its TX partners) the
+    weighted fraction of partners whose bound is finite and ≤ ``level``; NaN for a row without
+    weight."""
+    ok = np.isfinite(metric) & (metric <= level)
+    total = weights.sum(axis=1)
+    out = np.full(len(metric), np.nan)
+    has = total > 0
+    out[has] = np.minimum((ok * weights).sum(axis=1)[has] / total[has], 1.0)
+    return out
 
 
 def heatmap_rx_index(n_points: int) -> NDArray[np.int_]:
@@ -106,8 +129,9 @@ def rx_fields(
 
     The value is the weighted median over TX (a mean is undefined where some bounds are
     infinite); TX points that coincide with the RX point carry no weight, and a point with
-    none left is NaN. A RIS path exists for (TX, RX) iff the RIS serves both (the contract);
-    serving: with ≥ 1 weighted TX."""
+    none left is NaN. The served fraction weighs the same partners (:func:`served_fractions`
+    at :func:`served_level`). A RIS path exists for (TX, RX) iff the RIS serves both (the
+    contract); serving: with ≥ 1 weighted TX."""
     layouts = list(dict.fromkeys(tuple(int(s) for s in lay) for lay in layouts))
     pts = rx_map.points[heatmap_rx_index(len(rx_map.points))]  # [M, 3]
     tx_pts, tx_w = heatmap_tx(doc, tx_map, len(pts))  # [T, 3], [T]
@@ -124,6 +148,7 @@ def rx_fields(
     on_tx = {s: ris_serves(scene, sites[s].ris, tx_pts) for s in used}  # [T]
     on_rx = {s: ris_serves(scene, sites[s].ris, pts) for s in used}  # [M]
     los = los_clear(scene, tx, rx) if doc.system.los else np.zeros(len(tx), dtype=bool)
+    level = served_level(doc)
     out: dict[Layout, RxField] = {}
     for i, layout in enumerate(layouts):
         progress(i / len(layouts), f"per-point bounds of {len(layout)} RISs")
@@ -141,6 +166,7 @@ def rx_fields(
         metric = metric.reshape(n_tx, n_rx)
         vals = weighted_quantile(metric.T, w_med, 0.5)  # [M]
         vals[empty] = np.nan
+        served = served_fractions(metric.T, w, level)
         reasons = dominant_reason(res.reason.reshape(n_tx, n_rx).T, w, np.isinf(vals))
         for m in np.nonzero(empty)[0]:
             reasons[m] = REASON_NO_TX
@@ -149,6 +175,6 @@ def rx_fields(
             any_tx = ((w > 0) & on_tx[s][None, :]).any(axis=1)  # [M]
             serves[j] = on_rx[s] & any_tx
         serving = [[layout[j] for j in np.nonzero(serves[:, m])[0]] for m in range(n_rx)]
-        out[layout] = RxField(layout, vals, reasons, serving)
+        out[layout] = RxField(layout, vals, reasons, serving, served)
     progress(1.0, "per-point bounds")
     return out

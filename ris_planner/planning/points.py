@@ -1,6 +1,7 @@
 """Per-point plan results: the bound, the serving RISs and the blind reason at every RX map
 point for each RIS count's best layout (``plan.json`` key ``"points"``), and the heatmap grid
-the web page draws its overlay and threshold contour from (key ``"heatmap"``).
+the web page draws its overlay and threshold contour from (key ``"heatmap"``), each with the
+fraction of a point's TX partners the layout serves.
 
 Both are pure functions over a :class:`~ris_planner.planning.result.PlanResult` whose maps
 stage has run; the numbers come from :func:`~ris_planner.planning.fields.rx_fields` – the same
@@ -15,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.planning.fields import served_level
 from ris_planner.planning.objectives import objective_from_loss, objective_kind
 
 if TYPE_CHECKING:
@@ -41,9 +43,12 @@ def points_json(result: PlanResult) -> list[dict[str, Any]]:
     to ``HEATMAP_MAX_PAIRS``, :meth:`PlanResult.heatmap_index`), in map order.
 
     ``{"index", "position": [x, y, z], "weight", "bound_m": {"2": v | null, …},
-    "serving": {"2": [site indices], …}, "reason": {"2": null | str, …}}``, keyed by RIS count
-    (the best layout of each count); ``bound_m`` is null where the bound is infinite (reason
-    given) or where no TX point differs from the point (reason says so)."""
+    "served_fraction": {"2": f | null, …}, "serving": {"2": [site indices], …},
+    "reason": {"2": null | str, …}}``, keyed by RIS count (the best layout of each count);
+    ``bound_m`` is null where the bound is infinite (reason given) or where no TX point differs
+    from the point (reason says so); ``served_fraction`` is the weighted fraction of the
+    point's TX partners served (:attr:`~ris_planner.planning.fields.RxField.served`), null
+    where no TX point differs from the point."""
     fields = {str(cr.ris_count): result.rx_field(cr.ranked[0][0]) for cr in result.counts}
     pm = result.rx_map
     return [
@@ -52,6 +57,7 @@ def points_json(result: PlanResult) -> list[dict[str, Any]]:
             "position": [float(v) for v in pm.points[i]],
             "weight": float(pm.weights[i]),
             "bound_m": {k: _num(f.bound[m]) for k, f in fields.items()},
+            "served_fraction": {k: _num(f.served[m]) for k, f in fields.items()},
             "serving": {k: [int(s) for s in f.serving[m]] for k, f in fields.items()},
             "reason": {k: f.reason[m] for k, f in fields.items()},
         }
@@ -133,10 +139,13 @@ def heatmap_json(result: PlanResult) -> dict[str, Any]:
 
     ``{"metric", "tx", "grid": {"x0", "y0", "cell_m", "nx", "ny"}, "sites": {"2": […]},
     "bound_m": {"2": [[row y0], [row y0 + cell], …]}, "blind": {"2": [[bool, …], …]},
-    "threshold_m": {"2": v}, "threshold_label", "ris_count"}`` – cell (ix, iy) is centred on
-    (x0 + ix·cell, y0 + iy·cell); a cell holds the RX-weighted median of its points' bounds
-    (null: no point, or blind – then ``blind`` is true); ``ris_count`` is the count the
-    heatmap figure shows (the largest)."""
+    "served_fraction": {"2": [[row y0], …]}, "served_level_m", "threshold_m": {"2": v},
+    "threshold_label", "ris_count"}`` – cell (ix, iy) is centred on (x0 + ix·cell,
+    y0 + iy·cell); a cell holds the RX-weighted median of its points' bounds (null: no point,
+    or blind – then ``blind`` is true) and, in ``served_fraction``, the RX-weighted median of
+    its points' served fractions (the weighted fraction of a point's TX partners whose bound
+    is finite and ≤ ``served_level_m``; null: no point; ``served_level_m`` null: any finite
+    bound counts); ``ris_count`` is the count the heatmap figure shows (the largest)."""
     doc = result.document
     pm = result.rx_map
     idx = result.heatmap_index()
@@ -144,14 +153,17 @@ def heatmap_json(result: PlanResult) -> dict[str, Any]:
     n = int(grid["nx"]) * int(grid["ny"])
     bound: dict[str, list[list[float | None]]] = {}
     blind: dict[str, list[list[bool]]] = {}
+    served: dict[str, list[list[float | None]]] = {}
     sites: dict[str, list[int]] = {}
+    shape = (int(grid["ny"]), int(grid["nx"]))
     for cr in result.counts:
         key = str(cr.ris_count)
         f = result.rx_field(cr.ranked[0][0])
-        med = cell_medians(cells, f.bound, pm.weights[idx], n)
-        med = med.reshape(int(grid["ny"]), int(grid["nx"]))
+        med = cell_medians(cells, f.bound, pm.weights[idx], n).reshape(shape)
         bound[key] = [[_num(v) for v in row] for row in med]
         blind[key] = [[bool(v) for v in row] for row in np.isposinf(med)]
+        frac = cell_medians(cells, f.served, pm.weights[idx], n).reshape(shape)
+        served[key] = [[_num(v) for v in row] for row in frac]
         sites[key] = [int(s) for s in f.layout]
     levels, label = threshold_of(result)
     n_tx = len(result.heatmap_tx()[0])
@@ -168,6 +180,8 @@ def heatmap_json(result: PlanResult) -> dict[str, Any]:
         "sites": sites,
         "bound_m": bound,
         "blind": blind,
+        "served_fraction": served,
+        "served_level_m": _num(served_level(doc)),
         "threshold_m": levels,
         "threshold_label": label,
     }

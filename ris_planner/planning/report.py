@@ -1,16 +1,23 @@
 """Plan reports: ``plan.json`` and PNG figures (top view, heatmap, CDFs per RIS count).
 
 The top view and the heatmap draw the environment's obstacles (prisms as filled footprints,
-walls as thick lines); the heatmap is a raster over the RX map (cells of about the map's point
-spacing, each showing the worst bound of the RX points in it, blank where no point is or inside
-a prism) on a diverging scale centred on the objective's level (green at or below it, red
-above, purple where the layout is blind), with a colour bar in metres and a legend
+walls as thick lines) and label the chosen sites with their candidate index, each label
+placed where it overlaps no other (:func:`place_labels`); the top view lists the chosen sites'
+names in a table beside the map (:func:`text_table`). The heatmap has two panels over the RX
+map (cells of about the map's point spacing, blank where no point is or inside a prism): the
+fraction of each point's TX partners the layout serves (the worst point of a cell; where the
+plan works, even when it mostly does not), and the bound (the worst bound of the cell's
+points) on a diverging scale centred on the objective's level (green at or below it, red
+above, purple where the layout is blind), each with a colour bar, and a legend
 (docs/concepts/diagnosis.md)."""
 
 from __future__ import annotations
 
+import math
+import textwrap
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -93,14 +100,18 @@ def point_spacing(xy: FloatArray) -> float:
 
 
 def raster(
-    points: FloatArray, values: FloatArray, scene: Scene | None
+    points: FloatArray,
+    values: FloatArray,
+    scene: Scene | None,
+    worst: Literal["max", "min"] = "max",
 ) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
     """(x edges [nx+1], y edges [ny+1], worst value per cell [ny, nx], no-value mask).
 
     Cells are squares of the point spacing centred on the lattice of the first point; a cell's
-    value is the largest (worst) bound of its points (``inf`` = blind), NaN points are ignored;
-    cells without a value or whose centre lies inside a prism (at the points' median height)
-    are masked."""
+    value is the worst of its points' values – the largest for a bound (``inf`` = blind), the
+    smallest with ``worst="min"`` (a served fraction) –, NaN points are ignored; cells without
+    a value or whose centre lies inside a prism (at the points' median height) are masked."""
+    sign = 1.0 if worst == "max" else -1.0
     xy = points[:, :2]
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     cell = max(point_spacing(xy), float((hi - lo).max()) / (RASTER_MAX_CELLS - 1), 1e-6)
@@ -108,8 +119,9 @@ def raster(
     idx = np.floor((xy - lo) / cell + 0.5).astype(int)
     grid = np.full((n[1], n[0]), -np.inf)
     ok = ~np.isnan(values)
-    np.maximum.at(grid, (idx[ok, 1], idx[ok, 0]), values[ok])
+    np.maximum.at(grid, (idx[ok, 1], idx[ok, 0]), sign * values[ok])
     empty = grid == -np.inf
+    grid = sign * grid
     if scene is not None and not scene.empty:
         cx, cy = np.meshgrid(lo[0] + cell * np.arange(n[0]), lo[1] + cell * np.arange(n[1]))
         z = np.full(cx.size, float(np.median(points[:, 2])))
@@ -120,15 +132,160 @@ def raster(
     return x_edges, y_edges, grid, empty
 
 
-def _site_label(result: PlanResult, s: int) -> str:
-    ris = result.sites[s].ris
-    return f"{s}: {ris.position[2]:g} m, tilt {np.degrees(ris.orientation[1]):.0f}°"
+METRIC_LABELS = {"rx": "PEB_R", "tx": "PEB_T", "max": "max(PEB_T, PEB_R)"}
+"""The bound each objective metric names (figure labels)."""
+ERROR_LABELS = {
+    "rx": "RX position error",
+    "tx": "TX position error",
+    "max": "max(TX, RX) position error",
+}
+"""The estimator's error each metric's bound limits (the validation figure's labels)."""
 
 
 def _metric_label(result: PlanResult) -> str:
-    return {"rx": "PEB_R", "tx": "PEB_T", "max": "max(PEB_T, PEB_R)"}[
-        result.document.objective.metric
+    return METRIC_LABELS[result.document.objective.metric]
+
+
+FIGURE_DPI = 110
+"""The figures' resolution: they are laid out (label placement measures texts) at the
+resolution they are saved with."""
+
+SITE_LABEL_GID = "site-label"
+"""The ``gid`` of the chosen sites' labels on the map panels (:func:`place_labels`)."""
+
+LABEL_RINGS_PT = (2.0, 7.0, 14.0, 24.0, 38.0, 56.0)
+"""Distances [pt] beyond the marker at which :func:`place_labels` tries a label, nearest first."""
+
+LABEL_DIRECTIONS_DEG = (45, 135, -45, -135, 90, -90, 0, 180)
+"""Directions (from +x, counter-clockwise) tried on each ring, in order of preference."""
+
+LABEL_PAD_PX = 2.0
+"""Clearance [px] kept between a label and other labels, markers and the axes' edge."""
+
+
+def _renderer(fig: Any) -> Any:
+    """The figure's Agg renderer (texts measured as ``savefig`` draws them)."""
+    return fig.canvas.get_renderer()
+
+
+def _overlap(a: Any, b: Any) -> float:
+    """Overlap area of two display-space boxes (0 when they do not intersect)."""
+    w = min(a.x1, b.x1) - max(a.x0, b.x0)
+    h = min(a.y1, b.y1) - max(a.y0, b.y0)
+    return max(w, 0.0) * max(h, 0.0)
+
+
+def place_labels(
+    ax: Any,
+    anchors: Sequence[tuple[float, float]],
+    texts: Sequence[str],
+    *,
+    marker_pt: float = 6.0,
+    fontsize: float = 7.0,
+    avoid: Sequence[tuple[tuple[float, float], tuple[float, float]]] = (),
+) -> list[Any]:
+    """Label each anchor (data coordinates) with its text, placed by greedy displacement: the
+    labels in turn, each at the first offset (:data:`LABEL_RINGS_PT` beyond a marker of
+    radius ``marker_pt`` × :data:`LABEL_DIRECTIONS_DEG`) where its box overlaps no label
+    placed before, no anchor's marker and no box of ``avoid`` (corner pairs in data
+    coordinates: the facing arrows) and stays inside the axes – else where it overlaps
+    least. A label set off beyond the first ring gets a thin leader line to its anchor.
+
+    Call once the axes' limits and size are final (the texts are measured in display space);
+    returns the :class:`~matplotlib.text.Text` objects (``gid`` :data:`SITE_LABEL_GID`)."""
+    from matplotlib.transforms import Bbox, offset_copy
+
+    fig = ax.figure
+    ax.set_xlim(ax.get_xlim())  # freeze the limits: later artists must not move the labels
+    ax.set_ylim(ax.get_ylim())
+    ax.apply_aspect()
+    renderer = _renderer(fig)
+    px_per_pt = fig.dpi / 72.0
+    frame = ax.get_window_extent(renderer).padded(-LABEL_PAD_PX)
+    r_px = marker_pt * px_per_pt
+    taken = [
+        Bbox.from_bounds(x - r_px, y - r_px, 2 * r_px, 2 * r_px)
+        for x, y in ax.transData.transform(np.asarray(anchors, dtype=float).reshape(-1, 2))
     ]
+    for a, b in avoid:
+        (x0, y0), (x1, y1) = ax.transData.transform(np.array([a, b], dtype=float))
+        box = Bbox.from_extents(min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1))
+        taken.append(box.padded(LABEL_PAD_PX))  # a straight arrow's box has no width
+    out = []
+    for (x, y), text in zip(anchors, texts, strict=True):
+        label = ax.text(
+            x,
+            y,
+            text,
+            fontsize=fontsize,
+            zorder=20,
+            gid=SITE_LABEL_GID,
+            clip_on=False,
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8, "lw": 0},
+        )
+        best: tuple[float, float, Any, Any, str, str] | None = None
+        for ring in LABEL_RINGS_PT:
+            for deg in LABEL_DIRECTIONS_DEG:
+                c, s_ = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+                dist = marker_pt + ring
+                ha = "left" if c > 0.1 else "right" if c < -0.1 else "center"
+                va = "bottom" if s_ > 0.1 else "top" if s_ < -0.1 else "center"
+                trans = offset_copy(ax.transData, fig=fig, x=dist * c, y=dist * s_, units="points")
+                label.set(transform=trans, ha=ha, va=va)
+                box = label.get_window_extent(renderer).padded(LABEL_PAD_PX)
+                cost = sum(_overlap(box, t) for t in taken)
+                cost += box.width * box.height - _overlap(box, frame)  # outside the axes
+                if best is None or cost < best[0]:
+                    best = (cost, ring, trans, box, ha, va)
+                if cost == 0:
+                    break
+            if best is not None and best[0] == 0:
+                break
+        assert best is not None
+        _, ring, trans, box, ha, va = best
+        label.set(transform=trans, ha=ha, va=va)
+        taken.append(box)
+        out.append(label)
+        if ring > LABEL_RINGS_PT[0]:
+            centre = ((box.x0 + box.x1) / 2, (box.y0 + box.y1) / 2)
+            cx, cy = ax.transData.inverted().transform(centre)
+            ax.plot(
+                [x, cx],
+                [y, cy],
+                color="0.3",
+                lw=0.5,
+                zorder=19,
+                scalex=False,
+                scaley=False,
+            )
+    return out
+
+
+def text_table(
+    headers: Sequence[str], rows: Sequence[Sequence[str]], width: int, wrap: int
+) -> list[str]:
+    """A plain-text table (for a monospaced font): the header line, then each row on as many
+    lines as its column ``wrap`` needs. Every column is as wide as its widest header or cell,
+    so no header or other cell is ever broken; the ``wrap`` column takes what ``width``
+    characters leave (at least its header and its longest word) and wraps at spaces only."""
+    gap = 2
+    cols = len(headers)
+    widths = [max([len(h)] + [len(r[c]) for r in rows]) for c, h in enumerate(headers)]
+    rest = width - sum(w for c, w in enumerate(widths) if c != wrap) - gap * (cols - 1)
+    longest_word = max([len(w) for r in rows for w in r[wrap].split()] + [len(headers[wrap])])
+    widths[wrap] = max(min(widths[wrap], rest), longest_word)
+
+    def line(cells: Sequence[str]) -> str:
+        return (" " * gap).join(c.ljust(w) for c, w in zip(cells, widths, strict=True)).rstrip()
+
+    out = [line(headers)]
+    for r in rows:
+        parts = textwrap.wrap(
+            r[wrap], widths[wrap], break_long_words=False, break_on_hyphens=False
+        ) or [""]
+        for k, part in enumerate(parts):
+            out.append(line([part if c == wrap else r[c] if k == 0 else "" for c in range(cols)]))
+    return out
 
 
 def write_plan_json(plan: dict[str, Any], out_dir: Path) -> Path:
@@ -139,33 +296,75 @@ def write_plan_json(plan: dict[str, Any], out_dir: Path) -> Path:
     return path
 
 
-TOPVIEW_MARGINS = {"left": 0.08, "right": 0.70, "bottom": 0.09, "top": 0.94}
-"""Fixed margins of the top view (figure fractions; the legend sits in the right 30 %). A
-plan's figures are laid out by fixed margins, not ``tight_layout``: that draws every figure
-once more to measure its texts (≈ 1 s of a city block's plan, docs/validation/benchmarks.md)."""
-HEATMAP_MARGINS = {"left": 0.09, "right": 0.97, "bottom": 0.17, "top": 0.87}
-"""Fixed margins of the heatmap: three title lines above, the legend's rows below."""
+TOPVIEW_MARGINS = {"left": 0.07, "right": 0.62, "bottom": 0.09, "top": 0.94}
+"""Fixed margins of the top view (figure fractions; the legend and the site table sit in the
+right 38 %). A plan's figures are laid out by fixed margins, not ``tight_layout``: that draws
+every figure once more to measure its texts (≈ 1 s of a city block's plan,
+docs/validation/benchmarks.md)."""
+HEATMAP_MARGINS = {"left": 0.05, "right": 0.97, "bottom": 0.24, "top": 0.86, "wspace": 0.12}
+"""Fixed margins of the heatmap's two panels: the title lines above, the legend's rows and the
+site key below."""
 CDF_MARGINS = {"left": 0.12, "right": 0.97, "bottom": 0.12, "top": 0.96}
 """Fixed margins of the CDF figure."""
 
+SITE_TABLE_HEADERS = ("#", "site", "height", "tilt", "chosen for")
+"""Columns of the top view's table of chosen sites."""
+SITE_TABLE_FONTSIZE = 6.5
+SITE_TABLE_LINE_SPACING = 1.2
+"""The site table's line height in font sizes (matplotlib's default line spacing); the
+table keeps to the room under the legend, a closing line says how many lines it left out."""
+MONO_ADVANCE_EM = 0.602
+"""Advance width of a monospaced glyph (DejaVu Sans Mono), in ems: the site table's width in
+characters from the room beside the map."""
 
-def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
-    """Write the figures as PNGs; returns name → path (``topview``, ``heatmap``, ``cdf``)."""
-    import matplotlib
 
-    matplotlib.use("Agg")
+def chosen_sites(result: PlanResult) -> dict[int, list[int]]:
+    """Site index → the RIS counts whose best layout has it (sorted by site)."""
+    out: dict[int, list[int]] = {}
+    for cr in result.counts:
+        for s in cr.ranked[0][0]:
+            out.setdefault(int(s), []).append(cr.ris_count)
+    return dict(sorted(out.items()))
+
+
+def site_table_rows(result: PlanResult, sites: dict[int, list[int]]) -> list[list[str]]:
+    """One row per site: index, name, height, tilt, the counts it is chosen for."""
+    rows = []
+    for s, counts in sites.items():
+        site = result.sites[s]
+        rows.append(
+            [
+                str(s),
+                site.name,
+                f"{site.ris.position[2]:g} m",
+                f"{np.degrees(site.ris.orientation[1]):.0f}°",
+                ", ".join(str(c) for c in counts) + " RIS",
+            ]
+        )
+    return rows
+
+
+def _site_labels(
+    result: PlanResult, sites: Sequence[int]
+) -> tuple[list[tuple[float, float]], list[str]]:
+    """(anchors, texts): one label per map position, sites above each other share it."""
+    by_xy: dict[tuple[float, float], list[str]] = {}
+    for s in sites:
+        p = result.sites[s].ris.position
+        by_xy.setdefault((round(float(p[0]), 2), round(float(p[1]), 2)), []).append(str(s))
+    return list(by_xy), [", ".join(v) for v in by_xy.values()]
+
+
+def topview_figure(result: PlanResult) -> Any:
+    """The top view: obstacles, UE maps (marker size ∝ weight), candidates, each count's best
+    sites (nested markers, facing arrows), their indices placed without overlap
+    (:func:`place_labels`) and, beside the map under the legend, the table of the chosen
+    sites' names, heights, tilts and counts (:func:`text_table`)."""
     import matplotlib.pyplot as plt
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {name: out_dir / f"{name}.png" for name in FIGURE_NAMES}
-    label = _metric_label(result)
-
-    env = result.document.environment
-    # top view: obstacles, UE maps (marker size ∝ weight), candidates, chosen RISs with facing
-    # arrows and labels (index: height, tilt)
-    fig, ax = plt.subplots(figsize=(9, 6))
-    draw_obstacles(ax, env)
+    fig, ax = plt.subplots(figsize=(10.5, 6), dpi=FIGURE_DPI)
+    fig.subplots_adjust(**TOPVIEW_MARGINS)
+    draw_obstacles(ax, result.document.environment)
     for pm, colour, name in (
         (result.tx_map, "tab:blue", "TX map"),
         (result.rx_map, "tab:green", "RX map"),
@@ -189,6 +388,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
             )
     span = float(np.ptp(np.vstack([pos[:, :2], result.rx_map.points[:, :2]]), axis=0).max() or 1.0)
     markers = ["o", "^", "D", "v", "P", "X", "*", "h"]
+    arrows: list[tuple[tuple[float, float], tuple[float, float]]] = []
     for k, cr in enumerate(result.counts):
         lay = cr.ranked[0][0]
         for j, s in enumerate(lay):
@@ -206,37 +406,66 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
                 color=f"C{k + 3}",
                 label=f"best {cr.ris_count} RIS" if j == 0 else None,
             )
+            tip = (float(p[0] + 0.08 * span * face[0]), float(p[1] + 0.08 * span * face[1]))
             ax.annotate(
                 "",
-                xy=(p[0] + 0.08 * span * face[0], p[1] + 0.08 * span * face[1]),
+                xy=tip,
                 xytext=(p[0], p[1]),
                 arrowprops={"arrowstyle": "->", "color": f"C{k + 3}"},
             )
-    chosen = sorted({s for cr in result.counts for s in cr.ranked[0][0]})
-    by_xy: dict[tuple[float, float], list[str]] = {}  # sites above each other: one label
-    for s in chosen:
-        p = result.sites[s].ris.position
-        by_xy.setdefault((round(p[0], 2), round(p[1], 2)), []).append(_site_label(result, s))
-    for (x, y), texts in by_xy.items():
-        ax.annotate(
-            "\n".join(texts),
-            (x, y),
-            xytext=(4, 4),
-            textcoords="offset points",
-            fontsize=6,
-            zorder=20,
-            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.7, "lw": 0},
-        )
+            arrows.append(((float(p[0]), float(p[1])), tip))
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title("UE maps, candidate sites and chosen RISs (arrows: facing)")
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
-    fig.subplots_adjust(**TOPVIEW_MARGINS)
-    fig.savefig(paths["topview"], dpi=110)
+    ax.set_title("UE maps, candidate sites and chosen RISs (arrows: facing; labels: site #)")
+    legend = ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    sites = chosen_sites(result)
+    anchors, texts = _site_labels(result, list(sites))
+    place_labels(ax, anchors, texts, marker_pt=9.0, fontsize=7, avoid=arrows)
+    # the table of the chosen sites, under the legend, as wide as the room beside the map
+    renderer = _renderer(fig)
+    box = legend.get_window_extent(renderer).transformed(fig.transFigure.inverted())
+    x0 = box.x0
+    room_px = (0.99 - x0) * fig.bbox.width
+    width = int(room_px / (MONO_ADVANCE_EM * SITE_TABLE_FONTSIZE * fig.dpi / 72.0))
+    lines = text_table(SITE_TABLE_HEADERS, site_table_rows(result, sites), width, wrap=1)
+    top = box.y0 - 0.03
+    line_px = SITE_TABLE_LINE_SPACING * SITE_TABLE_FONTSIZE * fig.dpi / 72.0
+    fit = int((top - 0.01) * fig.bbox.height / line_px) - 1  # below the table's title line
+    if len(lines) > fit:
+        more = len(lines) - fit + 1
+        lines = [*lines[: fit - 1], f"… {more} more lines (plan.json candidates)"]
+    fig.text(
+        x0,
+        top,
+        "chosen sites\n" + "\n".join(lines),
+        family="monospace",
+        fontsize=SITE_TABLE_FONTSIZE,
+        linespacing=SITE_TABLE_LINE_SPACING,
+        va="top",
+        ha="left",
+        gid="site-table",
+    )
+    return fig
+
+
+def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
+    """Write the figures as PNGs; returns name → path (``topview``, ``heatmap``, ``cdf``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = {name: out_dir / f"{name}.png" for name in FIGURE_NAMES}
+    label = _metric_label(result)
+
+    fig = topview_figure(result)
+    fig.savefig(paths["topview"], dpi=FIGURE_DPI)
     plt.close(fig)
 
-    # heatmap of the bound over the RX map for the best layout of the largest count
+    # the served fraction and the bound over the RX map for the best layout of the largest count
     write_heatmap(result, paths["heatmap"])
 
     # weighted CDFs of the bound per RIS count (best layout of each)
@@ -263,7 +492,7 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.subplots_adjust(**CDF_MARGINS)
-    fig.savefig(paths["cdf"], dpi=110)
+    fig.savefig(paths["cdf"], dpi=FIGURE_DPI)
     if result.sweep is not None:
         paths[SWEEP_FIGURE] = write_sweep_figure(result, out_dir / f"{SWEEP_FIGURE}.png")
     plt.close(fig)
@@ -272,8 +501,6 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
     if result.sizing is not None:
         paths[SIZING_FIGURE] = write_sizing_figure(result, out_dir / f"{SIZING_FIGURE}.png")
     if result.validation is not None:
-        from ris_planner.planning.estimator_check import write_validation_figure
-
         paths["validation"] = write_validation_figure(result.validation, out_dir / "validation.png")
     return paths
 
@@ -281,6 +508,26 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
 BLIND_COLOUR = "#5b2a86"
 """Heatmap cells where the layout is blind (no finite bound): a colour outside the diverging
 scale, named in the legend."""
+
+NONE_SERVED_COLOUR = "#4d4d4d"
+"""Served-fraction cells where no TX partner is served: outside the sequential scale (any
+partner served shows in colour), named in the legend."""
+
+SERVED_FLOOR = 1e-9
+"""Served fractions below this are drawn as :data:`NONE_SERVED_COLOUR`."""
+
+SERVED_COLOURS = (
+    "#d73027",
+    "#f46d43",
+    "#fdae61",
+    "#fee08b",
+    "#d9ef8b",
+    "#a6d96a",
+    "#66bd63",
+    "#1a9850",
+)
+"""The served fraction's scale, 0 → red to 1 → green (the bound panel's colours of bad and
+good): ``RdYlGn``'s classes without its pale centre, which a white map would swallow."""
 
 
 def heatmap_level(result: PlanResult, finite: FloatArray) -> float:
@@ -295,21 +542,102 @@ def heatmap_level(result: PlanResult, finite: FloatArray) -> float:
     return float(np.exp(np.mean(np.log(finite)))) if finite.size else 1.0
 
 
-def write_heatmap(result: PlanResult, path: Path) -> Path:
-    """The bound over the RX map for the best layout of the largest count: a raster with a
-    diverging colour scale centred (in log) on the objective's level – green at or below it,
-    red above – blind cells in :data:`BLIND_COLOUR`, a colour bar in metres, and a legend of
-    the obstacles, the candidates and the layout's sites. No UE markers are drawn over the
-    cells (the raster itself shows every point's value)."""
+def served_title(result: PlanResult) -> str:
+    """What the served-fraction panel counts as served: the bound at or below the level, or
+    any finite bound (:func:`~ris_planner.planning.fields.served_level`)."""
+    from ris_planner.planning.fields import served_level
+
+    label = _metric_label(result)
+    level = served_level(result.document)
+    return f"{label} ≤ {level:.3g} m" if np.isfinite(level) else f"finite {label}"
+
+
+def _draw_sites(ax: Any, result: PlanResult, lay: Sequence[int], legend: bool) -> None:
+    """The candidates (small hollow squares) and the layout's sites (black squares)."""
+    pos = np.array([s.ris.position for s in result.sites])
+    ax.scatter(
+        pos[:, 0],
+        pos[:, 1],
+        marker="s",
+        s=14,
+        facecolors="none",
+        edgecolors="0.35",
+        linewidths=0.6,
+        zorder=4,
+        label="candidate sites" if legend else None,
+    )
+    chosen = pos[list(lay)]
+    ax.scatter(
+        chosen[:, 0],
+        chosen[:, 1],
+        marker="s",
+        c="k",
+        s=50,
+        zorder=5,
+        label=f"chosen sites ({len(lay)} RIS)" if legend else None,
+    )
+
+
+SITE_KEY_WIDTH = 190
+"""Characters per line of the heatmap's site key (the names of the layout's sites)."""
+SITE_KEY_MAX_LINES = 4
+
+
+def pack_entries(entries: Sequence[str], width: int, max_lines: int) -> list[str]:
+    """The entries on lines of at most ``width`` characters (3 spaces between entries, an entry
+    never split; one longer than ``width`` alone on its line), at most ``max_lines`` lines – the
+    last then says how many entries were left out."""
+    lines: list[str] = []
+    for k, entry in enumerate(entries):
+        if lines and len(lines[-1]) + 3 + len(entry) <= width:
+            lines[-1] += "   " + entry
+            continue
+        if len(lines) == max_lines:
+            lines[-1] += f"   … {len(entries) - k} more"
+            break
+        lines.append(entry)
+    return lines
+
+
+def heatmap_figure(result: PlanResult) -> Any:
+    """The best layout of the largest count over the RX map, two panels: left, the fraction of
+    each point's TX partners the layout serves (:attr:`~ris_planner.planning.fields.RxField.
+    served`; red few to green all, none served in :data:`NONE_SERVED_COLOUR`); right, the bound
+    on a diverging scale centred (in log) on the objective's level – green at or below it,
+    red above – blind cells in :data:`BLIND_COLOUR`. Colour bars for both, a shared legend of
+    the obstacles, the candidates, the layout's sites and the colours, the sites' names
+    below it. No UE markers are drawn over the cells (the rasters show every point's value)."""
     import matplotlib.pyplot as plt
-    from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.colors import LinearSegmentedColormap, Normalize, TwoSlopeNorm
     from matplotlib.patches import Patch
-    from matplotlib.ticker import FuncFormatter
+    from matplotlib.ticker import FuncFormatter, PercentFormatter
 
     label = _metric_label(result)
     pts, vals, lay = result.heatmap()
-    fig, ax = plt.subplots(figsize=(8.5, 6))
-    fig.subplots_adjust(**HEATMAP_MARGINS)  # before the colour bar, which takes its room
+    served = result.rx_field(lay).served
+    fig, (sx, ax) = plt.subplots(1, 2, figsize=(15, 6.6), dpi=FIGURE_DPI)
+    fig.subplots_adjust(**HEATMAP_MARGINS)  # before the colour bars, which take their room
+
+    # left: the served fraction (the worst point of each cell)
+    x_edges, y_edges, frac, empty_s = raster(pts, served, result.scene, worst="min")
+    served_cmap = LinearSegmentedColormap.from_list("served", SERVED_COLOURS).with_extremes(
+        under=NONE_SERVED_COLOUR
+    )
+    mesh = sx.pcolormesh(
+        x_edges,
+        y_edges,
+        np.ma.masked_array(frac, mask=empty_s),
+        cmap=served_cmap,
+        norm=Normalize(vmin=SERVED_FLOOR, vmax=1.0),
+        shading="flat",
+        zorder=0,
+    )
+    bar = fig.colorbar(mesh, ax=sx, extend="min", shrink=0.85, pad=0.02)
+    bar.set_label("fraction of TX partners served (weighted)")
+    bar.ax.yaxis.set_major_formatter(PercentFormatter(1.0))
+    sx.set_title(f"Where it works: TX partners served ({served_title(result)})", fontsize=10)
+
+    # right: the bound (the worst point of each cell)
     x_edges, y_edges, grid, empty = raster(pts, vals, result.scene)
     finite = np.isfinite(grid) & ~empty
     blind = np.isinf(grid) & ~empty
@@ -333,49 +661,55 @@ def write_heatmap(result: PlanResult, path: Path) -> Path:
     bar.set_label(f"{label} [m] (log scale; centre = {level:.3g} m)")
     bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{10**v:.3g}"))
     bar.ax.axhline(zc, color="k", lw=1.2)
-    draw_obstacles(ax, result.document.environment)
-    pos = np.array([s.ris.position for s in result.sites])
-    ax.scatter(
-        pos[:, 0],
-        pos[:, 1],
-        marker="s",
-        s=14,
-        facecolors="none",
-        edgecolors="0.35",
-        linewidths=0.6,
-        zorder=4,
-        label="candidate sites",
-    )
-    for j, s in enumerate(lay):
-        p = result.sites[s].ris.position
-        ax.scatter(
-            p[0],
-            p[1],
-            marker="s",
-            c="k",
-            s=50,
-            zorder=5,
-            label=f"chosen sites ({len(lay)} RIS)" if j == 0 else None,
-        )
-        ax.annotate(str(s), (p[0], p[1]), xytext=(4, 4), textcoords="offset points", fontsize=7)
-    handles, _ = ax.get_legend_handles_labels()
+    tx_txt = "fixed TX" if result.document.heatmap_tx is not None else "weighted median over TX"
+    ax.set_title(f"{label} ({tx_txt})", fontsize=10)
+
+    anchors, texts = _site_labels(result, sorted(int(s) for s in lay))
+    for panel, first in ((sx, True), (ax, False)):
+        draw_obstacles(panel, result.document.environment)
+        _draw_sites(panel, result, lay, legend=first)
+        panel.set_aspect("equal")
+        panel.set_xlabel("x [m]")
+        panel.set_ylabel("y [m]")
+    for panel in (sx, ax):
+        place_labels(panel, anchors, texts, marker_pt=4.0, fontsize=7)
+
+    handles, _ = sx.get_legend_handles_labels()
+    handles.append(Patch(color=NONE_SERVED_COLOUR, label="no TX partner served"))
     handles.append(Patch(color=BLIND_COLOUR, label="blind (no finite bound)"))
-    handles.append(Patch(color=cmap(0.2), label=f"≤ {level:.3g} m"))
-    handles.append(Patch(color=cmap(0.8), label=f"> {level:.3g} m"))
-    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.1), ncol=3)
-    tx_txt = "fixed TX" if result.document.heatmap_tx is not None else "weighted median over TX map"
-    title = f"{label} over the RX map\nbest {len(lay)}-RIS layout, {tx_txt}"
+    handles.append(Patch(color=cmap(0.2), label=f"{label} ≤ {level:.3g} m"))
+    handles.append(Patch(color=cmap(0.8), label=f"{label} > {level:.3g} m"))
+    entries = [f"{s}: {result.sites[s].name}" for s in sorted(int(s) for s in lay)]
+    key = fig.text(
+        0.5,
+        0.01,
+        "\n".join(pack_entries(["sites –", *entries], SITE_KEY_WIDTH, SITE_KEY_MAX_LINES)),
+        ha="center",
+        va="bottom",
+        fontsize=7,
+        gid="site-key",
+    )
+    top = key.get_window_extent(_renderer(fig)).y1 / fig.bbox.height
+    fig.legend(
+        handles=handles, fontsize=7, loc="lower center", bbox_to_anchor=(0.5, top + 0.01), ncol=5
+    )
+    title = f"Best {len(lay)}-RIS layout {list(lay)} over the RX map"
     diagnosis = result.diagnosis
     if diagnosis is not None and diagnosis["verdict"] != "ok":
         title += (
             f"\n{diagnosis['verdict'].upper()}: serves"
             f" {100 * diagnosis['served_fraction']:.1f} % of the pair weight"
         )
-    ax.set_title(title, fontsize=10)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    fig.savefig(path, dpi=110)
+    fig.suptitle(title, fontsize=11)
+    return fig
+
+
+def write_heatmap(result: PlanResult, path: Path) -> Path:
+    """``heatmap.png``: :func:`heatmap_figure`."""
+    import matplotlib.pyplot as plt
+
+    fig = heatmap_figure(result)
+    fig.savefig(path, dpi=FIGURE_DPI)
     plt.close(fig)
     return path
 
@@ -503,3 +837,90 @@ def write_sweep_figure(result: PlanResult, path: Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def write_validation_figure(validation: dict[str, Any], path: Path) -> Path:
+    """``validation.png`` of plan.json's ``validation``
+    (:func:`~ris_planner.planning.estimator_check.run_estimator_check`):
+    :func:`validation_figure`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = validation_figure(validation)
+    fig.savefig(path, dpi=FIGURE_DPI)
+    plt.close(fig)
+    return path
+
+
+def validation_figure(validation: dict[str, Any]) -> Any:
+    """Error vs bound per pair (log–log, the 1× and 1.5× lines) and the CDFs of error and
+    bound per layout, each axis naming its quantity (the metric's position error, its bound:
+    :data:`ERROR_LABELS`, :data:`METRIC_LABELS`); a figure without one finite value says so."""
+    import matplotlib.pyplot as plt
+
+    error = ERROR_LABELS[validation["metric"]]
+    bound = METRIC_LABELS[validation["metric"]]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.5))
+    finite: list[float] = []
+    for k, lay in enumerate(validation["layouts"]):
+        colour = f"C{k}"
+        label = f"{lay['ris_count']} RIS"
+        pts = [(p["bound_m"], p["error_m"]) for p in lay["pairs"] if p["bound_m"] is not None]
+        b = np.array([p[0] for p in pts], dtype=float)
+        e = np.array([np.inf if p[1] is None else p[1] for p in pts], dtype=float)
+        finite += list(b[np.isfinite(b)]) + list(e[np.isfinite(e)])
+        ok = np.isfinite(e)
+        ax.scatter(b[ok], e[ok], s=14, color=colour, label=label)
+        if np.any(~ok):
+            ax.scatter(b[~ok], np.full((~ok).sum(), np.nan), color=colour)
+        for vals, style, name in ((e, "-", "estimator"), (b, "--", "bound")):
+            v = np.sort(vals)
+            prob = np.arange(1, v.size + 1) / max(v.size, 1)
+            bx.step(
+                v[np.isfinite(v)],
+                prob[np.isfinite(v)],
+                style,
+                color=colour,
+                where="post",
+                label=f"{label} {name}",
+            )
+    if finite:
+        lo, hi = max(min(finite) / 2, 1e-6), max(finite) * 2
+        xs = np.array([lo, hi])
+        ax.plot(xs, xs, "k-", lw=0.8, label="error = bound")
+        ax.plot(xs, 1.5 * xs, "k:", lw=0.8, label="1.5 × bound")
+    thr = validation["threshold_m"]
+    ax.axvline(thr, color="grey", lw=0.6)
+    ax.axhline(thr, color="grey", lw=0.6)
+    bx.axvline(thr, color="grey", lw=0.6)
+    ax.set(
+        xscale="log",
+        yscale="log",
+        xlabel=f"bound: {bound} [m]",
+        ylabel=f"estimator RMSE: {error} [m]",
+        title=f"{error} vs its bound ({bound}) per pair",
+    )
+    bx.set(
+        xscale="log",
+        xlabel=f"{error} (solid) / {bound} (dashed) [m]",
+        ylabel="fraction of sampled pairs",
+        title=f"CDF of the {error} and of {bound}",
+    )
+    if not finite:
+        for panel in (ax, bx):
+            panel.text(
+                0.5,
+                0.5,
+                "no sampled pair has a finite error or bound",
+                transform=panel.transAxes,
+                ha="center",
+                va="center",
+                fontsize=9,
+                color="0.3",
+            )
+    ax.legend(fontsize=7)
+    bx.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
