@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from ris_planner.bounds.compute import compute_bounds
+from ris_planner.bounds.paths import ris_serves
 from ris_planner.cli import main
 from ris_planner.model.scenario import RIS, SystemParams
 from ris_planner.physics.fim import steering_gram
@@ -21,6 +22,7 @@ from ris_planner.physics.geometry import element_positions
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
 from ris_planner.planning.beam_design import layout_scenario
 from ris_planner.planning.diagnosis import (
+    BLOCKED_EXAMPLES,
     COVERAGE_FLOOR,
     MAX_SIDE,
     SPREAD_MIN,
@@ -258,6 +260,60 @@ def test_blocked_names_the_candidates_behind_the_wall() -> None:
     assert [c["index"] for c in blocked["candidates"]] == [1, 2]
     assert blocked["candidates"][0]["name"] == result.sites[1].name
     assert not result.cache.present[[1, 2]].any() and result.cache.present[0].any()
+    assert blocked["no_visible_point"] == 2 and blocked["no_pair_with_both_ues"] == 0
+    assert all(c["reason"] == "no_visible_point" for c in blocked["candidates"])
+    assert all(c["visible_points"] == 0 for c in blocked["candidates"])
+    assert blocked["message"].startswith("2 of 3 candidates serve no pair")
+    assert "2 see no UE point" in blocked["message"]
+
+
+SQUARE_POINTS = [
+    [x, y, 1.5] for x in (-3.0, -1.5, 0.0, 1.5, 3.0) for y in (-3.0, -1.5, 0.0, 1.5, 3.0)
+]
+SOUTH_TX = [[-1.0, -9.0, 1.5], [0.0, -9.0, 1.5], [1.0, -9.0, 1.5]]
+"""Three TX points south of a second wall, where only the lone candidate sees them."""
+LONE = {"position": [0.0, -12.0, 3.0], "orientation": [math.pi / 2, 0.0, 0.0], "name": "lone"}
+SOUTH_WALL = {"kind": "wall", "start": [-8, -8], "end": [8, -8], "height_m": 10}
+
+
+def test_blocked_tells_seeing_no_point_from_serving_no_pair() -> None:
+    """A candidate that sees UE points (three TX points) but no pair – a RIS path needs both
+    UEs in view – is not reported as seeing none; the counts per reason are in the message,
+    the names of a few only, every candidate with its visible points in the details."""
+    behind = [
+        {"position": [x, 10.0, 3.0], "orientation": [-math.pi / 2, 0.0, 0.0]}
+        for x in (-6.0, -4.0, -2.0, 0.0, 2.0, 4.0)
+    ]
+    doc = doc_of(
+        tx_map={"points": SQUARE_POINTS + SOUTH_TX},
+        rx_map={"points": SQUARE_POINTS},
+        candidates=[ring(4, 6.0)[0], *behind, LONE],
+        environment={"obstacles": [WALL, SOUTH_WALL]},
+    )
+    result = plan(doc)
+    blocked = next(c for c in result.diagnosis["causes"] if c["kind"] == "blocked")
+    entries = blocked["candidates"]
+    assert [c["index"] for c in entries] == [1, 2, 3, 4, 5, 6, 7]
+    assert [c["reason"] for c in entries] == ["no_visible_point"] * 6 + ["no_pair_with_both_ues"]
+    lone = entries[-1]
+    assert lone["name"] == "lone" and lone["visible_points"] == 3
+    assert (lone["visible_tx_points"], lone["visible_rx_points"]) == (3, 0)
+    assert lone["map_pair_fraction"] == 0.0  # it sees no RX point: no pair can have it
+    assert (blocked["no_visible_point"], blocked["no_pair_with_both_ues"]) == (6, 1)
+    # the visible points are the plan's own per-site rule (ris_serves) on the maps' points
+    points = np.unique(np.concatenate([result.tx_map.points, result.rx_map.points]), axis=0)
+    for c in entries:
+        want = ris_serves(result.scene, result.sites[c["index"]].ris, points)
+        assert c["visible_points"] == int(np.count_nonzero(want)), c
+    message = blocked["message"]
+    assert message.startswith("7 of 8 candidates serve no pair")
+    assert "6 see no UE point (none of the 28 map points" in message
+    assert "1 see UE points (3 of 28 each) but serve no pair" in message
+    assert "a RIS path needs both UEs of a pair in view" in message
+    # a few names, not all of them
+    named = [f"{i} (candidate {i})" for i in range(1, 7)]
+    assert all(n in message for n in named[:BLOCKED_EXAMPLES])
+    assert not any(n in message for n in named[BLOCKED_EXAMPLES:]) and "7 (lone)" in message
 
 
 # --- sizing ---------------------------------------------------------------------------------

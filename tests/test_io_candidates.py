@@ -20,10 +20,17 @@ import shapely
 
 from ris_planner.cli import main
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
-from ris_planner.io.candidates import CandidateOptions, candidate_sites, generate_candidates
+from ris_planner.io.candidates import (
+    CandidateOptions,
+    _parse_site,
+    candidate_sites,
+    generate_candidates,
+)
 from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import import_features, import_sites
-from ris_planner.io.site_import import import_data
+from ris_planner.io.site_import import PLAN_DEFAULTS, import_data, plan_from_import
+from ris_planner.model.plan import RISDefaults
+from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG
 
 ORIGIN = (24.94, 60.17, 5.0)
 """A frame origin in Helsinki, 5 m above the ellipsoid (heights are relative to it)."""
@@ -198,9 +205,43 @@ def test_poles_stand_beside_the_road_facing_across() -> None:
     np.testing.assert_allclose(pos, want, rtol=0, atol=POSITION_TOL_M)
     facing = np.array([[math.cos(y), math.sin(y)] for y in ori[:, 0]])
     np.testing.assert_allclose(facing, [[0, -1], [0, 1], [0, -1], [0, 1]], atol=1e-9)
-    # every road point is in front of every pole and nothing blocks: all seen
-    assert all(f["properties"]["sees_points"] == summary.ue_points for f in fc["features"])
     assert [f["properties"]["road"] for f in fc["features"]] == [0, 0, 0, 0]
+    # every road point is in front of every pole and nothing blocks: with the open half-space
+    # as field of view all are seen; with the default (the plan's 84.26°) those within it
+    wide, wide_summary = candidate_sites(doc, opts.model_copy(update={"max_angle_deg": 90.0}))
+    assert wide_summary.ue_points == summary.ue_points
+    assert all(f["properties"]["sees_points"] == summary.ue_points for f in wide["features"])
+    ue = _parse_site(doc, opts).ue_points
+    for p, (x, y, z), yaw in zip(fc["features"], pos, ori[:, 0], strict=True):
+        d = ue - [x, y, z]
+        cos = (d[:, 0] * math.cos(yaw) + d[:, 1] * math.sin(yaw)) / np.linalg.norm(d, axis=1)
+        want = int(np.count_nonzero(cos > math.cos(math.radians(PLAN_MAX_ANGLE_DEG))))
+        assert p["properties"]["sees_points"] == want < summary.ue_points
+
+
+def test_the_field_of_view_default_is_the_plans(capsys: pytest.CaptureFixture[str]) -> None:
+    """``ris-planner sites`` and ``ris-planner import --plan`` use one field of view: the plan
+    physics' PLAN_MAX_ANGLE_DEG (also the plan document's ris default), so a site kept for
+    seeing a UE point sees it in the plan."""
+    assert CandidateOptions().max_angle_deg == PLAN_MAX_ANGLE_DEG
+    assert PLAN_DEFAULTS["ris"]["max_angle_deg"] == PLAN_MAX_ANGLE_DEG
+    assert RISDefaults().max_angle_deg == PLAN_MAX_ANGLE_DEG
+    site = json.loads((HELSINKI / "helsinki.geojson").read_text())
+    fragment, summary = import_data(json.dumps(site).encode(), "geojson")
+    plan_doc, _ = plan_from_import(fragment, "geojson", summary)
+    assert plan_doc["ris"]["max_angle_deg"] == CandidateOptions().max_angle_deg
+    assert main(["sites", "--help"]) == 0
+    assert f"({PLAN_MAX_ANGLE_DEG:g})" in " ".join(capsys.readouterr().out.split())
+    # a site whose only UE point lies 87° off its normal is dropped: the plan would not see it
+    # (the south facade's one site at (10, -0.05), 4 m up, faces −y; the point is 10 m away)
+    a = math.radians(87.0)
+    off = [[10.0 + 10.0 * math.sin(a), -0.05 - 10.0 * math.cos(a), 4.0]]
+    opts = CandidateOptions(kinds=["facade"], spacing_m=100.0, heights_m=[4.0])
+    _, narrow = candidate_sites(site_doc([prism(RECTANGLE)], off), opts)
+    assert narrow.candidates == 0 and narrow.dropped_unseen == narrow.generated > 0
+    wide = opts.model_copy(update={"max_angle_deg": 90.0})
+    fc, summary = candidate_sites(site_doc([prism(RECTANGLE)], off), wide)
+    assert summary.candidates == 1 and fc["features"][0]["properties"]["facade"] == 0
 
 
 def helsinki_candidates(**options: Any) -> tuple[dict[str, Any], Any]:

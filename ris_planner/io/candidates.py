@@ -30,7 +30,9 @@ Rules (:class:`CandidateOptions` holds every default):
   buildings): the point is within its field of view (``max_angle_deg`` from the normal) and
   the leg is not blocked (:func:`~ris_planner.planning.visibility.serve_matrix`, batched over
   every site and point; the rules of :mod:`ris_planner.environment.scene`). ``sees_points``
-  counts them.
+  counts them. The default field of view is the plan's
+  (:data:`~ris_planner.model.plan_physics.PLAN_MAX_ANGLE_DEG`, 84.26°, what a plan document
+  and ``ris-planner import --plan`` use), so a kept site sees its points in the plan too.
 * Above ``max_candidates``, the sites that serve the most points are kept (ties: input order).
 
 ``azimuth_deg`` is the compass direction the RIS faces in the output's ``frame`` (the local
@@ -63,6 +65,7 @@ from ris_planner.io.frames import Frame, to_local
 from ris_planner.io.geojson_import import import_features
 from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count
 from ris_planner.model.plan import Facades, RISDefaults, UEMap, Wall, map_points
+from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG
 from ris_planner.model.scenario import RIS
 from ris_planner.planning.maps import build_map
 from ris_planner.planning.sites import Site, facade_walls, wall_poses
@@ -139,10 +142,12 @@ class CandidateOptions(DocumentModel):
         description="Distance of the RIS centre in front of the wall [m] (outside the prism)",
     )
     max_angle_deg: float = Field(
-        90.0,
+        PLAN_MAX_ANGLE_DEG,
         gt=0,
         le=180,
-        description="Field of view used for 'sees a UE point' (the plan's ris.max_angle_deg)",
+        description="Field of view used for 'sees a UE point' [deg from the normal]; default"
+        " the plan's ris.max_angle_deg default (84.26°: cos θ > 0.1, model/plan_physics.py),"
+        " which 'ris-planner import --plan' writes too",
     )
     max_candidates: int = Field(
         1000,

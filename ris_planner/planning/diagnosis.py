@@ -33,8 +33,12 @@ the causes are:
 * ``geometry`` – pairs with an infinite bound (too few RIS paths reach them, degenerate
   geometry) carry at least :data:`CAUSE_SHARE` of the missing weight: neither size nor power
   helps them, more RISs or other sites do.
-* ``blocked`` – candidates that serve no pair (no UE point in their field of view with a clear
-  leg): they can never help.
+* ``blocked`` – candidates whose RIS path exists for no pair of the plan: they cannot help
+  it. A site serves a pair only when it serves *both* UEs (each in its field of view with a
+  clear leg, :mod:`ris_planner.planning.visibility`), so each such candidate gets its true
+  reason (:func:`blocked_candidates`): ``no_visible_point`` – it sees no map point at all –
+  or ``no_pair_with_both_ues`` – it sees UE points, but no evaluated pair has both of its UEs
+  among them (typically a few points and sampled pairs that miss them).
 """
 
 from __future__ import annotations
@@ -301,6 +305,110 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f} %"
 
 
+BLOCKED_BATCH = 4_000_000
+"""Site × point entries of one visibility query of :func:`blocked_candidates` (bounds its
+[S, M] arrays)."""
+BLOCKED_EXAMPLES = 3
+"""Candidates named per reason in the ``blocked`` message (every one is in its details)."""
+
+
+def _map_shares(weights: FloatArray) -> FloatArray:
+    """A map's relative weights as shares summing to 1 (scaled by their largest first, so no
+    sum overflows)."""
+    w = weights / weights.max()
+    return np.asarray(w / w.sum())
+
+
+def blocked_candidates(result: PlanResult, dead: NDArray[np.int_]) -> list[dict[str, Any]]:
+    """Why each candidate of ``dead`` (whose RIS path exists for no pair) serves none:
+    ``{"index", "name", "reason", "visible_points", "visible_tx_points",
+    "visible_rx_points", "map_pair_fraction"}`` per candidate.
+
+    ``visible_points`` counts the distinct map points (TX and RX maps, after the points inside
+    buildings were dropped) the site serves – in its field of view with a clear leg
+    (:func:`~ris_planner.planning.visibility.serve_matrix`, the plan's own rule);
+    ``map_pair_fraction`` is the share of the TX × RX map weight whose TX and RX are two
+    distinct points it both serves (a pair sampled from the maps has a RIS path of this site
+    with that chance; 0 when it sees a single point: no pair can have one).
+    ``reason`` is ``no_visible_point`` when it serves no map point, else
+    ``no_pair_with_both_ues``: no evaluated pair has both UEs among its visible points."""
+    from ris_planner.environment import Scene
+    from ris_planner.planning.visibility import serve_matrix
+
+    scene = result.scene or Scene.from_environment(result.document.environment)
+    tx, rx = result.tx_map, result.rx_map
+    points, inverse = np.unique(np.concatenate([tx.points, rx.points]), axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    it, ir = inverse[: len(tx.points)], inverse[len(tx.points) :]
+    # each distinct point's share of the TX and of the RX map weight
+    share_tx = np.bincount(it, _map_shares(tx.weights), minlength=len(points))
+    share_rx = np.bincount(ir, _map_shares(rx.weights), minlength=len(points))
+    out: list[dict[str, Any]] = []
+    batch = max(1, BLOCKED_BATCH // max(1, len(points)))
+    for lo in range(0, dead.size, batch):
+        chunk = [int(i) for i in dead[lo : lo + batch]]
+        seen = serve_matrix(scene, [result.sites[i] for i in chunk], points)  # [s, M]
+        for row, i in zip(seen, chunk, strict=True):
+            n = int(np.count_nonzero(row))
+            # TX × RX combinations of two distinct visible points (a pair needs two)
+            both = share_tx[row].sum() * share_rx[row].sum() - share_tx[row] @ share_rx[row]
+            out.append(
+                {
+                    "index": i,
+                    "name": result.sites[i].name,
+                    "reason": "no_visible_point" if n == 0 else "no_pair_with_both_ues",
+                    "visible_points": n,
+                    "visible_tx_points": int(np.count_nonzero(row[it])),
+                    "visible_rx_points": int(np.count_nonzero(row[ir])),
+                    "map_pair_fraction": max(0.0, float(both)),
+                }
+            )
+    return out
+
+
+def _examples(entries: list[dict[str, Any]]) -> str:
+    """'e.g. 3 (B0-f1-0-h4), 7 (R2-p0), …' of the first :data:`BLOCKED_EXAMPLES` entries."""
+    named = ", ".join(f"{e['index']} ({e['name']})" for e in entries[:BLOCKED_EXAMPLES])
+    return f"e.g. {named}" + (", …" if len(entries) > BLOCKED_EXAMPLES else "")
+
+
+def blocked_cause(result: PlanResult, dead: NDArray[np.int_]) -> dict[str, Any]:
+    """The ``blocked`` cause of the candidates ``dead``: counts per reason in the message,
+    every candidate with its reason and visible points in ``candidates``
+    (:func:`blocked_candidates`)."""
+    entries = blocked_candidates(result, dead)
+    unseen = [e for e in entries if e["reason"] == "no_visible_point"]
+    unpaired = [e for e in entries if e["reason"] == "no_pair_with_both_ues"]
+    n_points = len(np.unique(np.concatenate([result.tx_map.points, result.rx_map.points]), axis=0))
+    parts = []
+    if unseen:
+        parts.append(
+            f"{len(unseen)} see no UE point (none of the {n_points} map points is in their field"
+            f" of view with a clear leg; {_examples(unseen)})"
+        )
+    if unpaired:
+        counts = [e["visible_points"] for e in unpaired]
+        top = max(e["map_pair_fraction"] for e in unpaired)
+        spread = f"{min(counts)}–{max(counts)}" if min(counts) < max(counts) else f"{counts[0]}"
+        parts.append(
+            f"{len(unpaired)} see UE points ({spread} of {n_points} each) but serve no pair: a"
+            " RIS path needs both UEs of a pair in view with clear legs, and no evaluated pair"
+            " has both among them (the TX–RX combinations of two points one of them sees"
+            f" carry at most {_pct(top)} of the map weight; {_examples(unpaired)})"
+        )
+    message = (
+        f"{len(entries)} of {len(result.sites)} candidates serve no pair, so they cannot help"
+        " this plan: " + "; ".join(parts)
+    )
+    return {
+        "kind": "blocked",
+        "message": message,
+        "no_visible_point": len(unseen),
+        "no_pair_with_both_ues": len(unpaired),
+        "candidates": entries,
+    }
+
+
 def diagnose(result: PlanResult) -> dict[str, Any]:
     """``plan.json["diagnosis"]``: ``{"verdict", "causes", "floor", "best", "worst", ...}``
     of the best layout of the plan's largest searched count (module docstring)."""
@@ -393,20 +501,7 @@ def diagnose(result: PlanResult) -> dict[str, Any]:
     if present is not None:
         dead = np.nonzero(~present.any(axis=1))[0]
         if dead.size:
-            names = [result.sites[i].name for i in dead]
-            causes.append(
-                {
-                    "kind": "blocked",
-                    "message": (
-                        f"{dead.size} of {len(result.sites)} candidates serve no pair (no UE"
-                        " point in their field of view with a clear leg): "
-                        + ", ".join(f"{i} ({n})" for i, n in zip(dead, names, strict=True))
-                    ),
-                    "candidates": [
-                        {"index": int(i), "name": n} for i, n in zip(dead, names, strict=True)
-                    ],
-                }
-            )
+            causes.append(blocked_cause(result, dead))
     out["causes"] = causes
     return out
 

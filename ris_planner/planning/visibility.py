@@ -29,7 +29,9 @@ BoolArray = NDArray[np.bool_]
 
 SERVE_WARNING_FRACTION = 0.01
 """A candidate whose RIS path exists for less than this fraction (1 %) of the pair weight gets a
-warning in ``plan.json``: it faces away from the UEs or is buried behind obstacles."""
+warning in ``plan.json``: few pairs have both UEs in its field of view with clear legs (it faces
+away from the UEs, obstacles block it, or it sees too few points for the pairs to meet; a
+plan's diagnosis tells which for the candidates that serve no pair at all)."""
 
 LEG_BATCH = 1_000_000
 """Legs per visibility query (bounds the temporary arrays of :meth:`Scene.blocked`)."""
@@ -103,7 +105,8 @@ def serve_warnings(sites: list[Site], present: BoolArray, weights: FloatArray) -
     served = present.astype(float) @ weights  # [S]
     return [
         f"candidate {i} ({site.name}) serves {served[i]:.1%} of the pair weight (below"
-        f" {SERVE_WARNING_FRACTION:.0%}): it faces away from the UEs or obstacles block it"
+        f" {SERVE_WARNING_FRACTION:.0%}): few pairs have both UEs in its field of view with"
+        " clear legs"
         for i, site in enumerate(sites)
         if served[i] < SERVE_WARNING_FRACTION
     ]
