@@ -371,3 +371,45 @@ def test_import_errors(server: str) -> None:
     assert {"application/geo+json", "application/xml", "application/octet-stream"} <= set(
         body_types
     )
+
+
+def test_import_converts_a_named_projected_crs(tmp_path: Path) -> None:
+    """``POST /v1/import`` of a GeoJSON in ETRS-TM35FIN (EPSG:3067) named by its crs member: the
+    same site as the WGS84 file within a centimetre (``_assert_same_site``), the conversion in
+    the report; an unknown
+    CRS is a 422 on ``crs`` saying what was seen and how to convert; a site without buildings
+    is imported with a warning."""
+    from api_helpers import api_client
+    from test_io_import import TM35FIN_URN, _assert_same_site, _projected, _site_wgs84
+
+    from ris_planner.io.geojson_import import NO_BUILDINGS_WARNING
+
+    crs = {"type": "name", "properties": {"name": TM35FIN_URN}}
+    origin = "24.949,60.1655"
+    with api_client(tmp_path) as client:
+        want = client.post(f"/v1/import?origin={origin}", json=_site_wgs84())
+        assert want.status_code == 200, want.text
+        r = client.post(f"/v1/import?origin={origin}", json=_projected(_site_wgs84(), crs))
+        assert r.status_code == 200, r.text
+        answer = r.json()
+        _assert_same_site(answer["fragment"], want.json()["fragment"])
+        assert answer["report"]["crs"]["name"] == "ETRS89 / TM35FIN(E,N)"
+        assert answer["report"]["crs"]["given"] == crs
+        assert any("converted from the crs member" in n for n in answer["report"]["notes"])
+        doc = answer["document"]
+        assert doc["tx_map"] == answer["fragment"]["ue_map"] and "crs" not in doc
+        # an unknown CRS: a 422 on crs naming the member and the way out
+        bad = {"type": "name", "properties": {"name": "EPSG:99999"}}
+        r = client.post("/v1/import", json=_projected(_site_wgs84(), bad))
+        assert r.status_code == 422, r.text
+        assert r.json()["fields"][0]["field"] == "crs"
+        message = r.json()["message"]
+        assert "crs member" in message and "EPSG:99999" in message and "ogr2ogr" in message
+        # no buildings: imported, with a warning in the report
+        roads = {
+            "type": "FeatureCollection",
+            "features": [f for f in _site_wgs84()["features"] if "highway" in f["properties"]],
+        }
+        r = client.post("/v1/import", json=roads)
+        assert r.status_code == 200, r.text
+        assert r.json()["report"]["warnings"] == [NO_BUILDINGS_WARNING]

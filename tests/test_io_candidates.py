@@ -357,3 +357,41 @@ def test_cli_sites(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert fragment == import_sites(fc, tuple(fc["frame"]["origin"]))[0]
     assert main(["sites", str(tmp_path / "missing.geojson")]) == 2
     assert "cannot read" in capsys.readouterr().err
+
+
+def test_a_site_in_a_projected_crs_and_one_without_buildings() -> None:
+    """A GeoJSON site in EPSG:3067 named by its crs member gives the WGS84 site's candidates
+    (within 1 cm), with a note; a site of roads only is laid out with the no-buildings note."""
+    import pyproj
+
+    from ris_planner.io.geojson_import import NO_BUILDINGS_WARNING
+
+    site = json.loads((HELSINKI / "helsinki.geojson").read_text())
+    t = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:3067", always_xy=True)
+
+    def conv(c: list) -> list:
+        if isinstance(c[0], int | float):
+            return [*t.transform(c[0], c[1]), *c[2:]]
+        return [conv(p) for p in c]
+
+    projected = json.loads(json.dumps(site))
+    for f in projected["features"]:
+        f["geometry"]["coordinates"] = conv(f["geometry"]["coordinates"])
+    projected["crs"] = {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3067"}}
+    opts = CandidateOptions(kinds=["facade", "pole"], heights_m=[4.0])
+    want, _ = candidate_sites(site, opts)
+    got, summary = candidate_sites(projected, opts)
+    assert got["frame"] == want["frame"] and got["license"] == want["license"]
+    props = [
+        {k: v for k, v in f["properties"].items() if k != "azimuth_deg"} for f in got["features"]
+    ]
+    assert props == [
+        {k: v for k, v in f["properties"].items() if k != "azimuth_deg"} for f in want["features"]
+    ]
+    pos_g, ori_g = local_poses(got)
+    pos_w, ori_w = local_poses(want)
+    assert np.abs(pos_g - pos_w).max() < 0.01 and np.abs(ori_g - ori_w).max() < 1e-6
+    assert any("converted from the crs member" in n for n in summary.notes)
+    roads = {**site, "features": [f for f in site["features"] if "highway" in f["properties"]]}
+    _, summary = candidate_sites(roads, CandidateOptions(kinds=["pole"]))
+    assert summary.candidates > 0 and NO_BUILDINGS_WARNING in summary.notes

@@ -24,6 +24,7 @@ from ris_planner.io.geojson_import import (
     DEFAULT_BUILDING_HEIGHT_M,
     HIGHWAY_WIDTH_M,
     METRES_PER_LEVEL,
+    NO_BUILDINGS_WARNING,
     OSM_LICENSE,
     FeatureError,
     ImportOptions,
@@ -832,3 +833,228 @@ def test_osm_xml_courtyard_relation_keeps_its_inner_ring(tmp_path: Path) -> None
     got = _union(_local_prisms(fragment))
     want = shapely.Polygon(outer, [inner])
     assert shapely.symmetric_difference(got, want).area < AREA_TOLERANCE_M2
+
+
+# --- a site without buildings ------------------------------------------------------------------
+
+
+def _line(xy: list[list[float]]) -> dict:
+    return {"type": "LineString", "coordinates": FRAME.to_geographic(np.array(xy)).tolist()}
+
+
+def _mount(x: float, y: float, azimuth: float, name: str) -> dict:
+    pt = FRAME.to_geographic(np.array([[x, y]]))[0].tolist()
+    return _feature({"type": "Point", "coordinates": pt}, name=name, height=6, azimuth_deg=azimuth)
+
+
+def test_an_import_without_buildings_warns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Roads and mounting points but no building: the import report warns (the parser's
+    summary, the --plan report, the command line's stderr), and so does the plan.json of the
+    document it makes; a site with buildings gets neither warning."""
+    from ris_planner.io.geoplan import NO_OBSTACLES_WARNING, plan_document, site_warnings
+    from ris_planner.io.site_import import import_data, plan_from_import
+    from ris_planner.planning import SerialExecutor
+
+    street = _feature(_line([[-30, 0], [30, 0]]), highway="residential")
+    mounts = [_mount(x, 8.0, 180, f"m{k}") for k, x in enumerate((-20.0, 0.0, 20.0))]
+    bare = _fc(street, *mounts)
+    fragment, summary = import_features(bare, ORIGIN)
+    assert "environment" not in fragment and summary.warnings == [NO_BUILDINGS_WARNING]
+    assert summary.to_json()["warnings"] == [NO_BUILDINGS_WARNING]
+    assert "no buildings" in NO_BUILDINGS_WARNING and "every leg as clear" in NO_BUILDINGS_WARNING
+    with_building = _fc(street, _feature(_poly(SQUARE), building="yes"))
+    assert import_features(with_building, ORIGIN)[1].warnings == []
+    # the --plan report of ris-planner import / POST /v1/import
+    data = json.dumps(bare).encode()
+    frag, summ = import_data(data, "geojson", origin=ORIGIN)
+    doc, report = plan_from_import(frag, "geojson", summ)
+    assert report.to_json()["warnings"] == [NO_BUILDINGS_WARNING] and len(doc["candidates"]) == 3
+    src = tmp_path / "bare.geojson"
+    src.write_bytes(data)
+    assert main(["import", "geojson", str(src), "--plan"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {NO_BUILDINGS_WARNING}" in err.splitlines()
+    # plan.json of that document says every leg was planned in line of sight
+    assert site_warnings(doc) == [NO_OBSTACLES_WARNING]
+    assert site_warnings({**doc, "environment": {"obstacles": [{"kind": "wall"}]}}) == []
+    assert site_warnings({k: v for k, v in doc.items() if k not in ("frame", "license")}) == []
+    doc |= {"pairs": {"sample": 40, "seed": 1}, "ris_count": [2], "ris": {"rows": 4, "cols": 4}}
+    doc |= {"search": {"certificate_iterations": 0}}
+    done = plan_document(doc, tmp_path / "out", executor=SerialExecutor())
+    assert done.plan["warnings"][0] == NO_OBSTACLES_WARNING
+    assert "no environment obstacles" in NO_OBSTACLES_WARNING
+
+
+# --- a projected CRS named by the collection's crs member --------------------------------------
+
+TM35FIN_URN = "urn:ogc:def:crs:EPSG::3067"
+IMPORT_TOLERANCE_M = 0.01
+"""A collection converted to EPSG:3067 and back on import lands within a centimetre of the WGS84
+import (the round trip through pyproj is exact to far below that)."""
+
+
+COURTYARD_FAR = [[0.0, 40.0], [40.0, 40.0], [40.0, 80.0], [0.0, 80.0]]
+HOLE_FAR = [[12.0, 52.0], [28.0, 52.0], [28.0, 68.0], [12.0, 68.0]]
+
+
+def _site_wgs84() -> dict:
+    """Buildings (one with a courtyard), a street, a density area and two mounting points."""
+    return _fc(
+        _feature(_poly(SQUARE), "way/1", building="yes", height=12),
+        _feature(_poly(L_SHAPE), "way/2", building="yes", **{"building:levels": 4}),
+        _feature(_poly(COURTYARD_FAR, HOLE_FAR), "way/3", building="yes"),
+        _feature(_line([[-20, -10], [80, -10]]), "way/4", highway="residential"),
+        _feature(_poly([[60.0, 0.0], [80.0, 0.0], [80.0, 15.0], [60.0, 15.0]]), density=0.5),
+        _mount(10.0, -0.2, 180, "s0"),
+        _mount(40.0, -0.2, 180, "s1"),
+    )
+
+
+def _projected(collection: dict, crs: object, epsg: str = "EPSG:3067") -> dict:
+    """The collection with every position transformed to ``epsg`` (easting, northing; heights
+    kept) and the given ``crs`` member."""
+    import pyproj
+
+    t = pyproj.Transformer.from_crs("EPSG:4326", epsg, always_xy=True)
+
+    def conv(c: list) -> list:
+        if isinstance(c[0], int | float):
+            x, y = t.transform(c[0], c[1])
+            return [x, y, *c[2:]]
+        return [conv(p) for p in c]
+
+    out = json.loads(json.dumps(collection))
+    for f in out["features"]:
+        f["geometry"]["coordinates"] = conv(f["geometry"]["coordinates"])
+    return {"type": "FeatureCollection", "crs": crs, "features": out["features"]}
+
+
+def _local_xy(points: list) -> np.ndarray:
+    return FRAME.from_geographic(np.asarray(points, dtype=float)[:, :2])
+
+
+def _assert_same_site(got: dict, want: dict) -> None:
+    """Two import fragments hold the same geometry within :data:`IMPORT_TOLERANCE_M`."""
+    assert got["frame"] == want["frame"]
+    obs_g, obs_w = got["environment"]["obstacles"], want["environment"]["obstacles"]
+    assert [(o["name"], o["height_m"], o["base_m"]) for o in obs_g] == [
+        (o["name"], o["height_m"], o["base_m"]) for o in obs_w
+    ]
+    for a, b in zip(obs_g, obs_w, strict=True):
+        err = np.abs(_local_xy(a["footprint"]) - _local_xy(b["footprint"])).max()
+        assert err < IMPORT_TOLERANCE_M, (a["name"], err)
+    road_g, road_w = got["ue_map"]["roads"], want["ue_map"]["roads"]
+    for a, b in zip(road_g, road_w, strict=True):
+        assert np.abs(_local_xy(a["points"]) - _local_xy(b["points"])).max() < IMPORT_TOLERANCE_M
+    pts_g, pts_w = got["ue_map"]["points"], want["ue_map"]["points"]
+    assert len(pts_g) == len(pts_w) and got["ue_map"]["weights"] == want["ue_map"]["weights"]
+    assert np.abs(_local_xy(pts_g) - _local_xy(pts_w)).max() < IMPORT_TOLERANCE_M
+    assert np.allclose([p[2] for p in pts_g], [p[2] for p in pts_w])
+    cand_g, cand_w = got["candidates"], want["candidates"]
+    assert [c["name"] for c in cand_g] == [c["name"] for c in cand_w]
+    pos_g = np.array([c["position"] for c in cand_g])
+    pos_w = np.array([c["position"] for c in cand_w])
+    assert np.abs(_local_xy(pos_g) - _local_xy(pos_w)).max() < IMPORT_TOLERANCE_M
+    assert np.allclose(pos_g[:, 2], pos_w[:, 2])
+    assert np.allclose([c["orientation"] for c in cand_g], [c["orientation"] for c in cand_w])
+
+
+@pytest.mark.parametrize(
+    "crs",
+    [
+        {"type": "name", "properties": {"name": TM35FIN_URN}},
+        {"type": "name", "properties": {"name": "EPSG:3067"}},
+        "EPSG:3067",
+    ],
+)
+def test_a_projected_crs_is_converted_on_import(crs: object) -> None:
+    from ris_planner.io.site_import import import_data, plan_from_import
+
+    site = _site_wgs84()
+    want, want_summary = import_data(json.dumps(site).encode(), "geojson", origin=ORIGIN)
+    projected = _projected(site, crs)
+    some = projected["features"][0]["geometry"]["coordinates"][0][0]
+    assert some[0] > 1e5 and some[1] > 6e6  # metres: no WGS84 position
+    got, summary = import_data(json.dumps(projected).encode(), "geojson", origin=ORIGIN)
+    _assert_same_site(got, want)
+    assert summary["crs"]["given"] == crs and summary["crs"]["name"] == "ETRS89 / TM35FIN(E,N)"
+    assert summary["crs"]["converted_to"].startswith("WGS84")
+    assert any("converted from the crs member" in n for n in summary["notes"])
+    assert "crs" not in want_summary
+    _, report = plan_from_import(got, "geojson", summary)
+    assert report.to_json()["crs"]["name"] == "ETRS89 / TM35FIN(E,N)"
+    # the default frame (the bounding-box centre) is the WGS84 file's too
+    default, _ = import_data(json.dumps(projected).encode(), "geojson")
+    wgs, _ = import_data(json.dumps(site).encode(), "geojson")
+    assert np.allclose(default["frame"]["origin"], wgs["frame"]["origin"], atol=2e-6)
+
+
+def test_a_projected_sites_file_and_a_wgs84_crs_member() -> None:
+    from ris_planner.io.site_import import import_data
+
+    mounts = _fc(*[f for f in _site_wgs84()["features"] if f["geometry"]["type"] == "Point"])
+    want, _ = import_data(json.dumps(mounts).encode(), "sites", origin=ORIGIN)
+    got, summary = import_data(
+        json.dumps(_projected(mounts, "EPSG:3067")).encode(), "sites", origin=ORIGIN
+    )
+    assert summary["crs"]["name"] == "ETRS89 / TM35FIN(E,N)" and summary["candidates"] == 2
+    pos_g = np.array([c["position"] for c in got["candidates"]])
+    pos_w = np.array([c["position"] for c in want["candidates"]])
+    assert np.abs(_local_xy(pos_g) - _local_xy(pos_w)).max() < IMPORT_TOLERANCE_M
+    # a crs member naming WGS84 itself: the positions are read as they are
+    site = _site_wgs84()
+    for name in ("urn:ogc:def:crs:OGC:1.3:CRS84", "EPSG:4326"):
+        named = {**site, "crs": {"type": "name", "properties": {"name": name}}}
+        fragment, s = import_features(named, ORIGIN)
+        assert fragment == import_features(site, ORIGIN)[0]
+        assert s.crs is not None and s.crs["converted_to"] is None
+
+
+@pytest.mark.parametrize(
+    ("crs", "why"),
+    [
+        ({"type": "name", "properties": {"name": "EPSG:99999"}}, "PROJ knows no CRS 'EPSG:99999'"),
+        ("not a crs at all", "PROJ knows no CRS 'not a crs at all'"),
+        ({"type": "link", "properties": {"href": "http://x/crs", "type": "proj4"}}, "linked CRS"),
+        ({"type": "name", "properties": {}}, "expected a named CRS"),
+        ({"type": "name", "properties": {"name": "EPSG:5773"}}, "not a horizontal CRS"),
+    ],
+)
+def test_an_unusable_crs_member_says_what_it_saw_and_how_to_convert(crs: object, why: str) -> None:
+    projected = _projected(_site_wgs84(), crs)
+    with pytest.raises(DocumentFieldError) as err:
+        import_features(projected)
+    assert err.value.field == "crs"
+    message = str(err.value)
+    assert message.startswith("crs: the collection has a crs member, ")
+    assert json.dumps(crs) in message and why in message
+    assert "ogr2ogr -f GeoJSON -t_srs EPSG:4326 out.geojson in.geojson" in message
+
+
+def test_projected_coordinates_without_a_crs_member_say_so() -> None:
+    projected = _projected(_site_wgs84(), None)
+    del projected["crs"]
+    with pytest.raises(RisPlannerError) as err:
+        import_features(projected)
+    message = str(err.value)
+    assert "is not a WGS84 [lon, lat] position" in message
+    assert "projected coordinates (metres) without a crs member?" in message
+    assert "ogr2ogr -f GeoJSON -t_srs EPSG:4326" in message
+
+
+def test_cli_imports_a_projected_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from ris_planner.io.site_import import import_data
+
+    src = tmp_path / "site-3067.geojson"
+    src.write_text(
+        json.dumps(_projected(_site_wgs84(), {"type": "name", "properties": {"name": TM35FIN_URN}}))
+    )
+    assert main(["import", "geojson", str(src), "--origin", "24.949,60.1655"]) == 0
+    captured = capsys.readouterr()
+    want, _ = import_data(json.dumps(_site_wgs84()).encode(), "geojson", origin=ORIGIN)
+    got = json.loads(captured.out)
+    _assert_same_site(got, want)  # the Point features too: import_sites with the crs
+    assert len(got["candidates"]) == 2
+    assert '"converted_to": "WGS84' in captured.err

@@ -64,8 +64,10 @@ class ImportAnswer(BaseModel):
         " kept open), roads, roads_skipped, areas, area_points, candidates, walls, skipped; for"
         " DXF units_to_m, walls, prisms, ignored), repaired / skipped_invalid (invalid"
         " outlines: feature index, id, name, lonlat, reason, areas before and after),"
-        " tag_problems (tags that are not lengths and what was used instead), license,"
-        " defaults_applied and notes"
+        " tag_problems (tags that are not lengths and what was used instead), license, crs"
+        " (a GeoJSON whose crs member names a projected CRS: converted to WGS84; given, crs,"
+        " name, converted_to, positions), warnings (e.g. no buildings: every leg would be"
+        " planned as clear), defaults_applied and notes"
     )
 
 
@@ -192,7 +194,8 @@ async def post_import(
     """The options are those of ``ris-planner import`` (``docs/guides/import.md``). 422 naming
     the feature by index, id, name and lon/lat in its message and ``features.N`` as its field
     (an invalid outline with ``invalid=error``, lat/lon swapped, a site without azimuth), the
-    ``origin`` (swapped or far from the features), the layer (a DXF without the chosen
+    ``origin`` (swapped or far from the features), the ``crs`` member (a CRS that PROJ does
+    not know: its value and how to convert the file), the layer (a DXF without the chosen
     layers) or the option; 413 above the body limit; 501 on a server without the GIS
     extra."""
     body = await request.body()

@@ -4,7 +4,8 @@
 
 Both print their JSON on stdout or write it to ``--out``; the summary goes to stderr: for an
 import the counts, buildings given the default height, courtyards kept open, repaired and
-skipped outlines, tags that are not lengths and the licence (``docs/guides/import.md``); for
+skipped outlines, tags that are not lengths, the licence and a converted ``crs``
+(``docs/guides/import.md``), then each of its warnings on a line of its own (no buildings); for
 candidates the counts per kind and the buildings left without candidates, with why.
 """
 
@@ -85,6 +86,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(text + "\n")
     print("import summary: " + json.dumps(summary), file=sys.stderr)
+    for warning in summary.get("warnings", []):
+        print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -172,7 +175,11 @@ def _add_sites(sub: argparse._SubParsersAction) -> None:
         " --pole-spacing-m along the roads, kept where they see a UE point. The output is what"
         " 'ris-planner import sites' reads (docs/guides/candidates.md).",
     )
-    p.add_argument("file", help="site: GeoJSON FeatureCollection (WGS84) or an imported document")
+    p.add_argument(
+        "file",
+        help="site: GeoJSON FeatureCollection (WGS84, or the CRS its crs member names) or an"
+        " imported document",
+    )
     p.add_argument("--out", help="write the candidates here instead of stdout")
     p.add_argument("--kinds", help=f"facade,pole (default {','.join(d.kinds)})")
     p.add_argument("--spacing-m", type=finite_float, help=f"facade spacing [m] ({d.spacing_m:g})")

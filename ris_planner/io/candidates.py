@@ -3,7 +3,9 @@ along the roads, kept only where they see a UE point (``ris-planner sites``, ``P
 docs/guides/candidates.md).
 
 The input is a site in WGS84: a GeoJSON FeatureCollection of buildings and roads (imported
-first with :func:`~ris_planner.io.geojson_import.import_features`), or an imported document with
+first with :func:`~ris_planner.io.geojson_import.import_features`; one in a projected CRS
+named by a ``crs`` member is converted first, :func:`~ris_planner.io.geojson_import.
+wgs84_collection`, and a note says so), or an imported document with
 a ``frame`` (``environment`` prisms and a ``ue_map`` – or a plan document's ``tx_map`` /
 ``rx_map``). The output is an editable GeoJSON FeatureCollection of Point features in WGS84 that
 :func:`~ris_planner.io.geojson_import.import_sites` (``ris-planner import sites``, the plan
@@ -62,7 +64,12 @@ from ris_planner.environment import Scene
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
 from ris_planner.io.frames import Frame, to_local
-from ris_planner.io.geojson_import import import_features
+from ris_planner.io.geojson_import import (
+    NO_BUILDINGS_WARNING,
+    crs_note,
+    import_features,
+    wgs84_collection,
+)
 from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count
 from ris_planner.model.plan import Facades, RISDefaults, UEMap, Wall, map_points
 from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG
@@ -332,6 +339,8 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
     notes: list[str] = []
     if site.get("type") == "FeatureCollection":
         with _site_field("features", "features"):
+            site, crs = wgs84_collection(site)  # a crs member: converted once, for both
+            notes += [crs_note(crs)] if crs is not None else []
             doc, _ = import_features(site)
             origin = tuple(doc["frame"]["origin"])
             wanted = "pole" in options.kinds
@@ -360,6 +369,8 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
         env_local, frame = to_local(env_doc)
         environment = Environment.model_validate(env_local["environment"])
     assert frame is not None
+    if not environment.obstacles:
+        notes.append(NO_BUILDINGS_WARNING)
     maps = _maps_of(doc)
     if not maps:
         raise RisPlannerError(

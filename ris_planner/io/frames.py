@@ -258,6 +258,39 @@ def parse_frame(spec: Any, doc: dict[str, Any] | None = None) -> Frame:
     return Frame((float(lon), float(lat), h[0] if h else 0.0), src.to_string())
 
 
+def resolve_crs(name: str) -> Any:
+    """The ``pyproj.CRS`` of a CRS name (``EPSG:3067``, ``urn:ogc:def:crs:EPSG::3067``,
+    ``OGC:CRS84``, a PROJ string or WKT); ``ValueError`` with PROJ's reason when it knows no
+    such CRS, :class:`~ris_planner.io.MissingExtraError` without pyproj."""
+    pyproj = require("pyproj")
+    try:
+        return pyproj.CRS.from_user_input(name)
+    except pyproj.exceptions.CRSError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def is_wgs84_lonlat(crs: Any) -> bool:
+    """Whether a ``pyproj.CRS`` is WGS84 longitude/latitude (``OGC:CRS84``, ``EPSG:4326``
+    whatever its axis order: GeoJSON positions are [lon, lat] in either)."""
+    pyproj = require("pyproj")
+    return bool(crs.is_geographic and crs.equals(pyproj.CRS(CRS84), ignore_axis_order=True))
+
+
+def lonlat_of(xy: FloatArray, crs: Any) -> FloatArray:
+    """x, y [N, 2] in a horizontal ``pyproj.CRS`` (easting, northing of a projected one; lon,
+    lat of a geographic one: x first, whatever the CRS's axis order) → WGS84 lon, lat [N, 2]
+    in degrees; a position the CRS cannot convert gives ``inf`` (the caller names it)."""
+    pyproj = require("pyproj")
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    t = pyproj.Transformer.from_crs(crs, WGS84, always_xy=True)
+    lon, lat = t.transform(xy[:, 0], xy[:, 1])
+    return np.column_stack([lon, lat])
+
+
+CRS84 = "OGC:CRS84"
+"""WGS84 longitude, latitude: the CRS of GeoJSON (RFC 7946)."""
+
+
 EARTH_RADIUS_M = 6_371_008.8
 """Mean Earth radius (IUGG) of the great-circle pre-check of :func:`to_local`."""
 

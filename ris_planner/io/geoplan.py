@@ -4,7 +4,8 @@ jobs, so both write the same files for the same document.
 
 The document is converted once (:func:`~ris_planner.io.frames.to_local`), planned in local
 metres, and its ``plan.json`` gains ``"frame": {"origin": [lon, lat, h], "local_crs": proj4}``
-when it had a frame, and the document's ``license`` / ``attribution``; ``plan.geojson`` /
+when it had a frame, the document's ``license`` / ``attribution``, and a warning first in
+``warnings`` when such a real site has no obstacles (:func:`site_warnings`); ``plan.geojson`` /
 ``heatmap.tif`` / ``points.csv`` are written from the document as given (WGS84 with a frame,
 :func:`~ris_planner.io.export.plan_outputs`, each carrying the licence).
 """
@@ -25,6 +26,26 @@ if TYPE_CHECKING:
 
 OUTPUTS = ("figures", "exports")
 """The output stages after plan.json's content, each timed in ``timing_s``."""
+
+NO_OBSTACLES_WARNING = (
+    "the document is a real site (a geographic frame or a licence) but has no environment"
+    " obstacles: every leg was planned as clear (line of sight; only the RIS fields of view"
+    " apply), as if the site had no buildings – an import without buildings? Import them"
+    " (ris-planner import, whose report warns 'no buildings') or add environment.obstacles"
+)
+"""plan.json's warning for a real site planned without obstacles (:func:`site_warnings`)."""
+
+
+def site_warnings(document: Any) -> list[str]:
+    """plan.json warnings about the document as given: :data:`NO_OBSTACLES_WARNING` when it has
+    a ``frame`` or a ``license`` / ``attribution`` (a real site, typically an import) and no
+    ``environment.obstacles``."""
+    if not isinstance(document, dict):
+        return []
+    real = "frame" in document or any(document.get(k) for k in ("license", "attribution"))
+    env = document.get("environment")
+    obstacles = env.get("obstacles") if isinstance(env, dict) else None
+    return [NO_OBSTACLES_WARNING] if real and not obstacles else []
 
 
 @dataclass(frozen=True)
@@ -107,6 +128,7 @@ def plan_document(
                 given = (document.get("validation") or {}).get("search_region")
                 val["search_region"] = search_region_lonlat(frame, val["search_region"], given)
         plan.update(license_of_document(document))
+        plan["warnings"] = [*site_warnings(document), *plan.get("warnings", [])]
     note = None
     with clock.stage("exports"):
         stages.callback("exports")

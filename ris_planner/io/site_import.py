@@ -129,8 +129,9 @@ def _sites_of_points(
     ]
     if all(p is blank for p in points):
         return {}, {}
+    crs = {"crs": collection["crs"]} if "crs" in collection else {}  # converted there
     fragment, summary = import_sites(
-        {"type": "FeatureCollection", "features": points}, origin, options
+        {"type": "FeatureCollection", **crs, "features": points}, origin, options
     )
     return fragment, {"candidates": summary.candidates}
 
