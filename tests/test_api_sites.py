@@ -102,3 +102,48 @@ def test_sites_needs_the_api_key(tmp_path: Path) -> None:
         assert client.post("/v1/sites", json=body).status_code == 401
         r = client.post("/v1/sites", json=body, headers={"X-API-Key": "k3y"})
         assert r.status_code == 200 and r.json()["summary"]["by_kind"] == {"pole": 29}
+
+
+def test_one_set_of_generation_defaults(server: str) -> None:
+    """The defaults of POST /v1/sites – every one stated in the OpenAPI schema, which the
+    planner page fills its generation form from – are those of ``ris-planner sites`` without
+    flags: one model (:class:`CandidateOptions`) holds them all."""
+    from ris_planner.cli.app import build_parser
+    from ris_planner.cli.geo import candidate_options_of
+
+    spec = httpx.get(f"{server}/openapi.json", timeout=60).json()
+    props = spec["components"]["schemas"]["CandidateOptions"]["properties"]
+    defaults = CandidateOptions().model_dump(mode="json")
+    assert {k: p.get("default") for k, p in props.items()} == defaults
+    cli = candidate_options_of(build_parser("sites").parse_args(["sites", "site.geojson"]))
+    assert cli == CandidateOptions()
+    off = build_parser("sites").parse_args(["sites", "site.geojson", "--no-swap-check"])
+    assert candidate_options_of(off) == CandidateOptions(swap_check=False)
+    assert (defaults["spacing_m"], defaults["heights_m"]) == (10.0, [4.0, 8.0])
+
+
+def swapped(site: dict) -> dict:
+    """The site with every position written [lat, lon] (what the swap check refuses)."""
+
+    def turn(c: list) -> list:
+        return [c[1], c[0], *c[2:]] if isinstance(c[0], int | float) else [turn(x) for x in c]
+
+    feats = [
+        {**f, "geometry": {**f["geometry"], "coordinates": turn(f["geometry"]["coordinates"])}}
+        for f in site["features"]
+    ]
+    return {**site, "features": feats}
+
+
+def test_the_swap_check_can_be_turned_off(server: str) -> None:
+    """A file that fails the import's file-wide swap check says to turn the check off; the
+    generation has the same option (swap_check, --no-swap-check), so the page's one control
+    serves both."""
+    site = swapped(helsinki())
+    options = {"max_candidates": 5, "kinds": ["facade"]}
+    r = httpx.post(f"{server}/v1/sites", json={"site": site, "options": options}, timeout=60)
+    assert r.status_code == 422 and "turn the swap check off" in r.json()["message"]
+    off = {**options, "swap_check": False}
+    r = httpx.post(f"{server}/v1/sites", json={"site": site, "options": off}, timeout=60)
+    assert r.status_code == 200, r.text
+    assert r.json()["summary"]["candidates"] == 5

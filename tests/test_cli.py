@@ -201,3 +201,29 @@ def test_readable_json_is_the_json_modules_document_one_member_per_line() -> Non
         assert json.loads(readable_json({key: 0})) == json.loads(json.dumps({key: 0}))
     with pytest.raises(ValueError):
         readable_json({"x": float("nan")})
+
+
+def test_plan_names_where_a_long_candidate_list_is_not_the_names() -> None:
+    """A cause that counts 143 blocked candidates: the command line says where plan.json lists
+    them (one line), never the 143 names."""
+    from ris_planner.cli.plan import listed_lines
+
+    entries = [
+        {"index": i, "name": f"B{i}-f0-0-h4", "reason": "no_visible_point"} for i in range(143)
+    ]
+    diagnosis = {
+        "verdict": "weak",
+        "causes": [
+            {"kind": "geometry", "message": "too few paths"},
+            {
+                "kind": "blocked",
+                "message": "143 of 200 candidates serve no pair",
+                "candidates": entries,
+            },
+        ],
+    }
+    (line,) = listed_lines(diagnosis, Path("out/plan.json"))
+    assert "143 candidates of 'blocked'" in line
+    assert "out/plan.json → diagnosis.causes[1].candidates" in line
+    assert "B0-f0-0-h4" not in line
+    assert listed_lines({**diagnosis, "verdict": "ok"}, Path("plan.json")) == []

@@ -498,8 +498,9 @@ BAD_ENV: list[tuple[dict[str, Any], str]] = [
     ),
     (
         env_doc(candidates=[{"position": [1.0, 1.0, 0.5]}, *ring(3)]),
-        "candidate 0 (candidate 0) at [1.0, 1.0, 0.5] lies inside environment obstacle 0"
-        " (prism 'L')",
+        "1 candidate site lies inside a building (the RIS centre more than 1 cm inside a"
+        " prism): candidate 0 (candidate 0) at [x, y, z] = [1.00, 1.00, 0.50] m inside"
+        " environment obstacle 0 (prism 'L')",
     ),
     (env_doc(heatmap_tx=[2.0, 1.0, 0.5]), "heatmap_tx [2.0, 1.0, 0.5] lies inside"),
     (

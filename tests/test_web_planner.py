@@ -18,6 +18,7 @@ from typing import Any
 
 import httpx
 import pytest
+from test_api_candidates import same_candidates_file
 from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     WAIT_MS,
     Browser,
@@ -35,6 +36,8 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
 )
 
 from api.launch import served
+from ris_planner.io.candidates import CandidateOptions, candidates_geojson
+from ris_planner.io.frames import Frame
 
 HELSINKI = Path(__file__).resolve().parent.parent / "examples" / "helsinki"
 
@@ -156,7 +159,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     k_px = pg.evaluate("window.risPlanner.state.view.k")  # px per metre
     for c, (x, y, _) in zip(cands, spots[:3], strict=True):
         assert math.hypot(c["position"][0] - x, c["position"][1] - y) <= PX_TOL / k_px
-        assert c["position"][2] == 6  # the first generation height
+        assert c["position"][2] == CandidateOptions().heights_m[0]  # the first generation height
     expect(pg.locator("#validation-status")).to_contain_text(
         "Valid: 3 candidate sites", timeout=WAIT_MS
     )
@@ -271,6 +274,14 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     sites = json.loads(Path(dl.value.path()).read_text())
     assert len(sites["features"]) == 3
     assert all("role" not in f["properties"] for f in sites["features"])
+    # the file ris-planner sites writes (one function): frame and licence at the top, so its
+    # import centres where the plan's frame is
+    assert "ris_planner_frame" not in sites and sites["frame"]["origin"] == plan["frame"]["origin"]
+    assert sites["license"] == request["license"]
+    want = candidates_geojson(
+        Frame(tuple(plan["frame"]["origin"])), plan["candidates"], {"license": request["license"]}
+    )
+    same_candidates_file(sites, json.loads(json.dumps(want)), "the page's candidates.geojson")
     # a sites file the import reads back as the same candidates
     again = httpx.post(
         f"{server}/v1/candidates/convert",
@@ -291,6 +302,16 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
                 "suggested_ris_size": [16, 16],
             },
             {"kind": "geometry", "message": "the sites see the street from one side"},
+            {  # hundreds of candidates: counted in the message, listed on request
+                "kind": "blocked",
+                "message": "143 of 146 candidates serve no pair, so they cannot help this plan:"
+                " 143 see no UE point (e.g. 0 (B0-f0-0-h4), 1 (B1-f0-0-h4), 2 (B2-f0-0-h4), …)",
+                "no_visible_point": 143,
+                "candidates": [
+                    {"index": i, "name": f"B{i}-f0-0-h4", "reason": "no_visible_point"}
+                    for i in range(143)
+                ],
+            },
         ],
         "floor": 0.2,
         "best": 0.4,
@@ -338,6 +359,19 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(box).to_have_attribute("role", "alert")
     expect(box).to_contain_text("Warning: the plan is weak")
     expect(box).to_contain_text("link_budget: the RIS is too small")
+    blocked = box.locator("li[data-kind='blocked']")
+    expect(blocked).to_contain_text("143 of 146 candidates serve no pair")
+    expect(blocked.locator("details summary")).to_have_text("The 143 candidates (list)")
+    # the names once, in the message's examples; the list collapsed until asked for
+    assert blocked.inner_text().count("B2-f0-0-h4") == 1
+    assert "B142-f0-0-h4" not in blocked.inner_text()
+    with pg.expect_download() as dl:
+        blocked.locator("summary").click()
+        blocked.locator("a.cause-download").click()
+    rows = Path(dl.value.path()).read_text().splitlines()
+    assert rows[0] == "index,name,reason" and len(rows) == 144
+    assert rows[-1] == "142,B142-f0-0-h4,no_visible_point"
+    expect(blocked.locator("ul.cause-list li")).to_have_count(143)
     expect(pg.locator("#sizing-answer")).to_contain_text("8 × 8 elements with 2 RIS")
     expect(pg.locator("#sizing-table tbody tr")).to_have_count(2)
     expect(pg.locator("#sizing-table tr.answer")).to_contain_text("yes")
@@ -411,13 +445,22 @@ def test_api_key_banner_follows_the_server(browser: Browser, tmp_path: Path, sho
 def test_generate_candidates_from_the_site(
     page: tuple[Page, Console], server: str, shots: Shots
 ) -> None:
-    """POST /v1/sites (facades and poles of the imported site) → candidates on the map."""
+    """POST /v1/sites (facades and poles of the imported site) → candidates on the map: the form
+    starts from the defaults of ``ris-planner sites``, the list downloads as the file the
+    command line writes; a site dragged into a building turns red, is named, and Submit says
+    why it refuses."""
     probe = httpx.post(f"{server}/v1/sites", json={})
     if probe.status_code == 404:
         pytest.skip("this server has no POST /v1/sites yet (candidate generation is being added)")
     pg, console = page
     console.allow(r"status of 422")
     open_planner(pg, server)
+    # the generation form: the defaults of ris-planner sites (one model holds them)
+    d = CandidateOptions()
+    expect(pg.locator("#gen-spacing")).to_have_value(f"{d.spacing_m:g}")
+    expect(pg.locator("#gen-heights")).to_have_value(", ".join(f"{h:g}" for h in d.heights_m))
+    for kind in ("facade", "pole"):
+        assert pg.is_checked(f"#gen-kind-{kind}") == (kind in d.kinds)
     import_helsinki(pg)
     expect(pg.locator("#generate")).to_be_enabled()
     pg.fill("#gen-spacing", "30")
@@ -431,6 +474,103 @@ def test_generate_candidates_from_the_site(
         f"Valid: {n} candidate sites", timeout=WAIT_MS
     )
     shots.take(pg, "planner-06-generated")
+    # the list as a file: what POST /v1/sites (ris-planner sites) answers for these options
+    options = {"spacing_m": 30, "heights_m": [6], "kinds": ["facade", "pole"]}
+    site = json.loads((HELSINKI / "helsinki.geojson").read_text())
+    want = httpx.post(
+        f"{server}/v1/sites", json={"site": site, "options": options}, timeout=60
+    ).json()
+    want.pop("summary")
+    with pg.expect_download() as dl:
+        pg.click("#download-candidates")
+    assert dl.value.suggested_filename == "candidates.geojson"
+    got = json.loads(Path(dl.value.path()).read_text())
+    same_candidates_file(got, want, "the page's candidates.geojson")
+
+    # drag a candidate into a tall building: red on the map, named, and Submit refuses it
+    shapely_geometry = pytest.importorskip("shapely.geometry")
+    obstacles = pg.evaluate("window.risPlanner.state.preview.obstacles")
+    k = next(i for i, ob in enumerate(obstacles) if ob["height_m"] > 7)
+    inner = shapely_geometry.Polygon(obstacles[k]["footprint"]).representative_point()
+    pg.locator("#map").scroll_into_view_if_needed()
+    first = pg.evaluate("window.risPlanner.state.cands[0]")
+    pg.mouse.move(*screen_of(pg, *first["position"][:2]))
+    pg.mouse.down()
+    pg.mouse.move(*screen_of(pg, inner.x, inner.y), steps=8)
+    pg.mouse.up()
+    expect(pg.locator("#cand-summary")).to_contain_text("Moved candidate")
+    cands = pg.evaluate("window.risPlanner.state.cands")
+    moved = min(
+        range(len(cands)),
+        key=lambda i: math.hypot(
+            cands[i]["position"][0] - inner.x, cands[i]["position"][1] - inner.y
+        ),
+    )
+    expect(pg.locator("#candidates .site.inside")).to_have_count(1)
+    inside = pg.locator(f"#candidates .site.inside[data-site='{moved}']")
+    assert inside.locator("rect").get_attribute("fill") == "#c62828"
+    note = pg.locator("#cand-inside")
+    expect(note).to_be_visible()
+    name = cands[moved]["name"]
+    building = obstacles[k]["name"] or f"obstacle {k}"
+    expect(note).to_contain_text(
+        f"1 candidate lies inside a building (red on the map): {moved} ({name}) in {building}"
+    )
+    expect(pg.locator("#legend")).to_contain_text("candidate inside a building")
+    jobs_before = httpx.get(f"{server}/v1/jobs").json()
+    pg.click("#submit")
+    status = pg.locator("#validation-status")
+    expect(status).to_contain_text(
+        "Not submitted: 1 candidate site lies inside a building", timeout=WAIT_MS
+    )
+    problems = pg.locator("#other-errors")  # the whole message: each site where the document has it
+    expect(problems).to_contain_text(f"candidate {moved} ({name}) at [lon, lat, h] = [")
+    expect(problems).to_contain_text(f"inside environment obstacle {k} (")
+    assert httpx.get(f"{server}/v1/jobs").json() == jobs_before  # nothing queued
+    shots.take(pg, "planner-08-inside-a-building")
+    # the moved site is no longer the generated one: the file keeps its pose, not what the
+    # generator said of it
+    with pg.expect_download() as dl:
+        pg.click("#download-candidates")
+    props = json.loads(Path(dl.value.path()).read_text())["features"][moved]["properties"]
+    assert props["name"] == name and "sees_points" not in props and "kind" not in props
+    # removed, the list is plannable again and nothing is red
+    pg.mouse.click(*screen_of(pg, *cands[moved]["position"][:2]))
+    expect(pg.locator("#cand-editor-title")).to_contain_text(f"Candidate {moved}")
+    pg.click("#ce-remove")
+    expect(note).to_be_hidden()
+    expect(pg.locator("#candidates .site.inside")).to_have_count(0)
+    expect(pg.locator("#validation-status")).to_contain_text(
+        f"Valid: {n - 1} candidate sites", timeout=WAIT_MS
+    )
+
+
+def test_a_swapped_file_and_the_swap_check(
+    page: tuple[Page, Console], server: str, tmp_path: Path
+) -> None:
+    """A file whose positions are [lat, lon]: the import refuses it saying to turn the swap
+    check off, the page points at its control for that, and with it off the import and the
+    generation go through."""
+    from test_api_sites import swapped
+
+    pg, console = page
+    console.allow(r"status of 422")
+    open_planner(pg, server)
+    path = tmp_path / "swapped.geojson"
+    path.write_text(json.dumps(swapped(json.loads((HELSINKI / "helsinki.geojson").read_text()))))
+    expect(pg.locator("#imp-swap_check")).to_be_checked()
+    pg.set_input_files("#upload-geojson", str(path))
+    err = pg.locator("#err-upload-geojson")
+    expect(err).to_contain_text("turn the swap check off", timeout=WAIT_MS)
+    expect(err).to_contain_text("untick “Lat/lon swap check” under Import options")
+    pg.uncheck("#imp-swap_check")
+    pg.click("#reimport")
+    expect(pg.locator("#import-table")).to_be_visible(timeout=WAIT_MS)
+    expect(err).to_be_empty()
+    pg.fill("#gen-spacing", "30")
+    pg.click("#generate")
+    expect(pg.locator("#cand-summary")).to_contain_text("Generated", timeout=WAIT_MS)
+    expect(pg.locator("#err-gen")).to_be_empty()
 
 
 def test_real_osm_cut_through_the_page(

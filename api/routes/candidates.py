@@ -13,13 +13,20 @@ conversions are the service's own:
   as ``POST /v1/sites`` answers or ``examples/helsinki/sites.geojson`` holds) → candidates:
   :func:`ris_planner.io.geojson_import.import_sites` at the frame's origin (what
   ``POST /v1/import`` does with a site file's points), then ``to_local``;
-* local → document: the inverse of the frame's projection (WGS84 frames:
+* local → document: the inverse of the frame's projection
+  (:func:`~ris_planner.io.candidates.document_positions`: WGS84 frames through
   :meth:`~ris_planner.io.frames.Frame.to_geographic`; projected-CRS frames: the local
   transverse Mercator frame → the CRS), heights back in the frame's datum (z + h_origin).
 
 Orientations (Euler yaw, pitch, roll in radians, yaw from local east) are the same in both:
 :func:`~ris_planner.io.frames.to_local` converts positions only. Every answer lists the
 candidates both ways, validated as plan candidates (422 naming ``local.N.field``).
+
+``POST /v1/candidates/geojson`` writes candidates in local metres (the page's list, a plan's
+``candidates``) as the candidates file of ``ris-planner sites`` – the same function,
+:func:`ris_planner.io.candidates.candidates_geojson`: top-level ``frame`` and licence, WGS84
+Points with ``azimuth_deg`` / ``tilt_deg`` / ``height_m`` – so the page's download is the
+document the command line writes, and its import centres on the same origin.
 
 ``POST /v1/site/preview`` draws a document that cannot be planned yet (an imported site
 before any candidate is placed): its obstacles and UE maps in local metres, as the preview of
@@ -31,16 +38,21 @@ from __future__ import annotations
 from typing import Any
 
 import anyio
-import numpy as np
 from fastapi import APIRouter, Request
-from pydantic import BaseModel, Field, ValidationError, model_validator
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from api.documents import GeoFrame, json_document
 from api.routes.web import MapPreview, _map_preview
 from ris_planner.core.errors import DocumentFieldError, RisPlannerError
 from ris_planner.environment.model import Environment
-from ris_planner.io import require
-from ris_planner.io.frames import WGS84, Frame, parse_frame, to_local
+from ris_planner.io.candidates import (
+    ATTRIBUTION_KEYS,
+    SITE_PROPERTIES,
+    candidates_geojson,
+    document_positions,
+)
+from ris_planner.io.frames import MAX_LICENSE_CHARS, Frame, parse_frame, to_local
 from ris_planner.io.geojson_import import import_sites
 from ris_planner.model.plan import Candidate, UEMap
 from ris_planner.planning.maps import build_map
@@ -112,14 +124,7 @@ def _to_frame(frame: Frame, local: list[dict[str, Any]]) -> list[dict[str, Any]]
     """Local candidates → the frame's coordinates (inverse of ``to_local``)."""
     if not local:
         return []
-    pts = np.array([c["position"] for c in local], dtype=float)
-    if frame.source_crs == WGS84:
-        geo = frame.to_geographic(pts)
-    else:
-        pyproj = require("pyproj")
-        t = pyproj.Transformer.from_crs(frame.proj4, frame.source_crs, always_xy=True)
-        x, y = t.transform(pts[:, 0], pts[:, 1], errcheck=True)
-        geo = np.column_stack([x, y, pts[:, 2] + frame.origin[2]])
+    geo = document_positions(frame, [c["position"] for c in local])
     return [{**c, "position": p} for c, p in zip(local, geo.tolist(), strict=True)]
 
 
@@ -172,6 +177,81 @@ async def post_convert(body: CandidateConversion) -> ConvertedCandidates:
     :func:`~ris_planner.io.geojson_import.import_sites`. 422 naming the field; 501 on a server
     without the GIS extra when a frame is given."""
     return await anyio.to_thread.run_sync(convert_candidates, body)
+
+
+class CandidatesFileRequest(BaseModel):
+    """The body of ``POST /v1/candidates/geojson``: candidates in local metres and the frame
+    (and licence) of their document."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    frame: GeoFrame = Field(description='The frame of the document: {"origin": [lon, lat, h]}')
+    local: list[dict[str, Any]] = Field(
+        max_length=MAX_CONVERT_CANDIDATES,
+        description="Candidates in local metres: position [x, y, z], orientation [yaw, pitch,"
+        " roll] in radians, name, cost (the plan candidates of the page's list or of plan.json)",
+    )
+    properties: list[dict[str, Any] | None] | None = Field(
+        None,
+        max_length=MAX_CONVERT_CANDIDATES,
+        description="Per candidate (null: none), what POST /v1/sites said of it ("
+        + ", ".join(SITE_PROPERTIES)
+        + "): written beside its pose, as ris-planner sites writes them",
+    )
+    license: str | None = Field(None, max_length=MAX_LICENSE_CHARS, description="Data licence")
+    licence: str | None = Field(None, max_length=MAX_LICENSE_CHARS, description="Data licence")
+    attribution: str | None = Field(None, max_length=MAX_LICENSE_CHARS, description="Attribution")
+    copyright: str | None = Field(None, max_length=MAX_LICENSE_CHARS, description="Copyright")
+    source: str | None = Field(None, max_length=MAX_LICENSE_CHARS, description="Data source")
+
+    @model_validator(mode="after")
+    def _aligned(self) -> CandidatesFileRequest:
+        if self.properties is not None and len(self.properties) != len(self.local):
+            raise ValueError(
+                f"properties has {len(self.properties)} entries for {len(self.local)} candidates"
+            )
+        bad = sorted({k for p in self.properties or [] for k in p or {}} - set(SITE_PROPERTIES))
+        if bad:
+            raise ValueError(f"properties: unknown keys {bad}; allowed: {list(SITE_PROPERTIES)}")
+        return self
+
+
+class CandidatesFile(BaseModel):
+    """A candidates file (:func:`ris_planner.io.candidates.candidates_geojson`)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    type: str = Field("FeatureCollection", description="Always FeatureCollection")
+    frame: dict[str, Any] = Field(description='{"origin": [lon, lat, h]} of azimuth_deg, height_m')
+    features: list[dict[str, Any]] = Field(
+        description="Point features [lon, lat, h] with name, azimuth_deg, tilt_deg, height_m"
+        " (roll_deg, cost where not 0) and the given properties"
+    )
+
+
+def candidates_file(req: CandidatesFileRequest) -> dict[str, Any]:
+    """The file of :func:`post_candidates_file` (pure; errors name the field)."""
+    frame_json = req.frame.model_dump(mode="json", exclude_none=True)
+    frame = parse_frame(frame_json)
+    local = _checked(req.local, "local")
+    members = {k: v for k in ATTRIBUTION_KEYS if isinstance(v := getattr(req, k), str)}
+    return candidates_geojson(frame, local, members, req.properties)
+
+
+@router.post(
+    "/candidates/geojson",
+    response_model=CandidatesFile,
+    summary="Candidate sites → the candidates file (what ris-planner sites writes)",
+)
+async def post_candidates_file(body: CandidatesFileRequest) -> JSONResponse:
+    """Candidates in local metres (the page's list, or a plan's ``candidates``) → the GeoJSON
+    candidates file of ``ris-planner sites`` and ``POST /v1/sites``, from the same function
+    (:func:`ris_planner.io.candidates.candidates_geojson`): WGS84 Points with ``name``,
+    ``azimuth_deg``, ``tilt_deg``, ``height_m``, the top-level ``frame`` the import reads the
+    azimuths in, and the licence members given. ``properties`` carries what the generator said
+    of a site (kind, building, sees_points, …). 422 naming ``local.N.field``; 501 on a server
+    without the GIS extra."""
+    return JSONResponse(await anyio.to_thread.run_sync(candidates_file, body))
 
 
 class SitePreview(BaseModel):

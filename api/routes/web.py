@@ -36,6 +36,7 @@ from api.models import plan_examples
 from api.offload import Answer, ParsePool
 from api.security import PAGE_CSP, docs_csp
 from api.settings import Settings
+from ris_planner.io.candidates import in_document_coordinates
 from ris_planner.planning.inputs import prepare_plan
 from ris_planner.planning.maps import PointMap
 from ris_planner.planning.sites import candidate_json
@@ -144,7 +145,8 @@ def preview_answer(body: bytes, memory_mb: int) -> Answer:
 
 def _preview(body: bytes, memory_mb: int) -> PlanPreview:
     document, frame = local_plan(json_document(body), memory_mb)
-    inputs = prepare_plan(document)
+    with in_document_coordinates(frame):  # sites inside buildings named as the document has them
+        inputs = prepare_plan(document)
     n_sites = len(inputs.sites)
     search = inputs.document.search
     layouts = {str(c): math.comb(n_sites, c) for c in inputs.counts}

@@ -23,6 +23,8 @@
   const BLIND_COLOUR = "#d7301f";
   const BUILDING_COLOUR = "#8a939e";
   const SELECTED_COLOUR = "#c25400";
+  const INSIDE_COLOUR = "#c62828"; // a candidate inside a building
+  const INSIDE_MARGIN_M = 0.01; // inside = deeper than 1 cm in a prism (ris_planner.environment.scene.INSIDE_MARGIN_M)
   const UE_OPACITY = 0.35;
   const CLICK_AFTER_PRESS_MS = 400; // a click this soon after a candidate press is that press's
   const HEALTH_BACKOFF_MS = [2000, 4000, 8000, 15000, 30000];
@@ -57,6 +59,8 @@
     drag: null, // {index, moved} while a candidate is dragged
     importFile: null, // the last imported file (import again with other options)
     siteSource: null, // what POST /v1/sites gets as "site": the GeoJSON, else the import's document
+    generated: new Map(), // name → {position, orientation, props}: what POST /v1/sites said of a site
+    genMembers: {}, // the licence members of the last generation's answer
     sitesPath: null,
     sizingSupported: false,
     bannerKind: null, // "auth" while the banner asks for an API key
@@ -254,6 +258,8 @@
     state.candsDoc = null;
     state.cands = [];
     state.candNote = "";  // a new document: the last list's note no longer applies
+    state.generated = new Map();
+    state.genMembers = {};
     const own = doc && Array.isArray(doc.candidates) ? doc.candidates : [];
     if (own.length && geographic()) {
       try {
@@ -441,6 +447,7 @@
     // only the newest validation speaks: an earlier one (an automatic one after a map edit,
     // with the form as it was) that answers later must not overwrite its result
     const seq = ++validationSeq;
+    state.refusal = null;
     try {
       const doc = await documentFromForm();
       const preview = await api("/v1/plans/validate", { method: "POST", json: doc });
@@ -455,6 +462,7 @@
       return doc;
     } catch (err) {
       if (seq !== validationSeq) return null;
+      state.refusal = err.status === 422 || err.status === 413 ? err.message : null;
       $("validation-status").textContent = "";
       state.preview = null;
       await loadSitePreview();
@@ -481,10 +489,21 @@
     if (ev) ev.preventDefault();
     if (!state.doc) { $("validation-status").textContent = "Load a preset or upload a document first."; return; }
     $("submit").disabled = true;
+    clearTimeout(state.validateTimer); // this validation answers for the edits too
     try {
       // the dry run first: what the job would fail on at its start is shown at the fields now
       const checked = await validate();
-      if (!checked) return;
+      if (!checked) {
+        // refused before any job: say so where the button is, with the server's reason
+        // a long message (every candidate inside a building, …) is listed in full above: here
+        // its first clause
+        const msg = state.refusal || "";
+        const cut = msg.length > 160 ? msg.indexOf(": ", 20) : -1;
+        const why = !msg ? "the document has problems (listed above)" : cut > 0 ? `${msg.slice(0, cut)} (listed above)` : msg;
+        $("validation-status").textContent = `Not submitted: ${why}`;
+        $("validation-status").scrollIntoView({ block: "nearest" });
+        return;
+      }
       const doc = Object.assign({}, checked, extra || {});
       const job = await api("/v1/plans", { method: "POST", json: doc });
       rememberLabel(job.id, describeRequest(doc, state.docName));
@@ -723,6 +742,7 @@
     }
     const classes = chosenRoadClasses();
     if (classes) params.set("highways", classes.join(",") || "none");
+    if (!$("imp-swap_check").checked) params.set("swap_check", "false");
     try {
       const bytes = await file.arrayBuffer();
       const body = await api(`${state.importPath}?${params}`, { method: "POST", body: bytes, contentType: IMPORT_MEDIA[fmt] });
@@ -743,9 +763,12 @@
       const named = fields.filter((f) => f.field && f.field !== "(document)");
       // a feature's message names it by index, id and name: clearer than its path features.N
       const said = (f) => (f.field.startsWith("features.") ? f.message : `${f.field}: ${f.message}`);
-      $("err-upload-geojson").textContent = `${file.name}: ` + (named.length
-        ? named.map(said).join("; ")
-        : err.message);
+      const text = named.length ? named.map(said).join("; ") : err.message;
+      // the import's message names its swap check: point at the page's control for it
+      const hint = /swap check/.test(text) && $("imp-swap_check").checked
+        ? " To import it as it is, untick “Lat/lon swap check” under Import options and import again."
+        : "";
+      $("err-upload-geojson").textContent = `${file.name}: ${text}${hint}`;
     }
   }
 
@@ -762,11 +785,15 @@
         const dflt = prm && prm.schema ? prm.schema.default : undefined;
         if (dflt !== undefined && dflt !== null) { el.value = String(dflt); el.dataset.default = String(dflt); }
       }
+      const swap = params.find((x) => x.name === "swap_check");
+      $("swap-check-box").hidden = !swap;
+      if (swap) $("imp-swap_check").checked = !(swap.schema && swap.schema.default === false);
       state.sitesPath = paths["/v1/sites"] && paths["/v1/sites"].post ? "/v1/sites" : null;
       $("generate").disabled = !state.sitesPath;
       $("hint-gen").textContent = state.sitesPath
         ? "Facades of the imported buildings and poles along its chosen road classes (POST /v1/sites)."
         : "This server has no candidate generation (POST /v1/sites) yet: add candidates on the map.";
+      fillGenerationDefaults(((spec.components || {}).schemas || {}).CandidateOptions);
       const planSchema = ((spec.components || {}).schemas || {}).PlanDocument;
       state.sizingSupported = Boolean(planSchema && planSchema.properties && "sizing" in planSchema.properties);
       $("find-size").disabled = !state.sizingSupported;
@@ -777,6 +804,20 @@
     } catch (_) {
       /* the page works without it */
     }
+  }
+
+  /** The generation form starts from the defaults of POST /v1/sites, which are those of
+   * ris-planner sites (ris_planner.io.candidates.CandidateOptions, stated in the OpenAPI schema). */
+  function fillGenerationDefaults(schema) {
+    const props = (schema && schema.properties) || {};
+    for (const el of document.querySelectorAll("#generate-box [data-option]")) {
+      const dflt = props[el.dataset.option] ? props[el.dataset.option].default : undefined;
+      if (dflt === undefined || dflt === null) continue;
+      el.value = Array.isArray(dflt) ? dflt.map(String).join(", ") : String(dflt);
+      el.dataset.default = el.value;
+    }
+    const kinds = props.kinds ? props.kinds.default : undefined;
+    if (Array.isArray(kinds)) for (const k of ["facade", "pole"]) $(`gen-kind-${k}`).checked = kinds.includes(k);
   }
 
   // ---------------------------------------------------------------- jobs and progress
@@ -1082,6 +1123,25 @@
     return v === null || v === undefined ? "—" : String(v);
   }
 
+  /** The candidates a cause names (e.g. the blocked ones, possibly hundreds): the message
+   * counts them; here a collapsed list and a CSV download, never the names again in the text. */
+  function causeCandidates(cause) {
+    const list = cause.candidates;
+    const keys = [...new Set(list.flatMap((e) => (e && typeof e === "object" ? Object.keys(e) : [])))];
+    const csvCell = (v) => { const t = v === null || v === undefined ? "" : String(v); return /[",\n]/.test(t) ? `"${t.replace(/"/g, '""')}"` : t; };
+    const csv = [keys.join(","), ...list.map((e) => keys.map((k) => csvCell(e[k])).join(","))].join("\n") + "\n";
+    const file = `${cause.kind || "cause"}-candidates.csv`;
+    const link = h("a", { class: "cause-download", href: URL.createObjectURL(new Blob([csv], { type: "text/csv" })), download: file }, file);
+    const item = (e) => {
+      const extra = keys.filter((k) => k !== "index" && k !== "name").map((k) => `${k.replace(/_/g, " ")} ${diagText(e[k])}`).join(", ");
+      return h("li", { text: `${e.index} (${e.name})` + (extra ? `: ${extra}` : "") });
+    };
+    return h("details", { class: "small cause-candidates" },
+      h("summary", { text: `The ${list.length} candidate${list.length === 1 ? "" : "s"} (list)` }),
+      h("p", {}, "Download: ", link),
+      h("ul", { class: "cause-list" }, list.map(item)));
+  }
+
   function useRisSize(rows, cols) {
     $("f-ris-rows").value = String(rows);
     $("f-ris-cols").value = String(cols);
@@ -1115,7 +1175,7 @@
           const [r, k] = c.suggested_ris_size;
           li.append(h("button", { type: "button", class: "secondary small", onclick: () => useRisSize(r, k) }, `Use ${r} × ${k} elements`));
         }
-        if (Array.isArray(c.candidates) && c.candidates.length) li.append(h("div", { class: "small", text: `candidates: ${diagText(c.candidates)}` }));
+        if (Array.isArray(c.candidates) && c.candidates.length) li.append(causeCandidates(c));
         return li;
       })));
     }
@@ -1225,29 +1285,64 @@
       if (state.apiKey) a.addEventListener("click", (ev) => { ev.preventDefault(); downloadWithKey(f.url, a.getAttribute("download")); });
       ul.append(h("li", {}, a, f.name === "geojson" ? " (GEOJSON: plan.geojson – chosen sites, candidates, UE results, buildings)" : ` (${f.ext})`));
     }
-    const gj = (state.job && state.job.figures) ? state.job.figures.geojson : null;
-    if (gj) {
+    const origin = state.plan && state.plan.frame && state.plan.frame.origin;
+    if (origin && Array.isArray(state.plan.candidates) && state.plan.candidates.length) {
       const li = h("li", {}, "candidates.geojson (preparing…)");
       ul.append(li);
-      candidatesGeojson(typeof gj === "string" ? gj : gj.url).then((fc) => {
+      const members = Object.assign({}, state.genMembers, pick(state.plan, LICENSE_MEMBERS));
+      candidatesFile(state.plan.candidates, origin, members).then((fc) => {
         const blobC = new Blob([JSON.stringify(fc, null, 1)], { type: "application/geo+json" });
         clear(li).append(h("a", { id: "dl-candidates", href: URL.createObjectURL(blobC), download: `candidates-${id8}.geojson` }, "candidates.geojson"),
-          ` (GEOJSON: the ${fc.features.length} candidate sites as mounting points – import them again as a sites file)`);
+          ` (GEOJSON: the ${fc.features.length} candidate sites as ris-planner sites writes them – import them again as a sites file)`);
       }).catch((err) => { clear(li).append(`candidates.geojson: ${err.message}`); });
     }
   }
 
-  /** The candidate sites of a job's plan.geojson (role "candidate"): Points with azimuth_deg,
-   * tilt_deg and height_m, a sites file the import reads back. */
-  async function candidatesGeojson(url) {
-    const resp = await fetch(url, { headers: headers() });
-    if (!resp.ok) throw new ApiError(resp.status, null);
-    const fc = await resp.json();
-    const features = (fc.features || []).filter((f) => f.properties && f.properties.role === "candidate")
-      .map((f) => ({ type: "Feature", geometry: f.geometry, properties: Object.fromEntries(Object.entries(f.properties).filter(([k]) => k !== "role")) }));
-    const out = { type: "FeatureCollection", features };
-    if (fc.ris_planner_frame) out.ris_planner_frame = fc.ris_planner_frame;
-    return out;
+  /** Top-level licence members a candidates file carries (ris_planner.io.candidates.ATTRIBUTION_KEYS). */
+  const LICENSE_MEMBERS = ["license", "licence", "attribution", "copyright", "source"];
+  /** What POST /v1/sites says of a site beside its pose (ris_planner.io.candidates.SITE_PROPERTIES). */
+  const SITE_PROPERTIES = ["kind", "building", "obstacle", "facade", "road", "sees_points"];
+  const pick = (obj, keys) => Object.fromEntries(keys.filter((k) => obj && typeof obj[k] === "string").map((k) => [k, obj[k]]));
+  /** A plan candidate of the page's list or of plan.json, without what is not a candidate's. */
+  const plainCandidate = (c) => Object.fromEntries(["position", "orientation", "name", "cost"]
+    .filter((k) => c[k] !== undefined && c[k] !== null).map((k) => [k, c[k]]));
+
+  /** What the generation said of candidate c, while c is still the generated site: same name,
+   * position within 1 µm (a frame round trip) and the same orientation; else null. */
+  function generatedProps(c) {
+    const g = c && c.name ? state.generated.get(c.name) : null;
+    if (!g) return null;
+    const same = (a, b, tol) => a.length === b.length && a.every((v, i) => Math.abs(v - b[i]) <= tol);
+    return same(g.position, c.position, 1e-6) && same(g.orientation, c.orientation || [0, 0, 0], 1e-12) ? g.props : null;
+  }
+
+  /** The candidates file of candidates in local metres (POST /v1/candidates/geojson: the function
+   * ris-planner sites writes its file with), in the frame at ``origin`` with the licence members. */
+  async function candidatesFile(cands, origin, members) {
+    const props = cands.map(generatedProps);
+    return api("/v1/candidates/geojson", {
+      method: "POST",
+      json: Object.assign({ frame: { origin }, local: cands.map(plainCandidate) }, props.some(Boolean) ? { properties: props } : {}, members),
+    });
+  }
+
+  /** The edited list as a candidates file, downloaded (the panel's button). */
+  async function downloadCandidates() {
+    const err = $("err-gen");
+    err.textContent = "";
+    const pv = localPreview();
+    const origin = (pv && pv.frame && pv.frame.origin) || (state.doc && state.doc.frame && state.doc.frame.origin);
+    if (!origin || !state.cands.length) { err.textContent = "A candidates file needs a geographic document (an imported site) and candidates."; return; }
+    try {
+      const members = Object.assign({}, state.genMembers, pick(state.doc, LICENSE_MEMBERS));
+      const fc = await candidatesFile(state.cands, origin, members);
+      const link = h("a", { href: URL.createObjectURL(new Blob([JSON.stringify(fc, null, 1)], { type: "application/geo+json" })), download: "candidates.geojson" });
+      document.body.append(link);
+      link.click();
+      link.remove();
+    } catch (e) {
+      err.textContent = `candidates.geojson: ${e.message}`;
+    }
   }
 
   async function downloadWithKey(url, name) {
@@ -1389,6 +1484,57 @@
     const env = state.doc && state.doc.environment;
     return env && Array.isArray(env.obstacles) ? env.obstacles : [];
   }
+  /** The obstacle (index) a point [x, y, z] lies more than 1 cm inside, or -1: inside a
+   * prism's footprint, farther than the margin from every edge, and between its base and top
+   * by more than the margin (the plan's rule for candidate sites). */
+  function buildingAt(p) {
+    const obs = obstacles();
+    for (let k = 0; k < obs.length; k++) {
+      const ob = obs[k];
+      if (ob.kind !== "prism" || !Array.isArray(ob.footprint) || ob.footprint.length < 3) continue;
+      const base = Number(ob.base_m) || 0;
+      const top = base + (Number(ob.height_m) || 0);
+      if (!(p[2] > base + INSIDE_MARGIN_M && p[2] < top - INSIDE_MARGIN_M)) continue;
+      const fp = ob.footprint;
+      let inside = false;
+      let dmin = Infinity;
+      for (let i = 0, j = fp.length - 1; i < fp.length; j = i++) {
+        const [xi, yi] = fp[i];
+        const [xj, yj] = fp[j];
+        if ((yi > p[1]) !== (yj > p[1]) && p[0] < ((xj - xi) * (p[1] - yi)) / (yj - yi) + xi) inside = !inside;
+        const ex = xj - xi, ey = yj - yi;
+        const t = Math.max(0, Math.min(1, ((p[0] - xi) * ex + (p[1] - yi) * ey) / (ex * ex + ey * ey || 1)));
+        dmin = Math.min(dmin, Math.hypot(p[0] - (xi + t * ex), p[1] - (yi + t * ey)));
+      }
+      if (inside && dmin > INSIDE_MARGIN_M) return k;
+    }
+    return -1;
+  }
+
+  /** The edited list's candidates inside a building: [{index, name, building}]. */
+  function candidatesInside() {
+    const obs = obstacles();
+    const out = [];
+    state.cands.forEach((c, i) => {
+      const k = buildingAt(c.position);
+      if (k >= 0) out.push({ index: i, name: c.name || `candidate ${i}`, building: obs[k].name || `obstacle ${k}` });
+    });
+    return out;
+  }
+
+  /** The map's message naming the candidates inside buildings (drawn in red). */
+  function renderInside() {
+    const box = $("cand-inside");
+    const inside = state.plan ? [] : candidatesInside();
+    state.inside = new Set(inside.map((e) => e.index));
+    box.hidden = !inside.length;
+    box.textContent = inside.length
+      ? `${inside.length} candidate${inside.length === 1 ? " lies" : "s lie"} inside a building (red on the map): `
+        + inside.map((e) => `${e.index} (${e.name}) in ${e.building}`).join("; ")
+        + `. Move ${inside.length === 1 ? "it" : "them"} outside or remove ${inside.length === 1 ? "it" : "them"}: a plan refuses candidates inside buildings.`
+      : "";
+  }
+
   /** What the map draws as candidates: a shown plan's (its indices), else the edited list
    * (editable) followed by the sites the preview expanded from walls and facades. */
   function candidates() {
@@ -1445,6 +1591,7 @@
   }
 
   function drawAll() {
+    renderInside();
     drawMap();
     drawLegend();
     renderSites();
@@ -1546,17 +1693,18 @@
     const ax = px + len * Math.cos(yaw);
     const ay = py - len * Math.sin(yaw);
     const sz = isChosen || selected ? 11 : 9;
-    const cls = ["site", isChosen ? "chosen" : "", c.editable ? "editable" : "", selected ? "selected" : ""].filter(Boolean).join(" ");
+    const inside = c.editable && state.inside && state.inside.has(c.index);
+    const cls = ["site", isChosen ? "chosen" : "", c.editable ? "editable" : "", selected ? "selected" : "", inside ? "inside" : ""].filter(Boolean).join(" ");
     const g = s("g", { class: cls, "data-site": c.index });
     const az = ((90 - deg(yaw)) % 360 + 360) % 360;
     g.append(s("title", {}, `Site ${c.index}${c.name ? " – " + c.name : ""}: x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m, height ${fmtNum(c.position[2])} m, facing ${fmtNum(az, 3)}° from north, tilt ${fmtNum(deg(pitch), 3)}° down` +
-      (c.far_field_flag ? " (near field for part of the map)" : "")));
+      (c.far_field_flag ? " (near field for part of the map)" : "") + (inside ? " – inside a building: move it out" : "")));
     const stroke = selected ? SELECTED_COLOUR : isChosen ? colour : "#4d5561";
     g.append(s("line", { x1: px, y1: py, x2: ax, y2: ay, stroke, "stroke-width": isChosen || selected ? 2.5 : 1.3, "marker-end": selected ? "url(#arrow-selected)" : isChosen ? "url(#arrow-chosen)" : "url(#arrow)" }));
     if (selected) g.append(s("circle", { cx: px, cy: py, r: 10, fill: "none", stroke: SELECTED_COLOUR, "stroke-width": 2.5 }));
     g.append(s("rect", {
       x: px - sz / 2, y: py - sz / 2, width: sz, height: sz,
-      fill: isChosen ? colour : "#ffffff", stroke: c.far_field_flag ? "#b35900" : "#1a1a1a", "stroke-width": isChosen ? 1.5 : 1.2,
+      fill: inside ? INSIDE_COLOUR : isChosen ? colour : "#ffffff", stroke: inside ? "#5c110c" : c.far_field_flag ? "#b35900" : "#1a1a1a", "stroke-width": isChosen || inside ? 1.5 : 1.2,
     }));
     if (isChosen) g.append(s("text", { x: px + 8, y: py - 8, "font-size": 11, "font-weight": 700, fill: "#1a1a1a", stroke: "#ffffff", "stroke-width": 3, "paint-order": "stroke" }, `${c.index} (${fmtNum(c.position[2], 2)} m)`));
     return g;
@@ -1674,6 +1822,7 @@
     }
     if ($("layer-candidates").checked && candidates().length) item(h("span", { class: "sq" }), "candidate site, arrow = facing (shorter when tilted)");
     if (state.selCand !== null) item(h("span", { class: "sq", "data-border": SELECTED_COLOUR }), "candidate being edited");
+    if (state.inside && state.inside.size) item(h("span", { class: "sq", "data-colour": INSIDE_COLOUR }), "candidate inside a building (refused by a plan)");
     const plan = state.plan;
     if (plan && plan.heatmap && state.count) {
       item(h("span", { class: "swatch", "data-colour": colourOf(state.count) }), `RIS site of the layout shown (sites ${shownLayout().join(", ")})`);
@@ -1927,6 +2076,7 @@
     const extra = state.preview ? state.preview.candidates.length - state.previewExplicit : 0;
     $("cand-summary").textContent = (n ? `${n} candidate site${n === 1 ? "" : "s"} in the list` : "No candidates in the list yet")
       + (extra > 0 ? `, plus ${extra} from walls and facades` : "") + "." + (note ? ` ${note}` : "");
+    $("download-candidates").disabled = !(geographic() && n);
   }
 
   function selectCandidate(i) {
@@ -2058,13 +2208,20 @@
     };
     const classes = chosenRoadClasses();
     if (classes) options.road_classes = classes;
-    for (const k of Object.keys(options)) if (options[k] === undefined) delete options[k];
+    if (!$("imp-swap_check").checked) options.swap_check = false; // the import's control, for the same file
+    for (const k of Object.keys(options)) if (options[k] === undefined || (Array.isArray(options[k]) && !options[k].length && k !== "kinds")) delete options[k];
     $("generate").disabled = true;
     $("cand-summary").textContent = "Generating candidates…";
     try {
       const fc = await api(state.sitesPath, { method: "POST", json: { site: state.siteSource, options } });
       const features = (fc && fc.features) || [];
       const conv = await api("/v1/candidates/convert", { method: "POST", json: { frame: state.doc.frame, sites: { type: "FeatureCollection", features } } });
+      if ($("gen-replace").checked) state.generated = new Map();
+      conv.local.forEach((c, i) => {
+        const props = Object.fromEntries(SITE_PROPERTIES.filter((k) => k in features[i].properties).map((k) => [k, features[i].properties[k]]));
+        if (c.name) state.generated.set(c.name, { position: c.position, orientation: c.orientation, props });
+      });
+      state.genMembers = pick(fc, LICENSE_MEMBERS);
       state.cands = $("gen-replace").checked ? conv.local : state.cands.concat(conv.local);
       state.selCand = null;
       const sm = fc && fc.summary ? ` (${reportText(fc.summary)})` : "";
@@ -2105,6 +2262,7 @@
     $("layer-ues").addEventListener("change", () => { state.uesTouched = true; });
     $("reimport").addEventListener("click", runImport);
     $("generate").addEventListener("click", generateCandidates);
+    $("download-candidates").addEventListener("click", downloadCandidates);
     $("find-size").addEventListener("click", () => submit(null, { sizing: {} }));
     $("validate-pairs").addEventListener("change", () => {
       const n = Math.round(Number($("validate-pairs").value));

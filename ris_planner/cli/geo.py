@@ -123,6 +123,8 @@ def candidate_options_of(args: argparse.Namespace) -> Any:
     if args.road_classes is not None:
         classes = [c.strip() for c in args.road_classes.split(",") if c.strip()]
         given["road_classes"] = None if classes == ["all"] else classes
+    if args.no_swap_check:
+        given["swap_check"] = False
     try:
         return CandidateOptions.model_validate(given)
     except ValidationError as exc:
@@ -229,6 +231,12 @@ def _add_sites(sub: argparse._SubParsersAction) -> None:
         "--road-classes",
         help="highway classes carrying poles, comma-separated, or 'all'"
         f" ({','.join(d.road_classes or [])})",
+    )
+    p.add_argument(
+        "--no-swap-check",
+        action="store_true",
+        help="skip the file-wide lat/lon swap test of a GeoJSON site (as ris-planner import"
+        " --no-swap-check); the per-feature checks stay",
     )
     p.set_defaults(func=_cmd_sites)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ris_planner.cli.app import int_in, launched_as_process
 from ris_planner.core.errors import RisPlannerError
@@ -25,6 +25,20 @@ def rounded(value: float | None, digits: int = 3) -> str:
     """A human-readable number: ``digits`` significant digits (``0.116``, not
     ``0.11600000000000002``); ``None`` (an infinite value in plan.json) is ``inf``."""
     return "inf" if value is None else f"{value:.{digits}g}"
+
+
+def listed_lines(diagnosis: dict[str, Any], plan_path: Path) -> list[str]:
+    """Where the candidates a cause counts are listed (the ``blocked`` cause of a plan with
+    hundreds of them): one line per such cause naming plan.json's member, never the names –
+    the cause's message counts them and gives a few examples."""
+    if diagnosis["verdict"] == "ok":
+        return []
+    return [
+        f"    the {len(c['candidates'])} candidates of '{c['kind']}', each with why:"
+        f" {plan_path} → diagnosis.causes[{k}].candidates"
+        for k, c in enumerate(diagnosis["causes"])
+        if c.get("candidates")
+    ]
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
@@ -91,6 +105,8 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     diagnosis = plan.get("diagnosis")
     if diagnosis is not None:
         for line in summary_lines(diagnosis):
+            print(line, file=sys.stderr)
+        for line in listed_lines(diagnosis, plan_path):
             print(line, file=sys.stderr)
         if args.fail_on_useless and diagnosis["verdict"] == "useless":
             return EXIT_USELESS

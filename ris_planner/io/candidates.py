@@ -48,14 +48,14 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, ValidationError, field_validator
+from pydantic import ConfigDict, Field, ValidationError, field_validator
 
 from ris_planner.core.document import DocumentModel
 from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
@@ -63,9 +63,11 @@ from ris_planner.core.io_json import validation_problems
 from ris_planner.environment import Scene
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
-from ris_planner.io.frames import Frame, to_local
+from ris_planner.io import require
+from ris_planner.io.frames import WGS84, Frame, to_local
 from ris_planner.io.geojson_import import (
     NO_BUILDINGS_WARNING,
+    ImportOptions,
     crs_note,
     import_features,
     wgs84_collection,
@@ -76,7 +78,7 @@ from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG
 from ris_planner.model.scenario import RIS
 from ris_planner.planning.maps import build_map
 from ris_planner.planning.sites import Site, facade_walls, wall_poses
-from ris_planner.planning.visibility import serve_matrix
+from ris_planner.planning.visibility import SitesInsideError, local_position_text, serve_matrix
 
 FloatArray = NDArray[np.float64]
 
@@ -114,8 +116,19 @@ ATTRIBUTION_KEYS = ("license", "licence", "attribution", "copyright", "source")
 """Top-level members of the input carried to the output (ODbL attribution of OSM data)."""
 
 
+def _schema_defaults(schema: dict[str, Any], model: type[DocumentModel]) -> None:
+    """Every option's default in the JSON schema, the lists too (pydantic leaves a factory's
+    value out): the OpenAPI document then states them all, and the planner page fills its
+    generation form from it, so the page starts from the defaults ``ris-planner sites`` uses."""
+    defaults = model().model_dump(mode="json")
+    for name, prop in schema.get("properties", {}).items():
+        prop.setdefault("default", defaults[name])
+
+
 class CandidateOptions(DocumentModel):
     """How candidate sites are laid out (module docstring; docs/guides/candidates.md)."""
+
+    model_config = ConfigDict(json_schema_extra=_schema_defaults)
 
     kinds: list[Kind] = Field(
         default_factory=lambda: list(KINDS),
@@ -176,6 +189,12 @@ class CandidateOptions(DocumentModel):
         max_length=100,
         description="OSM highway classes that carry poles (a GeoJSON site; null: every"
         " imported road); an imported document's roads carry no class: all carry poles",
+    )
+    swap_check: bool = Field(
+        True,
+        description="Run the import's file-wide lat/lon swap test on a GeoJSON site (building"
+        " corners square only when read as [lat, lon]): off for a site that fails it but is"
+        " right, as ris-planner import --no-swap-check; the per-feature checks always run",
     )
 
     @field_validator("kinds")
@@ -341,7 +360,7 @@ def _parse_site(site: Any, options: CandidateOptions) -> _Site:
         with _site_field("features", "features"):
             site, crs = wgs84_collection(site)  # a crs member: converted once, for both
             notes += [crs_note(crs)] if crs is not None else []
-            doc, _ = import_features(site)
+            doc, _ = import_features(site, options=ImportOptions(swap_check=options.swap_check))
             origin = tuple(doc["frame"]["origin"])
             wanted = "pole" in options.kinds
             pole_roads = _pole_roads(site, origin, options.road_classes) if wanted else []
@@ -668,32 +687,106 @@ def _reasons(
 
 
 def _collection(site: _Site, sites: _Sites, sees: NDArray[np.int_]) -> dict[str, Any]:
-    """The FeatureCollection of the kept sites (WGS84, full float precision)."""
-    lonlath = site.frame.to_geographic(sites.position).reshape(-1, 3)
-    azimuth = azimuth_of_yaw(sites.yaw)
+    """The candidates file of the kept sites (:func:`candidates_geojson`, full precision)."""
     obstacles = site.environment.obstacles
-    features = []
-    for j, k in enumerate(sites.obstacle):
-        props: dict[str, Any] = {
+    cands = [
+        {
+            "position": sites.position[j].tolist(),
+            "orientation": [float(sites.yaw[j]), float(sites.tilt[j]), 0.0],
             "name": sites.name[j],
+        }
+        for j in range(len(sites.name))
+    ]
+    props = [
+        {
             "kind": sites.kind[j],
-            "azimuth_deg": float(azimuth[j]),
-            "tilt_deg": math.degrees(float(sites.tilt[j])),
-            "height_m": float(sites.position[j, 2]),
             "building": None if k is None else (obstacles[k].name or f"obstacle {k}"),
             "obstacle": k,
             "facade": sites.facade[j],
             "road": sites.road[j],
             "sees_points": int(sees[j]),
         }
+        for j, k in enumerate(sites.obstacle)
+    ]
+    return candidates_geojson(site.frame, cands, site.carried, props)
+
+
+SITE_PROPERTIES = ("kind", "building", "obstacle", "facade", "road", "sees_points")
+"""What the generator says of each site beside its pose (``kind``: facade | pole; the
+``building`` and ``obstacle`` index it is mounted on, its ``facade`` edge or ``road``; the UE
+points it ``sees_points``): kept in a candidates file as long as they describe the site."""
+
+POSE_PROPERTIES = ("name", "azimuth_deg", "tilt_deg", "roll_deg", "height_m", "cost")
+"""The properties a candidates file derives from a candidate itself (never from ``properties``)."""
+
+
+def candidates_geojson(
+    frame: Frame,
+    candidates: Sequence[Mapping[str, Any]],
+    members: Mapping[str, str] | None = None,
+    properties: Sequence[Mapping[str, Any] | None] | None = None,
+) -> dict[str, Any]:
+    """The candidates file: the one writer of ``ris-planner sites``, ``POST /v1/sites`` and the
+    planner page's ``candidates.geojson`` (``POST /v1/candidates/geojson``), so every route
+    writes the same document for the same candidates.
+
+    ``candidates`` are plan candidates in the local metres of ``frame`` (``position`` [x, y,
+    z], ``orientation`` [yaw, pitch, roll] in radians, optional ``name`` and ``cost``). The
+    answer is a GeoJSON FeatureCollection: the licence and attribution ``members`` at the top
+    (:data:`ATTRIBUTION_KEYS`), ``frame`` = ``{"origin": [lon, lat, h]}`` – the frame that
+    ``azimuth_deg`` and ``height_m`` refer to, which the import of the file takes as its own
+    (:func:`~ris_planner.io.site_import.collection_origin`), so it reads the same local poses
+    back – and one Point per candidate at [lon, lat, h] (WGS84; h = z + the origin's height)
+    with ``name``, the entries of ``properties[i]`` (the generator's :data:`SITE_PROPERTIES`;
+    never one of :data:`POSE_PROPERTIES`), ``azimuth_deg`` (compass, clockwise from north, in
+    the frame), ``tilt_deg`` (downwards), ``height_m`` (z above the origin's height), and
+    ``roll_deg`` and ``cost`` where they are not 0."""
+    if properties is not None and len(properties) != len(candidates):
+        raise RisPlannerError(
+            f"{len(properties)} property sets for {len(candidates)} candidates: give one per"
+            " candidate (null for none)"
+        )
+    n = len(candidates)
+    pos = np.array([c["position"] for c in candidates], dtype=float).reshape(n, 3)
+    ori = np.array(
+        [c.get("orientation") or [0.0, 0.0, 0.0] for c in candidates], dtype=float
+    ).reshape(n, 3)
+    lonlath = frame.to_geographic(pos).reshape(n, 3) if n else pos
+    azimuth = azimuth_of_yaw(ori[:, 0])
+    features = []
+    for j, c in enumerate(candidates):
+        props: dict[str, Any] = {} if c.get("name") is None else {"name": str(c["name"])}
+        extra = (properties[j] if properties is not None else None) or {}
+        props.update((k, v) for k, v in extra.items() if k not in POSE_PROPERTIES)
+        props["azimuth_deg"] = float(azimuth[j])
+        props["tilt_deg"] = math.degrees(float(ori[j, 1]))
+        if ori[j, 2] != 0:
+            props["roll_deg"] = math.degrees(float(ori[j, 2]))
+        props["height_m"] = float(pos[j, 2])
+        if c.get("cost"):
+            props["cost"] = float(c["cost"])
         geometry = {"type": "Point", "coordinates": lonlath[j].tolist()}
         features.append({"type": "Feature", "properties": props, "geometry": geometry})
     return {
         "type": "FeatureCollection",
-        **site.carried,
-        "frame": site.frame.to_json(),
+        **{k: str(v) for k, v in (members or {}).items() if k in ATTRIBUTION_KEYS},
+        "frame": frame.to_json(),
         "features": features,
     }
+
+
+def document_positions(frame: Frame, points: Any) -> FloatArray:
+    """Local points [N, 3] → the coordinates of a document with ``frame`` (the inverse of
+    :func:`~ris_planner.io.frames.to_local` for positions): WGS84 [lon, lat, h] for a WGS84
+    frame (:meth:`~ris_planner.io.frames.Frame.to_geographic`), the CRS's [x, y, h] for a
+    projected one; heights in the frame's datum (z + the origin's height)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    if frame.source_crs == WGS84:
+        return np.asarray(frame.to_geographic(pts))
+    pyproj = require("pyproj")
+    t = pyproj.Transformer.from_crs(frame.proj4, frame.source_crs, always_xy=True)
+    x, y = t.transform(pts[:, 0], pts[:, 1], errcheck=True)
+    return np.column_stack([x, y, pts[:, 2] + frame.origin[2]])
 
 
 def generate_candidates(site: Any, options: CandidateOptions | None = None) -> dict[str, Any]:
@@ -704,11 +797,45 @@ def generate_candidates(site: Any, options: CandidateOptions | None = None) -> d
     return candidate_sites(site, options)[0]
 
 
+def position_text(frame: Frame | None, position: Any) -> str:
+    """A local position as the document states it: ``[lon, lat, h] = [24.9487123, 60.1651234,
+    6.00]`` (WGS84 degrees to 1e-7°, about 1 cm; heights in the frame's datum) with a WGS84
+    frame, ``[x, y, h] = [385123.45, 6672123.45, 6.00] (EPSG:3067)`` with a projected one, the
+    local metres without a frame."""
+    if frame is None:
+        return local_position_text(tuple(float(v) for v in position))  # type: ignore[arg-type]
+    p = document_positions(frame, [position])[0]
+    if frame.source_crs == WGS84:
+        return f"[lon, lat, h] = [{p[0]:.7f}, {p[1]:.7f}, {p[2]:.2f}]"
+    crs = frame.source_crs if len(frame.source_crs) <= 40 else "the document's CRS"
+    return f"[x, y, h] = [{p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}] ({crs})"
+
+
+@contextmanager
+def in_document_coordinates(frame: Frame | None) -> Iterator[None]:
+    """Errors that place candidate sites (:class:`~ris_planner.planning.visibility.
+    SitesInsideError`: RIS centres inside buildings) restated in the coordinates of the
+    document as given (:func:`position_text`): the planning stages work in local metres, the
+    boundary that converted the document (``ris-planner plan``, a job, ``POST
+    /v1/plans/validate``) knows its frame."""
+    try:
+        yield
+    except SitesInsideError as exc:
+        if frame is None:
+            raise
+        raise exc.at(tuple(position_text(frame, s.position) for s in exc.sites)) from None
+
+
 __all__ = [
     "DEFAULT_POLE_ROAD_CLASSES",
+    "SITE_PROPERTIES",
     "CandidateOptions",
     "CandidateSummary",
     "azimuth_of_yaw",
     "candidate_sites",
+    "candidates_geojson",
+    "document_positions",
     "generate_candidates",
+    "in_document_coordinates",
+    "position_text",
 ]

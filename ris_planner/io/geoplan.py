@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ris_planner.io import MissingExtraError
+from ris_planner.io.candidates import in_document_coordinates
 from ris_planner.io.frames import license_of_document, search_region_lonlat, to_local
 from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
 
@@ -98,18 +99,20 @@ def plan_document(
     clock.add("inputs", time.perf_counter() - t0, time.process_time() - c0)
     with clock.stage("inputs"):
         local, frame = to_local(document)
-        inputs = prepare_plan(local)
+        with in_document_coordinates(frame):
+            inputs = prepare_plan(local)
     stages = Stages(
         progress, {**pipeline_work(inputs), **{k: report_work(inputs)[k] for k in OUTPUTS}}, clock
     )
-    result = run_plan(
-        local,
-        executor=executor,
-        inputs=None if inputs.document.sweep is not None else inputs,
-        stages=stages,
-        clock=clock,
-        settle=False,
-    )
+    with in_document_coordinates(frame):  # a sweep prepares its own plans
+        result = run_plan(
+            local,
+            executor=executor,
+            inputs=None if inputs.document.sweep is not None else inputs,
+            stages=stages,
+            clock=clock,
+            settle=False,
+        )
     with cancelled_on_error(result.pending_checks):  # the figures beside the pending checks
         with clock.stage("figures"):
             stages.callback("figures")

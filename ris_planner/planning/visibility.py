@@ -55,16 +55,75 @@ def drop_inside(pm: PointMap, scene: Scene) -> tuple[PointMap, int]:
     return PointMap(pm.points[~inside], pm.weights[~inside]), n
 
 
+@dataclass(frozen=True)
+class InsideSite:
+    """A candidate site whose RIS centre lies inside a building (:func:`check_sites_outside`)."""
+
+    index: int
+    """Its index in the plan's expanded sites (explicit candidates first, in input order)."""
+    name: str
+    position: tuple[float, float, float]
+    """The RIS centre in local metres."""
+    building: str
+    """The obstacle it lies in, as messages name it (``obstacle 3 (prism 'b1')``)."""
+
+
+def local_position_text(position: tuple[float, float, float]) -> str:
+    """``[x, y, z] = [-39.63, -40.32, 6.00] m``: a position in local metres, to 1 cm."""
+    return "[x, y, z] = [" + ", ".join(f"{v:.2f}" for v in position) + "] m"
+
+
+class SitesInsideError(RisPlannerError):
+    """Candidate sites whose RIS centre lies more than 1 cm inside a prism: the message counts
+    them and names every one with its position and building. Positions read in local metres;
+    :meth:`at` restates them in the coordinates of the document as given (a boundary that
+    knows its frame does, :mod:`ris_planner.io.geoplan`)."""
+
+    def __init__(self, sites: tuple[InsideSite, ...], where: tuple[str, ...] | None = None) -> None:
+        self.sites = tuple(sites)
+        self.where = (
+            tuple(where)
+            if where is not None
+            else tuple(local_position_text(s.position) for s in self.sites)
+        )
+        n = len(self.sites)
+        named = "; ".join(
+            f"candidate {s.index} ({s.name}) at {w} inside environment {s.building}"
+            for s, w in zip(self.sites, self.where, strict=True)
+        )
+        super().__init__(
+            f"{n} candidate site{'s lie' if n != 1 else ' lies'} inside a building (the RIS"
+            f" centre more than 1 cm inside a prism): {named}. Move {'them' if n != 1 else 'it'}"
+            " outside the buildings or remove " + ("them" if n != 1 else "it")
+        )
+
+    def at(self, where: tuple[str, ...]) -> SitesInsideError:
+        """The same sites with their positions written as ``where`` (one text per site)."""
+        return SitesInsideError(self.sites, where)
+
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
+        """Pickled with its sites (a job process's or a parse process's error arrives whole)."""
+        return type(self), (self.sites, self.where)
+
+
 def check_sites_outside(scene: Scene, sites: list[Site]) -> None:
-    """Raise naming the first candidate whose RIS centre lies more than 1 cm inside a prism."""
+    """Raise :class:`SitesInsideError` naming every candidate whose RIS centre lies more than
+    1 cm inside a prism (how many, and each with its name, position and building)."""
     if not sites:
         return
     hit = scene.inside(np.array([s.ris.position for s in sites]))
-    if np.any(hit >= 0):
-        i = int(np.argmax(hit >= 0))
-        raise RisPlannerError(
-            f"candidate {i} ({sites[i].name}) at {sites[i].ris.position} lies inside"
-            f" environment {scene.environment.label(int(hit[i]))}"
+    inside = np.nonzero(hit >= 0)[0]
+    if inside.size:
+        raise SitesInsideError(
+            tuple(
+                InsideSite(
+                    int(i),
+                    sites[i].name,
+                    tuple(float(v) for v in sites[i].ris.position),  # type: ignore[arg-type]
+                    scene.environment.label(int(hit[i])),
+                )
+                for i in inside
+            )
         )
 
 
