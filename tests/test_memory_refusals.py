@@ -62,8 +62,12 @@ PLAN_SHAPE = PlanShape(
     transmissions=64,
     wavefront="planar",
     fixed_heatmap_tx=False,
+    relaxed_counts=1,
+    sizing_runs=2,
+    validation_candidates=5000,
 )
-"""A small plan every term of whose estimate is above zero."""
+"""A small plan every term of whose estimate is above zero (a count searched greedily, the
+sizing question and the validation included)."""
 
 POWER_SHAPE = PowerShape(beams=64, positions=100, elements=800)
 

@@ -86,6 +86,29 @@ BYTES_PER_HEATMAP_PAIR_RIS = 1_100
 the state FIM is formed."""
 
 
+BYTES_PER_HEATMAP_PAIR_OBSTRUCTED = 400
+"""Per heatmap pair (planar) where the environment has obstacles: the pair arrays, the LOS path
+and the presence masks – a RIS path's information is formed only for the pairs the RIS serves
+at both ends and the counting rule leaves open (``compute_bounds``' ``presence``), few of them
+on a street (measured peaks: ≈ 550 B per pair and RIS in all, docs/validation/resources.md)."""
+
+
+BYTES_PER_HEATMAP_PAIR_RIS_OBSTRUCTED = 500
+"""Per heatmap pair and RIS of the layout where the environment has obstacles (see
+:data:`BYTES_PER_HEATMAP_PAIR_OBSTRUCTED`)."""
+
+
+BYTES_PER_RELAXATION_SITE_PAIR = 350
+"""Per site-pair, while the relaxation bound of a count searched greedily runs (the
+Frank–Wolfe iterates and gradients over every site and pair, beside the site cache; measured
++245 MiB at 730 sites × 1000 pairs, +170 MiB at 596 × 1000)."""
+
+
+BYTES_PER_VALIDATION_CANDIDATE = 1_000
+"""Per TX candidate of the validation's coarse position search (``validation.max_candidates``
+at most): the candidate grid and each candidate's predicted channel parameters and cost."""
+
+
 BYTES_PER_HEATMAP_POINT = 1_200
 
 
@@ -158,8 +181,50 @@ def plan_sites(doc: PlanDocument) -> int:
     return len(doc.candidates) + sum(_wall_sites(w) for w in doc.walls) + facades
 
 
+GREEDY_SWAP_ROUNDS = 1.0
+"""Rounds' worth of new layouts a greedy start scores in its swap rounds: each round's
+neighbours share most layouts with the previous round's and with the other starts' (the memo
+scores each once), and on the calibration cases the starts settle within a few rounds – the
+new layouts come to about one round's neighbourhood per start (docs/validation/resources.md)."""
+
+
+def greedy_layouts(n_sites: int, count: int, restarts: int, rounds: int, seeds: int = 0) -> float:
+    """Layouts a greedy search scores, roughly: the forward build (count × sites), each
+    smaller count's best layout completed (one step of sites each), and per start
+    (greedy, seeds, random restarts) :data:`GREEDY_SWAP_ROUNDS` rounds' worth of new
+    count × (sites − count) neighbours (the memo scores a layout once)."""
+    swaps = count * max(n_sites - count, 0)
+    starts = 1 + seeds + restarts
+    return count * n_sites + seeds * n_sites + starts * min(rounds, GREEDY_SWAP_ROUNDS) * swaps
+
+
+def _exhaustive(doc: PlanDocument, sites: int, n_ris: int) -> bool:
+    spec = doc.search
+    layouts = math.comb(sites, n_ris) if sites >= n_ris else 0
+    return spec.method == "exhaustive" or (spec.method == "auto" and layouts <= spec.max_exhaustive)
+
+
+def _memo_layouts(doc: PlanDocument, sites: int) -> int:
+    """Layouts one run's searches score and memoise, summed over the RIS counts, as a search
+    typically runs (:func:`greedy_layouts`; every layout of an exhaustive count)."""
+    if doc.search.method == "district":
+        return 0
+    counts = [c for c in doc.max_counts if c <= sites]
+    total = 0.0
+    for n_ris in counts:
+        layouts = math.comb(sites, n_ris)
+        if _exhaustive(doc, sites, n_ris):
+            total += min(layouts, doc.search.max_exhaustive)
+            continue
+        seeds = sum(c < n_ris for c in counts)
+        spec = doc.search
+        total += min(layouts, greedy_layouts(sites, n_ris, spec.restarts, spec.max_rounds, seeds))
+    return math.ceil(total)
+
+
 def _search_layouts(doc: PlanDocument, sites: int) -> int:
-    """Layouts the searches may score, summed over the RIS counts (the worst case)."""
+    """Layouts the searches may score, summed over the RIS counts (the worst case: every
+    start runs ``max_rounds``; the limit's :data:`MAX_SEARCH_LAYOUTS`)."""
     total = 0
     for i, n_ris in enumerate(c for c in doc.max_counts if c <= sites):
         spec = doc.search
@@ -188,8 +253,9 @@ class PlanShape:
     """Pairs the run builds (the sample, or every pair up to ``max_pairs``)."""
     csv_rows: int
     layouts: int
-    """Layouts one plan run may score (the sizing question's runs are sequential: they
-    multiply the search, not the memory)."""
+    """Layouts one plan run's search scores and memoises, as it typically runs
+    (:func:`_memo_layouts`; the sizing question's runs are sequential: they multiply the
+    search's time, not its memory)."""
     counts: int
     """RIS counts searched (one ``points`` entry each per RX point)."""
     max_count: int
@@ -202,6 +268,16 @@ class PlanShape:
     district: bool = False
     """search.method 'district': sparse information per (pair, serving site), no site cache,
     no heatmap, no codebook checks (:mod:`ris_planner.planning.district`)."""
+    obstructed: bool = False
+    """The environment has obstacles: the heatmap forms RIS paths for the served pairs only
+    (:data:`BYTES_PER_HEATMAP_PAIR_OBSTRUCTED`)."""
+    relaxed_counts: int = 0
+    """RIS counts searched greedily with a relaxation bound (``certificate_iterations`` > 0)."""
+    sizing_runs: int = 0
+    """Runs of the sizing question (one per ``sizing.ris_sizes``), each with its own site cache
+    while the plan's own result is held."""
+    validation_candidates: int = 0
+    """TX candidates of the validation's coarse search (0: no ``validation``)."""
 
     @property
     def heatmap(self) -> tuple[int, int]:
@@ -254,8 +330,12 @@ def _heatmap_bytes(shape: PlanShape) -> int:
     if shape.district:
         return 0
     heat_rx, heat_tx = shape.heatmap
-    per_pair = BYTES_PER_HEATMAP_PAIR[shape.wavefront]
-    per_pair += _ris_in_layout(shape) * BYTES_PER_HEATMAP_PAIR_RIS
+    if shape.obstructed and shape.wavefront == "planar":
+        per_pair = BYTES_PER_HEATMAP_PAIR_OBSTRUCTED
+        per_pair += _ris_in_layout(shape) * BYTES_PER_HEATMAP_PAIR_RIS_OBSTRUCTED
+    else:
+        per_pair = BYTES_PER_HEATMAP_PAIR[shape.wavefront]
+        per_pair += _ris_in_layout(shape) * BYTES_PER_HEATMAP_PAIR_RIS
     per_point = BYTES_PER_HEATMAP_POINT + shape.counts * BYTES_PER_HEATMAP_POINT_COUNT
     return heat_rx * heat_tx * per_pair + heat_rx * per_point
 
@@ -275,6 +355,26 @@ def _element_bytes(shape: PlanShape) -> int:
         elements += points * n_el * BYTES_PER_POINT_ELEMENT
         elements += min(rc_pairs * n_el, SPHERICAL_CHUNK_BYTES // 250) * 250
     return elements
+
+
+def _relaxation_bytes(shape: PlanShape) -> int:
+    if shape.district or not shape.relaxed_counts:
+        return 0
+    return shape.sites * shape.pairs * BYTES_PER_RELAXATION_SITE_PAIR
+
+
+def _sizing_bytes(shape: PlanShape) -> int:
+    """A sizing run's own site cache and cache build, beside the plan's (held until the
+    sizing is answered)."""
+    if shape.district or not shape.sizing_runs:
+        return 0
+    return _site_cache_bytes(shape) + shape.pairs * BYTES_PER_CACHE_BUILD_PAIR[shape.wavefront]
+
+
+def _validation_bytes(shape: PlanShape) -> int:
+    if shape.district:
+        return 0
+    return shape.validation_candidates * BYTES_PER_VALIDATION_CANDIDATE
 
 
 def _check_bytes(shape: PlanShape) -> int:
@@ -343,6 +443,12 @@ _RIS_SIDE: Knob[PlanShape] = Knob(
     lambda s, v: "{} × {}".format(*_side(s, v).ris_side),
 )
 
+_VALIDATION_CANDIDATES: Knob[PlanShape] = Knob(
+    "the most validation candidates that fit are {} (validation.max_candidates)",
+    lambda s: (1, s.validation_candidates),
+    lambda s, v: replace(s, validation_candidates=v),
+)
+
 _FEWER_PAIRS = "sample fewer pairs (pairs.sample, max_pairs) or use coarser UE maps"
 _SMALLER_RIS = "use smaller RISs (ris.rows × ris.cols)"
 
@@ -402,6 +508,32 @@ PLAN_MEMORY_TERMS: dict[str, MemoryTerm[PlanShape]] = {
         _FEWER_PAIRS,
         (_PAIRS,),
     ),
+    "relaxation": MemoryTerm(
+        _relaxation_bytes,
+        lambda s: (
+            f"the relaxation bound ({grouped(s.sites)} sites × {grouped(s.pairs)} pairs,"
+            f" {s.relaxed_counts} counts searched greedily)"
+        ),
+        f"{_FEWER_PAIRS}, fewer candidate sites, or search.certificate_iterations 0",
+        (_PAIRS, _SITES),
+    ),
+    "sizing": MemoryTerm(
+        _sizing_bytes,
+        lambda s: (
+            f"the sizing runs' own site cache ({grouped(s.sites)} sites × {grouped(s.pairs)}"
+            f" pairs, {s.sizing_runs} runs one after another)"
+        ),
+        f"{_FEWER_PAIRS}, fewer candidate sites, or ask the sizing question in a plan of its own",
+        (_PAIRS, _SITES),
+    ),
+    "validation": MemoryTerm(
+        _validation_bytes,
+        lambda s: (
+            f"the validation's position search ({grouped(s.validation_candidates)} TX candidates)"
+        ),
+        "use fewer validation.max_candidates or a larger validation.step_m",
+        (_VALIDATION_CANDIDATES,),
+    ),
     "search": MemoryTerm(
         lambda s: min(s.layouts, MAX_SEARCH_LAYOUTS) * BYTES_PER_LAYOUT,
         lambda s: f"the search's memoised layouts ({grouped(min(s.layouts, MAX_SEARCH_LAYOUTS))})",
@@ -442,7 +574,10 @@ says (:class:`~ris_planner.model.limits.MemoryTerm`): ``base`` (interpreter and 
 ``maps``, ``pairs``, ``sites``, ``site cache`` (its :func:`cache_layout` and masks),
 ``district`` (the district search's sparse information, :data:`BYTES_PER_DISTRICT_ENTRY`), ``cache
 build`` (one site's path information at a time), ``search`` (memoised layouts), ``heatmap``
-(the largest count's ``compute_bounds`` on the heatmap pairs, and the per-point results),
+(the largest count's ``compute_bounds`` on the heatmap pairs, and the per-point results; with
+obstacles only the served pairs' RIS paths), ``relaxation`` (the relaxation bound of a count
+searched greedily), ``sizing`` (a sizing run's own site cache), ``validation`` (the
+estimator's candidate grid),
 ``elements`` (the per-element arrays: random-codebook profiles, spherical point terms and
 chunks), ``checks`` (the codebook checks, which may run beside the heatmap:
 :data:`BYTES_PER_CHECK_PAIR`, :data:`BYTES_PER_CHECK_ELEMENT`)."""
@@ -489,13 +624,15 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         pairs = n_t * (n_t - 1) // 2 if pairs_spec == "unordered" else n_t * n_r
     else:
         pairs = pairs_spec.sample
+    counts = [c for c in doc.max_counts if c <= sites]
+    relaxed = sum(not _exhaustive(doc, sites, c) for c in counts)
     return PlanShape(
         sites=sites,
         tx_points=n_t,
         rx_points=n_r,
         pairs=min(pairs, doc.max_pairs),
         csv_rows=sum(csv_rows(m.csv_text or "") for m in (doc.tx_map, doc.rx_map)),
-        layouts=_search_layouts(doc, sites),
+        layouts=_memo_layouts(doc, sites),
         counts=len(doc.max_counts),
         max_count=max(doc.max_counts),
         elements=doc.ris.rows * doc.ris.cols,
@@ -504,6 +641,10 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         wavefront=doc.system.wavefront,
         fixed_heatmap_tx=doc.heatmap_tx is not None,
         district=doc.search.method == "district",
+        obstructed=doc.environment is not None and bool(doc.environment.obstacles),
+        relaxed_counts=relaxed if doc.search.certificate_iterations > 0 else 0,
+        sizing_runs=sizing_runs(doc),
+        validation_candidates=0 if doc.validation is None else doc.validation.max_candidates,
     )
 
 
@@ -536,7 +677,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         pairs=pairs,
         cache_entries=shape.sites * pairs,
         heatmap_pairs=heat_rx * heat_tx,
-        search_layouts=shape.layouts * plan_runs(doc),
+        search_layouts=_search_layouts(doc, shape.sites) * plan_runs(doc),
         memory_bytes=sum(plan_memory(shape).values()),
     )
 
