@@ -16,13 +16,15 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     plan.json content and the figures ``topview``, ``heatmap``, ``cdf`` (PNG) and, with the
     GIS extra, the files ``geojson`` (plan.geojson), ``geotiff`` (heatmap.tif) and
     ``points_csv`` (points.csv) of ``ris-planner plan --out`` – the same function writes both
-    (:func:`ris_planner.io.geoplan.plan_document`). The search runs on a local process pool
+    (:func:`ris_planner.io.geoplan.plan_document`), with ``resources`` (the estimate made at
+    submission beside the run's measured time and peak memory,
+    :mod:`ris_planner.io.estimates`). The search runs on a local process pool
     started by this worker, as on the command line (``RIS_PLANNER_PLAN_WORKERS`` processes,
     default one per core: the same executor, so the same results), or on the Dask cluster
     of ``RIS_PLANNER_DASK_SCHEDULER``. The pool's processes are in the worker's process
     group: cancelling the job stops them with it (:func:`api.worker.terminate_job`)."""
     from api.settings import Settings
-    from ris_planner.io.geoplan import plan_on
+    from ris_planner.io.estimates import document_estimate, plan_measured
     from ris_planner.planning import DaskExecutor, Executor, LocalExecutor
 
     settings = Settings()
@@ -30,7 +32,9 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     executor: Executor = (
         DaskExecutor(address) if address else LocalExecutor(settings.plan_workers or None)
     )
-    done = plan_on(executor, document, out_dir, progress)
+    # the submission's estimate (the same document and budget), kept in plan.json "resources"
+    estimate = document_estimate(document, settings.job_memory_mb)
+    done = plan_measured(executor, document, out_dir, progress, estimate=estimate)
     return JobOutput(done.plan, done.files)
 
 

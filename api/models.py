@@ -134,6 +134,15 @@ class BoundsResponse(BaseModel):
     provenance: Provenance = Field(description="Package version and hash of the input")
 
 
+class ResourceEstimate(BaseModel):
+    """A plan's resources estimated from its document before any work
+    (:func:`ris_planner.planning.work.plan_estimate`; docs/validation/resources.md)."""
+
+    time_s: float = Field(ge=0, description="Estimated wall time of the run [s]")
+    memory_mib: float = Field(ge=0, description="Estimated peak resident memory [MiB]")
+    budget_mib: int = Field(ge=0, description="The job memory budget it was checked against [MiB]")
+
+
 class JobSummary(BaseModel):
     """A job without its result (listings)."""
 
@@ -149,6 +158,12 @@ class JobSummary(BaseModel):
     started_at: str | None = Field(description="Start time in a worker, ISO 8601 UTC")
     finished_at: str | None = Field(description="End time (any end state), ISO 8601 UTC")
     url: str = Field(description="Path of this job's resource")
+    estimate: ResourceEstimate | None = Field(
+        None,
+        description="A plan job's resources estimated from its document at submission, before"
+        " any work (the result's 'resources' sets it beside what the run measured); null for"
+        " other kinds",
+    )
 
     @classmethod
     def of_head(cls, job: JobHead) -> JobSummary:
@@ -188,6 +203,7 @@ def _summary_fields(job: JobHead) -> dict[str, Any]:
         "started_at": job.started_at,
         "finished_at": job.finished_at,
         "url": f"/v1/jobs/{job.id}",
+        "estimate": job.estimate_json,
     }
 
 

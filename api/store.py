@@ -86,7 +86,7 @@ CREATE INDEX IF NOT EXISTS jobs_seq ON jobs (seq);
 CREATE INDEX IF NOT EXISTS jobs_status ON jobs (status);
 """
 
-_ADDED_COLUMNS = {"owner": "TEXT", "idempotency_key": "TEXT"}
+_ADDED_COLUMNS = {"owner": "TEXT", "idempotency_key": "TEXT", "estimate": "TEXT"}
 """Columns added after the first schema (added to an older database when it is opened)."""
 
 _ADDED_INDEXES = """
@@ -218,10 +218,18 @@ class JobHead:
     started_at: str | None
     finished_at: str | None
     owner: str | None
+    estimate: str | None
+    """The job's resource estimate as JSON text (a plan's: ``{"time_s", "memory_mib",
+    "budget_mib"}``, made at submission), or None; :attr:`estimate_json` decodes it."""
 
     @classmethod
     def from_row(cls, row: sqlite3.Row) -> JobHead:
         return cls(**{name: row[name] for name in HEAD_COLUMNS})
+
+    @property
+    def estimate_json(self) -> dict[str, Any] | None:
+        """The decoded :attr:`estimate`."""
+        return None if self.estimate is None else dict(json.loads(self.estimate))
 
 
 HEAD_COLUMNS = tuple(JobHead.__dataclass_fields__)
@@ -387,16 +395,19 @@ class JobStore:
         *,
         owner: str | None = None,
         idempotency_key: str | None = None,
+        estimate: dict[str, Any] | None = None,
     ) -> tuple[Job, bool]:
         """A new ``queued`` job holding the (validated) request document, owned by ``owner``
         (an API key's name; None without keys); ``(job, True)``. With an ``idempotency_key``
         already used by the same owner, the job created then and ``False`` (nothing new).
         ``request`` may be the document's JSON text already (:class:`JsonText`, rendered by a
         parse process: the server never holds the parsed document); the new job's ``request``
-        is then empty (the caller has the document)."""
+        is then empty (the caller has the document). ``estimate``: its resource estimate (a
+        plan's), kept with it."""
         job_id = uuid.uuid4().hex
         created_at = utc_now()
         text = request if isinstance(request, JsonText) else json.dumps(request, allow_nan=False)
+        est = None if estimate is None else json.dumps(estimate, allow_nan=False)
 
         def work(con: sqlite3.Connection) -> sqlite3.Row | None:
             if idempotency_key is not None:
@@ -408,9 +419,9 @@ class JobStore:
                     return row
             con.execute(  # one statement: seq is unique under concurrent inserts
                 "INSERT INTO jobs (id, kind, status, request, seq, created_at, owner,"
-                " idempotency_key) SELECT ?, ?, 'queued', ?, COALESCE(MAX(seq), 0) + 1, ?, ?, ?"
-                " FROM jobs",
-                (job_id, kind, text, created_at, owner, idempotency_key),
+                " idempotency_key, estimate) SELECT ?, ?, 'queued', ?, COALESCE(MAX(seq), 0) + 1,"
+                " ?, ?, ?, ? FROM jobs",
+                (job_id, kind, text, created_at, owner, idempotency_key, est),
             )
             return None
 
@@ -428,6 +439,7 @@ class JobStore:
             started_at=None,
             finished_at=None,
             owner=owner,
+            estimate=est,
             request={} if isinstance(request, JsonText) else request,
             result=None,
             figures={},

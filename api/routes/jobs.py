@@ -90,12 +90,16 @@ def submit_job(
     runner: JobRunner,
     principal: Principal | None = None,
     idempotency_key: str | None = None,
+    estimate: dict[str, float | int] | None = None,
 ) -> Response:
     """Store a queued job owned by ``principal``'s key, hand it to the runner, answer 202 with
     its view and Location; with an ``idempotency_key`` this key used before, the job created
-    then (nothing new is queued; 409 if that job holds another document or kind)."""
+    then (nothing new is queued; 409 if that job holds another document or kind).
+    ``estimate``: the job's resource estimate (a plan's), kept with it from now on."""
     owner = None if principal is None or not principal.name else principal.name
-    job, created = store.create_once(kind, document, owner=owner, idempotency_key=idempotency_key)
+    job, created = store.create_once(
+        kind, document, owner=owner, idempotency_key=idempotency_key, estimate=estimate
+    )
     headers = {"Location": f"/v1/jobs/{job.id}"}
     if created:
         runner.submit(job.id, kind)

@@ -61,24 +61,31 @@ async def post_plan(
     the
     field, 413 naming the limit (sites, map points, pairs, sites × pairs, search layouts, the
     job memory budget), 501 for a frame on a server without the GIS extra. The job keeps the
-    document as sent (a geographic one in its own coordinates)."""
+    document as sent (a geographic one in its own coordinates). The job's ``estimate`` (its
+    wall seconds and peak memory, estimated from the document before any work;
+    :func:`ris_planner.planning.work.plan_estimate`) is there from this answer on; the result's
+    ``resources`` sets it beside what the run measured."""
     body = await request.body()
     pool: ParsePool = request.app.state.parse_pool
-    stored = await pool.run(plan_submission, body, settings.job_memory_mb)
+    stored, estimate = await pool.run(plan_submission, body, settings.job_memory_mb)
 
     def submit() -> Response:
-        return submit_job("plan", stored, store, runner, principal, idempotency_key)
+        return submit_job("plan", stored, store, runner, principal, idempotency_key, estimate)
 
     return await anyio.to_thread.run_sync(submit)
 
 
-def plan_submission(body: bytes, memory_mb: int) -> JsonText:
-    """A plan body → the document the job keeps, as JSON text: parsed, converted from its
-    frame, validated and checked (:func:`api.documents.local_plan`); a geographic document is
-    kept as sent, a local one with the RIS element fields it leaves unset still unset
-    (plan.json ``physics.from``). Runs in a parse process (:mod:`api.offload`)."""
+def plan_submission(body: bytes, memory_mb: int) -> tuple[JsonText, dict[str, float | int]]:
+    """A plan body → the document the job keeps, as JSON text, and its resource estimate:
+    parsed, converted from its frame, validated and checked (:func:`api.documents.local_plan`);
+    a geographic document is kept as sent, a local one with the RIS element fields it leaves
+    unset still unset (plan.json ``physics.from``). Runs in a parse process
+    (:mod:`api.offload`)."""
+    from ris_planner.planning.work import plan_estimate
+
     document = json_document(body)
     plan, frame = local_plan(document, memory_mb)
     unset = {f for f in PHYSICS_FIELDS if f not in plan.ris.model_fields_set}
     stored = document if frame is not None else plan.model_dump(mode="json", exclude={"ris": unset})
-    return JsonText(json.dumps(stored, allow_nan=False))
+    estimate = plan_estimate(plan, memory_mb).to_json()
+    return JsonText(json.dumps(stored, allow_nan=False)), estimate

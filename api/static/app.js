@@ -821,6 +821,16 @@
   }
 
   // ---------------------------------------------------------------- jobs and progress
+  /** " – estimated ≈ 12 s, ≈ 620 MiB peak": a plan job's resources, estimated from its
+   * document at submission (the job's ``estimate``; plan.json ``resources`` holds it with what
+   * the run measured); "" for a job without one. */
+  function estimateText(job) {
+    const e = job.estimate;
+    if (!e || typeof e.time_s !== "number" || typeof e.memory_mib !== "number") return "";
+    const t = e.time_s < 10 ? `${e.time_s.toFixed(1)} s` : e.time_s < 120 ? `${Math.round(e.time_s)} s` : `${Math.round(e.time_s / 60)} min`;
+    return ` – estimated ≈ ${t}, ≈ ${Math.round(e.memory_mib)} MiB peak`;
+  }
+
   function showJob(job) {
     state.job = job;
     // 100 % only once the job has succeeded: a plan reports 1.0 before it writes its results
@@ -829,6 +839,7 @@
     $("progress").value = pct;
     $("progress-text").textContent = `${pct} %`;
     let text = `Job ${job.id.slice(0, 8)}: ${job.status}`;
+    if (job.status === "queued" || job.status === "running") text += estimateText(job);
     if (job.status === "running" && raw >= 100) text += " – writing the results";
     else if (job.message && job.status !== "failed") text += ` – ${job.message}`;
     if (job.status === "failed" && job.error) text += ` – ${job.error}`;

@@ -52,7 +52,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
-    from ris_planner.io.geoplan import plan_on
+    from ris_planner.io.estimates import document_estimate, plan_measured
     from ris_planner.planning.diagnosis import summary_lines
     from ris_planner.planning.presets import load_plan_file, plan_preset
     from ris_planner.planning.report import write_plan_json
@@ -69,13 +69,16 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
         doc = {**doc, "validation": {**(doc.get("validation") or {}), "pairs": args.validate}}
     if args.sizing and doc.get("sizing") is None:
         doc = {**doc, "sizing": {}}  # the default ladder and target (PlanDocument.sizing)
-    executor: Executor = (
-        DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
-    )
     out = Path(args.out)
     # the interpreter's start, the imports and reading the document, before the first stage
     startup = process_age_s() if launched_as_process() else None
-    done = plan_on(executor, doc, out, ProgressBar("plan"), figures=figures)
+    # before any work: the refusal (exit 2) or the estimate (plan.json keeps it, "resources")
+    estimate = document_estimate(doc)
+    print(f"estimate: {estimate.describe()}", file=sys.stderr, flush=True)
+    executor: Executor = (
+        DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
+    )
+    done = plan_measured(executor, doc, out, ProgressBar("plan"), figures, estimate)
     plan = done.plan
     if startup is not None:
         plan["timing_s"] = {"startup": startup, **plan["timing_s"]}

@@ -1,0 +1,231 @@
+"""A plan's resource estimate is shown before any work and checked against what the run
+measures (docs/validation/resources.md): the command line prints it on stderr before the
+plan's progress, plan.json keeps it beside the measured wall time and peak memory
+(``resources``; a district plan too), a REST plan job holds it from its submission (and keeps
+it across a restart of the store), the sizing question and the validation have their terms,
+the greedy search's layout count is what the search scores, and one real OpenStreetMap site's
+plan – run as a user runs it – lands within the estimate's bounds."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import re
+import subprocess
+import sys
+from contextlib import redirect_stderr
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from api_helpers import api_client, wait_for
+from district_site import street_doc
+from test_api_plans import small_plan_doc
+from test_limits import ring
+
+from api.store import JobStore
+from ris_planner.cli import main
+from ris_planner.planning import PlanDocument
+from ris_planner.planning.resources import largest_plan_shape, plan_memory
+from ris_planner.planning.work import (
+    PlanEstimate,
+    WorkSizes,
+    plan_estimate,
+    search_layouts,
+    stage_seconds,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+LINE = re.compile(r"^estimate: ≈ ([\d.]+) s, ≈ ([\d ]+) MiB peak \(budget ([\d ]+) MiB\)$")
+
+
+def _cli_plan(tmp_path: Path, doc: dict[str, Any], *options: str) -> tuple[str, dict[str, Any]]:
+    src = tmp_path / "plan.json"
+    src.write_text(json.dumps(doc))
+    err = io.StringIO()
+    with redirect_stderr(err):
+        code = main(["plan", str(src), "--out", str(tmp_path / "out"), *options])
+    assert code == 0, err.getvalue()[-2000:]
+    return err.getvalue(), json.loads((tmp_path / "out" / "plan.json").read_text())
+
+
+def test_cli_prints_the_estimate_before_the_progress_and_plan_json_keeps_it(
+    tmp_path: Path,
+) -> None:
+    text, plan = _cli_plan(tmp_path, small_plan_doc(), "--workers", "1")
+    first = text.splitlines()[0]
+    match = LINE.match(first)
+    assert match is not None, text[:500]  # the first line, before the plan's progress bar
+    assert text.index(first) < text.index("plan [")
+    res = plan["resources"]
+    assert set(res) == {"estimate", "measured"}
+    est, measured = res["estimate"], res["measured"]
+    assert {"time_s", "memory_mib"} <= set(est)
+    # the printed line is plan.json's estimate
+    assert PlanEstimate(est["time_s"], est["memory_mib"], est["budget_mib"]).describe() in first
+    assert measured["time_s"] > 0 and measured["peak_memory_mib"] > 0
+    assert plan["timing_s"]["estimate"] >= 0  # making the estimate is a stage of the run
+
+
+def test_a_district_plan_has_its_estimate_and_resources(tmp_path: Path) -> None:
+    """search.method 'district' runs another path (its own stages): its estimate is the
+    district's (:func:`ris_planner.planning.work.district_seconds`), plan.json has the same
+    ``resources`` block."""
+    from ris_planner.io import geoplan
+
+    if not hasattr(geoplan, "_district_document"):
+        pytest.skip("plan documents do not run the district search on this tree yet")
+    doc = street_doc(sample=120)
+    parsed = PlanDocument.model_validate(doc)
+    assert set(stage_seconds(parsed)) == {"inputs", "search", "figures"}
+    text, plan = _cli_plan(tmp_path, doc)
+    assert LINE.match(text.splitlines()[0]), text[:300]
+    assert plan["resources"]["estimate"]["time_s"] == round(plan_estimate(parsed).time_s, 3)
+    assert plan["resources"]["measured"]["peak_memory_mib"] > 0
+
+
+def test_the_rest_job_shows_the_estimate_from_its_creation(tmp_path: Path) -> None:
+    doc = small_plan_doc()
+    expected = plan_estimate(PlanDocument.model_validate(doc), 6144).to_json()
+    with api_client(tmp_path, workers=1, job_memory_mb=6144) as client:
+        r = client.post("/v1/plans", json=doc)
+        assert r.status_code == 202, r.text
+        created = r.json()
+        assert created["estimate"] == expected  # in the 202 answer, before the job started
+        job_id = created["id"]
+        assert client.get(f"/v1/jobs/{job_id}").json()["estimate"] == expected
+        listed = client.get("/v1/jobs").json()["items"]
+        assert [j["estimate"] for j in listed if j["id"] == job_id] == [expected]
+        view = wait_for(client, job_id, ("succeeded", "failed"), timeout_s=120)
+        assert view["status"] == "succeeded", view["error"]
+        assert view["estimate"] == expected
+        res = view["result"]["resources"]
+        assert res["estimate"] == expected  # the job's run kept the submission's estimate
+        assert res["measured"]["time_s"] > 0 and res["measured"]["peak_memory_mib"] > 0
+        assert "estimate" in view["result"]["timing_s"]
+
+
+def test_the_store_keeps_the_estimate_and_adds_its_column_to_an_older_database(
+    tmp_path: Path,
+) -> None:
+    import sqlite3
+
+    db = tmp_path / "old.db"
+    con = sqlite3.connect(db)  # a database of the schema before the estimate
+    con.executescript(
+        "CREATE TABLE jobs (id TEXT PRIMARY KEY, kind TEXT NOT NULL, status TEXT NOT NULL,"
+        " progress REAL NOT NULL DEFAULT 0, message TEXT NOT NULL DEFAULT '', request TEXT NOT"
+        " NULL, result TEXT, error TEXT, figures TEXT NOT NULL DEFAULT '{}', seq INTEGER NOT"
+        " NULL, created_at TEXT NOT NULL, started_at TEXT, finished_at TEXT, owner TEXT,"
+        " idempotency_key TEXT);"
+        "INSERT INTO jobs (id, kind, status, request, seq, created_at) VALUES"
+        " ('a', 'plan', 'succeeded', '{}', 1, '2026-01-01T00:00:00+00:00');"
+    )
+    con.commit()
+    con.close()
+    store = JobStore(db)
+    old = store.get("a")
+    assert old is not None and old.estimate_json is None
+    est = {"time_s": 1.5, "memory_mib": 620.0, "budget_mib": 6144}
+    job, _ = store.create_once("plan", {"x": 1}, estimate=est)
+    assert job.estimate_json == est
+    again = JobStore(db).get(job.id)  # another connection, as a worker or a restart reads it
+    assert again is not None and again.estimate_json == est
+    heads, _ = store.list_jobs(limit=10)
+    assert {h.id: h.estimate_json for h in heads} == {job.id: est, "a": None}
+
+
+def test_sizing_and_validation_have_their_terms() -> None:
+    """The sizing question runs the plan once more per RIS size, the validation runs the
+    estimator on N pairs per layout: both lengthen the estimate, and the sizing runs' own site
+    cache and the validation's candidate grid are memory terms."""
+    base = small_plan_doc(objective={"kind": "coverage", "metric": "rx", "threshold_m": 1.0})
+    plain = PlanDocument.model_validate(base)
+    sized = PlanDocument.model_validate(base | {"sizing": {"ris_sizes": [[8, 8], [16, 16]]}})
+    checked = PlanDocument.model_validate(base | {"validation": {"pairs": 5}})
+    t_plain = stage_seconds(plain)
+    assert t_plain["sizing"] == 0 and t_plain["validation"] == 0
+    two = stage_seconds(sized)["sizing"]
+    assert two > 0
+    sizes = {"ris_sizes": [[8, 8], [16, 16], [24, 24]]}
+    three = stage_seconds(PlanDocument.model_validate(base | {"sizing": sizes}))
+    assert three["sizing"] > two  # one more run
+    assert stage_seconds(checked)["validation"] > 0
+    more = PlanDocument.model_validate(base | {"validation": {"pairs": 50}})
+    assert stage_seconds(more)["validation"] > stage_seconds(checked)["validation"]
+    mem = plan_memory(largest_plan_shape(sized))
+    assert mem["sizing"] > 0 and plan_memory(largest_plan_shape(plain))["sizing"] == 0
+    assert plan_memory(largest_plan_shape(checked))["validation"] > 0
+
+
+def test_the_greedy_layout_count_is_what_the_search_scores() -> None:
+    """The term that made the search's time 18–33× too long on a real site: the model counted
+    three full swap rounds per start, but the memo scores each layout once and the starts
+    settle – the layouts a greedy search scores are within [0.5, 2] of the model's
+    (:func:`ris_planner.planning.resources.greedy_layouts`)."""
+    import ris_planner.planning.search as search_module
+    from ris_planner.planning.pipeline import run_plan
+    from ris_planner.runtime.executor import SerialExecutor
+
+    doc = small_plan_doc(
+        candidates=ring(40),
+        pairs={"sample": 150, "seed": 1},
+        search={"method": "greedy", "restarts": 3},
+    )
+    parsed = PlanDocument.model_validate(doc)
+    w = WorkSizes.from_document(parsed)
+    modelled = sum(search_layouts(w, c) for c in w.counts)
+    scored = [0]
+    evaluate = search_module.evaluate
+
+    def counting(scorer: Any, layouts: np.ndarray, *a: Any, **kw: Any) -> Any:
+        scored[0] += int(layouts.shape[0])
+        return evaluate(scorer, layouts, *a, **kw)
+
+    search_module.evaluate = counting  # type: ignore[assignment]
+    try:
+        with SerialExecutor() as ex:
+            run_plan(parsed, executor=ex)
+    finally:
+        search_module.evaluate = evaluate
+    assert 0.5 <= modelled / scored[0] <= 2, (modelled, scored[0])
+
+
+def test_a_real_site_plan_lands_within_the_estimate(tmp_path: Path) -> None:
+    """The committed Helsinki site run as a user runs it – ``ris-planner import geojson
+    --plan --candidates``, then ``ris-planner plan`` in a process of its own – measures a
+    peak resident memory within [0.5, 2] of the estimate printed before it, and a wall time
+    within [1/3, 3] of it. The time bound is wider than the benchmark's [0.5, 2]
+    (docs/validation/resources.md, "Real sites": 0.8–1.6 on the 2-core development machine)
+    because a CI machine may be several times slower or busier than the calibration's – yet
+    it still fails the model this replaced (its search term alone was 18–33× the measured
+    search on this site, the whole estimate up to 7.7×) and any error of a factor 3. The
+    memory does not depend on the machine's speed: the benchmark's bound holds."""
+    site = ROOT / "examples" / "helsinki"
+    plan = tmp_path / "plan.json"
+    cmd = [sys.executable, "-m", "ris_planner.cli"]
+    imported = subprocess.run(
+        [
+            *cmd,
+            *("import", "geojson", str(site / "helsinki.geojson"), "--plan"),
+            *("--candidates", str(site / "sites.geojson"), "--out", str(plan)),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert imported.returncode == 0, imported.stderr[-2000:]
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [*cmd, "plan", str(plan), "--out", str(out)], capture_output=True, text=True, check=False
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert LINE.match(proc.stderr.splitlines()[0]), proc.stderr[:300]
+    res = json.loads((out / "plan.json").read_text())["resources"]
+    memory = res["estimate"]["memory_mib"] / res["measured"]["peak_memory_mib"]
+    time_ratio = res["estimate"]["time_s"] / res["measured"]["time_s"]
+    assert 0.5 <= memory <= 2, res
+    assert 1 / 3 <= time_ratio <= 3, res
+    assert math.isfinite(time_ratio)
