@@ -58,6 +58,7 @@ from ris_planner.planning.search import Layout, search
 from ris_planner.planning.site_cache import SiteCache, build_site_cache
 from ris_planner.planning.visibility import Visibility, pair_visibility, serve_warnings
 from ris_planner.planning.work import plan_work, report_work, search_layouts
+from ris_planner.runtime.blas import one_blas_thread
 from ris_planner.runtime.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
 
@@ -185,7 +186,10 @@ def run_plan(
             with clock.stage("diagnosis"):
                 result = replace(result, diagnosis=diagnose(result))
             if doc.validation is not None:
-                with clock.stage("validation"):
+                # one BLAS thread, as for the bounds (ris_planner.runtime.blas): the estimator's
+                # products are small, and two threads on a busy 2-core machine made this stage
+                # ten times slower (1.1 s against 12 s for the Helsinki candidates' 50 runs)
+                with clock.stage("validation"), one_blas_thread():
                     on_check = stages.callback("validation")
                     result = replace(result, validation=run_estimator_check(result, on_check))
         finally:
