@@ -25,7 +25,7 @@ from ris_planner.planning.pipeline import run_plan
 
 
 @pytest.fixture(scope="module", params=[0.5, 2.0])
-def site(request: pytest.FixtureRequest) -> tuple[dict, dist.DistrictProblem, np.ndarray]:
+def site(request: pytest.FixtureRequest) -> tuple[dict, dist.DistrictProblem, dist.Needs]:
     doc = street_doc(threshold_m=request.param)
     inputs = prepare_plan(doc)
     problem = dist.build_problem(inputs)
@@ -33,7 +33,7 @@ def site(request: pytest.FixtureRequest) -> tuple[dict, dist.DistrictProblem, np
 
 
 def test_district_reaches_the_exhaustive_optimum_and_its_bound_holds(site) -> None:
-    doc, problem, need = site
+    doc, problem, needs = site
     exact = run_plan({**doc, "search": {"method": "exhaustive"}})
     path = dist.greedy_path(problem, 3)
     for cr in exact.counts:
@@ -41,7 +41,7 @@ def test_district_reaches_the_exhaustive_optimum_and_its_bound_holds(site) -> No
         _, cov = dist.improve(problem, path[cr.ris_count - 1].sites)
         assert cov >= best - 0.01  # within 1 % of the optimum
         assert cov <= best + BOUND_ACCURACY
-        assert dist.coverage_upper_bound(problem, cr.ris_count, need) >= best - 1e-9
+        assert dist.coverage_upper_bound(problem, cr.ris_count, needs) >= best - 1e-9
 
 
 def test_district_coverage_is_the_bounds_engines(site) -> None:
@@ -65,7 +65,8 @@ def test_district_coverage_is_the_bounds_engines(site) -> None:
 def test_sites_needed_is_a_valid_lower_bound(site) -> None:
     """No layout with fewer than m_p of a pair's serving sites covers it (every subset tried);
     a pair with m_p = 0 is above the threshold even with all of them."""
-    _, problem, need = site
+    _, problem, needs = site
+    need = needs.need
     rng = np.random.default_rng(0)
     for p in rng.choice(problem.n_pairs, size=40, replace=False):
         sites = problem.sites_of(int(p)).tolist()
@@ -77,17 +78,15 @@ def test_sites_needed_is_a_valid_lower_bound(site) -> None:
 
 
 def test_sizing_answers_with_a_certified_count(site) -> None:
-    _, problem, need = site
-    path = dist.greedy_path(
-        problem, problem.n_sites, target=0.5 * need.astype(bool) @ problem.weights
-    )
-    goal = 0.5 * float(problem.weights[need > 0].sum())
-    lower = dist.count_lower_bound(problem, goal, need)
+    _, problem, needs = site
+    goal = 0.5 * float(problem.weights[needs.need > 0].sum())
+    path = dist.greedy_path(problem, problem.n_sites, target=goal)
+    lower = dist.count_lower_bound(problem, goal, needs)
     assert lower is not None
     assert path[-1].coverage >= goal - 1e-12
     assert 1 <= lower <= len(path[-1].sites)
     # every count below the certified one: its upper bound is below the goal
-    assert dist.coverage_upper_bound(problem, lower - 1, need) < goal + 1e-6
+    assert dist.coverage_upper_bound(problem, lower - 1, needs) < goal + 1e-6
 
 
 def test_counts_above_sixteen_need_the_district_search() -> None:
@@ -127,3 +126,19 @@ def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
     assert sizing["count"] is not None and sizing["lower_bound"] <= sizing["count"]
     assert "certified" in run.stdout and "sizing:" in run.stdout
     assert (out / "district.png").stat().st_size > 10_000
+
+
+def test_cover_sets_are_exactly_the_covering_subsets(site) -> None:
+    """For the pairs whose m_p-subsets were all tried: a subset of m_p serving sites covers the
+    pair iff it is one of its cover sets (brute force over the subsets)."""
+    _, problem, needs = site
+    listed: dict[int, set[tuple[int, ...]]] = {}
+    for p, row in zip(needs.cover_pair.tolist(), needs.cover_sites.tolist(), strict=True):
+        listed.setdefault(p, set()).add(tuple(sorted(s for s in row if s >= 0)))
+    pairs = np.flatnonzero(needs.complete)
+    assert pairs.size > 0
+    for p in np.random.default_rng(1).choice(pairs, size=min(30, pairs.size), replace=False):
+        m = int(needs.need[p])
+        for sub in itertools.combinations(sorted(problem.sites_of(int(p)).tolist()), m):
+            covered = dist.LayoutState(problem, list(sub)).metric[p] <= problem.threshold
+            assert covered == (sub in listed.get(int(p), set())), (p, sub)

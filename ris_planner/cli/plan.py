@@ -27,6 +27,21 @@ def rounded(value: float | None, digits: int = 3) -> str:
     return "inf" if value is None else f"{value:.{digits}g}"
 
 
+def _searched(entry: dict[str, Any]) -> str:
+    """The objective of one count's entry and how it was searched: the layouts scored, or the
+    district search's certified upper bound and gap."""
+    value = rounded(entry["objective"])
+    if entry["method"] == "district":
+        return (
+            f"objective {value} (district, certified ≤ {rounded(entry['upper_bound'])},"
+            f" gap {rounded(entry['gap'])})"
+        )
+    return (
+        f"objective {value} ({entry['method']},"
+        f" {entry['layouts_evaluated']}/{entry['layouts_total']} layouts)"
+    )
+
+
 def listed_lines(diagnosis: dict[str, Any], plan_path: Path) -> list[str]:
     """Where the candidates a cause counts are listed (the ``blocked`` cause of a plan with
     hundreds of them): one line per such cause naming plan.json's member, never the names –
@@ -91,11 +106,7 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     for p in done.files.values():
         print(f"wrote {p}", file=sys.stderr)
     for entry in plan["by_count"]:
-        print(
-            f"{entry['ris_count']} RIS: sites {entry['sites']} objective"
-            f" {rounded(entry['objective'])}"
-            f" ({entry['method']}, {entry['layouts_evaluated']}/{entry['layouts_total']} layouts)"
-        )
+        print(f"{entry['ris_count']} RIS: sites {entry['sites']} {_searched(entry)}")
     if "decision" in plan:
         print(f"decision: {plan['decision']['message']}")
     if "sizing" in plan:

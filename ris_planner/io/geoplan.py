@@ -101,6 +101,8 @@ def plan_document(
         local, frame = to_local(document)
         with in_document_coordinates(frame):
             inputs = prepare_plan(local)
+    if inputs.document.search.method == "district":
+        return _district_document(document, inputs, frame, out_dir, progress, clock)
     stages = Stages(
         progress, {**pipeline_work(inputs), **{k: report_work(inputs)[k] for k in OUTPUTS}}, clock
     )
@@ -147,6 +149,31 @@ def plan_document(
     stages.finish("done")  # timed as the reports between stages (a job writes it)
     plan["timing_s"] = dict(clock.seconds)
     return PlanFiles(plan, files, note, dict(clock.cpu))
+
+
+def _district_document(
+    document: dict[str, Any],
+    inputs: Any,
+    frame: Any,
+    out_dir: Path,
+    progress: ProgressCallback,
+    clock: Any,
+) -> PlanFiles:
+    """A district plan (:func:`ris_planner.planning.district.plan_district`): plan.json and
+    its coverage-against-count figure."""
+    from ris_planner.planning.district import plan_district
+    from ris_planner.planning.district_report import district_figure
+
+    with clock.stage("search"):
+        plan = plan_district(inputs, progress)
+    with clock.stage("report"):
+        if frame is not None:
+            plan["frame"] = frame.describe()
+        plan.update(license_of_document(document))
+    with clock.stage("figures"):
+        files = district_figure(plan, out_dir, inputs)
+    plan["timing_s"] = dict(clock.seconds)
+    return PlanFiles(plan, files, None, dict(clock.cpu))
 
 
 def plan_on(

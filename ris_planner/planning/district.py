@@ -73,7 +73,18 @@ SURROGATE_FINITE = 0.5
 """Surrogate of a pair with a finite bound above the threshold θ: 0.5 + 0.5·θ/bound ∈ (0.5, 1);
 an ``inf`` pair scores 0.5 · (its channel parameters / unknown states) < 0.5, a covered pair 1."""
 
+LP_PAD = 1e-7
+"""HiGHS' primal feasibility tolerance: the coverage bound is padded by it and the sizing
+target lowered by it, so a relaxation solved to that tolerance still bounds."""
+
 GAIN_TIE = 1e-12
+
+LOOKAHEAD = 8
+"""First sites of a greedy step tried with their best partner (:meth:`GainBook.best_step`)."""
+
+LOOKAHEAD_BELOW = 2.5
+"""A greedy step tries pairs of sites only while the best single site covers less than this
+many pairs' weight (the heaviest pair's): while coverage needs sites placed together."""
 """Covered-weight gains within this of the best are equal; the surrogate decides among them."""
 
 
@@ -87,7 +98,7 @@ class DistrictProblem:
     [P, 1, k] the LOS path's (zero where absent); los_present [P]; weights [P] (sum 1);
     threshold θ [m] of the coverage objective; n_obs_los [P] the LOS path's channel parameters
     (1 or 0); n_kept k; metric "rx", "tx" or "max"; rows_t, rows_r the kept states' indices of
-    p_T and p_R.
+    p_T and p_R; by_site [E] the entries in site order and site_start [S+1] their offsets.
     """
 
     n_sites: int
@@ -106,6 +117,8 @@ class DistrictProblem:
     metric: str
     rows_t: IntArray
     rows_r: IntArray
+    by_site: IntArray
+    site_start: IntArray
 
     @property
     def n_pairs(self) -> int:
@@ -117,6 +130,10 @@ class DistrictProblem:
 
     def sites_of(self, p: int) -> IntArray:
         return self.entry_site[self.pair_start[p] : self.pair_start[p + 1]]
+
+    def pairs_of(self, site: int) -> IntArray:
+        """The pairs ``site`` serves (increasing)."""
+        return self.entry_pair[self.by_site[self.site_start[site] : self.site_start[site + 1]]]
 
 
 def build_problem(inputs: PlanInputs, progress: ProgressCallback = no_progress) -> DistrictProblem:
@@ -218,6 +235,8 @@ def build_problem(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         spec.metric,
         rows_t,
         rows_r,
+        by_site,
+        site_start,
     )
 
 
@@ -229,108 +248,166 @@ def _serves(inputs: PlanInputs, positions: FloatArray, index: IntArray) -> BoolA
 
 def entry_metric(
     problem: DistrictProblem,
-    pairs: IntArray,
     packed: FloatArray,
     rows: Callable[[IntArray], FloatArray],
     n_obs: IntArray,
 ) -> FloatArray:
-    """The metric (PEB_R, PEB_T or their max) of the information ``packed`` [n, k(k+1)/2] of
-    the given pairs; ``rows(i)`` the stacked square-root rows of item i (for the few the LDLᵀ
-    does not settle); ``inf`` where the channel parameters ``n_obs`` [n] are fewer than the
-    states."""
-    diag, _ = crb_diagonal(np.ascontiguousarray(packed.T), problem.n_kept, rows)
+    """The metric (PEB_R, PEB_T or their max) of the information ``packed`` [n, k(k+1)/2];
+    ``rows(i)`` the stacked square-root rows of items i (for the few the LDLᵀ does not settle).
+    Items whose channel parameters ``n_obs`` [n] are fewer than the states are ``inf`` without
+    an inversion (the counting rule)."""
+    metric = np.full(len(n_obs), np.inf)
+    live = np.flatnonzero(n_obs >= problem.n_kept) if problem.counting else np.arange(len(n_obs))
+    if live.size == 0:
+        return metric
+    f = np.ascontiguousarray(packed[live].T)
+    diag, _ = crb_diagonal(f, problem.n_kept, lambda i: rows(live[i]))
     with np.errstate(invalid="ignore", over="ignore"):
         peb_r = np.sqrt(diag[problem.rows_r].sum(axis=0))
         peb_t = np.sqrt(diag[problem.rows_t].sum(axis=0)) if problem.rows_t.size else peb_r
-    metric = {"rx": peb_r, "tx": peb_t, "max": np.maximum(peb_r, peb_t)}[problem.metric]
-    metric = np.where(np.isnan(metric), np.inf, metric)
-    if problem.counting:
-        metric = np.where(n_obs < problem.n_kept, np.inf, metric)
-    return np.asarray(metric)
+    m = {"rx": peb_r, "tx": peb_t, "max": np.maximum(peb_r, peb_t)}[problem.metric]
+    metric[live] = np.where(np.isnan(m), np.inf, m)
+    return metric
+
+
+def _pair_entries(problem: DistrictProblem, pairs: IntArray) -> tuple[IntArray, IntArray]:
+    """(item, entry) of every entry of the given pairs: item i is ``pairs[i]``."""
+    lo = problem.pair_start[pairs]
+    n = problem.pair_start[pairs + 1] - lo
+    item = np.repeat(np.arange(len(pairs)), n)
+    first = np.repeat(lo - (np.cumsum(n) - n), n)
+    return item, first + np.arange(int(n.sum()))
 
 
 class LayoutState:
-    """A layout's per-pair information, metric and surrogate, updated site by site."""
+    """A layout's per-pair information, channel-parameter count and metric, updated site by
+    site (only the pairs a site serves change)."""
 
     def __init__(self, problem: DistrictProblem, sites: list[int] | tuple[int, ...] = ()) -> None:
         self.problem = problem
         self.member = np.zeros(problem.n_sites, dtype=bool)
+        self.member[list(sites)] = True
         self.info = problem.los.T.copy()  # [P, k(k+1)/2]
         self.count = problem.los_present.astype(int)  # channel parameters
         self.metric = np.full(problem.n_pairs, np.inf)
-        for s in sites:
-            self.member[s] = True
         self._refresh(np.arange(problem.n_pairs))
 
-    def _rows(
-        self, pairs: IntArray, extra: IntArray | None = None
-    ) -> Callable[[IntArray], FloatArray]:
-        """Square-root rows of the given pairs' layouts (plus the entry ``extra[i]``)."""
+    def rows(self, pairs: IntArray, extra: IntArray | None = None) -> FloatArray:
+        """[n, 1 + 3·w, k] square-root rows of the given pairs' layouts (plus the entry
+        ``extra[i]`` for item i): the LOS rows, then each layout site's rows, zero rows
+        padding the items with fewer sites (a zero row adds no information)."""
         pr = self.problem
-
-        def rows(i: IntArray) -> FloatArray:
-            out = []
-            for j in i:
-                p = int(pairs[j])
-                lo, hi = pr.pair_start[p], pr.pair_start[p + 1]
-                sel = lo + np.flatnonzero(self.member[pr.entry_site[lo:hi]])
-                if extra is not None:
-                    sel = np.union1d(sel, [extra[j]])
-                stack = [pr.los_factor[p]] + [pr.factor[e] for e in sel]
-                out.append(np.concatenate(stack))
-            width = max(len(a) for a in out)
-            return np.stack([np.pad(a, ((0, width - len(a)), (0, 0))) for a in out])
-
-        return rows
+        item, entry = _pair_entries(pr, pairs)
+        keep = self.member[pr.entry_site[entry]]
+        if extra is not None:
+            keep |= entry == extra[item]
+        item, entry = item[keep], entry[keep]
+        # the rank of each kept entry within its item (items are contiguous and increasing)
+        start = np.searchsorted(item, np.arange(len(pairs)))
+        rank = np.arange(item.size) - start[item]
+        width = int(rank.max(initial=-1)) + 1
+        f = np.zeros((len(pairs), width, 3, pr.n_kept))
+        f[item, rank] = pr.factor[entry]
+        return np.concatenate([pr.los_factor[pairs], f.reshape(len(pairs), -1, pr.n_kept)], 1)
 
     def _refresh(self, pairs: IntArray) -> None:
         pr = self.problem
-        info = pr.los.T[pairs].copy()
-        count = pr.los_present[pairs].astype(int)
-        for j, p in enumerate(pairs):
-            lo, hi = pr.pair_start[p], pr.pair_start[p + 1]
-            sel = lo + np.flatnonzero(self.member[pr.entry_site[lo:hi]])
-            if sel.size:
-                info[j] += pr.info[sel].sum(axis=0)
-                count[j] += 3 * sel.size
+        item, entry = _pair_entries(pr, pairs)
+        keep = self.member[pr.entry_site[entry]]
+        item, entry = item[keep], entry[keep]
+        gather = csr_matrix((np.ones(entry.size), (item, entry)), shape=(len(pairs), pr.n_entries))
+        info = pr.los.T[pairs] + gather @ pr.info
+        count = pr.los_present[pairs] + 3 * np.bincount(item, minlength=len(pairs))
         self.info[pairs] = info
         self.count[pairs] = count
-        self.metric[pairs] = entry_metric(pr, pairs, info, self._rows(pairs), count)
+        self.metric[pairs] = entry_metric(pr, info, lambda i: self.rows(pairs[i]), count)
 
-    def add(self, site: int) -> IntArray:
-        """Put ``site`` in the layout; the pairs it serves (whose metric changed)."""
-        self.member[site] = True
-        pairs = self.problem.entry_pair[self.problem.entry_site == site]
-        self._refresh(pairs)
-        return pairs
-
-    def remove(self, site: int) -> IntArray:
-        self.member[site] = False
-        pairs = self.problem.entry_pair[self.problem.entry_site == site]
+    def set(self, site: int, member: bool) -> IntArray:
+        """Put ``site`` in the layout or take it out; the pairs it serves (whose metric
+        changed)."""
+        self.member[site] = member
+        pairs = self.problem.pairs_of(site)
         self._refresh(pairs)
         return pairs
 
     def coverage(self) -> float:
         return float(self.problem.weights[self.metric <= self.problem.threshold].sum())
 
-    def surrogate(self, metric: FloatArray, count: IntArray) -> FloatArray:
-        return surrogate(metric, count, self.problem.threshold, self.problem.n_kept)
-
     def entry_gains(self, entries: IntArray) -> tuple[FloatArray, FloatArray]:
         """(covered-weight gain, surrogate gain) [len(entries)] of adding each entry's site to
-        its pair, the rest of the layout as it is."""
+        its pair, the rest of the layout as it is (0 for a site already in it)."""
         pr = self.problem
         p = pr.entry_pair[entries]
         info = self.info[p] + pr.info[entries]
         count = self.count[p] + 3
-        new = entry_metric(pr, p, info, self._rows(p, entries), count)
+        new = entry_metric(pr, info, lambda i: self.rows(p[i], entries[i]), count)
         old = self.metric[p]
         w = pr.weights[p]
-        thr = pr.threshold
+        thr, k = pr.threshold, pr.n_kept
         cov = w * ((new <= thr).astype(float) - (old <= thr))
-        sur = w * (self.surrogate(new, count) - self.surrogate(old, self.count[p]))
+        sur = w * (surrogate(new, count, thr, k) - surrogate(old, self.count[p], thr, k))
         fresh = ~self.member[pr.entry_site[entries]]
         return cov * fresh, sur * fresh
+
+
+class GainBook:
+    """Every entry's gain (:meth:`LayoutState.entry_gains`) and their sums per site, kept up
+    to date by re-evaluating only the entries of the pairs whose layout changed."""
+
+    def __init__(self, state: LayoutState) -> None:
+        self.state = state
+        pr = state.problem
+        every = np.arange(pr.n_entries)
+        self.cov, self.sur = state.entry_gains(every)
+        self.gain_c = _site_sums(pr, every, self.cov)
+        self.gain_s = _site_sums(pr, every, self.sur)
+        self.floor = LOOKAHEAD_BELOW * float(pr.weights.max(initial=0.0))
+
+    def set(self, site: int, member: bool) -> None:
+        """Change the layout (:meth:`LayoutState.set`) and the gains it changes."""
+        pr = self.state.problem
+        changed = self.state.set(site, member)
+        _, entries = _pair_entries(pr, changed)
+        self.gain_c -= _site_sums(pr, entries, self.cov[entries])
+        self.gain_s -= _site_sums(pr, entries, self.sur[entries])
+        self.cov[entries], self.sur[entries] = self.state.entry_gains(entries)
+        self.gain_c += _site_sums(pr, entries, self.cov[entries])
+        self.gain_s += _site_sums(pr, entries, self.sur[entries])
+
+    def best(self, allowed: BoolArray) -> int:
+        """The allowed site with the largest covered-weight gain; ties by the surrogate, then
+        the lower index."""
+        gc = np.where(allowed, self.gain_c, -np.inf)
+        tied = allowed & (self.gain_c >= gc.max() - GAIN_TIE)
+        return int(np.flatnonzero(tied)[np.argmax(self.gain_s[tied])])
+
+    def best_step(self, allowed: BoolArray, conflict: BoolArray | None, width: int) -> list[int]:
+        """The next one or two sites: the best single site (:meth:`best`), or – when that
+        covers less than :data:`LOOKAHEAD_BELOW` pairs and a pair of sites does better per
+        site – the best of ``width`` first sites (the largest gains, then
+        surrogates) each with its best partner given it (coverage that needs two sites at
+        once, which no single site's gain shows). Each trial changes only the first site's
+        pairs, so it re-evaluates only their entries and is undone after."""
+        one = self.best(allowed)
+        best_gain, best = float(self.gain_c[one]), [one]
+        if best_gain > self.floor:
+            return best  # a single site covers enough: no pair of sites is tried
+        key = np.where(allowed, self.gain_c + GAIN_TIE * self.gain_s, -np.inf)
+        firsts = np.argsort(-key, kind="stable")[:width]
+        for s1 in firsts[np.isfinite(key[firsts])].tolist():
+            base = self.state.coverage()
+            self.set(s1, True)
+            rest = allowed.copy()
+            rest[s1] = False
+            if conflict is not None:
+                rest &= ~conflict[s1]
+            if np.any(rest):
+                s2 = self.best(rest)
+                gain = self.state.coverage() - base + float(self.gain_c[s2])
+                if gain / 2 > best_gain + GAIN_TIE:
+                    best_gain, best = gain / 2, [int(s1), s2]
+            self.set(s1, False)
+        return best
 
 
 def surrogate(metric: FloatArray, count: IntArray, threshold: float, n_kept: int) -> FloatArray:
@@ -363,43 +440,37 @@ def greedy_path(
     excluded: tuple[int, ...] = (),
     progress: ProgressCallback = no_progress,
     min_count: int = 0,
+    conflict: BoolArray | None = None,
+    lookahead: int = LOOKAHEAD,
 ) -> list[PathStep]:
     """Forward selection up to ``max_count`` sites (or, from ``min_count`` sites on, until
-    coverage ≥ ``target``): each step
-    adds the site with the largest covered-weight gain, ties by the surrogate gain, then by the
-    lower site index. Only the entries of the pairs the added site serves are evaluated again."""
-    state = LayoutState(problem, list(required))
+    coverage ≥ ``target``): each step adds the site with the largest covered-weight gain, ties
+    by the surrogate gain, then by the lower site index – or two sites at once where a pair of
+    them gains more per site (:meth:`GainBook.best_step`, ``lookahead`` first sites tried).
+    ``conflict`` [S, S]: sites that may not be chosen together (one mounting point). Only the
+    entries of the pairs an added site serves are evaluated again."""
+    book = GainBook(LayoutState(problem, list(required)))
     allowed = np.ones(problem.n_sites, dtype=bool)
     allowed[list(excluded)] = False
     allowed[list(required)] = False
-    all_entries = np.arange(problem.n_entries)
-    cov_e, sur_e = state.entry_gains(all_entries)
-    gain_c = _site_sums(problem, all_entries, cov_e)
-    gain_s = _site_sums(problem, all_entries, sur_e)
+    for r in required:
+        if conflict is not None:
+            allowed &= ~conflict[r]
     layout = list(required)
-    path = [PathStep(tuple(sorted(layout)), state.coverage())] if layout else []
+    path = [PathStep(tuple(sorted(layout)), book.state.coverage())] if layout else []
     while len(layout) < max_count and np.any(allowed):
         if target is not None and path and path[-1].coverage >= target and len(layout) >= min_count:
             break
-        gc = np.where(allowed, gain_c, -np.inf)
-        best = gc.max()
-        tied = allowed & (gain_c >= best - GAIN_TIE)
-        s = int(np.flatnonzero(tied)[np.argmax(gain_s[tied])])
-        if not (gain_c[s] > GAIN_TIE or gain_s[s] > 0):
+        step = book.best_step(allowed, conflict, lookahead)
+        if len(step) == 1 and not (book.gain_c[step[0]] > GAIN_TIE or book.gain_s[step[0]] > 0):
             break  # no site adds information to any pair
-        changed = state.add(s)
-        layout.append(s)
-        allowed[s] = False
-        path.append(PathStep(tuple(sorted(layout)), state.coverage()))
-        # the entries of the changed pairs: their gains again
-        hit = np.zeros(problem.n_pairs, dtype=bool)
-        hit[changed] = True
-        entries = np.flatnonzero(hit[problem.entry_pair])
-        gain_c -= _site_sums(problem, entries, cov_e[entries])
-        gain_s -= _site_sums(problem, entries, sur_e[entries])
-        cov_e[entries], sur_e[entries] = state.entry_gains(entries)
-        gain_c += _site_sums(problem, entries, cov_e[entries])
-        gain_s += _site_sums(problem, entries, sur_e[entries])
+        for s in step[: max_count - len(layout)]:
+            book.set(s, True)
+            layout.append(s)
+            allowed[s] = False
+            if conflict is not None:
+                allowed &= ~conflict[s]
+            path.append(PathStep(tuple(sorted(layout)), book.state.coverage()))
         progress(len(layout) / max_count, f"{len(layout)} RISs: coverage {path[-1].coverage:.3f}")
     return path
 
@@ -410,43 +481,63 @@ def improve(
     required: tuple[int, ...] = (),
     excluded: tuple[int, ...] = (),
     max_rounds: int = 3,
+    conflict: BoolArray | None = None,
 ) -> tuple[tuple[int, ...], float]:
     """First-improvement swaps on the true coverage: each site of the layout (not required) is
-    taken out and the best site for its place put in, kept when the coverage rises."""
-    state = LayoutState(problem, list(layout))
+    taken out and the best site for its place put in (none in ``conflict`` with the rest of
+    the layout), kept when the coverage rises."""
+    book = GainBook(LayoutState(problem, list(layout)))
+    state = book.state
     best = state.coverage()
     fixed = set(required)
     banned = np.zeros(problem.n_sites, dtype=bool)
     banned[list(excluded)] = True
     for _ in range(max_rounds):
         better = False
-        for out in sorted(set(state.member.nonzero()[0].tolist()) - fixed):
-            state.remove(out)
+        for out in sorted(set(np.flatnonzero(state.member).tolist()) - fixed):
+            book.set(out, False)
             base = state.coverage()
-            entries = np.flatnonzero(~state.member[problem.entry_site])
-            cov, _ = state.entry_gains(entries)
-            gain = _site_sums(problem, entries, cov)
+            gain = book.gain_c.copy()
             gain[state.member | banned] = -np.inf
             gain[out] = -np.inf
+            if conflict is not None:
+                gain[conflict[:, state.member].any(axis=1)] = -np.inf
             s = int(np.argmax(gain))
             if np.isfinite(gain[s]) and base + gain[s] > best + GAIN_TIE:
-                state.add(s)
+                book.set(s, True)
                 best = state.coverage()
                 better = True
             else:
-                state.add(out)
+                book.set(out, True)
         if not better:
             break
     return tuple(int(s) for s in np.flatnonzero(state.member)), best
 
 
-def sites_needed(problem: DistrictProblem) -> IntArray:
-    """m_p [P]: a lower bound on the serving sites a layout needs for pair p to be covered;
-    0 for a pair that even all its serving sites leave above the threshold (never covered).
+@dataclass(frozen=True)
+class Needs:
+    """What covering a pair takes (:func:`sites_needed`).
 
-    The counting rule gives m ≥ ⌈(k − LOS)/3⌉; where a pair has at most :data:`MAX_SUBSETS`
-    m-subsets and none of them covers it, m_p is raised by one (a larger layout contains some
-    m-subset, and adding information never raises a bound, so needing more than m is exact)."""
+    need [P]: a lower bound m_p on the serving sites a layout needs for pair p to be covered
+    (0: never covered); complete [P]: every m_p-subset of the pair's sites was tried, and the
+    covering ones are the cover sets; cover_pair [C], cover_sites [C, m] (−1 padded) and
+    cover_size [C]: the cover sets (site indices) of the complete pairs."""
+
+    need: IntArray
+    complete: BoolArray
+    cover_pair: IntArray
+    cover_sites: IntArray
+    cover_size: IntArray
+
+
+def sites_needed(problem: DistrictProblem) -> Needs:
+    """m_p and the cover sets (:class:`Needs`).
+
+    The counting rule gives m ≥ ⌈(k − LOS)/3⌉. Where a pair has at most :data:`MAX_SUBSETS`
+    m-subsets they are all evaluated: the covering ones are its cover sets, and when none
+    covers, m_p is raised by one and the (m+1)-subsets are tried the same way (a larger layout
+    contains some m-subset, and adding information never raises a bound, so needing more than
+    m is exact). A pair that even all its serving sites leave above the threshold has m_p = 0."""
     pr = problem
     n_serving = np.diff(pr.pair_start)
     full = LayoutState(pr, list(range(pr.n_sites)))
@@ -455,108 +546,184 @@ def sites_needed(problem: DistrictProblem) -> IntArray:
     if not pr.counting:
         need = np.ones(pr.n_pairs, dtype=int)
     need = np.where(coverable, need, 0)
-    for n in np.unique(n_serving[coverable]):
-        for m in np.unique(need[coverable & (n_serving == n)]):
-            if m >= n or math.comb(int(n), int(m)) > MAX_SUBSETS:
-                continue
-            group = np.flatnonzero(coverable & (n_serving == n) & (need == m))
-            subsets = np.array(list(itertools.combinations(range(int(n)), int(m))), dtype=int)
-            # [G, C, m] entries of every subset of every pair of the group
-            entries = pr.pair_start[group][:, None, None] + subsets[None]
-            info = pr.los.T[group][:, None] + pr.info[entries].sum(axis=2)
-            flat_p = np.repeat(group, len(subsets))
-            flat_e = entries.reshape(-1, int(m))
-            count = pr.los_present[flat_p].astype(int) + 3 * int(m)
+    complete = np.zeros(pr.n_pairs, dtype=bool)
+    sets: list[tuple[IntArray, IntArray]] = []
+    for _ in range(2):  # m, then m + 1 for the pairs no m-subset covers
+        tried = np.zeros(pr.n_pairs, dtype=bool)
+        found = np.zeros(pr.n_pairs, dtype=bool)
+        for n in np.unique(n_serving[coverable & ~complete]):
+            for m in np.unique(need[coverable & ~complete & (n_serving == n)]):
+                if m > n or math.comb(int(n), int(m)) > MAX_SUBSETS:
+                    continue
+                group = np.flatnonzero(coverable & ~complete & (n_serving == n) & (need == m))
+                covers = _covering_subsets(pr, group, int(n), int(m))  # [G, C]
+                tried[group] = True
+                found[group] = covers.any(axis=1)
+                subsets = np.array(list(itertools.combinations(range(int(n)), int(m))))
+                g, c = np.nonzero(covers)
+                sites = pr.entry_site[pr.pair_start[group[g]][:, None] + subsets[c]]
+                sets.append((group[g], sites))
+        complete |= tried & found
+        need = np.where(tried & ~found, need + 1, need)
+    width = max((st.shape[1] for _, st in sets), default=1)
+    cover_pair = np.concatenate([p for p, _ in sets]) if sets else np.zeros(0, dtype=int)
+    cover_sites = (
+        np.concatenate(
+            [np.pad(st, ((0, 0), (0, width - st.shape[1])), constant_values=-1) for _, st in sets]
+        )
+        if sets
+        else np.zeros((0, 1), dtype=int)
+    )
+    return Needs(
+        np.asarray(need), complete, cover_pair, cover_sites, (cover_sites >= 0).sum(axis=1)
+    )
 
-            def rows(i: IntArray, fp: IntArray = flat_p, fe: IntArray = flat_e) -> FloatArray:
-                return np.stack(
-                    [np.concatenate([pr.los_factor[fp[j]], *pr.factor[fe[j]]]) for j in i]
-                )
 
-            metric = entry_metric(pr, flat_p, info.reshape(-1, info.shape[-1]), rows, count)
-            none = ~np.any((metric <= pr.threshold).reshape(len(group), -1), axis=1)
-            need[group[none]] = m + 1
-    return np.asarray(need)
-
-
-def _relaxation(
-    problem: DistrictProblem, need: IntArray, fixed: tuple[int, ...], excluded: tuple[int, ...]
-) -> tuple[csr_matrix, IntArray]:
-    """The constraints y_p − Σ_{s∈S_p} z_s / m_p ≤ 0 of the pairs that can be covered
-    (variables [z (S), y (those pairs)]), and those pairs."""
+def _covering_subsets(problem: DistrictProblem, group: IntArray, n: int, m: int) -> BoolArray:
+    """[G, C(n, m)] whether each m-subset of each pair's n serving sites covers it."""
     pr = problem
+    subsets = np.array(list(itertools.combinations(range(n), m)), dtype=int)
+    # [G, C, m] entries of every subset of every pair of the group
+    entries = pr.pair_start[group][:, None, None] + subsets[None]
+    info = pr.los.T[group][:, None] + pr.info[entries].sum(axis=2)
+    flat_p = np.repeat(group, len(subsets))
+    flat_e = entries.reshape(-1, m)
+    count = pr.los_present[flat_p].astype(int) + 3 * m
+
+    def rows(i: IntArray) -> FloatArray:
+        f = pr.factor[flat_e[i]].reshape(len(i), -1, pr.n_kept)
+        return np.concatenate([pr.los_factor[flat_p[i]], f], axis=1)
+
+    metric = entry_metric(pr, info.reshape(-1, info.shape[-1]), rows, count)
+    return np.asarray((metric <= pr.threshold).reshape(len(group), -1))
+
+
+def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int, IntArray]:
+    """The relaxation's constraints A v ≤ 0 over v = [z (S), y (live pairs), x (cover sets),
+    u (complete pairs)], the number of variables, and the live pairs (m_p > 0):
+
+    * a pair with its cover sets known: y_p ≤ Σ_{C} x_C + u_p, x_C ≤ z_s (s ∈ C), and
+      u_p ≤ Σ_{s∈S_p} z_s / (m_p + 1) (covered by no cover set: at least m_p + 1 sites);
+    * any other live pair: y_p ≤ Σ_{s∈S_p} z_s / m_p."""
+    pr, need = problem, needs.need
     live = np.flatnonzero(need > 0)
+    n_live = live.size
+    y_of = np.full(pr.n_pairs, -1)
+    y_of[live] = pr.n_sites + np.arange(n_live)
+    comp = np.flatnonzero(needs.complete & (need > 0))
+    u_of = np.full(pr.n_pairs, -1)
+    n_x = needs.cover_pair.size
+    x0 = pr.n_sites + n_live
+    u_of[comp] = x0 + n_x + np.arange(comp.size)
+    n_var = x0 + n_x + comp.size
+    rows: list[IntArray] = []
+    cols: list[IntArray] = []
+    vals: list[FloatArray] = []
+    r = 0
+
+    def add(row: IntArray, col: IntArray, val: FloatArray) -> None:
+        rows.append(row)
+        cols.append(col)
+        vals.append(val)
+
+    # y_p − Σ z / d_p ≤ 0 (incomplete: d = m_p, row per pair) and u_p − Σ z /(m_p+1) ≤ 0
+    for pairs, first, d in (
+        (np.setdiff1d(live, comp), y_of, need),
+        (comp, u_of, need + 1),
+    ):
+        row_of = np.full(pr.n_pairs, -1)
+        row_of[pairs] = r + np.arange(pairs.size)
+        e = np.flatnonzero(row_of[pr.entry_pair] >= 0)
+        add(row_of[pr.entry_pair[e]], pr.entry_site[e], -1.0 / d[pr.entry_pair[e]])
+        add(row_of[pairs], first[pairs], np.ones(pairs.size))
+        r += pairs.size
+    # y_p − Σ_C x_C − u_p ≤ 0
     row_of = np.full(pr.n_pairs, -1)
-    row_of[live] = np.arange(live.size)
-    e = np.flatnonzero(need[pr.entry_pair] > 0)
-    rows = np.concatenate([row_of[pr.entry_pair[e]], np.arange(live.size)])
-    cols = np.concatenate([pr.entry_site[e], pr.n_sites + np.arange(live.size)])
-    vals = np.concatenate([-1.0 / need[pr.entry_pair[e]], np.ones(live.size)])
-    a = csr_matrix((vals, (rows, cols)), shape=(live.size, pr.n_sites + live.size))
-    return a, live
+    row_of[comp] = r + np.arange(comp.size)
+    add(row_of[comp], y_of[comp], np.ones(comp.size))
+    add(row_of[comp], u_of[comp], -np.ones(comp.size))
+    add(row_of[needs.cover_pair], x0 + np.arange(n_x), -np.ones(n_x))
+    r += comp.size
+    # x_C − z_s ≤ 0
+    c, j = np.nonzero(needs.cover_sites >= 0)
+    rc = r + np.arange(c.size)
+    add(rc, x0 + c, np.ones(c.size))
+    add(rc, needs.cover_sites[c, j], -np.ones(c.size))
+    r += c.size
+    a = csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, n_var)
+    )
+    return a, n_var, live
 
 
 def _bounds(
-    problem: DistrictProblem, live: IntArray, fixed: tuple[int, ...], excluded: tuple[int, ...]
+    problem: DistrictProblem, n_var: int, fixed: tuple[int, ...], excluded: tuple[int, ...]
 ) -> list[tuple[float, float]]:
     z = [(0.0, 1.0)] * problem.n_sites
     for s in fixed:
         z[s] = (1.0, 1.0)
     for s in excluded:
         z[s] = (0.0, 0.0)
-    return z + [(0.0, 1.0)] * live.size
+    return z + [(0.0, 1.0)] * (n_var - problem.n_sites)
+
+
+def _objective_y(problem: DistrictProblem, n_var: int, live: IntArray) -> FloatArray:
+    """The vector w·y over the relaxation's variables (the live pairs' weights on y)."""
+    c = np.zeros(n_var)
+    c[problem.n_sites : problem.n_sites + live.size] = problem.weights[live]
+    return c
 
 
 def coverage_upper_bound(
     problem: DistrictProblem,
     count: int,
-    need: IntArray,
+    needs: Needs,
     required: tuple[int, ...] = (),
     excluded: tuple[int, ...] = (),
 ) -> float:
-    """An upper bound on the coverage of every layout of ``count`` sites (the relaxation of the
-    module docstring; ``need`` from :func:`sites_needed`)."""
-    a, live = _relaxation(problem, need, required, excluded)
+    """An upper bound on the coverage of every layout of ``count`` sites (the relaxation of
+    :func:`_relaxation`; ``needs`` from :func:`sites_needed`)."""
+    a, n_var, live = _relaxation(problem, needs)
     if live.size == 0:
         return 0.0
-    c = np.concatenate([np.zeros(problem.n_sites), -problem.weights[live]])
-    eq = csr_matrix(np.concatenate([np.ones(problem.n_sites), np.zeros(live.size)])[None])
+    eq = np.zeros(n_var)
+    eq[: problem.n_sites] = 1.0
     res = linprog(
-        c,
+        -_objective_y(problem, n_var, live),
         A_ub=a,
-        b_ub=np.zeros(live.size),
-        A_eq=eq,
+        b_ub=np.zeros(a.shape[0]),
+        A_eq=csr_matrix(eq[None]),
         b_eq=[float(count)],
-        bounds=_bounds(problem, live, required, excluded),
+        bounds=_bounds(problem, n_var, required, excluded),
         method="highs",
     )
     if res.status != 0:
         raise RisPlannerError(f"coverage relaxation failed: {res.message}")
     # HiGHS' optimum to its feasibility tolerance: pad by it so the bound stays a bound
-    return float(min(1.0, -res.fun + 1e-7))
+    return float(min(1.0, -res.fun + LP_PAD))
 
 
 def count_lower_bound(
     problem: DistrictProblem,
     target: float,
-    need: IntArray,
+    needs: Needs,
     required: tuple[int, ...] = (),
     excluded: tuple[int, ...] = (),
 ) -> int | None:
     """The fewest sites any layout reaching coverage ``target`` can have (relaxation: the
     smallest Σ z with Σ w_p y_p ≥ target, rounded up); ``None`` when no layout reaches it."""
-    a, live = _relaxation(problem, need, required, excluded)
+    a, n_var, live = _relaxation(problem, needs)
     reachable = float(problem.weights[live].sum()) if live.size else 0.0
     if reachable < target - 1e-12:
         return None
-    c = np.concatenate([np.ones(problem.n_sites), np.zeros(live.size)])
-    cover = np.concatenate([np.zeros(problem.n_sites), -problem.weights[live]])
-
+    c = np.zeros(n_var)
+    c[: problem.n_sites] = 1.0
+    cover = -_objective_y(problem, n_var, live)
     res = linprog(
         c,
         A_ub=vstack([a, csr_matrix(cover[None])]).tocsr(),
-        b_ub=np.concatenate([np.zeros(live.size), [-target]]),
-        bounds=_bounds(problem, live, required, excluded),
+        b_ub=np.concatenate([np.zeros(a.shape[0]), [-(target - LP_PAD)]]),
+        bounds=_bounds(problem, n_var, required, excluded),
         method="highs",
     )
     if res.status != 0:
@@ -564,9 +731,10 @@ def count_lower_bound(
     return max(len(required), math.ceil(res.fun - 1e-6))
 
 
-def summary(problem: DistrictProblem, need: IntArray) -> dict[str, Any]:
+def summary(problem: DistrictProblem, needs: Needs) -> dict[str, Any]:
     """What the site can give at all: the pair weight no candidate serves (no layout gives a
     finite bound), and what even every candidate leaves above the threshold."""
+    need = needs.need
     full = LayoutState(problem, list(range(problem.n_sites)))
     blind = ~np.isfinite(full.metric)
     w = problem.weights
@@ -580,6 +748,7 @@ def summary(problem: DistrictProblem, need: IntArray) -> dict[str, Any]:
         "coverable_weight": float(w[need > 0].sum()),
         "entries": problem.n_entries,
         "serving_sites_per_pair": float(np.diff(problem.pair_start).mean()),
+        "cover_sets": int(needs.cover_pair.size),
     }
 
 
@@ -593,15 +762,16 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
     feas = inputs.feasibility
     required = tuple(int(s) for s in feas.required)
     excluded = tuple(int(s) for s in np.flatnonzero(~feas.allowed))
-    if feas.conflict.any() or feas.budget is not None:
+    if feas.budget is not None:
         raise RisPlannerError(
-            "search.method 'district' takes required and excluded sites only; spacing,"
-            " exclusive mounting points and budgets need 'auto', 'exhaustive' or 'greedy'"
+            "search.method 'district' takes required, excluded and conflicting sites (spacing,"
+            " one mounting point); a cost budget needs 'auto', 'exhaustive' or 'greedy'"
         )
+    conflict = feas.conflict if feas.conflict.any() else None
     progress(0.0, "information")
     problem = build_problem(inputs, lambda f, m: progress(0.4 * f, m))
-    need = sites_needed(problem)
-    site_summary = summary(problem, need)
+    needs = sites_needed(problem)
+    site_summary = summary(problem, needs)
     coverable = site_summary["coverable_weight"]
     target = _target(doc)
     counts = [c for c in inputs.counts if c <= problem.n_sites]
@@ -610,7 +780,13 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
     # sizing follows the path until the target, whatever the listed counts
     longest = max(counts) if goal is None else max(max(counts), MAX_DISTRICT_RIS)
     path = greedy_path(
-        problem, min(longest, problem.n_sites), goal, required, excluded, min_count=max(counts)
+        problem,
+        min(longest, problem.n_sites),
+        goal,
+        required,
+        excluded,
+        min_count=max(counts),
+        conflict=conflict,
     )
     progress(0.7, "swaps")
     by_count = []
@@ -619,8 +795,8 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         step = next((p for p in path if len(p.sites) == c), None)
         if step is None:
             continue  # the path stopped: no site adds information
-        layout, cov = improve(problem, step.sites, required, excluded)
-        ub = coverage_upper_bound(problem, c, need, required, excluded)
+        layout, cov = improve(problem, step.sites, required, excluded, conflict=conflict)
+        ub = coverage_upper_bound(problem, c, needs, required, excluded)
         by_count.append(
             {
                 "ris_count": c,
@@ -644,7 +820,7 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         "path": [{"ris_count": len(p.sites), "coverage": p.coverage} for p in path],
     }
     if target is not None:
-        plan["sizing"] = _sizing(problem, need, path, target, coverable, required, excluded)
+        plan["sizing"] = _sizing(problem, needs, path, target, coverable, required, excluded)
     progress(1.0, "done")
     return plan
 
@@ -659,7 +835,7 @@ def _target(doc: Any) -> float | None:
 
 def _sizing(
     problem: DistrictProblem,
-    need: IntArray,
+    needs: Needs,
     path: list[PathStep],
     target: float,
     coverable: float,
@@ -668,7 +844,7 @@ def _sizing(
 ) -> dict[str, Any]:
     goal = target * coverable
     found = next((p for p in path if p.coverage >= goal - 1e-12), None)
-    lower = count_lower_bound(problem, goal, need, required, excluded)
+    lower = count_lower_bound(problem, goal, needs, required, excluded)
     out: dict[str, Any] = {
         "target": target,
         "of": "coverable pairs",

@@ -83,7 +83,8 @@ def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False)
     pairs = build_pairs(
         tx_map, rx_map, doc.pairs, doc.max_pairs, directions == "explicit", scene=scene
     )
-    cache_layout(len(sites) * pairs.size, doc.system.wavefront)  # the budget, before any work
+    if doc.search.method != "district":  # the district search keeps no site cache
+        cache_layout(len(sites) * pairs.size, doc.system.wavefront)  # the budget, before work
     return PlanInputs(
         doc, sites, tx_map, rx_map, pairs, scene, dropped, directions, wanted, feasibility
     )

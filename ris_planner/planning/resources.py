@@ -675,7 +675,7 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
         tx_points=n_t,
         rx_points=n_r,
         pairs=pairs,
-        cache_entries=shape.sites * pairs,
+        cache_entries=0 if shape.district else shape.sites * pairs,
         heatmap_pairs=heat_rx * heat_tx,
         search_layouts=_search_layouts(doc, shape.sites) * plan_runs(doc),
         memory_bytes=sum(plan_memory(shape).values()),

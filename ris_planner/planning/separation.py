@@ -90,21 +90,25 @@ def street_distance(
     out = np.full(len(it), np.inf)
     if tx_street is None or rx_street is None or len(it) == 0:
         return out
-    st, sr = tx_street[it], rx_street[ir]
-    on_road = ~(np.isnan(st[:, 0]) | np.isnan(sr[:, 0]))
+    on_road = ~(np.isnan(tx_street[it, 0]) | np.isnan(rx_street[ir, 0]))
     if not np.any(on_road):
         return out
-    st, sr = st[on_road], sr[on_road]
-    # road graph over the segments of both maps; node ids by the rounded vertex coordinates
-    ends = np.concatenate([st[:, :4], sr[:, :4]]).reshape(-1, 2)
+    it, ir = it[on_road], ir[on_road]
+    # road graph over the segments of both maps; node ids by the rounded vertex coordinates,
+    # once per map point (not per combination)
+    both = np.concatenate([tx_street, rx_street])
+    ends = np.nan_to_num(both[:, :4]).reshape(-1, 2)
     keys = np.round(ends / NODE_MERGE_M).astype(np.int64)
-    _, node = np.unique(keys, axis=0, return_inverse=True)
-    node = node.reshape(-1, 2)
+    _, node_of = np.unique(keys, axis=0, return_inverse=True)
+    node_of = node_of.reshape(-1, 2)
+    n_tx = len(tx_street)
+    ua, va = node_of[it, 0], node_of[it, 1]
+    ub, vb = node_of[n_tx + ir, 0], node_of[n_tx + ir, 1]
+    st, sr = tx_street[it], rx_street[ir]
     n_t = len(st)
-    ua, va, ub, vb = node[:n_t, 0], node[:n_t, 1], node[n_t:, 0], node[n_t:, 1]
     len_a = np.hypot(st[:, 2] - st[:, 0], st[:, 3] - st[:, 1])
     len_b = np.hypot(sr[:, 2] - sr[:, 0], sr[:, 3] - sr[:, 1])
-    n_nodes = int(node.max()) + 1
+    n_nodes = int(node_of.max()) + 1
     # one straight piece of road: the straight distance in the (along, lateral) plane
     same = (ua == ub) & (va == vb)
     flipped = (ua == vb) & (va == ub) & ~same

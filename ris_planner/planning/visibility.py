@@ -52,7 +52,7 @@ def drop_inside(pm: PointMap, scene: Scene) -> tuple[PointMap, int]:
     n = int(np.count_nonzero(inside))
     if n == 0:
         return pm, 0
-    return PointMap(pm.points[~inside], pm.weights[~inside]), n
+    return pm.subset(~inside), n
 
 
 @dataclass(frozen=True)
