@@ -13,6 +13,14 @@ time (:func:`ris_planner.planning.work.time_estimate`; the time needs a quiet ma
     python benchmarks/bench_memory.py            # the full table (a few minutes)
     python benchmarks/bench_memory.py --smoke    # three tiny cases (< 60 s)
     python benchmarks/bench_memory.py --case hall-ish --json out.json
+    python benchmarks/bench_memory.py --document plan.json:sizing --stages --json out.json
+
+``--document FILE[:VARIANT]`` runs a plan document instead of a case (a real site's import,
+``bench_estimates.py --documents``' calibration cities), plain or as ``ris-planner plan
+--sizing`` / ``--nested`` / ``--validate 5`` would (:data:`VARIANT_FIELDS`); every row also
+holds the peak resident memory per progress stage (``stage_peaks_mib``), the memory terms
+(``terms_mib``) and the layouts the search scored (``evaluated``), for the memory terms'
+calibration.
 """
 
 from __future__ import annotations
@@ -134,59 +142,118 @@ def cache_budget_mb(case: Case) -> int:
 
 
 CHILD = r"""
-import json, os, sys, tempfile, time
+import json, os, sys, tempfile, threading, time
 from pathlib import Path
-case = json.loads(sys.argv[1])
+spec = json.loads(sys.argv[1])
+from ris_planner.io.candidates import in_document_coordinates
+from ris_planner.io.frames import to_local
 from ris_planner.io.geoplan import plan_document
 from ris_planner.model.limits import cache_layout
-from ris_planner.planning.resources import estimate_plan
+from ris_planner.planning.resources import estimate_plan, largest_plan_shape, plan_memory
 from ris_planner.planning import PlanDocument, SerialExecutor
+import ris_planner.planning.search as search_module
 sys.path.insert(0, sys.argv[2])
-from bench_memory import Case, case_document
-c = Case(**{**case, "ris_count": tuple(case["ris_count"])})
-doc = case_document(c)
-parsed = PlanDocument.model_validate(doc)
+from bench_memory import Case, case_document, variant_document
+if "case" in spec:
+    case = spec["case"]
+    c = Case(**{**case, "ris_count": tuple(case["ris_count"])})
+    doc = case_document(c)
+else:
+    doc = variant_document(json.loads(Path(spec["document"]).read_text()), spec["variant"])
+local, frame = to_local(doc)
+parsed = PlanDocument.model_validate(local)
 sizes = estimate_plan(parsed)
-layout = cache_layout(sizes.cache_entries, c.wavefront)
-from ris_planner.planning.inputs import prepare_plan
+terms_mib = {k: v / 2**20 for k, v in plan_memory(largest_plan_shape(parsed)).items()}
+layout = cache_layout(sizes.cache_entries, parsed.system.wavefront)
 from ris_planner.planning.work import checks_beside, stage_seconds, stage_terms
-inputs = prepare_plan(parsed)
-est_stages = stage_seconds(inputs)
-terms = stage_terms(inputs)
+# the estimate from the document alone, as the command line and the service make it
+est_stages = stage_seconds(parsed)
+terms = stage_terms(parsed)
 est_s = sum(est_stages.values())
-trace = []
+evaluated = [0]
+scored = search_module.evaluate
+def counting(scorer, layouts, *args, **kw):
+    evaluated[0] += int(layouts.shape[0])
+    return scored(scorer, layouts, *args, **kw)
+search_module.evaluate = counting
+def rss_kib():
+    status = open("/proc/self/status").read()
+    return int(status.split("VmRSS:")[1].split()[0])
+stage = ["start"]
+stage_peaks = {}
+done_flag = []
+def sample():
+    while not done_flag:
+        k = stage[0]
+        stage_peaks[k] = max(stage_peaks.get(k, 0), rss_kib())
+        time.sleep(0.005)
+threading.Thread(target=sample, daemon=True).start()
+def on_progress(f, m):
+    name = m.split(":")[0].split(" ")[0]
+    if name == "plan" and ": sizing" in m:
+        name = "sizing"
+    stage[0] = name
 c0 = time.process_time()
 t0 = time.perf_counter()
 with tempfile.TemporaryDirectory() as tmp, SerialExecutor() as ex:
-    done = plan_document(
-        doc, Path(tmp), lambda f, m: trace.append((time.perf_counter() - t0, m)), ex
-    )
+    done = plan_document(doc, Path(tmp), on_progress, ex)
 seconds = time.perf_counter() - t0
 cpu_s = time.process_time() - c0
+done_flag.append(1)
 stages = {k: round(v, 3) for k, v in done.plan["timing_s"].items()}
 cpu_stages = {k: round(v, 3) for k, v in done.cpu_s.items()}
 status = open("/proc/self/status").read()
 hwm = int(status.split("VmHWM:")[1].split()[0]) * 1024
 print(json.dumps({"estimate": sizes.memory_bytes, "peak": hwm, "seconds": seconds,
-                  "cpu_s": cpu_s,
+                  "cpu_s": cpu_s, "terms_mib": terms_mib,
+                  "stage_peaks_mib": {k: v / 1024 for k, v in stage_peaks.items()},
+                  "evaluated": evaluated[0],
                   "estimate_s": est_s, "stages_s": stages, "cpu_stages_s": cpu_stages,
                   "estimate_stages_s": {k: round(v, 3) for k, v in est_stages.items()},
-                  "terms": terms, "beside": checks_beside(inputs),
-                  "layout": list(layout), "storage": done.plan["site_cache"]}))
+                  "terms": terms, "beside": checks_beside(parsed),
+                  "layout": list(layout), "storage": done.plan.get("site_cache")}))
 """
+
+VARIANT_FIELDS: dict[str, dict[str, Any]] = {
+    "plain": {},
+    "sizing": {"sizing": {}},
+    "nested": {"rollout": "nested"},
+    "validate": {"validation": {"pairs": 5}},
+}
+"""A document's runs (``--document FILE[:VARIANT]``): as ``ris-planner plan`` with no option,
+``--sizing``, ``--nested`` and ``--validate 5`` makes them."""
+
+
+def variant_document(doc: dict[str, Any], variant: str) -> dict[str, Any]:
+    """The plan document of one variant of ``doc`` (:data:`VARIANT_FIELDS`)."""
+    extra = VARIANT_FIELDS[variant]
+    if "validation" in extra:
+        extra = {"validation": {**(doc.get("validation") or {}), **extra["validation"]}}
+    return {**doc, **extra}
 
 
 def run_case(case: Case, timeout: float = 900) -> dict[str, Any]:
     """Run one case in a fresh process: its estimate, measured peak [bytes] and wall time."""
+    env = {"RIS_PLANNER_CACHE_MEMORY_MB": str(cache_budget_mb(case))}
+    return _run_child({"case": asdict(case)}, env, timeout)
+
+
+def run_document(path: Path, variant: str = "plain", timeout: float = 900) -> dict[str, Any]:
+    """Run a plan document file (local metres or with a frame) as :func:`run_case` runs a case,
+    as the ``variant`` of :data:`VARIANT_FIELDS` (the default site-cache budget)."""
+    return _run_child({"document": str(path.resolve()), "variant": variant}, {}, timeout)
+
+
+def _run_child(spec: dict[str, Any], extra_env: dict[str, str], timeout: float) -> dict[str, Any]:
     env = dict(os.environ)
-    env["RIS_PLANNER_CACHE_MEMORY_MB"] = str(cache_budget_mb(case))
+    env.update(extra_env)
     env["RIS_PLANNER_JOB_MEMORY_MB"] = str(1 << 30)  # the bench measures; it does not refuse
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     env.setdefault("OMP_NUM_THREADS", "1")
     env.setdefault("MPLBACKEND", "Agg")
     proc = subprocess.run(
-        [sys.executable, "-c", CHILD, json.dumps(asdict(case)), str(Path(__file__).parent)],
+        [sys.executable, "-c", CHILD, json.dumps(spec), str(Path(__file__).parent)],
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -194,7 +261,7 @@ def run_case(case: Case, timeout: float = 900) -> dict[str, Any]:
         cwd=tempfile.gettempdir(),
     )
     if proc.returncode != 0:
-        raise RuntimeError(f"{case.name} failed:\n{proc.stderr[-3000:]}")
+        raise RuntimeError(f"{spec} failed:\n{proc.stderr[-3000:]}")
     out: dict[str, Any] = json.loads(proc.stdout.strip().splitlines()[-1])
     out["ratio"] = out["estimate"] / out["peak"]
     out["time_ratio"] = out["estimate_s"] / out["seconds"]
@@ -210,6 +277,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smoke", action="store_true", help="three tiny cases (< 60 s)")
     ap.add_argument("--case", action="append", help="run only cases whose name contains this")
+    ap.add_argument(
+        "--document",
+        action="append",
+        metavar="FILE[:VARIANT]",
+        help="run this plan document instead of the cases (repeatable); VARIANT: "
+        + ", ".join(VARIANT_FIELDS),
+    )
     ap.add_argument("--json", type=Path, help="also write the rows as JSON here")
     ap.add_argument(
         "--stages", action="store_true", help="also print each stage's measured and estimated s"
@@ -218,17 +292,30 @@ def main(argv: list[str] | None = None) -> int:
     cases = SMOKE if args.smoke else FULL
     if args.case:
         cases = [c for c in SMOKE + FULL if any(s in c.name for s in args.case)]
+    runs: list[tuple[str, str, str, Any]] = [(c.name, c.tier, c.wavefront, c) for c in cases]
+    if args.document:
+        runs = []
+        for spec in args.document:
+            path, _, variant = spec.partition(":")
+            runs.append((f"{Path(path).stem}:{variant or 'plain'}", "", "", spec))
     print(
         f"{'case':36} {'tier':13} {'wave':9} {'estimate MiB':>12} {'peak MiB':>9}"
         f" {'ratio':>6} {'memory':>6} {'time s':>7} {'est. s':>7} {'ratio':>6} {'time':>5}"
         f" {'cpu/wall':>8} {'est/CPU':>7}"
     )
     rows, t0 = [], time.perf_counter()
-    for case in cases:
-        r = run_case(case)
-        rows.append({"case": asdict(case), **r})
+    for name, tier, wave, what in runs:
+        if isinstance(what, Case):
+            r = run_case(what)
+            rows.append({"case": asdict(what), **r})
+        else:
+            path, _, variant = what.partition(":")
+            r = run_document(Path(path), variant or "plain")
+            tier, wave = "/".join(map(str, r["layout"])), ""
+            doc_case = {"name": name, "document": str(Path(path).resolve())}
+            rows.append({"case": doc_case, "variant": variant or "plain", **r})
         print(
-            f"{case.name:36} {case.tier:13} {case.wavefront:9} {r['estimate'] / 2**20:12.0f}"
+            f"{name:36} {tier:13} {wave:9} {r['estimate'] / 2**20:12.0f}"
             f" {r['peak'] / 2**20:9.0f} {r['ratio']:6.2f}"
             f" {'pass' if r['memory_passed'] else 'FAIL':>6} {r['seconds']:7.1f}"
             f" {r['estimate_s']:7.1f} {r['time_ratio']:6.2f}"
@@ -239,9 +326,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.stages:
             est = r["estimate_stages_s"]
             cpu = r["cpu_stages_s"]
-            for name in dict.fromkeys([*r["stages_s"], *est]):
-                t, c, e = r["stages_s"].get(name, 0.0), cpu.get(name, 0.0), est.get(name, 0.0)
-                print(f"    {name:16} measured {t:8.3f} s (CPU {c:8.3f} s)  estimated {e:8.3f} s")
+            for stage in dict.fromkeys([*r["stages_s"], *est]):
+                t, c, e = r["stages_s"].get(stage, 0.0), cpu.get(stage, 0.0), est.get(stage, 0.0)
+                print(f"    {stage:16} measured {t:8.3f} s (CPU {c:8.3f} s)  estimated {e:8.3f} s")
     print(f"{sum(r['passed'] for r in rows)}/{len(rows)} passed, {time.perf_counter() - t0:.0f} s")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))

@@ -15,8 +15,15 @@ stages is the shorter is read from ``work.py``'s coefficients, so the rule stays
 A coefficient of a term that no case exercises (all its sizes 0) or in :data:`NOT_FITTED`
 stays what ``work.py`` has.
 
+The sizes are recomputed from each row's document with today's ``work.py`` (a bench_memory
+case's :func:`case_document`, or the ``--document`` file and variant), so rows measured before
+a change of the model's terms still serve; the ``sizing`` stage's size is the modelled seconds
+of its runs, so the fit is repeated with its own coefficients until they settle. With ``--cpu``
+the whole-plan bounds hold against each row's CPU seconds instead of its wall time (rows
+measured on a loaded machine, where the wall time is the load's).
+
     python benchmarks/bench_memory.py --stages --json runs.json
-    python benchmarks/fit_time_model.py runs.json [--low 1.15 --high 1.9]
+    python benchmarks/fit_time_model.py runs.json [more.json …] [--low 1.15 --high 1.9] [--cpu]
 """
 
 from __future__ import annotations
@@ -65,24 +72,17 @@ def whole_plan_weights(r: dict[str, Any], cols: list[tuple[str, str]]) -> np.nda
     )
 
 
-NOT_FITTED = {
-    ("visibility", "per_site_point"),
-    ("visibility", "per_site_point_obstacle"),
-    ("rollout", "per_layout_pair"),
-    ("search", "per_exhaustive_layout_pair"),
-}
-"""Terms kept at work.py's value: the visibility stage takes ≤ 0.02 s on every case (below
-the fit's 0.05 s floor, where the programme would use it as slack; the hall's rate), no case
-has obstacles, the nested chain's layouts cost what
-the search's do (no case runs a nested roll-out), and an exhaustive search's layout-pairs are
-the measured rate of its lexicographic batches (the 64 × 64, 26-site case: 2.27 CPU s for
-1.79·10⁷ layout-pairs)."""
+NOT_FITTED = {("visibility", "per_site_point")}
+"""Terms kept at work.py's value: the visibility stage without obstacles takes ≤ 0.02 s on
+every case (below the fit's 0.05 s floor, where the programme would use it as slack; the
+hall's rate)."""
 
 
 def fit(
-    rows: list[dict[str, Any]], low: float, high: float
+    rows: list[dict[str, Any]], low: float, high: float, cpu: bool = False
 ) -> tuple[dict[str, dict[str, float]], list[float]]:
-    """(the fitted coefficients, each case's MARGIN · model / wall)."""
+    """(the fitted coefficients, each case's MARGIN · model / wall – or / CPU seconds with
+    ``cpu``)."""
     stages = list(TIME_COEFFICIENTS)
     cols = [(st, t) for st in stages for t in TIME_COEFFICIENTS[st]]
     used = [
@@ -122,7 +122,7 @@ def fit(
         rest = sum(
             TIME_COEFFICIENTS[st][t] * weights[j] for j, (st, t) in enumerate(cols) if not used[j]
         )
-        wall = r["seconds"]
+        wall = r["cpu_s"] if cpu else r["seconds"]
         a_ub.append(-MARGIN * whole / wall)
         b_ub.append(-low + MARGIN * rest / wall)
         a_ub.append(MARGIN * whole / wall)
@@ -137,26 +137,67 @@ def fit(
     ratios = [
         MARGIN
         * sum(coef[st][t] * w for (st, t), w in zip(cols, whole_plan_weights(r, cols), strict=True))
-        / r["seconds"]
+        / (r["cpu_s"] if cpu else r["seconds"])
         for r in rows
     ]
     return coef, ratios
 
 
+def row_terms(r: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """A row's sizes (``terms``) from its document with today's ``work.py``: a bench_memory
+    case (its site-cache tier's budget set as the bench sets it) or a ``--document`` row."""
+    import os
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from bench_memory import Case, cache_budget_mb, case_document, variant_document
+
+    from ris_planner.io.frames import to_local
+    from ris_planner.planning import PlanDocument
+    from ris_planner.planning.work import stage_terms
+
+    case = r["case"]
+    before = os.environ.get("RIS_PLANNER_CACHE_MEMORY_MB")
+    try:
+        if "document" in case:
+            doc = variant_document(json.loads(Path(case["document"]).read_text()), r["variant"])
+        else:
+            c = Case(**{**case, "ris_count": tuple(case["ris_count"])})
+            os.environ["RIS_PLANNER_CACHE_MEMORY_MB"] = str(cache_budget_mb(c))
+            doc = case_document(c)
+        return stage_terms(PlanDocument.model_validate(to_local(doc)[0]))
+    finally:
+        if before is None:
+            os.environ.pop("RIS_PLANNER_CACHE_MEMORY_MB", None)
+        else:
+            os.environ["RIS_PLANNER_CACHE_MEMORY_MB"] = before
+
+
 def main(argv: list[str] | None = None) -> None:
+    from ris_planner.planning import work
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("runs", type=Path, help="bench_memory.py --stages --json output")
+    ap.add_argument("runs", type=Path, nargs="+", help="bench_memory.py --stages --json output")
     ap.add_argument("--low", type=float, default=1.15)
     ap.add_argument("--high", type=float, default=1.9)
+    ap.add_argument("--cpu", action="store_true", help="bound the estimate / CPU seconds")
+    ap.add_argument("--rounds", type=int, default=3, help="fits (the sizing stage's size)")
     opts = ap.parse_args(argv)
-    rows = [r for r in json.loads(opts.runs.read_text()) if "terms" in r]
-    coef, ratios = fit(rows, opts.low, opts.high)
+    rows = [r for f in opts.runs for r in json.loads(f.read_text()) if "terms" in r]
+    coef: dict[str, dict[str, float]] = {}
+    ratios: list[float] = []
+    for _ in range(opts.rounds):
+        for r in rows:
+            r["terms"] = row_terms(r)
+        coef, ratios = fit(rows, opts.low, opts.high, opts.cpu)
+        for st, terms in coef.items():  # the next round's sizing sizes use these
+            work.TIME_COEFFICIENTS[st].update(terms)
     print("TIME_COEFFICIENTS = {")
     for st, terms in coef.items():
         print(f'    "{st}": {{' + ", ".join(f'"{t}": {v:.3g}' for t, v in terms.items()) + "},")
     print("}")
     for r, q in zip(rows, ratios, strict=True):
-        print(f"{r['case']['name']:40s} estimate / wall {q:.2f}")
+        print(f"{r['case']['name']:40s} estimate / {'CPU' if opts.cpu else 'wall'} {q:.2f}")
 
 
 if __name__ == "__main__":
