@@ -82,6 +82,13 @@ GAIN_TIE = 1e-12
 LOOKAHEAD = 8
 """First sites of a greedy step tried with their best partner (:meth:`GainBook.best_step`)."""
 
+LOOKAHEAD_ALL = 64
+"""Up to this many candidates a greedy step tries every site as the first of a pair."""
+
+PAIR_SWAP_TRIALS = 4096
+"""The swap pass also exchanges two layout sites for the best pair while that takes at most
+this many first-site trials (small layouts; a district's tens of RISs skip it)."""
+
 LOOKAHEAD_BELOW = 2.5
 """A greedy step tries pairs of sites only while the best single site covers less than this
 many pairs' weight (the heaviest pair's): while coverage needs sites placed together."""
@@ -381,17 +388,15 @@ class GainBook:
         tied = allowed & (self.gain_c >= gc.max() - GAIN_TIE)
         return int(np.flatnonzero(tied)[np.argmax(self.gain_s[tied])])
 
-    def best_step(self, allowed: BoolArray, conflict: BoolArray | None, width: int) -> list[int]:
-        """The next one or two sites: the best single site (:meth:`best`), or – when that
-        covers less than :data:`LOOKAHEAD_BELOW` pairs and a pair of sites does better per
-        site – the best of ``width`` first sites (the largest gains, then
-        surrogates) each with its best partner given it (coverage that needs two sites at
-        once, which no single site's gain shows). Each trial changes only the first site's
-        pairs, so it re-evaluates only their entries and is undone after."""
-        one = self.best(allowed)
-        best_gain, best = float(self.gain_c[one]), [one]
-        if best_gain > self.floor:
-            return best  # a single site covers enough: no pair of sites is tried
+    def best_pair(
+        self, allowed: BoolArray, conflict: BoolArray | None, width: int
+    ) -> tuple[list[int], float]:
+        """The best two sites to add together and their covered-weight gain: each of the
+        ``width`` allowed sites with the largest gains (then surrogates) as the first, with its
+        best partner given it. A trial changes only the first site's pairs, so it re-evaluates
+        only their entries, and is undone after."""
+        best: list[int] = []
+        best_gain = -np.inf
         key = np.where(allowed, self.gain_c + GAIN_TIE * self.gain_s, -np.inf)
         firsts = np.argsort(-key, kind="stable")[:width]
         for s1 in firsts[np.isfinite(key[firsts])].tolist():
@@ -404,10 +409,21 @@ class GainBook:
             if np.any(rest):
                 s2 = self.best(rest)
                 gain = self.state.coverage() - base + float(self.gain_c[s2])
-                if gain / 2 > best_gain + GAIN_TIE:
-                    best_gain, best = gain / 2, [int(s1), s2]
+                if gain > best_gain + GAIN_TIE:
+                    best_gain, best = gain, [int(s1), s2]
             self.set(s1, False)
-        return best
+        return best, best_gain
+
+    def best_step(self, allowed: BoolArray, conflict: BoolArray | None, width: int) -> list[int]:
+        """The next one or two sites: the best single site (:meth:`best`), or – when that
+        covers less than :data:`LOOKAHEAD_BELOW` pairs and a pair of sites does better per
+        site – the best pair (:meth:`best_pair`: coverage that needs two sites at once, which
+        no single site's gain shows)."""
+        one = self.best(allowed)
+        if float(self.gain_c[one]) > self.floor:
+            return [one]  # a single site covers enough: no pair of sites is tried
+        two, gain = self.best_pair(allowed, conflict, width)
+        return two if two and gain / 2 > float(self.gain_c[one]) + GAIN_TIE else [one]
 
 
 def surrogate(metric: FloatArray, count: IntArray, threshold: float, n_kept: int) -> FloatArray:
@@ -461,7 +477,8 @@ def greedy_path(
     while len(layout) < max_count and np.any(allowed):
         if target is not None and path and path[-1].coverage >= target and len(layout) >= min_count:
             break
-        step = book.best_step(allowed, conflict, lookahead)
+        width = problem.n_sites if problem.n_sites <= LOOKAHEAD_ALL else lookahead
+        step = book.best_step(allowed, conflict, width)
         if len(step) == 1 and not (book.gain_c[step[0]] > GAIN_TIE or book.gain_s[step[0]] > 0):
             break  # no site adds information to any pair
         for s in step[: max_count - len(layout)]:
@@ -509,8 +526,9 @@ def improve(
                 better = True
             else:
                 book.set(out, True)
-        if not better:
+        if not better and not _pair_swaps(book, fixed, banned, conflict, best):
             break
+        best = state.coverage()
     return tuple(int(s) for s in np.flatnonzero(state.member)), best
 
 
@@ -528,6 +546,36 @@ class Needs:
     cover_pair: IntArray
     cover_sites: IntArray
     cover_size: IntArray
+
+
+def _pair_swaps(
+    book: GainBook, fixed: set[int], banned: BoolArray, conflict: BoolArray | None, best: float
+) -> bool:
+    """Two sites of the layout out and the best pair in (:meth:`GainBook.best_pair`), for at
+    most :data:`PAIR_SWAP_TRIALS` first-site trials in all; the first swap that raises the
+    coverage is kept. Whether one was."""
+    state = book.state
+    problem = state.problem
+    width = problem.n_sites if problem.n_sites <= LOOKAHEAD_ALL else LOOKAHEAD
+    members = sorted(set(np.flatnonzero(state.member).tolist()) - fixed)
+    outs = list(itertools.combinations(members, 2))
+    if len(outs) * width > PAIR_SWAP_TRIALS:
+        return False
+    for a, b in outs:
+        book.set(a, False)
+        book.set(b, False)
+        allowed = ~(state.member | banned)
+        allowed[[a, b]] = False
+        if conflict is not None:
+            allowed &= ~conflict[:, state.member].any(axis=1)
+        two, gain = book.best_pair(allowed, conflict, width)
+        if two and state.coverage() + gain > best + GAIN_TIE:
+            book.set(two[0], True)
+            book.set(two[1], True)
+            return True
+        book.set(a, True)
+        book.set(b, True)
+    return False
 
 
 def sites_needed(problem: DistrictProblem) -> Needs:

