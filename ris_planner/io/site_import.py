@@ -35,15 +35,23 @@ from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPO
 IMPORT_FORMATS = ("geojson", "osm", "sites", "dxf")
 """What :func:`import_data` reads."""
 
+SIDELINK_SEPARATION_M = 50.0
+"""The largest TX–RX separation of an imported site's sidelink pairs [m] (docs/concepts/
+district.md, "The default pair model"): this project's choice for a mmWave (FR2) sidelink pair
+on one street – 3GPP's V2X service requirements (TS 22.186) set ranges of tens to hundreds of
+metres per use case, and at 28 GHz a RIS path leaves PEB_R ≤ 1 m only within a few tens of
+metres of its RIS."""
+
 PLAN_DEFAULTS: dict[str, Any] = {
-    "pairs": {"sample": 1000, "seed": 1},
+    "pairs": {"sample": 1000, "seed": 1, "max_separation_m": SIDELINK_SEPARATION_M},
     "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
     "ris_count": [2, 3],
     "known": ["height"],
     "ris": {"pattern_exponent": PLAN_PATTERN_EXPONENT, "max_angle_deg": PLAN_MAX_ANGLE_DEG},
 }
 """Fields of a plan document made by :func:`plan_from_import` (the planner's to edit): 1000
-sampled TX–RX pairs, coverage Pr(PEB_R ≤ 1 m), 2 and 3 RISs (one RIS leaves both UEs
+sampled sidelink pairs at most :data:`SIDELINK_SEPARATION_M` apart (along the streets when the
+UE map is roads), coverage Pr(PEB_R ≤ 1 m), 2 and 3 RISs (one RIS leaves both UEs
 unlocated), UE heights known (street or
 floor level), and the plan's physical RIS element written out (the unit-cell pattern
 q = 1.5 and the 84.26° field of view of :mod:`ris_planner.model.plan_physics`, so the planner
@@ -242,5 +250,8 @@ def plan_from_import(
         )
     for key, value in PLAN_DEFAULTS.items():
         doc[key] = copy.deepcopy(value)
-        report.defaults.append(f"{key}: {json.dumps(value)}")  # JSON, not Python repr
+    if ue is not None and ue.get("roads"):  # UEs on the streets: the separation along them
+        doc["pairs"]["separation"] = "street"
+    for key in PLAN_DEFAULTS:
+        report.defaults.append(f"{key}: {json.dumps(doc[key])}")  # JSON, not Python repr
     return doc, report
