@@ -44,8 +44,12 @@ class TestPages:
             assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
             assert r.headers["content-security-policy"] == PAGE_CSP
             assert not EXTERNAL_URL.search(r.text)
-            for ref in re.findall(r'(?:src|href)="(/static/[^"]+)"', r.text):
+            refs = re.findall(r'(?:src|href)="(/static/[^"]+)"', r.text)
+            for ref in refs:
                 assert client.get(ref).status_code == 200, ref
+            # the map library, vendored, loaded before the page's script
+            assert refs.index("/static/vendor/leaflet/leaflet.js") < refs.index("/static/app.js")
+            assert "/static/vendor/leaflet/leaflet.css" in refs
             assert (
                 client.get("/static/app.js")
                 .headers["content-type"]
@@ -126,6 +130,29 @@ class TestValidatePlan:
             r = client.post("/v1/plans/validate", json=big)
             assert r.status_code == 413 and "max_pairs" in r.json()["message"]
             assert client.get("/v1/jobs").json()["total"] == 0
+
+    def test_preview_lists_only_the_points_the_plan_keeps(self, tmp_path: Path) -> None:
+        """UE map points inside a building are dropped by the plan: the preview lists the
+        points it keeps (the page draws those) and counts the dropped ones per map."""
+        grid = {"grid": {"x": [-4, 4, 1], "y": [-4, 4, 1], "z": [1, 1, 1]}}
+        box = {
+            "kind": "prism",
+            "name": "box",
+            "footprint": [[-1.5, -1.5], [1.5, -1.5], [1.5, 1.5], [-1.5, 1.5]],
+            "base_m": 0,
+            "height_m": 3,
+        }
+        doc = small_plan_doc(
+            tx_map=grid, rx_map=grid, environment={"obstacles": [box]}, ris_count=[2]
+        )
+        with api_client(tmp_path, workers=1) as client:
+            body = client.post("/v1/plans/validate", json=doc).json()
+        inside = 9  # x, y in −1 … 1: more than 1 cm inside the 3 m × 3 m box
+        assert body["dropped"] == {"tx": inside, "rx": inside}
+        assert body["rx_map"]["total"] == 81 - inside == len(body["rx_map"]["points"])
+        assert all(max(abs(p[0]), abs(p[1])) > 1.5 for p in body["rx_map"]["points"])
+        res = run_plan(doc, executor=SerialExecutor())
+        assert body["rx_map"]["points"] == res.rx_map.points.tolist()
 
     def test_large_map_preview_is_strided(self, tmp_path: Path) -> None:
         grid = {"grid": {"x": [0, 99, 1], "y": [0, 99, 1], "z": [0, 0, 1]}}

@@ -1,7 +1,9 @@
 """The planner page in a real headless Chromium (Debian's ``chromium`` driven by Playwright)
 against a real uvicorn on 127.0.0.1: open a preset, edit it, submit, follow the progress to
-100 %, see the layout, heatmap and contour, read a point's bound, switch counts, cancel a job,
-see validation errors next to their fields, the API docs offline, a server that went down.
+100 %, see the layout, heatmap and contour, read a point's bound, switch counts, the table's
+headers unbroken and its best sites by name, cancel a job, see validation errors next to their
+fields, plan a district with sidelink pairs and a coverage target, the API docs offline, a
+server that went down.
 
 Screenshots go to a temporary folder, and to ``out/web/`` when ``RIS_PLANNER_SCREENSHOTS`` is
 set. No console error is allowed except the browser's own line for an HTTP error response the
@@ -178,6 +180,59 @@ def load_preset(pg: Page, name: str) -> None:
     expect(pg.locator("#validation-status")).to_contain_text("Valid:", timeout=WAIT_MS)
 
 
+def screen_of(pg: Page, x: float, y: float) -> tuple[float, float]:
+    """Page (client) coordinates of the local point (x, y) on the map, to the whole pixel (the
+    browser takes a mouse event's position to whole pixels: a pointer put there is within
+    half a pixel of the point along each axis)."""
+    got: list[float] = pg.evaluate("([x, y]) => window.risPlanner.screenOf(x, y)", [x, y])
+    return round(got[0]), round(got[1])
+
+
+def map_info(pg: Page) -> dict[str, Any]:
+    """What the map draws: per UE map the points drawn and those inside buildings, the sites."""
+    info: dict[str, Any] = pg.evaluate("window.risPlanner.mapInfo()")
+    return info
+
+
+def drawn_ue_points(pg: Page) -> int:
+    return sum(m["drawn"] for m in map_info(pg)["ues"])
+
+
+def split_header_words(pg: Page, selector: str) -> list[str]:
+    """Words of the header cells matching ``selector`` that the browser laid out on more than
+    one line (a word broken inside, as "RI S")."""
+    found: list[str] = pg.evaluate(
+        """(sel) => {
+          const out = [];
+          for (const th of document.querySelectorAll(sel)) {
+            if (th.offsetParent === null) continue;  // not shown
+            const walk = document.createTreeWalker(th, NodeFilter.SHOW_TEXT);
+            for (let n = walk.nextNode(); n; n = walk.nextNode()) {
+              const re = /\\S+/g;
+              let m;
+              while ((m = re.exec(n.textContent))) {
+                const r = document.createRange();
+                r.setStart(n, m.index);
+                r.setEnd(n, m.index + m[0].length);
+                const tops = new Set([...r.getClientRects()].filter((q) => q.width > 0)
+                  .map((q) => Math.round(q.top)));
+                if (tops.size !== 1) out.push(`${th.textContent.trim()}: ${m[0]}`);
+              }
+            }
+          }
+          return out;
+        }""",
+        selector,
+    )
+    return found
+
+
+def path_vertices(path: Any) -> tuple[list[float], list[float]]:
+    """The x and y pixel coordinates of an SVG path's vertices (its "d": M x y L x y … z)."""
+    nums = [float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", path.get_attribute("d") or "")]
+    return nums[0::2], nums[1::2]
+
+
 def no_horizontal_scroll(pg: Page) -> None:
     width = pg.evaluate("document.documentElement.scrollWidth")
     assert width <= 1280, f"page is {width} px wide at a 1280 px window"
@@ -240,7 +295,7 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     load_preset(pg, "fig10-anchors")
     # the site to scale: 4 candidates with facing arrows, the 98-point UE map
     assert pg.locator("#candidates .site").count() == 4
-    assert pg.locator(".ue-map circle").count() == 98
+    assert drawn_ue_points(pg) == 98
     expect(pg.locator("#validation-status")).to_contain_text("4 candidate sites, 4753 TX–RX pairs")
     shots.take(pg, "01-preset-loaded")
     # edit: coverage of PEB_R ≤ 2 cm (a contour that cuts through the map), counts 2 and 4
@@ -268,21 +323,16 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     expect(pg.locator("#count-table tbody tr")).to_have_count(2)
     assert pg.locator("#cdf polyline").count() == 2
     shots.take(pg, "02-results-4-ris")
+    # the best sites by name (plan.json candidates[i].name), not by index
+    names = [c["name"] for c in plan["candidates"]]
+    for row, entry in zip(pg.locator("#count-table tbody tr").all(), plan["by_count"], strict=True):
+        want = ", ".join(names[i] for i in entry["sites"])
+        expect(row.locator("td.sites")).to_have_text(want)
     # click a point: the page shows plan.json's bound for it
     target = plan["points"][10]
     x, y = target["position"][:2]
-    px, py = pg.evaluate(
-        f"(() => {{ const v = window.risPlanner.state.view; return [v.X({x}), v.Y({y})]; }})()"
-    )
-    box = pg.locator("#map").bounding_box()
-    assert box is not None
-    vb = pg.evaluate(
-        "(() => { const b = document.getElementById('map').viewBox.baseVal;"
-        " return [b.width, b.height]; })()"
-    )
-    pg.locator("#map").click(
-        position={"x": px * box["width"] / vb[0], "y": py * box["height"] / vb[1]}
-    )
+    pg.locator("#map").scroll_into_view_if_needed()
+    pg.mouse.click(*screen_of(pg, x, y))
     row = pg.locator(f"#point-info tr[data-point='{target['index']}']")
     expect(row).to_be_visible()
     shown = row.locator("td[data-count='4'] .bound").inner_text()
@@ -339,6 +389,12 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     assert unlabelled_controls(pg) == []
     assert low_contrast_text(pg) == []
     shots.take(pg, "04-count-2")
+    # headers break between words only, also in a narrow window (the counts table's 9 columns
+    # and long site names squeeze them)
+    for width in (1280, 1024, 800):
+        pg.set_viewport_size({"width": width, "height": 900})
+        assert split_header_words(pg, "#count-table th, #jobs-table th") == [], width
+        assert pg.locator("#count-table thead th").first.inner_text() == "RIS"
 
 
 def test_validation_errors_next_to_their_fields(
@@ -424,16 +480,27 @@ def test_obstacles_drawn_to_scale(page: tuple[Page, Console], server: str, shots
         ],
     )
     expect(pg.locator("#doc-name")).to_contain_text("env.json")
-    prism = pg.locator("polygon.prism")
+    # the view is fitted to the site once its preview (with the UE map) is there
+    expect(pg.locator("#validation-status")).to_contain_text("Valid:", timeout=WAIT_MS)
+    prism = pg.locator("path.prism")
     expect(prism).to_have_count(1)
-    k = pg.evaluate("window.risPlanner.state.view.k")
-    xy = [[float(v) for v in p.split(",")] for p in (prism.get_attribute("points") or "").split()]
-    xs, ys = [p[0] for p in xy], [p[1] for p in xy]
-    assert max(xs) - min(xs) == pytest.approx(4 * k) and max(ys) - min(ys) == pytest.approx(2 * k)
-    wall = pg.locator("line.wall")
+    k = pg.evaluate("window.risPlanner.pxPerMetre()")
+    xs, ys = path_vertices(prism)
+    # the map puts vertices on whole pixels: each side within a pixel of its length
+    assert max(xs) - min(xs) == pytest.approx(4 * k, abs=1.01)
+    assert max(ys) - min(ys) == pytest.approx(2 * k, abs=1.01)
+    wall = pg.locator("path.wall")
     expect(wall).to_have_count(1)
-    y1, y2 = (float(wall.get_attribute(a) or "nan") for a in ("y1", "y2"))
-    assert abs(y1 - y2) == pytest.approx(6 * k)
+    xs_w, ys_w = path_vertices(wall)
+    assert max(ys_w) - min(ys_w) == pytest.approx(6 * k, abs=1.01) and len(set(xs_w)) == 1
+    # the prism's corner (−1, −1) where the map puts that point
+    box = prism.bounding_box()
+    x0, y1 = screen_of(pg, -1, -1)
+    # (the box holds the outline's stroke, 1.2 px wide, around the vertices)
+    assert box is not None and (box["x"], box["y"] + box["height"]) == (
+        pytest.approx(x0, abs=1.11),
+        pytest.approx(y1, abs=1.11),
+    )
     assert "cabinet" in (prism.locator("title").text_content() or "")
     shots.take(pg, "08-obstacles")
 
@@ -501,18 +568,17 @@ def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: S
     expect(report.locator("tr", has_text="Buildings").first).to_contain_text("2")
     expect(report.locator("tr", has_text="Candidate sites")).to_contain_text("3")
     expect(report.locator("tr", has_text="given the default height")).to_contain_text("1")
-    expect(pg.locator("polygon.prism")).to_have_count(2)
+    expect(pg.locator("path.prism")).to_have_count(2)
     assert pg.locator("#candidates .site").count() == 3
     doc = pg.evaluate("window.risPlanner.state.doc")
     assert doc["frame"]["origin"][:2] == pytest.approx(SITE_ORIGIN, abs=1e-3)
     n_points = pg.evaluate("window.risPlanner.state.preview.rx_map.total")
-    assert pg.locator(".ue-map circle").count() == n_points > 0
+    assert drawn_ue_points(pg) == n_points > 0
     # drawn in local metres: the 20 m × 12 m north block at the map's scale
-    k = pg.evaluate("window.risPlanner.state.view.k")
-    north = pg.locator("polygon.prism").first
-    xy = [[float(v) for v in p.split(",")] for p in (north.get_attribute("points") or "").split()]
-    width = max(p[0] for p in xy) - min(p[0] for p in xy)
-    assert width == pytest.approx(20 * k, rel=0.01)  # 1/55 600 ° ≈ 1.000 m at 60.165° N
+    k = pg.evaluate("window.risPlanner.pxPerMetre()")
+    xs, _ = path_vertices(pg.locator("path.prism").first)
+    # 1/55 600 ° ≈ 1.000 m at 60.165° N; vertices on whole pixels
+    assert max(xs) - min(xs) == pytest.approx(20 * k, rel=0.01, abs=1.01)
     shots.take(pg, "09-imported-site")
     # a plan of the imported (geographic) document runs as a job
     pg.click("#submit")
@@ -544,6 +610,108 @@ def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: S
     assert pg.locator("#upload-geojson").get_attribute("aria-invalid") == "true"
     expect(pg.locator("#doc-name")).to_contain_text("broken.geojson (imported)")
     shots.take(pg, "11-import-error")
+
+
+def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, shots: Shots) -> None:
+    """A street site planned with the district search from the page's controls: sidelink pairs
+    at most 30 m apart along the streets with line of sight, a coverage target of 80 %; the job
+    runs through POST /v1/plans with its progress, and the page shows per count the coverage,
+    the certified bound and the gap, the sites by name, the sizing line and district.png."""
+    from district_site import street_doc
+
+    pg, _ = page
+    doc = street_doc(counts=(2, 3))
+    doc["pairs"] = {"sample": 300, "seed": 3}  # the page adds the pair model
+    del doc["search"]  # and the method
+    open_page(pg, server)
+    spec = httpx.get(f"{server}/openapi.json").json()["components"]["schemas"]
+    pair_props = spec["PairSample"]["properties"]
+    pg.set_input_files(
+        "#upload",
+        files=[
+            {
+                "name": "streets.json",
+                "mimeType": "application/json",
+                "buffer": json.dumps(doc).encode(),
+            }
+        ],
+    )
+    expect(pg.locator("#validation-status")).to_contain_text("14 candidate sites", timeout=WAIT_MS)
+    # the controls start from the schema's defaults and choices, and state its limits
+    methods = pg.locator("#f-search-method option").evaluate_all("els => els.map(e => e.value)")
+    assert methods == spec["SearchSpec"]["properties"]["method"]["enum"]
+    expect(pg.locator("#f-search-method")).to_have_value(
+        spec["SearchSpec"]["properties"]["method"]["default"]
+    )
+    expect(pg.locator("#f-pairs-separation")).to_have_value(pair_props["separation"]["default"])
+    assert pg.is_checked("#f-pairs-los") == pair_props["line_of_sight"]["default"]
+    limit = pair_props["max_separation_m"]["anyOf"][0]["maximum"]
+    expect(pg.locator("#hint-pairs-maxsep")).to_contain_text(f"{limit:,}".replace(",", " "))
+    expect(pg.locator("#f-pairs-maxsep")).to_have_value("")
+    # district search, pairs within 30 m along the streets in line of sight, target 80 %
+    pg.select_option("#f-search-method", "district")
+    pg.fill("#f-pairs-maxsep", "30")
+    pg.select_option("#f-pairs-separation", "street")
+    pg.check("#f-pairs-los")
+    pg.fill("#f-sizing-target", "80")
+    pg.click("#submit")
+    expect(pg.locator("#job-status")).to_contain_text("Job ", timeout=WAIT_MS)
+    expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=WAIT_MS)
+    job_id = pg.evaluate("window.risPlanner.state.job.id")
+    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    assert view["status"] == "succeeded", view["error"]
+    request, plan = view["request"], view["result"]
+    assert request["search"]["method"] == "district"
+    assert request["pairs"] == {
+        "sample": 300,
+        "seed": 3,
+        "max_separation_m": 30,
+        "separation": "street",
+        "line_of_sight": True,
+    }
+    assert request["sizing"]["target"] == {"objective": 0.8}
+    assert plan["method"] == "district" and "district" in view["figures"]
+    # the table: coverage, certified bound, gap per count, the sites by name
+    table = pg.locator("#count-table")
+    expect(table).to_be_visible(timeout=WAIT_MS)
+    heads = table.locator("thead th").all_inner_texts()
+    assert heads[:4] == ["RIS", "Coverage", "Certified bound", "Gap"]
+    rows = table.locator("tbody tr")
+    expect(rows).to_have_count(len(plan["by_count"]))
+    for row, entry in zip(rows.all(), plan["by_count"], strict=True):
+        expect(row.locator("th")).to_have_text(str(entry["ris_count"]))
+        expect(row.locator("td.coverage")).to_have_text(f"{100 * entry['objective']:.1f} %")
+        expect(row.locator("td.bound")).to_have_text(f"{100 * entry['upper_bound']:.1f} %")
+        expect(row.locator("td.gap")).to_have_text(f"{100 * entry['gap']:.1f} pts")
+        expect(row.locator("td.sites")).to_have_text(", ".join(entry["sites"]))
+    assert split_header_words(pg, "#count-table th") == []
+    # the sizing line: the count found and the certified lower count
+    sizing = plan["sizing"]
+    answer = pg.locator("#sizing-answer")
+    expect(answer).to_be_visible()
+    lower = sizing["lower_bound"]
+    expect(answer).to_contain_text(f"no layout of fewer than {lower} RIS")
+    if sizing["count"] is not None:
+        expect(answer).to_contain_text(f"{sizing['count']} RIS")
+        expect(answer).to_contain_text(f"gap {sizing['gap']} RIS")
+    expect(pg.locator("#sizing")).to_contain_text(sizing["message"])
+    # the figure, the chosen sites on the map, no per-point results
+    figure = pg.locator("#district-figure")
+    expect(figure).to_be_visible(timeout=WAIT_MS)
+    for _ in range(WAIT_MS // 100):  # the page's CSP forbids wait_for_function's eval
+        if figure.evaluate("img => img.complete && img.naturalWidth") > 0:
+            break
+        pg.wait_for_timeout(100)
+    assert figure.evaluate("img => img.naturalWidth") > 0
+    assert pg.locator("#charts").is_hidden() and pg.locator("#top-layouts").is_hidden()
+    shown = plan["by_count"][-1]["site_indices"]
+    chosen = pg.locator("#candidates .site.chosen")
+    assert sorted(chosen.evaluate_all("els => els.map(e => Number(e.dataset.site))")) == shown
+    expect(pg.locator("#point-info")).to_contain_text("no per-point results")
+    no_horizontal_scroll(pg)
+    assert unlabelled_controls(pg) == []
+    assert low_contrast_text(pg) == []
+    shots.take(pg, "13-district")
 
 
 def test_api_docs_work_offline(browser: Browser, server: str, shots: Shots) -> None:

@@ -90,6 +90,11 @@ class PlanPreview(BaseModel):
     )
     tx_map: MapPreview = Field(description="The TX map's points (every stride-th)")
     rx_map: MapPreview = Field(description="The RX map's points (every stride-th)")
+    dropped: dict[str, int] = Field(
+        default_factory=dict,
+        description="UE map points inside buildings per map (tx, rx): the plan drops them, and"
+        " tx_map and rx_map list only the points it keeps",
+    )
     obstacles: list[dict[str, Any]] = Field(
         default_factory=list,
         description="environment.obstacles in the local metres the job works in (a geographic"
@@ -168,6 +173,7 @@ def _preview(body: bytes, memory_mb: int) -> PlanPreview:
         candidates=[{"index": i, **candidate_json(s)} for i, s in enumerate(inputs.sites)],
         tx_map=_map_preview(inputs.tx_map),
         rx_map=_map_preview(inputs.rx_map),
+        dropped=dict(inputs.dropped),
         obstacles=[] if env is None else env.model_dump(mode="json")["obstacles"],
         frame=None if frame is None else frame.describe(),
     )

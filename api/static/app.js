@@ -1,5 +1,6 @@
-/* RIS planner page: plain DOM + SVG, no framework and no network access beyond this server
- * (docs/guides/web-page.md).
+/* RIS planner page: plain DOM, SVG charts and a Leaflet map (vendored under static/vendor,
+ * used offline in local metres: no tile server), no framework and no network access beyond
+ * this server (docs/guides/web-page.md).
  *
  * Data flow: a plan document (preset, upload, or a site import: POST /v1/import with the
  * import options) → the candidate list edited on the map in local metres (add, drag, turn,
@@ -25,8 +26,10 @@
   const SELECTED_COLOUR = "#c25400";
   const INSIDE_COLOUR = "#c62828"; // a candidate inside a building
   const INSIDE_MARGIN_M = 0.01; // inside = deeper than 1 cm in a prism (ris_planner.environment.scene.INSIDE_MARGIN_M)
+  const SNAP_PX = 48; // a dragged site snaps to a facade this close to where it is dropped (screen pixels)
+  const GLYPH_PX = 64; // box of a candidate's glyph (square and facing arrow)
+  const SCALE_PX = 160; // longest scale bar of the map
   const UE_OPACITY = 0.35;
-  const CLICK_AFTER_PRESS_MS = 400; // a click this soon after a candidate press is that press's
   const HEALTH_BACKOFF_MS = [2000, 4000, 8000, 15000, 30000];
   const STREAM_BACKOFF_MAX_MS = 30000;
   const JOB_LIST_LIMIT = 15;
@@ -50,13 +53,15 @@
     apiKey: sessionStorage.getItem("rp.apiKey") || "",
     importPath: null,
     wavefrontSupported: true,
-    view: null, // map transform
+    docSeq: 0, // counts the documents loaded (the map fits each new site into view once)
+    facadeOffset: 0.05, // metres in front of a facade (POST /v1/sites' offset_m default, from the OpenAPI schema)
+    schema: {}, // defaults and limits of the plan document read from the OpenAPI schema
     groups: null, // RX points grouped by x–y position
     cands: [], // the editable candidate list, local metres: {position, orientation, name, cost}
     candsDoc: null, // {key, list}: state.cands converted to the document's coordinates
     previewExplicit: 0, // explicit candidates in the document the preview was made of
     selCand: null, // index into state.cands of the candidate being edited
-    drag: null, // {index, moved} while a candidate is dragged
+    drag: null, // {index, alt} while a candidate is dragged
     importFile: null, // the last imported file (import again with other options)
     siteSource: null, // what POST /v1/sites gets as "site": the GeoJSON, else the import's document
     generated: new Map(), // name → {position, orientation, props}: what POST /v1/sites said of a site
@@ -238,7 +243,8 @@
 
   // ---------------------------------------------------------------- document and form
   const FIELD_IDS = ["f-ris_count", "f-objective-kind", "f-objective-metric", "f-objective-level",
-    "f-ris-rows", "f-ris-cols", "f-power", "f-wavefront", "f-known", "f-pairs-mode", "f-pairs-sample"];
+    "f-ris-rows", "f-ris-cols", "f-power", "f-wavefront", "f-known", "f-pairs-mode", "f-pairs-sample",
+    "f-pairs-maxsep", "f-pairs-separation", "f-pairs-los", "f-search-method", "f-sizing-target"];
   const KNOWN_PARTS = ["clock", "height", "tx"];
   const DEFAULT_SAMPLE = 1000; // pairs drawn when a document names no pairs and "sample" is chosen
   // objective kinds from the server (GET /v1/objectives): name → the field it needs, its label
@@ -253,6 +259,7 @@
   async function setDocument(doc, name) {
     state.doc = doc;
     state.docName = name;
+    state.docSeq += 1;
     state.preview = null;
     state.selCand = null;
     state.candsDoc = null;
@@ -304,11 +311,41 @@
     const pairs = doc.pairs === undefined ? "all" : doc.pairs;
     $("f-pairs-mode").value = typeof pairs === "string" ? pairs : "sample";
     $("f-pairs-sample").value = pairs && typeof pairs === "object" && pairs.sample !== undefined ? String(pairs.sample) : String(DEFAULT_SAMPLE);
+    const sample = pairs && typeof pairs === "object" ? pairs : {};
+    const sch = state.schema;
+    $("f-pairs-maxsep").value = sample.max_separation_m === undefined || sample.max_separation_m === null ? "" : String(sample.max_separation_m);
+    $("f-pairs-separation").value = sample.separation || sch.separationDefault || "straight";
+    $("f-pairs-los").checked = sample.line_of_sight === undefined ? Boolean(sch.losDefault) : Boolean(sample.line_of_sight);
+    const method = doc.search && doc.search.method ? doc.search.method : sch.methodDefault || "auto";
+    if (![...$("f-search-method").options].some((o) => o.value === method)) {
+      $("f-search-method").append(h("option", { value: method, text: method })); // the server says if it knows it
+    }
+    $("f-search-method").value = method;
+    const target = doc.sizing && doc.sizing.target ? doc.sizing.target.objective : undefined;
+    $("f-sizing-target").value = target === undefined || target === null ? ""
+      : isFraction(doc.objective && doc.objective.kind ? doc.objective.kind : "coverage") ? String(Number((100 * target).toPrecision(6))) : String(target);
     updatePairsField();
+    updateSizingField();
   }
 
   function updatePairsField() {
-    $("f-pairs-sample").disabled = $("f-pairs-mode").value !== "sample";
+    const sample = $("f-pairs-mode").value === "sample";
+    for (const id of ["f-pairs-sample", "f-pairs-maxsep", "f-pairs-separation", "f-pairs-los"]) $(id).disabled = !sample;
+  }
+
+  /** The sizing target's label and unit follow the objective: a fraction in %, else metres. */
+  function updateSizingField() {
+    const kind = $("f-objective-kind").value || "coverage";
+    $("label-sizing-target").textContent = isFraction(kind) ? "Coverage target [%]" : "Target bound [m]";
+  }
+
+  /** The sizing question of the form: {target} with the target field, else {} (the server's
+   * default target, stated under the field). */
+  function sizingFromForm() {
+    const v = parseNumber($("f-sizing-target").value);
+    if (v === undefined) return {};
+    const kind = $("f-objective-kind").value || "coverage";
+    return { target: { objective: typeof v === "number" && isFraction(kind) ? v / 100 : v } };
   }
 
   function updateLevelField() {
@@ -355,8 +392,24 @@
       const prev = doc.pairs && typeof doc.pairs === "object" ? doc.pairs : {};
       const n = parseNumber($("f-pairs-sample").value);
       doc.pairs = Object.assign({}, prev, { sample: n === undefined ? DEFAULT_SAMPLE : n });
+      const sep = parseNumber($("f-pairs-maxsep").value);
+      if (sep === undefined) delete doc.pairs.max_separation_m; else doc.pairs.max_separation_m = sep;
+      // the pair model's choices, written when they differ from the server's defaults or the
+      // document names them
+      const how = $("f-pairs-separation").value;
+      if (how !== (state.schema.separationDefault || "straight") || prev.separation !== undefined) doc.pairs.separation = how;
+      const los = $("f-pairs-los").checked;
+      if (los !== Boolean(state.schema.losDefault) || prev.line_of_sight !== undefined) doc.pairs.line_of_sight = los;
     } else {
       doc.pairs = mode;
+    }
+    const method = $("f-search-method").value;
+    if (method !== (state.schema.methodDefault || "auto") || (doc.search && doc.search.method !== undefined)) {
+      doc.search = Object.assign({}, doc.search || {}, { method });
+    }
+    // the district search answers the sizing question (the smallest count) with the target
+    if (method === "district" && $("f-sizing-target").value.trim() !== "") {
+      doc.sizing = Object.assign({}, doc.sizing || {}, sizingFromForm());
     }
     doc.candidates = await candidatesForDocument();
     if (!doc.candidates.length) delete doc.candidates;
@@ -795,6 +848,7 @@
         : "This server has no candidate generation (POST /v1/sites) yet: add candidates on the map.";
       fillGenerationDefaults(((spec.components || {}).schemas || {}).CandidateOptions);
       const planSchema = ((spec.components || {}).schemas || {}).PlanDocument;
+      readPlanSchema((spec.components || {}).schemas || {});
       state.sizingSupported = Boolean(planSchema && planSchema.properties && "sizing" in planSchema.properties);
       $("find-size").disabled = !state.sizingSupported;
       if (!state.sizingSupported) $("hint-find-size").textContent = "This server cannot size the RIS yet (its plan documents have no sizing).";
@@ -806,10 +860,80 @@
     }
   }
 
+  /** A number's limits in a JSON schema (pydantic writes an optional number as anyOf with null). */
+  function numberLimits(prop) {
+    const p = prop && Array.isArray(prop.anyOf) ? prop.anyOf.find((x) => x.type === "number" || x.type === "integer") || {} : prop || {};
+    return { min: p.minimum, xmin: p.exclusiveMinimum, max: p.maximum, xmax: p.exclusiveMaximum };
+  }
+  function limitsText(lim, unit) {
+    const n = (v) => Number(v).toLocaleString("en-GB").replace(/,/g, " ");
+    const lo = lim.xmin !== undefined ? `> ${n(lim.xmin)}` : lim.min !== undefined ? `≥ ${n(lim.min)}` : "";
+    const hi = lim.xmax !== undefined ? `< ${n(lim.xmax)}` : lim.max !== undefined ? `≤ ${n(lim.max)}` : "";
+    return [lo, hi].filter(Boolean).join(" and ") + (lo || hi ? (unit ? ` ${unit}` : "") : "");
+  }
+
+  /** The pair model, search and sizing controls from the plan document's schema (defaults,
+   * choices and limits the server states): a server that lacks one hides its control. */
+  function readPlanSchema(schemas) {
+    const sch = state.schema;
+    const pairProps = (schemas.PairSample && schemas.PairSample.properties) || {};
+    const sepProp = pairProps.separation;
+    $("pair-model").hidden = !pairProps.max_separation_m;
+    if (pairProps.max_separation_m) {
+      $("hint-pairs-maxsep").textContent = `Blank: any separation; else ${limitsText(numberLimits(pairProps.max_separation_m), "m")}.`;
+    }
+    if (sepProp && Array.isArray(sepProp.enum)) {
+      const sel = $("f-pairs-separation");
+      const chosen = sel.value;
+      clear(sel);
+      for (const v of sepProp.enum) sel.append(h("option", { value: v, text: v === "street" ? "along the streets" : v === "straight" ? "straight line" : v }));
+      sch.separationDefault = sepProp.default;
+      sel.value = sepProp.enum.includes(chosen) ? chosen : sepProp.default;
+    }
+    if (pairProps.line_of_sight) sch.losDefault = Boolean(pairProps.line_of_sight.default);
+    if (pairProps.sample) $("f-pairs-sample").setAttribute("aria-description", `Pairs to draw, ${limitsText(numberLimits(pairProps.sample), "")}`);
+    const methodProp = schemas.SearchSpec && schemas.SearchSpec.properties ? schemas.SearchSpec.properties.method : null;
+    if (methodProp && Array.isArray(methodProp.enum)) {
+      const sel = $("f-search-method");
+      const chosen = sel.value;
+      const LABELS = { district: "district (many RISs)" };
+      clear(sel);
+      for (const v of methodProp.enum) sel.append(h("option", { value: v, text: LABELS[v] || v }));
+      sch.methodDefault = methodProp.default;
+      const doc = state.doc || {};
+      const want = doc.search && doc.search.method ? doc.search.method : chosen;
+      sel.value = methodProp.enum.includes(want) ? want : methodProp.default;
+      sch.methodHelp = methodProp.description || "";
+    }
+    const planProps = (schemas.PlanDocument && schemas.PlanDocument.properties) || {};
+    const maxRis = numberLimits(planProps.max_ris).max;
+    if (maxRis !== undefined && methodProp && (methodProp.enum || []).includes("district")) {
+      $("hint-ris_count-district").textContent = `; the district search takes up to ${maxRis}`;
+    }
+    const sizingProps = (schemas.Sizing && schemas.Sizing.properties) || {};
+    $("f-sizing-target").closest(".field").hidden = !sizingProps.target;
+    if (sizingProps.target && sizingProps.target.description) {
+      // the server's default target, as its schema states it ("default: …; …")
+      const said = (sizingProps.target.description.match(/default: ([^;)]*)/) || [])[1];
+      $("hint-sizing-target").textContent = "District search: the smallest RIS count that reaches it, with a"
+        + " certified lower count; Find the smallest RIS size: the smallest size." + (said ? ` Blank: ${said}.` : "");
+    }
+    updateSearchField();
+  }
+
+  /** The search method's note (from its schema description, for the chosen method). */
+  function updateSearchField() {
+    const m = $("f-search-method").value;
+    const help = state.schema.methodHelp || "";
+    const part = help.split(/;\s*(?=[a-z_]+:\s)/).find((t) => t.startsWith(`${m}:`));
+    $("hint-search-method").textContent = part ? part.slice(m.length + 1).trim() : "";
+  }
+
   /** The generation form starts from the defaults of POST /v1/sites, which are those of
    * ris-planner sites (ris_planner.io.candidates.CandidateOptions, stated in the OpenAPI schema). */
   function fillGenerationDefaults(schema) {
     const props = (schema && schema.properties) || {};
+    if (props.offset_m && typeof props.offset_m.default === "number") state.facadeOffset = props.offset_m.default;
     for (const el of document.querySelectorAll("#generate-box [data-option]")) {
       const dflt = props[el.dataset.option] ? props[el.dataset.option].default : undefined;
       if (dflt === undefined || dflt === null) continue;
@@ -968,7 +1092,7 @@
       state.count = counts[counts.length - 1];
       state.layoutIdx = 0;
       state.selected = null;
-      if (!state.uesTouched) $("layer-ues").checked = false; // the heatmap shows; UE dots on request
+      if (!state.uesTouched && state.plan.heatmap) $("layer-ues").checked = false; // the heatmap shows; UE dots on request
       if (fromList || !state.preview) {
         try { state.preview = await api("/v1/plans/validate", { method: "POST", json: view.request }); } catch (_) { state.preview = null; }
       }
@@ -1053,15 +1177,26 @@
     return isFraction(kind) ? `${(100 * v).toFixed(1)} %` : `${fmtNum(v)} ${OBJECTIVE_UNIT[kind] || "m"}`;
   }
 
+  /** The name of candidate site i of the shown plan (plan.json candidates[i].name), else "#i". */
+  function siteName(i) {
+    const list = state.plan && Array.isArray(state.plan.candidates) ? state.plan.candidates : candidates();
+    const c = list[i];
+    return c && c.name ? String(c.name) : `#${i}`;
+  }
+  /** Sites of a layout by name: indices into the candidates, or names already (district). */
+  const siteNames = (sites) => (sites || []).map((v) => (typeof v === "number" ? siteName(v) : String(v))).join(", ");
+  const isDistrict = (plan) => Boolean(plan && plan.method === "district");
+
   function renderResults() {
     const plan = state.plan;
+    const district = isDistrict(plan);
     $("results").hidden = false;
     renderDiagnosis(plan.diagnosis);
     renderSizing(plan.sizing);
     renderEstimatorCheck(plan.validation);
     const metric = METRIC_LABEL[plan.objective.metric] || plan.objective.metric;
     const better = plan.objective_better === "higher" ? "higher is better" : "lower is better";
-    $("results-note").textContent =
+    $("results-note").textContent = district ? districtNote(plan) :
       `Objective: ${plan.objective.kind} of ${metric} (${better}); ${plan.pairs} TX–RX pairs scored. ` +
       (plan.heatmap ? `Heatmap: ${plan.heatmap.tx}; contour at ${plan.heatmap.threshold_label}.` : "This job has no heatmap data (older version).");
     // count picker (rebuilt only for another plan, so arrow keys keep their focus in it)
@@ -1083,6 +1218,11 @@
     }
     for (const input of opts.querySelectorAll("input")) input.checked = input.value === state.count;
     $("count-picker").hidden = false;
+    $("charts").hidden = district;
+    $("top-layouts-h").hidden = district;
+    $("top-layouts").hidden = district;
+    renderDistrictFigure(district);
+    if (district) { renderDistrictTable(plan); renderDownloads(); return; }
     // table per count
     const table = clear($("count-table"));
     table.append(h("caption", { class: "sr-only", text: "Best layout per RIS count" }));
@@ -1100,7 +1240,7 @@
         h("td", { text: `${(100 * b.blind_fraction).toFixed(1)} %` }),
         h("td", { text: fmtGain(b.marginal_gain) }),
         h("td", { text: fmtGain(gainPer) }),
-        h("td", { text: b.sites.join(", ") }),
+        h("td", { class: "sites", text: siteNames(b.sites) }),
         h("td", { text: `${b.method}, ${b.layouts_evaluated}/${b.layouts_total}` })));
       prevCount = b.ris_count;
     }
@@ -1115,9 +1255,65 @@
         type: "button", class: "secondary small", id: `layout-${i}`, "aria-pressed": String(i === state.layoutIdx),
         onclick: () => { state.layoutIdx = i; renderResults(); drawAll(); $(`layout-${i}`).focus(); },
       }, i === state.layoutIdx ? "Shown" : "Show");
-      list.append(h("li", {}, `sites ${lay.sites.join(", ")} – objective ${fmtObjective(lay.objective)} `, btn));
+      list.append(h("li", {}, `sites ${siteNames(lay.sites)} – objective ${fmtObjective(lay.objective)} `, btn));
     });
     renderDownloads();
+  }
+
+  const pctText = (v) => (v === null || v === undefined ? "—" : `${(100 * v).toFixed(1)} %`);
+
+  /** What a district plan worked on (plan.json pairs_summary). */
+  function districtNote(plan) {
+    const ps = plan.pairs_summary || {};
+    const metric = METRIC_LABEL[plan.objective.metric] || plan.objective.metric;
+    const level = plan.objective.threshold_m !== undefined ? ` ≤ ${fmtNum(plan.objective.threshold_m)} m` : "";
+    const parts = [`District search: coverage of ${metric}${level} over ${ps.pairs ?? "?"} pairs`];
+    if (ps.coverable_weight !== undefined) parts.push(`${pctText(ps.coverable_weight)} of the pair weight can be covered by some layout`);
+    if (ps.blind_everywhere) parts.push(`${pctText(ps.blind_everywhere.weight)} is blind with every candidate`);
+    if (ps.above_threshold_everywhere) parts.push(`${pctText(ps.above_threshold_everywhere.weight)} stays above the threshold with every candidate`);
+    if (typeof ps.serving_sites_per_pair === "number") parts.push(`${fmtNum(ps.serving_sites_per_pair)} serving sites per pair on average`);
+    return parts.join("; ") + ". The certified bound is the most any layout of that count can cover; the gap is how far the layout found may be from the best.";
+  }
+
+  /** The district plan's table: per count the coverage of its layout, the certified upper
+   * bound on any layout of that count, the gap between them, and the sites by name. */
+  function renderDistrictTable(plan) {
+    const table = clear($("count-table"));
+    table.append(h("caption", { class: "sr-only", text: "District search per RIS count: coverage, certified bound and gap" }));
+    table.append(h("thead", {}, h("tr", {}, ["RIS", "Coverage", "Certified bound", "Gap", "Of the coverable pairs", "Sites"]
+      .map((t) => h("th", { scope: "col", text: t })))));
+    const tb = h("tbody");
+    for (const b of plan.by_count) {
+      tb.append(h("tr", { class: String(b.ris_count) === state.count ? "current" : null, "data-count": b.ris_count },
+        h("th", { scope: "row", text: `${b.ris_count}` }),
+        h("td", { class: "coverage", text: fmtObjective(b.objective) }),
+        h("td", { class: "bound", text: fmtObjective(b.upper_bound) }),
+        h("td", { class: "gap", text: b.gap === null || b.gap === undefined ? "—" : `${(100 * b.gap).toFixed(1)} pts` }),
+        h("td", { text: pctText(b.objective_of_coverable) }),
+        h("td", { class: "sites", text: siteNames(b.sites) })));
+    }
+    table.append(tb);
+  }
+
+  /** The job's district.png, fetched with the API key when one is set (an image request could
+   * not send it) and shown from a blob URL. */
+  async function renderDistrictFigure(district) {
+    const box = $("district-figure-box");
+    const url = district && state.job && state.job.figures ? state.job.figures.district : null;
+    const ref = url ? (typeof url === "string" ? url : url.url || url.href) : null;
+    box.hidden = !ref;
+    if (!ref || box.dataset.src === ref) return;
+    box.dataset.src = ref;
+    try {
+      const resp = await fetch(ref, { headers: headers() });
+      if (!resp.ok) throw new ApiError(resp.status, null);
+      const img = $("district-figure");
+      if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
+      img.src = URL.createObjectURL(await resp.blob());
+    } catch (_) {
+      box.hidden = true;
+      delete box.dataset.src;
+    }
   }
 
   const VERDICT_TEXT = {
@@ -1197,6 +1393,7 @@
     const box = clear($("sizing"));
     box.hidden = !sizing;
     if (!sizing) return;
+    if (sizing.method === "district") { renderDistrictSizing(box, sizing); return; }
     box.append(h("h3", { text: "Smallest RIS size" }));
     const ans = sizing.answer;
     if (ans) {
@@ -1217,6 +1414,46 @@
         tb.append(h("tr", { class: isAns ? "answer" : null },
           h("td", { text: String(r.rows) }), h("td", { text: String(r.cols) }), h("td", { text: String(r.count) }),
           h("td", { text: fmtObjective(r.objective) }), h("td", { text: r.reaches ? "yes" : "no" })));
+      }
+      table.append(tb);
+      box.append(h("div", { class: "table-wrap" }, table));
+    }
+  }
+
+  /** plan.json's sizing of a district plan: the smallest count (and RIS size, where the plan
+   * tried several) whose layout reaches the target – a fraction of the pairs some layout can
+   * serve – and the certified lower bound on the count; the sizes tried as a table. */
+  function renderDistrictSizing(box, sizing) {
+    box.append(h("h3", { text: "Smallest RIS count (district sizing)" }));
+    const plural = (n) => `${n} RIS${n === 1 ? "" : "s"}`;
+    const target = typeof sizing.target === "number" ? `${(100 * sizing.target).toFixed(1)} % of the ${sizing.of || "coverable pairs"}` : "the target";
+    const size = Array.isArray(sizing.ris_size) ? sizing.ris_size : null;
+    const lower = sizing.lower_bound === null || sizing.lower_bound === undefined ? null : sizing.lower_bound;
+    const certified = lower === null ? "no layout reaches the target"
+      : `no layout of fewer than ${plural(lower)}${size ? " of that size" : ""} can (certified)`;
+    const line = sizing.count === null || sizing.count === undefined
+      ? [h("strong", { text: "No RIS count the search tried reaches the target" }), ` (${target}); ${certified}.`]
+      : [h("strong", { text: `${plural(sizing.count)}${size ? ` of ${size[0]} × ${size[1]} elements` : ""} reach the target` }),
+        ` (${target}); ${certified}`, sizing.gap === null || sizing.gap === undefined ? "." : ` – gap ${plural(sizing.gap)}.`];
+    const p = h("p", { id: "sizing-answer", "data-count": sizing.count ?? "", "data-lower-bound": lower ?? "", "data-gap": sizing.gap ?? "" }, ...line);
+    if (size && sizing.count !== null && sizing.count !== undefined) {
+      p.append(h("button", { type: "button", class: "secondary small", onclick: () => useRisSize(size[0], size[1]) }, "Use this size"));
+    }
+    box.append(p);
+    if (sizing.message) box.append(h("p", { class: "muted", text: String(sizing.message) }));
+    const sizes = Array.isArray(sizing.sizes) ? sizing.sizes : [];
+    if (sizes.length) {
+      const table = h("table", { id: "sizing-table" }, h("caption", { class: "sr-only", text: "RIS sizes tried by the district sizing" }),
+        h("thead", {}, h("tr", {}, ["RIS size", "RIS count", "Certified lower count", "Gap", "Coverage", "Note"].map((t) => h("th", { scope: "col", text: t })))));
+      const tb = h("tbody");
+      for (const r of sizes) {
+        const rs = Array.isArray(r.ris_size) ? `${r.ris_size[0]} × ${r.ris_size[1]}` : "—";
+        const isAns = size && Array.isArray(r.ris_size) && r.ris_size[0] === size[0] && r.ris_size[1] === size[1];
+        const val = (v) => (v === null || v === undefined ? "—" : String(v));
+        tb.append(h("tr", { class: isAns ? "answer" : null },
+          h("td", { text: rs }), h("td", { text: val(r.count) }), h("td", { text: val(r.lower_bound) }),
+          h("td", { text: val(r.gap) }), h("td", { text: typeof r.coverage === "number" ? fmtObjective(r.coverage) : "—" }),
+          h("td", { text: r.note ? String(r.note) : "" })));
       }
       table.append(tb);
       box.append(h("div", { class: "table-wrap" }, table));
@@ -1250,7 +1487,7 @@
     for (const lay of layouts) {
       const sf = lay.shortfall || {};
       tb.append(h("tr", {},
-        h("td", { text: String(lay.ris_count) }), h("td", { text: (lay.sites || []).join(", ") }),
+        h("td", { text: String(lay.ris_count) }), h("td", { text: siteNames(lay.sites) }),
         h("td", { text: pct(lay.estimator_coverage) }), h("td", { text: pct(lay.bound_coverage) }),
         h("td", { text: `${sf.count || 0} of ${sf.covered_pairs || 0}` + (sf.count ? ` (${causes(sf.by_cause)})` : "") }),
         h("td", { text: causes(lay.outliers) })));
@@ -1471,6 +1708,15 @@
   }
 
   // ---------------------------------------------------------------- the map
+  /* A Leaflet map (static/vendor/leaflet) in the local metres the planner works in: L.CRS.Simple
+   * with lat = y (north) and lng = x (east), one unit a metre, no tiles. Panes, bottom to top:
+   * grid, heatmap, buildings, UE points (one canvas), contour, grid labels, the selected RX
+   * point, candidate sites (markers: a square and a facing arrow, draggable when editable). */
+  const M = { map: null, layers: {}, keys: {}, fitted: null, hasSite: false, ueRenderer: null, ueInfo: [] };
+  const ll = (x, y) => L.latLng(y, x);
+  /** Screen pixels per metre at the map's zoom. */
+  const pxPerMetre = () => (M.map ? M.map.options.crs.scale(M.map.getZoom()) : 1);
+
   function viridis(t) {
     const x = Math.min(1, Math.max(0, t)) * (VIRIDIS.length - 1);
     const i = Math.min(VIRIDIS.length - 2, Math.floor(x));
@@ -1495,18 +1741,38 @@
     const env = state.doc && state.doc.environment;
     return env && Array.isArray(env.obstacles) ? env.obstacles : [];
   }
+
+  /** The prisms of an obstacle list with their bounding boxes and ring orientation (kept per
+   * list: the point tests run for every UE point of a preview). */
+  const PRISMS = new WeakMap();
+  function prisms(obs) {
+    let out = PRISMS.get(obs);
+    if (out) return out;
+    out = [];
+    obs.forEach((ob, k) => {
+      if (!ob || ob.kind !== "prism" || !Array.isArray(ob.footprint) || ob.footprint.length < 3) return;
+      const fp = ob.footprint;
+      const base = Number(ob.base_m) || 0;
+      let area = 0;
+      for (let i = 0, j = fp.length - 1; i < fp.length; j = i++) area += fp[j][0] * fp[i][1] - fp[i][0] * fp[j][1];
+      out.push({
+        k, fp, base, top: base + (Number(ob.height_m) || 0), ccw: area > 0,
+        x0: Math.min(...fp.map((v) => v[0])), x1: Math.max(...fp.map((v) => v[0])),
+        y0: Math.min(...fp.map((v) => v[1])), y1: Math.max(...fp.map((v) => v[1])),
+      });
+    });
+    PRISMS.set(obs, out);
+    return out;
+  }
+
   /** The obstacle (index) a point [x, y, z] lies more than 1 cm inside, or -1: inside a
    * prism's footprint, farther than the margin from every edge, and between its base and top
-   * by more than the margin (the plan's rule for candidate sites). */
+   * by more than the margin (the plan's rule for candidate sites and UE map points). */
   function buildingAt(p) {
-    const obs = obstacles();
-    for (let k = 0; k < obs.length; k++) {
-      const ob = obs[k];
-      if (ob.kind !== "prism" || !Array.isArray(ob.footprint) || ob.footprint.length < 3) continue;
-      const base = Number(ob.base_m) || 0;
-      const top = base + (Number(ob.height_m) || 0);
-      if (!(p[2] > base + INSIDE_MARGIN_M && p[2] < top - INSIDE_MARGIN_M)) continue;
-      const fp = ob.footprint;
+    for (const pr of prisms(obstacles())) {
+      if (p[0] < pr.x0 || p[0] > pr.x1 || p[1] < pr.y0 || p[1] > pr.y1) continue;
+      if (!(p[2] > pr.base + INSIDE_MARGIN_M && p[2] < pr.top - INSIDE_MARGIN_M)) continue;
+      const fp = pr.fp;
       let inside = false;
       let dmin = Infinity;
       for (let i = 0, j = fp.length - 1; i < fp.length; j = i++) {
@@ -1517,9 +1783,40 @@
         const t = Math.max(0, Math.min(1, ((p[0] - xi) * ex + (p[1] - yi) * ey) / (ex * ex + ey * ey || 1)));
         dmin = Math.min(dmin, Math.hypot(p[0] - (xi + t * ex), p[1] - (yi + t * ey)));
       }
-      if (inside && dmin > INSIDE_MARGIN_M) return k;
+      if (inside && dmin > INSIDE_MARGIN_M) return pr.k;
     }
     return -1;
+  }
+
+  /** The facade nearest to (x, y) as a site at height z: the nearest point of a building's
+   * outline, ``state.facadeOffset`` in front of it (the generator's offset_m), facing out along
+   * the wall's normal. Only facades within ``reach`` metres, unless ``force``; a point in front
+   * of a wall that lies inside another building (terraced houses) is passed over. */
+  function facadeSnap(x, y, z, reach, force) {
+    const found = [];
+    for (const pr of prisms(obstacles())) {
+      const fp = pr.fp;
+      for (let i = 0; i < fp.length; i++) {
+        const a = fp[i];
+        const b = fp[(i + 1) % fp.length];
+        const ex = b[0] - a[0], ey = b[1] - a[1];
+        const len = Math.hypot(ex, ey);
+        if (len < 1e-9) continue;
+        const t = Math.max(0, Math.min(1, ((x - a[0]) * ex + (y - a[1]) * ey) / (len * len)));
+        const qx = a[0] + t * ex, qy = a[1] + t * ey;
+        // outward normal: right of a→b on a counter-clockwise ring, left on a clockwise one
+        const nx = (pr.ccw ? ey : -ey) / len, ny = (pr.ccw ? -ex : ex) / len;
+        found.push({ d: Math.hypot(x - qx, y - qy), qx, qy, nx, ny, k: pr.k });
+      }
+    }
+    found.sort((p, q) => p.d - q.d);
+    for (const f of found) {
+      if (!force && f.d > reach) break;
+      const position = [f.qx + state.facadeOffset * f.nx, f.qy + state.facadeOffset * f.ny, z];
+      if (buildingAt(position) >= 0) continue;
+      return { position, yaw: Math.atan2(f.ny, f.nx), building: f.k, distance: f.d };
+    }
+    return null;
   }
 
   /** The edited list's candidates inside a building: [{index, name, building}]. */
@@ -1565,14 +1862,16 @@
   }
   function ueLayers() {
     const pv = localPreview();
+    const dropped = (pv && pv.dropped) || {};
     if (pv && pv.rx_map) {
       const same = state.doc && JSON.stringify(state.doc.tx_map) === JSON.stringify(state.doc.rx_map);
       return same || !pv.tx_map
-        ? [{ name: "UE points (TX = RX)", colour: "#1f5fa8", map: pv.rx_map }]
-        : [{ name: "TX points", colour: "#1f5fa8", map: pv.tx_map }, { name: "RX points", colour: "#1e7b34", map: pv.rx_map }];
+        ? [{ name: "UE points (TX = RX)", colour: "#1f5fa8", map: pv.rx_map, dropped: dropped.rx || 0 }]
+        : [{ name: "TX points", colour: "#1f5fa8", map: pv.tx_map, dropped: dropped.tx || 0 },
+          { name: "RX points", colour: "#1e7b34", map: pv.rx_map, dropped: dropped.rx || 0 }];
     }
     if (state.plan && state.plan.points) {
-      return [{ name: "RX points", colour: "#1e7b34", map: { points: state.plan.points.map((p) => p.position), weights: state.plan.points.map((p) => p.weight), total: state.plan.points.length, stride: 1 } }];
+      return [{ name: "RX points", colour: "#1e7b34", dropped: 0, map: { points: state.plan.points.map((p) => p.position), weights: state.plan.points.map((p) => p.weight), total: state.plan.points.length, stride: 1 } }];
     }
     return [];
   }
@@ -1590,7 +1889,7 @@
     if (hm) { const g = hm.grid; add(g.x0 - g.cell_m / 2, g.y0 - g.cell_m / 2); add(g.x0 + (g.nx - 0.5) * g.cell_m, g.y0 + (g.ny - 0.5) * g.cell_m); }
     if (!Number.isFinite(x0)) return null;
     const span = Math.max(x1 - x0, y1 - y0, 1);
-    const pad = 0.06 * span;
+    const pad = 0.04 * span;
     return { x0: x0 - pad, x1: x1 + pad, y0: y0 - pad, y1: y1 + pad };
   }
 
@@ -1609,122 +1908,238 @@
     renderPointInfo();
   }
 
-  function drawMap() {
-    const svg = clear($("map"));
-    const W = svg.clientWidth || 800;
-    const Hmax = svg.clientHeight || 560;
-    svg.setAttribute("viewBox", `0 0 ${W} ${Hmax}`);
-    const b = worldBounds();
-    state.view = null;
-    if (!b) {
-      svg.append(s("text", { x: 20, y: 30, fill: "#4d5561" }, "No site yet: load a preset or upload a plan document."));
+  /** The Leaflet map on #map (once, at start): panes, scale bar, the fit button, events. */
+  function initMap() {
+    if (typeof L === "undefined") {
+      $("map-empty").textContent = "The map library (static/vendor/leaflet) did not load.";
       return;
     }
-    const k = Math.min((W - 60) / (b.x1 - b.x0), (Hmax - 40) / (b.y1 - b.y0));
-    const ox = 50 + ((W - 60) - k * (b.x1 - b.x0)) / 2;
-    const oy = 10 + ((Hmax - 40) - k * (b.y1 - b.y0)) / 2;
-    const X = (x) => ox + (x - b.x0) * k;
-    const Y = (y) => oy + (b.y1 - y) * k;
-    state.view = { X, Y, k, b, inv: (px, py) => [b.x0 + (px - ox) / k, b.y1 - (py - oy) / k] };
-    // grid and axis labels
-    const step = niceStep(Math.max(b.x1 - b.x0, b.y1 - b.y0), 8);
-    const grid = s("g", { stroke: "#e6e8eb", "stroke-width": 1 });
-    const labelsG = s("g", { fill: "#4d5561", "font-size": 10 });
-    for (let x = Math.ceil(b.x0 / step) * step; x <= b.x1; x += step) {
-      grid.append(s("line", { x1: X(x), y1: Y(b.y0), x2: X(x), y2: Y(b.y1) }));
-      labelsG.append(s("text", { x: X(x), y: Y(b.y0) + 12, "text-anchor": "middle" }, fmtNum(x, 4)));
+    const map = L.map("map", {
+      crs: L.CRS.Simple, center: [0, 0], zoom: 0, minZoom: -8, maxZoom: 10,
+      zoomSnap: 0.25, zoomDelta: 0.5, wheelPxPerZoomLevel: 90,
+      attributionControl: false, keyboard: true, zoomControl: false, boxZoom: true,
+      inertia: false, // a pan ends where the pointer lets go
+    });
+    for (const [name, z] of [["grid", 250], ["heat", 300], ["obstacles", 400], ["ues", 420], ["contour", 440],
+      ["grid-labels", 450], ["selection", 560], ["candidates", 600]]) {
+      map.createPane(name).style.zIndex = String(z);
     }
-    for (let y = Math.ceil(b.y0 / step) * step; y <= b.y1; y += step) {
-      grid.append(s("line", { x1: X(b.x0), y1: Y(y), x2: X(b.x1), y2: Y(y) }));
-      labelsG.append(s("text", { x: X(b.x0) - 4, y: Y(y) + 3, "text-anchor": "end" }, fmtNum(y, 4)));
-    }
-    svg.append(grid, labelsG);
-    // heatmap and contour
-    if (state.plan && state.plan.heatmap && state.count) drawHeatmap(svg, X, Y, k);
-    // buildings and walls
-    const obsG = s("g", { id: "obstacles" });
-    if ($("layer-buildings").checked) {
-      for (const ob of obstacles()) {
-        const top = (Number(ob.base_m) || 0) + (Number(ob.height_m) || 0);
-        const title = s("title", {}, `${ob.kind}${ob.name ? " " + ob.name : ""}: ${fmtNum(Number(ob.base_m) || 0)}–${fmtNum(top)} m high`);
-        if (ob.kind === "prism" && Array.isArray(ob.footprint)) {
-          obsG.append(s("polygon", { points: ob.footprint.map((v) => `${X(v[0])},${Y(v[1])}`).join(" "), fill: BUILDING_COLOUR, "fill-opacity": 0.55, stroke: "#3b424a", "stroke-width": 1.2, class: "obstacle prism" }, title));
-        } else if (ob.kind === "wall" && ob.start && ob.end) {
-          obsG.append(s("line", { x1: X(ob.start[0]), y1: Y(ob.start[1]), x2: X(ob.end[0]), y2: Y(ob.end[1]), stroke: "#3b424a", "stroke-width": 3.5, "stroke-linecap": "round", class: "obstacle wall" }, title));
-        }
-      }
-    }
-    svg.append(obsG);
-    // UE points: small and translucent, so a heatmap under them stays readable (and off by
-    // default once a heatmap is shown)
-    if ($("layer-ues").checked) {
-      for (const layer of ueLayers()) {
-        const g = s("g", { class: "ue-map", "data-name": layer.name, fill: layer.colour, "fill-opacity": UE_OPACITY });
-        const wmax = Math.max(...layer.map.weights, 1e-300);
-        layer.map.points.forEach((p, i) => {
-          g.append(s("circle", { cx: X(p[0]).toFixed(1), cy: Y(p[1]).toFixed(1), r: (0.9 + 1.6 * Math.sqrt(layer.map.weights[i] / wmax)).toFixed(2) }));
-        });
-        svg.append(g);
-      }
-    }
-    // candidates and the shown layout
-    const chosen = new Set(shownLayout());
-    const colour = state.count ? colourOf(state.count) : "#1a1a1a";
-    const candG = s("g", { id: "candidates" });
-    for (const c of candidatesWithEdit()) {
-      const isChosen = chosen.has(c.index);
-      if (!isChosen && !$("layer-candidates").checked) continue;
-      candG.append(candidateGlyph(c, isChosen, colour, X, Y));
-    }
-    const defs = s("defs");
-    for (const [id, col] of [["arrow", "#4d5561"], ["arrow-chosen", colour], ["arrow-selected", SELECTED_COLOUR]]) {
-      defs.append(s("marker", { id, viewBox: "0 0 10 10", refX: 8, refY: 5, markerWidth: 6, markerHeight: 6, orient: "auto-start-reverse" },
-        s("path", { d: "M0,0 L10,5 L0,10 z", fill: col })));
-    }
-    svg.append(defs, candG);
-    // scale bar
-    const barM = niceStep((b.x1 - b.x0), 5);
-    const bx = 55;
-    const by = Hmax - 10;
-    svg.append(s("g", { class: "scale" },
-      s("line", { x1: bx, y1: by, x2: bx + barM * k, y2: by, stroke: "#1a1a1a", "stroke-width": 3 }),
-      s("text", { x: bx + barM * k + 6, y: by + 4, "font-size": 11, fill: "#1a1a1a" }, `${fmtNum(barM, 3)} m`)));
-    svg.append(s("g", { id: "selection" }));
+    map.getPane("candidates").id = "candidates";
+    M.ueRenderer = L.canvas({ pane: "ues", padding: 0.2 });
+    // controls at the right, the scale bottom left: the grid's labels run along the left and
+    // the bottom edge
+    L.control.zoom({ position: "topright" }).addTo(map);
+    L.control.scale({ imperial: false, maxWidth: SCALE_PX, position: "bottomleft" }).addTo(map);
+    const Fit = L.Control.extend({
+      options: { position: "topright" },
+      onAdd() {
+        const box = L.DomUtil.create("div", "leaflet-bar fit-control");
+        const btn = L.DomUtil.create("button", "", box);
+        btn.type = "button";
+        btn.id = "map-fit";
+        btn.textContent = "Fit";
+        btn.title = "Fit the whole site in view";
+        btn.setAttribute("aria-label", "Fit the whole site in view");
+        L.DomEvent.disableClickPropagation(box);
+        L.DomEvent.on(btn, "click", () => fitView(true));
+        return box;
+      },
+    });
+    new Fit().addTo(map);
+    map.on("click", onMapClick);
+    map.on("mousemove", onMapHover);
+    map.on("mouseout", () => { $("tooltip").hidden = true; });
+    map.on("moveend", drawGrid);
+    M.map = map;
+  }
+
+  /** The site in view: once per document (when its site first has a preview or a plan), or
+   * on request (the Fit button). */
+  function fitView(force) {
+    const b = worldBounds();
+    if (!M.map || !b) return;
+    const key = `${state.docSeq}:${Boolean(localPreview() || state.plan)}`;
+    if (!force && M.fitted === key) return;
+    M.fitted = key;
+    M.map.fitBounds(L.latLngBounds(ll(b.x0, b.y0), ll(b.x1, b.y1)), { animate: false, padding: [16, 16] });
+  }
+
+  /** A layer group of the map by name, emptied. */
+  function group(name) {
+    const g = M.layers[name] || (M.layers[name] = L.layerGroup().addTo(M.map));
+    g.clearLayers();
+    return g;
+  }
+  /** Whether a layer's inputs are those it was drawn from (compared by identity). */
+  function unchanged(name, key) {
+    const old = M.keys[name];
+    M.keys[name] = key;
+    return Boolean(old) && old.length === key.length && old.every((v, i) => v === key[i]);
+  }
+
+  function drawMap() {
+    if (!M.map) return;
+    M.map.invalidateSize({ pan: false });
+    const b = worldBounds();
+    M.hasSite = Boolean(b);
+    $("map-empty").hidden = M.hasSite;
+    if (b) fitView(false);
+    drawGrid();
+    drawHeatmap();
+    drawObstacles();
+    drawUes();
+    drawCandidates();
     drawSelection();
   }
 
-  /** One candidate: a square at its position and an arrow along its facing (shorter when
-   * tilted); chosen sites of the shown layout filled, the candidate being edited outlined. */
-  function candidateGlyph(c, isChosen, colour, X, Y) {
+  /** Grid lines every round number of metres in view, labelled along the bottom and left. */
+  function drawGrid() {
+    if (!M.map) return;
+    const g = group("grid");
+    if (!M.hasSite) return;
+    const v = M.map.getBounds();
+    const x0 = v.getWest(), x1 = v.getEast(), y0 = v.getSouth(), y1 = v.getNorth();
+    const step = niceStep(Math.max(x1 - x0, y1 - y0), 8);
+    const px = 1 / pxPerMetre();
+    const label = (at, text, axis) => L.marker(at, {
+      pane: "grid-labels", interactive: false, keyboard: false,
+      icon: L.divIcon({ className: `grid-label grid-label-${axis}`, html: `<span>${text}</span>`, iconSize: [0, 0] }),
+    });
+    const lines = [];
+    const keepOut = (SCALE_PX + 30) * px; // no label under the scale bar
+    for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) {
+      lines.push([ll(x, y0), ll(x, y1)]);
+      if (x > x0 + keepOut) g.addLayer(label(ll(x, y0 + 3 * px), fmtNum(x, 4), "x"));
+    }
+    for (let y = Math.ceil(y0 / step) * step; y <= y1; y += step) {
+      lines.push([ll(x0, y), ll(x1, y)]);
+      if (y > y0 + 30 * px) g.addLayer(label(ll(x0 + 3 * px, y), fmtNum(y, 4), "y"));
+    }
+    g.addLayer(L.polyline(lines, { pane: "grid", color: "#e1e4e8", weight: 1, interactive: false, smoothFactor: 0 }));
+  }
+
+  function drawObstacles() {
+    const on = $("layer-buildings").checked;
+    if (unchanged("obstacles", [obstacles(), on, M.map])) return;
+    const g = group("obstacles");
+    if (!on) return;
+    obstacles().forEach((ob, k) => {
+      const top = (Number(ob.base_m) || 0) + (Number(ob.height_m) || 0);
+      let layer = null;
+      if (ob.kind === "prism" && Array.isArray(ob.footprint)) {
+        layer = L.polygon(ob.footprint.map((v) => ll(v[0], v[1])), {
+          pane: "obstacles", color: "#3b424a", weight: 1.2, fillColor: BUILDING_COLOUR, fillOpacity: 0.55, className: "obstacle prism",
+        });
+      } else if (ob.kind === "wall" && ob.start && ob.end) {
+        layer = L.polyline([ll(ob.start[0], ob.start[1]), ll(ob.end[0], ob.end[1])], {
+          pane: "obstacles", color: "#3b424a", weight: 3.5, lineCap: "round", className: "obstacle wall",
+        });
+      }
+      if (!layer) return;
+      g.addLayer(layer);
+      const el = layer.getElement();
+      if (el) {
+        el.dataset.obstacle = k;
+        el.append(s("title", {}, `${ob.kind}${ob.name ? " " + ob.name : ""}: ${fmtNum(Number(ob.base_m) || 0)}–${fmtNum(top)} m high`));
+      }
+    });
+  }
+
+  /** UE points on one canvas, small and translucent (a heatmap under them stays readable); a
+   * point inside a building is not drawn – the plan drops it – and is counted in the legend. */
+  function drawUes() {
+    const on = $("layer-ues").checked;
+    const pv = localPreview();
+    if (unchanged("ues", [pv, state.plan, obstacles(), on, M.map])) return;
+    const g = group("ues");
+    M.ueInfo = [];
+    for (const layer of ueLayers()) {
+      const pts = layer.map.points;
+      const wmax = Math.max(...layer.map.weights, 1e-300);
+      let drawn = 0;
+      let inside = 0;
+      pts.forEach((p, i) => {
+        if (buildingAt(p) >= 0) { inside += 1; return; }
+        drawn += 1;
+        if (!on) return;
+        g.addLayer(L.circleMarker(ll(p[0], p[1]), {
+          renderer: M.ueRenderer, interactive: false, stroke: false, fillColor: layer.colour, fillOpacity: UE_OPACITY,
+          radius: 0.9 + 1.6 * Math.sqrt(layer.map.weights[i] / wmax),
+        }));
+      });
+      M.ueInfo.push({ name: layer.name, colour: layer.colour, listed: pts.length, drawn: on ? drawn : 0, inside,
+        droppedByPlan: layer.dropped, total: layer.map.total, stride: layer.map.stride });
+    }
+  }
+
+  /** One candidate as a marker: a square at its position and an arrow along its facing
+   * (shorter when tilted); chosen sites of the shown layout filled, the edited one ringed,
+   * one inside a building red. Editable ones drag (outside "add" mode). */
+  function drawCandidates() {
+    const g = group("candidates");
+    const chosen = new Set(shownLayout());
+    const colour = state.count ? colourOf(state.count) : "#1a1a1a";
+    const adding = mapMode() === "add";
+    for (const c of candidatesWithEdit()) {
+      const isChosen = chosen.has(c.index);
+      if (!isChosen && !$("layer-candidates").checked) continue;
+      const selected = c.editable && state.selCand === c.index;
+      const inside = c.editable && state.inside && state.inside.has(c.index);
+      const cls = ["site", isChosen ? "chosen" : "", c.editable ? "editable" : "", selected ? "selected" : "", inside ? "inside" : ""].filter(Boolean).join(" ");
+      const marker = L.marker(ll(c.position[0], c.position[1]), {
+        pane: "candidates", keyboard: false, bubblingMouseEvents: false, autoPan: false,
+        draggable: Boolean(c.editable) && !adding,
+        zIndexOffset: selected ? 2000 : inside ? 1500 : isChosen ? 1000 : 0,
+        icon: L.divIcon({ className: cls, html: candidateGlyph(c, isChosen, selected, inside, colour), iconSize: [GLYPH_PX, GLYPH_PX], iconAnchor: [GLYPH_PX / 2, GLYPH_PX / 2] }),
+      });
+      if (c.editable) {
+        const i = c.index;
+        marker.on("click", () => selectCandidate(i)); // (the map fires no click after a drag)
+        marker.on("dragstart", () => onCandidateDragStart(i, marker));
+        marker.on("drag", (ev) => { if (state.drag) state.drag.alt = Boolean(ev.originalEvent && ev.originalEvent.altKey); });
+        marker.on("dragend", () => onCandidateDragEnd(i, marker));
+      }
+      g.addLayer(marker);
+      marker.getElement().dataset.site = c.index;
+    }
+  }
+
+  function candidateGlyph(c, isChosen, selected, inside, colour) {
     const [yaw, pitch] = c.orientation || [0, 0, 0];
-    const selected = c.editable && state.selCand === c.index;
-    const px = X(c.position[0]);
-    const py = Y(c.position[1]);
+    const o = GLYPH_PX / 2;
     const len = (isChosen || selected ? 24 : 16) * Math.cos(pitch);
-    const ax = px + len * Math.cos(yaw);
-    const ay = py - len * Math.sin(yaw);
-    const sz = isChosen || selected ? 11 : 9;
-    const inside = c.editable && state.inside && state.inside.has(c.index);
-    const cls = ["site", isChosen ? "chosen" : "", c.editable ? "editable" : "", selected ? "selected" : "", inside ? "inside" : ""].filter(Boolean).join(" ");
-    const g = s("g", { class: cls, "data-site": c.index });
-    const az = ((90 - deg(yaw)) % 360 + 360) % 360;
-    g.append(s("title", {}, `Site ${c.index}${c.name ? " – " + c.name : ""}: x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m, height ${fmtNum(c.position[2])} m, facing ${fmtNum(az, 3)}° from north, tilt ${fmtNum(deg(pitch), 3)}° down` +
-      (c.far_field_flag ? " (near field for part of the map)" : "") + (inside ? " – inside a building: move it out" : "")));
+    const dx = Math.cos(yaw), dy = -Math.sin(yaw);
+    const tip = [o + len * dx, o + len * dy];
+    const head = 6;
     const stroke = selected ? SELECTED_COLOUR : isChosen ? colour : "#4d5561";
-    g.append(s("line", { x1: px, y1: py, x2: ax, y2: ay, stroke, "stroke-width": isChosen || selected ? 2.5 : 1.3, "marker-end": selected ? "url(#arrow-selected)" : isChosen ? "url(#arrow-chosen)" : "url(#arrow)" }));
-    if (selected) g.append(s("circle", { cx: px, cy: py, r: 10, fill: "none", stroke: SELECTED_COLOUR, "stroke-width": 2.5 }));
-    g.append(s("rect", {
-      x: px - sz / 2, y: py - sz / 2, width: sz, height: sz,
+    const sz = isChosen || selected ? 11 : 9;
+    const az = ((90 - deg(yaw)) % 360 + 360) % 360;
+    const svg = s("svg", { width: GLYPH_PX, height: GLYPH_PX, viewBox: `0 0 ${GLYPH_PX} ${GLYPH_PX}` });
+    svg.append(s("title", {}, `Site ${c.index}${c.name ? " – " + c.name : ""}: x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m, height ${fmtNum(c.position[2])} m, facing ${fmtNum(az, 3)}° from north, tilt ${fmtNum(deg(pitch), 3)}° down` +
+      (c.far_field_flag ? " (near field for part of the map)" : "") + (inside ? " – inside a building: move it out" : "")));
+    if (len > 3) {
+      svg.append(s("line", { class: "facing", x1: o, y1: o, x2: tip[0] - 0.6 * head * dx, y2: tip[1] - 0.6 * head * dy, stroke, "stroke-width": isChosen || selected ? 2.5 : 1.3 }));
+      const side = [-dy, dx];
+      const back = [tip[0] - head * dx, tip[1] - head * dy];
+      svg.append(s("polygon", { class: "arrowhead", fill: stroke, points: [tip, [back[0] + 0.5 * head * side[0], back[1] + 0.5 * head * side[1]], [back[0] - 0.5 * head * side[0], back[1] - 0.5 * head * side[1]]].map((p) => p.map((v) => v.toFixed(1)).join(",")).join(" ") }));
+    }
+    if (selected) svg.append(s("circle", { cx: o, cy: o, r: 10, fill: "none", stroke: SELECTED_COLOUR, "stroke-width": 2.5 }));
+    svg.append(s("rect", {
+      x: o - sz / 2, y: o - sz / 2, width: sz, height: sz,
       fill: inside ? INSIDE_COLOUR : isChosen ? colour : "#ffffff", stroke: inside ? "#5c110c" : c.far_field_flag ? "#b35900" : "#1a1a1a", "stroke-width": isChosen || inside ? 1.5 : 1.2,
     }));
-    if (isChosen) g.append(s("text", { x: px + 8, y: py - 8, "font-size": 11, "font-weight": 700, fill: "#1a1a1a", stroke: "#ffffff", "stroke-width": 3, "paint-order": "stroke" }, `${c.index} (${fmtNum(c.position[2], 2)} m)`));
-    return g;
+    // what takes the pointer: a disc a little larger than the square (CSS: only .hit does)
+    svg.append(s("circle", { class: "hit", cx: o, cy: o, r: 8, fill: "transparent" }));
+    if (isChosen) svg.append(s("text", { x: o + 8, y: o - 8, "font-size": 11, "font-weight": 700, fill: "#1a1a1a", stroke: "#ffffff", "stroke-width": 3, "paint-order": "stroke" }, `${c.index} (${fmtNum(c.position[2], 2)} m)`));
+    return svg;
   }
 
   function shownLayout() {
     const entry = state.count ? countEntry(state.count) : null;
     if (!entry) return [];
-    const lay = entry.top_layouts[state.layoutIdx] || entry.top_layouts[0];
+    if (Array.isArray(entry.site_indices)) return entry.site_indices; // district: names in sites
+    const tops = entry.top_layouts || [];
+    const lay = tops[state.layoutIdx] || tops[0];
     return lay ? lay.sites : entry.sites;
   }
 
@@ -1738,23 +2153,28 @@
     return { lo, hi };
   }
 
-  function drawHeatmap(svg, X, Y, k) {
-    const hm = state.plan.heatmap;
-    const grid = hm.bound_m[state.count];
-    const blind = hm.blind[state.count];
+  /** The shown count's heatmap as an image over its grid, and the threshold contour. */
+  function drawHeatmap() {
+    const plan = state.plan;
+    const key = [plan, state.count, $("layer-heatmap").checked, $("layer-contour").checked, M.map];
+    if (unchanged("heat", key)) return;
+    const g = group("heat");
+    const hm = plan && plan.heatmap;
+    const grid = hm && state.count ? hm.bound_m[state.count] : null;
     if (!grid) return;
-    const g = hm.grid;
+    const blind = hm.blind[state.count];
+    const gr = hm.grid;
     const range = heatRange();
     if ($("layer-heatmap").checked) {
       const canvas = document.createElement("canvas");
-      canvas.width = g.nx;
-      canvas.height = g.ny;
+      canvas.width = gr.nx;
+      canvas.height = gr.ny;
       const ctx = canvas.getContext("2d");
-      const img = ctx.createImageData(g.nx, g.ny);
-      for (let iy = 0; iy < g.ny; iy++) {
-        for (let ix = 0; ix < g.nx; ix++) {
+      const img = ctx.createImageData(gr.nx, gr.ny);
+      for (let iy = 0; iy < gr.ny; iy++) {
+        for (let ix = 0; ix < gr.nx; ix++) {
           const v = grid[iy][ix];
-          const o = ((g.ny - 1 - iy) * g.nx + ix) * 4;
+          const o = ((gr.ny - 1 - iy) * gr.nx + ix) * 4;
           let rgb = null;
           if (v !== null && range) rgb = viridis((Math.log10(v) - Math.log10(range.lo)) / (Math.log10(range.hi) - Math.log10(range.lo)));
           else if (blind[iy][ix]) rgb = [0xd7, 0x30, 0x1f];
@@ -1762,30 +2182,32 @@
         }
       }
       ctx.putImageData(img, 0, 0);
-      svg.append(s("image", {
-        id: "heatmap-image", href: canvas.toDataURL("image/png"),
-        x: X(g.x0 - g.cell_m / 2), y: Y(g.y0 + (g.ny - 0.5) * g.cell_m),
-        width: g.nx * g.cell_m * k, height: g.ny * g.cell_m * k,
-        preserveAspectRatio: "none",
-      }));
+      const bounds = L.latLngBounds(ll(gr.x0 - gr.cell_m / 2, gr.y0 - gr.cell_m / 2), ll(gr.x0 + (gr.nx - 0.5) * gr.cell_m, gr.y0 + (gr.ny - 0.5) * gr.cell_m));
+      const overlay = L.imageOverlay(canvas.toDataURL("image/png"), bounds, { pane: "heat", interactive: false, alt: "" });
+      g.addLayer(overlay);
+      overlay.getElement().id = "heatmap-image";
     }
     const level = hm.threshold_m[state.count];
     if ($("layer-contour").checked && level) {
-      const d = contourPath(grid, blind, g, level, X, Y);
-      if (d) {
-        svg.append(s("path", { d, fill: "none", stroke: "#ffffff", "stroke-width": 4, "stroke-linecap": "round" }));
-        svg.append(s("path", { id: "contour", d, fill: "none", stroke: "#1a1a1a", "stroke-width": 1.8, "stroke-linecap": "round" }));
+      const segs = contourSegments(grid, blind, gr, level);
+      if (segs.length) {
+        g.addLayer(L.polyline(segs, { pane: "contour", color: "#ffffff", weight: 4, lineCap: "round", interactive: false, smoothFactor: 0 }));
+        const line = L.polyline(segs, { pane: "contour", color: "#1a1a1a", weight: 1.8, lineCap: "round", interactive: false, smoothFactor: 0, className: "contour" });
+        g.addLayer(line);
+        line.getElement().id = "contour";
+        M.contourSegments = segs.length;
       }
     }
   }
 
-  /** Marching squares between cell centres at the (log) level; blind cells count as above it. */
-  function contourPath(grid, blind, g, level, X, Y) {
-    const L = Math.log10(level);
+  /** Marching squares between cell centres at the (log) level; blind cells count as above it.
+   * Segments as pairs of map positions. */
+  function contourSegments(grid, blind, g, level) {
+    const L10 = Math.log10(level);
     const val = (ix, iy) => {
       const v = grid[iy][ix];
       if (v !== null) return Math.log10(v);
-      return blind[iy][ix] ? L + 10 : NaN;
+      return blind[iy][ix] ? L10 + 10 : NaN;
     };
     const cx = (ix) => g.x0 + ix * g.cell_m;
     const cy = (iy) => g.y0 + iy * g.cell_m;
@@ -1796,10 +2218,10 @@
       for (let ix = 0; ix + 1 < g.nx; ix++) {
         const a = val(ix, iy), b = val(ix + 1, iy), c = val(ix + 1, iy + 1), d = val(ix, iy + 1);
         if ([a, b, c, d].some(Number.isNaN)) continue;
-        const idx = (a > L ? 8 : 0) | (b > L ? 4 : 0) | (c > L ? 2 : 0) | (d > L ? 1 : 0);
+        const idx = (a > L10 ? 8 : 0) | (b > L10 ? 4 : 0) | (c > L10 ? 2 : 0) | (d > L10 ? 1 : 0);
         const segs = CASES[idx];
         if (!segs) continue;
-        const t = (p, q) => (p === q ? 0.5 : Math.min(1, Math.max(0, (L - p) / (q - p))));
+        const t = (p, q) => (p === q ? 0.5 : Math.min(1, Math.max(0, (L10 - p) / (q - p))));
         const edge = [
           () => [cx(ix) + t(a, b) * g.cell_m, cy(iy)],
           () => [cx(ix + 1), cy(iy) + t(b, c) * g.cell_m],
@@ -1809,34 +2231,40 @@
         for (const [e1, e2] of segs) {
           const p = edge[e1]();
           const q = edge[e2]();
-          parts.push(`M${X(p[0]).toFixed(1)},${Y(p[1]).toFixed(1)}L${X(q[0]).toFixed(1)},${Y(q[1]).toFixed(1)}`);
+          parts.push([ll(p[0], p[1]), ll(q[0], q[1])]);
         }
       }
     }
-    return parts.join("");
+    return parts;
   }
 
   /** Legend of the map: every layer's symbol, and with a heatmap its colour bar (log scale,
    * metres, the objective's threshold marked). */
   function drawLegend() {
     const box = clear($("legend"));
-    if (!state.view) return;
+    if (!M.hasSite) return;
     const item = (sym, text) => box.append(h("span", { class: "item" }, sym, text));
     if ($("layer-buildings").checked && obstacles().length) {
       item(h("span", { class: "swatch", "data-colour": BUILDING_COLOUR }), "building (prism; ▬ wall)");
     }
-    if ($("layer-ues").checked) {
-      for (const layer of ueLayers()) {
-        const note = layer.map.stride > 1 ? ` (every ${layer.map.stride}th of ${layer.map.total})` : ` (${layer.map.total}; size ∝ weight)`;
-        item(h("span", { class: "dot", "data-colour": layer.colour }), layer.name + note);
+    for (const info of M.ueInfo) {
+      const dropped = info.inside + info.droppedByPlan;
+      const drop = dropped ? `; ${dropped} inside buildings not drawn – the plan drops them` : "";
+      if ($("layer-ues").checked) {
+        const note = info.stride > 1 ? ` (every ${info.stride}th of ${info.total}${drop})` : ` (${info.drawn}; size ∝ weight${drop})`;
+        item(h("span", { class: "dot", "data-colour": info.colour }), info.name + note);
+      } else if (dropped) {
+        item(h("span", { class: "dot", "data-colour": "#9aa1aa" }), `${info.name}: ${dropped} inside buildings (dropped by the plan)`);
       }
     }
     if ($("layer-candidates").checked && candidates().length) item(h("span", { class: "sq" }), "candidate site, arrow = facing (shorter when tilted)");
     if (state.selCand !== null) item(h("span", { class: "sq", "data-border": SELECTED_COLOUR }), "candidate being edited");
     if (state.inside && state.inside.size) item(h("span", { class: "sq", "data-colour": INSIDE_COLOUR }), "candidate inside a building (refused by a plan)");
     const plan = state.plan;
+    if (plan && state.count && shownLayout().length) {
+      item(h("span", { class: "swatch", "data-colour": colourOf(state.count) }), `RIS site of the layout shown (${siteNames(shownLayout())})`);
+    }
     if (plan && plan.heatmap && state.count) {
-      item(h("span", { class: "swatch", "data-colour": colourOf(state.count) }), `RIS site of the layout shown (sites ${shownLayout().join(", ")})`);
       const range = heatRange();
       const metric = METRIC_LABEL[plan.heatmap.metric] || "bound";
       const level = plan.heatmap.threshold_m[state.count];
@@ -1919,22 +2347,24 @@
   }
 
   function drawSelection() {
-    const sel = document.getElementById("selection");
-    if (!sel) return;
-    clear(sel);
-    if (state.selected === null || !state.view) return;
+    if (!M.map) return;
+    const g = group("selection");
+    if (state.selected === null || !state.plan || !state.plan.points) return;
     const p = state.plan.points[state.selected];
-    const { X, Y } = state.view;
-    sel.append(s("circle", { cx: X(p.position[0]), cy: Y(p.position[1]), r: 8, fill: "none", stroke: "#ffffff", "stroke-width": 4 }));
-    sel.append(s("circle", { cx: X(p.position[0]), cy: Y(p.position[1]), r: 8, fill: "none", stroke: "#c25400", "stroke-width": 2.2 }));
+    const at = ll(p.position[0], p.position[1]);
+    const ring = { pane: "selection", radius: 8, fill: false, interactive: false };
+    g.addLayer(L.circleMarker(at, Object.assign({ color: "#ffffff", weight: 4 }, ring)));
+    g.addLayer(L.circleMarker(at, Object.assign({ color: SELECTED_COLOUR, weight: 2.2, className: "selected-point" }, ring)));
   }
 
   function renderPointInfo() {
     const box = $("point-info");
-    if (state.selected === null || !state.plan) {
-      clear(box).append(state.plan
-        ? "Click a point of the RX map (or focus the map and use the arrow keys) to read its bound, serving RISs and blind reason."
-        : "Load a document to see the site; after a job, click a point of the RX map to read its result.");
+    if (state.selected === null || !state.plan || !state.plan.points) {
+      clear(box).append(state.plan && !state.plan.points
+        ? "This plan has no per-point results (a district plan reports coverage per RIS count: see Results)."
+        : state.plan
+          ? "Click a point of the RX map (or focus the map and use the arrow keys) to read its bound, serving RISs and blind reason."
+          : "Load a document to see the site; after a job, click a point of the RX map to read its result.");
       return;
     }
     const group = groupOf(state.selected) || { members: [state.selected] };
@@ -1969,52 +2399,51 @@
     state.selected = index;
     drawSelection();
     renderPointInfo();
+    const p = state.plan.points[index];
+    if (M.map && !M.map.getBounds().pad(-0.05).contains(ll(p.position[0], p.position[1]))) M.map.panTo(ll(p.position[0], p.position[1]));
   }
 
+  /** A click on the map (not on a site, unless in "add" mode, where sites let clicks through):
+   * "add" adds a site there; "read a point" selects the nearest RX point of a shown plan. */
   function onMapClick(ev) {
-    // a press on a candidate (select, drag) or in "add" mode is handled by the pointer events
-    if (!state.view || mapMode() === "add" || Date.now() - (state.suppressClick || 0) < CLICK_AFTER_PRESS_MS) return;
+    const x = ev.latlng.lng;
+    const y = ev.latlng.lat;
+    if (mapMode() === "add") { addCandidate(x, y); return; }
     if (!state.plan || !state.plan.points) return;
-    const rect = $("map").getBoundingClientRect();
-    const vb = $("map").viewBox.baseVal;
-    const px = ((ev.clientX - rect.left) / rect.width) * vb.width;
-    const py = ((ev.clientY - rect.top) / rect.height) * vb.height;
-    const [x, y] = state.view.inv(px, py);
-    const g = nearestGroup(x, y, 20 / state.view.k);
+    const g = nearestGroup(x, y, 20 / pxPerMetre());
     if (g) selectPoint(g.members[0]);
   }
 
   let hoverPending = null;
   function onMapHover(ev) {
-    if (!state.view || !state.plan || !state.plan.points) return;
+    if (!state.plan || !state.plan.points || !state.count) return;
     hoverPending = ev;
     requestAnimationFrame(() => {
       if (!hoverPending) return;
       const e = hoverPending;
       hoverPending = null;
-      const rect = $("map").getBoundingClientRect();
-      const vb = $("map").viewBox.baseVal;
-      const px = ((e.clientX - rect.left) / rect.width) * vb.width;
-      const py = ((e.clientY - rect.top) / rect.height) * vb.height;
-      const [x, y] = state.view.inv(px, py);
-      const g = nearestGroup(x, y, 12 / state.view.k);
+      const g = nearestGroup(e.latlng.lng, e.latlng.lat, 12 / pxPerMetre());
       const tip = $("tooltip");
       if (!g) { tip.hidden = true; return; }
       const vals = g.members.map((i) => state.plan.points[i].bound_m[state.count]);
       const txt = vals.map((v) => (v === null ? "∞" : fmtNum(v))).join(" / ");
       tip.textContent = `(${fmtNum(g.x)}, ${fmtNum(g.y)}) m: ${txt} m at ${state.count} RIS`;
-      tip.style.left = `${e.clientX - rect.left + 14}px`;
-      tip.style.top = `${e.clientY - rect.top + 10}px`;
+      tip.style.left = `${e.containerPoint.x + 14}px`;
+      tip.style.top = `${e.containerPoint.y + 10}px`;
       tip.hidden = false;
     });
   }
 
+  /** Keys on the focused map: Delete removes the edited site; with per-point results the arrow
+   * keys move between RX points (kept from the map's own arrow-key panning, which works
+   * otherwise, as do + and − for zooming). */
   function onMapKey(ev) {
     if ((ev.key === "Delete" || ev.key === "Backspace") && state.selCand !== null) { ev.preventDefault(); removeSelected(); return; }
     const dirs = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1] };
     const dir = dirs[ev.key];
-    if (!dir || !state.plan || !state.plan.points) return;
+    if (!dir || !state.plan || !state.plan.points || ev.altKey || ev.ctrlKey || ev.metaKey) return;
     ev.preventDefault();
+    ev.stopPropagation();
     const groups = pointGroups();
     if (!groups.length) return;
     const cur = state.selected === null ? null : groupOf(state.selected);
@@ -2038,27 +2467,12 @@
   const azimuthOf = (c) => wrapDeg(90 - deg((c.orientation || [0])[0]));
   const yawOf = (az) => { const y = ((90 - az) * Math.PI) / 180; return Math.atan2(Math.sin(y), Math.cos(y)); };
 
-  /** SVG and local-metre coordinates of a pointer event on the map. */
-  function mapPoint(ev) {
-    const rect = $("map").getBoundingClientRect();
-    const vb = $("map").viewBox.baseVal;
-    const px = ((ev.clientX - rect.left) / rect.width) * vb.width;
-    const py = ((ev.clientY - rect.top) / rect.height) * vb.height;
-    return { px, py, xy: state.view.inv(px, py) };
-  }
-
-  /** The edited candidate under the pointer (within 12 px), else null. */
-  function hitCandidate(px, py) {
-    if (!state.view || !$("layer-candidates").checked) return null;
-    let best = null;
-    let bd = 12 * 12;
-    for (const c of candidates()) {
-      const i = editableIndex(c);
-      if (i === null) continue;
-      const d = (state.view.X(c.position[0]) - px) ** 2 + (state.view.Y(c.position[1]) - py) ** 2;
-      if (d <= bd) { bd = d; best = i; }
-    }
-    return best;
+  /** Page (client) coordinates of the local point (x, y) on the map (for the browser tests). */
+  function screenOf(x, y) {
+    const el = $("map");
+    const r = el.getBoundingClientRect();
+    const p = M.map.latLngToContainerPoint(ll(x, y)); // from inside the container's border
+    return [r.left + el.clientLeft + p.x, r.top + el.clientTop + p.y];
   }
 
   /** After an edit: the document's candidates are stale, a shown plan is of another list. */
@@ -2158,53 +2572,66 @@
     candidatesEdited(`Added candidate ${n} at x ${fmtNum(x)} m, y ${fmtNum(y)} m.`);
   }
 
-  function onMapPointerDown(ev) {
-    if (!state.view || ev.button !== 0) return;
-    const { px, py } = mapPoint(ev);
-    const hit = hitCandidate(px, py);
-    if (hit === null) {
-      state.press = mapMode() === "add" ? { px, py } : null;
-      return;
-    }
-    ev.preventDefault();
-    state.drag = { index: hit, moved: false, px, py };
-    $("map").setPointerCapture(ev.pointerId);
-    $("map").classList.add("dragging");
-    if (state.selCand !== hit) selectCandidate(hit);
+  /** A drag starts: the site is the edited one (the markers are redrawn only when it ends). */
+  function onCandidateDragStart(i, marker) {
+    state.drag = { index: i, alt: false };
+    state.selCand = i;
+    renderCandEditor();
+    const el = marker.getElement();
+    if (el) el.classList.add("selected", "dragging");
   }
 
-  function onMapPointerMove(ev) {
-    const d = state.drag;
-    if (!d) return;
-    const { px, py, xy } = mapPoint(ev);
-    if (!d.moved && Math.hypot(px - d.px, py - d.py) < 3) return;
-    d.moved = true;
-    const c = state.cands[d.index];
-    c.position = [xy[0], xy[1], c.position[2]];
-    drawMap();
+  /** The name of a moved site: its old name no longer says where it is ("B12-f0-3-h4" names
+   * a facade), so "<old name> (moved)", numbered when that is taken. */
+  function movedName(i) {
+    const old = state.cands[i].name || `candidate ${i}`;
+    if (/ \(moved( \d+)?\)$/.test(old)) return old;
+    const taken = new Set(state.cands.filter((_, j) => j !== i).map((c) => c.name));
+    let name = `${old} (moved)`;
+    for (let k = 2; taken.has(name); k++) name = `${old} (moved ${k})`;
+    return name;
   }
 
-  function onMapPointerUp(ev) {
-    const press = state.press;
-    state.press = null;
-    if (press && ev.type === "pointerup" && mapMode() === "add") {
-      const { px, py, xy } = mapPoint(ev);
-      if (Math.hypot(px - press.px, py - press.py) < 4) addCandidate(xy[0], xy[1]);
-      return;
-    }
-    const d = state.drag;
-    if (!d) return;
+  /** A drag ends: the site goes where it was dropped – onto the nearest facade within reach
+   * (SNAP_PX on screen; always from inside a building), facing out, with "snap to facades"
+   * ticked and Alt not held – and is renamed. */
+  function onCandidateDragEnd(i, marker) {
+    const d = state.drag || { alt: false };
     state.drag = null;
-    $("map").classList.remove("dragging");
-    try { $("map").releasePointerCapture(ev.pointerId); } catch (_) { /* already released */ }
-    state.suppressClick = Date.now(); // a click that follows belongs to this press
-    if (d.moved) {
-      const c = state.cands[d.index];
-      candidatesEdited(`Moved candidate ${d.index} to x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m.`);
+    const c = state.cands[i];
+    if (!c) return;
+    const at = marker.getLatLng();
+    const z = c.position[2];
+    let note = "";
+    c.position = [at.lng, at.lat, z];
+    c.orientation = (c.orientation || [0, 0, 0]).slice();
+    if ($("snap-facades").checked && !d.alt) {
+      const inside = buildingAt(c.position) >= 0;
+      const snap = facadeSnap(at.lng, at.lat, z, SNAP_PX / pxPerMetre(), inside);
+      if (snap) {
+        c.position = snap.position;
+        c.orientation[0] = snap.yaw;
+        const ob = obstacles()[snap.building] || {};
+        note = ` – on the facade of ${ob.name || `obstacle ${snap.building}`}, facing ${fmtNum(azimuthOf(c), 3)}° from north`;
+      }
     }
+    c.name = movedName(i);
+    // redrawn after Leaflet has finished with this drag's events
+    setTimeout(() => candidatesEdited(`Moved candidate ${i} to x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m${note}; renamed “${c.name}”.`), 0);
   }
 
   function mapMode() { return $("mode-add").checked ? "add" : "inspect"; }
+
+  /** The map's click mode: in "add" the sites let clicks through and do not drag, and a double
+   * click adds twice rather than zooming. */
+  function setMapMode() {
+    const adding = mapMode() === "add";
+    $("map").classList.toggle("adding", adding);
+    if (M.map) {
+      if (adding) M.map.doubleClickZoom.disable(); else M.map.doubleClickZoom.enable();
+      drawCandidates();
+    }
+  }
 
   async function generateCandidates() {
     const err = $("err-gen");
@@ -2253,6 +2680,8 @@
     $("upload").addEventListener("change", uploadDocument);
     $("upload-geojson").addEventListener("change", importGeojson);
     $("f-objective-kind").addEventListener("change", updateLevelField);
+    $("f-objective-kind").addEventListener("change", updateSizingField);
+    $("f-search-method").addEventListener("change", updateSearchField);
     $("validate").addEventListener("click", validate);
     $("params").addEventListener("submit", submit);
     $("cancel").addEventListener("click", cancelJob);
@@ -2274,7 +2703,7 @@
     $("reimport").addEventListener("click", runImport);
     $("generate").addEventListener("click", generateCandidates);
     $("download-candidates").addEventListener("click", downloadCandidates);
-    $("find-size").addEventListener("click", () => submit(null, { sizing: {} }));
+    $("find-size").addEventListener("click", () => submit(null, { sizing: Object.assign({}, (state.doc && state.doc.sizing) || {}, sizingFromForm()) }));
     $("validate-pairs").addEventListener("change", () => {
       const n = Math.round(Number($("validate-pairs").value));
       $("validate-pairs").value = String(Math.min(1000, Math.max(1, Number.isFinite(n) ? n : 10)));
@@ -2289,20 +2718,13 @@
     $("ce-left").addEventListener("click", () => turnSelected(-15));
     $("ce-right").addEventListener("click", () => turnSelected(15));
     $("ce-remove").addEventListener("click", removeSelected);
-    for (const id of ["mode-inspect", "mode-add"]) $(id).addEventListener("change", () => { $("map").classList.toggle("adding", mapMode() === "add"); });
-    const map = $("map");
-    map.addEventListener("click", onMapClick);
-    map.addEventListener("pointerdown", onMapPointerDown);
-    map.addEventListener("pointermove", onMapPointerMove);
-    map.addEventListener("pointerup", onMapPointerUp);
-    map.addEventListener("pointercancel", onMapPointerUp);
-    map.addEventListener("mousemove", onMapHover);
-    map.addEventListener("mouseleave", () => { $("tooltip").hidden = true; });
-    map.addEventListener("keydown", onMapKey);
+    for (const id of ["mode-inspect", "mode-add"]) $(id).addEventListener("change", setMapMode);
+    initMap();
+    $("map").addEventListener("keydown", onMapKey);
     let resizeTimer = null;
     window.addEventListener("resize", () => {
       clearTimeout(resizeTimer);
-      resizeTimer = setTimeout(() => { drawAll(); if (state.plan) { drawCdf(); drawGain(); } }, 150);
+      resizeTimer = setTimeout(() => { drawAll(); if (state.plan && !isDistrict(state.plan)) { drawCdf(); drawGain(); } }, 150);
     });
     drawAll();
     checkHealth();
@@ -2311,7 +2733,13 @@
     refreshJobs();
   }
 
-  window.risPlanner = { state, jobFiles }; // for debugging and the browser tests
+  // for debugging and the browser tests: the state, the map and what it draws
+  window.risPlanner = {
+    state, jobFiles, screenOf,
+    get map() { return M.map; },
+    pxPerMetre,
+    mapInfo: () => ({ ues: M.ueInfo, sites: M.layers.candidates ? M.layers.candidates.getLayers().length : 0, zoom: M.map ? M.map.getZoom() : null }),
+  };
   if (document.readyState === "loading") document.addEventListener("DOMContentLoaded", init);
   else init();
 })();
