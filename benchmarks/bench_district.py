@@ -124,7 +124,10 @@ def peak_mib(plan: dict[str, Any]) -> float | None:
 
 def headline(work: Path, base: dict[str, Any], side: int, pairs: int) -> None:
     doc = district_doc(base, pairs, [10, 20, 40, 60], None, side)
-    doc["sizing"] = {"target": {"objective": 0.9}}
+    doc["sizing"] = {
+        "ris_sizes": [[side, side], [2 * side, 2 * side]],
+        "target": {"objective": 0.9},
+    }
     plan = plan_district(work, doc, "headline")
     s = plan["pairs_summary"]
     print(

@@ -22,6 +22,7 @@ from ris_planner.planning import district as dist
 from ris_planner.planning.beam_design import layout_scenario
 from ris_planner.planning.inputs import prepare_plan
 from ris_planner.planning.pipeline import run_plan
+from ris_planner.planning.resources import adapted_search, validate_plan
 
 
 @pytest.fixture(scope="module", params=[0.5, 2.0])
@@ -129,16 +130,74 @@ def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
 
 
 def test_cover_sets_are_exactly_the_covering_subsets(site) -> None:
-    """For the pairs whose m_p-subsets were all tried: a subset of m_p serving sites covers the
-    pair iff it is one of its cover sets (brute force over the subsets)."""
+    """For the pairs whose m_p-subsets were all tried: the recorded sites are exactly those of
+    the covering m_p-subsets (brute force over the subsets), and some subset covers."""
     _, problem, needs = site
-    listed: dict[int, set[tuple[int, ...]]] = {}
-    for p, row in zip(needs.cover_pair.tolist(), needs.cover_sites.tolist(), strict=True):
-        listed.setdefault(p, set()).add(tuple(sorted(s for s in row if s >= 0)))
+    listed: dict[int, set[int]] = {}
+    for p, st in zip(needs.cover_pair.tolist(), needs.cover_site.tolist(), strict=True):
+        listed.setdefault(p, set()).add(st)
     pairs = np.flatnonzero(needs.complete)
     assert pairs.size > 0
     for p in np.random.default_rng(1).choice(pairs, size=min(30, pairs.size), replace=False):
         m = int(needs.need[p])
+        union: set[int] = set()
         for sub in itertools.combinations(sorted(problem.sites_of(int(p)).tolist()), m):
-            covered = dist.LayoutState(problem, list(sub)).metric[p] <= problem.threshold
-            assert covered == (sub in listed.get(int(p), set())), (p, sub)
+            if dist.LayoutState(problem, list(sub)).metric[p] <= problem.threshold:
+                union |= set(sub)
+        assert union and union == listed[int(p)], p
+
+
+def test_auto_search_adapts_to_the_district_search_and_says_why() -> None:
+    """A document whose enumerating searches exceed the layout limit: method 'auto' becomes
+    'district' (the why names the limit); within the limit it stays 'auto'; an objective the
+    district search does not plan is left to the refusal of the other searches."""
+    small = PlanDocument.model_validate(street_doc(method="auto"))
+    assert adapted_search(small) == (small, None)
+    big = street_doc(method="auto", counts=(8,))
+    big["search"] = {"method": "auto", "max_exhaustive": 1, "restarts": 1000, "max_rounds": 10000}
+    doc, why = adapted_search(PlanDocument.model_validate(big))
+    assert doc.search.method == "district" and why is not None and "search limit" in why
+    assert validate_plan(big).search.method == "district"
+    capped = {**big, "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 5}}
+    assert adapted_search(PlanDocument.model_validate(capped))[1] is None
+
+
+def test_sizing_ladder_answers_the_fewest_elements(tmp_path: Path) -> None:
+    """Every reaching size's count is at least its certified lower bound, the answer is the
+    reaching row with the fewest elements, and a size whose lower bound already needs more
+    elements than the answer is skipped with that reason."""
+    doc = street_doc(counts=(2,))
+    doc["sizing"] = {"ris_sizes": [[16, 16], [32, 32], [48, 48]], "target": {"objective": 0.4}}
+    inputs = prepare_plan(doc)
+    plan = dist.plan_district(inputs)
+    sizing = plan["sizing"]
+    reached = [r for r in sizing["sizes"] if r["count"] is not None]
+    assert reached, sizing
+    for row in reached:
+        assert row["lower_bound"] <= row["count"]
+        assert row["coverage"] >= 0.4 * sizing["servable_weight"] - 1e-12
+    best = min(reached, key=lambda r: r["count"] * r["ris_size"][0] * r["ris_size"][1])
+    assert sizing["ris_size"] == best["ris_size"] and sizing["count"] == best["count"]
+    for row in sizing["sizes"]:
+        if row["count"] is None and "skipped" in row.get("note", ""):
+            r, c = row["ris_size"]
+            assert row["lower_bound"] * r * c >= sizing["elements"]
+
+
+def test_rest_plan_job_runs_the_district_search(tmp_path: Path) -> None:
+    """POST /v1/plans with search.method 'district': a job that reports progress and ends with
+    the district plan.json (bound and gap per count) and its figure."""
+    from api_helpers import api_client, wait_for
+
+    doc = street_doc(counts=(2, 3))
+    with api_client(tmp_path, workers=1) as client:
+        answer = client.post("/v1/plans", json=doc)
+        assert answer.status_code == 202, answer.text
+        job = answer.json()["id"]
+        view = wait_for(client, job, ("succeeded", "failed"), timeout_s=240)
+        assert view["status"] == "succeeded", view.get("error")
+        plan = view["result"]
+        assert plan["method"] == "district"
+        assert [e["ris_count"] for e in plan["by_count"]] == [2, 3]
+        assert all(e["upper_bound"] >= e["objective"] for e in plan["by_count"])
+        assert "district" in view["figures"]

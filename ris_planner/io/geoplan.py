@@ -102,7 +102,7 @@ def plan_document(
         with in_document_coordinates(frame):
             inputs = prepare_plan(local)
     if inputs.document.search.method == "district":
-        return _district_document(document, inputs, frame, out_dir, progress, clock)
+        return _district_document(document, local, inputs, frame, out_dir, progress, clock)
     stages = Stages(
         progress, {**pipeline_work(inputs), **{k: report_work(inputs)[k] for k in OUTPUTS}}, clock
     )
@@ -153,19 +153,29 @@ def plan_document(
 
 def _district_document(
     document: dict[str, Any],
+    local: dict[str, Any],
     inputs: Any,
     frame: Any,
     out_dir: Path,
     progress: ProgressCallback,
     clock: Any,
 ) -> PlanFiles:
-    """A district plan (:func:`ris_planner.planning.district.plan_district`): plan.json and
-    its coverage-against-count figure."""
+    """A district plan (:func:`ris_planner.planning.district.plan_district`): plan.json, with
+    why ``search.method: auto`` chose it (:func:`~ris_planner.planning.resources.
+    adapted_search`), and its coverage-against-count figure."""
+    from ris_planner.model.plan import PlanDocument
     from ris_planner.planning.district import plan_district
     from ris_planner.planning.district_report import district_figure
+    from ris_planner.planning.resources import adapted_search
 
     with clock.stage("search"):
         plan = plan_district(inputs, progress)
+    _, why = adapted_search(PlanDocument.model_validate(local))
+    plan["search_method"] = {
+        "requested": (local.get("search") or {}).get("method", "auto"),
+        "used": "district",
+        "why": why or "search.method 'district' in the document",
+    }
     with clock.stage("report"):
         if frame is not None:
             plan["frame"] = frame.describe()

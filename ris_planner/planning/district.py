@@ -65,9 +65,14 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
 BoolArray = NDArray[np.bool_]
 
-MAX_SUBSETS = 64
-"""Per pair, the most m-subsets of its serving sites evaluated to raise m_p above the counting
-rule (:func:`sites_needed`); a pair with more keeps the counting rule's m_p (still valid)."""
+MAX_SUBSETS = 4096
+"""Per pair, the most m-subsets of its serving sites evaluated (:func:`sites_needed`): all
+pairs of up to 91 serving sites; a pair with more keeps the counting rule's m_p and no cover
+sets (still valid, looser)."""
+
+SUBSET_BATCH = 200_000
+"""(pair, subset) combinations evaluated per batch by :func:`sites_needed` (memory: about
+300 bytes each)."""
 
 SURROGATE_FINITE = 0.5
 """Surrogate of a pair with a finite bound above the threshold θ: 0.5 + 0.5·θ/bound ∈ (0.5, 1);
@@ -143,10 +148,15 @@ class DistrictProblem:
         return self.entry_pair[self.by_site[self.site_start[site] : self.site_start[site + 1]]]
 
 
-def build_problem(inputs: PlanInputs, progress: ProgressCallback = no_progress) -> DistrictProblem:
+def build_problem(
+    inputs: PlanInputs,
+    progress: ProgressCallback = no_progress,
+    like: DistrictProblem | None = None,
+) -> DistrictProblem:
     """The :class:`DistrictProblem` of a prepared plan: visibility per (map point, site), the
     serving sites of each pair from it, and each entry's information, site by site over that
-    site's pairs only."""
+    site's pairs only. ``like``: a problem of the same sites and pairs (another RIS size)
+    whose visibility is taken instead of walked again."""
     doc = inputs.document
     spec = doc.objective
     kind = objective_kind(spec.kind)
@@ -167,12 +177,15 @@ def build_problem(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
     kept = kept_states(known)
     k = len(kept)
     with one_blas_thread():
-        # [S, M] per distinct map point: the pairs' serving sites by two gathers
-        serve_t = _serves(inputs, pairs.tx, pairs.tx_index)
-        serve_r = _serves(inputs, pairs.rx, pairs.rx_index)
-        present = serve_t & serve_r  # [P, S]
+        if like is None:
+            # [S, M] per distinct map point: the pairs' serving sites by two gathers
+            serve_t = _serves(inputs, pairs.tx, pairs.tx_index)
+            serve_r = _serves(inputs, pairs.rx, pairs.rx_index)
+            entry_pair, entry_site = np.nonzero(serve_t & serve_r)  # of [P, S]
+            del serve_t, serve_r
+        else:
+            entry_pair, entry_site = like.entry_pair, like.entry_site
         progress(0.3, "visibility")
-        entry_pair, entry_site = np.nonzero(present)
         pair_start = np.searchsorted(entry_pair, np.arange(pairs.size + 1))
         radio = fim.Radio.from_system(system)
         g = system.transmissions
@@ -184,7 +197,9 @@ def build_problem(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         if system.los:
             from ris_planner.bounds.paths import los_clear
 
-            los_present = los_clear(inputs.scene, pairs.tx, pairs.rx)
+            los_present = (
+                los_clear(inputs.scene, pairs.tx, pairs.rx) if like is None else like.los_present
+            )
             info = los_path_information(pairs.tx, pairs.rx, radio, float(g))
             grad = los_gradient(info).copy()
             if referenced:
@@ -532,22 +547,6 @@ def improve(
     return tuple(int(s) for s in np.flatnonzero(state.member)), best
 
 
-@dataclass(frozen=True)
-class Needs:
-    """What covering a pair takes (:func:`sites_needed`).
-
-    need [P]: a lower bound m_p on the serving sites a layout needs for pair p to be covered
-    (0: never covered); complete [P]: every m_p-subset of the pair's sites was tried, and the
-    covering ones are the cover sets; cover_pair [C], cover_sites [C, m] (−1 padded) and
-    cover_size [C]: the cover sets (site indices) of the complete pairs."""
-
-    need: IntArray
-    complete: BoolArray
-    cover_pair: IntArray
-    cover_sites: IntArray
-    cover_size: IntArray
-
-
 def _pair_swaps(
     book: GainBook, fixed: set[int], banned: BoolArray, conflict: BoolArray | None, best: float
 ) -> bool:
@@ -578,14 +577,30 @@ def _pair_swaps(
     return False
 
 
+@dataclass(frozen=True)
+class Needs:
+    """What covering a pair takes (:func:`sites_needed`).
+
+    need [P]: a lower bound m_p on the serving sites a layout needs for pair p to be covered
+    (0: never covered); complete [P]: every m_p-subset of the pair's sites was tried and some
+    covers it; cover_pair, cover_site [U]: for the complete pairs, each site that belongs to a
+    covering m_p-subset (the union of the pair's cover sets), as (pair, site) in pair order."""
+
+    need: IntArray
+    complete: BoolArray
+    cover_pair: IntArray
+    cover_site: IntArray
+
+
 def sites_needed(problem: DistrictProblem) -> Needs:
-    """m_p and the cover sets (:class:`Needs`).
+    """m_p and the cover sets' sites (:class:`Needs`).
 
     The counting rule gives m ≥ ⌈(k − LOS)/3⌉. Where a pair has at most :data:`MAX_SUBSETS`
-    m-subsets they are all evaluated: the covering ones are its cover sets, and when none
-    covers, m_p is raised by one and the (m+1)-subsets are tried the same way (a larger layout
-    contains some m-subset, and adding information never raises a bound, so needing more than
-    m is exact). A pair that even all its serving sites leave above the threshold has m_p = 0."""
+    m-subsets they are all evaluated (in batches of at most :data:`SUBSET_BATCH`): the sites
+    of the covering ones are recorded, and when none covers, m_p is raised by one and the
+    (m+1)-subsets are tried the same way (a larger layout contains some m-subset, and adding
+    information never raises a bound, so needing more than m is exact). A pair that even all
+    its serving sites leave above the threshold has m_p = 0."""
     pr = problem
     n_serving = np.diff(pr.pair_start)
     full = LayoutState(pr, list(range(pr.n_sites)))
@@ -595,7 +610,7 @@ def sites_needed(problem: DistrictProblem) -> Needs:
         need = np.ones(pr.n_pairs, dtype=int)
     need = np.where(coverable, need, 0)
     complete = np.zeros(pr.n_pairs, dtype=bool)
-    sets: list[tuple[IntArray, IntArray]] = []
+    used = np.zeros(pr.n_entries, dtype=bool)  # entries in some covering m_p-subset
     for _ in range(2):  # m, then m + 1 for the pairs no m-subset covers
         tried = np.zeros(pr.n_pairs, dtype=bool)
         found = np.zeros(pr.n_pairs, dtype=bool)
@@ -604,33 +619,26 @@ def sites_needed(problem: DistrictProblem) -> Needs:
                 if m > n or math.comb(int(n), int(m)) > MAX_SUBSETS:
                     continue
                 group = np.flatnonzero(coverable & ~complete & (n_serving == n) & (need == m))
-                covers = _covering_subsets(pr, group, int(n), int(m))  # [G, C]
-                tried[group] = True
-                found[group] = covers.any(axis=1)
                 subsets = np.array(list(itertools.combinations(range(int(n)), int(m))))
-                g, c = np.nonzero(covers)
-                sites = pr.entry_site[pr.pair_start[group[g]][:, None] + subsets[c]]
-                sets.append((group[g], sites))
+                step = max(1, SUBSET_BATCH // len(subsets))
+                for g0 in range(0, group.size, step):
+                    part = group[g0 : g0 + step]
+                    covers = _covering_subsets(pr, part, subsets)  # [G, C]
+                    tried[part] = True
+                    found[part] = covers.any(axis=1)
+                    g, c = np.nonzero(covers)
+                    used[pr.pair_start[part[g]][:, None] + subsets[c]] = True
         complete |= tried & found
         need = np.where(tried & ~found, need + 1, need)
-    width = max((st.shape[1] for _, st in sets), default=1)
-    cover_pair = np.concatenate([p for p, _ in sets]) if sets else np.zeros(0, dtype=int)
-    cover_sites = (
-        np.concatenate(
-            [np.pad(st, ((0, 0), (0, width - st.shape[1])), constant_values=-1) for _, st in sets]
-        )
-        if sets
-        else np.zeros((0, 1), dtype=int)
-    )
-    return Needs(
-        np.asarray(need), complete, cover_pair, cover_sites, (cover_sites >= 0).sum(axis=1)
-    )
+    used &= complete[pr.entry_pair]
+    return Needs(np.asarray(need), complete, pr.entry_pair[used], pr.entry_site[used])
 
 
-def _covering_subsets(problem: DistrictProblem, group: IntArray, n: int, m: int) -> BoolArray:
-    """[G, C(n, m)] whether each m-subset of each pair's n serving sites covers it."""
+def _covering_subsets(problem: DistrictProblem, group: IntArray, subsets: IntArray) -> BoolArray:
+    """[G, C] whether each subset [C, m] (positions among a pair's serving sites) of each
+    pair of the group covers it."""
     pr = problem
-    subsets = np.array(list(itertools.combinations(range(n), m)), dtype=int)
+    m = subsets.shape[1]
     # [G, C, m] entries of every subset of every pair of the group
     entries = pr.pair_start[group][:, None, None] + subsets[None]
     info = pr.los.T[group][:, None] + pr.info[entries].sum(axis=2)
@@ -647,61 +655,62 @@ def _covering_subsets(problem: DistrictProblem, group: IntArray, n: int, m: int)
 
 
 def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int, IntArray]:
-    """The relaxation's constraints A v ≤ 0 over v = [z (S), y (live pairs), x (cover sets),
-    u (complete pairs)], the number of variables, and the live pairs (m_p > 0):
+    """The relaxation's constraints A v ≤ 0 over v = [z (S), y (live pairs), u (complete
+    pairs)], the number of variables, and the live pairs (m_p > 0):
 
-    * a pair with its cover sets known: y_p ≤ Σ_{C} x_C + u_p, x_C ≤ z_s (s ∈ C), and
-      u_p ≤ Σ_{s∈S_p} z_s / (m_p + 1) (covered by no cover set: at least m_p + 1 sites);
+    * a pair with cover sets: y_p ≤ Σ_{s∈U_p} z_s / m_p + u_p with U_p the sites of its
+      covering m_p-subsets, and u_p ≤ Σ_{s∈S_p} z_s / (m_p + 1): a covering layout holds a
+      covering m_p-subset (m_p sites of U_p) or at least m_p + 1 of its serving sites;
     * any other live pair: y_p ≤ Σ_{s∈S_p} z_s / m_p."""
     pr, need = problem, needs.need
     live = np.flatnonzero(need > 0)
-    n_live = live.size
     y_of = np.full(pr.n_pairs, -1)
-    y_of[live] = pr.n_sites + np.arange(n_live)
+    y_of[live] = pr.n_sites + np.arange(live.size)
     comp = np.flatnonzero(needs.complete & (need > 0))
     u_of = np.full(pr.n_pairs, -1)
-    n_x = needs.cover_pair.size
-    x0 = pr.n_sites + n_live
-    u_of[comp] = x0 + n_x + np.arange(comp.size)
-    n_var = x0 + n_x + comp.size
-    rows: list[IntArray] = []
-    cols: list[IntArray] = []
-    vals: list[FloatArray] = []
-    r = 0
-
-    def add(row: IntArray, col: IntArray, val: FloatArray) -> None:
-        rows.append(row)
-        cols.append(col)
-        vals.append(val)
-
-    # y_p − Σ z / d_p ≤ 0 (incomplete: d = m_p, row per pair) and u_p − Σ z /(m_p+1) ≤ 0
-    for pairs, first, d in (
-        (np.setdiff1d(live, comp), y_of, need),
-        (comp, u_of, need + 1),
-    ):
-        row_of = np.full(pr.n_pairs, -1)
-        row_of[pairs] = r + np.arange(pairs.size)
-        e = np.flatnonzero(row_of[pr.entry_pair] >= 0)
-        add(row_of[pr.entry_pair[e]], pr.entry_site[e], -1.0 / d[pr.entry_pair[e]])
-        add(row_of[pairs], first[pairs], np.ones(pairs.size))
-        r += pairs.size
-    # y_p − Σ_C x_C − u_p ≤ 0
-    row_of = np.full(pr.n_pairs, -1)
-    row_of[comp] = r + np.arange(comp.size)
-    add(row_of[comp], y_of[comp], np.ones(comp.size))
-    add(row_of[comp], u_of[comp], -np.ones(comp.size))
-    add(row_of[needs.cover_pair], x0 + np.arange(n_x), -np.ones(n_x))
-    r += comp.size
-    # x_C − z_s ≤ 0
-    c, j = np.nonzero(needs.cover_sites >= 0)
-    rc = r + np.arange(c.size)
-    add(rc, x0 + c, np.ones(c.size))
-    add(rc, needs.cover_sites[c, j], -np.ones(c.size))
-    r += c.size
-    a = csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, n_var)
+    u_of[comp] = pr.n_sites + live.size + np.arange(comp.size)
+    n_var = pr.n_sites + live.size + comp.size
+    open_ = np.setdiff1d(live, comp)
+    # rows: the open pairs' y, the complete pairs' y, the complete pairs' u
+    row_y = np.full(pr.n_pairs, -1)
+    row_y[open_] = np.arange(open_.size)
+    row_y[comp] = open_.size + np.arange(comp.size)
+    row_u = np.full(pr.n_pairs, -1)
+    row_u[comp] = open_.size + comp.size + np.arange(comp.size)
+    e_open = np.flatnonzero(np.isin(pr.entry_pair, open_))
+    e_comp = np.flatnonzero(np.isin(pr.entry_pair, comp))
+    rows = np.concatenate(
+        [
+            row_y[live],
+            row_y[pr.entry_pair[e_open]],
+            row_y[needs.cover_pair],
+            row_y[comp],
+            row_u[comp],
+            row_u[pr.entry_pair[e_comp]],
+        ]
     )
-    return a, n_var, live
+    cols = np.concatenate(
+        [
+            y_of[live],
+            pr.entry_site[e_open],
+            needs.cover_site,
+            u_of[comp],
+            u_of[comp],
+            pr.entry_site[e_comp],
+        ]
+    )
+    vals = np.concatenate(
+        [
+            np.ones(live.size),
+            -1.0 / need[pr.entry_pair[e_open]],
+            -1.0 / need[needs.cover_pair],
+            -np.ones(comp.size),
+            np.ones(comp.size),
+            -1.0 / (need[pr.entry_pair[e_comp]] + 1),
+        ]
+    )
+    n_rows = open_.size + 2 * comp.size
+    return csr_matrix((vals, (rows, cols)), shape=(n_rows, n_var)), n_var, live
 
 
 def _bounds(
@@ -779,24 +788,34 @@ def count_lower_bound(
     return max(len(required), math.ceil(res.fun - 1e-6))
 
 
-def summary(problem: DistrictProblem, needs: Needs) -> dict[str, Any]:
-    """What the site can give at all: the pair weight no candidate serves (no layout gives a
-    finite bound), and what even every candidate leaves above the threshold."""
-    need = needs.need
+def servable_pairs(problem: DistrictProblem) -> BoolArray:
+    """[P] the pairs some layout can serve: with every candidate in place their paths give
+    at least as many channel parameters as unknown states (the planar counting rule; the
+    spherical model: a finite bound with every candidate). Whatever the RIS size."""
+    if problem.counting:
+        n_obs = problem.los_present + 3 * np.diff(problem.pair_start)
+        return np.asarray(n_obs >= problem.n_kept)
     full = LayoutState(problem, list(range(problem.n_sites)))
-    blind = ~np.isfinite(full.metric)
+    return np.asarray(np.isfinite(full.metric))
+
+
+def summary(problem: DistrictProblem, needs: Needs) -> dict[str, Any]:
+    """What the site can give at all: the pairs no candidate layout can serve (too few paths
+    with every candidate: blind whatever the layout), those every candidate together still
+    leaves blind numerically or above the threshold, and the coverable weight."""
+    need = needs.need
+    served = servable_pairs(problem)
+    blind = ~served
     w = problem.weights
+    short = (need == 0) & served
     return {
         "pairs": problem.n_pairs,
         "blind_everywhere": {"pairs": int(blind.sum()), "weight": float(w[blind].sum())},
-        "above_threshold_everywhere": {
-            "pairs": int(((need == 0) & ~blind).sum()),
-            "weight": float(w[(need == 0) & ~blind].sum()),
-        },
+        "above_threshold_everywhere": {"pairs": int(short.sum()), "weight": float(w[short].sum())},
         "coverable_weight": float(w[need > 0].sum()),
         "entries": problem.n_entries,
         "serving_sites_per_pair": float(np.diff(problem.pair_start).mean()),
-        "cover_sets": int(needs.cover_pair.size),
+        "pairs_with_cover_sets": int(needs.complete.sum()),
     }
 
 
@@ -823,9 +842,9 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
     coverable = site_summary["coverable_weight"]
     target = _target(doc)
     counts = [c for c in inputs.counts if c <= problem.n_sites]
-    goal = None if target is None else target * coverable
+    # target mode: the counts up to the first that covers the target share of the coverable
+    goal = target * coverable if target is not None and doc.target_mode else None
     progress(0.5, "greedy path")
-    # sizing follows the path until the target, whatever the listed counts
     longest = max(counts) if goal is None else max(max(counts), MAX_DISTRICT_RIS)
     path = greedy_path(
         problem,
@@ -868,7 +887,9 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         "path": [{"ris_count": len(p.sites), "coverage": p.coverage} for p in path],
     }
     if target is not None:
-        plan["sizing"] = _sizing(problem, needs, path, target, coverable, required, excluded)
+        plan["sizing"] = _sizing(
+            inputs, problem, needs, path, target, required, excluded, conflict, progress
+        )
     progress(1.0, "done")
     return plan
 
@@ -882,37 +903,94 @@ def _target(doc: Any) -> float | None:
 
 
 def _sizing(
+    inputs: PlanInputs,
     problem: DistrictProblem,
     needs: Needs,
     path: list[PathStep],
     target: float,
-    coverable: float,
     required: tuple[int, ...],
     excluded: tuple[int, ...],
+    conflict: BoolArray | None,
+    progress: ProgressCallback,
 ) -> dict[str, Any]:
-    goal = target * coverable
-    found = next((p for p in path if p.coverage >= goal - 1e-12), None)
-    lower = count_lower_bound(problem, goal, needs, required, excluded)
+    """The smallest RIS size × count whose greedy layout covers ``target`` of the servable
+    pairs (those some layout gives a finite bound), over the document's RIS size and
+    ``sizing.ris_sizes`` in ascending element count, each with the relaxation's lower bound on
+    the count; a size whose lower bound already needs more elements than the answer so far is
+    skipped, and one that cannot reach the target with every candidate says so."""
+    doc = inputs.document
+    servable = float(problem.weights[servable_pairs(problem)].sum())
+    goal = target * servable
+    own = (doc.ris.rows, doc.ris.cols)
+    ladder = {own} | {(int(r), int(c)) for r, c in (doc.sizing.ris_sizes if doc.sizing else [])}
+    rows: list[dict[str, Any]] = []
+    answer: dict[str, Any] | None = None
+    for k, (r, c) in enumerate(sorted(ladder, key=lambda rc: (rc[0] * rc[1], rc))):
+        progress(0.9 + 0.1 * k / len(ladder), f"sizing {r}×{c}")
+        if (r, c) == own:
+            pr, nd, steps = problem, needs, path
+        else:
+            pr = build_problem(_resized(inputs, r, c), like=problem)
+            nd = sites_needed(pr)
+            steps = []
+        row: dict[str, Any] = {"ris_size": [r, c]}
+        lower = count_lower_bound(pr, goal, nd, required, excluded)
+        row["lower_bound"] = lower
+        if lower is None:
+            row["count"] = None
+            row["note"] = "not reachable: every candidate together covers less"
+            rows.append(row)
+            continue
+        if answer is not None and lower * r * c >= answer["elements"]:
+            row["count"] = None
+            row["note"] = f"skipped: at least {lower} RISs, not fewer elements than the answer"
+            rows.append(row)
+            continue
+        if not steps or steps[-1].coverage < goal:
+            steps = greedy_path(
+                pr, min(MAX_DISTRICT_RIS, pr.n_sites), goal, required, excluded, conflict=conflict
+            )
+        found = next((p for p in steps if p.coverage >= goal - 1e-12), None)
+        row["count"] = None if found is None else len(found.sites)
+        if found is None:
+            row["note"] = f"the greedy path stops at {len(steps)} RISs below the target"
+        else:
+            row["coverage"] = found.coverage
+            row["gap"] = len(found.sites) - lower
+            elements = r * c * len(found.sites)
+            if answer is None or elements < answer["elements"]:
+                answer = {"ris_size": [r, c], "count": len(found.sites), "elements": elements}
+                answer.update(lower_bound=lower, gap=len(found.sites) - lower)
+        rows.append(row)
     out: dict[str, Any] = {
         "target": target,
-        "of": "coverable pairs",
-        "coverable_weight": coverable,
-        "count": None if found is None else len(found.sites),
-        "lower_bound": lower,
+        "of": "servable pairs",
+        "servable_weight": servable,
+        "sizes": rows,
         "method": "district",
     }
-    if found is None:
-        best = path[-1].coverage if path else 0.0
-        out["gap"] = None
+    if answer is None:
+        out.update(ris_size=None, count=None, lower_bound=None, gap=None)
         out["message"] = (
-            f"the greedy path stops at {len(path)} RISs with coverage {best:.3f}, below the"
-            f" target {goal:.3f}; at least {lower} RISs are needed"
+            f"no RIS size of the ladder reaches {target:g} × the servable {servable:.3f}"
+            " with the district search (each size's reason in 'sizes')"
         )
     else:
-        out["gap"] = len(found.sites) - (lower or 0)
+        out.update(answer)
         out["message"] = (
-            f"{len(found.sites)} RISs reach {found.coverage:.3f} ≥ {target:g} × the coverable"
-            f" {coverable:.3f}; no layout of fewer than {lower} RISs can (gap"
-            f" {out['gap']} RISs)"
+            f"{answer['count']} RISs of {answer['ris_size'][0]}×{answer['ris_size'][1]} reach"
+            f" {target:g} × the servable {servable:.3f}; no layout of that size with fewer than"
+            f" {answer['lower_bound']} RISs can (gap {answer['gap']} RISs)"
         )
     return out
+
+
+def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:
+    """The same plan with every candidate a ``rows`` × ``cols`` RIS."""
+    from dataclasses import replace
+
+    ris = inputs.document.ris.model_copy(update={"rows": rows, "cols": cols})
+    sites = [
+        replace(s, ris=s.ris.model_copy(update={"rows": rows, "cols": cols})) for s in inputs.sites
+    ]
+    return replace(inputs, sites=sites, document=inputs.document.model_copy(update={"ris": ris}))

@@ -43,6 +43,7 @@ from ris_planner.model.limits import (
     memory_terms,
     rounded,
 )
+from ris_planner.model.objectives.protocol import objective_kind
 from ris_planner.model.plan import LayoutBeamsDocument, PlanDocument, Wall, map_points
 from ris_planner.model.simulation import (
     MIN_SCATTERER_DISTANCE_M,
@@ -687,14 +688,45 @@ def validate_plan(
 ) -> PlanDocument:
     """A plan document that ``run_plan`` accepts: the model, the candidate count against
     ``ris_count``, the sizes against their limits and the job memory budget (default
-    ``RIS_PLANNER_JOB_MEMORY_MB``)."""
+    ``RIS_PLANNER_JOB_MEMORY_MB``); with ``search.method: auto`` the search the document's size
+    takes (:func:`adapted_search`)."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
+    doc, _ = adapted_search(doc)
     plan_check(doc, memory_mb)
     return doc
 
 
+def adapted_search(doc: PlanDocument) -> tuple[PlanDocument, str | None]:
+    """``search.method: auto`` on a document the enumerating searches cannot take – more
+    layouts than the search limit over the plan and its sizing runs, or a site cache above its
+    budget – becomes the district search when that plans the objective (coverage over sampled
+    or all pairs; docs/concepts/district.md): (the document, why) – else (the document, None)."""
+    if doc.search.method != "auto" or doc.pairs == "unordered":
+        return doc, None
+    kind = objective_kind(doc.objective.kind)
+    if not kind.higher_is_better or kind.screen_level(doc.objective) is None:
+        return doc, None
+    sizes = estimate_plan(doc)
+    why = None
+    if sizes.search_layouts > MAX_SEARCH_LAYOUTS:
+        why = (
+            f"the enumerating searches would score {grouped(sizes.search_layouts)} layouts,"
+            f" above the search limit of {grouped(MAX_SEARCH_LAYOUTS)}"
+        )
+    else:
+        try:
+            cache_layout(sizes.cache_entries)
+        except LimitExceededError as exc:
+            why = str(exc).split(";")[0]
+    if why is None:
+        return doc, None
+    search = doc.search.model_copy(update={"method": "district"})
+    return doc.model_copy(update={"search": search}), why
+
+
 def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
     """The cross-field and size rules of a validated plan document; its sizes."""
+    doc, _ = adapted_search(doc)
     sites = plan_sites(doc)
     if doc.ris_count is not None and max(doc.ris_count) > sites:
         raise DocumentFieldError(
