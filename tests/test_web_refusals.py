@@ -55,13 +55,11 @@ def test_an_uploaded_plan_too_large_is_refused_with_the_ris_that_fits(
     open_page(pg, server)
     pg.set_input_files(
         "#upload",
-        files=[
-            {
-                "name": "hall-512.json",
-                "mimeType": "application/json",
-                "buffer": json.dumps(big_ris_doc()).encode(),
-            }
-        ],
+        files={
+            "name": "hall-512.json",
+            "mimeType": "application/json",
+            "buffer": json.dumps(big_ris_doc()).encode(),
+        },
     )
     expect(pg.locator("#doc-name")).to_contain_text("hall-512.json")
     # the validation after the upload shows the refusal already
