@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from test_planning_points import candidates
 
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.model.scenario import Scenario
@@ -33,24 +34,9 @@ TX_POINTS = [[-1.5, 0.5, 0.0], [0.5, -1.5, 0.0], [1.0, 1.0, 0.0]]
 TX_WEIGHTS = [1.0, 2.0, 3.0]
 
 
-def ring_candidates() -> list[dict[str, Any]]:
-    """Three sites facing the centre and one facing away from most of the map."""
-    out = []
-    for k, phi in enumerate((0.3, 2.4, 4.3)):
-        out.append(
-            {
-                "position": [3.5 * math.cos(phi), 3.5 * math.sin(phi), 2.0],
-                "orientation": [phi + math.pi, 0.5, 0.0],
-                "name": f"ring {k}",
-            }
-        )
-    out.append({"position": [1.0, 0.0, 2.0], "orientation": [0.0, 0.0, 0.0], "name": "outward"})
-    return out
-
-
 def small_plan(**over: Any) -> dict[str, Any]:
     doc: dict[str, Any] = {
-        "candidates": ring_candidates(),
+        "candidates": candidates(),
         "tx_map": {"points": TX_POINTS, "weights": TX_WEIGHTS},
         "rx_map": {"grid": {"x": [-2, 2, 1], "y": [-2, 2, 1], "z": [0, 0, 1]}},
         "objective": {"kind": "coverage", "metric": "rx", "threshold_m": THRESHOLD_M},
