@@ -201,3 +201,12 @@ def test_rest_plan_job_runs_the_district_search(tmp_path: Path) -> None:
         assert [e["ris_count"] for e in plan["by_count"]] == [2, 3]
         assert all(e["upper_bound"] >= e["objective"] for e in plan["by_count"])
         assert "district" in view["figures"]
+
+
+def test_the_relaxations_layout_keeps_the_constraints() -> None:
+    """Largest z first, the required sites kept, the excluded and conflicting ones skipped."""
+    z = np.array([0.9, 0.8, 0.7, 0.6, 0.5])
+    conflict = np.zeros((5, 5), dtype=bool)
+    conflict[0, 1] = conflict[1, 0] = True  # one mounting point
+    assert dist.rounded_layout(z, 3, (4,), (2,), conflict) == (0, 3, 4)
+    assert dist.rounded_layout(z, 5, (), (2,), conflict) == (0, 3, 4)  # runs out: fewer

@@ -740,9 +740,20 @@ def coverage_upper_bound(
 ) -> float:
     """An upper bound on the coverage of every layout of ``count`` sites (the relaxation of
     :func:`_relaxation`; ``needs`` from :func:`sites_needed`)."""
+    return relaxed_coverage(problem, count, needs, required, excluded)[0]
+
+
+def relaxed_coverage(
+    problem: DistrictProblem,
+    count: int,
+    needs: Needs,
+    required: tuple[int, ...] = (),
+    excluded: tuple[int, ...] = (),
+) -> tuple[float, FloatArray]:
+    """(:func:`coverage_upper_bound`, the relaxation's site weights z [S])."""
     a, n_var, live = _relaxation(problem, needs)
     if live.size == 0:
-        return 0.0
+        return 0.0, np.zeros(problem.n_sites)
     eq = np.zeros(n_var)
     eq[: problem.n_sites] = 1.0
     res = linprog(
@@ -757,7 +768,35 @@ def coverage_upper_bound(
     if res.status != 0:
         raise RisPlannerError(f"coverage relaxation failed: {res.message}")
     # HiGHS' optimum to its feasibility tolerance: pad by it so the bound stays a bound
-    return float(min(1.0, -res.fun + LP_PAD))
+    return float(min(1.0, -res.fun + LP_PAD)), np.asarray(res.x[: problem.n_sites])
+
+
+def rounded_layout(
+    z: FloatArray,
+    count: int,
+    required: tuple[int, ...],
+    excluded: tuple[int, ...],
+    conflict: BoolArray | None,
+) -> tuple[int, ...]:
+    """The relaxation's layout: the required sites, then the sites of largest z that conflict
+    with none taken, up to ``count`` (fewer when the allowed sites run out)."""
+    taken = list(required)
+    banned = np.zeros(z.size, dtype=bool)
+    banned[list(excluded)] = True
+    banned[taken] = True
+    for r in taken:
+        if conflict is not None:
+            banned |= conflict[r]
+    for s in np.argsort(-z, kind="stable").tolist():
+        if len(taken) >= count:
+            break
+        if banned[s]:
+            continue
+        taken.append(s)
+        banned[s] = True
+        if conflict is not None:
+            banned |= conflict[s]
+    return tuple(sorted(taken))
 
 
 def count_lower_bound(
@@ -863,7 +902,12 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         if step is None:
             continue  # the path stopped: no site adds information
         layout, cov = improve(problem, step.sites, required, excluded, conflict=conflict)
-        ub = coverage_upper_bound(problem, c, needs, required, excluded)
+        ub, z = relaxed_coverage(problem, c, needs, required, excluded)
+        rounded = rounded_layout(z, c, required, excluded, conflict)
+        if len(rounded) == c:  # the relaxation's own layout, improved the same way
+            other, other_cov = improve(problem, rounded, required, excluded, conflict=conflict)
+            if other_cov > cov + GAIN_TIE:
+                layout, cov = other, other_cov
         by_count.append(
             {
                 "ris_count": c,
