@@ -157,6 +157,7 @@ REGISTRARS: dict[str, tuple[str, ...]] = {
     "ris_planner.cli.app:_add_core": ("bounds", "schema"),
     "ris_planner.cli.power:add_cli": ("power",),
     "ris_planner.cli.plan:add_cli": ("plan",),
+    "ris_planner.cli.city:add_cli": ("city",),
     "ris_planner.cli.estimate:add_cli": ("simulate", "blind-area"),
     "ris_planner.cli.geo:add_cli": ("import", "sites"),
     "ris_planner.cli.app:_add_serve": ("serve",),
