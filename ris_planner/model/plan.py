@@ -16,7 +16,7 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
@@ -597,11 +597,40 @@ def _kind_schema(schema: dict[str, Any]) -> None:
     schema["enum"] = list(_objective_kinds())
 
 
+def _own_parameters() -> dict[str, list[str]]:
+    """The parameters registered kinds name themselves (no field of :class:`Objective`), each
+    with the kinds that take it."""
+    own: dict[str, list[str]] = {}
+    for name in _objective_kinds():
+        param = objective_kind(name).parameter
+        if param is not None and param not in Objective.model_fields:
+            own.setdefault(param, []).append(name)
+    return own
+
+
+def _objective_schema(schema: dict[str, Any]) -> None:
+    """``objective``'s JSON schema: its fields, the registered kinds' own parameters, nothing
+    else (the block accepts a kind's own parameter and refuses any other unknown field)."""
+    props = schema.setdefault("properties", {})
+    for param, kinds in _own_parameters().items():
+        props[param] = {
+            "type": "number",
+            "exclusiveMinimum": 0,
+            "title": param,
+            "description": " ".join(f"{k}: {objective_kind(k).parameter_label}" for k in kinds),
+        }
+    schema["additionalProperties"] = False
+
+
 class Objective(DocumentModel):
     """What a layout is scored on, over the weighted pairs. ``metric``: ``rx`` (PEB_R), ``tx``
     (PEB_T) or ``max`` (max(PEB_T, PEB_R)), in metres. Blind spots (infinite bounds) fail:
     outside the coverage, at the cap, and at the top of the quantile. ``kind`` names a
-    registered objective (:mod:`ris_planner.model.objectives`, docs/concepts/scoring.md)."""
+    registered objective (:mod:`ris_planner.model.objectives`, docs/concepts/scoring.md); a
+    kind whose parameter is none of the fields below names its own, which the block then
+    accepts (docs/guides/adding-an-objective.md)."""
+
+    model_config = ConfigDict(extra="allow", json_schema_extra=_objective_schema)
 
     kind: str = Field(
         description="coverage: weighted fraction with bound ≤ threshold_m (higher is better);"
@@ -634,7 +663,14 @@ class Objective(DocumentModel):
     def _check_params(self) -> Objective:
         spec = objective_kind(self.kind)
         need = spec.parameter
-        if need is not None and getattr(self, need) is None:
+        for key, value in (self.__pydantic_extra__ or {}).items():
+            if key != need:
+                raise ValueError(
+                    f"objective.{key}: extra inputs are not permitted (objective kind"
+                    f" {self.kind!r} takes {need or 'no parameter'})"
+                )
+            spec.check_parameter(value)
+        if need is not None and getattr(self, need, None) is None:
             raise ValueError(f"objective kind {self.kind!r} needs {need}")
         if self.target is not None:
             if spec.higher_is_better:
@@ -860,8 +896,8 @@ class ValidationSpec(DocumentModel):
         None,
         gt=0,
         allow_inf_nan=False,
-        description="Error threshold of the coverage [m]; default the objective's threshold_m"
-        " (coverage) or cap_m (mean_capped)",
+        description="Error threshold of the coverage [m]; default the objective kind's check"
+        " level (its threshold or cap; an objective without one needs it)",
     )
 
     @model_validator(mode="after")

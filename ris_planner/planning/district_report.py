@@ -10,10 +10,21 @@ from typing import Any
 
 import numpy as np
 
+from ris_planner.model.objectives import objective_kind
+from ris_planner.model.plan import Objective
 from ris_planner.planning.inputs import PlanInputs
 
 FIGURE_DPI = 120
 """Resolution of district.png."""
+
+
+def _level_axis(objective: dict[str, Any]) -> str:
+    """The y label: the objective kind's label and its screen level (the coverage threshold a
+    district plan searches at)."""
+    spec = Objective.model_validate(objective)
+    kind = objective_kind(spec.kind)
+    level = kind.screen_level(spec)
+    return kind.label + (f" (PEB ≤ {level:g} m)" if level is not None else "")
 
 
 def district_figure(plan: dict[str, Any], out_dir: Path, inputs: PlanInputs) -> dict[str, Path]:
@@ -44,7 +55,7 @@ def district_figure(plan: dict[str, Any], out_dir: Path, inputs: PlanInputs) -> 
     if "sizing" in plan:
         ax.axhline(plan["sizing"]["target"] * coverable, color="C1", ls=":", label="sizing target")
     ax.set_xlabel("RIS count")
-    ax.set_ylabel(f"coverage (PEB ≤ {plan['objective'].get('threshold_m', '')} m)")
+    ax.set_ylabel(_level_axis(plan["objective"]))
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)

@@ -355,15 +355,18 @@ def _metric(doc_metric: str, e_tx: float, e_rx: float) -> float:
 
 
 def threshold_of(doc: PlanDocument) -> float:
-    """The coverage threshold: ``validation.threshold_m``, else the objective's
-    ``threshold_m`` (coverage) or ``cap_m`` (mean_capped)."""
+    """The coverage threshold: ``validation.threshold_m``, else the objective kind's
+    :meth:`~ris_planner.model.objectives.protocol.ObjectiveKind.check_level` (its threshold or
+    cap)."""
+    from ris_planner.planning.objectives import objective_kind
+
     spec = doc.validation
     assert spec is not None
     obj = doc.objective
-    value = spec.threshold_m or obj.threshold_m or obj.cap_m
+    value = spec.threshold_m or objective_kind(obj.kind).check_level(obj)
     if value is None:
         raise RisPlannerError(
-            "validation.threshold_m: a quantile objective has no threshold; give one (metres)"
+            f"validation.threshold_m: a {obj.kind} objective has no threshold; give one (metres)"
         )
     return float(value)
 

@@ -31,6 +31,7 @@ from ris_planner.planning.maps import PairSet, PointMap
 from ris_planner.planning.objectives import (
     Scorer,
     objective_from_loss,
+    objective_kind,
     objective_value,
     weighted_quantile,
 )
@@ -278,7 +279,7 @@ class PlanResult:
         return {
             "dropped_points": dict(self.dropped_points or {"tx": 0, "rx": 0}),
             "objective": doc.objective.model_dump(),
-            "objective_better": "higher" if doc.objective.kind == "coverage" else "lower",
+            "objective_better": objective_kind(doc.objective.kind).better,
             "layouts": [summ.stats[lay] for _, _, lay in top],
             "by_count": by_count,
             "candidates": [
@@ -323,7 +324,7 @@ class PlanResult:
             gap = 0.0 if c.exact or best_loss == c.loss_bound else best_loss - c.loss_bound
             cert = {
                 "objective_bound": _num(objective_from_loss(obj, c.loss_bound)),
-                "bound_side": "upper" if obj.kind == "coverage" else "lower",
+                "bound_side": objective_kind(obj.kind).bound_side,
                 "gap": _num(gap),
                 "relative_gap": 0.0 if gap == 0 else _relative(gap, c.loss_bound),
                 "exact": bool(c.exact or gap == 0),

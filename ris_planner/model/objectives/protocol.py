@@ -14,11 +14,18 @@ name with :func:`register`. Every other module of the planner reaches it through
 * :meth:`ObjectiveKind.reference_level` – the bound a pair must reach to count (threshold or cap)
   and :meth:`ObjectiveKind.screen_level`, the level of the scorer's coverage screen (a pair
   proven above it is settled without its full bound; ``None``: no screen);
+* :meth:`ObjectiveKind.check_level` – the bound a pair must reach to count as covered in the
+  estimator check (``validation``; ``None``: the document gives ``validation.threshold_m``);
+* :attr:`ObjectiveKind.better` and :attr:`ObjectiveKind.bound_side` – the direction words of
+  plan.json (``objective_better``, a certificate's ``bound_side``);
 * :meth:`ObjectiveKind.search_tiebreak` – how the search orders layouts whose losses are all
   infinite (default: more pairs with a finite bound first).
 
 The document's parameters (``threshold_m``, ``cap_m``, ``q``, ``target``) are read from the
-validated :class:`ris_planner.model.plan.Objective` passed as ``spec``.
+validated :class:`ris_planner.model.plan.Objective` passed as ``spec``; a kind may also name a
+parameter of its own (:attr:`ObjectiveKind.parameter`), which the ``objective`` block then
+accepts and :meth:`ObjectiveKind.parameter_value` reads (checked by
+:meth:`ObjectiveKind.check_parameter`).
 """
 
 from __future__ import annotations
@@ -74,6 +81,29 @@ class ObjectiveKind:
         return "higher" if self.higher_is_better else "lower"
 
     @property
+    def bound_side(self) -> str:
+        """Which side of the best objective a certificate's ``objective_bound`` lies on:
+        ``"upper"`` (no layout does better than it, higher is better) or ``"lower"``."""
+        return "upper" if self.higher_is_better else "lower"
+
+    def parameter_value(self, spec: Objective) -> float | None:
+        """The document's value of :attr:`parameter` (None without one): a field of the
+        ``objective`` block, a shipped one or the kind's own."""
+        if self.parameter is None:
+            return None
+        value = getattr(spec, self.parameter, None)
+        return None if value is None else float(value)
+
+    def check_parameter(self, value: Any) -> float:
+        """Validate the value of a parameter the kind names itself (one that is no field of
+        :class:`ris_planner.model.plan.Objective`): default, a finite number > 0."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"{self.parameter} must be a number, got {value!r}")
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{self.parameter} must be a finite number > 0, got {value!r}")
+        return float(value)
+
+    @property
     def unit_suffix(self) -> str:
         """`` [m]`` (the unit for an axis label), or ``""`` for a fraction."""
         return f" [{self.unit}]" if self.unit else ""
@@ -117,6 +147,12 @@ class ObjectiveKind:
         scorer's coverage screen proves pairs above it and skips their full bound); None:
         every value counts, no screen."""
         return None
+
+    def check_level(self, spec: Objective) -> float | None:
+        """The bound [m] a pair must reach to count as covered in the estimator check
+        (``validation``): default the screen level (the threshold or the cap); None: the
+        objective has no such level and the document must give ``validation.threshold_m``."""
+        return self.screen_level(spec)
 
     def level_label(self, spec: Objective) -> tuple[float | None, str]:
         """(the bound level drawn on the per-point maps, or None for the best layout's value

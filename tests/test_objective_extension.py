@@ -1,0 +1,140 @@
+"""An objective kind registered only here – higher is better, with a parameter of its own that
+no shipped kind uses – runs end to end through every module that reads the objective: the
+document, the plan (plan.json's direction words and certificate), the GIS export and the
+estimator check (docs/guides/adding-an-objective.md)."""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+from test_estimator_check import table1_plan
+
+from ris_planner.io.export import plan_outputs
+from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
+from ris_planner.planning.objectives import ObjectiveKind, objective_kind, register, unregister
+
+LIMIT_M = 0.1
+
+
+class SquaredShare(ObjectiveKind):
+    """Toy: the squared weighted fraction of pairs whose bound is ≤ ``limit_m`` (higher is
+    better, monotone in every pair's bound)."""
+
+    name = "toy_squared_share"
+    label = "squared share"
+    parameter = "limit_m"
+    parameter_label = "Limit on the bound [m]"
+    higher_is_better = True
+    unit = ""
+    max_value = 1.0
+
+    def _limit(self, spec: Any) -> float:
+        value = self.parameter_value(spec)
+        assert value is not None
+        return value
+
+    def value(self, spec: Any, metric: Any, weights: Any) -> Any:
+        return ((metric <= self._limit(spec)) * weights).sum(axis=1) ** 2
+
+    def reference_level(self, spec: Any) -> float:
+        return self._limit(spec)
+
+    def screen_level(self, spec: Any) -> float | None:
+        return self._limit(spec)
+
+
+@pytest.fixture
+def toy() -> Iterator[ObjectiveKind]:
+    kind = register(SquaredShare())
+    try:
+        yield kind
+    finally:
+        unregister(kind.name)
+
+
+def toy_document(name: str, **validation: Any) -> dict[str, Any]:
+    doc = table1_plan(validation)
+    doc["objective"] = {"kind": name, "metric": "rx", "limit_m": LIMIT_M}
+    return doc
+
+
+def test_the_document_takes_the_kinds_own_parameter(toy: ObjectiveKind) -> None:
+    doc = PlanDocument.model_validate(toy_document(toy.name))
+    assert toy.parameter_value(doc.objective) == LIMIT_M
+    assert doc.objective.model_dump()["limit_m"] == LIMIT_M
+    with pytest.raises(ValidationError, match="needs limit_m"):
+        PlanDocument.model_validate({**toy_document(toy.name), "objective": {"kind": toy.name}})
+    bad = {"kind": toy.name, "limit_m": -1.0}
+    with pytest.raises(ValidationError, match="limit_m must be a finite number > 0"):
+        PlanDocument.model_validate({**toy_document(toy.name), "objective": bad})
+    # another kind does not take it, and the toy takes no other unknown field
+    other = {"kind": "coverage", "threshold_m": 1.0, "limit_m": 1.0}
+    with pytest.raises(ValidationError, match=r"objective\.limit_m: extra inputs"):
+        PlanDocument.model_validate({**toy_document(toy.name), "objective": other})
+    extra = {"kind": toy.name, "limit_m": 1.0, "limits_m": 1.0}
+    with pytest.raises(ValidationError, match=r"objective\.limits_m: extra inputs"):
+        PlanDocument.model_validate({**toy_document(toy.name), "objective": extra})
+    props = PlanDocument.model_json_schema()["$defs"]["Objective"]
+    assert "limit_m" in props["properties"] and props["additionalProperties"] is False
+
+
+def test_a_higher_is_better_toy_runs_plan_export_and_estimator_check(
+    toy: ObjectiveKind, tmp_path: Path
+) -> None:
+    result = run_plan(toy_document(toy.name, pairs=1, draws=2), executor=SerialExecutor())
+    plan = result.to_json()
+    assert plan["objective"] == {**plan["objective"], "kind": toy.name, "limit_m": LIMIT_M}
+    assert plan["objective_better"] == "higher"
+    (count,) = plan["by_count"]
+    best = count["top_layouts"][0]
+    assert 0.0 <= best["objective"] <= 1.0
+    cert = count["certificate"]
+    if cert is not None:
+        assert cert["bound_side"] == "upper"
+        if cert["objective_bound"] is not None:
+            assert cert["objective_bound"] >= best["objective"] - 1e-12
+    # the same document through a plan.json round trip validates (the parameter is kept)
+    PlanDocument.model_validate({**toy_document(toy.name), "objective": plan["objective"]})
+    # the GIS export of the local document
+    files = plan_outputs(result, plan, toy_document(toy.name), tmp_path)
+    fc = json.loads(files["geojson"].read_text())
+    assert fc["type"] == "FeatureCollection" and fc["features"]
+    # the estimator check counts a pair as covered at the kind's level
+    v = plan["validation"]
+    assert v["threshold_m"] == LIMIT_M and v["pairs"] == 1
+    assert v["layouts"] and all(np.isfinite(p["bound_m"]) for p in v["layouts"][0]["pairs"])
+
+
+def test_shipped_kinds_direction_and_check_level() -> None:
+    cov, cap, qua = (objective_kind(n) for n in ("coverage", "mean_capped", "quantile"))
+    assert (cov.better, cov.bound_side) == ("higher", "upper")
+    assert (cap.better, cap.bound_side) == ("lower", "lower")
+    assert (qua.better, qua.bound_side) == ("lower", "lower")
+    doc = PlanDocument.model_validate(
+        {**toy_document("coverage"), "objective": {"kind": "quantile", "q": 0.5}}
+    )
+    assert qua.check_level(doc.objective) is None
+
+
+def test_the_guide_cites_existing_modules() -> None:
+    root = Path(__file__).resolve().parent.parent
+    page = (root / "docs/guides/adding-an-objective.md").read_text(encoding="utf-8")
+    cited = set(re.findall(r"`((?:ris_planner|api|tests)/[\w/]+\.py)`", page))
+    assert len(cited) >= 10
+    missing = sorted(p for p in cited if not (root / p).is_file())
+    assert not missing, f"docs/guides/adding-an-objective.md cites missing files: {missing}"
+    protocol = (root / "ris_planner/model/objectives/protocol.py").read_text(encoding="utf-8")
+    # the protocol members it names: the table's first column and every `name(...)` call
+    members = set(re.findall(r"^\| `(\w+)`", page, flags=re.M))
+    members |= set(re.findall(r"`(\w+)\(", page)) - {"MyKind"}
+    unknown = sorted(
+        m for m in members if not re.search(rf"^\s*def {m}\(|^\s+{m}: ", protocol, flags=re.M)
+    )
+    assert len(members) >= 15 and not unknown, unknown
