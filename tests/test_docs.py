@@ -29,8 +29,17 @@ def _mkdocs_or_skip() -> None:
         pytest.skip(message)
 
 
-API_PAGES = ("ris_planner", "model", "bounds", "planning", "power", "estimation", "environment",
-             "io", "runtime")
+API_PAGES = (
+    "ris_planner",
+    "model",
+    "bounds",
+    "planning",
+    "power",
+    "estimation",
+    "environment",
+    "io",
+    "runtime",
+)
 SPHINX_ROLE = re.compile(r":(?:py:)?(?:func|class|mod|meth|attr|data|exc|obj):")
 
 
@@ -85,7 +94,8 @@ def test_python_api_is_a_reference(site: Path) -> None:
     assert 'id="ris_planner.power.run_power"' in texts["power"]
     assert 'id="ris_planner.planning.run_plan"' in texts["planning"]
     # separate signatures with their annotations (the return type of compute_bounds)
-    assert "doc-signature" in top and "BoundsResult" in top.split('id="ris_planner.compute_bounds"')[1]
+    signature = top.split('id="ris_planner.compute_bounds"')[1]
+    assert "doc-signature" in signature and "BoundsResult" in signature
     # numpy sections: BoundsResult's attribute descriptions are descriptions, not types
     attributes = top.split('id="ris_planner.BoundsResult"')[1].split('id="ris_planner.')[0]
     rows = re.findall(r'<tr class="doc-section-item">(.*?)</tr>', attributes, flags=re.S)

@@ -45,11 +45,11 @@ TYPE_LIKE = re.compile(
 def _lookup(obj: Object | Alias, path: str) -> Object | Alias | None:
     try:
         return obj.modules_collection.get_member(path)  # type: ignore[no-any-return]
-    except Exception:  # noqa: BLE001 - any failure means "not found"
+    except Exception:
         pass
     try:
         return obj.modules_collection[path]  # type: ignore[no-any-return]
-    except Exception:  # noqa: BLE001
+    except Exception:
         return None
 
 
@@ -64,7 +64,7 @@ def _resolve(obj: Object, name: str) -> str | None:
     while scope is not None:
         try:
             full = scope.resolve(head)
-        except Exception:  # noqa: BLE001
+        except Exception:
             full = None
         if full:
             candidates.append(full + ("." + rest if rest else ""))
@@ -134,7 +134,7 @@ def _brackets(text: str) -> str:
 class SphinxToMarkdown(Extension):
     """Rewrites the docstrings of a loaded package (see the module docstring)."""
 
-    def on_package(self, *, pkg: Module, loader: GriffeLoader, **kwargs: Any) -> None:  # noqa: ARG002
+    def on_package(self, *, pkg: Module, loader: GriffeLoader, **kwargs: Any) -> None:
         seen: set[int] = set()
         stack: list[Object] = [pkg]
         while stack:
