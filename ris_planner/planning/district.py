@@ -90,7 +90,7 @@ LOOKAHEAD = 8
 LOOKAHEAD_ALL = 64
 """Up to this many candidates a greedy step tries every site as the first of a pair."""
 
-PAIR_SWAP_TRIALS = 4096
+PAIR_SWAP_TRIALS = 512
 """The swap pass also exchanges two layout sites for the best pair while that takes at most
 this many first-site trials (small layouts; a district's tens of RISs skip it)."""
 
