@@ -8,6 +8,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
+from dask_cluster import local_cluster
 from district_site import street_doc
 
 from ris_planner.model.plan import PlanDocument
@@ -39,16 +40,7 @@ def test_city_on_a_dask_cluster_equals_the_serial_plan() -> None:
     distributed = pytest.importorskip("distributed")
     parts = split_city(street_doc(counts=(2,), sample=300), CELL_M)
     here = plan_city(parts, SerialExecutor())
-    with (
-        distributed.LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-        ) as cluster,
-        DaskExecutor(distributed.Client(cluster)) as ex,
-    ):
+    with local_cluster() as cluster, DaskExecutor(distributed.Client(cluster)) as ex:
         there = plan_city(parts, ex)
         ex.client.close()
     assert [d["district"] for d in here["districts"]] == [d["district"] for d in there["districts"]]

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from dask_cluster import local_cluster
 from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.planning import DaskExecutor, LocalExecutor, SerialExecutor, run_plan
@@ -39,16 +40,7 @@ def test_dask_local_cluster_gives_identical_ranking() -> None:
     distributed = pytest.importorskip("distributed")
     doc = small_plan()
     local = run_plan(doc, executor=SerialExecutor())
-    with (
-        distributed.LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-        ) as cluster,
-        DaskExecutor(distributed.Client(cluster)) as ex,
-    ):
+    with local_cluster() as cluster, DaskExecutor(distributed.Client(cluster)) as ex:
         remote = run_plan(doc, executor=ex)
         ex.client.close()
     # the workers are other processes: layouts exactly, scores to the bounds' accuracy
@@ -137,7 +129,7 @@ def test_cluster_tasks_carry_only_their_site_block() -> None:
 def test_service_setting_sends_plan_jobs_to_dask(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    distributed = pytest.importorskip("distributed")
+    pytest.importorskip("distributed")
     from pydantic import ValidationError
 
     from api.kinds import plan_job
@@ -147,13 +139,7 @@ def test_service_setting_sends_plan_jobs_to_dask(
         Settings(dask_scheduler="not a url")
     doc = small_plan()
     local = run_plan(doc, executor=SerialExecutor()).to_json()
-    with distributed.LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address="127.0.0.1:0",
-    ) as cluster:
+    with local_cluster() as cluster:
         monkeypatch.setenv("RIS_PLANNER_DASK_SCHEDULER", cluster.scheduler_address)
         out = plan_job(doc, lambda f, m: None, tmp_path)
         prefixes = set(cluster.scheduler.task_prefixes)
