@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from typing import Any
 
 import httpx
@@ -200,8 +201,24 @@ def test_add_mode_adds_one_site_over_others(
     shots.take(pg, "map-02-added-over-sites", full_page=False)
 
 
+def settle(pg: Page) -> None:
+    """Wait out the page's automatic validation after an edit (a 300 ms debounce, then the
+    request and a redraw of the markers), so no redraw replaces a marker under the pointer."""
+    pg.wait_for_timeout(400)
+    expect(pg.locator("#validation-status")).to_have_text(re.compile(r"^Valid: "))
+
+
 def drag(pg: Page, src: tuple[float, float], dst: tuple[float, float]) -> None:
-    pg.mouse.move(*screen_of(pg, *src))
+    settle(pg)
+    x, y = screen_of(pg, *src)
+    pg.mouse.move(x, y)
+    # an editable site's marker is under the pointer (not the map, which would pan)
+    pg.wait_for_function(
+        "([x, y]) => { const e = document.elementFromPoint(x, y);"
+        " return Boolean(e && e.closest('.leaflet-marker-icon.editable')); }",
+        arg=[x, y],
+        timeout=5000,
+    )
     pg.mouse.down()
     pg.mouse.move(*screen_of(pg, *dst), steps=8)
     pg.mouse.up()
