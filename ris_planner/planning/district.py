@@ -57,7 +57,7 @@ from ris_planner.model.objectives.protocol import objective_kind
 from ris_planner.model.plan import MAX_DISTRICT_RIS
 from ris_planner.physics import fim
 from ris_planner.planning.inputs import PlanInputs
-from ris_planner.planning.visibility import serve_matrix
+from ris_planner.planning.visibility import pair_visibility
 from ris_planner.runtime.blas import one_blas_thread
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
@@ -178,13 +178,14 @@ def build_problem(
     k = len(kept)
     with one_blas_thread():
         if like is None:
-            # [S, M] per distinct map point: the pairs' serving sites by two gathers
-            serve_t = _serves(inputs, pairs.tx, pairs.tx_index)
-            serve_r = _serves(inputs, pairs.rx, pairs.rx_index)
-            entry_pair, entry_site = np.nonzero(serve_t & serve_r)  # of [P, S]
-            del serve_t, serve_r
+            # per distinct map point and site, then gathered per pair (the site cache's rule)
+            vis = pair_visibility(inputs.scene, sites, pairs, system.los)
+            entry_pair, entry_site = np.nonzero(vis.present.T)  # pair-major
+            los_clear_pairs = vis.los
+            del vis
         else:
             entry_pair, entry_site = like.entry_pair, like.entry_site
+            los_clear_pairs = like.los_present
         progress(0.3, "visibility")
         pair_start = np.searchsorted(entry_pair, np.arange(pairs.size + 1))
         radio = fim.Radio.from_system(system)
@@ -195,11 +196,8 @@ def build_problem(
         los_factor = np.zeros((pairs.size, 1, k))
         grad = None
         if system.los:
-            from ris_planner.bounds.paths import los_clear
-
-            los_present = (
-                los_clear(inputs.scene, pairs.tx, pairs.rx) if like is None else like.los_present
-            )
+            assert los_clear_pairs is not None
+            los_present = los_clear_pairs
             info = los_path_information(pairs.tx, pairs.rx, radio, float(g))
             grad = los_gradient(info).copy()
             if referenced:
@@ -260,12 +258,6 @@ def build_problem(
         by_site,
         site_start,
     )
-
-
-def _serves(inputs: PlanInputs, positions: FloatArray, index: IntArray) -> BoolArray:
-    """[P, S] whether each site serves each pair's UE, evaluated once per distinct map point."""
-    _, first, inverse = np.unique(index, return_index=True, return_inverse=True)
-    return serve_matrix(inputs.scene, inputs.sites, positions[first]).T[inverse.ravel()]
 
 
 def entry_metric(

@@ -691,22 +691,23 @@ def validate_plan(
     ``RIS_PLANNER_JOB_MEMORY_MB``); with ``search.method: auto`` the search the document's size
     takes (:func:`adapted_search`)."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
-    doc, _ = adapted_search(doc)
-    plan_check(doc, memory_mb)
-    return doc
+    return _checked(doc, memory_mb)[0]
 
 
-def adapted_search(doc: PlanDocument) -> tuple[PlanDocument, str | None]:
+def adapted_search(
+    doc: PlanDocument, sizes: Sizes | None = None
+) -> tuple[PlanDocument, str | None]:
     """``search.method: auto`` on a document the enumerating searches cannot take – more
     layouts than the search limit over the plan and its sizing runs, or a site cache above its
     budget – becomes the district search when that plans the objective (coverage over sampled
-    or all pairs; docs/concepts/district.md): (the document, why) – else (the document, None)."""
+    or all pairs; docs/concepts/district.md): (the document, why) – else (the document, None).
+    ``sizes``: the document's :func:`estimate_plan`, when the caller has it."""
     if doc.search.method != "auto" or doc.pairs == "unordered":
         return doc, None
     kind = objective_kind(doc.objective.kind)
     if not kind.higher_is_better or kind.screen_level(doc.objective) is None:
         return doc, None
-    sizes = estimate_plan(doc)
+    sizes = estimate_plan(doc) if sizes is None else sizes
     why = None
     if sizes.search_layouts > MAX_SEARCH_LAYOUTS:
         why = (
@@ -725,8 +726,14 @@ def adapted_search(doc: PlanDocument) -> tuple[PlanDocument, str | None]:
 
 
 def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
-    """The cross-field and size rules of a validated plan document; its sizes."""
-    doc, _ = adapted_search(doc)
+    """The cross-field and size rules of a validated plan document (with the search its size
+    takes, :func:`adapted_search`); its sizes."""
+    return _checked(doc, memory_mb)[1]
+
+
+def _checked(doc: PlanDocument, memory_mb: int | None) -> tuple[PlanDocument, Sizes]:
+    """:func:`plan_check`'s rules: (the document with the search its size takes, its sizes),
+    each estimated once."""
     sites = plan_sites(doc)
     if doc.ris_count is not None and max(doc.ris_count) > sites:
         raise DocumentFieldError(
@@ -734,6 +741,9 @@ def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
             f"ris_count {max(doc.ris_count)} exceeds the {sites} candidate sites",
         )
     sizes = estimate_plan(doc)
+    doc, why = adapted_search(doc, sizes)
+    if why is not None:
+        sizes = estimate_plan(doc)
     shape = largest_plan_shape(doc)
     check_sizes(
         sizes,
@@ -742,7 +752,7 @@ def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
         explain=lambda budget: explain_plan_memory(shape, budget),
     )
     check_validation_scatterers(doc)
-    return sizes
+    return doc, sizes
 
 
 def check_validation_scatterers(doc: PlanDocument) -> None:
