@@ -24,7 +24,7 @@ from ris_planner.model.limits import prescan_document
 from ris_planner.model.plan import LayoutBeamsDocument
 from ris_planner.model.scenario import Scenario
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.resources import plan_check
+from ris_planner.planning.resources.admission import plan_check
 
 Longitude = Annotated[float, Field(ge=-180, le=180, description="Longitude [deg]")]
 Latitude = Annotated[
@@ -143,7 +143,8 @@ def json_document(body: bytes) -> Any:
 def local_plan(document: Any, memory_mb: int) -> tuple[PlanDocument, Frame | None]:
     """A plan document as sent → (the validated local document, its frame): converted at the
     boundary, validated (422 naming the field), sizes checked against their limits and the
-    job memory budget (413) – :func:`ris_planner.planning.resources.plan_check`, as ``ris-planner
+    job memory budget (413) – :func:`ris_planner.planning.resources.admission.plan_check`, as
+    ``ris-planner
     plan`` and the job itself."""
     local, frame = to_local(document)
     plan = PlanDocument.model_validate(local)

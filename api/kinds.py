@@ -46,7 +46,7 @@ def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Pat
     from ris_planner.power import run_power
 
     if "layout" in document:
-        from ris_planner.planning.beam_design import run_layout_beams
+        from ris_planner.planning.beams import run_layout_beams
 
         return JobOutput(run_layout_beams(to_local(document["layout"])[0], progress))
 

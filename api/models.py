@@ -136,7 +136,8 @@ class BoundsResponse(BaseModel):
 
 class ResourceEstimate(BaseModel):
     """A plan's resources estimated from its document before any work
-    (:func:`ris_planner.planning.work.plan_estimate`; docs/validation/resources.md)."""
+    (:func:`ris_planner.planning.resources.time_estimate.plan_estimate`;
+    docs/validation/resources.md)."""
 
     time_s: float = Field(ge=0, description="Estimated wall time of the run [s]")
     memory_mib: float = Field(ge=0, description="Estimated peak resident memory [MiB]")

@@ -78,7 +78,7 @@ PRELOAD_MODULES = [
     # the package loads its names on first use: what a plan job runs, preloaded here
     "ris_planner.io.geoplan",
     "ris_planner.planning.pipeline",
-    "ris_planner.planning.report",
+    "ris_planner.planning.outputs.report",
     "ris_planner.power.report",
     *WORKER_MODULES,
     "api.preload",

@@ -19,7 +19,7 @@ import numpy as np
 
 from ris_planner.environment import Scene
 from ris_planner.planning import SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.beam_design import (
+from ris_planner.planning.beams import (
     design_beams,
     design_positions,
     evaluate_layout_beams,

@@ -176,9 +176,9 @@ def quality(n_cases: int) -> None:
     sys.path.insert(0, str(ROOT / "tests"))
     from district_site import street_doc
 
-    from ris_planner.planning import district as dist
-    from ris_planner.planning.inputs import prepare_plan
     from ris_planner.planning.pipeline import run_plan
+    from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.search import district as dist
 
     rng = np.random.default_rng(7)
     within, blind_miss, total, worst = 0, 0, 0, 0.0

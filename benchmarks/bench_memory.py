@@ -1,4 +1,5 @@
-"""The plan's memory estimate (:func:`ris_planner.planning.resources.estimate_plan`) against the
+"""The plan's memory estimate (:func:`ris_planner.planning.resources.admission.estimate_plan`)
+against the
 measured
 peak resident memory of the same plan, case by case (docs/validation/resources.md).
 
@@ -8,7 +9,8 @@ Each case is a plan document (candidates on a ring facing grid UE maps, the shap
 files) in a fresh Python process, whose peak resident set (``VmHWM``) is read at its end; the
 estimate is computed in the same process, with the same site-cache budget, before the run. A
 case passes when 1 ≤ estimate / peak ≤ 2 for the memory and 1 ≤ estimate / measured ≤ 2 for the
-time (:func:`ris_planner.planning.work.time_estimate`; the time needs a quiet machine).
+time (:func:`ris_planner.planning.resources.time_estimate.time_estimate`; the time needs a quiet
+machine).
 
     python benchmarks/bench_memory.py            # the full table (a few minutes)
     python benchmarks/bench_memory.py --smoke    # three tiny cases (< 60 s)
@@ -59,7 +61,8 @@ class Case:
     """RX grid points per axis when they differ from ``grid`` (a large heatmap)."""
     search: str = "greedy"
     """``greedy`` (few rounds) or ``auto`` (exhaustive here: the checks run on their thread
-    beside the fields and the figures, :func:`ris_planner.planning.work.checks_beside`)."""
+    beside the fields and the figures,
+    :func:`ris_planner.planning.resources.time_estimate.checks_beside`)."""
 
 
 SMOKE = [
@@ -149,9 +152,9 @@ from ris_planner.io.candidates import in_document_coordinates
 from ris_planner.io.frames import to_local
 from ris_planner.io.geoplan import plan_document
 from ris_planner.model.limits import cache_layout
-from ris_planner.planning.resources import estimate_plan, largest_plan_shape, plan_memory
+from ris_planner.planning.resources.admission import estimate_plan, largest_plan_shape, plan_memory
 from ris_planner.planning import PlanDocument, SerialExecutor
-import ris_planner.planning.search as search_module
+import ris_planner.planning.search.layouts as search_module
 sys.path.insert(0, sys.argv[2])
 from bench_memory import Case, case_document, variant_document
 if "case" in spec:
@@ -165,7 +168,7 @@ parsed = PlanDocument.model_validate(local)
 sizes = estimate_plan(parsed)
 terms_mib = {k: v / 2**20 for k, v in plan_memory(largest_plan_shape(parsed)).items()}
 layout = cache_layout(sizes.cache_entries, parsed.system.wavefront)
-from ris_planner.planning.work import checks_beside, stage_seconds, stage_terms
+from ris_planner.planning.resources.time_estimate import checks_beside, stage_seconds, stage_terms
 # the estimate from the document alone, as the command line and the service make it
 est_stages = stage_seconds(parsed)
 terms = stage_terms(parsed)

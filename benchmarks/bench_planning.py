@@ -27,11 +27,11 @@ from ris_planner.bounds.compute import compute_bounds
 from ris_planner.model.paper import fig10_pairs
 from ris_planner.model.scenario import Scenario
 from ris_planner.planning import LocalExecutor, PlanDocument, SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.objectives import Scorer, loss_from_metric
-from ris_planner.planning.search import exhaustive
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.scoring.scorer import Scorer, loss_from_metric
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.search.layouts import exhaustive
 
 
 def square_candidates(n: int = 30, half: float = 4.0) -> list[dict[str, Any]]:

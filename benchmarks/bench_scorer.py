@@ -48,11 +48,11 @@ from threadpoolctl import threadpool_limits
 from ris_planner.inversion import _crb_jit, crb
 from ris_planner.inversion.ldl import ldl_flops
 from ris_planner.planning import PlanDocument, SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.objectives import Scorer
-from ris_planner.planning.search import all_layouts, exhaustive
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.scoring.scorer import Scorer
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.search.layouts import all_layouts, exhaustive
 
 
 @contextmanager

@@ -40,12 +40,12 @@ import numpy as np
 
 from ris_planner.environment import Scene
 from ris_planner.planning import DaskExecutor, PlanDocument, SerialExecutor, run_plan
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.objectives import Scorer, score_chunk
-from ris_planner.planning.search import Layout, exhaustive
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites
-from ris_planner.planning.visibility import pair_visibility
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.scoring.scorer import Scorer, score_chunk
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.scoring.visibility import pair_visibility
+from ris_planner.planning.search.layouts import Layout, exhaustive
 
 
 def hall_doc(counts: list[int], n_pairs: int = 6400) -> dict[str, Any]:
@@ -138,7 +138,7 @@ def site_scorer(doc: PlanDocument, budget: bool = False) -> tuple[list[Any], Any
     cache with the plan's fields of view and obstacles – float64 with the square-root rows, as
     before issue 14's memory item, or with ``budget`` the layout the plan's budget picks."""
     from ris_planner.model.limits import cache_layout
-    from ris_planner.planning.site_cache import FULL
+    from ris_planner.planning.scoring.site_cache import FULL
 
     sites = expand_sites(doc)
     pairs = build_pairs(build_map(doc.tx_map, "tx"), build_map(doc.rx_map, "rx"), doc.pairs, 10**7)
@@ -271,7 +271,7 @@ def storage_check(raw: dict[str, Any], n_layouts: int) -> None:
     layouts per count (max relative error, same inf pattern) and the plan's answers (best
     layouts, objectives) with the cache budget set just below float64's storage."""
     from ris_planner.model.limits import CACHE_MEMORY_ENV, CacheLayout
-    from ris_planner.planning.search import all_layouts
+    from ris_planner.planning.search.layouts import all_layouts
 
     doc = PlanDocument.model_validate(raw)
     sites = expand_sites(doc)
@@ -384,7 +384,7 @@ def swap_rates(name: str, raw: dict[str, Any], counts: list[int], repeats: int =
     single-site swaps: what a greedy round scores) with ``Scorer.loss`` (the screen, losses
     one kernel block at a time) against the unscreened whole-batch metric and its losses,
     in the same run; the losses must agree bit for bit."""
-    from ris_planner.planning.objectives import loss_from_metric
+    from ris_planner.planning.scoring.scorer import loss_from_metric
 
     doc = PlanDocument.model_validate({**raw, "constraints": {"exclusive_mounts": False}})
     sites, pairs, sc = site_scorer(doc, budget=True)
@@ -420,7 +420,7 @@ def greedy_workers(raw: dict[str, Any], workers: int) -> None:
     from old_search import old_greedy as today
 
     from ris_planner.planning import LocalExecutor
-    from ris_planner.planning.search import greedy
+    from ris_planner.planning.search.layouts import greedy
 
     doc = PlanDocument.model_validate(raw)
     sites = expand_sites(doc)
@@ -477,7 +477,7 @@ def pool_start(raw: dict[str, Any], workers: int, whole: bool) -> None:
     import os
 
     from ris_planner.planning import LocalExecutor
-    from ris_planner.planning.search import all_layouts, evaluate
+    from ris_planner.planning.search.layouts import all_layouts, evaluate
 
     doc = PlanDocument.model_validate(raw)
     sites = expand_sites(doc)
@@ -535,9 +535,9 @@ def branch_and_bound_instances(n_sites: int, seeds: int) -> None:
     exhaustive search against greedy + branch-and-bound, both timed in this run."""
     from test_planning_decisions import random_instance, setup
 
-    from ris_planner.planning.branch_bound import branch_and_bound
-    from ris_planner.planning.constraints import unconstrained
-    from ris_planner.planning.search import greedy
+    from ris_planner.planning.certify.branch_bound import branch_and_bound
+    from ris_planner.planning.inputs.constraints import unconstrained
+    from ris_planner.planning.search.layouts import greedy
 
     for seed in range(seeds):
         d, sites, _, scorer = setup(random_instance(seed, n=n_sites))

@@ -30,7 +30,7 @@ from old_search import pre_quality_greedy
 from search_quality import Comparison, compare_many
 
 from ris_planner.model.plan import SearchSpec
-from ris_planner.planning.search import greedy
+from ris_planner.planning.search.layouts import greedy
 
 
 def summary(name: str, rows: list[Comparison], seconds: float) -> dict[str, float]:

@@ -44,10 +44,10 @@ def measure(case: str, repeats: int) -> dict[str, float]:
 
         from ris_planner.environment import Scene
         from ris_planner.planning import PlanDocument
-        from ris_planner.planning.maps import build_map, build_pairs
-        from ris_planner.planning.site_cache import build_site_cache
-        from ris_planner.planning.sites import expand_sites
-        from ris_planner.planning.visibility import pair_visibility
+        from ris_planner.planning.inputs.sites import expand_sites
+        from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+        from ris_planner.planning.scoring.site_cache import build_site_cache
+        from ris_planner.planning.scoring.visibility import pair_visibility
 
         d = PlanDocument.model_validate(hall_doc([3]))
         sites = expand_sites(d)

@@ -1,4 +1,5 @@
-"""Fit the time model's coefficients (:data:`ris_planner.planning.work.TIME_COEFFICIENTS`) to
+"""Fit the time model's coefficients
+(:data:`ris_planner.planning.resources.time_estimate.TIME_COEFFICIENTS`) to
 the per-stage CPU seconds of a ``bench_memory.py --stages --json FILE`` run
 (docs/validation/resources.md, "The time estimate per stage").
 
@@ -6,16 +7,18 @@ A linear programme over the coefficients (all ≥ 0): minimise the sum over case
 |model − measured| / max(measured, 0.05 s) (each stage close to its own measurement), subject
 to ``--low`` ≤ MARGIN · model / wall ≤ ``--high`` for every case's whole plan (the estimate's
 contract: never below the measured time, within 2× of it, with room on both sides for another
-machine's load). Prints the coefficients as Python for ``work.py`` and the ratios they give.
+machine's load). Prints the coefficients as Python for ``time_estimate.py`` and the ratios they
+give.
 A case whose checks ran beside the fields and the figures (``"beside"``: their CPU seconds are
 counted in those stages) is fitted per stage only for :data:`BEFORE_CHECKS`, and its whole
-plan with ``work.py``'s overlap rule
-(:data:`~ris_planner.planning.work.CHECKS_BESIDE_SHARE`; which of the checks and the later
-stages is the shorter is read from ``work.py``'s coefficients, so the rule stays linear).
+plan with ``time_estimate.py``'s overlap rule
+(:data:`~ris_planner.planning.resources.time_estimate.CHECKS_BESIDE_SHARE`; which of the checks and
+the later
+stages is the shorter is read from ``time_estimate.py``'s coefficients, so the rule stays linear).
 A coefficient of a term that no case exercises (all its sizes 0) or in :data:`NOT_FITTED`
-stays what ``work.py`` has.
+stays what ``time_estimate.py`` has.
 
-The sizes are recomputed from each row's document with today's ``work.py`` (a bench_memory
+The sizes are recomputed from each row's document with today's ``time_estimate.py`` (a bench_memory
 case's :func:`case_document`, or the ``--document`` file and variant), so rows measured before
 a change of the model's terms still serve; the ``sizing`` stage's size is the modelled seconds
 of its runs, so the fit is repeated with its own coefficients until they settle. With ``--cpu``
@@ -36,7 +39,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linprog
 
-from ris_planner.planning.work import (
+from ris_planner.planning.resources.time_estimate import (
     CHECKS_BESIDE_SHARE,
     CHECKS_HIDDEN_BY,
     MARGIN,
@@ -51,7 +54,7 @@ has been waited for): a case whose checks ran beside keeps its per-stage fit for
 def whole_plan_weights(r: dict[str, Any], cols: list[tuple[str, str]]) -> np.ndarray:
     """Per coefficient, its weight in the case's whole-plan model: its size, and for a case
     whose checks ran beside the later stages the overlap rule's subtraction of
-    (1 − share) × the shorter of the checks and the later stages (as ``work.py``'s
+    (1 − share) × the shorter of the checks and the later stages (as ``time_estimate.py``'s
     coefficients order them)."""
     sizes = np.array([r["terms"].get(st, {}).get(t, 0.0) for st, t in cols])
     if not r.get("beside"):
@@ -144,7 +147,7 @@ def fit(
 
 
 def row_terms(r: dict[str, Any]) -> dict[str, dict[str, float]]:
-    """A row's sizes (``terms``) from its document with today's ``work.py``: a bench_memory
+    """A row's sizes (``terms``) from its document with today's ``time_estimate.py``: a bench_memory
     case (its site-cache tier's budget set as the bench sets it) or a ``--document`` row."""
     import os
     import sys
@@ -154,7 +157,7 @@ def row_terms(r: dict[str, Any]) -> dict[str, dict[str, float]]:
 
     from ris_planner.io.frames import to_local
     from ris_planner.planning import PlanDocument
-    from ris_planner.planning.work import stage_terms
+    from ris_planner.planning.resources.time_estimate import stage_terms
 
     case = r["case"]
     before = os.environ.get("RIS_PLANNER_CACHE_MEMORY_MB")
@@ -174,7 +177,7 @@ def row_terms(r: dict[str, Any]) -> dict[str, dict[str, float]]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from ris_planner.planning import work
+    from ris_planner.planning.resources import time_estimate as work
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", type=Path, nargs="+", help="bench_memory.py --stages --json output")

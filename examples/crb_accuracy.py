@@ -25,9 +25,9 @@ from bench_planning import square_plan
 
 from ris_planner.inversion import crb, ldl
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.site_cache import SiteCache, build_site_cache
-from ris_planner.planning.sites import expand_sites
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.scoring.site_cache import SiteCache, build_site_cache
 
 
 def scaled_trace(a: np.ndarray) -> np.ndarray:

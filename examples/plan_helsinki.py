@@ -37,7 +37,7 @@ from ris_planner.io.export import plan_outputs
 from ris_planner.io.frames import to_local
 from ris_planner.io.geojson_import import ImportOptions, import_features, import_sites
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan, write_figures
-from ris_planner.planning.report import write_plan_json
+from ris_planner.planning.outputs.report import write_plan_json
 
 DATA = Path(__file__).with_name("helsinki")
 STREETS = ("residential",)
@@ -121,7 +121,7 @@ def main() -> None:
             f" median PEB_R {'inf (blind)' if median is None else f'{median:.3g} m'}"
         )
     if result.validation is not None:
-        from ris_planner.planning.estimator_check import summary_lines
+        from ris_planner.planning.outputs.estimator_check import summary_lines
 
         print("\n".join(summary_lines(result.validation)))
     diagnosis = plan["diagnosis"]

@@ -28,8 +28,8 @@ import time
 from pathlib import Path
 
 from ris_planner.planning import LocalExecutor, SerialExecutor, plan_preset, run_plan, write_figures
-from ris_planner.planning.report import write_plan_json
-from ris_planner.planning.search import greedy
+from ris_planner.planning.outputs.report import write_plan_json
+from ris_planner.planning.search.layouts import greedy
 from ris_planner.runtime.progress import ProgressBar
 
 

@@ -23,9 +23,8 @@ from pathlib import Path
 from typing import Any
 
 from ris_planner import preset_document
-from ris_planner.planning import SerialExecutor
-from ris_planner.planning.plan import run_plan
-from ris_planner.planning.report import write_validation_figure
+from ris_planner.planning import SerialExecutor, run_plan
+from ris_planner.planning.outputs.report import write_validation_figure
 
 REGION = {"min_m": [-3.5, -5.0, -0.4], "max_m": [-1.2, -2.8, 0.6]}
 """The prior box of TX candidates (Table I's TX [−2, −4, 0] off its centre)."""

@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 
 from ris_planner.model.plan import SearchSpec
-from ris_planner.planning.constraints import Feasibility
-from ris_planner.planning.objectives import Scorer, score_chunk
-from ris_planner.planning.search import (
+from ris_planner.planning.inputs.constraints import Feasibility
+from ris_planner.planning.scoring.scorer import Scorer, score_chunk
+from ris_planner.planning.search.layouts import (
     CHUNK_MATRICES,
     RANK_RTOL,
     FloatArray,

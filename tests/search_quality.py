@@ -14,8 +14,8 @@ from test_planning import GRID, plan_doc, setup
 
 from ris_planner.model.plan import SearchSpec
 from ris_planner.planning import SerialExecutor
-from ris_planner.planning.objectives import Scorer
-from ris_planner.planning.search import Layout, SearchOutcome, exhaustive
+from ris_planner.planning.scoring.scorer import Scorer
+from ris_planner.planning.search.layouts import Layout, SearchOutcome, exhaustive
 
 COUNTS = (2, 3, 4)
 

@@ -308,8 +308,8 @@ def test_every_candidate_inside_a_building_is_named_where_the_document_has_it(
     from ris_planner.cli import main
     from ris_planner.io.candidates import document_positions
     from ris_planner.io.frames import parse_frame, to_local
-    from ris_planner.planning.inputs import prepare_plan
-    from ris_planner.planning.visibility import SitesInsideError
+    from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.scoring.visibility import SitesInsideError
 
     body = (HELSINKI / "helsinki.geojson").read_bytes()
     with api_client(tmp_path) as client:

@@ -18,7 +18,7 @@ from test_plan_timing import timed_plan
 from tolerance import assert_close
 
 from ris_planner.planning import pipeline
-from ris_planner.planning.checks import plan_check_task
+from ris_planner.planning.certify.checks import plan_check_task
 from ris_planner.planning.pipeline import plan_once, run_plan, settle_checks
 from ris_planner.runtime.executor import SerialExecutor
 from ris_planner.runtime.progress import no_progress
@@ -78,7 +78,7 @@ def test_a_failed_stage_stops_the_checks(monkeypatch: pytest.MonkeyPatch) -> Non
     def failing_fields(*_: object, **__: object) -> None:
         raise RuntimeError("fields failed")
 
-    monkeypatch.setattr("ris_planner.planning.checks.plan_check_task", slow_task)
+    monkeypatch.setattr("ris_planner.planning.certify.checks.plan_check_task", slow_task)
     monkeypatch.setattr(pipeline, "fields_stage", failing_fields)
     with pytest.raises(RuntimeError, match="fields failed"):
         run_plan(timed_plan(), executor=SerialExecutor())
@@ -93,7 +93,7 @@ def test_a_failed_stage_stops_the_checks(monkeypatch: pytest.MonkeyPatch) -> Non
 def test_settle_runs_the_tasks_left_beside_the_thread(monkeypatch: pytest.MonkeyPatch) -> None:
     """The caller of settle() takes the tasks the thread has not started (it has nothing else
     to do): both threads run some, and every answer lands at its task's place."""
-    from ris_planner.planning import checks
+    from ris_planner.planning.certify import checks
 
     runners: dict[int, str] = {}
     took = {True: threading.Event(), False: threading.Event()}  # by the caller / by the thread
@@ -118,7 +118,7 @@ def test_settle_runs_the_tasks_left_beside_the_thread(monkeypatch: pytest.Monkey
 
 
 def test_a_failing_task_in_settle_stops_the_thread(monkeypatch: pytest.MonkeyPatch) -> None:
-    from ris_planner.planning import checks
+    from ris_planner.planning.certify import checks
 
     ran: list[int] = []
     caller_failed = threading.Event()

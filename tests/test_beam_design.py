@@ -16,15 +16,14 @@ from tolerance import SDP_ACCURACY, assert_close
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.model.plan import PlanDocument
 from ris_planner.model.scenario import Scenario
-from ris_planner.planning import SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.beam_design import (
+from ris_planner.planning import PlanResult, SerialExecutor, plan_preset, run_plan
+from ris_planner.planning.beams import (
     design_beams,
     design_positions,
     run_layout_beams,
 )
-from ris_planner.planning.objectives import objective_value
-from ris_planner.planning.plan import PlanResult
-from ris_planner.planning.report import write_figures
+from ris_planner.planning.outputs.report import write_figures
+from ris_planner.planning.scoring.scorer import objective_value
 
 SOLVER_RTOL = SDP_ACCURACY
 """The SDP's own objective and its re-evaluation by compute_bounds on the design positions

@@ -13,7 +13,7 @@ from district_site import street_doc
 
 from ris_planner.model.plan import PlanDocument
 from ris_planner.planning.city import plan_city, split_city
-from ris_planner.planning.maps import build_map
+from ris_planner.planning.inputs.ue_maps import build_map
 from ris_planner.runtime.executor import DaskExecutor, SerialExecutor
 
 CELL_M = 40.0

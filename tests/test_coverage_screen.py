@@ -14,12 +14,12 @@ from ris_planner.environment import Scene
 from ris_planner.inversion._crb_jit import CHUNK, SCREEN_MAX_STATES, screen_chunk
 from ris_planner.inversion.ldl import pack
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.objectives import Scorer, loss_from_metric
-from ris_planner.planning.presets import plan_preset
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites
-from ris_planner.planning.visibility import pair_visibility
+from ris_planner.planning.inputs.presets import plan_preset
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.scoring.scorer import Scorer, loss_from_metric
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.scoring.visibility import pair_visibility
 
 SCREEN_RTOL = 1e-9
 """screen_chunk's trace against numpy's inverse of the same sub-matrix (cond ≲ 1e4 here: a
@@ -127,7 +127,7 @@ def test_extra_candidates_screened_while_they_settle(monkeypatch: Any) -> None:
     """A cap far below every PEB: nearly every pair that sees more RISs than it needs is
     settled, so the kernel keeps screening those too (``_crb_jit.SCREEN_KEEP``), and the
     losses, computed one small kernel block at a time, are still the unscreened ones."""
-    import ris_planner.planning.objectives.scoring as objectives
+    import ris_planner.planning.scoring.scorer as objectives
 
     sc = hall_scorer({"kind": "mean_capped", "metric": "rx", "cap_m": 0.02})
     rng = np.random.default_rng(5)

@@ -24,10 +24,10 @@ from ris_planner.bounds.compute import (
 from ris_planner.inversion import crb
 from ris_planner.model.scenario import Scenario, load_scenario
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.maps import PairSet
-from ris_planner.planning.objectives import Scorer
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import PairSet
+from ris_planner.planning.scoring.scorer import Scorer
+from ris_planner.planning.scoring.site_cache import build_site_cache
 
 MPMATH_DIGITS = 40
 CRB_RTOL = 1e-6

@@ -20,8 +20,8 @@ from ris_planner.model.scenario import RIS, SystemParams
 from ris_planner.physics.fim import steering_gram
 from ris_planner.physics.geometry import element_positions
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
-from ris_planner.planning.beam_design import layout_scenario
-from ris_planner.planning.diagnosis import (
+from ris_planner.planning.beams import layout_scenario
+from ris_planner.planning.outputs.diagnosis import (
     BLOCKED_EXAMPLES,
     COVERAGE_FLOOR,
     MAX_SIDE,
@@ -34,10 +34,10 @@ from ris_planner.planning.diagnosis import (
     smallest_side,
     verdict,
 )
-from ris_planner.planning.plan import plan_once
-from ris_planner.planning.report import BLIND_COLOUR, write_figures
-from ris_planner.planning.resources import estimate_plan
-from ris_planner.planning.sizing import smallest
+from ris_planner.planning.outputs.report import BLIND_COLOUR, write_figures
+from ris_planner.planning.pipeline import plan_once
+from ris_planner.planning.resources.admission import estimate_plan
+from ris_planner.planning.search.sizing import smallest
 
 GRID = {"grid": {"x": [-3, 3, 1.5], "y": [-3, 3, 1.5], "z": [1.5, 1.5, 1]}}
 RTOL = 1e-9
@@ -510,7 +510,7 @@ def test_link_budget_for_the_other_objectives(objective: dict[str, Any]) -> None
 def test_spherical_suggestions_are_capped_by_pairs_times_elements() -> None:
     from types import SimpleNamespace
 
-    from ris_planner.planning.diagnosis import SPHERICAL_PAIR_ELEMENTS, largest_side
+    from ris_planner.planning.outputs.diagnosis import SPHERICAL_PAIR_ELEMENTS, largest_side
 
     def fake(wavefront: str, pairs: int) -> Any:
         system = SimpleNamespace(wavefront=wavefront)

@@ -18,11 +18,11 @@ from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.model.plan import PlanDocument
-from ris_planner.planning import district as dist
-from ris_planner.planning.beam_design import layout_scenario
-from ris_planner.planning.inputs import prepare_plan
+from ris_planner.planning.beams import layout_scenario
 from ris_planner.planning.pipeline import run_plan
-from ris_planner.planning.resources import adapted_search, validate_plan
+from ris_planner.planning.prepare import prepare_plan
+from ris_planner.planning.resources.admission import adapted_search, validate_plan
+from ris_planner.planning.search import district as dist
 
 
 @pytest.fixture(scope="module", params=[0.5, 2.0])

@@ -28,8 +28,8 @@ from test_limits import ring
 from api.store import JobStore
 from ris_planner.cli import main
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.resources import largest_plan_shape, plan_memory
-from ris_planner.planning.work import (
+from ris_planner.planning.resources.admission import largest_plan_shape, plan_memory
+from ris_planner.planning.resources.time_estimate import (
     PlanEstimate,
     WorkSizes,
     plan_estimate,
@@ -71,7 +71,8 @@ def test_cli_prints_the_estimate_before_the_progress_and_plan_json_keeps_it(
 
 def test_a_district_plan_has_its_estimate_and_resources(tmp_path: Path) -> None:
     """search.method 'district' runs another path (its own stages): its estimate is the
-    district's (:func:`ris_planner.planning.work.district_seconds`), plan.json has the same
+    district's (:func:`ris_planner.planning.resources.time_estimate.district_seconds`), plan.json
+    has the same
     ``resources`` block."""
     from ris_planner.io import geoplan
 
@@ -164,8 +165,8 @@ def test_the_greedy_layout_count_is_what_the_search_scores() -> None:
     """The term that made the search's time 18–33× too long on a real site: the model counted
     three full swap rounds per start, but the memo scores each layout once and the starts
     settle – the layouts a greedy search scores are within [0.5, 2] of the model's
-    (:func:`ris_planner.planning.resources.greedy_layouts`)."""
-    import ris_planner.planning.search as search_module
+    (:func:`ris_planner.planning.resources.admission.greedy_layouts`)."""
+    import ris_planner.planning.search.layouts as search_module
     from ris_planner.planning.pipeline import run_plan
     from ris_planner.runtime.executor import SerialExecutor
 

@@ -1,4 +1,5 @@
-"""Plan validation (issue 23, ris_planner.planning.estimator_check): the two-stage estimator on
+"""Plan validation (issue 23, ris_planner.planning.outputs.estimator_check): the two-stage
+estimator on
 a plan's recommended layout. Table I as a plan (its two RISs the only candidates, its TX and RX
 the only map points): reproducible from its seeds, the exactly-determined geometry's second
 solution and the TX↔RX swap reported as ghosts, too few paths reported as such, the site's
@@ -23,15 +24,15 @@ from ris_planner.estimation import channel_estimation
 from ris_planner.estimation.channel_estimation import ChannelEstimator, angle_grid_size
 from ris_planner.estimation.signal import noise_free_signal, realisation_paths, signal_setup
 from ris_planner.model.simulation import Multipath
-from ris_planner.planning import SerialExecutor
-from ris_planner.planning.estimator_check import (
+from ris_planner.planning import PlanResult, SerialExecutor, run_plan
+from ris_planner.planning.outputs.estimator_check import (
     OUTLIER_FACTOR,
     SNR_THRESHOLD_DB,
     classify_draw,
     run_estimator_check,
     search_candidates,
 )
-from ris_planner.planning.plan import PlanResult, run_plan, validate_document
+from ris_planner.planning.prepare import validate_document
 
 ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "ris_planner.cli"]
@@ -237,7 +238,7 @@ def test_cli_validate_prints_the_summary(tmp_path: Path) -> None:
 def test_path_snr_of_the_los_is_its_closed_form() -> None:
     """The LOS path's integrated SNR ‖μ_0‖²/σ² = P α_0² K Σ_g δ_g² / σ² (|x_k| = |c_g| = 1)."""
     from ris_planner.physics import geometry
-    from ris_planner.planning.estimator_check import path_snr_db
+    from ris_planner.planning.outputs.estimator_check import path_snr_db
 
     sc = load_scenario(preset_document("paper-table1"))
     setup = signal_setup(sc)
@@ -267,7 +268,7 @@ def _designed_bounds(result: PlanResult, name: str, pair: dict[str, Any]) -> tup
     """(PEB_T, PEB_R) of one validated pair by compute_bounds with the layout's designed
     profiles and beam powers kept in memory (nothing known, as the estimator)."""
     from ris_planner.bounds.compute import compute_bounds
-    from ris_planner.planning.beam_design import layout_scenario
+    from ris_planner.planning.beams import layout_scenario
 
     doc = result.document
     design = result.beams[(0, 1)].codebooks[name]

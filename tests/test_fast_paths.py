@@ -37,11 +37,11 @@ from ris_planner.inversion.ldl import pack
 from ris_planner.model.scenario import load_scenario
 from ris_planner.physics import fim, geometry
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.presets import plan_preset
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites
-from ris_planner.planning.visibility import pair_visibility
+from ris_planner.planning.inputs.presets import plan_preset
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.scoring.visibility import pair_visibility
 
 FACTOR_GRAM_RTOL = 1e-13
 """The unit-root factor α·R·J and the per-pair eigh factor are two square roots of the same

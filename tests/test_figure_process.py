@@ -136,7 +136,7 @@ def test_the_hand_over_leaves_the_site_cache_behind() -> None:
     result = run_plan(timed_plan(), executor=SerialExecutor())
     job = figure_process.figure_job(result)
     data = pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL)
-    assert b"SiteCache" not in data and b"planning.objectives" not in data  # no Scorer
+    assert b"SiteCache" not in data and b"planning.scoring.scorer" not in data  # no Scorer
     assert len(data) < result.cache.blocks.nbytes
     assert np.array_equal(job.cache.far_field, result.cache.far_field)
     assert np.array_equal(job.metric_weights, result.metric_weights)

@@ -158,7 +158,7 @@ def test_scenario_points_and_batches() -> None:
 
 def test_rectangle_walls_become_outward_segments() -> None:
     from ris_planner.model.plan import PlanDocument
-    from ris_planner.planning.sites import expand_sites
+    from ris_planner.planning.inputs.sites import expand_sites
 
     origin = (24.949, 60.1655, 0.0)
     frame = Frame(origin)

@@ -573,7 +573,7 @@ def test_courtyards_stay_open_and_cuts_do_not_leak() -> None:
 
 def test_a_ue_area_in_a_courtyard_imports_and_plans() -> None:
     from ris_planner.io.site_import import import_data, plan_from_import
-    from ris_planner.planning.plan import run_plan
+    from ris_planner.planning import run_plan
 
     def pt(x: float, y: float) -> list[float]:
         return FRAME.to_geographic(np.array([[x, y]]))[0].tolist()

@@ -18,8 +18,8 @@ from test_api_plans import small_plan_doc
 
 from ris_planner import preset_document
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.plan import heatmap_rx_index
-from ris_planner.planning.resources import HEATMAP_MAX_PAIRS, estimate_plan
+from ris_planner.planning.outputs.rx_fields import heatmap_rx_index
+from ris_planner.planning.resources.admission import HEATMAP_MAX_PAIRS, estimate_plan
 
 MEMORY_CAP_MB = 1536
 """Address-space cap of the refusing process (imports need ~1 GiB of address space)."""
@@ -130,7 +130,7 @@ from contextlib import redirect_stderr
 cap = int(sys.argv[1]) << 20
 resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
 from ris_planner.cli import main
-import ris_planner.planning, ris_planner.planning.resources  # before the clock
+import ris_planner.planning, ris_planner.planning.resources.admission  # before the clock
 import ris_planner.power.report
 out = {}
 for name, (command, doc, budget) in json.load(sys.stdin).items():
@@ -201,7 +201,7 @@ def test_heatmap_respects_its_pair_limit_for_a_million_point_map() -> None:
 
 
 def test_extreme_relative_weights_give_finite_normalised_pair_weights() -> None:
-    from ris_planner.planning.maps import PointMap, build_pairs
+    from ris_planner.planning.inputs.ue_maps import PointMap, build_pairs
 
     pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
     for scale in (1e308, 1e-320):
@@ -229,7 +229,7 @@ def test_smoke_estimates_cover_the_measured_peak_within_twice() -> None:
 
 def _refusal(doc: dict[str, Any], budget_mb: int) -> str:
     from ris_planner.core.errors import LimitExceededError
-    from ris_planner.planning.resources import validate_plan
+    from ris_planner.planning.resources.admission import validate_plan
 
     with pytest.raises(LimitExceededError) as exc:
         validate_plan(doc, memory_mb=budget_mb)
@@ -238,7 +238,7 @@ def _refusal(doc: dict[str, Any], budget_mb: int) -> str:
 
 def _fits(doc: dict[str, Any], budget_mb: int) -> bool:
     from ris_planner.core.errors import LimitExceededError
-    from ris_planner.planning.resources import validate_plan
+    from ris_planner.planning.resources.admission import validate_plan
 
     try:
         validate_plan(doc, memory_mb=budget_mb)
@@ -336,8 +336,8 @@ def test_time_model_fit_recovers_covering_coefficients() -> None:
     from tolerance import assert_close
 
     from ris_planner.planning import PlanDocument
-    from ris_planner.planning.inputs import prepare_plan
-    from ris_planner.planning.work import TIME_COEFFICIENTS, stage_terms
+    from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.resources.time_estimate import TIME_COEFFICIENTS, stage_terms
 
     factor = {st: 0.5 + 0.1 * i for i, st in enumerate(TIME_COEFFICIENTS)}
     rows = []

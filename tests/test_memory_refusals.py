@@ -32,7 +32,7 @@ from ris_planner.model.limits import (
     memory_terms,
 )
 from ris_planner.planning import PlanDocument, plan_preset
-from ris_planner.planning.resources import (
+from ris_planner.planning.resources.admission import (
     PLAN_MEMORY_TERMS,
     PlanShape,
     estimate_plan,

@@ -17,8 +17,8 @@ from pydantic import ValidationError
 from test_estimator_check import table1_plan
 
 from ris_planner.io.export import plan_outputs
+from ris_planner.model.objectives import ObjectiveKind, objective_kind, register, unregister
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
-from ris_planner.planning.objectives import ObjectiveKind, objective_kind, register, unregister
 
 LIMIT_M = 0.1
 

@@ -1,5 +1,5 @@
 """The objective protocol (issue 26, item 2): an objective is one module behind
-:class:`ris_planner.planning.objectives.ObjectiveKind`; a toy kind registered here only runs a
+:class:`ris_planner.model.objectives.ObjectiveKind`; a toy kind registered here only runs a
 whole plan, unknown kinds fail with the known ones listed, the service lists the kinds."""
 
 from __future__ import annotations
@@ -15,15 +15,15 @@ from pydantic import ValidationError
 from test_planning import plan_doc, reference_metric, setup
 from tolerance import BOUND_ACCURACY, assert_close
 
-from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
-from ris_planner.planning.objectives import (
+from ris_planner.model.objectives import (
     ObjectiveKind,
     objective_kind,
     objective_names,
     register,
     unregister,
 )
-from ris_planner.planning.search import exhaustive
+from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
+from ris_planner.planning.search.layouts import exhaustive
 
 
 class WorstPairs(ObjectiveKind):

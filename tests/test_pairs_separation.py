@@ -16,9 +16,9 @@ from ris_planner.bounds.paths import los_clear
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.environment import Scene
 from ris_planner.model.plan import PairSample, PlanDocument
-from ris_planner.planning.inputs import prepare_plan
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.separation import near_combinations, street_distance
+from ris_planner.planning.inputs.separation import near_combinations, street_distance
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.prepare import prepare_plan
 
 
 def _map(roads: list[dict]) -> object:

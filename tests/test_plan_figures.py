@@ -14,10 +14,8 @@ from test_planning_points import candidates
 
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.model.scenario import Scenario
-from ris_planner.planning import SerialExecutor, run_plan
-from ris_planner.planning.fields import served_fractions, served_level
-from ris_planner.planning.plan import PlanResult
-from ris_planner.planning.report import (
+from ris_planner.planning import PlanResult, SerialExecutor, run_plan
+from ris_planner.planning.outputs.report import (
     SITE_LABEL_GID,
     SITE_TABLE_HEADERS,
     heatmap_figure,
@@ -27,6 +25,7 @@ from ris_planner.planning.report import (
     topview_figure,
     validation_figure,
 )
+from ris_planner.planning.outputs.rx_fields import served_fractions, served_level
 
 THRESHOLD_M = 0.1
 TX_POINTS = [[-1.5, 0.5, 0.0], [0.5, -1.5, 0.0], [1.0, 1.0, 0.0]]

@@ -18,6 +18,7 @@ from ris_planner.bounds.compute import compute_bounds
 from ris_planner.cli import main
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
 from ris_planner.environment import Scene
+from ris_planner.model.objectives import weighted_quantile
 from ris_planner.model.paper import fig10_pairs
 from ris_planner.model.scenario import Scenario, load_scenario, preset_document
 from ris_planner.physics.geometry import rotation_matrix
@@ -29,18 +30,17 @@ from ris_planner.planning import (
     plan_preset,
     run_plan,
 )
-from ris_planner.planning.maps import build_map, build_pairs, road_points
-from ris_planner.planning.objectives import (
+from ris_planner.planning.inputs.sites import expand_sites, wall_poses
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs, road_points
+from ris_planner.planning.scoring.scorer import (
     Scorer,
     loss_from_metric,
     objective_value,
     select_metric,
-    weighted_quantile,
 )
-from ris_planner.planning.search import SearchOutcome, exhaustive, greedy
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites, wall_poses
-from ris_planner.planning.visibility import pair_visibility
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.scoring.visibility import pair_visibility
+from ris_planner.planning.search.layouts import SearchOutcome, exhaustive, greedy
 
 GRID = {"grid": {"x": [-3, 3, 1], "y": [-3, 3, 1], "z": [0, 0.5, 0.5]}}
 RTOL = 1e-9
@@ -155,7 +155,7 @@ def test_kernel_reuses_partial_sums_with_the_same_bits(environment: Any) -> None
     exhaustive (lexicographic) batch – long shared prefixes, chunks where every pair is blind
     in between – gives the numpy route's bits, and each layout scored alone or in a shuffled
     batch (no reuse) the same bits again."""
-    from ris_planner.planning.search import all_layouts
+    from ris_planner.planning.search.layouts import all_layouts
 
     doc = plan_doc(
         candidates=ring(7),

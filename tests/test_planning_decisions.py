@@ -17,12 +17,12 @@ from test_planning import plan_doc, setup
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.model.plan import CostSpec
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan, write_figures
-from ris_planner.planning.branch_bound import branch_and_bound
-from ris_planner.planning.certificates import pair_lower_bounds, relaxation_certificate
-from ris_planner.planning.constraints import Feasibility, build_feasibility, unconstrained
-from ris_planner.planning.decisions import pareto
-from ris_planner.planning.objectives import Scorer, loss_from_metric, objective_from_loss
-from ris_planner.planning.search import all_layouts, exhaustive, greedy
+from ris_planner.planning.certify.branch_bound import branch_and_bound
+from ris_planner.planning.certify.relaxation import pair_lower_bounds, relaxation_certificate
+from ris_planner.planning.inputs.constraints import Feasibility, build_feasibility, unconstrained
+from ris_planner.planning.outputs.decisions import pareto
+from ris_planner.planning.scoring.scorer import Scorer, loss_from_metric, objective_from_loss
+from ris_planner.planning.search.layouts import all_layouts, exhaustive, greedy
 
 OBJECTIVES: list[dict[str, Any]] = [
     {"kind": "mean_capped", "metric": "rx", "cap_m": 0.5},

@@ -24,14 +24,13 @@ from ris_planner.core.errors import RisPlannerError
 from ris_planner.environment import Scene
 from ris_planner.model.scenario import Scenario
 from ris_planner.physics.geometry import rotation_matrix
-from ris_planner.planning import PlanDocument, SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.objectives import Scorer, objective_value, select_metric
-from ris_planner.planning.plan import PlanResult
-from ris_planner.planning.report import raster, write_figures
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import Site, expand_sites
-from ris_planner.planning.visibility import pair_visibility, serve_matrix
+from ris_planner.planning import PlanDocument, PlanResult, SerialExecutor, plan_preset, run_plan
+from ris_planner.planning.inputs.sites import Site, expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.outputs.report import raster, write_figures
+from ris_planner.planning.scoring.scorer import Scorer, objective_value, select_metric
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.scoring.visibility import pair_visibility, serve_matrix
 
 RTOL = BOUND_ACCURACY
 """Cached score vs the per-pair reference: both invert the same FIM through

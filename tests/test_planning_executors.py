@@ -14,8 +14,8 @@ from dask_cluster import local_cluster
 from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.planning import DaskExecutor, LocalExecutor, SerialExecutor, run_plan
-from ris_planner.planning import search as search_module
-from ris_planner.planning.site_cache import SiteCache
+from ris_planner.planning.scoring.site_cache import SiteCache
+from ris_planner.planning.search import layouts as search_module
 
 
 def small_plan() -> dict[str, object]:
@@ -63,7 +63,7 @@ def test_local_process_pool_gives_identical_losses(monkeypatch: pytest.MonkeyPat
 
 
 def test_cluster_tasks_carry_only_their_site_block() -> None:
-    from ris_planner.planning.search import all_layouts, evaluate
+    from ris_planner.planning.search.layouts import all_layouts, evaluate
 
     class Recording(SerialExecutor):
         """Serial, but asks for site-block tasks and records what each task carries."""

@@ -22,9 +22,9 @@ from ris_planner.model.plan_physics import (
 )
 from ris_planner.model.scenario import RIS
 from ris_planner.planning import SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.beam_design import layout_scenario, objective_on_pairs
-from ris_planner.planning.objectives import objective_value, select_metric
-from ris_planner.planning.sites import expand_sites
+from ris_planner.planning.beams import layout_scenario, objective_on_pairs
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.scoring.scorer import objective_value, select_metric
 
 BOUND_COND = 1e8
 """Scaled condition number of the Fisher informations of these layouts (the heatmap symmetry

@@ -1,4 +1,5 @@
-"""Phased roll-out (ris_planner.planning.rollout): nested layouts are supersets of the previous
+"""Phased roll-out (ris_planner.planning.search.rollout): nested layouts are supersets of the
+previous
 count's, the price of nesting against an exhaustive free optimum is ≥ 0 and is the brute-force
 best superset's, and free layouts that are not nested are flagged."""
 
@@ -16,7 +17,7 @@ from tolerance import assert_close
 
 from ris_planner.cli import main
 from ris_planner.planning import SerialExecutor, run_plan
-from ris_planner.planning.rollout import extend
+from ris_planner.planning.search.rollout import extend
 
 
 def ring(n: int) -> list[dict[str, Any]]:
@@ -117,7 +118,7 @@ def test_cli_nested_flag(tmp_path: Path, nested: Any) -> None:
 def test_free_mode_leaves_the_price_out_when_the_chain_is_not_cheap(
     nested: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from ris_planner.planning import rollout
+    from ris_planner.planning.search import rollout
 
     free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in nested.counts]
     args = (nested.scorer, nested.feasibility, free, nested.document.search, 200)

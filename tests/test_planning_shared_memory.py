@@ -19,7 +19,7 @@ from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.model.plan import POOL_MIN_WORK
 from ris_planner.planning import LocalExecutor, SerialExecutor, run_plan
-from ris_planner.planning import search as search_module
+from ris_planner.planning.search import layouts as search_module
 from ris_planner.runtime.executor import (
     MEMFD_PREFIX,
     SHARE_MIN_BYTES,
@@ -223,7 +223,7 @@ def test_an_interrupt_leaves_nothing() -> None:
 
 @pytest.mark.parametrize("workers", [1, 2, 3])
 def test_chunk_count_bounds_and_balances_the_tasks(workers: int) -> None:
-    from ris_planner.planning.search import (
+    from ris_planner.planning.search.layouts import (
         CHUNK_MATRICES,
         MIN_TASK_MATRICES,
         TASKS_PER_WORKER,
@@ -250,7 +250,7 @@ def test_chunk_count_bounds_and_balances_the_tasks(workers: int) -> None:
 def test_only_a_plan_that_splits_its_batches_starts_workers(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from ris_planner.planning.plan import needs_workers, prepare_plan
+    from ris_planner.planning.prepare import needs_workers, prepare_plan
 
     big = hall_like_plan()
     big["pairs"] = {"sample": 3000, "seed": 0}  # 1128 layouts of 2 × 3000 pairs: 3.4 M

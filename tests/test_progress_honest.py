@@ -1,6 +1,7 @@
 """Honest progress: over a whole plan with its figures and exports the fractions never go back,
 stay below 1 until the last call, the last call comes after the files are written, and no
-stage holds most of the wall time while the bar stands still (ris_planner.planning.work)."""
+stage holds most of the wall time while the bar stands still
+(ris_planner.planning.resources.time_estimate)."""
 
 from __future__ import annotations
 

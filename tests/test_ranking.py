@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ris_planner.planning.search import (
+from ris_planner.planning.search.layouts import (
     RANK_RTOL,
     SearchOutcome,
     _site_keys,

@@ -11,7 +11,7 @@ import pytest
 from old_search import pre_quality_greedy
 from search_quality import compare
 
-from ris_planner.planning.search import (
+from ris_planner.planning.search.layouts import (
     RANK_RTOL,
     greedy,
     improves,

@@ -26,13 +26,13 @@ from ris_planner.model.plan import PlanDocument
 from ris_planner.model.scenario import Scenario
 from ris_planner.physics import fim
 from ris_planner.planning import SerialExecutor, run_plan
-from ris_planner.planning.maps import build_map, build_pairs
-from ris_planner.planning.objectives import Scorer, select_metric
-from ris_planner.planning.presets import plan_preset
-from ris_planner.planning.search import all_layouts
-from ris_planner.planning.site_cache import build_site_cache
-from ris_planner.planning.sites import expand_sites
-from ris_planner.planning.visibility import pair_visibility
+from ris_planner.planning.inputs.presets import plan_preset
+from ris_planner.planning.inputs.sites import expand_sites
+from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.scoring.scorer import Scorer, select_metric
+from ris_planner.planning.scoring.site_cache import build_site_cache
+from ris_planner.planning.scoring.visibility import pair_visibility
+from ris_planner.planning.search.layouts import all_layouts
 
 UNIT_ROUNDOFF_F32 = 2.0**-24
 """float32 unit roundoff: each stored entry F_s,ij carries a relative error ≤ u."""
@@ -202,6 +202,6 @@ def test_plan_above_the_float64_budget_reports_float32_with_exact_finalists(
 def test_storage_blocks_are_the_kernels_chunks() -> None:
     """The cache's pair blocks are the compiled kernel's chunks (it reads them in place)."""
     from ris_planner.inversion import _crb_jit
-    from ris_planner.planning import site_cache
+    from ris_planner.planning.scoring import site_cache
 
     assert site_cache.CHUNK == _crb_jit.CHUNK

@@ -26,7 +26,7 @@ from ris_planner.model.simulation import (
     scatterer_distances,
     scatterer_too_close,
 )
-from ris_planner.planning.plan import validate_document
+from ris_planner.planning.prepare import validate_document
 
 ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "ris_planner.cli"]

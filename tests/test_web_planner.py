@@ -336,7 +336,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         "message": "8 × 8 elements with 2 RISs reach the objective",
     }
 
-    validation = {  # plan.json validation (ris_planner.planning.estimator_check)
+    validation = {  # plan.json validation (ris_planner.planning.outputs.estimator_check)
         "pairs": 10,
         "draws": 5,
         "threshold_m": 0.5,

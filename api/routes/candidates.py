@@ -55,7 +55,7 @@ from ris_planner.io.candidates import (
 from ris_planner.io.frames import MAX_LICENSE_CHARS, Frame, parse_frame, to_local
 from ris_planner.io.geojson_import import import_sites
 from ris_planner.model.plan import Candidate, UEMap
-from ris_planner.planning.maps import build_map
+from ris_planner.planning.inputs.ue_maps import build_map
 
 router = APIRouter(tags=["import"])
 

@@ -16,9 +16,9 @@ from api.models import Health, ObjectiveInfo, ObjectiveList, Preset, PresetList
 from api.settings import Settings
 from api.store import JobStore, StoreUnavailableError
 from api.worker import JobRunner, describe_error
+from ris_planner.model.objectives import objective_kind, objective_names
 from ris_planner.model.scenario import PRESET_NAMES, preset_document
 from ris_planner.planning import PLAN_PRESET_NAMES, plan_preset
-from ris_planner.planning.objectives import objective_kind, objective_names
 
 health_router = APIRouter(tags=["service"])
 router = APIRouter(tags=["service"])

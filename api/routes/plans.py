@@ -57,13 +57,15 @@ async def post_plan(
     document) and its figures are ``topview``, ``heatmap`` and ``cdf`` (PNG) with the files
     ``geojson``, ``geotiff``, ``points_csv`` (WGS84 / the frame's CRS for a geographic
     document). The checks of ``ris-planner plan`` run here, on the document converted from its
-    frame, before the job is queued (:func:`ris_planner.planning.resources.plan_check`): 422 naming
+    frame, before the job is queued (:func:`ris_planner.planning.resources.admission.plan_check`):
+    422 naming
     the
     field, 413 naming the limit (sites, map points, pairs, sites × pairs, search layouts, the
     job memory budget), 501 for a frame on a server without the GIS extra. The job keeps the
     document as sent (a geographic one in its own coordinates). The job's ``estimate`` (its
     wall seconds and peak memory, estimated from the document before any work;
-    :func:`ris_planner.planning.work.plan_estimate`) is there from this answer on; the result's
+    :func:`ris_planner.planning.resources.time_estimate.plan_estimate`) is there from this answer
+    on; the result's
     ``resources`` sets it beside what the run measured."""
     body = await request.body()
     pool: ParsePool = request.app.state.parse_pool
@@ -81,7 +83,7 @@ def plan_submission(body: bytes, memory_mb: int) -> tuple[JsonText, dict[str, fl
     a geographic document is kept as sent, a local one with the RIS element fields it leaves
     unset still unset (plan.json ``physics.from``). Runs in a parse process
     (:mod:`api.offload`)."""
-    from ris_planner.planning.work import plan_estimate
+    from ris_planner.planning.resources.time_estimate import plan_estimate
 
     document = json_document(body)
     plan, frame = local_plan(document, memory_mb)

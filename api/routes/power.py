@@ -25,7 +25,7 @@ from ris_planner.io.frames import to_local
 from ris_planner.model.plan import LayoutBeamsDocument
 from ris_planner.model.power import Objective, Solver
 from ris_planner.model.scenario import Scenario
-from ris_planner.planning.resources import check_layout_beams_size
+from ris_planner.planning.resources.admission import check_layout_beams_size
 from ris_planner.power.resources import power_check
 
 router = APIRouter(tags=["jobs"])
@@ -80,7 +80,7 @@ async def post_power(
     """202 with the queued job; its result is the JSON of ``ris-planner power`` (uniform power,
     the best γ_P for DIR+DER codebooks, the SDP allocation, each objective re-evaluated by the
     bounds code), or for a layout + UE maps document the beam report of
-    ``ris_planner.planning.beam_design.run_layout_beams`` (``objective`` and ``solver`` come
+    ``ris_planner.planning.beams.run_layout_beams`` (``objective`` and ``solver`` come
     from the document then). The checks of ``ris-planner power`` run here, on the document
     converted from its frame (422 naming the field, 413 naming the limit, 501 for a frame
     without the GIS extra); engine or solver failures end the job as failed with a message.

@@ -37,9 +37,9 @@ from api.offload import Answer, ParsePool
 from api.security import PAGE_CSP, docs_csp
 from api.settings import Settings
 from ris_planner.io.candidates import in_document_coordinates
-from ris_planner.planning.inputs import prepare_plan
-from ris_planner.planning.maps import PointMap
-from ris_planner.planning.sites import candidate_json
+from ris_planner.planning.inputs.sites import candidate_json
+from ris_planner.planning.inputs.ue_maps import PointMap
+from ris_planner.planning.prepare import prepare_plan
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 """The shipped page and vendored assets (package data of ``api``)."""

@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ris_planner.bounds import advice
 from ris_planner.bounds.paths import path_presence, pattern_factor
+from ris_planner.core.io_json import finite_or_none
 from ris_planner.environment import Scene
 from ris_planner.inversion import crb, ldl
 from ris_planner.model.scenario import (
@@ -178,7 +179,7 @@ class BoundsResult:
         def num(a: FloatArray | None) -> Any:
             if a is None:
                 return None
-            vals = [float(x) if np.isfinite(x) else None for x in a]
+            vals = [finite_or_none(x) for x in a]
             return vals if batch else vals[0]
 
         def per_pair(values: list[Any]) -> Any:

@@ -15,7 +15,7 @@ from ris_planner.cli.app import int_in
 def _cmd_city(args: argparse.Namespace) -> int:
     from ris_planner.io.frames import to_local
     from ris_planner.planning.city import plan_city, split_city
-    from ris_planner.planning.presets import load_plan_file
+    from ris_planner.planning.inputs.presets import load_plan_file
     from ris_planner.runtime.executor import DaskExecutor, Executor, LocalExecutor
     from ris_planner.runtime.progress import ProgressBar
 

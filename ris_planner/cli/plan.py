@@ -68,9 +68,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     from ris_planner.io.estimates import document_estimate, plan_measured
-    from ris_planner.planning.diagnosis import summary_lines
-    from ris_planner.planning.presets import load_plan_file, plan_preset
-    from ris_planner.planning.report import write_plan_json
+    from ris_planner.planning.inputs.presets import load_plan_file, plan_preset
+    from ris_planner.planning.outputs.diagnosis import summary_lines
+    from ris_planner.planning.outputs.report import write_plan_json
     from ris_planner.runtime.executor import DaskExecutor, Executor, LocalExecutor
     from ris_planner.runtime.process import process_age_s
     from ris_planner.runtime.progress import ProgressBar
@@ -112,7 +112,7 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     if "sizing" in plan:
         print(f"sizing: {plan['sizing']['message']}")
     if "validation" in plan:
-        from ris_planner.planning.estimator_check import summary_lines as validation_lines
+        from ris_planner.planning.outputs.estimator_check import summary_lines as validation_lines
 
         for line in validation_lines(plan["validation"]):
             print(line)
@@ -129,7 +129,7 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
 
 def add_cli(sub: argparse._SubParsersAction) -> None:
     """Register the ``plan`` subcommand."""
-    from ris_planner.planning.presets import PLAN_PRESET_NAMES
+    from ris_planner.planning.inputs.presets import PLAN_PRESET_NAMES
 
     p = sub.add_parser("plan", help="search RIS placements and compare RIS counts")
     p.add_argument("file", nargs="?", help="plan JSON document ('-' for stdin)")

@@ -10,6 +10,7 @@ otherwise), a closed stdin, bytes that are not UTF-8.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -155,3 +156,9 @@ def readable_json(value: Any, levels: int = 2, indent: int = 1) -> str:
         return open_ + "\n" + ",\n".join(inner) + "\n" + " " * (indent * level) + close
 
     return encode(value, 0)
+
+
+def finite_or_none(x: float | None) -> float | None:
+    """A number as JSON has it: a finite value as a float, ``None`` (null) for ``inf``, ``nan``
+    or no value (JSON has no infinity; plan.json and the service's answers write null)."""
+    return None if x is None or not math.isfinite(x) else float(x)

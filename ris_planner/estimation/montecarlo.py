@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
+from ris_planner.core.io_json import finite_or_none
 from ris_planner.estimation.channel_estimation import ChannelEstimate, wrap
 from ris_planner.estimation.document import SimulationDocument
 from ris_planner.estimation.pipeline import Estimator
@@ -36,12 +37,8 @@ MAX_RUNS = 100_000
 MAX_POWERS = 200
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if np.isfinite(x) else None
-
-
 @dataclass(frozen=True)
-class PowerResult:
+class RunsAtPower:
     """Errors of every run at one power: state errors [runs, 7] (NaN = failed run), channel
     errors [runs, m] in the order of ``channel_names``, and the bounds."""
 
@@ -80,7 +77,7 @@ class PowerResult:
 
 @dataclass(frozen=True)
 class MonteCarloResult:
-    powers: list[PowerResult]
+    powers: list[RunsAtPower]
     runs: int
     seed: int
     multipath: bool
@@ -102,28 +99,28 @@ class MonteCarloResult:
             bound_key = BOUND_KEYS[param]
             unit = "_m" if param == "delay" else ""
             entry[f"rmse_{param}{unit}"] = [
-                _finite(rmse(p.channel_refined[:, j])) for p in self.powers
+                finite_or_none(rmse(p.channel_refined[:, j])) for p in self.powers
             ]
             entry[f"coarse_rmse_{param}{unit}"] = [
-                _finite(rmse(p.channel_coarse[:, j])) for p in self.powers
+                finite_or_none(rmse(p.channel_coarse[:, j])) for p in self.powers
             ]
-            entry[bound_key] = [_finite(p.channel_bounds[name]) for p in self.powers]
+            entry[bound_key] = [finite_or_none(p.channel_bounds[name]) for p in self.powers]
         return {
             "powers_dbm": [p.power_dbm for p in self.powers],
             "runs": self.runs,
             "seed": self.seed,
             "multipath": self.multipath,
             "sigma": self.sigma,
-            "rmse_tx_m": [_finite(r[0]) for r in ref],
-            "rmse_rx_m": [_finite(r[1]) for r in ref],
-            "rmse_clock_m": [_finite(r[2]) for r in ref],
-            "peb_tx_m": [_finite(p.peb_tx) for p in self.powers],
-            "peb_rx_m": [_finite(p.peb_rx) for p in self.powers],
-            "ceb_m": [_finite(p.ceb) for p in self.powers],
+            "rmse_tx_m": [finite_or_none(r[0]) for r in ref],
+            "rmse_rx_m": [finite_or_none(r[1]) for r in ref],
+            "rmse_clock_m": [finite_or_none(r[2]) for r in ref],
+            "peb_tx_m": [finite_or_none(p.peb_tx) for p in self.powers],
+            "peb_rx_m": [finite_or_none(p.peb_rx) for p in self.powers],
+            "ceb_m": [finite_or_none(p.ceb) for p in self.powers],
             "coarse": {
-                "rmse_tx_m": [_finite(r[0]) for r in coa],
-                "rmse_rx_m": [_finite(r[1]) for r in coa],
-                "rmse_clock_m": [_finite(r[2]) for r in coa],
+                "rmse_tx_m": [finite_or_none(r[0]) for r in coa],
+                "rmse_rx_m": [finite_or_none(r[1]) for r in coa],
+                "rmse_clock_m": [finite_or_none(r[2]) for r in coa],
             },
             "channel": channel,
             "failures": [p.failures for p in self.powers],
@@ -178,13 +175,13 @@ def _state_error(setup: SignalSetup, state: FloatArray) -> FloatArray:
     return err
 
 
-def run_power(
+def run_at_power(
     doc: SimulationDocument,
     power_dbm: float,
     runs: int,
     seed: int,
     progress: ProgressCallback = no_progress,
-) -> PowerResult:
+) -> RunsAtPower:
     """``runs`` realisations at one transmit power."""
     system = doc.scenario.system.model_copy(update={"tx_power_dbm": float(power_dbm)})
     scenario = doc.scenario.model_copy(update={"system": system})
@@ -221,7 +218,7 @@ def run_power(
             ch_coa[run] = channel_errors(setup, fe.channel_coarse, paths)
         progress((run + 1) / runs, f"{power_dbm:g} dBm run {run + 1}/{runs}")
     done = max(runs - failures, 1)
-    return PowerResult(
+    return RunsAtPower(
         power_dbm=float(power_dbm),
         refined=refined,
         coarse=coarse,
@@ -263,7 +260,7 @@ def run_monte_carlo(
         def sub(frac: float, msg: str, i: int = i) -> None:
             progress((i + frac) / n, msg)
 
-        out.append(run_power(doc, p, runs, seed, sub))
+        out.append(run_at_power(doc, p, runs, seed, sub))
     return MonteCarloResult(
         powers=out,
         runs=runs,

@@ -1337,7 +1337,7 @@ def score_layouts(
     left undefined there).
 
     blocks : the cache's packed information as pair blocks [⌈P/CHUNK⌉, S, 28, CHUNK]
-    (:attr:`ris_planner.planning.site_cache.SiteCache.blocks`, float64 or float32: a float32
+    (:attr:`ris_planner.planning.scoring.site_cache.SiteCache.blocks`, float64 or float32: a float32
     entry is widened exactly to float64 before any arithmetic); src : [E] its entries of the
     kept states in ldl.packed_index(n) order; los : the LOS information on the kept states in
     the same blocks [⌈P/CHUNK⌉, E, CHUNK] (:func:`to_blocks`), or shape (0, 0, 0) without LOS;

@@ -13,11 +13,12 @@ document's ``candidates``) takes as it is.
 
 Rules (:class:`CandidateOptions` holds every default):
 
-* Facades: every footprint edge of every prism is a facade (:func:`~ris_planner.planning.sites.
+* Facades: every footprint edge of every prism is a facade
+(:func:`~ris_planner.planning.inputs.sites.
   facade_walls`: the outward normal from the footprint's winding, moved ``offset_m`` out of the
   wall). ``corner_clearance_m`` is cut off both ends; an edge not longer than twice the
   clearance carries nothing; the rest carries n = max(1, round(usable / spacing_m)) sites at
-  the centres of n equal parts (:func:`~ris_planner.planning.sites.wall_poses`), at every
+  the centres of n equal parts (:func:`~ris_planner.planning.inputs.sites.wall_poses`), at every
   mounting height (above the building's base) strictly below the building's top and every
   tilt; the RIS faces the outward normal (``azimuth_deg``).
 * Poles: along each road centre line (length ℓ), n = round(ℓ / pole_spacing_m) poles at the
@@ -30,7 +31,8 @@ Rules (:class:`CandidateOptions` holds every default):
   next building, a pole beside a narrow road) is dropped (:meth:`Scene.inside`).
 * A site is kept only when it serves at least one UE point (the map's points, outside the
   buildings): the point is within its field of view (``max_angle_deg`` from the normal) and
-  the leg is not blocked (:func:`~ris_planner.planning.visibility.serve_matrix`, batched over
+  the leg is not blocked (:func:`~ris_planner.planning.scoring.visibility.serve_matrix`, batched
+  over
   every site and point; the rules of :mod:`ris_planner.environment.scene`). ``sees_points``
   counts them. The default field of view is the plan's
   (:data:`~ris_planner.model.plan_physics.PLAN_MAX_ANGLE_DEG`, 84.26°, what a plan document
@@ -73,12 +75,16 @@ from ris_planner.io.geojson_import import (
     wgs84_collection,
 )
 from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count
-from ris_planner.model.plan import Facades, RISDefaults, UEMap, Wall, map_points
+from ris_planner.model.plan import Facades, RISDefaults, UEMap, WallSites, map_points
 from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG
 from ris_planner.model.scenario import RIS
-from ris_planner.planning.maps import build_map
-from ris_planner.planning.sites import Site, facade_walls, wall_poses
-from ris_planner.planning.visibility import SitesInsideError, local_position_text, serve_matrix
+from ris_planner.planning.inputs.sites import Site, facade_walls, wall_poses
+from ris_planner.planning.inputs.ue_maps import build_map
+from ris_planner.planning.scoring.visibility import (
+    SitesInsideError,
+    local_position_text,
+    serve_matrix,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -496,7 +502,7 @@ def _facade_sites(site: _Site, options: CandidateOptions, summary: CandidateSumm
                 continue
             a, b = np.asarray(wall.start), np.asarray(wall.end)
             u = (b - a) / float(np.hypot(*(b - a)))
-            clipped = Wall(
+            clipped = WallSites(
                 start=(a + c * u).tolist(),
                 end=(b - c * u).tolist(),
                 side=wall.side,
@@ -813,7 +819,7 @@ def position_text(frame: Frame | None, position: Any) -> str:
 
 @contextmanager
 def in_document_coordinates(frame: Frame | None) -> Iterator[None]:
-    """Errors that place candidate sites (:class:`~ris_planner.planning.visibility.
+    """Errors that place candidate sites (:class:`~ris_planner.planning.scoring.visibility.
     SitesInsideError`: RIS centres inside buildings) restated in the coordinates of the
     document as given (:func:`position_text`): the planning stages work in local metres, the
     boundary that converted the document (``ris-planner plan``, a job, ``POST

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from ris_planner.io.candidates import in_document_coordinates
 from ris_planner.io.frames import to_local
-from ris_planner.planning.work import PlanEstimate, plan_estimate, resources_json
+from ris_planner.planning.resources.time_estimate import PlanEstimate, plan_estimate, resources_json
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 if TYPE_CHECKING:
@@ -27,11 +27,13 @@ if TYPE_CHECKING:
 
 def document_estimate(document: dict[str, Any], memory_mb: int | None = None) -> PlanEstimate:
     """The estimate of a plan document as given: converted from its frame, checked as the run
-    checks it (:func:`~ris_planner.planning.resources.validate_plan`: a document above a limit
+    checks it (:func:`~ris_planner.planning.resources.admission.validate_plan`: a document above a
+    limit
     or the budget raises the refusal, which names the estimate), then
-    :func:`~ris_planner.planning.work.plan_estimate`. ``memory_mb``: the job memory budget
+    :func:`~ris_planner.planning.resources.time_estimate.plan_estimate`. ``memory_mb``: the job
+    memory budget
     (default ``RIS_PLANNER_JOB_MEMORY_MB``)."""
-    from ris_planner.planning.resources import validate_plan
+    from ris_planner.planning.resources.admission import validate_plan
 
     t0 = time.perf_counter()
     local, frame = to_local(document)

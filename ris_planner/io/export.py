@@ -396,7 +396,7 @@ def write_gis_files(
 def plan_outputs(
     result: Any, plan: dict[str, Any], document: dict[str, Any], out_dir: Path
 ) -> dict[str, Path]:
-    """:func:`write_gis_files` for a :class:`~ris_planner.planning.plan.PlanResult` (of the
+    """:func:`write_gis_files` for a :class:`~ris_planner.planning.PlanResult` (of the
     local document): per-point results from ``plan["points"]``, else from the heatmap (the
     RX map points, the bound of the best layout of the largest count)."""
     points = None

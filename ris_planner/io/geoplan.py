@@ -72,28 +72,31 @@ def plan_document(
     executor: Any = None,
     figures: FigureProcess | None = None,
 ) -> PlanFiles:
-    """Convert, plan (:func:`~ris_planner.planning.plan.run_plan` with ``executor``), write
+    """Convert, plan (:func:`~ris_planner.planning.run_plan` with ``executor``), write
     the figures and GIS files into ``out_dir``; ``plan.json`` itself is the caller's to write
     (the command line writes it, a job stores it as its result).
 
     Progress goes over the stages ``plan`` (the search: cache, search, checks, beams),
     ``fields`` (every count's per-point bounds), ``report`` (the summary and plan.json),
     ``figures`` and ``exports``, each with a share
-    proportional to its estimated work (:mod:`ris_planner.planning.work`); 1.0 only once the
+    proportional to its estimated work (:mod:`ris_planner.planning.resources.time_estimate`); 1.0
+    only once the
     files are written. plan.json's ``timing_s`` holds every stage's seconds, these outputs
     included (:class:`~ris_planner.planning.pipeline.StageClock`): their sum is this call's
-    wall time. Checks that run on a thread (:class:`~ris_planner.planning.checks.PendingChecks`)
+    wall time. Checks that run on a thread
+    (:class:`~ris_planner.planning.certify.checks.PendingChecks`)
     run beside the fields and the figures; ``timing_s["checks"]`` is the part of them that
     those stages did not hide (the wait before plan.json). With ``figures`` (the command
-    line's :class:`~ris_planner.planning.figure_process.FigureProcess`) a helper process draws
+    line's :class:`~ris_planner.planning.figure_process.FigureProcess`) a helper process
+    draws
     the figures beside the checks, the report and the exports; ``timing_s["figures"]`` is then
     the hand-over plus the wait for the helper at the end."""
     t0, c0 = time.perf_counter(), time.process_time()  # the imports: the inputs' time too
-    from ris_planner.planning.checks import cancelled_on_error
-    from ris_planner.planning.inputs import prepare_plan
+    from ris_planner.planning.certify.checks import cancelled_on_error
+    from ris_planner.planning.outputs.report import write_figures
     from ris_planner.planning.pipeline import StageClock, pipeline_work, run_plan, settle_checks
-    from ris_planner.planning.report import write_figures
-    from ris_planner.planning.work import report_work
+    from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.resources.time_estimate import report_work
 
     clock = StageClock()
     clock.add("inputs", time.perf_counter() - t0, time.process_time() - c0)
@@ -160,13 +163,13 @@ def _district_document(
     progress: ProgressCallback,
     clock: Any,
 ) -> PlanFiles:
-    """A district plan (:func:`ris_planner.planning.district.plan_district`): plan.json, with
-    why ``search.method: auto`` chose it (:func:`~ris_planner.planning.resources.
+    """A district plan (:func:`ris_planner.planning.search.district.plan_district`): plan.json, with
+    why ``search.method: auto`` chose it (:func:`~ris_planner.planning.resources.admission.
     adapted_search`), and its coverage-against-count figure."""
     from ris_planner.model.plan import PlanDocument
-    from ris_planner.planning.district import plan_district
-    from ris_planner.planning.district_report import district_figure
-    from ris_planner.planning.resources import adapted_search
+    from ris_planner.planning.outputs.district_figure import district_figure
+    from ris_planner.planning.resources.admission import adapted_search
+    from ris_planner.planning.search.district import plan_district
 
     with clock.stage("search"):
         plan = plan_district(inputs, progress)

@@ -2,7 +2,7 @@
 command line and the service (docs/reference/settings.md, "Limits") – and the one check.
 
 :class:`Sizes` holds the sizes of a run, computed from its validated document before anything
-is built (:func:`ris_planner.planning.resources.estimate_plan`,
+is built (:func:`ris_planner.planning.resources.admission.estimate_plan`,
 :func:`ris_planner.power.resources.estimate_power`); :func:`check_sizes` raises
 :class:`LimitExceededError` naming the first quantity above its limit, or the memory estimate
 above the job's budget (``RIS_PLANNER_JOB_MEMORY_MB``). The command line and the service call
@@ -34,7 +34,7 @@ MAX_MAP_POINTS = 1_000_000
 """Points of one UE map (grid + points + road lattice + CSV rows)."""
 CACHE_MEMORY_MB_DEFAULT = 3072
 """Site-cache budget [MiB] (``RIS_PLANNER_CACHE_MEMORY_MB``) for the cache's block storage of 28
-entries per site-pair and its square-root rows (:mod:`ris_planner.planning.site_cache`); the
+entries per site-pair and its square-root rows (:mod:`ris_planner.planning.scoring.site_cache`); the
 first layout of :func:`cache_layout` that fits is used: float64 with the rows stored, float64
 with the rows recomputed on demand (planar), float32 (half the bytes; the plan then re-scores
 its finalists exactly in float64). A cache that does not fit even as float32 is refused before
@@ -63,6 +63,11 @@ class CacheLayout(NamedTuple):
     def bytes(self, entries: int, wavefront: str = "planar") -> int:
         per = CACHE_ENTRY_BYTES[self.storage] + (CACHE_ROW_BYTES[wavefront] if self.rows else 0)
         return entries * per
+
+
+HEATMAP_MAX_PAIRS = 200_000
+"""TX–RX pairs the plan's heatmap evaluates: at most this many RX points (a seeded sample of a
+larger RX map) against a seeded weighted sample of the TX map."""
 
 
 MAX_SEARCH_LAYOUTS = 2_000_000
@@ -208,7 +213,7 @@ def budget_mb(memory_mb: int | None) -> int:
 
 S = TypeVar("S")
 """The shape of a memory estimate: the quantities its terms grow with (a plan's
-:class:`~ris_planner.planning.resources.PlanShape`, a power allocation's
+:class:`~ris_planner.planning.resources.admission.PlanShape`, a power allocation's
 :class:`~ris_planner.power.resources.PowerShape`)."""
 
 

@@ -255,7 +255,7 @@ class Candidate(DocumentModel):
         return self
 
 
-class Wall(DocumentModel):
+class WallSites(DocumentModel):
     """Mounting sites on a wall: a segment (``start``, ``end``) or a building footprint
     (``rectangle``, four walls facing outwards), sampled every ``spacing_m`` along the wall at
     every height and tilt. A RIS faces the wall's normal (yaw) and is tilted by ``tilt``
@@ -287,7 +287,7 @@ class Wall(DocumentModel):
     )
 
     @model_validator(mode="after")
-    def _check_shape(self) -> Wall:
+    def _check_shape(self) -> WallSites:
         seg = self.start is not None and self.end is not None
         if seg == (self.rectangle is not None) or (self.start is None) != (self.end is None):
             raise ValueError("a wall is either start + end (a segment) or a rectangle")
@@ -312,7 +312,7 @@ def check_tilts(tilts: list[float]) -> None:
 class Facades(DocumentModel):
     """Mounting sites on every facade (footprint edge) of the named prisms of ``environment``.
 
-    Each edge is a :class:`Wall` segment facing outward (the normal is computed from the
+    Each edge is a :class:`WallSites` segment facing outward (the normal is computed from the
     footprint, any winding), moved ``offset_m`` outward, sampled every ``spacing_m`` at every
     height and tilt. Heights are measured from the prism's base and clipped to its top (a RIS
     on the roof edge); heights that clip to the same z give one site."""
@@ -851,7 +851,7 @@ class SearchRegion(DocumentModel):
 class ValidationSpec(DocumentModel):
     """Validate the recommended layouts with the paper's two-stage estimator (Algorithms 1
     and 2) on the plan's own pairs, blockage and multipath (plan.json ``validation``;
-    :mod:`ris_planner.planning.estimator_check`, docs/validation/estimator.md)."""
+    :mod:`ris_planner.planning.outputs.estimator_check`, docs/validation/estimator.md)."""
 
     pairs: int = Field(20, ge=1, le=1000, description="TX–RX pairs sampled ∝ the plan's weights")
     draws: int = Field(5, ge=1, le=1000, description="Noise and gain-phase draws per pair")
@@ -930,7 +930,7 @@ class PlanDocument(DocumentModel):
     candidates: list[Candidate] = Field(
         default_factory=list, max_length=10_000, description="Explicit candidate sites"
     )
-    walls: list[Wall] = Field(
+    walls: list[WallSites] = Field(
         default_factory=list, max_length=1000, description="Walls expanded to candidate sites"
     )
     facades: list[Facades] = Field(
@@ -1165,7 +1165,7 @@ class LayoutBeamsDocument(DocumentModel):
     """A power-allocation request for a given layout and UE probability maps (instead of one
     scenario with a Gaussian prior): beams designed from the maps, uniform power, the best γ_P
     and the SDP, each re-evaluated on the maps' pairs with ``objective``
-    (:func:`ris_planner.planning.beam_design.run_layout_beams`)."""
+    (:func:`ris_planner.planning.beams.run_layout_beams`)."""
 
     description: str | None = Field(None, max_length=2000, description="Free text")
     system: SystemParams = Field(
@@ -1212,7 +1212,8 @@ class LayoutBeamsDocument(DocumentModel):
 
 
 def _road_points(road: Road) -> int:
-    """Lattice points of one road, as :func:`ris_planner.planning.maps.road_points` samples."""
+    """Lattice points of one road, as :func:`ris_planner.planning.inputs.ue_maps.road_points`
+    samples."""
     lateral = 2 * count(road.width_m / 2 / road.step_m + 1e-9) + 1
     total, any_segment = 0, False
     for a, b in zip(road.points, road.points[1:], strict=False):

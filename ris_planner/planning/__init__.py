@@ -2,7 +2,7 @@
 placement search and RIS-count comparison (built on :mod:`ris_planner.bounds.compute`).
 
 The names below load on first use (PEP 562): a worker process that needs only the search
-(``ris_planner.planning.search``) does not import the whole pipeline, its figures and the
+(``ris_planner.planning.search.layouts``) does not import the whole pipeline, its figures and the
 estimator with it (docs/validation/benchmarks.md, "Interactive planning")."""
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from ris_planner.model.plan import PlanDocument
+    from ris_planner.planning.inputs.presets import PLAN_PRESET_NAMES, load_plan_file, plan_preset
+    from ris_planner.planning.outputs.report import write_figures
+    from ris_planner.planning.outputs.result import PlanResult
     from ris_planner.planning.pipeline import run_plan
-    from ris_planner.planning.presets import PLAN_PRESET_NAMES, load_plan_file, plan_preset
-    from ris_planner.planning.report import write_figures
-    from ris_planner.planning.result import PlanResult
     from ris_planner.runtime.executor import (
         DaskExecutor,
         Executor,
@@ -24,17 +24,17 @@ if TYPE_CHECKING:
     )
 
 _SOURCES = {
-    "PLAN_PRESET_NAMES": "ris_planner.planning.presets",
+    "PLAN_PRESET_NAMES": "ris_planner.planning.inputs.presets",
     "DaskExecutor": "ris_planner.runtime.executor",
     "Executor": "ris_planner.runtime.executor",
     "LocalExecutor": "ris_planner.runtime.executor",
     "PlanDocument": "ris_planner.model.plan",
-    "PlanResult": "ris_planner.planning.result",
+    "PlanResult": "ris_planner.planning.outputs.result",
     "SerialExecutor": "ris_planner.runtime.executor",
-    "load_plan_file": "ris_planner.planning.presets",
-    "plan_preset": "ris_planner.planning.presets",
+    "load_plan_file": "ris_planner.planning.inputs.presets",
+    "plan_preset": "ris_planner.planning.inputs.presets",
     "run_plan": "ris_planner.planning.pipeline",
-    "write_figures": "ris_planner.planning.report",
+    "write_figures": "ris_planner.planning.outputs.report",
 }
 
 __all__ = [

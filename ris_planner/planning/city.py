@@ -24,10 +24,10 @@ import numpy as np
 
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.model.plan import PairSample, PlanDocument
-from ris_planner.planning.district import plan_district
-from ris_planner.planning.inputs import prepare_plan
-from ris_planner.planning.maps import build_map
-from ris_planner.planning.separation import near_combinations
+from ris_planner.planning.inputs.separation import near_combinations
+from ris_planner.planning.inputs.ue_maps import build_map
+from ris_planner.planning.prepare import prepare_plan
+from ris_planner.planning.search.district import plan_district
 from ris_planner.runtime.executor import Executor, SerialExecutor
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 

@@ -4,12 +4,13 @@
 ``ris-planner plan`` is one fresh process. Importing matplotlib (≈ 0.5 s) and drawing the
 three figures (≈ 0.8 s) used to run on its main thread after the fields, on one core, before
 plan.json and the GIS files. :class:`FigureProcess` is started when the command starts: a
-child interpreter (``python -m ris_planner.planning.figure_process``) that imports matplotlib
+child interpreter (``python -m ris_planner.planning.figure_process``) that imports
+matplotlib
 and the figure code while the parent reads the document and searches (when one core is idle),
 then waits on its stdin. :meth:`FigureProcess.submit` hands it the plan result once the
 fields are in; it draws the figures into the output folder while the parent settles the
 checks and writes plan.json's content and the GIS files, and :meth:`FigureProcess.files`
-collects their paths. The same function draws them (:func:`~ris_planner.planning.report.
+collects their paths. The same function draws them (:func:`~ris_planner.planning.outputs.report.
 write_figures`), so the files are those an in-process plan writes (tested).
 
 A plan never fails for the helper: if it did not start, died, or failed to draw, the parent
@@ -36,8 +37,8 @@ from typing import IO, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ris_planner.planning.objectives import Scorer
-from ris_planner.planning.result import PlanResult
+from ris_planner.planning.outputs.result import PlanResult
+from ris_planner.planning.scoring.scorer import Scorer
 
 _HEADER = struct.Struct("<Q")
 """Each message: its length (8 bytes, little-endian), then a pickle."""
@@ -89,7 +90,7 @@ def figure_job(result: PlanResult) -> PlanResult:
 
 
 def _draw(result: PlanResult, out_dir: Path) -> dict[str, Path]:
-    from ris_planner.planning.report import write_figures
+    from ris_planner.planning.outputs.report import write_figures
 
     return write_figures(result, out_dir)
 
@@ -135,7 +136,8 @@ class FigureProcess:
             self._failed(f"the figure process could not take the plan ({exc})")
 
     def files(self) -> dict[str, Path]:
-        """The figures' paths once drawn (:func:`~ris_planner.planning.report.write_figures`'s
+        """The figures' paths once drawn
+        (:func:`~ris_planner.planning.outputs.report.write_figures`'s
         answer); drawn here instead when the helper could not (:attr:`note` says why)."""
         if self._job is None:
             raise RuntimeError("FigureProcess.files() before submit()")

@@ -2,15 +2,16 @@
 
 inputs → visibility → site cache → search (branch-and-bound) → checks → rollout → [beams] →
 [sweep] → [sizing] → diagnosis → fields (the per-point bounds, plan.json ``points`` and
-``heatmap``) → summary → a frozen :class:`~ris_planner.planning.result.PlanResult`; its
+``heatmap``) → summary → a frozen :class:`~ris_planner.planning.outputs.result.PlanResult`; its
 outputs (plan.json, figures, GIS files) are :func:`ris_planner.io.geoplan.plan_document`'s.
 
 Each stage is a function of what the earlier ones produced; :class:`StageClock` times each
 under its name (plan.json ``timing_s``: the stages are disjoint, so their sum is the plan's
 wall time), and its share of the progress bar is its estimate in
-:mod:`ris_planner.planning.work`. A new stage is a function here, a ``clock.stage(name)``
+:mod:`ris_planner.planning.resources.time_estimate`. A new stage is a function here, a
+``clock.stage(name)``
 around its call in :func:`plan_once` or :func:`run_plan`, and (when it is long) an estimate
-in :func:`~ris_planner.planning.work.plan_work`.
+in :func:`~ris_planner.planning.resources.time_estimate.plan_work`.
 """
 
 from __future__ import annotations
@@ -27,15 +28,18 @@ from ris_planner.core.errors import RisPlannerError
 from ris_planner.environment import Scene
 from ris_planner.model.limits import cache_layout
 from ris_planner.model.plan import PlanDocument, Sweep
-from ris_planner.planning.beam_design import (
+from ris_planner.planning.beams import (
     BeamReport,
     evaluate_layout_beams,
     layout_scenario,
     served_pairs,
 )
-from ris_planner.planning.branch_bound import BNB_MIN_WORK, BNB_WORK_FACTOR, branch_and_bound
-from ris_planner.planning.certificates import Certificate
-from ris_planner.planning.checks import (
+from ris_planner.planning.certify.branch_bound import (
+    BNB_MIN_WORK,
+    BNB_WORK_FACTOR,
+    branch_and_bound,
+)
+from ris_planner.planning.certify.checks import (
     PendingChecks,
     PlanCheck,
     bnb_certificate,
@@ -45,19 +49,25 @@ from ris_planner.planning.checks import (
     random_codebook_tasks,
     search_certificate,
 )
-from ris_planner.planning.decisions import ties
-from ris_planner.planning.estimator_check import run_estimator_check, validation_work
-from ris_planner.planning.fields import rx_fields
-from ris_planner.planning.finalists import exact_certificate, rescore_finalists
-from ris_planner.planning.inputs import PlanInputs, needs_workers, prepare_plan, validate_document
-from ris_planner.planning.objectives import Scorer, objective_from_loss
-from ris_planner.planning.points import heatmap_json, points_json
-from ris_planner.planning.result import CountResult, PlanResult, summarise
-from ris_planner.planning.rollout import plan_rollout
-from ris_planner.planning.search import Layout, search
-from ris_planner.planning.site_cache import SiteCache, build_site_cache
-from ris_planner.planning.visibility import Visibility, pair_visibility, serve_warnings
-from ris_planner.planning.work import plan_work, report_work, search_layouts
+from ris_planner.planning.certify.relaxation import Certificate
+from ris_planner.planning.outputs.decisions import ties
+from ris_planner.planning.outputs.estimator_check import run_estimator_check, validation_work
+from ris_planner.planning.outputs.finalists import exact_certificate, rescore_finalists
+from ris_planner.planning.outputs.points import heatmap_json, points_json
+from ris_planner.planning.outputs.result import CountResult, PlanResult, summarise
+from ris_planner.planning.outputs.rx_fields import rx_fields
+from ris_planner.planning.prepare import (
+    PlanInputs,
+    needs_workers,
+    prepare_plan,
+    validate_document,
+)
+from ris_planner.planning.resources.time_estimate import plan_work, report_work, search_layouts
+from ris_planner.planning.scoring.scorer import Scorer, objective_from_loss
+from ris_planner.planning.scoring.site_cache import SiteCache, build_site_cache
+from ris_planner.planning.scoring.visibility import Visibility, pair_visibility, serve_warnings
+from ris_planner.planning.search.layouts import Layout, search
+from ris_planner.planning.search.rollout import plan_rollout
 from ris_planner.runtime.blas import one_blas_thread
 from ris_planner.runtime.executor import Executor, LocalExecutor, SerialExecutor
 from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
@@ -130,8 +140,10 @@ def run_plan(
 ) -> PlanResult:
     """Run a plan document through every stage up to its frozen result: inputs, the search
     stages (:func:`plan_once`), the sweep and sizing runs, the diagnosis
-    (:mod:`ris_planner.planning.diagnosis`), the estimator's validation when the document asks
-    for it (:mod:`ris_planner.planning.estimator_check`), the per-point bounds and the summary.
+    (:mod:`ris_planner.planning.outputs.diagnosis`), the estimator's validation when the document
+    asks
+    for it (:mod:`ris_planner.planning.outputs.estimator_check`), the per-point bounds and the
+    summary.
 
     ``executor`` defaults to a local process pool (closed afterwards); ``inputs``: the
     document's :func:`prepare_plan` when the caller has it already. Progress goes over the
@@ -144,9 +156,9 @@ def run_plan(
     search (:class:`PendingChecks`); ``settle=False`` returns before they are done
     (``result.pending_checks``: the caller overlaps its own stages – the figures – and then
     calls :func:`settle_checks`)."""
-    from ris_planner.planning.diagnosis import diagnose
-    from ris_planner.planning.resources import sizing_runs
-    from ris_planner.planning.sizing import run_sizing
+    from ris_planner.planning.outputs.diagnosis import diagnose
+    from ris_planner.planning.resources.admission import sizing_runs
+    from ris_planner.planning.search.sizing import run_sizing
 
     clock = StageClock() if clock is None else clock
     with clock.stage("inputs"):
@@ -235,12 +247,14 @@ def plan_once(
     """One plan run on an executor, the search stages only (no sweep, no sizing, no diagnosis,
     no per-point bounds): the base of :func:`run_plan`, and each run of a sweep and of the
     sizing question. ``checked``: a validated document whose sizes its parent document
-    already checked (a sweep or sizing run: :func:`ris_planner.planning.resources.plan_runs`; it
+    already checked (a sweep or sizing run:
+    :func:`ris_planner.planning.resources.admission.plan_runs`; it
     draws no heatmap, so the heatmap's memory does not apply). ``background_checks``: checks
     that would run in this process run on a thread instead (``result.pending_checks``,
     :class:`PendingChecks`; :func:`settle_checks` completes the result) – the codebook
     evaluations only: a relaxation bound (a count searched greedily) keeps them in line, its
-    memory being the scorer's (:func:`ris_planner.planning.work.checks_beside`)."""
+    memory being the scorer's
+    (:func:`ris_planner.planning.resources.time_estimate.checks_beside`)."""
     clock = StageClock() if clock is None else clock
     with clock.stage("inputs"):
         doc = (
@@ -327,7 +341,8 @@ def visibility_stage(inputs: PlanInputs) -> tuple[Visibility, list[str]]:
 def cache_stage(
     inputs: PlanInputs, visibility: Visibility, progress: ProgressCallback
 ) -> SiteCache:
-    """Every candidate site's information on every pair (:mod:`ris_planner.planning.site_cache`)."""
+    """Every candidate site's information on every pair
+    (:mod:`ris_planner.planning.scoring.site_cache`)."""
     doc = inputs.document
     return build_site_cache(
         doc.system,
@@ -570,7 +585,7 @@ def plan_beams(
     result: PlanResult, progress: ProgressCallback = no_progress
 ) -> dict[Layout, BeamReport]:
     """Beam designs and power allocations for the best layout of each count and the
-    document's extra ``beams.layouts`` (:mod:`ris_planner.planning.beam_design`)."""
+    document's extra ``beams.layouts`` (:mod:`ris_planner.planning.beams`)."""
     doc = result.document
     spec = doc.beams
     assert spec is not None

@@ -222,11 +222,12 @@ def _cache_dir(dispatcher: Any) -> str:
 def prepare_figures() -> None:
     """matplotlib on its Agg backend with pyplot and the plan's figure code imported (≈ 0.4 s
     of a process's first figure): for :func:`prepare_process` and the command line's figure
-    helper (:mod:`ris_planner.planning.figure_process`), which set it up before it is needed."""
+    helper (:mod:`ris_planner.planning.figure_process`), which set it up before it is
+    needed."""
     import matplotlib
 
     matplotlib.use("Agg")
-    for module in ("matplotlib.pyplot", "ris_planner.planning.report"):
+    for module in ("matplotlib.pyplot", "ris_planner.planning.outputs.report"):
         importlib.import_module(module)
 
 

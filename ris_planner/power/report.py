@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from ris_planner.bounds.compute import ComplexArray, compute_bounds, first_block_profiles
 from ris_planner.core.errors import LimitExceededError, RisPlannerError
+from ris_planner.core.io_json import finite_or_none
 from ris_planner.model.limits import MAX_DESIGN_BEAMS, MAX_DESIGN_POSITIONS
 from ris_planner.model.power import Objective
 from ris_planner.model.scenario import (
@@ -66,12 +67,8 @@ def design_objective(
     return evaluate
 
 
-def _num(x: float | None) -> float | None:
-    return None if x is None or not math.isfinite(x) else float(x)
-
-
 def _entry(objective: float | None) -> dict[str, Any]:
-    out: dict[str, Any] = {"objective": _num(objective)}
+    out: dict[str, Any] = {"objective": finite_or_none(objective)}
     out["rms_peb_m"] = None if out["objective"] is None else math.sqrt(out["objective"])
     if objective is not None and not math.isfinite(objective):
         out["reason"] = "a design position is a blind spot (singular Fisher information)"
@@ -114,7 +111,7 @@ class PowerResult:
             "solve_time_s": self.sdp.solve_time_s,
             "solver_time_s": self.sdp.solver_time_s,
             "solver": self.sdp.solver,
-            "solver_objective": _num(self.sdp.objective),
+            "solver_objective": finite_or_none(self.sdp.objective),
             "powers": None if self.sdp.powers is None else [float(x) for x in self.sdp.powers],
             "message": self.sdp.message,
         }

@@ -141,7 +141,7 @@ page of its own, so a worker's copy-on-write of one array never copies its neigh
 MEMFD_PREFIX = "ris_planner-share-"
 """Name of the anonymous memory files (``/proc/<pid>/fd/N`` links read ``/memfd:<name>``)."""
 
-WARM_MODULES = ("ris_planner.planning.search", "ris_planner.planning.branch_bound")
+WARM_MODULES = ("ris_planner.planning.search.layouts", "ris_planner.planning.certify.branch_bound")
 """Modules a local worker imports as it starts (numpy, numba and the scorer), so that a pool
 started early has its imports done by the time the first task arrives."""
 

@@ -64,7 +64,8 @@ class StageTimer(Protocol):
 
 class Stages:
     """A progress callback split over consecutive named stages, each holding a share of the bar
-    proportional to its estimated work (seconds, :mod:`ris_planner.planning.work`).
+    proportional to its estimated work (seconds,
+    :mod:`ris_planner.planning.resources.time_estimate`).
 
     ``stages.callback(name)`` is the callback of one stage: its own fraction f ∈ [0, 1] maps
     to ``start + f · share`` and its message becomes ``"name: message"``. Fractions never go

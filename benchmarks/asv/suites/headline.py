@@ -86,9 +86,9 @@ class Planning:
     def setup(self) -> None:
         from ris_planner.environment import Scene
         from ris_planner.planning import PlanDocument
-        from ris_planner.planning.maps import build_map, build_pairs
-        from ris_planner.planning.sites import expand_sites
-        from ris_planner.planning.visibility import pair_visibility
+        from ris_planner.planning.inputs.sites import expand_sites
+        from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+        from ris_planner.planning.scoring.visibility import pair_visibility
 
         self.plan_doc = hall_document()
         d = PlanDocument.model_validate(hall_document(spacing_m=5.0, pairs=1600))
@@ -107,7 +107,7 @@ class Planning:
         run_plan(self.plan_doc, executor=SerialExecutor())
 
     def time_hall_site_cache(self) -> None:
-        from ris_planner.planning.site_cache import build_site_cache
+        from ris_planner.planning.scoring.site_cache import build_site_cache
 
         build_site_cache(self.system, self.sites, self.pairs, visibility=self.visibility, known=())
 

@@ -1,0 +1,644 @@
+"""Estimated seconds of a plan's stages: the plan's time estimate and the weights of honest
+progress (:class:`ris_planner.runtime.progress.Stages`; docs/concepts/planning-physics.md,
+"Progress").
+
+:func:`stage_seconds` models each stage of the pipeline (the names of plan.json's
+``timing_s``) from the sizes that drive it – sites, pairs, layouts searched, RIS elements and
+first-block beams of the codebook checks, heatmap pairs, and for the spherical model the
+per-element terms; :func:`plan_work` and :func:`report_work` group them into the progress
+stages. Each stage's share of the bar is its estimate over the sum, so the bar moves at a
+roughly even pace and reaches 100 % only when plan.json's figures and exports are written.
+
+The model reads the plan's document (:class:`WorkSizes`: its sizes, nothing computed on
+them) and a seeded sample of its visibility (:func:`served_share`), so the estimate exists
+before any work: ``ris-planner plan`` prints it, a service plan job holds it from its
+submission and plan.json keeps it beside what the run measured (:func:`plan_estimate`,
+:func:`resources_json`). The constants are calibrated with ``python
+benchmarks/bench_memory.py --stages`` (one process per case, ``SerialExecutor``) so that the
+estimate is within [0.8, 1.9] of the measured CPU time on its cases, and checked on held-out
+real sites (``benchmarks/bench_estimates.py``, docs/validation/resources.md).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import sys
+import weakref
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.model.limits import HEATMAP_MAX_PAIRS, budget_mb, grouped
+from ris_planner.model.plan import PlanDocument
+from ris_planner.physics.codebooks import block_length
+from ris_planner.planning.resources.admission import greedy_layouts
+
+if TYPE_CHECKING:
+    from ris_planner.environment import Scene
+    from ris_planner.planning.inputs.plan_inputs import PlanInputs
+    from ris_planner.planning.inputs.sites import Site
+    from ris_planner.planning.inputs.ue_maps import PointMap
+
+CHECKS_HIDDEN_BY = ("sizing", "validation", "fields", "figures")
+"""The stages that checks running beside them (:func:`checks_beside`) overlap: the checks'
+thread starts after the search and is waited for after the figures."""
+
+CHECKS_BESIDE_SHARE = 0.25
+"""Of checks that run on their thread beside the fields and the figures (:func:`checks_beside`),
+the share of the overlapped time that still lengthens the plan (the GIL and the core they
+share): ``checks`` is estimated as the part the later stages do not hide plus this share of
+the rest (docs/validation/resources.md)."""
+
+MARGIN = 1.3
+"""Every stage's model times this: the estimate stays above the measured time on a machine
+somewhat busier than the calibration's (docs/validation/resources.md)."""
+
+TIME_COEFFICIENTS: dict[str, dict[str, float]] = {
+    "inputs": {"const": 0.025, "per_site": 9.27e-05},
+    "visibility": {
+        "const": 0.00195,
+        "per_site_point": 2.22e-09,
+        "per_site_point_obstructed": 8.49e-07,
+    },
+    "cache": {
+        "const": 0.00909,
+        "per_site_pair": 4.49e-07,
+        "per_served_site_pair": 3.42e-07,
+        "per_site_pair_element_spherical": 2.08e-08,
+    },
+    "search": {
+        "per_count": 0.173,
+        "per_layout_pair": 2.41e-08,
+        "per_exhaustive_layout_pair": 1.53e-08,
+        "per_served_layout_pair": 1.9e-07,
+        "per_served_exhaustive_layout_pair": 8.16e-08,
+        "per_rescored_site_pair": 4.78e-06,
+    },
+    "checks": {
+        "per_codebook_mac": 5.8e-11,
+        "per_served_codebook_mac": 9.41e-11,
+        "per_checked_ris_pair": 0,
+        "per_served_checked_ris_pair": 7.15e-06,
+        "per_checked_ris_pair_element_spherical": 2.99e-07,
+        "per_rescored_site_pair": 1.54e-06,
+        "per_relaxation_site_pair": 3.06e-08,
+    },
+    "rollout": {"const": 0.00282, "per_layout_pair": 6.36e-08},
+    "fields": {
+        "per_ris_pair": 4.17e-07,
+        "per_served_ris_pair": 8.56e-07,
+        "per_ris_pair_element_spherical": 4.28e-09,
+        "per_rx_point": 0.000381,
+    },
+    "report": {"const": 0.095, "per_pair": 0, "per_rx_point": 0, "per_rescored_site_pair": 3e-06},
+    "figures": {"const": 0.759, "per_rx_point": 0.000208, "per_extra_figure": 0.243},
+    "exports": {"const": 0.08, "per_rx_point": 3.95e-05},
+    "sizing": {"per_run": 0, "per_modelled_s": 0.608},
+    "validation": {"const": 0, "per_estimate": 0.000709, "per_served_estimate": 0.0265},
+}
+"""Seconds per unit of each size that drives a stage (:func:`stage_terms` names the sizes),
+fitted to the per-stage CPU seconds of ``python benchmarks/bench_memory.py --stages --json F``
+(the bench's ring cases, and ``--document`` runs of synthetic city grids and of the shipped
+junction and hall, plain, with sizing, nested and validated) by ``python
+benchmarks/fit_time_model.py F … --cpu --low 0.8 --high 1.9`` (docs/validation/resources.md,
+"The time estimate per stage"); none of the real OpenStreetMap sites, which are the held-out
+check (``benchmarks/bench_estimates.py``). ``const`` once, ``per_count`` per RIS count, the rest
+per unit of the size of the same name. ``per_served_…`` terms are the same size times the
+served share (:func:`served_share`: the work that follows the pairs a RIS serves – an open
+ring serves every pair, a city street a few percent); ``…_element_spherical`` terms are the
+spherical model's (its expected Gram and Jacobians sum over the N elements per pair),
+``per_rescored_site_pair`` the float32 cache's float64 re-score of the reported layouts
+(their sites × pairs, per count), ``per_relaxation_site_pair`` the Frank–Wolfe bound of each
+count searched greedily (iterations × sites × pairs). ``sizing`` is per run of the sizing
+question and per modelled second of those runs (:func:`sizing_runs_sizes`: each a search-only
+plan at one RIS size, modelled with these coefficients), ``validation`` per estimator run
+(pairs × draws × layouts), most of it per served one (a pair no RIS serves stops early).
+The visibility walks each leg through the obstacles' grid: per site and UE point with any
+obstacle (the walk's cells, whatever the obstacle count: 0.75–0.96 µs per site-point on the
+five cities with 9–40 buildings), the hall's rate without (≤ 0.02 s on every case: below the
+fit's floor)."""
+
+BEAMS_PER_LAYOUT_S = 2.0
+"""Beam design and power allocation per layout (the SDPs dominate)."""
+
+SERVE_SAMPLE_SITES = 32
+"""Candidate sites of the served-share sample (:func:`served_share`)."""
+
+SERVE_SAMPLE_POINTS = 192
+"""TX and RX map points of the served-share sample (each, drawn ∝ the maps' weights)."""
+
+
+def served_share(
+    sites: list[Site], tx_map: PointMap, rx_map: PointMap, scene: Scene, seed: int = 0
+) -> float:
+    """The share of (TX–RX pair, candidate site) combinations in which the site's RIS serves
+    both UEs (its field of view and clear legs, the plan's visibility rules), from a seeded
+    sample: :data:`SERVE_SAMPLE_SITES` sites, :data:`SERVE_SAMPLE_POINTS` TX and RX points
+    drawn ∝ the maps' weights; per site the share of the TX points it serves times that of the
+    RX points, averaged over the sites. 1 in an open hall whose candidates face the UEs, a few
+    percent on a street of a city block: the work of the stages that follow the served pairs
+    (the search's identifiable pairs, the cache, the codebook checks, the per-point bounds,
+    the estimator's validation) scales with it (:func:`stage_terms`)."""
+    from ris_planner.bounds.paths import in_field_of_view
+
+    if not sites:
+        return 0.0
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(len(sites), min(len(sites), SERVE_SAMPLE_SITES), replace=False)
+
+    def points(m: PointMap) -> NDArray[np.float64]:
+        w = m.weights / m.weights.sum()
+        n = min(len(m.points), SERVE_SAMPLE_POINTS)
+        return m.points[rng.choice(len(m.points), n, replace=False, p=w if n < len(w) else None)]
+
+    tx, rx = points(tx_map), points(rx_map)
+    both = np.concatenate([tx, rx])
+    ris = [sites[i].ris for i in pick]
+    # ris_serves' rule for every sampled site at once: the field of view, then one visibility
+    # query of every (site, point) leg
+    serves = np.stack([in_field_of_view(r, both) for r in ris])  # [S, T + R]
+    if not scene.empty:
+        centres = np.array([r.position for r in ris], dtype=float)
+        serves &= ~scene.blocked_to(both, centres)
+    shares = serves[:, : len(tx)].mean(axis=1) * serves[:, len(tx) :].mean(axis=1)
+    return float(np.mean(shares))
+
+
+_SERVED: dict[int, tuple[weakref.ref[PlanInputs], float]] = {}
+""":func:`served_share` of prepared inputs, once per inputs object (the progress weights ask
+for it several times per plan)."""
+
+
+def _inputs_served(inputs: PlanInputs) -> float:
+    key = id(inputs)
+    hit = _SERVED.get(key)
+    if hit is not None and hit[0]() is inputs:
+        return hit[1]
+    share = served_share(inputs.sites, inputs.tx_map, inputs.rx_map, inputs.scene)
+    for k in [k for k, (ref, _) in _SERVED.items() if ref() is None]:
+        del _SERVED[k]
+    _SERVED[key] = (weakref.ref(inputs), share)
+    return share
+
+
+@dataclass(frozen=True)
+class WorkSizes:
+    """The sizes a plan's time is modelled from (:func:`stage_terms`): read from its validated
+    document (:meth:`from_document`: the estimate printed before a plan starts and kept with a
+    service job from its submission; the maps and candidate sites are expanded for the
+    served-share sample, nothing is computed on them) or from its prepared inputs (:meth:`of`:
+    the progress weights, the same model on the exact counts)."""
+
+    document: PlanDocument
+    sites: int
+    pairs: int
+    tx_points: int
+    rx_points: int
+    counts: tuple[int, ...]
+    """The RIS counts searched (``ris_count``, or 1 … ``max_ris`` in target mode)."""
+    elements: int
+    """Elements per RIS (rows × cols)."""
+    served: float = 1.0
+    """The share of (pair, site) combinations with a RIS path (:func:`served_share`)."""
+
+    @classmethod
+    def of(cls, plan: PlanInputs | PlanDocument | WorkSizes) -> WorkSizes:
+        """The sizes of prepared inputs, of a validated document, or themselves."""
+        if isinstance(plan, WorkSizes):
+            return plan
+        if isinstance(plan, PlanDocument):
+            return cls.from_document(plan)
+        doc = plan.document
+        return cls(
+            doc,
+            len(plan.sites),
+            plan.pairs.size,
+            len(plan.tx_map.points),
+            len(plan.rx_map.points),
+            tuple(plan.counts),
+            doc.ris.rows * doc.ris.cols,
+            _inputs_served(plan),
+        )
+
+    @classmethod
+    def from_document(cls, doc: PlanDocument) -> WorkSizes:
+        """The sizes of a validated document (the memory estimate's
+        :func:`~ris_planner.planning.resources.admission.plan_shape`) and its served share (its
+        sites
+        and maps expanded, :func:`served_share`)."""
+        from ris_planner.environment import Scene
+        from ris_planner.planning.inputs.sites import expand_sites
+        from ris_planner.planning.inputs.ue_maps import build_map
+        from ris_planner.planning.resources.admission import plan_shape
+
+        shape = plan_shape(doc)
+        counts = doc.max_counts
+        if doc.ris_count is None:  # target mode: at most every candidate (prepare_plan's rule)
+            counts = [c for c in counts if c <= shape.sites]
+        share = served_share(
+            expand_sites(doc),
+            build_map(doc.tx_map, "tx_map"),
+            build_map(doc.rx_map, "rx_map"),
+            Scene.from_environment(doc.environment),
+        )
+        return cls(
+            doc,
+            shape.sites,
+            shape.pairs,
+            shape.tx_points,
+            shape.rx_points,
+            tuple(counts),
+            shape.elements,
+            share,
+        )
+
+
+def searched_exhaustively(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> bool:
+    """Whether the search for ``count`` RISs is exhaustive (``auto`` within
+    ``max_exhaustive`` layouts)."""
+    w = WorkSizes.of(plan)
+    s = w.document.search
+    total = math.comb(w.sites, count)
+    return s.method == "exhaustive" or (s.method == "auto" and total <= s.max_exhaustive)
+
+
+def search_layouts(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> float:
+    """Layouts the search for ``count`` RISs evaluates (all of them when exhaustive)."""
+    w = WorkSizes.of(plan)
+    s = w.document.search
+    total = math.comb(w.sites, count)
+    if searched_exhaustively(w, count):
+        return total
+    seeds = sum(c < count for c in w.counts)  # the smaller counts' best layouts
+    return min(total, greedy_layouts(w.sites, count, s.restarts, s.max_rounds, seeds))
+
+
+def heatmap_pairs(plan: PlanInputs | PlanDocument | WorkSizes) -> int:
+    """TX × RX pairs of the per-point bounds
+    (:func:`~ris_planner.planning.outputs.rx_fields.rx_fields`)."""
+    w = WorkSizes.of(plan)
+    n_rx = min(w.rx_points, HEATMAP_MAX_PAIRS)
+    n_tx = 1 if w.document.heatmap_tx is not None else w.tx_points
+    return min(n_tx * n_rx, max(HEATMAP_MAX_PAIRS, n_rx))
+
+
+def codebook_macs(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> float:
+    """Complex multiply-adds of one ``random``-codebook evaluation of a ``count``-RIS layout:
+    per RIS the first block's 3·G̃ derivative-weighted profiles times the N-element steering
+    vectors of every checked pair (:func:`ris_planner.physics.fim.planar_transmission_gram`)."""
+    from ris_planner.planning.certify.checks import RANDOM_CODEBOOK_MAX_PAIRS
+
+    w = WorkSizes.of(plan)
+    pairs = min(w.pairs, RANDOM_CODEBOOK_MAX_PAIRS)
+    try:
+        g_tilde = block_length(w.document.system.transmissions, count)
+    except ValueError:  # G < L+1: the document's check refuses it before any work
+        g_tilde = 1
+    return float(count * 3 * g_tilde * w.elements * pairs)
+
+
+def validation_estimates(plan: PlanInputs | PlanDocument | WorkSizes) -> float:
+    """Estimator runs of the document's ``validation``: its pairs × draws on each count's best
+    layout (:func:`ris_planner.planning.outputs.estimator_check.run_estimator_check`); 0 without."""
+    w = WorkSizes.of(plan)
+    spec = w.document.validation
+    if spec is None:
+        return 0.0
+    return float(spec.pairs * spec.draws * max(len(w.counts), 1))
+
+
+def sizing_runs_sizes(plan: PlanInputs | PlanDocument | WorkSizes) -> list[WorkSizes]:
+    """The sizes of each run of the sizing question (one per RIS size of ``sizing.ris_sizes``,
+    sequential, each a search-only plan over the same candidates and pairs: its counts are
+    ``sizing.counts``, else ``ris_count``, else 1 … ``max_ris``); none without ``sizing``.
+    Every size is counted: a size that cannot beat the answer found is skipped at run time,
+    which the estimate cannot know."""
+    w = WorkSizes.of(plan)
+    sizing = w.document.sizing
+    if sizing is None:
+        return []
+    counts = sizing.counts if sizing.counts is not None else w.document.ris_count
+    if counts is None:
+        counts = [c for c in range(1, w.document.max_ris + 1) if c <= w.sites]
+    return [replace(w, counts=tuple(counts), elements=r * c) for r, c in sizing.ris_sizes]
+
+
+SEARCH_STAGES = ("inputs", "visibility", "cache", "search", "checks", "rollout")
+"""The stages of one search-only plan run (:func:`~ris_planner.planning.pipeline.plan_once`):
+a sizing run's (:func:`sizing_runs_sizes`)."""
+
+
+def _modelled(terms: dict[str, dict[str, float]], stages: tuple[str, ...]) -> float:
+    return sum(TIME_COEFFICIENTS[st][t] * v for st in stages for t, v in terms[st].items())
+
+
+def stage_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dict[str, float]]:
+    """The sizes that drive each stage's time, by the names of :data:`TIME_COEFFICIENTS`."""
+    w = WorkSizes.of(plan)
+    terms = _run_terms(w)
+    runs = [_run_terms(s) for s in sizing_runs_sizes(w)]
+    terms["sizing"] = {
+        "per_run": float(len(runs)),
+        "per_modelled_s": sum(_modelled(t, SEARCH_STAGES) for t in runs),
+    }
+    n_est = validation_estimates(w)
+    terms["validation"] = {
+        "const": float(n_est > 0),
+        "per_estimate": n_est,
+        "per_served_estimate": w.served * n_est,
+    }
+    return terms
+
+
+def _run_terms(w: WorkSizes) -> dict[str, dict[str, float]]:
+    """:func:`stage_terms` of one plan run, without the sizing and validation stages."""
+    from ris_planner.model.limits import cache_layout
+    from ris_planner.planning.certify.checks import RANDOM_CODEBOOK_MAX_PAIRS, RANDOM_CODEBOOK_SEEDS
+    from ris_planner.planning.search.rollout import chain_is_cheap
+
+    doc = w.document
+    n_sites, n_pairs = w.sites, w.pairs
+    counts = list(w.counts)
+    n_el = w.elements
+    wave = doc.system.wavefront
+    sph = float(n_el if wave == "spherical" else 0)
+    planar = float(wave != "spherical")
+    f = w.served
+    n_points = w.tx_points + w.rx_points
+    n_heat = heatmap_pairs(w)
+    n_rx = min(w.rx_points, n_heat)
+    obstacles = 0 if doc.environment is None else len(doc.environment.obstacles)
+    checked = (1 + RANDOM_CODEBOOK_SEEDS) * sum(counts) * min(n_pairs, RANDOM_CODEBOOK_MAX_PAIRS)
+    try:
+        float32 = cache_layout(n_sites * n_pairs, wave).storage == "float32"
+    except ValueError:  # above every tier: the guard refuses the plan before any work
+        float32 = False
+    # a float32 cache re-scores the reported layouts in float64: their sites × the pairs
+    rescored = (
+        float(sum(min(n_sites, doc.search.top_k * c) for c in counts) * n_pairs) if float32 else 0.0
+    )
+    ris_hm = float(sum(counts) * n_heat)
+    exhaustive = {c: searched_exhaustively(w, c) for c in counts}
+    greedy_lp = float(sum(search_layouts(w, c) for c in counts if not exhaustive[c]) * n_pairs)
+    exhaustive_lp = float(sum(search_layouts(w, c) for c in counts if exhaustive[c]) * n_pairs)
+    # the nested chain: searched with rollout "nested", and in free mode when it is cheap
+    chain = sum(
+        min(math.comb(n_sites - a, b - a), doc.search.max_exhaustive)
+        for a, b in itertools.pairwise(counts)
+    )
+    if doc.rollout != "nested" and not chain_is_cheap(
+        n_sites, counts, doc.search.max_exhaustive, n_pairs, greedy_lp + exhaustive_lp
+    ):
+        chain = 0
+    # the relaxation bound of each count searched greedily (Frank–Wolfe over sites × pairs)
+    relaxed = sum(not exhaustive[c] for c in counts)
+    macs = RANDOM_CODEBOOK_SEEDS * sum(codebook_macs(w, c) for c in counts)
+    return {
+        "inputs": {"const": 1.0, "per_site": n_sites},
+        "visibility": {
+            "const": 1.0,
+            "per_site_point": n_sites * n_points,
+            "per_site_point_obstructed": n_sites * n_points * float(obstacles > 0),
+        },
+        "cache": {
+            "const": 1.0,
+            "per_site_pair": planar * n_sites * n_pairs,
+            "per_served_site_pair": planar * f * n_sites * n_pairs,
+            "per_site_pair_element_spherical": sph * n_sites * n_pairs,
+        },
+        "search": {
+            "per_count": len(counts),
+            "per_layout_pair": greedy_lp,
+            "per_served_layout_pair": f * greedy_lp,
+            "per_exhaustive_layout_pair": exhaustive_lp,
+            "per_served_exhaustive_layout_pair": f * exhaustive_lp,
+            "per_rescored_site_pair": rescored,
+        },
+        "checks": {
+            "per_codebook_mac": planar * macs,
+            "per_served_codebook_mac": planar * f * macs,
+            "per_checked_ris_pair": planar * checked,
+            "per_served_checked_ris_pair": planar * f * checked,
+            "per_checked_ris_pair_element_spherical": sph * checked,
+            "per_rescored_site_pair": rescored,
+            "per_relaxation_site_pair": float(
+                relaxed * doc.search.certificate_iterations * n_sites * n_pairs
+            ),
+        },
+        "rollout": {"const": 1.0, "per_layout_pair": float(chain * n_pairs)},
+        "fields": {
+            "per_ris_pair": planar * ris_hm,
+            "per_served_ris_pair": planar * f * ris_hm,
+            "per_ris_pair_element_spherical": sph * ris_hm,
+            "per_rx_point": n_rx,
+        },
+        "report": {
+            "const": 1.0,
+            "per_pair": n_pairs,
+            "per_rx_point": n_rx,
+            "per_rescored_site_pair": rescored,
+        },
+        "figures": {
+            "const": 1.0,
+            "per_rx_point": n_rx,
+            "per_extra_figure": float(
+                (doc.beams is not None)
+                + (doc.sweep is not None)
+                + (doc.sizing is not None)
+                + (doc.validation is not None)
+            ),
+        },
+        "exports": {"const": 1.0, "per_rx_point": n_rx},
+    }
+
+
+def checks_beside(plan: PlanInputs | PlanDocument | WorkSizes) -> bool:
+    """Whether the plan's checks will run on a thread beside the fields and the figures
+    (:class:`ris_planner.planning.certify.checks.PendingChecks`): every count is searched
+    exhaustively
+    (so no relaxation bound is deferred to the checks) and in this process (no worker pool at
+    this machine's core count: :func:`ris_planner.planning.prepare.needs_workers`' rule)."""
+    import os
+
+    from ris_planner.planning.search.layouts import MIN_TASK_MATRICES
+
+    w = WorkSizes.of(plan)
+    spec = w.document.search
+    if not all(searched_exhaustively(w, c) for c in w.counts):
+        return False
+    workers = os.cpu_count() or 1
+    per_count = [min(math.comb(w.sites, c), spec.max_exhaustive) * w.pairs for c in w.counts]
+    splits = max(per_count, default=0) >= workers * MIN_TASK_MATRICES
+    return not (workers > 1 and splits and sum(per_count) >= spec.pool_min_work)
+
+
+def stage_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+    """Estimated seconds of each stage of :func:`~ris_planner.planning.pipeline.run_plan` and
+    of the outputs (plan.json ``timing_s`` names): :data:`TIME_COEFFICIENTS` times
+    :func:`stage_terms`, :data:`MARGIN` included; checks that run beside the later stages
+    (:func:`checks_beside`) count only what those do not hide (:data:`CHECKS_BESIDE_SHARE`).
+    A district plan (``search.method`` 'district') has its own stages
+    (:func:`district_seconds`)."""
+    w = WorkSizes.of(plan)
+    doc = w.document
+    if doc.search.method == "district":
+        return district_seconds(w)
+    work = {
+        stage: sum(TIME_COEFFICIENTS[stage][term] * size for term, size in sizes.items())
+        for stage, sizes in stage_terms(w).items()
+    }
+    if doc.beams is not None:
+        work["beams"] = BEAMS_PER_LAYOUT_S * (len(w.counts) + len(doc.beams.layouts))
+    if checks_beside(w):
+        hidden = min(work["checks"], sum(work[st] for st in CHECKS_HIDDEN_BY))
+        work["checks"] -= (1.0 - CHECKS_BESIDE_SHARE) * hidden
+    return {k: MARGIN * v for k, v in work.items()}
+
+
+DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
+    "inputs": {"const": 0.03, "per_site": 9.3e-05},
+    "search": {"const": 0.31, "per_site_pair": 2e-08, "per_served_pair_ris": 7.5e-05},
+    "figures": {"const": 0.45},
+}
+"""Seconds per unit of the district search's stages (:func:`district_seconds`), fitted by hand
+to three ``bench_memory.py --document`` runs of district plans (the street site of the tests,
+two synthetic cities with 486 and 730 candidates; docs/validation/resources.md):
+``per_site_pair`` the visibility (every candidate against every pair), ``per_served_pair_ris``
+the information and the greedy path, swaps and certificate over the (pair, serving site)
+entries – pairs × sites × the served share (:func:`served_share`) – times the largest count
+(each step re-scores the entries of the pairs its site serves)."""
+
+
+def district_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dict[str, float]]:
+    """The sizes of a district plan's stages (:data:`DISTRICT_COEFFICIENTS`): the search is
+    roughly linear in the (pair, serving site) entries times the RIS count."""
+    w = WorkSizes.of(plan)
+    top = max(w.counts, default=1)
+    if w.document.sizing is not None:  # the district's sizing walks the greedy path further
+        top = max(top, *(w.document.sizing.counts or [w.document.max_ris]))
+    return {
+        "inputs": {"const": 1.0, "per_site": float(w.sites)},
+        "search": {
+            "const": 1.0,
+            "per_site_pair": float(w.sites * w.pairs),
+            "per_served_pair_ris": w.served * w.sites * w.pairs * top,
+        },
+        "figures": {"const": 1.0},
+    }
+
+
+def district_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+    """Estimated seconds of a district plan's stages (plan.json ``timing_s``: ``inputs``,
+    ``search``, ``figures``), :data:`MARGIN` included."""
+    return {
+        stage: MARGIN * sum(DISTRICT_COEFFICIENTS[stage][t] * v for t, v in sizes.items())
+        for stage, sizes in district_terms(plan).items()
+    }
+
+
+def time_estimate(plan: PlanInputs | PlanDocument | WorkSizes) -> float:
+    """The plan's estimated wall time [s] (the sum of :func:`stage_seconds`): within
+    [0.5, 2] of the measured time on the calibration cases and the held-out real sites
+    (docs/validation/resources.md)."""
+    return sum(stage_seconds(plan).values())
+
+
+def plan_work(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+    """Estimated seconds of :func:`~ris_planner.planning.pipeline.plan_once`'s progress stages:
+    ``cache`` (visibility and site cache), ``search``, ``checks``, ``rollout`` (the nested
+    chain) and (with ``beams``) ``beams``."""
+    est = stage_seconds(plan)
+    work = {
+        "cache": est["visibility"] + est["cache"],
+        "search": est["search"],
+        "checks": est["checks"],
+        "rollout": est["rollout"],
+    }
+    if "beams" in est:
+        work["beams"] = est["beams"]
+    return work
+
+
+def report_work(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+    """Estimated seconds after the search: ``fields`` (every count's per-point bounds),
+    ``report`` (the diagnosis, the summary and plan.json), ``figures`` and ``exports``
+    (:func:`ris_planner.io.geoplan.plan_document`)."""
+    est = stage_seconds(plan)
+    return {k: est[k] for k in ("fields", "report", "figures", "exports")}
+
+
+@dataclass(frozen=True)
+class PlanEstimate:
+    """A plan's resources, estimated from its document before any work: the wall time
+    (:func:`time_estimate`) and the peak resident memory
+    (:func:`~ris_planner.planning.resources.admission.estimate_plan`), with the job memory budget
+    it is
+    checked against – what ``ris-planner plan`` prints before it plans, a service plan job
+    holds from its submission (``estimate``) and plan.json keeps (``resources``)."""
+
+    time_s: float
+    memory_mib: float
+    budget_mib: int
+    seconds: float = 0.0
+    """How long making the estimate took (plan.json ``timing_s["estimate"]``)."""
+
+    def to_json(self) -> dict[str, float | int]:
+        """``{"time_s", "memory_mib", "budget_mib"}`` (plan.json ``resources.estimate``)."""
+        return {
+            "time_s": round(self.time_s, 3),
+            "memory_mib": round(self.memory_mib, 1),
+            "budget_mib": self.budget_mib,
+        }
+
+    def describe(self) -> str:
+        """``≈ 1.2 s, ≈ 620 MiB peak (budget 6 144 MiB)``."""
+        return (
+            f"≈ {seconds_text(self.time_s)}, ≈ {grouped(round(self.memory_mib))} MiB peak"
+            f" (budget {grouped(self.budget_mib)} MiB)"
+        )
+
+
+def seconds_text(seconds: float) -> str:
+    """A duration as people read it: ``0.84 s``, ``12 s``, ``3 min 20 s``."""
+    if seconds < 10:
+        return f"{seconds:.2g} s" if seconds < 1 else f"{seconds:.1f} s"
+    if seconds < 120:
+        return f"{round(seconds)} s"
+    minutes, rest = divmod(round(seconds), 60)
+    return f"{minutes} min {rest} s" if minutes < 60 else f"{minutes // 60} h {minutes % 60} min"
+
+
+def plan_estimate(doc: PlanDocument, memory_mb: int | None = None) -> PlanEstimate:
+    """The :class:`PlanEstimate` of a validated plan document (nothing is built): the budget
+    is ``memory_mb``, else ``RIS_PLANNER_JOB_MEMORY_MB``."""
+    from ris_planner.planning.resources.admission import estimate_plan
+
+    return PlanEstimate(
+        time_estimate(doc),
+        estimate_plan(doc).memory_bytes / 2**20,
+        budget_mb(memory_mb),
+    )
+
+
+def peak_memory_mib() -> float:
+    """This process's peak resident memory so far [MiB] (``getrusage``; 0 where it is not
+    available)."""
+    try:
+        import resource
+    except ImportError:  # not POSIX
+        return 0.0
+    kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return kib / 1024 if sys.platform != "darwin" else kib / 2**20
+
+
+def resources_json(estimate: PlanEstimate, seconds: float) -> dict[str, dict[str, float | int]]:
+    """plan.json ``resources``: the estimate made before the run and what the run measured
+    (``time_s``: wall seconds from the estimate to plan.json's content; ``peak_memory_mib``:
+    the peak resident memory of the run's process, :func:`peak_memory_mib`)."""
+    return {
+        "estimate": estimate.to_json(),
+        "measured": {"time_s": round(seconds, 3), "peak_memory_mib": round(peak_memory_mib(), 1)},
+    }
