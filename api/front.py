@@ -1,8 +1,8 @@
 """The service's one ASGI middleware: every request's per-request work in one layer, and the
 fast path of ``POST /v1/bounds``.
 
-Per HTTP request, in this order (each was a middleware of its own until issue 24's profile
-showed the layers' cost; docs/validation/speed-guard.md):
+Per HTTP request, in this order (each was a middleware of its own until a profile of
+``POST /v1/bounds`` showed the layers' cost; docs/validation/speed-guard.md):
 
 1. the response headers of :mod:`api.security` on every answer (``nosniff``; the page policy
    on HTML) and the job database's wait bound of the request (:data:`api.store.CALL_BUDGET_S`,

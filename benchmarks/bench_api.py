@@ -8,7 +8,7 @@ in-process ``compute_bounds(...).to_json()`` (what ``ris-planner bounds`` prints
 Connections: by default the client keeps ``--concurrency`` persistent (keep-alive)
 connections, opened by a warm-up burst before the timed rounds – what a real client library
 does. ``--fresh-connections`` opens one new connection per request instead (a new client per
-round: the measurement of 2026-12-01 and of issue 24); on a 2-core machine that client's own
+round: the measurements of 2026-12-01); on a 2-core machine that client's own
 TCP and TLS-free connection set-up costs about as much CPU as the server's work, so the rate
 it reports is capped by the client.
 
@@ -203,7 +203,10 @@ def main() -> None:
     parser.add_argument(
         "--fresh-connections",
         action="store_true",
-        help="one new connection per request (issue 24's measurement) instead of keep-alive",
+        help=(
+            "one new connection per request (the 2026-12-01 measurement's client) instead of"
+            " keep-alive"
+        ),
     )
     parser.add_argument(
         "--blas-compare",

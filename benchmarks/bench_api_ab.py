@@ -84,7 +84,10 @@ def main() -> None:
     parser.add_argument(
         "--fresh-connections",
         action="store_true",
-        help="one new connection per request (issue 24's measurement) instead of keep-alive",
+        help=(
+            "one new connection per request (the 2026-12-01 measurement's client) instead of"
+            " keep-alive"
+        ),
     )
     parser.add_argument(
         "--old-without-standard",

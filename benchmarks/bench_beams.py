@@ -1,4 +1,4 @@
-"""Benchmark: beams and power for a recommended layout (issue 15), time per stage.
+"""Benchmark: beams and power for a recommended layout, time per stage.
 
 Plans the preset (default ``hall``) for one RIS count, then for its best layout times:
 the served masks per (pair, RIS), the map-drawn DIR / DIR+DER design, the stacked per-beam

@@ -4,7 +4,7 @@ For each layout and for the ``random`` and ``expected_random`` codebooks, the me
 :func:`ris_planner.compute_bounds` over all 4753 pairs, next to the naive evaluation of eq.
 FIM_measurement (tests/naive.py: the full K×G sum for one pair, then the inversion) measured in
 the same run on a few pairs and extrapolated to 4753. Targets on the 2-core machine: ≤ 0.1 s per
-layout for ``random`` (issue 10), ≤ 0.02 s for ``expected_random``. Old vs new code in the same
+layout for ``random``, ≤ 0.02 s for ``expected_random``. Old vs new code in the same
 run: ``bench_speed_ab.py``.
 
     python benchmarks/bench_bounds.py [--naive-pairs 3] [--repeats 7]

@@ -1,5 +1,5 @@
 """Benchmark: the first plan after an install, with and without ``ris-planner warmup``
-(issue 22, "cold start"; docs/getting-started.md "Compiled kernels").
+(the cold start; docs/getting-started.md "Compiled kernels").
 
 Two empty numba cache folders (``NUMBA_CACHE_DIR``), so the package's own ``__pycache__`` is
 never touched and nothing is compiled before the run:

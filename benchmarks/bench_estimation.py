@@ -8,7 +8,7 @@ measured in the same run: the (ξ, ζ) search as a Python loop over the paper's 
 the delay search as a Python loop over the N_F grid, and the coarse position search as a Python
 loop over the candidates; each checked to pick the same grid point as the fast version.
 
-``--sizes 16,64,100`` (issue 23: the apertures plans use) then times one full estimate with
+``--sizes 16,64,100`` (the apertures plans use) then times one full estimate with
 both RISs of Table I resized to N × N (the (ξ, ζ) FFT grid max(100, 2N) per axis, its
 normaliser in batches: channel_estimation.angle_grid_size), as the median of ``--repeats``
 realisations and as a ratio to the 10 × 10 estimate measured in the same run; each size's

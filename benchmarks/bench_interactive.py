@@ -1,4 +1,4 @@
-"""Interactive planning (issue 22): a city block and the hall, end to end on the command line,
+"""Interactive planning: a city block and the hall, end to end on the command line,
 against the code of a reference commit measured in the same run.
 
     python benchmarks/bench_interactive.py [--case block|hall|all] [--quick] [--repeats N]
@@ -38,9 +38,9 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = "7ce8dc6"
-"""The commit before the interactive-planning work (issue 22): today's code of the ratios."""
+"""The commit before the interactive-planning work: today's code of the ratios."""
 TARGET_S = {"block": 5.0, "hall": 7.0}
-"""Issue 22's targets, end to end on 2 cores with warm kernels."""
+"""The interactive-planning targets, end to end on 2 cores with warm kernels."""
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
-"""Benchmark: the same plan over REST and on the command line, in the same run (issue 22,
-"service jobs use the cores"; docs/guides/service-operations.md "Plan jobs use the cores").
+"""Benchmark: the same plan over REST and on the command line, in the same run (service
+jobs use the cores; docs/guides/service-operations.md "Plan jobs use the cores").
 
 * ``cli`` – ``ris-planner plan --preset NAME`` in a fresh process (its local pool, one worker
   per core), wall time of the process;

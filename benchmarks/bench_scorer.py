@@ -5,14 +5,15 @@ of [28, nb, P] blocks, numpy LDLᵀ, every flagged pair through the square-root 
 LAPACK's SVD, as before this change).
 
 Sections (all in one process; ``numba`` uses every core, ``NUMBA_NUM_THREADS`` to change):
-* ``hall``: issue 14's synthetic hall (156 candidates, 6400 pairs): fixed random layouts of 2,
-  3 and 4 RISs, matrices/s old and new, the largest difference (0 on the fast path; the
-  square-root route's two SVDs differ by rounding), the pair-block copy's size and time;
-  ``--plan`` also runs the whole 2/3/4-RIS plan (``run_plan``, serial executor) new and old.
-* ``exhaustive``: issue 10's 30 candidates × 3 RISs × 4753 pairs, exhaustive, serial executor.
-* ``junction``: the junction preset plan with and without its environment (issue 9), and
+* ``hall``: the synthetic hall of bench_search.py (156 candidates, 6400 pairs): fixed random layouts
+  of 2, 3 and 4 RISs, matrices/s old and new, the largest difference (0 on the fast path; the
+  square-root route's two SVDs differ by rounding), the pair-block copy's size and time; ``--plan``
+  also runs the whole 2/3/4-RIS plan (``run_plan``, serial executor) new and old.
+* ``exhaustive``: bench_planning.py's 30 candidates × 3 RISs × 4753 pairs, exhaustive, serial
+  executor.
+* ``junction``: the junction preset plan with and without its environment, and
   fixed 3-RIS layouts scored with and without the presence masks, old and new.
-* ``flops`` (issue 22): the compiled kernel alone (``_crb_jit.score_layouts``, no screen, no
+* ``flops``: the compiled kernel alone (``_crb_jit.score_layouts``, no screen, no
   square-root route) on the hall's pairs: the search's own batches (the first layouts of an
   exhaustive search over 24 sites, whose pair blocks fit the L2 cache: each layout adds about
   one site block to the partial sum of the one before) and random layouts of 2, 3 and 4 RISs

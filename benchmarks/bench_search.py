@@ -1,4 +1,4 @@
-"""Placement-search benchmark (issue 14): a synthetic hall and a synthetic city block grid.
+"""Placement-search benchmark: a synthetic hall and a synthetic city block grid.
 
 For each case, in the same run:
 * today's search (``search.search`` without constraints or certificates, the best layout of
@@ -136,7 +136,7 @@ from old_search import old_greedy  # noqa: E402  (today's greedy, kept verbatim)
 def site_scorer(doc: PlanDocument, budget: bool = False) -> tuple[list[Any], Any, Scorer]:
     """(sites, pairs, scorer) of a plan document: its candidates, sampled pairs and the site
     cache with the plan's fields of view and obstacles – float64 with the square-root rows, as
-    before issue 14's memory item, or with ``budget`` the layout the plan's budget picks."""
+    before the cache's memory budget, or with ``budget`` the layout the plan's budget picks."""
     from ris_planner.model.limits import cache_layout
     from ris_planner.planning.scoring.site_cache import FULL
 
@@ -156,7 +156,7 @@ def todays_search(doc: PlanDocument) -> tuple[dict[int, tuple[Layout, float, int
     memory peak [B]."""
     tracemalloc.start()
     t0 = time.perf_counter()
-    # the plan's fields of view (and obstacles), as run_plan applied them before issue 14
+    # the plan's fields of view (and obstacles), as run_plan applied them before the decisions
     sites, _, scorer = site_scorer(doc)
     out: dict[int, tuple[Layout, float, int]] = {}
     seeds: list[Layout] = []
@@ -209,7 +209,7 @@ def report(name: str, raw: dict[str, Any], dask: bool, default: bool = True) -> 
     entries = res.cache.n_sites * res.pairs.size
     print(
         f"  site cache {res.cache.storage}, {res.cache.blocks.nbytes / 2**20:.0f} MiB (before"
-        f" issue 14's memory item: {entries * (28 + 21 + 28) * 8 / 2**20:.0f} MiB, 28 + 21"
+        f" the cache's memory budget: {entries * (28 + 21 + 28) * 8 / 2**20:.0f} MiB, 28 + 21"
         " float64 per site-pair in the cache + 28 per scoring process);"
         f" peak RSS so far {peak_rss_mib():.0f} MiB"
     )
@@ -349,7 +349,7 @@ def city_memory(raw: dict[str, Any], n_layouts: int) -> None:
     t_cache = time.perf_counter() - t0
     print(
         f"city cache: {len(sites)} × {pairs.size} = {entries / 1e6:.1f} M site-pairs, {layout},"
-        f" {cache.nbytes / 2**30:.2f} GiB (before issue 14's memory item:"
+        f" {cache.nbytes / 2**30:.2f} GiB (before the cache's memory budget:"
         f" {entries * 77 * 8 / 2**30:.1f} GiB, 28 + 21 float64 in the cache + 28 per process);"
         f" maps/pairs/visibility {t_vis:.1f} s, cache {t_cache:.1f} s; peak RSS"
         f" {peak_rss_mib():.0f} MiB"

@@ -1,4 +1,4 @@
-"""Search quality on random small instances against exhaustive search (issue 22, item 5).
+"""Search quality on random small instances against exhaustive search.
 
 For each of ``--instances`` random problems (12–20 random candidate sites, 40–120 random pairs,
 a random objective – median, upper quantile, capped mean or coverage of PEB_R, PEB_T or their

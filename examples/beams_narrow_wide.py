@@ -1,4 +1,4 @@
-"""Designed beams against random codebooks on a narrow and a wide UE map (issue 15; the
+"""Designed beams against random codebooks on a narrow and a wide UE map (the
 paper's Fig. 5 trend over the prior's spread), the four Fig. 10 anchors as candidates.
 
     python examples/beams_narrow_wide.py [--positions 32] [--seeds 3]

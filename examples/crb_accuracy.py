@@ -1,6 +1,5 @@
-"""Accuracy of the squared-form inversion vs the square-root route (ris_planner.inversion.crb) on
-the
-planning benchmark's layout-pairs (30 candidates on a square, 3 RISs, 4753 Fig. 10 pairs).
+"""Accuracy of the squared-form inversion vs the square-root route (ris_planner.inversion.crb)
+on the planning benchmark's layout-pairs (30 candidates on a square, 3 RISs, 4753 Fig. 10 pairs).
 
 Prints the distribution of trace(F̂⁻¹) (F̂ = F scaled to unit diagonal) on the plain
 [p_T, p_R, B] coordinates and on the LOS-referenced ones (B' = B + d_TR), and, per decade of the

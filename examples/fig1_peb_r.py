@@ -1,6 +1,6 @@
 """Fig. 1 (b) of the paper, the bounds at 20 dBm: why is our PEB_R below the paper's?
 
-Issue 10 item 4. Table I geometry, noise figure 0 dB (docs/validation/paper.md: Fig. 1's setting),
+Table I geometry, noise figure 0 dB (docs/validation/paper.md: Fig. 1's setting),
 P = 20 dBm. The paper plots one codebook realisation: PEB_T 0.1472 m, PEB_R 0.1336 m,
 CEB 0.0946 m (its 30 dBm values are these / √10, so the curve is one fixed codebook). This
 script prints, for each hypothesis, the mean and spread over random-codebook seeds (or the

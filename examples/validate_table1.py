@@ -4,7 +4,7 @@ Table I as a plan document (its two RISs the only candidates, its TX and RX the 
 points, noise figure 0 dB, the paper's isotropic element, no multipath), validated with
 ``--draws`` noise draws (default 200) at each power; the coarse position search runs over a
 prior box that holds the TX off-centre (``REGION``: a deployment's prior, not the true
-position). Checks the issue-23 criterion – refined RMSE of p_T, p_R and B within 1.1× of
+position). Checks the acceptance criterion – refined RMSE of p_T, p_R and B within 1.1× of
 PEB_T, PEB_R, CEB at 30 dBm, no outlier – and writes each power's ``plan.json`` validation
 and ``validation.png`` to ``--out``.
 

@@ -1,12 +1,11 @@
 """Generate the unrolled per-pair LDLᵀ kernels of ``ris_planner/inversion/_crb_jit.py``.
 
 :func:`ris_planner.inversion._crb_jit.ldl_chunk` loops over the entries of the packed matrices with
-the
-pairs innermost: every step is a short vector loop of ≤ 64 pairs, ~350 of them per chunk, each
-loading and storing its rows. The kernels generated here do the same arithmetic with the loops
-over entries unrolled for a fixed state count n: one loop over the pairs whose body is the
-whole straight-line factorisation on scalars (structure of arrays in, structure of arrays out),
-which LLVM vectorises across pairs with the intermediate values in registers.
+the pairs innermost: every step is a short vector loop of ≤ 64 pairs, ~350 of them per chunk, each
+loading and storing its rows. The kernels generated here do the same arithmetic with the loops over
+entries unrolled for a fixed state count n: one loop over the pairs whose body is the whole
+straight-line factorisation on scalars (structure of arrays in, structure of arrays out), which LLVM
+vectorises across pairs with the intermediate values in registers.
 
 Every statement is one of :func:`~ris_planner.inversion._crb_jit.ldl_chunk` (and so of
 :mod:`ris_planner.inversion.ldl`), in the same order, with the same operands: IEEE-754 rounds each

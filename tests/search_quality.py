@@ -1,4 +1,4 @@
-"""Random small placement problems checked against exhaustive search (issue 22, search
+"""Random small placement problems checked against exhaustive search (search
 quality): the instances and the comparison shared by tests/test_search_quality.py (a few seeded
 instances) and benchmarks/bench_search_quality.py (the table over many)."""
 

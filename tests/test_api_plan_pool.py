@@ -1,4 +1,4 @@
-"""Plan jobs on the local process pool (issue 22): a job's worker starts the same pool as
+"""Plan jobs on the local process pool: a job's worker starts the same pool as
 ``ris-planner plan`` (so the same results), and cancelling the job or stopping the server stops
 every process of it – checked by PID."""
 

@@ -1,4 +1,4 @@
-"""A plan's checks on a thread beside the later stages (issue 22: a city block in seconds):
+"""A plan's checks on a thread beside the later stages (interactive planning of a city block):
 the same answers as in line, plan.json only once they are in, a failed stage stops the thread,
 and numba's parallel kernels one at a time (its workqueue layer aborts on concurrent
 launches)."""

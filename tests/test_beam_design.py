@@ -1,4 +1,4 @@
-"""Beams designed from the UE maps and power allocation for a recommended layout (issue 15):
+"""Beams designed from the UE maps and power allocation for a recommended layout:
 designed beams against random codebooks on narrow and wide maps (the paper's Fig. 5 trend),
 the power-allocation order on the design positions, reproducibility, the re-evaluation by an
 independent scenario route, and the layout + maps document over REST."""

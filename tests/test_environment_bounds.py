@@ -277,8 +277,7 @@ def test_pattern_factor_scales_the_gain(rng: np.random.Generator, q: float) -> N
 
 BOUND_KEYS = ("peb_tx_m", "peb_rx_m", "ceb_m")
 """The reference bounds were inverted by the squared-form LDLᵀ of 0cb7c82; the square-root,
-LOS-referenced inversion of issue 10 (ris_planner.inversion.crb) differs from it by the old route's
-own
+LOS-referenced inversion (ris_planner.inversion.crb) differs from it by the old route's own
 rounding, cond(F)·ε per pair (conftest.bounds_rtol, floor 1e-9)."""
 
 STORED_ULPS = 64.0

@@ -1,5 +1,4 @@
-"""Plan validation (issue 23, ris_planner.planning.outputs.estimator_check): the two-stage
-estimator on
+"""Plan validation (ris_planner.planning.outputs.estimator_check): the two-stage estimator on
 a plan's recommended layout. Table I as a plan (its two RISs the only candidates, its TX and RX
 the only map points): reproducible from its seeds, the exactly-determined geometry's second
 solution and the TX↔RX swap reported as ghosts, too few paths reported as such, the site's

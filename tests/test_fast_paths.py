@@ -1,4 +1,4 @@
-"""The faster bounds routes (issue 10 speed targets) against the routes they replaced, kept
+"""The faster bounds routes (docs/validation/speed-guard.md) against the routes they replaced, kept
 here verbatim as references: bit for bit where the rounding order is the same, else to a
 named tolerance (the unit-root square-root factor)."""
 

@@ -1,4 +1,4 @@
-"""A command-line plan's figures drawn by a helper process (issue 22: a city block in seconds):
+"""A command-line plan's figures drawn by a helper process (interactive planning of a city block):
 the same files as drawn in-process, the parent draws them itself when the helper cannot, and
 the helper never outlives its plan."""
 

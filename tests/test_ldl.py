@@ -97,9 +97,8 @@ def test_singularity_rule_is_scale_free(rng: np.random.Generator) -> None:
 
 
 def test_compiled_ldl_is_bit_identical_to_numpy(rng: np.random.Generator) -> None:
-    """The compiled twin (ris_planner.inversion._crb_jit) repeats ldl.py's operations in order, so
-    the
-    diagonal, the singular flags and the trace test of crb_diagonal's fast path are the same
+    """The compiled twin (ris_planner.inversion._crb_jit) repeats ldl.py's operations in order,
+    so the diagonal, the singular flags and the trace test of crb_diagonal's fast path are the same
     bits: well and ill conditioned (scaled cond up to ~1e15), singular (a state without
     information, rank one), every state count the known parts leave, and a batch that is not
     a multiple of the kernel's chunk."""

@@ -1,4 +1,4 @@
-"""The objective protocol (issue 26, item 2): an objective is one module behind
+"""The objective protocol: an objective is one module behind
 :class:`ris_planner.model.objectives.ObjectiveKind`; a toy kind registered here only runs a
 whole plan, unknown kinds fail with the known ones listed, the service lists the kinds."""
 

@@ -1,4 +1,4 @@
-"""Every stage of a plan is timed (issue 22): plan.json's ``timing_s`` names each stage of the
+"""Every stage of a plan is timed: plan.json's ``timing_s`` names each stage of the
 pipeline – inputs to the GIS exports – and its sum is the plan's wall time, on the command line
 (measured around the CLI's ``main`` in this process, and around the command's own process
 with its ``startup``) and for a REST job (its ``started_at`` to
@@ -22,7 +22,7 @@ from ris_planner.cli import main
 ROOT = Path(__file__).resolve().parents[1]
 
 WALL_SHARE = 0.05
-"""Issue 22: the stages sum to the wall time within 5 %. What no stage holds is the command
+"""The stages sum to the wall time within 5 %. What no stage holds is the command
 line's own work around the plan (parsing the arguments, reading the document, writing
 plan.json, printing the summary) and, for a job, storing its result: milliseconds against
 the ≥ 0.5 s of the plan below, which is sized so that they stay well inside the 5 %."""

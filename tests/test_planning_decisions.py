@@ -1,6 +1,6 @@
-"""Planner decisions (issue 14) on random small instances checked by brute force: feasible
-enumeration and constraints, certificates ≤ the exhaustive optimum, targets met with the
-smallest count, ties, Pareto set, quantiles with blind pairs."""
+"""Planner decisions (targets, constraints, certificates) on random small instances checked by brute
+force: feasible enumeration and constraints, certificates ≤ the exhaustive optimum, targets met with
+the smallest count, ties, Pareto set, quantiles with blind pairs."""
 
 from __future__ import annotations
 

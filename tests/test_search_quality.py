@@ -1,4 +1,4 @@
-"""Search quality (issue 22, item 5): the default greedy search against exhaustive search on
+"""Search quality: the default greedy search against exhaustive search on
 seeded random small instances (tests/search_quality.py; the full table is
 benchmarks/bench_search_quality.py), and how infinite and NaN losses rank."""
 

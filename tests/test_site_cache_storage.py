@@ -1,4 +1,4 @@
-"""The site cache's storage (issue 14, memory): square-root rows recomputed on demand equal the
+"""The site cache's storage (its memory budget): square-root rows recomputed on demand equal the
 stored ones bit for bit, float32 storage keeps every score within its rounding bound and the
 decisions of float64, and the re-scored finalists of a float32 cache are float64-exact."""
 

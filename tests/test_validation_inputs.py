@@ -1,4 +1,4 @@
-"""Plan validation inputs (issue 23): diffuse scatterers and clusters that reach a UE are
+"""Plan validation inputs: diffuse scatterers and clusters that reach a UE are
 refused at the document boundary (simulation documents on the command line, plan documents
 in Python, on the command line and over REST), and the search region in lon/lat."""
 

@@ -1,4 +1,4 @@
-"""``ris-planner warmup`` (issue 22, cold start): it finds every numba kernel of the package,
+"""``ris-planner warmup`` (the cold start): it finds every numba kernel of the package,
 compiles each with the signatures a plan uses, and a plan in a fresh process afterwards
 compiles nothing; numba gets a writable cache folder wherever the package is installed."""
 

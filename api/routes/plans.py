@@ -57,16 +57,14 @@ async def post_plan(
     document) and its figures are ``topview``, ``heatmap`` and ``cdf`` (PNG) with the files
     ``geojson``, ``geotiff``, ``points_csv`` (WGS84 / the frame's CRS for a geographic
     document). The checks of ``ris-planner plan`` run here, on the document converted from its
-    frame, before the job is queued (:func:`ris_planner.planning.resources.admission.plan_check`):
-    422 naming
-    the
-    field, 413 naming the limit (sites, map points, pairs, sites × pairs, search layouts, the
-    job memory budget), 501 for a frame on a server without the GIS extra. The job keeps the
+    frame, before the job is queued
+    (:func:`ris_planner.planning.resources.admission.plan_check`): 422 naming the field, 413
+    naming the limit (sites, map points, pairs, sites × pairs, search layouts, the job memory
+    budget), 501 for a frame on a server without the GIS extra. The job keeps the
     document as sent (a geographic one in its own coordinates). The job's ``estimate`` (its
     wall seconds and peak memory, estimated from the document before any work;
     :func:`ris_planner.planning.resources.time_estimate.plan_estimate`) is there from this answer
-    on; the result's
-    ``resources`` sets it beside what the run measured."""
+    on; the result's ``resources`` sets it beside what the run measured."""
     body = await request.body()
     pool: ParsePool = request.app.state.parse_pool
     stored, estimate = await pool.run(plan_submission, body, settings.job_memory_mb)

@@ -397,7 +397,7 @@ class RISDefaults(RISGrid):
     )
 
 
-# --- decisions: targets, constraints and cost (issue 14) -----------------------------------
+# --- decisions: targets, constraints and cost ----------------------------------------------
 
 SAME_SPOT_M = 0.01
 """Candidates whose centres lie within this horizontal (x, y) distance share one mounting point

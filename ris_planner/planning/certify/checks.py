@@ -98,10 +98,10 @@ def random_codebook_tasks(
     """The evaluations that re-score ``layout``'s objective with other codebooks (summed up by
     :func:`random_codebook_summary`): the expected-random codebook, then ``random`` codebooks of
     seeds 0 … seeds−1, on ≤ ``RANDOM_CODEBOOK_MAX_PAIRS`` pairs drawn ∝ weight.
-    ``visibility``: the plan's (:func:`~ris_planner.planning.scoring.visibility.pair_visibility`,
-    the
-    same rules as ``compute_bounds``' own): each task takes its paths from it instead of
-    walking the legs again."""
+    ``visibility``: the plan's
+    (:func:`~ris_planner.planning.scoring.visibility.pair_visibility`, the same rules as
+    ``compute_bounds``' own): each task takes its paths from it instead of walking the legs
+    again."""
     tx, rx, w = pairs.tx, pairs.rx, pairs.weights
     pick = np.arange(pairs.size)
     if pairs.size > RANDOM_CODEBOOK_MAX_PAIRS:

@@ -94,7 +94,7 @@ OUTLIER_FACTOR = 4.0
 efficient Gaussian estimator P(‖e‖ > 4·PEB) < 7·10⁻⁵ (all variance on one axis, the worst
 case), so outliers are failures of the estimator, not noise."""
 SHORTFALL_RATIO = 1.5
-"""A covered pair whose RMSE exceeds this many times its bound is a shortfall (issue 23)."""
+"""A covered pair whose RMSE exceeds this many times its bound is a shortfall."""
 CHI2_PROBABILITY = 0.999
 """Quantile of the χ² tests of :func:`classify_draw` (a fit or channel estimate is called
 bad only when noise explains it with probability < 0.1 %)."""

@@ -1,6 +1,6 @@
-"""Exact float64 scores of the finalists of a search on a float32 site cache (issue 14,
-memory): every layout the plan reports – the best ``top_k`` of a count and its listed ties – is
-re-scored on a float64 cache of just its sites (:meth:`Scorer.exact_metric`), until the
+"""Exact float64 scores of the finalists of a search on a float32 site cache (the cache's
+memory budget): every layout the plan reports – the best ``top_k`` of a count and its listed
+ties – is re-scored on a float64 cache of just its sites (:meth:`Scorer.exact_metric`), until the
 reported set, ranked by the exact losses, holds no float32 score. The others keep their float32
 scores (each above the reported layouts' exact ones, or it would have been re-scored)."""
 

@@ -309,7 +309,7 @@ class PlanResult:
             "provenance": summ.provenance,
         }
 
-    # --- decisions (issue 14): certificates, ties, targets, cost ------------------------------
+    # --- decisions: certificates, ties, targets, cost ------------------------------------------
 
     def _decision_fields(self, cr: CountResult) -> dict[str, Any]:
         """by_count additions: the certificate and gap, the ties."""

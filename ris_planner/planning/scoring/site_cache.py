@@ -16,7 +16,7 @@ zero is removing the path – and ``present`` / ``los_present`` let the scorer c
 geometric channel parameters per layout (concepts/numerics.md: fewer than the states is ``inf``).
 The RIS pattern factor (cos θ_T cos θ_R)^q is in the path gain
 (:func:`ris_planner.bounds.compute.ris_path_gain`).
-Storage (issue 14, memory): the site information is held once, in the pair blocks the compiled
+Storage (the memory budget): the site information is held once, in the pair blocks the compiled
 scorer reads (no per-process re-layout). The square-root rows (:func:`ris_planner.inversion.crb.
 path_factor`) from which the scorer recomputes the few ill-conditioned (layout, pair)
 combinations (:func:`ris_planner.inversion.crb.crb_diagonal`) are stored while they fit the cache
