@@ -17,8 +17,8 @@ from test_api import api_client
 
 from ris_planner import preset_document
 from ris_planner.cli import main as cli_main
-from ris_planner.environment.kinds import KINDS, UnknownObstacleKindError, kind_of
-from ris_planner.environment.kinds.base import ObstacleModel
+from ris_planner.environment.kinds import KINDS, UnknownObstacleKindError, kind_of, register
+from ris_planner.environment.kinds.base import DRAW_SHAPES, ObstacleModel
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.kinds.wall import WallObstacle
 from ris_planner.environment.model import Environment
@@ -116,3 +116,44 @@ def test_engine_groups_by_kind_and_answers_per_kind() -> None:
         got = Scene(env, engine=engine).blocked(a, b)
         assert got.tolist() == [True, True, False, False]
     assert Scene(env).inside(np.array([[4, 0, 1], [0, 0, 1]])).tolist() == [1, -1]
+
+
+def test_service_lists_the_kinds_with_their_drawing(tmp_path: Path) -> None:
+    """``GET /v1/obstacle-kinds``: every registered kind, whether it is solid, and the drawing
+    spec the web page draws it from (docs/guides/adding-an-obstacle-kind.md)."""
+    with api_client(tmp_path) as client:
+        r = client.get("/v1/obstacle-kinds")
+    assert r.status_code == 200, r.text
+    kinds = {k["kind"]: k for k in r.json()["kinds"]}
+    assert sorted(kinds) == sorted(KINDS)
+    assert kinds["prism"] == {
+        "kind": "prism",
+        "solid": True,
+        "draw": {"shape": "polygon", "points": "footprint"},
+    }
+    assert kinds["wall"]["draw"] == {"shape": "polyline", "points": ["start", "end"]}
+
+
+def test_every_kind_draws_with_a_known_shape_and_fields_of_its_model() -> None:
+    for kind in KINDS.values():
+        spec = dict(kind.draw)
+        members = DRAW_SHAPES[spec.pop("shape")]
+        assert sorted(spec) == sorted(members), kind.name
+        for value in spec.values():
+            for field in [value] if isinstance(value, str) else value:
+                assert field in kind.model.model_fields, (kind.name, field)
+        for path in kind.point_fields:
+            assert path[0] in kind.model.model_fields, (kind.name, path)
+
+
+def test_registering_twice_or_a_mismatched_model_is_refused() -> None:
+    with pytest.raises(ValueError, match="registered already"):
+        register(KINDS["prism"])
+
+    class Mismatch:
+        name = "other"
+        model = Prism
+
+    with pytest.raises(ValueError, match="kind_name differs"):
+        register(Mismatch())  # type: ignore[arg-type]
+    assert "other" not in KINDS

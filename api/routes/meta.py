@@ -1,21 +1,23 @@
-"""Service metadata: ``GET /healthz`` (no API key), ``GET /v1/presets`` and
-``GET /v1/objectives``."""
+"""Service metadata: ``GET /healthz`` (no API key), ``GET /v1/presets``,
+``GET /v1/objectives`` and ``GET /v1/obstacle-kinds``."""
 
 from __future__ import annotations
 
 import sqlite3
 from importlib.metadata import version
-from typing import Annotated
+from typing import Annotated, Any
 
 import anyio
 from fastapi import APIRouter, Depends, Request
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel, Field
 
 from api.deps import get_runner, get_settings, get_store
 from api.models import Health, ObjectiveInfo, ObjectiveList, Preset, PresetList
 from api.settings import Settings
 from api.store import JobStore, StoreUnavailableError
 from api.worker import JobRunner, describe_error
+from ris_planner.environment.kinds import describe_kinds
 from ris_planner.model.objectives import objective_kind, objective_names
 from ris_planner.model.scenario import PRESET_NAMES, preset_document
 from ris_planner.planning import PLAN_PRESET_NAMES, plan_preset
@@ -80,3 +82,31 @@ def objectives() -> ObjectiveList:
     return ObjectiveList(
         objectives=[ObjectiveInfo(**objective_kind(n).describe()) for n in objective_names()]
     )
+
+
+class ObstacleKindInfo(BaseModel):
+    """A registered obstacle kind (``environment.obstacles[].kind``) as the web page draws it."""
+
+    kind: str = Field(description="The kind's JSON name")
+    solid: bool = Field(description="Points can lie inside it (candidates inside are refused)")
+    draw: dict[str, Any] = Field(
+        description="How to draw one: shape polygon / polyline (points: a field of [x, y]"
+        " points, or a list of fields each one point) or circle (center: a field of one point,"
+        " radius: a field in metres)"
+    )
+
+
+class ObstacleKindList(BaseModel):
+    """The obstacle kinds this service reads."""
+
+    kinds: list[ObstacleKindInfo] = Field(description="Registered kinds, in order")
+
+
+@router.get(
+    "/obstacle-kinds", response_model=ObstacleKindList, summary="Obstacle kinds and their drawing"
+)
+def obstacle_kinds() -> ObstacleKindList:
+    """The registered obstacle kinds with the drawing the web page makes of each
+    (:func:`ris_planner.environment.kinds.describe_kinds`;
+    docs/guides/adding-an-obstacle-kind.md)."""
+    return ObstacleKindList(kinds=[ObstacleKindInfo(**k) for k in describe_kinds()])

@@ -12,7 +12,8 @@
  * layouts with the estimator) → progress from GET /v1/jobs/{id}/events
  * (server-sent events, read with fetch so an API key header can be sent; reconnects with
  * backoff) → GET /v1/jobs/{id}: plan.json's by_count, points, heatmap, diagnosis and sizing
- * drawn on the map, in the tables and in the charts; its validation as a table.
+ * drawn on the map, in the tables and in the charts; its validation as a table. Obstacles are
+ * drawn from their kind's spec (GET /v1/obstacle-kinds), whatever the kind.
  */
 (function () {
   "use strict";
@@ -25,7 +26,7 @@
   const BUILDING_COLOUR = "#8a939e";
   const SELECTED_COLOUR = "#c25400";
   const INSIDE_COLOUR = "#c62828"; // a candidate inside a building
-  const INSIDE_MARGIN_M = 0.01; // inside = deeper than 1 cm in a prism (ris_planner.environment.scene.INSIDE_MARGIN_M)
+  const INSIDE_MARGIN_M = 0.01; // inside = deeper than 1 cm in a solid obstacle (ris_planner.environment.scene.INSIDE_MARGIN_M)
   const SNAP_PX = 48; // a dragged site snaps to a facade this close to where it is dropped (screen pixels)
   const GLYPH_PX = 64; // box of a candidate's glyph (square and facing arrow)
   const SCALE_PX = 160; // longest scale bar of the map
@@ -1502,7 +1503,7 @@
     return isFraction(kind) ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} ${OBJECTIVE_UNIT[kind] || "m"}`;
   }
 
-  /** File type of a job's non-PNG files by name (ris_planner.io.export.GIS_FILES). */
+  /** File type of a job's non-PNG files by name (ris_planner.io.gis_outputs.GIS_FILES). */
   const FILE_KINDS = { geojson: "geojson", geotiff: "tif", points_csv: "csv" };
 
   /** Download links: plan.json and every file the job lists (figures, and any other files). */
@@ -1742,16 +1743,68 @@
     return env && Array.isArray(env.obstacles) ? env.obstacles : [];
   }
 
-  /** The prisms of an obstacle list with their bounding boxes and ring orientation (kept per
-   * list: the point tests run for every UE point of a preview). */
-  const PRISMS = new WeakMap();
-  function prisms(obs) {
-    let out = PRISMS.get(obs);
+  // obstacle kinds from the server (GET /v1/obstacle-kinds): kind → {solid, draw}; the page
+  // draws every kind from its spec and names none
+  let OBSTACLE_KINDS = {};
+  const CIRCLE_SIDES = 48; // a circle's polygon (its drawing, the inside test and the facades)
+
+  /** The obstacle kinds the server reads, then the map again (drawn with their specs). */
+  async function loadObstacleKinds() {
+    try {
+      const body = await api("/v1/obstacle-kinds");
+      const kinds = {};
+      for (const k of body.kinds || []) kinds[k.kind] = { solid: Boolean(k.solid), draw: k.draw || {} };
+      OBSTACLE_KINDS = kinds;
+      SHAPES = new WeakMap();
+      SOLIDS = new WeakMap();
+      drawAll();
+    } catch (err) {
+      if (err.status !== 0) showBanner(err.message);
+    }
+  }
+
+  const isPoint = (v) => Array.isArray(v) && v.length >= 2 && Number.isFinite(Number(v[0])) && Number.isFinite(Number(v[1]));
+
+  /** An obstacle's 2-D shape from its kind's drawing spec: {polygon: bool, pts: [[x, y], …],
+   * solid} in local metres, or null (a kind the server did not list, a malformed obstacle). */
+  let SHAPES = new WeakMap();
+  function shapeOf(ob) {
+    if (!ob || typeof ob !== "object") return null;
+    if (SHAPES.has(ob)) return SHAPES.get(ob);
+    const kind = OBSTACLE_KINDS[ob.kind];
+    const d = kind ? kind.draw : {};
+    let pts = null;
+    if (d.shape === "circle") {
+      const c = ob[d.center], r = Number(ob[d.radius]);
+      if (isPoint(c) && r > 0) {
+        pts = [];
+        for (let i = 0; i < CIRCLE_SIDES; i++) {
+          const a = (2 * Math.PI * i) / CIRCLE_SIDES;
+          pts.push([Number(c[0]) + r * Math.cos(a), Number(c[1]) + r * Math.sin(a)]);
+        }
+      }
+    } else if (d.shape === "polygon" || d.shape === "polyline") {
+      const raw = Array.isArray(d.points) ? d.points.map((f) => ob[f]) : ob[d.points];
+      if (Array.isArray(raw) && raw.every(isPoint)) pts = raw.map((v) => [Number(v[0]), Number(v[1])]);
+    }
+    const polygon = d.shape !== "polyline";
+    const out = pts && pts.length >= (polygon ? 3 : 2) ? { polygon, pts, solid: Boolean(kind.solid) } : null;
+    SHAPES.set(ob, out);
+    return out;
+  }
+
+  /** The solid obstacles (their footprints: polygon or circle shapes) of an obstacle list with
+   * their bounding boxes and ring orientation (kept per list: the point tests run for every UE
+   * point of a preview). */
+  let SOLIDS = new WeakMap();
+  function solids(obs) {
+    let out = SOLIDS.get(obs);
     if (out) return out;
     out = [];
     obs.forEach((ob, k) => {
-      if (!ob || ob.kind !== "prism" || !Array.isArray(ob.footprint) || ob.footprint.length < 3) return;
-      const fp = ob.footprint;
+      const sh = shapeOf(ob);
+      if (!sh || !sh.solid || !sh.polygon) return;
+      const fp = sh.pts;
       const base = Number(ob.base_m) || 0;
       let area = 0;
       for (let i = 0, j = fp.length - 1; i < fp.length; j = i++) area += fp[j][0] * fp[i][1] - fp[i][0] * fp[j][1];
@@ -1761,15 +1814,15 @@
         y0: Math.min(...fp.map((v) => v[1])), y1: Math.max(...fp.map((v) => v[1])),
       });
     });
-    PRISMS.set(obs, out);
+    SOLIDS.set(obs, out);
     return out;
   }
 
   /** The obstacle (index) a point [x, y, z] lies more than 1 cm inside, or -1: inside a
-   * prism's footprint, farther than the margin from every edge, and between its base and top
+   * solid obstacle's footprint, farther than the margin from every edge, and between its base and top
    * by more than the margin (the plan's rule for candidate sites and UE map points). */
   function buildingAt(p) {
-    for (const pr of prisms(obstacles())) {
+    for (const pr of solids(obstacles())) {
       if (p[0] < pr.x0 || p[0] > pr.x1 || p[1] < pr.y0 || p[1] > pr.y1) continue;
       if (!(p[2] > pr.base + INSIDE_MARGIN_M && p[2] < pr.top - INSIDE_MARGIN_M)) continue;
       const fp = pr.fp;
@@ -1794,7 +1847,7 @@
    * of a wall that lies inside another building (terraced houses) is passed over. */
   function facadeSnap(x, y, z, reach, force) {
     const found = [];
-    for (const pr of prisms(obstacles())) {
+    for (const pr of solids(obstacles())) {
       const fp = pr.fp;
       for (let i = 0; i < fp.length; i++) {
         const a = fp[i];
@@ -1882,8 +1935,8 @@
     for (const layer of ueLayers()) for (const p of layer.map.points) add(p[0], p[1]);
     for (const c of candidates()) add(c.position[0], c.position[1]);
     for (const ob of obstacles()) {
-      if (ob.kind === "prism" && Array.isArray(ob.footprint)) for (const v of ob.footprint) add(v[0], v[1]);
-      if (ob.kind === "wall" && ob.start && ob.end) { add(ob.start[0], ob.start[1]); add(ob.end[0], ob.end[1]); }
+      const sh = shapeOf(ob);
+      if (sh) for (const v of sh.pts) add(v[0], v[1]);
     }
     const hm = state.plan && state.plan.heatmap;
     if (hm) { const g = hm.grid; add(g.x0 - g.cell_m / 2, g.y0 - g.cell_m / 2); add(g.x0 + (g.nx - 0.5) * g.cell_m, g.y0 + (g.ny - 0.5) * g.cell_m); }
@@ -2020,22 +2073,21 @@
 
   function drawObstacles() {
     const on = $("layer-buildings").checked;
-    if (unchanged("obstacles", [obstacles(), on, M.map])) return;
+    if (unchanged("obstacles", [obstacles(), on, M.map, OBSTACLE_KINDS])) return;
     const g = group("obstacles");
     if (!on) return;
     obstacles().forEach((ob, k) => {
       const top = (Number(ob.base_m) || 0) + (Number(ob.height_m) || 0);
-      let layer = null;
-      if (ob.kind === "prism" && Array.isArray(ob.footprint)) {
-        layer = L.polygon(ob.footprint.map((v) => ll(v[0], v[1])), {
-          pane: "obstacles", color: "#3b424a", weight: 1.2, fillColor: BUILDING_COLOUR, fillOpacity: 0.55, className: "obstacle prism",
+      const sh = shapeOf(ob);
+      if (!sh) return;
+      const cls = `obstacle ${String(ob.kind).replace(/[^A-Za-z0-9_-]/g, "_")}`;
+      const layer = sh.polygon
+        ? L.polygon(sh.pts.map((v) => ll(v[0], v[1])), {
+          pane: "obstacles", color: "#3b424a", weight: 1.2, fillColor: BUILDING_COLOUR, fillOpacity: sh.solid ? 0.55 : 0.15, className: cls,
+        })
+        : L.polyline(sh.pts.map((v) => ll(v[0], v[1])), {
+          pane: "obstacles", color: "#3b424a", weight: 3.5, lineCap: "round", className: cls,
         });
-      } else if (ob.kind === "wall" && ob.start && ob.end) {
-        layer = L.polyline([ll(ob.start[0], ob.start[1]), ll(ob.end[0], ob.end[1])], {
-          pane: "obstacles", color: "#3b424a", weight: 3.5, lineCap: "round", className: "obstacle wall",
-        });
-      }
-      if (!layer) return;
       g.addLayer(layer);
       const el = layer.getElement();
       if (el) {
@@ -2245,7 +2297,7 @@
     if (!M.hasSite) return;
     const item = (sym, text) => box.append(h("span", { class: "item" }, sym, text));
     if ($("layer-buildings").checked && obstacles().length) {
-      item(h("span", { class: "swatch", "data-colour": BUILDING_COLOUR }), "building (prism; ▬ wall)");
+      item(h("span", { class: "swatch", "data-colour": BUILDING_COLOUR }), "obstacle (filled: solid; ▬ thin)");
     }
     for (const info of M.ueInfo) {
       const dropped = info.inside + info.droppedByPlan;
@@ -2696,6 +2748,7 @@
         $("api-key-status").textContent = state.apiKey ? "Key accepted by the server." : "The server needs no key.";
       }).catch(() => { /* a 401 says so in the banner and the status */ });
       loadObjectives().finally(loadPresets);
+      loadObstacleKinds();
       refreshJobs();
     });
     for (const id of ["layer-heatmap", "layer-contour", "layer-ues", "layer-candidates", "layer-buildings"]) $(id).addEventListener("change", drawAll);
@@ -2730,6 +2783,7 @@
     checkHealth();
     inspectServer();
     loadObjectives().finally(loadPresets);
+    loadObstacleKinds();
     refreshJobs();
   }
 

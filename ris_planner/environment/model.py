@@ -8,37 +8,58 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Annotated, Any, Union
 
-from pydantic import BeforeValidator, Field
+from pydantic import Field, PlainValidator, SerializeAsAny
 from pydantic_core import PydanticCustomError
 
 from ris_planner.core.document import DocumentModel
-from ris_planner.environment.kinds import KINDS, known_kinds
+from ris_planner.environment.kinds import KINDS, UnknownObstacleKindError, kind_of, known_kinds
 from ris_planner.environment.kinds.base import ObstacleModel, label
 
 MAX_OBSTACLES = 100_000
 """Obstacles per environment."""
 
 
-def _known_kind(value: Any) -> Any:
-    """An obstacle whose ``kind`` is not registered: an error naming the known kinds."""
-    if isinstance(value, dict) and "kind" in value and value["kind"] not in KINDS:
+def _obstacle(value: Any) -> ObstacleModel:
+    """An obstacle validated by the model of its registered ``kind``, looked up when it is
+    validated (a kind registered at run time is accepted from then on); an unknown kind is an
+    error naming the known kinds."""
+    if isinstance(value, ObstacleModel):
+        try:
+            kind_of(value)
+        except UnknownObstacleKindError as exc:
+            raise PydanticCustomError("unknown_obstacle_kind", str(exc)) from None
+        return value
+    if not isinstance(value, dict) or "kind" not in value:
+        raise PydanticCustomError(
+            "obstacle_kind",
+            "an obstacle is an object with a kind (known kinds: {known})",
+            {"known": known_kinds()},
+        )
+    kind = KINDS.get(value["kind"]) if isinstance(value["kind"], str) else None
+    if kind is None:
         raise PydanticCustomError(
             "unknown_obstacle_kind",
             "unknown obstacle kind {kind}; known kinds: {known}",
             {"kind": repr(value["kind"]), "known": known_kinds()},
         )
-    return value
+    return kind.model.model_validate(value)
 
 
 if TYPE_CHECKING:
     Obstacle = ObstacleModel
 else:
     Obstacle = Annotated[
-        Union[tuple(k.model for k in KINDS.values())],  # noqa: UP007 – built from the registry
-        Field(discriminator="kind"),
-        BeforeValidator(_known_kind),
+        SerializeAsAny[ObstacleModel],
+        PlainValidator(
+            _obstacle,
+            # the JSON schema lists the kinds registered at import
+            json_schema_input_type=Annotated[
+                Union[tuple(k.model for k in KINDS.values())],  # noqa: UP007 – from the registry
+                Field(discriminator="kind"),
+            ],
+        ),
     ]
-"""One obstacle: the registered kinds' models, told apart by ``kind``."""
+"""One obstacle: the model of its registered kind, told apart by ``kind``."""
 
 
 class Environment(DocumentModel):

@@ -1,5 +1,6 @@
 """What every obstacle kind shares: the protocol a kind module implements, the common document
-fields (heights, name, material) and the faces reflections use (docs/concepts/environment.md).
+fields (heights, name, material) and the faces reflections use (docs/concepts/environment.md;
+docs/guides/adding-an-obstacle-kind.md walks through writing one).
 
 A kind is one module in :mod:`ris_planner.environment.kinds` that defines
 
@@ -11,12 +12,17 @@ A kind is one module in :mod:`ris_planner.environment.kinds` that defines
   of :mod:`ris_planner.environment.scene`); a ``solid`` kind also answers ``depth`` (how far
   points lie inside), and ``compiled`` says whether the compiled engine
   (:mod:`ris_planner.environment._jit`) implements it (scenes with other kinds use numpy);
+  ``point_fields`` names the fields that hold [x, y] points (a geographic document's are
+  converted from its frame); ``to_geojson`` / ``from_geojson`` are its GeoJSON feature (the
+  ``plan.geojson`` export and the import read each other's); ``draw`` tells the web page how
+  to draw it (:data:`DRAW_SHAPES`);
 
 and is registered in :data:`ris_planner.environment.kinds.KINDS`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
@@ -29,6 +35,25 @@ from ris_planner.environment.materials import DEFAULT_MATERIAL, Material
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int_]
+
+ToOutput = Callable[[FloatArray], FloatArray]
+"""Local [x, y] points [n, 2] → the coordinates a GeoJSON file holds ([lon, lat] with a frame,
+else the same metres)."""
+
+GeoJSON = dict[str, Any]
+"""A GeoJSON geometry or a feature's ``properties``."""
+
+DRAW_SHAPES: dict[str, tuple[str, ...]] = {
+    "polygon": ("points",),
+    "polyline": ("points",),
+    "circle": ("center", "radius"),
+}
+"""The shapes of a kind's ``draw`` spec and the members each names fields with. ``points``: the
+name of a field holding a list of [x, y] points, or a list of names of fields each holding
+one; ``center``: a field holding one [x, y] point, ``radius``: a field holding metres. The
+page (``api/static/app.js``) reads the spec from ``GET /v1/obstacle-kinds`` and draws every
+kind from it; a ``solid`` kind's polygon or circle is also its footprint there (the inside
+check and the facade snap of candidates)."""
 
 
 class Faces(NamedTuple):
@@ -86,13 +111,54 @@ class ObstacleModel(DocumentModel):
         raise NotImplementedError
 
 
+class GeometryError(ValueError):
+    """A GeoJSON geometry that is not the one a kind reads (the message says what it needs)."""
+
+
+def coordinates(geometry: Any, kind: str, want: str) -> Any:
+    """The ``coordinates`` of a GeoJSON geometry of type ``want``; else :class:`GeometryError`
+    saying what a ``kind`` feature needs."""
+    got = geometry.get("type") if isinstance(geometry, dict) else type(geometry).__name__
+    if got != want:
+        raise GeometryError(f"a {kind} feature's geometry is a {want}, got {got}")
+    return geometry.get("coordinates")
+
+
+def position_xy(position: Any) -> list[float]:
+    """[x, y] of a GeoJSON position ([x, y] or [x, y, z]; a height is dropped: the obstacle's
+    heights are its ``base_m`` and ``height_m``)."""
+    if not isinstance(position, list | tuple) or len(position) not in (2, 3):
+        raise GeometryError(f"a position is [x, y] or [x, y, z], got {position!r}")
+    return list(position[:2])
+
+
 class ObstacleKind(Protocol):
-    """One obstacle kind for the visibility engine (see the module docstring)."""
+    """One obstacle kind (see the module docstring): every member is required."""
 
     name: str
+    """The JSON ``kind`` value."""
     model: type[ObstacleModel]
+    """Its document model (``kind: Literal[name]``)."""
     solid: bool
+    """Points can lie inside it (``depth``; UE points and candidates inside are refused)."""
     compiled: bool
+    """The compiled engine implements it (only the built-in kinds)."""
+    point_fields: tuple[tuple[str, ...], ...]
+    """Paths inside an obstacle of its [x, y] points (``*``: every list entry), e.g.
+    ``(("footprint", "*"),)``; :func:`ris_planner.io.frames.to_local` converts them."""
+    draw: dict[str, Any]
+    """How the web page draws it: ``{"shape": …, …}`` of :data:`DRAW_SHAPES`."""
+
+    def to_geojson(self, obstacle: Any, xy: ToOutput) -> tuple[GeoJSON, GeoJSON]:
+        """(geometry, properties) of one obstacle's feature: its geometry with coordinates
+        through ``xy`` and the properties its geometry does not hold (the fields every obstacle
+        has are added by :func:`ris_planner.environment.kinds.geojson.obstacle_feature`)."""
+        ...
+
+    def from_geojson(self, geometry: GeoJSON, properties: GeoJSON) -> dict[str, Any]:
+        """The fields of :meth:`to_geojson` back from a feature, in the geometry's coordinates
+        (not validated; :class:`GeometryError` when the geometry is of another type)."""
+        ...
 
     def pack(self, obstacles: list[Any]) -> Any:
         """Arrays of these obstacles (in the given order) for :meth:`blocks` and :meth:`depth`."""

@@ -22,9 +22,14 @@ from ris_planner.environment.kinds.base import (
     BoolArray,
     Faces,
     FloatArray,
+    GeoJSON,
+    GeometryError,
     IntArray,
     ObstacleModel,
+    ToOutput,
+    coordinates,
     label,
+    position_xy,
 )
 
 MIN_FOOTPRINT_AREA_M2 = 1e-6
@@ -104,6 +109,23 @@ def footprint_problem(vertices: FloatArray) -> str | None:
     return None
 
 
+def signed_area(vertices: FloatArray) -> float:
+    """The signed area of a polygon [n, 2] (positive counter-clockwise)."""
+    x, y = vertices[:, 0], vertices[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def closed_ccw_ring(vertices: FloatArray) -> list[list[float]]:
+    """An open vertex list [n, 2] → a closed, counter-clockwise GeoJSON ring."""
+    v = np.asarray(vertices, dtype=float)
+    if len(v) > 1 and np.array_equal(v[0], v[-1]):
+        v = v[:-1]
+    if signed_area(v) < 0:
+        v = v[::-1]
+    ring = v.tolist()
+    return [*ring, ring[0]]
+
+
 class Prism(ObstacleModel):
     """A vertical extrusion of a simple polygon between ``base_m`` and ``base_m + height_m``."""
 
@@ -140,8 +162,7 @@ class Prism(ObstacleModel):
         v = self.vertices
         w = np.roll(v, -1, axis=0)
         e = w - v
-        area2 = float(np.dot(v[:, 0], w[:, 1]) - np.dot(v[:, 1], w[:, 0]))
-        side = 1.0 if area2 > 0 else -1.0  # counter-clockwise: the outside is on the right
+        side = 1.0 if signed_area(v) > 0 else -1.0  # counter-clockwise: the outside is on the right
         length = np.hypot(e[:, 0], e[:, 1])
         normal = side * np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]
         return Faces(v, w, normal, False)
@@ -357,12 +378,28 @@ class PackedPrisms:
 
 
 class PrismKind:
-    """The ``prism`` kind for the visibility engine (solid; compiled engine: yes)."""
+    """The ``prism`` kind (solid; compiled engine: yes; a GeoJSON Polygon)."""
 
     name: str = "prism"
     model: type[ObstacleModel] = Prism
     solid: bool = True
     compiled: bool = True
+    point_fields: tuple[tuple[str, ...], ...] = (("footprint", "*"),)
+    draw: dict[str, Any] = {"shape": "polygon", "points": "footprint"}  # noqa: RUF012
+
+    def to_geojson(self, obstacle: Prism, xy: ToOutput) -> tuple[GeoJSON, GeoJSON]:
+        """A Polygon: the footprint as a closed counter-clockwise ring."""
+        return {"type": "Polygon", "coordinates": [closed_ccw_ring(xy(obstacle.vertices))]}, {}
+
+    def from_geojson(self, geometry: GeoJSON, properties: GeoJSON) -> dict[str, Any]:
+        """``footprint`` from a Polygon without holes (its ring's closing position dropped)."""
+        rings = coordinates(geometry, self.name, "Polygon")
+        if not isinstance(rings, list) or len(rings) != 1 or not isinstance(rings[0], list):
+            raise GeometryError("a prism feature's Polygon has one ring (no holes)")
+        ring = [position_xy(p) for p in rings[0]]
+        if len(ring) > 3 and ring[0] == ring[-1]:
+            ring = ring[:-1]
+        return {"footprint": ring}
 
     def pack(self, obstacles: list[Any]) -> PackedPrisms:
         n = len(obstacles)

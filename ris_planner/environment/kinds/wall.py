@@ -17,9 +17,14 @@ from ris_planner.environment.kinds.base import (
     BoolArray,
     Faces,
     FloatArray,
+    GeoJSON,
+    GeometryError,
     IntArray,
     ObstacleModel,
+    ToOutput,
+    coordinates,
     label,
+    position_xy,
 )
 from ris_planner.environment.kinds.prism import MIN_EDGE_M, Point2
 
@@ -103,12 +108,27 @@ class PackedWalls:
 
 
 class WallKind:
-    """The ``wall`` kind for the visibility engine (not solid; compiled engine: yes)."""
+    """The ``wall`` kind (not solid; compiled engine: yes; a GeoJSON LineString)."""
 
     name: str = "wall"
     model: type[ObstacleModel] = WallObstacle
     solid: bool = False
     compiled: bool = True
+    point_fields: tuple[tuple[str, ...], ...] = (("start",), ("end",))
+    draw: dict[str, Any] = {"shape": "polyline", "points": ["start", "end"]}  # noqa: RUF012
+
+    def to_geojson(self, obstacle: WallObstacle, xy: ToOutput) -> tuple[GeoJSON, GeoJSON]:
+        """A LineString from ``start`` to ``end``."""
+        line = xy(np.array([obstacle.start, obstacle.end], dtype=float))
+        return {"type": "LineString", "coordinates": line.tolist()}, {}
+
+    def from_geojson(self, geometry: GeoJSON, properties: GeoJSON) -> dict[str, Any]:
+        """``start`` and ``end`` from a LineString of two positions."""
+        line = coordinates(geometry, self.name, "LineString")
+        if not isinstance(line, list) or len(line) != 2:
+            raise GeometryError("a wall feature's LineString has exactly two positions")
+        start, end = (position_xy(p) for p in line)
+        return {"start": start, "end": end}
 
     def pack(self, obstacles: list[Any]) -> PackedWalls:
         n = len(obstacles)
