@@ -1,5 +1,7 @@
 """The documentation site builds offline with ``mkdocs build --strict`` (docs/, mkdocs.yml), the
-README stays a front page, and nothing cites a file outside the repository."""
+README stays a front page, nothing cites a file outside the repository, every cited path and
+module exists, speed figures live on the validation pages only, the explaining pages narrate no
+history, and no code or page names an issue by its number."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ import os
 import re
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -149,3 +152,130 @@ def test_no_citation_outside_the_repository() -> None:
             data = path.read_bytes()
             hits += [f"{path.relative_to(ROOT)}: {f.decode()}" for f in FORBIDDEN if f in data]
     assert not hits, "cite docs pages and the paper's labels instead:\n" + "\n".join(hits)
+
+
+# --- the pages' text: cited paths, speed figures, history, issue numbers -------------------
+
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+CITED_PATH = re.compile(
+    r"(?<![\w/.(-])((?:ris_planner|tests|benchmarks|examples|api|docs|scripts)/[\w./-]*\w)"
+)
+CITED_MODULE = re.compile(r"(?<![\w/.])(ris_planner(?:\.\w+)+)")
+IGNORED_PATHS = {"benchmarks/asv/.asv"}
+"""Cited paths that are made by a run (asv's results folder, ignored by git)."""
+EXPLAINING_PAGES = [
+    ROOT / "README.md",
+    ROOT / "docs" / "index.md",
+    ROOT / "docs" / "getting-started.md",
+    *sorted((ROOT / "docs" / "concepts").glob("*.md")),
+    *sorted((ROOT / "docs" / "guides").glob("*.md")),
+    *sorted((ROOT / "docs" / "reference").rglob("*.md")),
+]
+"""Pages that explain (README, start, concepts, guides, reference): no speed figures there."""
+OTHERS_EDITING = {"docs/concepts/district.md", "docs/concepts/environment.md"}
+"""Pages another change is rewriting now; the text checks take them up once it lands."""
+TIMING = re.compile(
+    r"(?<![\w.])\d+(?:[.,]\d+)?(?:\s*[–-]\s*\d+(?:\.\d+)?)?\s?(?:s|ms|min|µs|h)\b(?![-\w])"
+)
+NOT_A_SPEED = re.compile(
+    r"every|≤|backoff|backs off|doubling|lock|timeout|default|at most|bound|_S`|lasts|busy"
+)
+"""Durations that are settings, not speeds: intervals, timeouts, limits (the words beside)."""
+HISTORY = (
+    "as before",
+    "before this",
+    "used to",
+    "previously",
+    "this round",
+    "we changed",
+    "the issue",
+    "is now",
+    "are now",
+    "went from",
+)
+"""Phrases that narrate the code's history; docs/history.md is the one place for it."""
+ISSUE_NUMBER = re.compile(r"\bissues?[ -]#?\d+", re.I)
+CODE_DIRS = ("ris_planner", "api", "tests", "benchmarks", "examples", "scripts")
+
+
+def _prose(page: Path) -> Iterator[tuple[int, str]]:
+    """(line number, line) of a page outside its fenced blocks and HTML comments."""
+    inside = False
+    for number, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
+        if line.lstrip().startswith(("```", "~~~")):
+            inside = not inside
+            continue
+        if not inside and not line.lstrip().startswith("<!--"):
+            yield number, line
+
+
+def _explaining() -> list[Path]:
+    return [p for p in EXPLAINING_PAGES if str(p.relative_to(ROOT)) not in OTHERS_EDITING]
+
+
+def test_every_cited_path_exists_and_module_imports() -> None:
+    missing, unknown = [], []
+    for page in PAGES:
+        text = re.sub(r"\]\([^)]*\)", "]", page.read_text(encoding="utf-8"))  # link targets
+        name = page.relative_to(ROOT)
+        for path in sorted(set(CITED_PATH.findall(text)) - IGNORED_PATHS):
+            if not (ROOT / path).exists():
+                missing.append(f"{name}: {path}")
+        for dotted in sorted(set(CITED_MODULE.findall(text))):
+            if not _resolves(dotted):
+                unknown.append(f"{name}: {dotted}")
+    assert not missing, "cited paths that do not exist:\n" + "\n".join(missing)
+    assert not unknown, "cited names that do not import:\n" + "\n".join(unknown)
+
+
+def _resolves(dotted: str) -> bool:
+    """``ris_planner.a.b`` names a module, or a module's attribute (a function, a class)."""
+    parts = dotted.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        for attr in parts[cut:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False
+
+
+def test_speed_figures_only_on_validation_pages() -> None:
+    hits = []
+    for page in _explaining():
+        for number, line in _prose(page):
+            for match in TIMING.finditer(line):
+                context = line[max(0, match.start() - 30) : match.end() + 15]
+                if not NOT_A_SPEED.search(context):
+                    hits.append(f"{page.relative_to(ROOT)}:{number}: {context.strip()}")
+    assert not hits, (
+        "speed figures belong on docs/validation/ with their date and machine"
+        " (docs/validation/measured-times.md):\n" + "\n".join(hits)
+    )
+
+
+def test_concepts_and_guides_do_not_narrate_history() -> None:
+    hits = []
+    for page in _explaining():
+        for number, line in _prose(page):
+            for phrase in HISTORY:
+                if re.search(rf"\b{phrase}\b", line, re.I):
+                    hits.append(f"{page.relative_to(ROOT)}:{number}: {phrase!r}")
+    assert not hits, "explain what is, not how it came to be:\n" + "\n".join(hits)
+
+
+def test_no_issue_numbers_in_code_or_docs() -> None:
+    hits = []
+    files = [p for d in CODE_DIRS for p in sorted((ROOT / d).rglob("*.py"))]
+    files += [p for p in PAGES if p.name != "history.md"]
+    for path in files:
+        if SKIP_PARTS & set(path.parts) or str(path.relative_to(ROOT)) in OTHERS_EDITING:
+            continue
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if ISSUE_NUMBER.search(line):
+                hits.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()[:80]}")
+    assert not hits, "say what an issue asked for, not its number:\n" + "\n".join(hits)
