@@ -13,10 +13,9 @@ that records the fault and backs off, and a final state the store cannot take no
 busy) is kept and written once the store answers again. A worker ends with its server: it
 closes the forkserver's "alive" pipe it inherits (so the forkserver exits when the server
 does), asks the kernel for SIGKILL when its parent dies (Linux ``PR_SET_PDEATHSIG``) and checks
-the server's pid every :data:`api.processes.ORPHAN_CHECK_S` (the fallback elsewhere). Figures are
-written to
-a hidden folder and moved in place only when the job succeeds: a cancelled or failed job leaves
-no partial figures.
+the server's pid every :data:`api.processes.ORPHAN_CHECK_S` (the fallback elsewhere).
+Figures are written to a hidden folder and moved in place only when the job succeeds: a
+cancelled or failed job leaves no partial figures.
 
 A job kind is a module-level function ``(document, progress, out_dir) -> JobOutput`` (see
 :mod:`api.kinds`); it is handed to the worker by reference (pickled by qualified name).
