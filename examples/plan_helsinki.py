@@ -33,9 +33,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ris_planner.io.export import plan_outputs
 from ris_planner.io.frames import to_local
-from ris_planner.io.geojson_import import ImportOptions, import_features, import_sites
+from ris_planner.io.geojson_read import import_features
+from ris_planner.io.gis_outputs import plan_outputs
+from ris_planner.io.import_options import ImportOptions
+from ris_planner.io.site_points import import_sites
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan, write_figures
 from ris_planner.planning.outputs.report import write_plan_json
 

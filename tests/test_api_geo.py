@@ -382,7 +382,7 @@ def test_import_converts_a_named_projected_crs(tmp_path: Path) -> None:
     from api_helpers import api_client
     from test_io_import import TM35FIN_URN, _assert_same_site, _projected, _site_wgs84
 
-    from ris_planner.io.geojson_import import NO_BUILDINGS_WARNING
+    from ris_planner.io.geojson_read import NO_BUILDINGS_WARNING
 
     crs = {"type": "name", "properties": {"name": TM35FIN_URN}}
     origin = "24.949,60.1655"

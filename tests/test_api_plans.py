@@ -49,7 +49,7 @@ def test_plan_job_equals_run_plan_with_figures(tmp_path: Path) -> None:
         assert r.status_code == 202 and r.json()["kind"] == "plan"
         view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=120)
         assert view["status"] == "succeeded", view["error"]
-        gis = {"geojson", "geotiff", "points_csv"}  # ris_planner.io.export.GIS_FILES
+        gis = {"geojson", "geotiff", "points_csv"}  # ris_planner.io.gis_outputs.GIS_FILES
         assert set(view["figures"]) == {"topview", "heatmap", "cdf"} | gis
         for name, url in view["figures"].items():
             if name not in gis:

@@ -27,8 +27,9 @@ from ris_planner.io.candidates import (
     generate_candidates,
 )
 from ris_planner.io.frames import Frame, to_local
-from ris_planner.io.geojson_import import import_features, import_sites
+from ris_planner.io.geojson_read import import_features
 from ris_planner.io.site_import import PLAN_DEFAULTS, import_data, plan_from_import
+from ris_planner.io.site_points import import_sites
 from ris_planner.model.plan import RISDefaults
 from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG
 
@@ -364,7 +365,7 @@ def test_a_site_in_a_projected_crs_and_one_without_buildings() -> None:
     (within 1 cm), with a note; a site of roads only is laid out with the no-buildings note."""
     import pyproj
 
-    from ris_planner.io.geojson_import import NO_BUILDINGS_WARNING
+    from ris_planner.io.geojson_read import NO_BUILDINGS_WARNING
 
     site = json.loads((HELSINKI / "helsinki.geojson").read_text())
     t = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:3067", always_xy=True)

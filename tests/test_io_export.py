@@ -20,15 +20,11 @@ pyogrio = pytest.importorskip("pyogrio")
 shapely = pytest.importorskip("shapely")
 
 from ris_planner.cli import main  # noqa: E402
-from ris_planner.io.export import (  # noqa: E402
-    NODATA,
-    closed_ccw_ring,
-    plan_geojson,
-    points_csv,
-    write_geotiff,
-)
 from ris_planner.io.frames import Frame, to_local  # noqa: E402
-from ris_planner.io.geojson_import import OSM_LICENSE as LICENSE  # noqa: E402
+from ris_planner.io.geojson_write import closed_ccw_ring, plan_geojson  # noqa: E402
+from ris_planner.io.geotiff import NODATA, write_geotiff  # noqa: E402
+from ris_planner.io.import_options import OSM_LICENSE as LICENSE  # noqa: E402
+from ris_planner.io.points_csv import points_csv  # noqa: E402
 from ris_planner.model.scenario import SystemParams  # noqa: E402
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan  # noqa: E402
 
@@ -353,7 +349,7 @@ def test_helsinki_example_small(tmp_path: Path) -> None:
     local, _frame = to_local(doc)
     with SerialExecutor() as ex:
         result = run_plan(local, executor=ex)
-    from ris_planner.io.export import plan_outputs
+    from ris_planner.io.gis_outputs import plan_outputs
 
     files = plan_outputs(result, result.to_json(), {**doc, "environment": environment}, tmp_path)
     fc = json.loads(files["geojson"].read_text())

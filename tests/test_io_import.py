@@ -20,20 +20,17 @@ from ris_planner.environment import Scene
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
 from ris_planner.io.frames import Frame, to_local
-from ris_planner.io.geojson_import import (
+from ris_planner.io.geojson_read import HIGHWAY_WIDTH_M, NO_BUILDINGS_WARNING, import_features
+from ris_planner.io.import_options import (
     DEFAULT_BUILDING_HEIGHT_M,
-    HIGHWAY_WIDTH_M,
     METRES_PER_LEVEL,
-    NO_BUILDINGS_WARNING,
     OSM_LICENSE,
     FeatureError,
     ImportOptions,
-    import_features,
-    import_sites,
-    osm_xml_features,
     parse_length,
-    yaw_from_azimuth,
 )
+from ris_planner.io.osm_xml import osm_xml_features
+from ris_planner.io.site_points import import_sites, yaw_from_azimuth
 
 ORIGIN = (24.949, 60.1655, 0.0)
 FRAME = Frame(ORIGIN)
@@ -377,7 +374,7 @@ def _floor_plan(path: Path, insunits: int) -> None:
 
 
 def test_dxf_floor_plan_imports_into_the_expected_walls(tmp_path: Path) -> None:
-    from ris_planner.io.dxf_import import LayerSpec, import_dxf
+    from ris_planner.io.dxf import LayerSpec, import_dxf
 
     path = tmp_path / "floor.dxf"
     _floor_plan(path, insunits=4)  # millimetres
@@ -515,7 +512,7 @@ def test_random_bowties_are_repaired_into_valid_prisms() -> None:
 
 
 def _courtyard_scene(overlap_m: float | None = None) -> tuple[Scene, list[Prism]]:
-    from ris_planner.io import geojson_import as gi
+    from ris_planner.io import geojson_read as gi
 
     if overlap_m is None:
         fragment, summary = _import(

@@ -16,7 +16,7 @@ import pytest
 from pydantic import ValidationError
 from test_estimator_check import table1_plan
 
-from ris_planner.io.export import plan_outputs
+from ris_planner.io.gis_outputs import plan_outputs
 from ris_planner.model.objectives import ObjectiveKind, objective_kind, register, unregister
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
 

@@ -69,7 +69,7 @@ def drawn_ues_of(pg: Page, preview: str) -> int:
 
 
 EXPORT_ROUNDING_M = 1e-4
-"""plan.geojson rounds lon/lat to 1e-9° (ris_planner.io.export.LONLAT_DIGITS): ≤ 0.5e-9° ×
+"""plan.geojson rounds lon/lat to 1e-9° (ris_planner.io.geojson_write.LONLAT_DIGITS): ≤ 0.5e-9° ×
 111.3 km/° = 56 µm per axis, under 0.1 mm together."""
 
 SPOT_SPACING_M = 25.0

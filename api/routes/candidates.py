@@ -11,7 +11,7 @@ conversions are the service's own:
   takes a document uses;
 * GeoJSON sites (Point features with ``azimuth_deg``, ``tilt_deg``, ``height``/``height_m``,
   as ``POST /v1/sites`` answers or ``examples/helsinki/sites.geojson`` holds) → candidates:
-  :func:`ris_planner.io.geojson_import.import_sites` at the frame's origin (what
+  :func:`ris_planner.io.site_points.import_sites` at the frame's origin (what
   ``POST /v1/import`` does with a site file's points), then ``to_local``;
 * local → document: the inverse of the frame's projection
   (:func:`~ris_planner.io.candidates.document_positions`: WGS84 frames through
@@ -53,7 +53,7 @@ from ris_planner.io.candidates import (
     document_positions,
 )
 from ris_planner.io.frames import MAX_LICENSE_CHARS, Frame, parse_frame, to_local
-from ris_planner.io.geojson_import import import_sites
+from ris_planner.io.site_points import import_sites
 from ris_planner.model.plan import Candidate, UEMap
 from ris_planner.planning.inputs.ue_maps import build_map
 
@@ -174,7 +174,7 @@ async def post_convert(body: CandidateConversion) -> ConvertedCandidates:
     """``local`` (what the planner page edits) → the document's coordinates; ``document`` →
     local metres (:func:`ris_planner.io.frames.to_local`); ``sites`` (WGS84 mounting Points,
     e.g. the answer of ``POST /v1/sites``) → both, through the import's
-    :func:`~ris_planner.io.geojson_import.import_sites`. 422 naming the field; 501 on a server
+    :func:`~ris_planner.io.site_points.import_sites`. 422 naming the field; 501 on a server
     without the GIS extra when a frame is given."""
     return await anyio.to_thread.run_sync(convert_candidates, body)
 

@@ -18,8 +18,8 @@ from pydantic import BaseModel, Field, StringConstraints
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
 from api.offload import Answer, ParsePool
 from ris_planner.core.errors import RisPlannerError
-from ris_planner.io.dxf_import import LAYER_SPEC_PATTERN, parse_layer_spec
-from ris_planner.io.geojson_import import (
+from ris_planner.io.dxf import LAYER_SPEC_PATTERN, parse_layer_spec
+from ris_planner.io.import_options import (
     DEFAULT_AREA_STEP_M,
     DEFAULT_BUILDING_HEIGHT_M,
     DEFAULT_ROAD_STEP_M,

@@ -27,13 +27,10 @@ import numpy as np
 import osmium
 import shapely
 
+from ris_planner.io.feature_positions import default_origin
 from ris_planner.io.frames import Frame
-from ris_planner.io.geojson_import import (
-    DEFAULT_BUILDING_HEIGHT_M,
-    HIGHWAY_WIDTH_M,
-    METRES_PER_LEVEL,
-    default_origin,
-)
+from ris_planner.io.geojson_read import HIGHWAY_WIDTH_M
+from ris_planner.io.import_options import DEFAULT_BUILDING_HEIGHT_M, METRES_PER_LEVEL
 
 BBOX = (24.947, 60.1645, 24.951, 60.1665)
 """lon_min, lat_min, lon_max, lat_max: about 220 m × 220 m south of the Esplanadi, the window of

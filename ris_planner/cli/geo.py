@@ -34,7 +34,7 @@ def _read_bytes(path: str) -> bytes:
 
 def options_of(args: argparse.Namespace) -> Any:
     """The :class:`ImportOptions` of the command's arguments."""
-    from ris_planner.io.geojson_import import ImportOptions
+    from ris_planner.io.import_options import ImportOptions
 
     return ImportOptions(
         metres_per_level=args.metres_per_level,
@@ -51,7 +51,7 @@ def options_of(args: argparse.Namespace) -> Any:
 
 
 def _cmd_import(args: argparse.Namespace) -> int:
-    from ris_planner.io.dxf_import import parse_layer_spec
+    from ris_planner.io.dxf import parse_layer_spec
     from ris_planner.io.site_import import import_data, parse_origin, plan_from_import
 
     opts = options_of(args)
@@ -243,7 +243,7 @@ def _add_sites(sub: argparse._SubParsersAction) -> None:
 
 def add_cli(sub: argparse._SubParsersAction) -> None:
     """Register the ``import`` and ``sites`` subcommands."""
-    from ris_planner.io.geojson_import import (
+    from ris_planner.io.import_options import (
         DEFAULT_AREA_STEP_M,
         DEFAULT_BUILDING_HEIGHT_M,
         DEFAULT_ROAD_STEP_M,

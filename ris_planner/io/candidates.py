@@ -3,12 +3,12 @@ along the roads, kept only where they see a UE point (``ris-planner sites``, ``P
 docs/guides/candidates.md).
 
 The input is a site in WGS84: a GeoJSON FeatureCollection of buildings and roads (imported
-first with :func:`~ris_planner.io.geojson_import.import_features`; one in a projected CRS
-named by a ``crs`` member is converted first, :func:`~ris_planner.io.geojson_import.
+first with :func:`~ris_planner.io.geojson_read.import_features`; one in a projected CRS
+named by a ``crs`` member is converted first, :func:`~ris_planner.io.crs.
 wgs84_collection`, and a note says so), or an imported document with
 a ``frame`` (``environment`` prisms and a ``ue_map`` – or a plan document's ``tx_map`` /
 ``rx_map``). The output is an editable GeoJSON FeatureCollection of Point features in WGS84 that
-:func:`~ris_planner.io.geojson_import.import_sites` (``ris-planner import sites``, the plan
+:func:`~ris_planner.io.site_points.import_sites` (``ris-planner import sites``, the plan
 document's ``candidates``) takes as it is.
 
 Rules (:class:`CandidateOptions` holds every default):
@@ -42,7 +42,7 @@ Rules (:class:`CandidateOptions` holds every default):
 ``azimuth_deg`` is the compass direction the RIS faces in the output's ``frame`` (the local
 transverse Mercator frame of ``frame.origin``; it differs from true north by the meridian
 convergence, ≈ Δlon · sin(lat): 0.002° 100 m from the origin at 60° N), which is how
-:func:`~ris_planner.io.geojson_import.import_sites` reads it with the same origin; ``height_m``
+:func:`~ris_planner.io.site_points.import_sites` reads it with the same origin; ``height_m``
 is the RIS centre's height above ``frame.origin``'s height.
 """
 
@@ -66,14 +66,10 @@ from ris_planner.environment import Scene
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
 from ris_planner.io import require
+from ris_planner.io.crs import crs_note, wgs84_collection
 from ris_planner.io.frames import WGS84, Frame, to_local
-from ris_planner.io.geojson_import import (
-    NO_BUILDINGS_WARNING,
-    ImportOptions,
-    crs_note,
-    import_features,
-    wgs84_collection,
-)
+from ris_planner.io.geojson_read import NO_BUILDINGS_WARNING, import_features
+from ris_planner.io.import_options import ImportOptions
 from ris_planner.model.limits import MAX_MAP_POINTS, MAX_SITES, Sizes, check_sizes, count
 from ris_planner.model.plan import Facades, RISDefaults, UEMap, WallSites, map_points
 from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG
@@ -601,7 +597,7 @@ def _unique_names(names: list[str]) -> list[str]:
 
 def azimuth_of_yaw(yaw: FloatArray) -> FloatArray:
     """Compass azimuth [deg, 0–360) (clockwise from north) of engine yaws (radians from east,
-    counter-clockwise): the inverse of :func:`~ris_planner.io.geojson_import.yaw_from_azimuth`."""
+    counter-clockwise): the inverse of :func:`~ris_planner.io.site_points.yaw_from_azimuth`."""
     return np.asarray(np.mod(90.0 - np.degrees(yaw), 360.0))
 
 

@@ -7,7 +7,7 @@ metres, and its ``plan.json`` gains ``"frame": {"origin": [lon, lat, h], "local_
 when it had a frame, the document's ``license`` / ``attribution``, and a warning first in
 ``warnings`` when such a real site has no obstacles (:func:`site_warnings`); ``plan.geojson`` /
 ``heatmap.tif`` / ``points.csv`` are written from the document as given (WGS84 with a frame,
-:func:`~ris_planner.io.export.plan_outputs`, each carrying the licence).
+:func:`~ris_planner.io.gis_outputs.plan_outputs`, each carrying the licence).
 """
 
 from __future__ import annotations
@@ -141,7 +141,7 @@ def plan_document(
     with clock.stage("exports"):
         stages.callback("exports")
         try:
-            from ris_planner.io.export import plan_outputs
+            from ris_planner.io.gis_outputs import plan_outputs
 
             files.update(plan_outputs(result, plan, document, out_dir))
         except MissingExtraError as exc:

@@ -1,6 +1,7 @@
 """Site data as bytes (a file's content, a request body) → a document fragment or a starting
 plan document: the one entry of ``ris-planner import`` and ``POST /v1/import``, over the
-parsers of :mod:`~ris_planner.io.geojson_import` and :mod:`~ris_planner.io.dxf_import`.
+parsers of :mod:`~ris_planner.io.geojson_read`, :mod:`~ris_planner.io.osm_xml`,
+:mod:`~ris_planner.io.site_points` and :mod:`~ris_planner.io.dxf`.
 
 Formats (:data:`IMPORT_FORMATS`): ``geojson`` (buildings, roads, density areas:
 :func:`import_features`), ``osm`` (the same from ``.osm`` XML), ``sites`` (mounting points and
@@ -23,13 +24,11 @@ from typing import Any
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.core.io_json import parse_json_object
 from ris_planner.io import require
-from ris_planner.io.dxf_import import LayerSpec, import_dxf
-from ris_planner.io.geojson_import import (
-    ImportOptions,
-    import_features,
-    import_sites,
-    osm_xml_features,
-)
+from ris_planner.io.dxf import LayerSpec, import_dxf
+from ris_planner.io.geojson_read import import_features
+from ris_planner.io.import_options import ImportOptions
+from ris_planner.io.osm_xml import osm_xml_features
+from ris_planner.io.site_points import import_sites
 from ris_planner.model.plan_physics import PLAN_MAX_ANGLE_DEG, PLAN_PATTERN_EXPONENT
 
 IMPORT_FORMATS = ("geojson", "osm", "sites", "dxf")
