@@ -20,8 +20,9 @@ pyogrio = pytest.importorskip("pyogrio")
 shapely = pytest.importorskip("shapely")
 
 from ris_planner.cli import main  # noqa: E402
+from ris_planner.environment.kinds.prism import closed_ccw_ring  # noqa: E402
 from ris_planner.io.frames import Frame, to_local  # noqa: E402
-from ris_planner.io.geojson_write import closed_ccw_ring, plan_geojson  # noqa: E402
+from ris_planner.io.geojson_write import plan_geojson  # noqa: E402
 from ris_planner.io.geotiff import NODATA, write_geotiff  # noqa: E402
 from ris_planner.io.import_options import OSM_LICENSE as LICENSE  # noqa: E402
 from ris_planner.io.points_csv import points_csv  # noqa: E402

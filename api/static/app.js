@@ -675,7 +675,7 @@
     ["heights_from_levels", "Heights from building:levels"], ["default_height", "Buildings given the default height"],
     ["holes_dropped", "Courtyards dropped"], ["roads", "Road pieces (UE positions)"], ["roads_skipped", "Road pieces skipped"],
     ["areas", "Density areas"], ["area_points", "Density-area points"], ["candidates", "Candidate sites"],
-    ["walls", "Mounting walls"], ["skipped", "Features skipped"], ["units_to_m", "DXF units to metres"],
+    ["walls", "Mounting walls"], ["obstacle_features", "Obstacles read by kind"], ["skipped", "Features skipped"], ["units_to_m", "DXF units to metres"],
     ["ignored", "Ignored"],
   ];
 

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.core.errors import DocumentFieldError
+from ris_planner.environment.kinds import point_paths
 from ris_planner.io import MissingExtraError, require
 
 FloatArray = NDArray[np.float64]
@@ -49,7 +50,8 @@ WGS84 = "EPSG:4326"
 
 # Where documents hold coordinates: (path, kind). ``*`` = every list entry. Kinds: ``p3`` a
 # point [x, y, z], ``p3s`` a point or a list of points, ``p2`` an [x, y] point, ``z`` a
-# vertical value. Paths that do not exist (or have another type) are skipped.
+# vertical value. Paths that do not exist (or have another type) are skipped. The obstacles'
+# [x, y] points are each registered kind's ``point_fields`` (:func:`_obstacle_fields`).
 _POINT_FIELDS: tuple[tuple[tuple[str, ...], str], ...] = (
     (("candidates", "*", "position"), "p3"),
     (("heatmap_tx",), "p3"),
@@ -59,9 +61,6 @@ _POINT_FIELDS: tuple[tuple[tuple[str, ...], str], ...] = (
     (("walls", "*", "start"), "p2"),
     (("walls", "*", "end"), "p2"),
     (("walls", "*", "heights_m", "*"), "z"),
-    (("environment", "obstacles", "*", "footprint", "*"), "p2"),
-    (("environment", "obstacles", "*", "start"), "p2"),
-    (("environment", "obstacles", "*", "end"), "p2"),
     (("environment", "obstacles", "*", "base_m"), "z"),
     *(
         item
@@ -73,6 +72,12 @@ _POINT_FIELDS: tuple[tuple[tuple[str, ...], str], ...] = (
         )
     ),
 )
+
+
+def _obstacle_fields() -> tuple[tuple[tuple[str, ...], str], ...]:
+    """The [x, y] points of obstacles: the registered kinds' ``point_fields``, read when a
+    document is converted (a kind registered at run time included)."""
+    return tuple((("environment", "obstacles", "*", *p), "p2") for p in point_paths())
 
 
 def _iter_fields(doc: dict[str, Any]) -> Iterator[tuple[str, Any, Any, str]]:
@@ -93,7 +98,7 @@ def _iter_fields(doc: dict[str, Any]) -> Iterator[tuple[str, Any, Any, str]]:
             else:
                 yield (*at, k), node, k
 
-    for path, kind in _POINT_FIELDS:
+    for path, kind in (*_POINT_FIELDS, *_obstacle_fields()):
         for where, holder, key in rec(doc, path, ()):
             if kind == "p3s" and _is_point_list(holder[key]):
                 for i in range(len(holder[key])):

@@ -16,6 +16,11 @@ Rules (each one applied is in the :class:`~ris_planner.io.import_options.ImportS
 feature is named by its index, its ``id`` / ``@id`` / ``osm_id``, its ``name`` and the lon/lat
 of its first position):
 
+* Obstacles of a kind (:func:`is_obstacle_feature`: properties naming a registered obstacle
+  ``kind``, or ``role`` ``obstacle``, as the ``plan.geojson`` export writes them): read by that
+  kind (:mod:`ris_planner.environment.kinds.geojson`), with ``name``, ``base_m`` (in the
+  file's datum), ``height_m`` and ``material``; an exported plan re-imports its obstacles.
+  Any other rule below applies to the other features.
 * Buildings: (Multi)Polygons with a ``building`` property other than ``no`` (or any polygon
   without a density property when no feature of the file has ``building``: a plain building
   layer). Top = ``height`` (metres; ``"12 m"``, ``"40 ft"`` parsed), else ``building:levels``
@@ -60,6 +65,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.core.errors import RisPlannerError
+from ris_planner.environment.kinds import KINDS, UnknownObstacleKindError
+from ris_planner.environment.kinds.base import GeometryError
+from ris_planner.environment.kinds.geojson import obstacle_from_feature
 from ris_planner.environment.kinds.prism import footprint_problem
 from ris_planner.io import require
 from ris_planner.io.crs import record_crs, wgs84_collection
@@ -414,6 +422,21 @@ def _clean(
     return kept, False
 
 
+def is_obstacle_feature(props: dict[str, Any]) -> bool:
+    """Whether a feature is an obstacle of a given kind: its properties name a registered
+    obstacle ``kind``, or its ``role`` is ``obstacle`` (an exported ``plan.geojson``'s)."""
+    kind = props.get("kind")
+    return props.get("role") == "obstacle" or (isinstance(kind, str) and kind in KINDS)
+
+
+def _obstacle(geom: dict[str, Any], props: dict[str, Any], label: str) -> dict[str, Any]:
+    """The obstacle of an obstacle feature, read by its kind (its coordinates as given)."""
+    try:
+        return obstacle_from_feature(geom, props)
+    except (UnknownObstacleKindError, GeometryError) as exc:
+        raise RisPlannerError(f"{label}: {exc}") from None
+
+
 def import_features(
     collection: dict[str, Any],
     origin: tuple[float, ...] | None = None,
@@ -450,6 +473,10 @@ def import_features(
             kind = geom.get("type")
             fid = feature_ident(feat)[0]
             name = props.get("name") or (str(fid) if fid is not None else None)
+            if is_obstacle_feature(props):
+                obstacles.append(_obstacle(geom, props, label))
+                summary.obstacle_features += 1
+                continue
             if kind in ("Polygon", "MultiPolygon"):
                 try:
                     raw_polys = _polygons(geom, label)

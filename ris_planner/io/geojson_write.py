@@ -9,8 +9,10 @@ here to recover the frame and the local obstacles). Each feature has a ``role`` 
 north), ``tilt_deg`` (downwards), ``roll_deg``, ``height_m``, ``size_m`` [width along the face,
 height], ``rows``, ``cols``; angles in degrees, as a GIS and the import's input give them – the
 radians stay in ``plan.json``), ``candidate``, ``ue`` (the per-point results of
-``plan["points"]``, local metres) and ``obstacle`` (:func:`obstacle_features`: prisms as
-Polygons with ``base_m``/``height_m``, walls as LineStrings). With a geographic frame the
+``plan["points"]``, local metres) and ``obstacle`` (:func:`obstacle_features`: each obstacle's
+kind writes its own geometry – prisms as Polygons, walls as LineStrings – and the properties
+``kind``, ``name``, ``base_m``, ``height_m``, ``material`` and its own, which the GeoJSON import
+reads back; :mod:`ris_planner.environment.kinds.geojson`). With a geographic frame the
 coordinates are WGS84 [lon, lat] (RFC 7946: closed rings, exteriors counter-clockwise); without
 one they are local metres and the collection says so in its foreign member
 ``ris_planner_frame`` (a GIS then reads them as an unknown CRS). The document's ``license`` /
@@ -25,28 +27,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.environment.kinds.geojson import obstacle_feature
+from ris_planner.environment.model import Environment
 from ris_planner.io.frames import Frame, license_of_document, to_local
 
 FloatArray = NDArray[np.float64]
 
 LONLAT_DIGITS = 9
 """Decimals of exported degrees (1e-9° ≈ 0.1 mm)."""
-
-
-def _signed_area(ring: FloatArray) -> float:
-    x, y = ring[:, 0], ring[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
-
-
-def closed_ccw_ring(vertices: FloatArray) -> list[list[float]]:
-    """An open vertex list [n, 2] → a closed, counter-clockwise GeoJSON ring."""
-    v = np.asarray(vertices, dtype=float)
-    if len(v) > 1 and np.array_equal(v[0], v[-1]):
-        v = v[:-1]
-    if _signed_area(v) < 0:
-        v = v[::-1]
-    ring = v.tolist()
-    return [*ring, ring[0]]
 
 
 class _Out:
@@ -94,24 +82,15 @@ def _ris_size(document: dict[str, Any]) -> dict[str, Any]:
 def obstacle_features(
     obstacles: list[dict[str, Any]], out: _Out, h0: float
 ) -> list[dict[str, Any]]:
-    """The ``obstacle`` features of a local document's obstacles (module docstring): prisms as
-    Polygons, walls as LineStrings, ``base_m`` back in the document's datum (``h0``)."""
+    """The ``obstacle`` features of a local document's obstacles (module docstring): each
+    kind's geometry and properties
+    (:func:`~ris_planner.environment.kinds.geojson.obstacle_feature`), ``base_m`` back in the
+    document's datum (``h0``)."""
+    env = Environment.model_validate({"obstacles": obstacles})
     feats = []
-    for k, ob in enumerate(obstacles):
-        props = {
-            "role": "obstacle",
-            "index": k,
-            "kind": ob.get("kind", "prism"),
-            "name": ob.get("name"),
-            "base_m": float(ob.get("base_m", 0.0)) + h0,
-            "height_m": float(ob["height_m"]),
-        }
-        if props["kind"] == "prism":
-            ring = closed_ccw_ring(out.xy(ob["footprint"]))
-            geom: dict[str, Any] = {"type": "Polygon", "coordinates": [ring]}
-        else:
-            geom = {"type": "LineString", "coordinates": out.xy([ob["start"], ob["end"]]).tolist()}
-        feats.append(_feature(geom, props))
+    for k, ob in enumerate(env.obstacles):
+        geom, props = obstacle_feature(ob, out.xy, h0)
+        feats.append(_feature(geom, {"role": "obstacle", "index": k, **props}))
     return feats
 
 

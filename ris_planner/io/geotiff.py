@@ -5,11 +5,11 @@ Band 1 = the bound [m] (float32) of the best layout of the largest count on a re
 the UE points (pixel = the median spacing between neighbouring points unless given,
 :func:`raster_grid`; a pixel holding several points – heights – keeps the smallest bound),
 ``+inf`` at blind spots, nodata (:data:`NODATA`) where no point falls and inside buildings
-(pixel centres inside a prism footprint, :func:`without_buildings`). CRS: the local transverse
-Mercator frame of the document (a real projected CRS, so a GIS reprojects it exactly), or an
-engineering CRS in metres (``LOCAL_CS``) for local documents. The document's ``license`` /
-``attribution`` go into ``TIFFTAG_COPYRIGHT`` and metadata tags of those names
-(:mod:`ris_planner.io.gis_outputs`).
+(pixel centres inside the footprint of a solid obstacle of any kind, :func:`without_buildings`).
+CRS: the local transverse Mercator frame of the document (a real projected CRS, so a GIS
+reprojects it exactly), or an engineering CRS in metres (``LOCAL_CS``) for local documents.
+The document's ``license`` / ``attribution`` go into ``TIFFTAG_COPYRIGHT`` and metadata tags
+of those names (:mod:`ris_planner.io.gis_outputs`).
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.environment.kinds import footprint_contains, kind_of
+from ris_planner.environment.model import Environment
 from ris_planner.io import require
 from ris_planner.io.frames import license_of_document, to_local
 
@@ -83,20 +85,21 @@ def without_buildings(
     obstacles: list[dict[str, Any]],
 ) -> FloatArray:
     """``grid`` [rows, cols] (pixel centres ``cx`` [cols], ``cy`` [rows], local metres) with
-    NaN at the pixel centres inside a prism footprint of ``obstacles`` (a local document's)."""
-    shapely = require("shapely")
+    NaN at the pixel centres inside the footprint of a solid obstacle of ``obstacles`` (a local
+    document's; :func:`~ris_planner.environment.kinds.footprint_contains`)."""
     grid = grid.copy()
-    for ob in obstacles:
-        if ob.get("kind", "prism") != "prism":
+    for ob in Environment.model_validate({"obstacles": obstacles}).obstacles:
+        if not kind_of(ob).solid:
             continue
-        poly = shapely.Polygon(ob["footprint"])
-        x_lo, y_lo, x_hi, y_hi = poly.bounds
+        outline = ob.outline()
+        (x_lo, y_lo), (x_hi, y_hi) = outline.min(axis=0), outline.max(axis=0)
         cols = np.nonzero((cx > x_lo) & (cx < x_hi))[0]  # only the pixels of its bounding box
         rows = np.nonzero((cy > y_lo) & (cy < y_hi))[0]
         if len(cols) and len(rows):
             gx, gy = np.meshgrid(cx[cols], cy[rows])
-            inside = shapely.contains_xy(poly, gx, gy)
-            grid[np.ix_(rows, cols)] = np.where(inside, np.nan, grid[np.ix_(rows, cols)])
+            inside = footprint_contains(ob, np.column_stack([gx.ravel(), gy.ravel()]))
+            block = grid[np.ix_(rows, cols)]
+            grid[np.ix_(rows, cols)] = np.where(inside.reshape(gx.shape), np.nan, block)
     return grid
 
 

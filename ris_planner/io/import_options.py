@@ -102,6 +102,9 @@ class ImportSummary:
     area_points: int = 0
     candidates: int = 0
     walls: int = 0
+    obstacle_features: int = 0
+    """Features read as obstacles of the kind their properties name (an exported
+    ``plan.geojson``'s obstacles)."""
     skipped: int = 0
     repaired: list[dict[str, Any]] = field(default_factory=list)
     skipped_invalid: list[dict[str, Any]] = field(default_factory=list)
