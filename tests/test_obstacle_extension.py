@@ -247,8 +247,9 @@ def geographic(doc: dict[str, Any]) -> dict[str, Any]:
         ob = dict(ob)
         if "footprint" in ob:
             ob["footprint"] = ll(ob["footprint"])
-        if "center" in ob:
-            ob["center"] = ll([ob["center"]])[0]
+        for key in ("center", "start", "end"):
+            if key in ob:
+                ob[key] = ll([ob[key]])[0]
         obstacles.append(ob)
     return {"frame": {"origin": list(ORIGIN)}, "environment": {"obstacles": obstacles}}
 
@@ -260,10 +261,13 @@ def test_geojson_export_and_reimport_give_the_same_obstacles(bollards: BollardKi
     from ris_planner.io.geojson_read import import_features
     from ris_planner.io.geojson_write import plan_geojson
 
-    doc = geographic(local_plan_document())
+    local = local_plan_document()
+    wall = {"kind": "wall", "start": [0, 3], "end": [2, 3], "base_m": 1, "height_m": 2}
+    local["environment"]["obstacles"].append({**wall, "material": "glass"})
+    doc = geographic(local)
     fc = plan_geojson({"candidates": []}, doc)
     feats = [f for f in fc["features"] if f["properties"]["role"] == "obstacle"]
-    assert [f["geometry"]["type"] for f in feats] == ["Polygon", "Point"]
+    assert [f["geometry"]["type"] for f in feats] == ["Polygon", "Point", "LineString"]
     props = feats[1]["properties"]
     assert props["kind"] == NAME and props["radius_m"] == RADIUS and props["height_m"] == 3
     assert feats[1]["geometry"]["coordinates"] == pytest.approx(
