@@ -93,7 +93,9 @@ def test_no_import_goes_up_a_layer() -> None:
     assert upward == [], "\n".join(upward)
 
 
-def upward_imports(name: str, targets: set[str], table: dict[str, int], modules: set[str]) -> list[str]:
+def upward_imports(
+    name: str, targets: set[str], table: dict[str, int], modules: set[str]
+) -> list[str]:
     """The imports of module ``name`` that go up a layer (or to the public surface)."""
     mine = rank_of(name, table)
     assert mine is not None
@@ -159,7 +161,11 @@ def test_no_import_circle() -> None:
     ("source", "is_package"),
     [
         ("def f():\n    from ris_planner.planning.search import layouts\n", False),
-        ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import ris_planner.io.frames\n", False),
+        (
+            "from typing import TYPE_CHECKING\n"
+            "if TYPE_CHECKING:\n    import ris_planner.io.frames\n",
+            False,
+        ),
         ("from ..planning.search import layouts\n", False),  # relative, two levels up
         ("from ris_planner import planning\n", True),  # "from package import submodule"
     ],

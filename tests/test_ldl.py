@@ -120,6 +120,37 @@ def test_compiled_ldl_is_bit_identical_to_numpy(rng: np.random.Generator) -> Non
         np.testing.assert_array_equal(t_jit[~s_np], t_np[~s_np])
 
 
+def test_summed_diagonal_is_the_diagonal_of_the_sums(rng: np.random.Generator) -> None:
+    """summed_crb_diagonal (a layout's information plus one more path's, summed inside the
+    compiled kernel as it reads them) gives the bits of crb_diagonal on the sums formed first,
+    with either engine: well and ill conditioned sums, singular ones (a state without
+    information), indices repeated and out of order, a batch not a multiple of the chunk."""
+    from ris_planner.inversion.crb import crb_diagonal, summed_crb_diagonal
+
+    for n in (4, 5, 7):
+        base = spd_batch(rng, 40, n)
+        base[:5, -1, :] = base[:5, :, -1] = 0.0
+        x = rng.normal(size=(300, n, 2))  # rank-two paths: sums near singular
+        add = x @ x.transpose(0, 2, 1)
+        add[:7] *= 1e-12
+        add[7:10, -1, :] = add[7:10, :, -1] = 0.0
+        b_idx = rng.integers(0, 40, 777)
+        a_idx = rng.integers(0, 300, 777)
+        sums = base[b_idx] + add[a_idx]
+
+        def rows(i: np.ndarray, sums: np.ndarray = sums) -> np.ndarray:
+            w, v = np.linalg.eigh(sums[i])  # square-root rows R with RᵀR = the sum
+            return np.sqrt(np.maximum(w, 0.0))[..., :, None] * v.transpose(0, 2, 1)
+
+        want, want_rd = crb_diagonal(ldl.pack(sums), n, rows, "numpy")
+        bp = np.ascontiguousarray(ldl.pack(base).T)
+        ap = np.ascontiguousarray(ldl.pack(add).T)
+        for engine in ("numpy", "numba"):
+            got, got_rd = summed_crb_diagonal(bp, ap, b_idx, a_idx, n, rows, engine)  # type: ignore[arg-type]
+            np.testing.assert_array_equal(got, want)
+            np.testing.assert_array_equal(got_rd, want_rd)
+
+
 def test_float_route_of_small_batches_is_bit_identical_to_numpy(rng: np.random.Generator) -> None:
     """Batches of up to ldl.SCALAR_MAX_BATCH matrices run the same operations on Python floats
     (a single pair's call costs a numpy call per operation otherwise): every matrix of a large

@@ -914,6 +914,48 @@ def inverse_diagonal(
                 singular[p0 + q] = sg[q]
 
 
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def summed_inverse_diagonal(
+    base: FloatArray,
+    add: FloatArray,
+    base_idx: IntArray,
+    add_idx: IntArray,
+    n: int,
+    diag: FloatArray,
+    trace: FloatArray,
+    singular: BoolArray,
+    n_tasks: int,
+) -> None:
+    """:func:`inverse_diagonal` of the packed matrices ``base[base_idx[i]] + add[add_idx[i]]``
+    (rows [·, n(n+1)/2] of two C-contiguous tables), summed as they are read into the chunk:
+    the same bits as summing the rows first, without the [n(n+1)/2, N] copy."""
+    e_n = n * (n + 1) // 2
+    size = base_idx.shape[0]
+    n_chunks = (size + CHUNK - 1) // CHUNK
+    n_tasks = min(n_chunks, max(1, n_tasks))
+    for task in prange(n_tasks):
+        a = np.empty((e_n, CHUNK))
+        work = np.empty((work_rows(n), CHUNK))
+        dg = np.empty((n, CHUNK))
+        tr = np.empty(CHUNK)
+        sg = np.empty(CHUNK, dtype=np.bool_)
+        for c in range(task * n_chunks // n_tasks, (task + 1) * n_chunks // n_tasks):
+            p0 = c * CHUNK
+            t = min(CHUNK, size - p0)
+            for q in range(t):
+                bi = base_idx[p0 + q]
+                ai = add_idx[p0 + q]
+                for e in range(e_n):
+                    a[e, q] = base[bi, e] + add[ai, e]
+            factor_chunk(a, n, t, work, dg, tr, sg)
+            for i in range(n):
+                for q in range(t):
+                    diag[i, p0 + q] = dg[i, q]
+            for q in range(t):
+                trace[p0 + q] = tr[q]
+                singular[p0 + q] = sg[q]
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _jacobi_one(u: FloatArray, v: FloatArray, s: FloatArray) -> None:
     """One-sided Jacobi on the columns of u [r, k] (overwritten by U·Σ), v [k, k] := V,

@@ -275,13 +275,60 @@ def crb_diagonal(
     once, for the pairs the fast path does not settle). Returns (diag [n, N] with ``inf`` for
     non-identifiable states, rank_deficient [N]). ``engine``: the LDLᵀ's (:func:`fast_diagonal`).
     """
-    diag, singular, trace = fast_diagonal(f_packed, n, engine)
+    return _settle(*fast_diagonal(f_packed, n, engine), factor_rows)
+
+
+def _settle(
+    diag: FloatArray,
+    singular: BoolArray,
+    trace: FloatArray,
+    factor_rows: Callable[[IntArray], FloatArray],
+) -> tuple[FloatArray, BoolArray]:
+    """The hybrid route's second half: the matrices the LDLᵀ does not settle (singular, or a
+    scaled trace above :data:`FAST_TRACE_LIMIT`) by the square-root route, in place."""
     slow = np.flatnonzero(singular | ~(trace <= FAST_TRACE_LIMIT))
-    rank_deficient = np.zeros(f_packed.shape[1], dtype=bool)
+    rank_deficient = np.zeros(diag.shape[1], dtype=bool)
     if slow.size:
         d_slow, rank_deficient[slow] = sqrt_crb_diagonal(factor_rows(slow))
         diag[:, slow] = d_slow.T
     return diag, rank_deficient
+
+
+def summed_crb_diagonal(
+    base: FloatArray,
+    add: FloatArray,
+    base_idx: IntArray,
+    add_idx: IntArray,
+    n: int,
+    factor_rows: Callable[[IntArray], FloatArray],
+    engine: Engine = "auto",
+) -> tuple[FloatArray, BoolArray]:
+    """:func:`crb_diagonal` of the packed matrices ``base[base_idx[i]] + add[add_idx[i]]`` (rows
+    of two tables [·, n(n+1)/2]: a layout's information and one more path's), the same bits,
+    without forming the [n(n+1)/2, N] sum when the compiled LDLᵀ runs
+    (:func:`ris_planner.inversion._crb_jit.summed_inverse_diagonal`)."""
+    size = base_idx.shape[0]
+    if engine == "numba" or (engine == "auto" and size >= JIT_MIN_MATRICES):
+        from ris_planner.inversion import _crb_jit
+
+        diag = np.empty((n, size))
+        trace = np.empty(size)
+        singular = np.empty(size, dtype=bool)
+        with parallel_kernel():
+            _crb_jit.summed_inverse_diagonal(
+                np.ascontiguousarray(base),
+                np.ascontiguousarray(add),
+                np.ascontiguousarray(base_idx, dtype=np.int64),
+                np.ascontiguousarray(add_idx, dtype=np.int64),
+                n,
+                diag,
+                trace,
+                singular,
+                _crb_jit.n_tasks(),
+            )
+        return _settle(diag, singular, trace, factor_rows)
+    f = np.ascontiguousarray((base[base_idx] + add[add_idx]).T)
+    return crb_diagonal(f, n, factor_rows, "numpy")
 
 
 def quadratic_form(inv_packed: FloatArray, n: int, w: FloatArray) -> FloatArray:

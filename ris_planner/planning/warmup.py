@@ -166,7 +166,10 @@ def _inversions() -> None:
     crb.svd(a)
     f = np.einsum("nri,nrj->nij", a, a)
     rows, cols = np.tril_indices(7)
-    crb.fast_diagonal(np.ascontiguousarray(f[:, rows, cols].T), 7, engine="numba")
+    packed = np.ascontiguousarray(f[:, rows, cols])
+    crb.fast_diagonal(np.ascontiguousarray(packed.T), 7, engine="numba")
+    idx = np.arange(8)
+    crb.summed_crb_diagonal(packed, packed, idx, idx[::-1].copy(), 7, lambda i: a[i], "numba")
 
 
 def _visibility() -> None:

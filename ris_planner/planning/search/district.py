@@ -31,7 +31,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -51,8 +51,13 @@ from ris_planner.bounds.compute import (
     uses_los_reference,
 )
 from ris_planner.core.errors import RisPlannerError
-from ris_planner.inversion.crb import crb_diagonal
-from ris_planner.inversion.ldl import pack
+from ris_planner.inversion.crb import (
+    JIT_MIN_MATRICES,
+    Engine,
+    crb_diagonal,
+    summed_crb_diagonal,
+)
+from ris_planner.inversion.ldl import pack, packed_slots
 from ris_planner.model.objectives.protocol import objective_kind
 from ris_planner.model.plan import MAX_DISTRICT_RIS
 from ris_planner.physics import fim
@@ -83,6 +88,7 @@ LP_PAD = 1e-7
 target lowered by it, so a relaxation solved to that tolerance still bounds."""
 
 GAIN_TIE = 1e-12
+"""Covered-weight gains within this of the best are equal; the surrogate decides among them."""
 
 LOOKAHEAD = 8
 """First sites of a greedy step tried with their best partner (:meth:`GainBook.best_step`)."""
@@ -97,7 +103,18 @@ this many first-site trials (small layouts; a district's tens of RISs skip it)."
 LOOKAHEAD_BELOW = 2.5
 """A greedy step tries pairs of sites only while the best single site covers less than this
 many pairs' weight (the heaviest pair's): while coverage needs sites placed together."""
-"""Covered-weight gains within this of the best are equal; the surrogate decides among them."""
+
+SMALL_DISTRICT_SITES = 500
+"""Up to this many candidates each count's layout is also searched from the relaxation's own
+layout (:func:`rounded_layout`) and swapped for up to three rounds; above it, one round of
+swaps from the greedy layout (each round re-scores every pair of every layout site: on
+thousands of candidates the rounds, not the greedy path, would hold most of the time)."""
+
+SEARCH_SITES = 96
+"""Per pair, the serving sites the search sees (:meth:`DistrictProblem.strongest`): the
+strongest by their information on the metric's position. Coverage only rises with more
+information, so a layout's coverage seen by the search is a lower bound on its exact coverage,
+which every reported layout gets (:func:`exact_coverage`); the certificate uses every site."""
 
 
 @dataclass(frozen=True)
@@ -146,6 +163,48 @@ class DistrictProblem:
     def pairs_of(self, site: int) -> IntArray:
         """The pairs ``site`` serves (increasing)."""
         return self.entry_pair[self.by_site[self.site_start[site] : self.site_start[site + 1]]]
+
+    @property
+    def metric_rows(self) -> IntArray:
+        """The kept states whose CRB diagonal the metric sums (both for ``max``)."""
+        if self.metric == "rx":
+            return self.rows_r
+        if self.metric == "tx":
+            return self.rows_t
+        return np.union1d(self.rows_t, self.rows_r)
+
+    def strength(self) -> FloatArray:
+        """[E] each entry's information on the metric's position: the trace of its metric
+        rows' block (the diagonal of the packed information)."""
+        slots = packed_slots(self.n_kept)
+        diag = [slots[(int(i), int(i))] for i in self.metric_rows]
+        return np.asarray(self.info[:, diag].sum(axis=1))
+
+    def strongest(self, per_pair: int) -> DistrictProblem:
+        """The same problem with each pair's ``per_pair`` strongest serving sites only
+        (:meth:`strength`; all of them where it has no more): what the search sees
+        (:data:`SEARCH_SITES`). Itself when no pair has more."""
+        n_serving = np.diff(self.pair_start)
+        if n_serving.max(initial=0) <= per_pair:
+            return self
+        key = self.strength()
+        # rank of each entry within its pair by decreasing strength (pairs stay contiguous)
+        order = np.lexsort((-key, self.entry_pair))
+        rank = np.empty(self.n_entries, dtype=np.int64)
+        rank[order] = np.arange(self.n_entries) - self.pair_start[self.entry_pair[order]]
+        keep = np.flatnonzero(rank < per_pair)
+        entry_pair, entry_site = self.entry_pair[keep], self.entry_site[keep]
+        by_site = np.argsort(entry_site, kind="stable")
+        return replace(
+            self,
+            entry_pair=entry_pair,
+            entry_site=entry_site,
+            pair_start=np.searchsorted(entry_pair, np.arange(self.n_pairs + 1)),
+            info=self.info[keep],
+            factor=self.factor[keep],
+            by_site=by_site,
+            site_start=np.searchsorted(entry_site[by_site], np.arange(self.n_sites + 1)),
+        )
 
 
 def build_problem(
@@ -270,12 +329,52 @@ def entry_metric(
     ``rows(i)`` the stacked square-root rows of items i (for the few the LDLᵀ does not settle).
     Items whose channel parameters ``n_obs`` [n] are fewer than the states are ``inf`` without
     an inversion (the counting rule)."""
-    metric = np.full(len(n_obs), np.inf)
-    live = np.flatnonzero(n_obs >= problem.n_kept) if problem.counting else np.arange(len(n_obs))
+    live = _live(problem, n_obs)
     if live.size == 0:
-        return metric
+        return np.full(len(n_obs), np.inf)
     f = np.ascontiguousarray(packed[live].T)
     diag, _ = crb_diagonal(f, problem.n_kept, lambda i: rows(live[i]))
+    return _metric_of(problem, diag, live, len(n_obs))
+
+
+def summed_entry_metric(
+    problem: DistrictProblem,
+    base: FloatArray,
+    base_idx: IntArray,
+    entries: IntArray,
+    rows: Callable[[IntArray], FloatArray],
+    n_obs: IntArray,
+) -> FloatArray:
+    """:func:`entry_metric` of the information ``base[base_idx[i]] + info[entries[i]]`` (a
+    layout's information per pair and one more entry's), without forming the sums
+    (:func:`ris_planner.inversion.crb.summed_crb_diagonal`: the same bits)."""
+    live = _live(problem, n_obs)
+    if live.size == 0:
+        return np.full(len(n_obs), np.inf)
+    # a district's steps are many small batches: compiled from the problem's size on, not
+    # the batch's (crb.JIT_MIN_MATRICES)
+    engine: Engine = "numba" if problem.n_entries >= JIT_MIN_MATRICES else "auto"
+    diag, _ = summed_crb_diagonal(
+        base,
+        problem.info,
+        base_idx[live],
+        entries[live],
+        problem.n_kept,
+        lambda i: rows(live[i]),
+        engine,
+    )
+    return _metric_of(problem, diag, live, len(n_obs))
+
+
+def _live(problem: DistrictProblem, n_obs: IntArray) -> IntArray:
+    """The items the counting rule leaves to invert (all of them without it)."""
+    return np.flatnonzero(n_obs >= problem.n_kept) if problem.counting else np.arange(len(n_obs))
+
+
+def _metric_of(problem: DistrictProblem, diag: FloatArray, live: IntArray, n: int) -> FloatArray:
+    """[n] the metric from the CRB diagonal [k, len(live)] of the live items (``inf`` for the
+    others and where undefined)."""
+    metric = np.full(n, np.inf)
     with np.errstate(invalid="ignore", over="ignore"):
         peb_r = np.sqrt(diag[problem.rows_r].sum(axis=0))
         peb_t = np.sqrt(diag[problem.rows_t].sum(axis=0)) if problem.rows_t.size else peb_r
@@ -349,19 +448,30 @@ class LayoutState:
 
     def entry_gains(self, entries: IntArray) -> tuple[FloatArray, FloatArray]:
         """(covered-weight gain, surrogate gain) [len(entries)] of adding each entry's site to
-        its pair, the rest of the layout as it is (0 for a site already in it)."""
+        its pair, the rest of the layout as it is (0 for a site already in it, and for a pair
+        already covered: more information never raises its bound)."""
         pr = self.problem
-        p = pr.entry_pair[entries]
-        info = self.info[p] + pr.info[entries]
+        cov = np.zeros(len(entries))
+        sur = np.zeros(len(entries))
+        thr, k = pr.threshold, pr.n_kept
+        open_ = np.flatnonzero(
+            (self.metric[pr.entry_pair[entries]] > thr) & ~self.member[pr.entry_site[entries]]
+        )
+        e = entries[open_]
+        p = pr.entry_pair[e]
         count = self.count[p] + 3
-        new = entry_metric(pr, info, lambda i: self.rows(p[i], entries[i]), count)
+        new = summed_entry_metric(pr, self.info, p, e, lambda i: self.rows(p[i], e[i]), count)
         old = self.metric[p]
         w = pr.weights[p]
-        thr, k = pr.threshold, pr.n_kept
-        cov = w * ((new <= thr).astype(float) - (old <= thr))
-        sur = w * (surrogate(new, count, thr, k) - surrogate(old, self.count[p], thr, k))
-        fresh = ~self.member[pr.entry_site[entries]]
-        return cov * fresh, sur * fresh
+        cov[open_] = w * (new <= thr)
+        sur[open_] = w * (surrogate(new, count, thr, k) - surrogate(old, self.count[p], thr, k))
+        return cov, sur
+
+
+def exact_coverage(problem: DistrictProblem, layout: tuple[int, ...] | list[int]) -> float:
+    """A layout's coverage with every serving site's information (the search may see only the
+    strongest: :data:`SEARCH_SITES`)."""
+    return LayoutState(problem, list(layout)).coverage()
 
 
 class GainBook:
@@ -868,6 +978,7 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
     conflict = feas.conflict if feas.conflict.any() else None
     progress(0.0, "information")
     problem = build_problem(inputs, lambda f, m: progress(0.4 * f, m))
+    search = problem.strongest(SEARCH_SITES)
     needs = sites_needed(problem)
     site_summary = summary(problem, needs)
     coverable = site_summary["coverable_weight"]
@@ -875,10 +986,13 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
     counts = [c for c in inputs.counts if c <= problem.n_sites]
     # target mode: the counts up to the first that covers the target share of the coverable
     goal = target * coverable if target is not None and doc.target_mode else None
+    if goal is None and target is not None and doc.sizing is not None:
+        # the sizing question at the document's size: the same path, on to its goal
+        goal = target * float(problem.weights[servable_pairs(problem)].sum())
     progress(0.5, "greedy path")
     longest = max(counts) if goal is None else max(max(counts), MAX_DISTRICT_RIS)
     path = greedy_path(
-        problem,
+        search,
         min(longest, problem.n_sites),
         goal,
         required,
@@ -893,13 +1007,17 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         step = next((p for p in path if len(p.sites) == c), None)
         if step is None:
             continue  # the path stopped: no site adds information
-        layout, cov = improve(problem, step.sites, required, excluded, conflict=conflict)
+        small = problem.n_sites <= SMALL_DISTRICT_SITES
+        rounds = 3 if small else 1
+        layout, cov = improve(search, step.sites, required, excluded, rounds, conflict)
         ub, z = relaxed_coverage(problem, c, needs, required, excluded)
         rounded = rounded_layout(z, c, required, excluded, conflict)
-        if len(rounded) == c:  # the relaxation's own layout, improved the same way
-            other, other_cov = improve(problem, rounded, required, excluded, conflict=conflict)
+        if small and len(rounded) == c:  # the relaxation's own layout, improved the same way
+            other, other_cov = improve(search, rounded, required, excluded, rounds, conflict)
             if other_cov > cov + GAIN_TIE:
                 layout, cov = other, other_cov
+        if search is not problem:
+            cov = exact_coverage(problem, layout)
         by_count.append(
             {
                 "ris_count": c,
@@ -921,10 +1039,11 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         "pairs_summary": site_summary,
         "by_count": by_count,
         "path": [{"ris_count": len(p.sites), "coverage": p.coverage} for p in path],
+        "search_sites_per_pair": SEARCH_SITES,
     }
     if target is not None:
         plan["sizing"] = _sizing(
-            inputs, problem, needs, path, target, required, excluded, conflict, progress
+            inputs, (problem, search), needs, path, target, required, excluded, conflict, progress
         )
     progress(1.0, "done")
     return plan
@@ -940,7 +1059,7 @@ def _target(doc: Any) -> float | None:
 
 def _sizing(
     inputs: PlanInputs,
-    problem: DistrictProblem,
+    problems: tuple[DistrictProblem, DistrictProblem],
     needs: Needs,
     path: list[PathStep],
     target: float,
@@ -953,7 +1072,10 @@ def _sizing(
     pairs (those some layout gives a finite bound), over the document's RIS size and
     ``sizing.ris_sizes`` in ascending element count, each with the relaxation's lower bound on
     the count; a size whose lower bound already needs more elements than the answer so far is
-    skipped, and one that cannot reach the target with every candidate says so."""
+    skipped, and one that cannot reach the target with every candidate says so. ``problems``:
+    the document's size's problem and what its search sees (:meth:`DistrictProblem.strongest`).
+    """
+    problem, search = problems
     doc = inputs.document
     servable = float(problem.weights[servable_pairs(problem)].sum())
     goal = target * servable
@@ -964,9 +1086,10 @@ def _sizing(
     for k, (r, c) in enumerate(sorted(ladder, key=lambda rc: (rc[0] * rc[1], rc))):
         progress(0.9 + 0.1 * k / len(ladder), f"sizing {r}×{c}")
         if (r, c) == own:
-            pr, nd, steps = problem, needs, path
+            pr, seen, nd, steps = problem, search, needs, path
         else:
             pr = build_problem(_resized(inputs, r, c), like=problem)
+            seen = pr.strongest(SEARCH_SITES)
             nd = sites_needed(pr)
             steps = []
         row: dict[str, Any] = {"ris_size": [r, c]}
@@ -984,14 +1107,20 @@ def _sizing(
             continue
         if not steps or steps[-1].coverage < goal:
             steps = greedy_path(
-                pr, min(MAX_DISTRICT_RIS, pr.n_sites), goal, required, excluded, conflict=conflict
+                seen,
+                min(MAX_DISTRICT_RIS, pr.n_sites),
+                goal,
+                required,
+                excluded,
+                conflict=conflict,
             )
+        # the search's coverage is a lower bound on the exact one
         found = next((p for p in steps if p.coverage >= goal - 1e-12), None)
         row["count"] = None if found is None else len(found.sites)
         if found is None:
             row["note"] = f"the greedy path stops at {len(steps)} RISs below the target"
         else:
-            row["coverage"] = found.coverage
+            row["coverage"] = exact_coverage(pr, found.sites) if seen is not pr else found.coverage
             row["gap"] = len(found.sites) - lower
             elements = r * c * len(found.sites)
             if answer is None or elements < answer["elements"]:
@@ -1023,8 +1152,6 @@ def _sizing(
 
 def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:
     """The same plan with every candidate a ``rows`` × ``cols`` RIS."""
-    from dataclasses import replace
-
     ris = inputs.document.ris.model_copy(update={"rows": rows, "cols": cols})
     sites = [
         replace(s, ris=s.ris.model_copy(update={"rows": rows, "cols": cols})) for s in inputs.sites
