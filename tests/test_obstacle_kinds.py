@@ -129,14 +129,19 @@ def test_service_lists_the_kinds_with_their_drawing(tmp_path: Path) -> None:
     assert kinds["prism"] == {
         "kind": "prism",
         "solid": True,
-        "draw": {"shape": "polygon", "points": "footprint"},
+        "draw": {"shape": "polygon", "points": "footprint", "label": "building"},
     }
-    assert kinds["wall"]["draw"] == {"shape": "polyline", "points": ["start", "end"]}
+    assert kinds["wall"]["draw"] == {
+        "shape": "polyline",
+        "points": ["start", "end"],
+        "label": "wall",
+    }
 
 
 def test_every_kind_draws_with_a_known_shape_and_fields_of_its_model() -> None:
     for kind in KINDS.values():
         spec = dict(kind.draw)
+        assert isinstance(spec.pop("label", ""), str)  # the legend's name of the kind, optional
         members = DRAW_SHAPES[spec.pop("shape")]
         assert sorted(spec) == sorted(members), kind.name
         for value in spec.values():

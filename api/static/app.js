@@ -2297,7 +2297,13 @@
     if (!M.hasSite) return;
     const item = (sym, text) => box.append(h("span", { class: "item" }, sym, text));
     if ($("layer-buildings").checked && obstacles().length) {
-      item(h("span", { class: "swatch", "data-colour": BUILDING_COLOUR }), "obstacle (filled: solid; ▬ thin)");
+      // one entry per kind drawn, named by its kind's spec (its label, else its kind)
+      const present = [...new Set(obstacles().map((ob) => ob && ob.kind))].filter((k) => OBSTACLE_KINDS[k]);
+      for (const k of present) {
+        const d = OBSTACLE_KINDS[k].draw;
+        const how = d.shape === "polyline" ? "line" : "filled";
+        item(h("span", { class: "swatch", "data-colour": BUILDING_COLOUR }), `${d.label || k} (${how})`);
+      }
     }
     for (const info of M.ueInfo) {
       const dropped = info.inside + info.droppedByPlan;

@@ -50,7 +50,8 @@ DRAW_SHAPES: dict[str, tuple[str, ...]] = {
 }
 """The shapes of a kind's ``draw`` spec and the members each names fields with. ``points``: the
 name of a field holding a list of [x, y] points, or a list of names of fields each holding
-one; ``center``: a field holding one [x, y] point, ``radius``: a field holding metres. The
+one; ``center``: a field holding one [x, y] point, ``radius``: a field holding metres; an
+optional ``label`` names the kind in the page's legend (prism: "building"). The
 page (``api/static/app.js``) reads the spec from ``GET /v1/obstacle-kinds`` and draws every
 kind from it; a ``solid`` kind's polygon or circle is also its footprint there (the inside
 check and the facade snap of candidates)."""

@@ -385,7 +385,7 @@ class PrismKind:
     solid: bool = True
     compiled: bool = True
     point_fields: tuple[tuple[str, ...], ...] = (("footprint", "*"),)
-    draw: dict[str, Any] = {"shape": "polygon", "points": "footprint"}  # noqa: RUF012
+    draw: dict[str, Any] = {"shape": "polygon", "points": "footprint", "label": "building"}  # noqa: RUF012
 
     def to_geojson(self, obstacle: Prism, xy: ToOutput) -> tuple[GeoJSON, GeoJSON]:
         """A Polygon: the footprint as a closed counter-clockwise ring."""

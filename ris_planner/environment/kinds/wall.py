@@ -115,7 +115,7 @@ class WallKind:
     solid: bool = False
     compiled: bool = True
     point_fields: tuple[tuple[str, ...], ...] = (("start",), ("end",))
-    draw: dict[str, Any] = {"shape": "polyline", "points": ["start", "end"]}  # noqa: RUF012
+    draw: dict[str, Any] = {"shape": "polyline", "points": ["start", "end"], "label": "wall"}  # noqa: RUF012
 
     def to_geojson(self, obstacle: WallObstacle, xy: ToOutput) -> tuple[GeoJSON, GeoJSON]:
         """A LineString from ``start`` to ``end``."""
