@@ -210,3 +210,53 @@ def test_the_relaxations_layout_keeps_the_constraints() -> None:
     conflict[0, 1] = conflict[1, 0] = True  # one mounting point
     assert dist.rounded_layout(z, 3, (4,), (2,), conflict) == (0, 3, 4)
     assert dist.rounded_layout(z, 5, (), (2,), conflict) == (0, 3, 4)  # runs out: fewer
+
+
+def test_what_the_search_sees_is_each_pairs_strongest_sites(site) -> None:
+    """strongest(k) keeps, per pair, exactly the k serving sites of largest information on the
+    metric's position (brute force over each pair's entries, ties aside), the rest of the
+    problem unchanged; a layout's coverage seen through them never exceeds its exact one."""
+    _, problem, _ = site
+    k = 3
+    seen = problem.strongest(k)
+    strength = problem.strength()
+    for p in range(problem.n_pairs):
+        lo, hi = problem.pair_start[p], problem.pair_start[p + 1]
+        mine = seen.sites_of(p)
+        assert len(mine) == min(k, hi - lo)
+        s = strength[lo:hi]
+        if hi - lo > k and np.sort(s)[::-1][k - 1] > np.sort(s)[::-1][k]:  # no tie at the cut
+            want = problem.entry_site[lo:hi][np.argsort(-s)[:k]]
+            assert set(mine.tolist()) == set(want.tolist()), p
+    for s in range(problem.n_sites):  # the by-site index is the pruned entries'
+        assert np.array_equal(seen.pairs_of(s), np.sort(seen.entry_pair[seen.entry_site == s]))
+    for layout in itertools.combinations(range(problem.n_sites), 3):
+        assert dist.LayoutState(seen, list(layout)).coverage() <= dist.exact_coverage(
+            problem, layout
+        )
+    assert problem.strongest(10_000) is problem
+
+
+def test_reported_coverage_is_exact_when_the_search_sees_fewer_sites(
+    site, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With the search seeing two sites per pair, every count's reported coverage is still the
+    exact one of its layout (all serving sites), at least what the search saw, and within the
+    certified bound."""
+    doc, problem, _ = site
+    monkeypatch.setattr(dist, "SEARCH_SITES", 2)
+    plan = dist.plan_district(prepare_plan(doc))
+    for e in plan["by_count"]:
+        exact = dist.exact_coverage(problem, tuple(e["site_indices"]))
+        assert e["objective"] == exact
+        seen = dist.LayoutState(problem.strongest(2), e["site_indices"]).coverage()
+        assert seen <= exact <= e["upper_bound"]
+
+
+def test_sizing_path_stops_at_the_transmissions() -> None:
+    """A target or sizing path places at most one RIS fewer than the pilot transmissions (L
+    RISs need L + 1 time-orthogonal transmissions) and at most MAX_DISTRICT_RIS."""
+    doc = PlanDocument.model_validate({**street_doc(), "system": {"transmissions": 6}})
+    assert dist.most_ris(doc) == 5
+    doc = doc.model_copy(update={"system": doc.system.model_copy(update={"transmissions": 999})})
+    assert dist.most_ris(doc) == dist.MAX_DISTRICT_RIS

@@ -31,6 +31,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -986,67 +987,96 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
     counts = [c for c in inputs.counts if c <= problem.n_sites]
     # target mode: the counts up to the first that covers the target share of the coverable
     goal = target * coverable if target is not None and doc.target_mode else None
-    if goal is None and target is not None and doc.sizing is not None:
-        # the sizing question at the document's size: the same path, on to its goal
-        goal = target * float(problem.weights[servable_pairs(problem)].sum())
-    progress(0.5, "greedy path")
-    longest = max(counts) if goal is None else max(max(counts), MAX_DISTRICT_RIS)
-    path = greedy_path(
-        search,
-        min(longest, problem.n_sites),
-        goal,
-        required,
-        excluded,
-        min_count=max(counts),
-        conflict=conflict,
-    )
-    progress(0.7, "swaps")
-    by_count = []
-    names = [s.name for s in inputs.sites]
-    for c in counts:
-        step = next((p for p in path if len(p.sites) == c), None)
-        if step is None:
-            continue  # the path stopped: no site adds information
+    servable = float(problem.weights[servable_pairs(problem)].sum())
+    sizing_goal = target * servable if target is not None and doc.sizing is not None else None
+    if goal is None and sizing_goal is not None:
+        goal = sizing_goal  # the sizing question at the document's size: the same path
+    # the relaxations run on a thread beside the search (HiGHS releases the GIL): their
+    # layouts are needed only to start small problems' swaps
+    lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-relaxation")
+    try:
+        relaxed = {
+            c: lp.submit(relaxed_coverage, problem, c, needs, required, excluded) for c in counts
+        }
+        own_lower = (
+            None
+            if sizing_goal is None
+            else lp.submit(count_lower_bound, problem, sizing_goal, needs, required, excluded)
+        )
+        progress(0.5, "greedy path")
+        longest = max(counts) if goal is None else max(max(counts), most_ris(doc))
+        path = greedy_path(
+            search,
+            min(longest, problem.n_sites),
+            goal,
+            required,
+            excluded,
+            min_count=max(counts),
+            conflict=conflict,
+        )
+        progress(0.7, "swaps")
+        by_count = []
+        names = [s.name for s in inputs.sites]
         small = problem.n_sites <= SMALL_DISTRICT_SITES
         rounds = 3 if small else 1
-        layout, cov = improve(search, step.sites, required, excluded, rounds, conflict)
-        ub, z = relaxed_coverage(problem, c, needs, required, excluded)
-        rounded = rounded_layout(z, c, required, excluded, conflict)
-        if small and len(rounded) == c:  # the relaxation's own layout, improved the same way
-            other, other_cov = improve(search, rounded, required, excluded, rounds, conflict)
-            if other_cov > cov + GAIN_TIE:
-                layout, cov = other, other_cov
-        if search is not problem:
-            cov = exact_coverage(problem, layout)
-        by_count.append(
-            {
-                "ris_count": c,
-                "sites": [names[s] for s in layout],
-                "site_indices": list(layout),
-                "objective": cov,
-                "objective_of_coverable": cov / coverable if coverable > 0 else None,
-                "upper_bound": max(ub, cov),
-                "gap": max(0.0, ub - cov),
-                "method": "district",
-            }
-        )
-        if doc.target_mode and goal is not None and cov >= goal:
-            break  # target mode: the smallest count that reaches the target
-    progress(0.9, "certificate")
-    plan: dict[str, Any] = {
-        "method": "district",
-        "objective": doc.objective.model_dump(exclude_none=True),
-        "pairs_summary": site_summary,
-        "by_count": by_count,
-        "path": [{"ris_count": len(p.sites), "coverage": p.coverage} for p in path],
-        "search_sites_per_pair": SEARCH_SITES,
-    }
-    if target is not None:
-        plan["sizing"] = _sizing(
-            inputs, (problem, search), needs, path, target, required, excluded, conflict, progress
-        )
+        for c in counts:
+            step = next((p for p in path if len(p.sites) == c), None)
+            if step is None:
+                continue  # the path stopped: no site adds information
+            layout, cov = improve(search, step.sites, required, excluded, rounds, conflict)
+            ub, z = relaxed[c].result()
+            rounded = rounded_layout(z, c, required, excluded, conflict)
+            if small and len(rounded) == c:  # the relaxation's own layout, improved likewise
+                other, other_cov = improve(search, rounded, required, excluded, rounds, conflict)
+                if other_cov > cov + GAIN_TIE:
+                    layout, cov = other, other_cov
+            if search is not problem:
+                cov = exact_coverage(problem, layout)
+            by_count.append(
+                {
+                    "ris_count": c,
+                    "sites": [names[s] for s in layout],
+                    "site_indices": list(layout),
+                    "objective": cov,
+                    "objective_of_coverable": cov / coverable if coverable > 0 else None,
+                    "upper_bound": max(ub, cov),
+                    "gap": max(0.0, ub - cov),
+                    "method": "district",
+                }
+            )
+            if doc.target_mode and goal is not None and cov >= goal:
+                break  # target mode: the smallest count that reaches the target
+        progress(0.9, "certificate")
+        plan: dict[str, Any] = {
+            "method": "district",
+            "objective": doc.objective.model_dump(exclude_none=True),
+            "pairs_summary": site_summary,
+            "by_count": by_count,
+            "path": [{"ris_count": len(p.sites), "coverage": p.coverage} for p in path],
+            "search_sites_per_pair": SEARCH_SITES,
+        }
+        if target is not None:
+            plan["sizing"] = _sizing(
+                inputs,
+                (problem, search),
+                needs,
+                path,
+                target,
+                (required, excluded, conflict),
+                progress,
+                None if own_lower is None else own_lower.result,
+            )
+    finally:
+        lp.shutdown(wait=False, cancel_futures=True)
     progress(1.0, "done")
     return plan
+
+
+def most_ris(doc: Any) -> int:
+    """The most RISs a target or sizing path may place: :data:`MAX_DISTRICT_RIS`, and one fewer
+    than the pilot transmissions (a layout of L RISs needs L + 1 time-orthogonal
+    transmissions)."""
+    return int(min(MAX_DISTRICT_RIS, doc.system.transmissions - 1))
 
 
 def _target(doc: Any) -> float | None:
@@ -1063,10 +1093,9 @@ def _sizing(
     needs: Needs,
     path: list[PathStep],
     target: float,
-    required: tuple[int, ...],
-    excluded: tuple[int, ...],
-    conflict: BoolArray | None,
+    constraints: tuple[tuple[int, ...], tuple[int, ...], BoolArray | None],
     progress: ProgressCallback,
+    own_lower: Callable[[], int | None] | None = None,
 ) -> dict[str, Any]:
     """The smallest RIS size × count whose greedy layout covers ``target`` of the servable
     pairs (those some layout gives a finite bound), over the document's RIS size and
@@ -1076,16 +1105,19 @@ def _sizing(
     the document's size's problem and what its search sees (:meth:`DistrictProblem.strongest`).
     """
     problem, search = problems
+    required, excluded, conflict = constraints
     doc = inputs.document
     servable = float(problem.weights[servable_pairs(problem)].sum())
     goal = target * servable
-    own = (doc.ris.rows, doc.ris.cols)
-    ladder = {own} | {(int(r), int(c)) for r, c in (doc.sizing.ris_sizes if doc.sizing else [])}
+    own_size = (doc.ris.rows, doc.ris.cols)
+    ladder = {own_size} | {
+        (int(r), int(c)) for r, c in (doc.sizing.ris_sizes if doc.sizing else [])
+    }
     rows: list[dict[str, Any]] = []
     answer: dict[str, Any] | None = None
     for k, (r, c) in enumerate(sorted(ladder, key=lambda rc: (rc[0] * rc[1], rc))):
         progress(0.9 + 0.1 * k / len(ladder), f"sizing {r}×{c}")
-        if (r, c) == own:
+        if (r, c) == own_size:
             pr, seen, nd, steps = problem, search, needs, path
         else:
             pr = build_problem(_resized(inputs, r, c), like=problem)
@@ -1093,7 +1125,11 @@ def _sizing(
             nd = sites_needed(pr)
             steps = []
         row: dict[str, Any] = {"ris_size": [r, c]}
-        lower = count_lower_bound(pr, goal, nd, required, excluded)
+        own = (r, c) == own_size
+        if own and own_lower is not None:
+            lower = own_lower()  # solved beside the search
+        else:
+            lower = count_lower_bound(pr, goal, nd, required, excluded)
         row["lower_bound"] = lower
         if lower is None:
             row["count"] = None
@@ -1108,7 +1144,7 @@ def _sizing(
         if not steps or steps[-1].coverage < goal:
             steps = greedy_path(
                 seen,
-                min(MAX_DISTRICT_RIS, pr.n_sites),
+                min(most_ris(doc), pr.n_sites),
                 goal,
                 required,
                 excluded,
