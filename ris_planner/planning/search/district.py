@@ -1065,6 +1065,7 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
                 (required, excluded, conflict),
                 progress,
                 None if own_lower is None else own_lower.result,
+                lp,
             )
     finally:
         lp.shutdown(wait=False, cancel_futures=True)
@@ -1096,14 +1097,17 @@ def _sizing(
     constraints: tuple[tuple[int, ...], tuple[int, ...], BoolArray | None],
     progress: ProgressCallback,
     own_lower: Callable[[], int | None] | None = None,
+    beside: ThreadPoolExecutor | None = None,
 ) -> dict[str, Any]:
     """The smallest RIS size × count whose greedy layout covers ``target`` of the servable
     pairs (those some layout gives a finite bound), over the document's RIS size and
     ``sizing.ris_sizes`` in ascending element count, each with the relaxation's lower bound on
     the count; a size whose lower bound already needs more elements than the answer so far is
     skipped, and one that cannot reach the target with every candidate says so. ``problems``:
-    the document's size's problem and what its search sees (:meth:`DistrictProblem.strongest`).
-    """
+    the document's size's problem and what its search sees (:meth:`DistrictProblem.strongest`);
+    ``own_lower``: its lower bound when already under way; ``beside``: a thread for the other
+    sizes' bounds, each solved while that size's path runs (the path is wasted only when the
+    bound then skips the size)."""
     problem, search = problems
     required, excluded, conflict = constraints
     doc = inputs.document
@@ -1125,9 +1129,21 @@ def _sizing(
             nd = sites_needed(pr)
             steps = []
         row: dict[str, Any] = {"ris_size": [r, c]}
-        own = (r, c) == own_size
-        if own and own_lower is not None:
+        reachable = float(pr.weights[nd.need > 0].sum()) >= goal - 1e-12
+        if (r, c) == own_size and own_lower is not None:
             lower = own_lower()  # solved beside the search
+        elif beside is not None and reachable:
+            bound = beside.submit(count_lower_bound, pr, goal, nd, required, excluded)
+            if not steps or steps[-1].coverage < goal:
+                steps = greedy_path(
+                    seen,
+                    min(most_ris(doc), pr.n_sites),
+                    goal,
+                    required,
+                    excluded,
+                    conflict=conflict,
+                )
+            lower = bound.result()
         else:
             lower = count_lower_bound(pr, goal, nd, required, excluded)
         row["lower_bound"] = lower
