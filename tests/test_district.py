@@ -78,6 +78,26 @@ def test_sites_needed_is_a_valid_lower_bound(site) -> None:
                 assert not st.metric[p] <= problem.threshold, (p, sub, need[p])
 
 
+def test_the_subset_budget_keeps_the_bound_valid(site, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a small budget of (pair, subset) evaluations only the pairs with the fewest subsets
+    get their cover sets (the others keep the counting rule's m_p): m_p never rises above the
+    full evaluation's, the cover sets are a subset of the full ones, and the relaxation still
+    bounds the exhaustive optimum."""
+    doc, problem, full = site
+    n_serving = np.diff(problem.pair_start)
+    monkeypatch.setattr(dist, "MAX_SUBSET_EVALUATIONS", int(n_serving.sum() // 4))
+    few = dist.sites_needed(problem)
+    assert 0 < few.complete.sum() < full.complete.sum()
+    assert np.all(few.need <= full.need) and np.all(few.complete <= full.complete)
+    # the pairs that got their subsets have no more serving sites than those that did not
+    live = (full.need > 0) & (n_serving >= full.need)
+    assert n_serving[few.complete].max() <= n_serving[live & ~few.complete].max()
+    exact = run_plan({**doc, "search": {"method": "exhaustive"}})
+    for cr in exact.counts:
+        best = -cr.ranked[0][1]
+        assert dist.coverage_upper_bound(problem, cr.ris_count, few) >= best - 1e-9
+
+
 def test_sizing_answers_with_a_certified_count(site) -> None:
     _, problem, needs = site
     goal = 0.5 * float(problem.weights[needs.need > 0].sum())

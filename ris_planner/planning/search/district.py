@@ -76,6 +76,12 @@ MAX_SUBSETS = 4096
 pairs of up to 91 serving sites; a pair with more keeps the counting rule's m_p and no cover
 sets (still valid, looser)."""
 
+MAX_SUBSET_EVALUATIONS = 2_000_000
+"""In all, the most (pair, m-subset) combinations :func:`sites_needed` evaluates (about 2 µs
+each): the pairs with the fewest subsets first; the others keep the counting rule's m_p and no
+cover sets (still valid, looser). Forty serving sites per pair and m = 2 over 20 000 pairs
+would otherwise be 15.6 million evaluations."""
+
 SUBSET_BATCH = 200_000
 """(pair, subset) combinations evaluated per batch by :func:`sites_needed` (memory: about
 300 bytes each)."""
@@ -702,8 +708,10 @@ def sites_needed(problem: DistrictProblem) -> Needs:
     m-subsets they are all evaluated (in batches of at most :data:`SUBSET_BATCH`): the sites
     of the covering ones are recorded, and when none covers, m_p is raised by one and the
     (m+1)-subsets are tried the same way (a larger layout contains some m-subset, and adding
-    information never raises a bound, so needing more than m is exact). A pair that even all
-    its serving sites leave above the threshold has m_p = 0."""
+    information never raises a bound, so needing more than m is exact). At most
+    :data:`MAX_SUBSET_EVALUATIONS` (pair, subset) combinations are evaluated in all, the pairs
+    with the fewest subsets first. A pair that even all its serving sites leave above the
+    threshold has m_p = 0."""
     pr = problem
     n_serving = np.diff(pr.pair_start)
     full = LayoutState(pr, list(range(pr.n_sites)))
@@ -714,14 +722,25 @@ def sites_needed(problem: DistrictProblem) -> Needs:
     need = np.where(coverable, need, 0)
     complete = np.zeros(pr.n_pairs, dtype=bool)
     used = np.zeros(pr.n_entries, dtype=bool)  # entries in some covering m_p-subset
+    budget = MAX_SUBSET_EVALUATIONS
     for _ in range(2):  # m, then m + 1 for the pairs no m-subset covers
         tried = np.zeros(pr.n_pairs, dtype=bool)
         found = np.zeros(pr.n_pairs, dtype=bool)
-        for n in np.unique(n_serving[coverable & ~complete]):
-            for m in np.unique(need[coverable & ~complete & (n_serving == n)]):
-                if m > n or math.comb(int(n), int(m)) > MAX_SUBSETS:
-                    continue
-                group = np.flatnonzero(coverable & ~complete & (n_serving == n) & (need == m))
+        # the pairs with the fewest subsets first, within the budget left
+        open_ = np.flatnonzero(coverable & ~complete & (need <= n_serving))
+        n_subsets = np.array(
+            [math.comb(int(n), int(m)) for n, m in zip(n_serving[open_], need[open_], strict=True)],
+            dtype=float,
+        )
+        order = np.argsort(n_subsets, kind="stable")
+        within = np.cumsum(n_subsets[order]) <= budget
+        chosen = np.zeros(pr.n_pairs, dtype=bool)
+        chosen[open_[order[within]]] = True
+        chosen[open_[n_subsets > MAX_SUBSETS]] = False
+        budget -= int(n_subsets[chosen[open_]].sum())
+        for n in np.unique(n_serving[chosen]):
+            for m in np.unique(need[chosen & (n_serving == n)]):
+                group = np.flatnonzero(chosen & (n_serving == n) & (need == m))
                 subsets = np.array(list(itertools.combinations(range(int(n)), int(m))))
                 step = max(1, SUBSET_BATCH // len(subsets))
                 for g0 in range(0, group.size, step):
@@ -761,10 +780,10 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     """The relaxation's constraints A v ≤ 0 over v = [z (S), y (live pairs), u (complete
     pairs)], the number of variables, and the live pairs (m_p > 0):
 
-    * a pair with cover sets: y_p ≤ Σ_{s∈U_p} z_s / m_p + u_p with U_p the sites of its
+    * every live pair: y_p ≤ Σ_{s∈S_p} z_s / m_p (a covering layout holds m_p of its sites);
+    * a pair with cover sets also: y_p ≤ Σ_{s∈U_p} z_s / m_p + u_p with U_p the sites of its
       covering m_p-subsets, and u_p ≤ Σ_{s∈S_p} z_s / (m_p + 1): a covering layout holds a
-      covering m_p-subset (m_p sites of U_p) or at least m_p + 1 of its serving sites;
-    * any other live pair: y_p ≤ Σ_{s∈S_p} z_s / m_p."""
+      covering m_p-subset (m_p sites of U_p) or at least m_p + 1 of its serving sites."""
     pr, need = problem, needs.need
     live = np.flatnonzero(need > 0)
     y_of = np.full(pr.n_pairs, -1)
@@ -813,6 +832,14 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
         ]
     )
     n_rows = open_.size + 2 * comp.size
+    # a complete pair's counting row too: a covering layout holds m_p of its sites (the cover
+    # form alone is looser where the cover sets' sites are most of the pair's)
+    row_c = np.full(pr.n_pairs, -1)
+    row_c[comp] = n_rows + np.arange(comp.size)
+    rows = np.concatenate([rows, row_c[comp], row_c[pr.entry_pair[e_comp]]])
+    cols = np.concatenate([cols, y_of[comp], pr.entry_site[e_comp]])
+    vals = np.concatenate([vals, np.ones(comp.size), -1.0 / need[pr.entry_pair[e_comp]]])
+    n_rows += comp.size
     return csr_matrix((vals, (rows, cols)), shape=(n_rows, n_var)), n_var, live
 
 
@@ -1003,6 +1030,13 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
             if sizing_goal is None
             else lp.submit(count_lower_bound, problem, sizing_goal, needs, required, excluded)
         )
+        # the sizing's other RIS sizes: their information now, their lower bounds queued
+        # behind the relaxations, so the thread beside never waits for the search
+        others = {
+            size: _other_size(inputs, size, problem, sizing_goal, (required, excluded), lp)
+            for size in _ladder(doc)
+            if sizing_goal is not None and size != (doc.ris.rows, doc.ris.cols)
+        }
         progress(0.5, "greedy path")
         longest = max(counts) if goal is None else max(max(counts), most_ris(doc))
         path = greedy_path(
@@ -1065,7 +1099,7 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
                 (required, excluded, conflict),
                 progress,
                 None if own_lower is None else own_lower.result,
-                lp,
+                others,
             )
     finally:
         lp.shutdown(wait=False, cancel_futures=True)
@@ -1097,7 +1131,7 @@ def _sizing(
     constraints: tuple[tuple[int, ...], tuple[int, ...], BoolArray | None],
     progress: ProgressCallback,
     own_lower: Callable[[], int | None] | None = None,
-    beside: ThreadPoolExecutor | None = None,
+    others: dict[tuple[int, int], OtherSize] | None = None,
 ) -> dict[str, Any]:
     """The smallest RIS size × count whose greedy layout covers ``target`` of the servable
     pairs (those some layout gives a finite bound), over the document's RIS size and
@@ -1105,47 +1139,37 @@ def _sizing(
     the count; a size whose lower bound already needs more elements than the answer so far is
     skipped, and one that cannot reach the target with every candidate says so. ``problems``:
     the document's size's problem and what its search sees (:meth:`DistrictProblem.strongest`);
-    ``own_lower``: its lower bound when already under way; ``beside``: a thread for the other
-    sizes' bounds, each solved while that size's path runs (the path is wasted only when the
-    bound then skips the size)."""
+    ``own_lower``: its lower bound when already under way; ``others``: the other sizes'
+    information and lower bounds already under way (:func:`_other_size`), else each is built
+    here."""
     problem, search = problems
     required, excluded, conflict = constraints
     doc = inputs.document
     servable = float(problem.weights[servable_pairs(problem)].sum())
     goal = target * servable
     own_size = (doc.ris.rows, doc.ris.cols)
-    ladder = {own_size} | {
-        (int(r), int(c)) for r, c in (doc.sizing.ris_sizes if doc.sizing else [])
-    }
+    ladder = _ladder(doc)
     rows: list[dict[str, Any]] = []
     answer: dict[str, Any] | None = None
     for k, (r, c) in enumerate(sorted(ladder, key=lambda rc: (rc[0] * rc[1], rc))):
         progress(0.9 + 0.1 * k / len(ladder), f"sizing {r}×{c}")
+        lower_of: Callable[[], int | None] | None = None
         if (r, c) == own_size:
             pr, seen, nd, steps = problem, search, needs, path
+            lower_of = own_lower  # solved beside the search
         else:
-            pr = build_problem(_resized(inputs, r, c), like=problem)
-            seen = pr.strongest(SEARCH_SITES)
-            nd = sites_needed(pr)
-            steps = []
+            other = (others or {}).get((r, c)) or _other_size(
+                inputs, (r, c), problem, goal, (required, excluded), None
+            )
+            pr, seen, nd, lower_of, steps = other.problem, other.seen, other.needs, other.lower, []
         row: dict[str, Any] = {"ris_size": [r, c]}
         reachable = float(pr.weights[nd.need > 0].sum()) >= goal - 1e-12
-        if (r, c) == own_size and own_lower is not None:
-            lower = own_lower()  # solved beside the search
-        elif beside is not None and reachable:
-            bound = beside.submit(count_lower_bound, pr, goal, nd, required, excluded)
-            if not steps or steps[-1].coverage < goal:
-                steps = greedy_path(
-                    seen,
-                    min(most_ris(doc), pr.n_sites),
-                    goal,
-                    required,
-                    excluded,
-                    conflict=conflict,
-                )
-            lower = bound.result()
-        else:
+        if lower_of is not None:
+            lower = lower_of()
+        elif reachable:
             lower = count_lower_bound(pr, goal, nd, required, excluded)
+        else:
+            lower = None
         row["lower_bound"] = lower
         if lower is None:
             row["count"] = None
@@ -1200,6 +1224,55 @@ def _sizing(
             f" {answer['lower_bound']} RISs can (gap {answer['gap']} RISs)"
         )
     return out
+
+
+def _ladder(doc: Any) -> set[tuple[int, int]]:
+    """The RIS sizes of the sizing question: the document's and ``sizing.ris_sizes``."""
+    sizes = doc.sizing.ris_sizes if doc.sizing is not None else []
+    return {(doc.ris.rows, doc.ris.cols)} | {(int(r), int(c)) for r, c in sizes}
+
+
+@dataclass(frozen=True)
+class OtherSize:
+    """Another RIS size of the sizing question: its information, what its search sees, its
+    cover sets, and its lower bound (a call that waits for it; ``None`` when the target is out
+    of reach with every candidate)."""
+
+    problem: DistrictProblem
+    seen: DistrictProblem
+    needs: Needs
+    lower: Callable[[], int | None]
+
+
+def _other_size(
+    inputs: PlanInputs,
+    size: tuple[int, int],
+    like: DistrictProblem,
+    goal: float | None,
+    constraints: tuple[tuple[int, ...], tuple[int, ...]],
+    beside: ThreadPoolExecutor | None,
+) -> OtherSize:
+    """The :class:`OtherSize` of ``size`` (its visibility shared with ``like``); its lower bound
+    on the thread ``beside`` when given, else when asked."""
+    pr = build_problem(_resized(inputs, *size), like=like)
+    nd = sites_needed(pr)
+    reachable = goal is not None and float(pr.weights[nd.need > 0].sum()) >= goal - 1e-12
+    if not reachable or goal is None:
+        return OtherSize(pr, pr.strongest(SEARCH_SITES), nd, lambda: None)
+    if beside is not None:
+        return OtherSize(
+            pr,
+            pr.strongest(SEARCH_SITES),
+            nd,
+            beside.submit(count_lower_bound, pr, goal, nd, *constraints).result,
+        )
+    target = goal
+    return OtherSize(
+        pr,
+        pr.strongest(SEARCH_SITES),
+        nd,
+        lambda: count_lower_bound(pr, target, nd, *constraints),
+    )
 
 
 def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:
