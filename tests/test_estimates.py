@@ -230,3 +230,53 @@ def test_a_real_site_plan_lands_within_the_estimate(tmp_path: Path) -> None:
     assert 0.5 <= memory <= 2, res
     assert 1 / 3 <= time_ratio <= 3, res
     assert math.isfinite(time_ratio)
+
+
+def test_the_pair_served_share_is_the_brute_force_share() -> None:
+    """With at most SERVE_SAMPLE_SITES sites and SERVE_SAMPLE_POINTS pairs the sample is every
+    site and every pair: the share equals the double loop over (pair, site) of the plan's
+    serve rule, and it differs from the independent product (a sidelink pair's UEs are seen
+    together)."""
+    from ris_planner.bounds.paths import ris_serves
+    from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.resources.served import (
+        SERVE_SAMPLE_POINTS,
+        pair_served_share,
+        served_share,
+    )
+
+    inputs = prepare_plan(street_doc(sample=150))
+    pairs = inputs.pairs
+    assert len(inputs.sites) <= 32 and pairs.size <= SERVE_SAMPLE_POINTS
+    share = pair_served_share(inputs.sites, pairs.tx, pairs.rx, pairs.weights, inputs.scene)
+    hits = 0
+    for site in inputs.sites:
+        for k in range(pairs.size):
+            t = bool(ris_serves(inputs.scene, site.ris, pairs.tx[k : k + 1])[0])
+            r = bool(ris_serves(inputs.scene, site.ris, pairs.rx[k : k + 1])[0])
+            hits += t and r
+    expected = hits / (len(inputs.sites) * pairs.size)
+    assert abs(share - expected) <= 1e-12  # a mean of the same booleans: exact up to rounding
+    independent = served_share(inputs.sites, inputs.tx_map, inputs.rx_map, inputs.scene)
+    assert share > 1.2 * independent  # 0.50 against 0.36 on this site
+
+
+def test_the_district_estimate_follows_the_entries_of_the_sidelink_pairs() -> None:
+    """The document's estimate of the district's (pair, serving site) entries – before any
+    pair is drawn (near_pairs_sample) – is within a factor 2 of what the search builds, and
+    every sampled pair lies within the separation."""
+    from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.resources.admission import district_entries, plan_shape
+    from ris_planner.planning.resources.served import near_pairs_sample
+    from ris_planner.planning.search.district import build_problem
+
+    doc = street_doc(sample=400, separation_m=30.0)
+    parsed = PlanDocument.model_validate(doc)
+    shape = plan_shape(parsed)
+    inputs = prepare_plan(doc)
+    built = build_problem(inputs).n_entries
+    assert 0.5 <= district_entries(shape) / built <= 2.0, (district_entries(shape), built)
+    assert parsed.pairs.max_separation_m is not None  # type: ignore[union-attr]
+    tx, rx, _ = near_pairs_sample(inputs.tx_map, inputs.rx_map, parsed.pairs)  # type: ignore[arg-type]
+    assert len(tx) > 100
+    assert np.linalg.norm(tx - rx, axis=1).max() <= 30.0 + 1e-9

@@ -54,6 +54,7 @@ from ris_planner.model.simulation import (
 )
 from ris_planner.planning.inputs.sites import facade_walls
 from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.resources.served import document_shares
 
 # peak bytes per item (see the module docstring and docs/validation/resources.md)
 BYTES_PER_MAP_POINT = 160
@@ -266,6 +267,12 @@ class PlanShape:
     district: bool = False
     """search.method 'district': sparse information per (pair, serving site), no site cache,
     no heatmap, no codebook checks (:mod:`ris_planner.planning.search.district`)."""
+    district_share: float = 0.0
+    """A district plan's share of (pair, site) combinations served
+    (:func:`~ris_planner.planning.resources.served.pair_served_share`)."""
+    district_sizes: int = 1
+    """RIS sizes whose district information is held at once (the document's and the other
+    sizes of ``sizing.ris_sizes``)."""
     obstructed: bool = False
     """The environment has obstacles: the heatmap forms RIS paths for the served pairs only
     (:data:`BYTES_PER_HEATMAP_PAIR_OBSTRUCTED`)."""
@@ -294,24 +301,33 @@ def _ris_in_layout(shape: PlanShape) -> int:
     return min(shape.max_count, max(shape.sites, 1))
 
 
-DISTRICT_ENTRIES_PER_PAIR = 64
-"""The serving sites per pair the district estimate assumes at most (a sidelink pair on a
-street sees a handful: 5 on the Helsinki example, docs/concepts/district.md)."""
+BYTES_PER_DISTRICT_ENTRY = 700
+"""Bytes per estimated (pair, serving site) of the district search (pairs × sites × the served
+share): packed information and square-root rows on up to 7 states, the search's strongest
+entries, indices, gains and the relaxation's matrix (fitted to the peaks of the Helsinki
+district plans, docs/validation/resources.md; the sample's share runs low on streets)."""
 
-BYTES_PER_DISTRICT_ENTRY = 320
-"""Bytes per (pair, serving site) of the district search: packed information and square-root
-rows on up to 7 states (2 × 28 floats at most), indices, gains and their temporaries."""
+DISTRICT_SIZE_SHARE = 0.8
+"""Each further RIS size of a district sizing holds this share of the first size's entries
+more (its information is built while the first's is held)."""
 
 BYTES_PER_DISTRICT_MASK = 3
 """Bytes per (pair, site) of the district search's visibility: the two gathered serve masks
 and their conjunction."""
 
 
+def district_entries(shape: PlanShape) -> float:
+    """The estimated (pair, serving site) entries of a district plan: pairs × sites × its served
+    share."""
+    return shape.district_share * shape.pairs * shape.sites
+
+
 def _district_bytes(shape: PlanShape) -> int:
     if not shape.district:
         return 0
-    entries = shape.pairs * min(shape.sites, DISTRICT_ENTRIES_PER_PAIR)
-    return entries * BYTES_PER_DISTRICT_ENTRY + shape.pairs * shape.sites * BYTES_PER_DISTRICT_MASK
+    held = 1 + DISTRICT_SIZE_SHARE * (shape.district_sizes - 1)
+    entries = district_entries(shape) * BYTES_PER_DISTRICT_ENTRY * held
+    return int(entries) + shape.pairs * shape.sites * BYTES_PER_DISTRICT_MASK
 
 
 def _site_cache_bytes(shape: PlanShape) -> int:
@@ -490,9 +506,9 @@ PLAN_MEMORY_TERMS: dict[str, MemoryTerm[PlanShape]] = {
     "district": MemoryTerm(
         _district_bytes,
         lambda s: (
-            f"the district search's information ({grouped(s.pairs)} pairs × up to"
-            f" {min(s.sites, DISTRICT_ENTRIES_PER_PAIR)} serving sites, {grouped(s.sites)}"
-            " candidates)"
+            f"the district search's information ({grouped(s.pairs)} pairs × about"
+            f" {district_entries(s) / max(s.pairs, 1):.0f} serving sites of"
+            f" {grouped(s.sites)} candidates, {s.district_sizes} RIS size(s))"
         ),
         f"{_FEWER_PAIRS}, or fewer candidate sites",
         (_PAIRS, _SITES),
@@ -624,6 +640,7 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         pairs = pairs_spec.sample
     counts = [c for c in doc.max_counts if c <= sites]
     relaxed = sum(not _exhaustive(doc, sites, c) for c in counts)
+    district = doc.search.method == "district"
     return PlanShape(
         sites=sites,
         tx_points=n_t,
@@ -638,7 +655,13 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         transmissions=doc.system.transmissions,
         wavefront=doc.system.wavefront,
         fixed_heatmap_tx=doc.heatmap_tx is not None,
-        district=doc.search.method == "district",
+        district=district,
+        district_share=document_shares(doc)[1] if district else 0.0,
+        district_sizes=len(
+            {(doc.ris.rows, doc.ris.cols), *(tuple(rc) for rc in doc.sizing.ris_sizes)}
+        )
+        if district and doc.sizing is not None
+        else 1,
         obstructed=doc.environment is not None and bool(doc.environment.obstacles),
         relaxed_counts=relaxed if doc.search.certificate_iterations > 0 else 0,
         sizing_runs=sizing_runs(doc),

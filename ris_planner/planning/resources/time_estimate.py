@@ -28,19 +28,18 @@ import weakref
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
-import numpy as np
-from numpy.typing import NDArray
-
 from ris_planner.model.limits import HEATMAP_MAX_PAIRS, budget_mb, grouped
 from ris_planner.model.plan import PlanDocument
 from ris_planner.physics.codebooks import block_length
 from ris_planner.planning.resources.admission import greedy_layouts
+from ris_planner.planning.resources.served import (
+    document_shares,
+    pair_served_share,
+    served_share,
+)
 
 if TYPE_CHECKING:
-    from ris_planner.environment import Scene
     from ris_planner.planning.inputs.plan_inputs import PlanInputs
-    from ris_planner.planning.inputs.sites import Site
-    from ris_planner.planning.inputs.ue_maps import PointMap
 
 CHECKS_HIDDEN_BY = ("sizing", "validation", "fields", "figures")
 """The stages that checks running beside them (:func:`checks_beside`) overlap: the checks'
@@ -124,64 +123,29 @@ fit's floor)."""
 BEAMS_PER_LAYOUT_S = 2.0
 """Beam design and power allocation per layout (the SDPs dominate)."""
 
-SERVE_SAMPLE_SITES = 32
-"""Candidate sites of the served-share sample (:func:`served_share`)."""
-
-SERVE_SAMPLE_POINTS = 192
-"""TX and RX map points of the served-share sample (each, drawn ∝ the maps' weights)."""
-
-
-def served_share(
-    sites: list[Site], tx_map: PointMap, rx_map: PointMap, scene: Scene, seed: int = 0
-) -> float:
-    """The share of (TX–RX pair, candidate site) combinations in which the site's RIS serves
-    both UEs (its field of view and clear legs, the plan's visibility rules), from a seeded
-    sample: :data:`SERVE_SAMPLE_SITES` sites, :data:`SERVE_SAMPLE_POINTS` TX and RX points
-    drawn ∝ the maps' weights; per site the share of the TX points it serves times that of the
-    RX points, averaged over the sites. 1 in an open hall whose candidates face the UEs, a few
-    percent on a street of a city block: the work of the stages that follow the served pairs
-    (the search's identifiable pairs, the cache, the codebook checks, the per-point bounds,
-    the estimator's validation) scales with it (:func:`stage_terms`)."""
-    from ris_planner.bounds.paths import in_field_of_view
-
-    if not sites:
-        return 0.0
-    rng = np.random.default_rng(seed)
-    pick = rng.choice(len(sites), min(len(sites), SERVE_SAMPLE_SITES), replace=False)
-
-    def points(m: PointMap) -> NDArray[np.float64]:
-        w = m.weights / m.weights.sum()
-        n = min(len(m.points), SERVE_SAMPLE_POINTS)
-        return m.points[rng.choice(len(m.points), n, replace=False, p=w if n < len(w) else None)]
-
-    tx, rx = points(tx_map), points(rx_map)
-    both = np.concatenate([tx, rx])
-    ris = [sites[i].ris for i in pick]
-    # ris_serves' rule for every sampled site at once: the field of view, then one visibility
-    # query of every (site, point) leg
-    serves = np.stack([in_field_of_view(r, both) for r in ris])  # [S, T + R]
-    if not scene.empty:
-        centres = np.array([r.position for r in ris], dtype=float)
-        serves &= ~scene.blocked_to(both, centres)
-    shares = serves[:, : len(tx)].mean(axis=1) * serves[:, len(tx) :].mean(axis=1)
-    return float(np.mean(shares))
-
-
-_SERVED: dict[int, tuple[weakref.ref[PlanInputs], float]] = {}
-""":func:`served_share` of prepared inputs, once per inputs object (the progress weights ask
+_SERVED: dict[int, tuple[weakref.ref[PlanInputs], tuple[float, float]]] = {}
+""":func:`_inputs_served` of prepared inputs, once per inputs object (the progress weights ask
 for it several times per plan)."""
 
 
-def _inputs_served(inputs: PlanInputs) -> float:
+def _inputs_served(inputs: PlanInputs) -> tuple[float, float]:
+    """(:func:`served_share`, :func:`pair_served_share` over the drawn pairs – the latter
+    only for a district plan, else the former) of prepared inputs, once per inputs object."""
     key = id(inputs)
     hit = _SERVED.get(key)
     if hit is not None and hit[0]() is inputs:
         return hit[1]
     share = served_share(inputs.sites, inputs.tx_map, inputs.rx_map, inputs.scene)
+    pairs = inputs.pairs
+    by_pair = (
+        pair_served_share(inputs.sites, pairs.tx, pairs.rx, pairs.weights, inputs.scene)
+        if inputs.document.search.method == "district"
+        else share
+    )
     for k in [k for k, (ref, _) in _SERVED.items() if ref() is None]:
         del _SERVED[k]
-    _SERVED[key] = (weakref.ref(inputs), share)
-    return share
+    _SERVED[key] = (weakref.ref(inputs), (share, by_pair))
+    return share, by_pair
 
 
 @dataclass(frozen=True)
@@ -203,6 +167,9 @@ class WorkSizes:
     """Elements per RIS (rows × cols)."""
     served: float = 1.0
     """The share of (pair, site) combinations with a RIS path (:func:`served_share`)."""
+    pair_served: float = 1.0
+    """The same share over the plan's own pairs (:func:`pair_served_share`; a district plan's,
+    else :attr:`served`)."""
 
     @classmethod
     def of(cls, plan: PlanInputs | PlanDocument | WorkSizes) -> WorkSizes:
@@ -220,7 +187,7 @@ class WorkSizes:
             len(plan.rx_map.points),
             tuple(plan.counts),
             doc.ris.rows * doc.ris.cols,
-            _inputs_served(plan),
+            *_inputs_served(plan),
         )
 
     @classmethod
@@ -229,21 +196,13 @@ class WorkSizes:
         :func:`~ris_planner.planning.resources.admission.plan_shape`) and its served share (its
         sites
         and maps expanded, :func:`served_share`)."""
-        from ris_planner.environment import Scene
-        from ris_planner.planning.inputs.sites import expand_sites
-        from ris_planner.planning.inputs.ue_maps import build_map
         from ris_planner.planning.resources.admission import plan_shape
 
         shape = plan_shape(doc)
         counts = doc.max_counts
         if doc.ris_count is None:  # target mode: at most every candidate (prepare_plan's rule)
             counts = [c for c in counts if c <= shape.sites]
-        share = served_share(
-            expand_sites(doc),
-            build_map(doc.tx_map, "tx_map"),
-            build_map(doc.rx_map, "rx_map"),
-            Scene.from_environment(doc.environment),
-        )
+        share, by_pair = document_shares(doc)
         return cls(
             doc,
             shape.sites,
@@ -253,6 +212,7 @@ class WorkSizes:
             tuple(counts),
             shape.elements,
             share,
+            by_pair,
         )
 
 
@@ -499,44 +459,96 @@ def stage_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, floa
 
 
 DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
-    "inputs": {"const": 0.03, "per_site": 9.3e-05},
-    "search": {"const": 0.31, "per_site_pair": 2e-08, "per_served_pair_ris": 7.5e-05},
-    "figures": {"const": 0.45},
+    "inputs": {"const": 0.6, "per_site": 1.5e-4},
+    "search_main": {
+        "per_entry_size": 2.5e-6,
+        "per_site_size": 7.5e-4,
+        "per_path_rescore": 3.9e-7,
+        "per_swap_rescore": 7e-7,
+    },
+    "search_lp": {"per_lp_row_entry": 1.8e-6},
+    "figures": {"const": 1.0},
 }
-"""Seconds per unit of the district search's stages (:func:`district_seconds`), fitted by hand
-to three ``bench_memory.py --document`` runs of district plans (the street site of the tests,
-two synthetic cities with 486 and 730 candidates; docs/validation/resources.md):
-``per_site_pair`` the visibility (every candidate against every pair), ``per_served_pair_ris``
-the information and the greedy path, swaps and certificate over the (pair, serving site)
-entries – pairs × sites × the served share (:func:`served_share`) – times the largest count
-(each step re-scores the entries of the pairs its site serves)."""
+"""Seconds per unit of the district search's work (:func:`district_terms` names the sizes),
+fitted by hand to the phases of eight district plans on the Helsinki district of
+``benchmarks/bench_district.py`` (500 and 2122 candidates, 5 000 and 20 000 pairs, 20–120
+RISs, with and without sizing; docs/validation/resources.md, "District plans"). ``search_main``
+is the main thread: each RIS size's (pair, serving site) entries and candidates (the
+information and its visibility), the greedy path's and the swaps' re-scores (per site placed or
+swapped, the search's entries of the pairs that site serves); ``search_lp`` the relaxations on
+the thread beside it, per LP solved (one per RIS count, a lower bound per RIS size of the
+sizing, which costs :data:`DISTRICT_LOWER_BOUND_LPS` of them), per entry plus
+:data:`DISTRICT_LP_ROWS_PER_PAIR` per pair."""
+
+DISTRICT_LOWER_BOUND_LPS = 1.8
+"""A sizing lower bound (min Σ z) costs this many coverage relaxations (measured 1.8 on the
+Helsinki district)."""
+
+DISTRICT_LP_ROWS_PER_PAIR = 60
+"""Per pair, the relaxation's cost in entries beyond its serving sites (its rows, its cover
+sets)."""
+
+DISTRICT_OVERLAP = 0.5
+"""The search is the longer of its main thread and its relaxations' thread plus this share of
+the shorter (two cores, the GIL and memory bandwidth shared)."""
+
+DISTRICT_LOOKAHEAD_STEPS = 40
+"""Re-scores of site placements a greedy path's first steps add (they try sites in pairs while
+coverage needs two sites placed together)."""
 
 
 def district_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dict[str, float]]:
-    """The sizes of a district plan's stages (:data:`DISTRICT_COEFFICIENTS`): the search is
-    roughly linear in the (pair, serving site) entries times the RIS count."""
+    """The sizes of a district plan's work (:data:`DISTRICT_COEFFICIENTS`): the (pair, serving
+    site) entries E = pairs × sites × :attr:`WorkSizes.pair_served`, the search's entries per
+    pair K = min(:data:`~ris_planner.planning.search.district.SEARCH_SITES`, E / pairs) and a
+    site's re-score K² · pairs / sites; with a target or sizing each RIS size's greedy path runs
+    up to :func:`~ris_planner.planning.search.district.most_ris` (it stops at the target, which
+    the estimate cannot know)."""
+    from ris_planner.planning.search.district import (
+        SEARCH_SITES,
+        SMALL_DISTRICT_SITES,
+        most_ris,
+    )
+
     w = WorkSizes.of(plan)
-    top = max(w.counts, default=1)
-    if w.document.sizing is not None:  # the district's sizing walks the greedy path further
-        top = max(top, *(w.document.sizing.counts or [w.document.max_ris]))
+    doc = w.document
+    n_sites, n_pairs = max(w.sites, 1), max(w.pairs, 1)
+    counts = [c for c in w.counts if c <= n_sites] or [1]
+    entries = w.pair_served * n_sites * n_pairs
+    per_pair = min(float(SEARCH_SITES), entries / n_pairs)
+    rescore = per_pair * per_pair * n_pairs / n_sites
+    target = doc.sizing is not None or doc.objective.target is not None
+    sizes = 1
+    if doc.sizing is not None:
+        sizes = len({(doc.ris.rows, doc.ris.cols), *(tuple(rc) for rc in doc.sizing.ris_sizes)})
+    longest = min(max(max(counts), most_ris(doc)) if target else max(counts), n_sites)
+    path = longest + (sizes - 1) * min(most_ris(doc), n_sites) if target else longest
+    swaps = sum(counts) * (6 if n_sites <= SMALL_DISTRICT_SITES else 1)
+    lps = len(counts) + (DISTRICT_LOWER_BOUND_LPS * sizes if target else 0.0)
     return {
-        "inputs": {"const": 1.0, "per_site": float(w.sites)},
-        "search": {
-            "const": 1.0,
-            "per_site_pair": float(w.sites * w.pairs),
-            "per_served_pair_ris": w.served * w.sites * w.pairs * top,
+        "inputs": {"const": 1.0, "per_site": float(n_sites)},
+        "search_main": {
+            "per_entry_size": entries * sizes,
+            "per_site_size": float(n_sites * sizes),
+            "per_path_rescore": rescore * (path + DISTRICT_LOOKAHEAD_STEPS * sizes),
+            "per_swap_rescore": rescore * swaps,
         },
+        "search_lp": {"per_lp_row_entry": (entries + DISTRICT_LP_ROWS_PER_PAIR * n_pairs) * lps},
         "figures": {"const": 1.0},
     }
 
 
 def district_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
     """Estimated seconds of a district plan's stages (plan.json ``timing_s``: ``inputs``,
-    ``search``, ``figures``), :data:`MARGIN` included."""
-    return {
-        stage: MARGIN * sum(DISTRICT_COEFFICIENTS[stage][t] * v for t, v in sizes.items())
+    ``search``, ``figures``), :data:`MARGIN` included; the search's two threads overlap
+    (:data:`DISTRICT_OVERLAP`)."""
+    part = {
+        stage: sum(DISTRICT_COEFFICIENTS[stage][t] * v for t, v in sizes.items())
         for stage, sizes in district_terms(plan).items()
     }
+    main, lp = part.pop("search_main"), part.pop("search_lp")
+    part["search"] = max(main, lp) + DISTRICT_OVERLAP * min(main, lp)
+    return {stage: MARGIN * part[stage] for stage in ("inputs", "search", "figures")}
 
 
 def time_estimate(plan: PlanInputs | PlanDocument | WorkSizes) -> float:
