@@ -35,8 +35,8 @@ CRB_RTOL = 1e-6
 per-path information wherever that information is non-singular to working precision."""
 
 STREET_TX_X = (-30.0, -36.0, -38.0, -41.0, -45.0, -80.0, -100.0)
-"""TX positions along the street (RX at the origin); the issue reported −38, −41, −45 m blind
-with the squared-form inversion, and −30, −36 m off by ~1e-5."""
+"""TX positions along the street (RX at the origin); the squared-form inversion
+left −38, −41, −45 m blind and −30, −36 m off by ~1e-5."""
 
 
 def street_document(known: list[str] | None = None, los: bool = True) -> dict[str, Any]:
@@ -105,7 +105,7 @@ def test_street_pairs_match_extended_precision(known: list[str], los: bool) -> N
     paths, _ = path_information(sc, tx, rx, None, None)
     keep = kept_states(sc.known)
     conds = [scaled_condition(paths, i, keep) for i in range(len(tx))]
-    if not known and los:  # the issue's regime: scaled cond(F) 1e11 … 1e15
+    if not known and los:  # the hard regime: scaled cond(F) 1e11 … 1e15
         assert min(conds) > 1e11 and max(conds) > 1e14 and max(conds) < 1e16
     for i in range(len(tx)):
         ref = mp_bounds(paths, i, keep)

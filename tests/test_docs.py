@@ -172,8 +172,6 @@ EXPLAINING_PAGES = [
     *sorted((ROOT / "docs" / "reference").rglob("*.md")),
 ]
 """Pages that explain (README, start, concepts, guides, reference): no speed figures there."""
-OTHERS_EDITING = {"docs/concepts/district.md", "docs/concepts/environment.md"}
-"""Pages another change is rewriting now; the text checks take them up once it lands."""
 TIMING = re.compile(
     r"(?<![\w.])\d+(?:[.,]\d+)?(?:\s*[–-]\s*\d+(?:\.\d+)?)?\s?(?:s|ms|min|µs|h)\b(?![-\w])"
 )
@@ -209,10 +207,6 @@ def _prose(page: Path) -> Iterator[tuple[int, str]]:
             yield number, line
 
 
-def _explaining() -> list[Path]:
-    return [p for p in EXPLAINING_PAGES if str(p.relative_to(ROOT)) not in OTHERS_EDITING]
-
-
 def test_every_cited_path_exists_and_module_imports() -> None:
     missing, unknown = [], []
     for page in PAGES:
@@ -246,7 +240,7 @@ def _resolves(dotted: str) -> bool:
 
 def test_speed_figures_only_on_validation_pages() -> None:
     hits = []
-    for page in _explaining():
+    for page in EXPLAINING_PAGES:
         for number, line in _prose(page):
             for match in TIMING.finditer(line):
                 context = line[max(0, match.start() - 30) : match.end() + 15]
@@ -260,7 +254,7 @@ def test_speed_figures_only_on_validation_pages() -> None:
 
 def test_concepts_and_guides_do_not_narrate_history() -> None:
     hits = []
-    for page in _explaining():
+    for page in EXPLAINING_PAGES:
         for number, line in _prose(page):
             for phrase in HISTORY:
                 if re.search(rf"\b{phrase}\b", line, re.I):
@@ -273,7 +267,7 @@ def test_no_issue_numbers_in_code_or_docs() -> None:
     files = [p for d in CODE_DIRS for p in sorted((ROOT / d).rglob("*.py"))]
     files += [p for p in PAGES if p.name != "history.md"]
     for path in files:
-        if SKIP_PARTS & set(path.parts) or str(path.relative_to(ROOT)) in OTHERS_EDITING:
+        if SKIP_PARTS & set(path.parts):
             continue
         for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
             if ISSUE_NUMBER.search(line):

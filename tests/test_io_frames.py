@@ -19,7 +19,7 @@ GEOD = pyproj.Geod(ellps="WGS84")
 
 ROUND_TRIP_TOLERANCE_M = 1e-6
 """lon/lat → local → lon/lat: PROJ's tmerc (Poder/Engsager series) inverts to nanometres;
-1 µm is a thousand times below the 1 mm the issue asks for."""
+1 µm is a thousand times below the 1 mm a site plan needs."""
 
 EARTH_RADIUS_MIN_M = 6.36e6
 """A lower bound of the Earth's radii of curvature at the origins tested (|lat| ≤ 61°)."""

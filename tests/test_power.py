@@ -37,7 +37,8 @@ SOLVER_RTOL = 1e-6
 (Clarabel's default tolerances are 1e-8; the whitened problem is O(1))."""
 
 RECOMPUTE_RTOL = 1e-4
-"""The issue's tolerance between the SDP objective and PEB² recomputed at its powers."""
+"""The required agreement between the SDP objective and PEB² recomputed at its powers (the
+SDP's optimum is PEB² at the powers it returns; docs/concepts/numerics.md, SDP_ACCURACY)."""
 
 
 def paper_doc(kind: str = "directional_derivative", size: int = 10, **prior: Any) -> dict:
@@ -331,7 +332,7 @@ def test_ill_conditioned_design_positions_equal_compute_bounds(known: list[str])
     assert prof is not None
     info = beam_information(sc, tx, rx, prof)
     g = prof[0].shape[0]
-    if not known:  # the regime of the issue: the squared full-state FIM is singular
+    if not known:  # the hard regime: the squared full-state FIM is singular
         _, singular = ldl.inverse_diagonal_from(
             ldl.pack(info.fim(np.ones(g))), info.stack.shape[-1]
         )
