@@ -1,7 +1,8 @@
 """An objective kind registered only here – higher is better, with a parameter of its own that
 no shipped kind uses – runs end to end through every module that reads the objective: the
-document, the plan (plan.json's direction words and certificate), the GIS export and the
-estimator check (docs/guides/adding-an-objective.md)."""
+document, the plan (plan.json's direction words and certificate), the GIS export (GeoJSON and
+GeoTIFF), the estimator check and the web page (its list, its level field, the document it
+submits and the results it draws; docs/guides/adding-an-objective.md)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,22 @@ from test_estimator_check import table1_plan
 from ris_planner.io.gis_outputs import plan_outputs
 from ris_planner.model.objectives import ObjectiveKind, objective_kind, register, unregister
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
+
+try:  # the browser test's fixtures and helpers; the rest runs without a browser
+    from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
+        WAIT_MS,
+        browser,
+        expect,
+        open_page,
+        page,
+        server,
+        shots,
+    )
+    from test_web_map import upload
+
+    NO_BROWSER = None
+except pytest.skip.Exception as exc:
+    NO_BROWSER = str(exc)
 
 LIMIT_M = 0.1
 
@@ -106,6 +123,13 @@ def test_a_higher_is_better_toy_runs_plan_export_and_estimator_check(
     files = plan_outputs(result, plan, toy_document(toy.name), tmp_path)
     fc = json.loads(files["geojson"].read_text())
     assert fc["type"] == "FeatureCollection" and fc["features"]
+    # the GeoTIFF holds the best layout's bound at the RX point (the objective's own metric)
+    rasterio = pytest.importorskip("rasterio")
+    with rasterio.open(files["geotiff"]) as ds:
+        band = ds.read(1)
+    _, values, _ = result.heatmap()
+    assert band.shape == (1, 1)
+    assert abs(float(band[0, 0]) - float(values[0])) <= 1e-6 * float(values[0])  # float32
     # the estimator check counts a pair as covered at the kind's level
     v = plan["validation"]
     assert v["threshold_m"] == LIMIT_M and v["pairs"] == 1
@@ -138,3 +162,88 @@ def test_the_guide_cites_existing_modules() -> None:
         m for m in members if not re.search(rf"^\s*def {m}\(|^\s+{m}: ", protocol, flags=re.M)
     )
     assert len(members) >= 15 and not unknown, unknown
+
+
+@pytest.mark.skipif(NO_BROWSER is not None, reason=str(NO_BROWSER))
+def test_the_page_plans_with_it(
+    toy: ObjectiveKind, page: tuple[Any, Any], server: str, shots: Any, tmp_path: Path
+) -> None:
+    """The page lists the kind from ``GET /v1/objectives``, labels its level field with the
+    kind's parameter, submits the kind's own field, and draws the plan's results the kind's
+    way (higher is better, a fraction in %). The served page runs in its own process without
+    the toy, so the requests that read it are answered here by the service's own functions
+    (where the fixture registered it), and the plan runs here on the submitted document."""
+    from api.routes.meta import objectives
+    from api.routes.web import preview_answer
+    from api.settings import Settings
+    from ris_planner.io.geoplan import plan_document
+
+    pg, _ = page
+    memory_mb = Settings().job_memory_mb
+    job_id = "7" * 32
+    sent: dict[str, Any] = {}
+
+    def view(status: str) -> dict[str, Any]:
+        done = status == "succeeded"
+        return {
+            "id": job_id,
+            "kind": "plan",
+            "status": status,
+            "progress": 1.0 if done else 0.0,
+            "message": "done" if done else "",
+            "error": None,
+            "created_at": "2026-12-05T00:00:00+00:00",
+            "started_at": None,
+            "finished_at": None,
+            "url": f"/v1/jobs/{job_id}",
+            "estimate": None,
+            "request": sent.get("doc", {}),
+            "result": sent.get("plan") if done else None,
+            "figures": {},
+        }
+
+    def answer(route: Any, body: Any, status: int = 200) -> None:
+        text = body if isinstance(body, str) else json.dumps(body)
+        route.fulfill(status=status, content_type="application/json", body=text)
+
+    def validate(route: Any) -> None:
+        got = preview_answer(route.request.post_data_buffer, memory_mb)
+        route.fulfill(status=got.status, content_type="application/json", body=got.body)
+
+    def submit(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        sent["doc"] = json.loads(route.request.post_data or "{}")
+        sent["plan"] = plan_document(sent["doc"], tmp_path / "plan").plan
+        answer(route, view("queued"), 202)
+
+    def events(route: Any) -> None:
+        data = json.dumps({k: v for k, v in view("succeeded").items() if k != "result"})
+        body = f"event: end\ndata: {data}\n\n"
+        route.fulfill(status=200, content_type="text/event-stream", body=body)
+
+    pg.route("**/v1/objectives", lambda route: answer(route, objectives().model_dump_json()))
+    pg.route("**/v1/plans/validate", validate)
+    pg.route("**/v1/plans", submit)
+    pg.route(f"**/v1/jobs/{job_id}/events", events)
+    pg.route(f"**/v1/jobs/{job_id}", lambda route: answer(route, view("succeeded")))
+    open_page(pg, server)
+    doc = toy_document(toy.name)
+    del doc["validation"]
+    upload(pg, doc, "toy-objective.json")
+    expect(pg.locator("#f-objective-kind")).to_have_value(toy.name)
+    expect(pg.locator("#f-objective-kind option:checked")).to_have_text(toy.label)
+    expect(pg.locator("#label-objective-level")).to_have_text(toy.parameter_label)
+    expect(pg.locator("#f-objective-level")).to_have_value(str(LIMIT_M))
+    pg.fill("#f-objective-level", "0.2")
+    pg.click("#submit")
+    expect(pg.locator("#job-status")).to_contain_text("succeeded", timeout=WAIT_MS)
+    assert sent["doc"]["objective"] == {"kind": toy.name, "metric": "rx", "limit_m": 0.2}
+    plan = sent["plan"]
+    assert plan["objective_better"] == "higher"
+    expect(pg.locator("#results-note")).to_contain_text(f"{toy.name} of")
+    expect(pg.locator("#results-note")).to_contain_text("higher is better")
+    best = plan["by_count"][0]["top_layouts"][0]["objective"]
+    expect(pg.locator("#count-table tbody tr").first).to_contain_text(f"{100 * best:.1f} %")
+    shots.take(pg, "objective-extension")
