@@ -149,6 +149,30 @@ def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
     assert (out / "district.png").stat().st_size > 10_000
 
 
+def test_progress_names_a_few_stages_whatever_the_candidate_count() -> None:
+    """Every progress message is ``stage`` or ``stage: detail`` with one of a few stages, so
+    the command line's bar, which redraws a stage at most every 0.1 s, draws a few lines, not
+    one per candidate (thousands on a district)."""
+    doc = street_doc(counts=(2, 3))
+    doc["sizing"] = {"target": {"objective": 0.5}, "ris_sizes": [[48, 48]]}
+    inputs = prepare_plan(doc)
+    seen: list[tuple[float, str]] = []
+    dist.plan_district(inputs, lambda f, m: seen.append((f, m)))
+    stages = {m.split(":", 1)[0] for _, m in seen}
+    assert stages <= {
+        "information",
+        "visibility",
+        "greedy path",
+        "swaps",
+        "certificate",
+        "sizing",
+        "done",
+    }, stages
+    assert sum(m.startswith("information: site") for _, m in seen) == len(inputs.sites)
+    fractions = [f for f, _ in seen]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+
+
 def test_cover_sets_are_exactly_the_covering_subsets(site) -> None:
     """For the pairs whose m_p-subsets were all tried: the recorded sites are exactly those of
     the covering m_p-subsets (brute force over the subsets), and some subset covers."""

@@ -298,7 +298,7 @@ def build_problem(
                 raise RisPlannerError("search.method 'district' needs the planar wavefront")
             factor[idx] = f
             degenerate[idx] = bad
-            progress(0.3 + 0.7 * (s + 1) / len(sites), f"site {s + 1}/{len(sites)}")
+            progress(0.3 + 0.7 * (s + 1) / len(sites), f"information: site {s + 1}/{len(sites)}")
         # a UE on a RIS leaves that pair blind in every layout of the site: no information
         packed[:, degenerate] = 0.0
         factor[degenerate] = 0.0
@@ -612,7 +612,9 @@ def greedy_path(
             if conflict is not None:
                 allowed &= ~conflict[s]
             path.append(PathStep(tuple(sorted(layout)), book.state.coverage()))
-        progress(len(layout) / max_count, f"{len(layout)} RISs: coverage {path[-1].coverage:.3f}")
+        progress(
+            len(layout) / max_count, f"path: {len(layout)} RISs, coverage {path[-1].coverage:.3f}"
+        )
     return path
 
 
@@ -1152,7 +1154,7 @@ def _sizing(
     rows: list[dict[str, Any]] = []
     answer: dict[str, Any] | None = None
     for k, (r, c) in enumerate(sorted(ladder, key=lambda rc: (rc[0] * rc[1], rc))):
-        progress(0.9 + 0.1 * k / len(ladder), f"sizing {r}×{c}")
+        progress(0.9 + 0.1 * k / len(ladder), f"sizing: {r}×{c}")
         lower_of: Callable[[], int | None] | None = None
         if (r, c) == own_size:
             pr, seen, nd, steps = problem, search, needs, path
