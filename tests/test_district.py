@@ -147,6 +147,24 @@ def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
     assert sizing["count"] is not None and sizing["lower_bound"] <= sizing["count"]
     assert "certified" in run.stdout and "sizing:" in run.stdout
     assert (out / "district.png").stat().st_size > 10_000
+    # the candidates as any plan.json lists them, and plan.geojson for a GIS: each count's
+    # layout at its candidates' poses, every candidate, the buildings
+    assert [c["name"] for c in plan["candidates"]] == [c["name"] for c in doc["candidates"]]
+    assert plan["warnings"] == []  # local metres: not a real site without buildings
+    fc = json.loads((out / "plan.geojson").read_text())
+    roles = [f["properties"]["role"] for f in fc["features"]]
+    assert roles.count("candidate") == len(doc["candidates"])
+    assert roles.count("obstacle") == len(doc["environment"]["obstacles"])
+    for e in plan["by_count"]:
+        placed = [
+            f
+            for f in fc["features"]
+            if f["properties"]["role"] == "site" and f["properties"]["ris_count"] == e["ris_count"]
+        ]
+        assert sorted(f["properties"]["name"] for f in placed) == sorted(e["sites"])
+        for f in placed:
+            cand = doc["candidates"][f["properties"]["candidate"]]
+            assert f["geometry"]["coordinates"] == cand["position"][:2]
 
 
 def test_progress_names_a_few_stages_whatever_the_candidate_count() -> None:

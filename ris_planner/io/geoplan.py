@@ -165,8 +165,11 @@ def _district_document(
 ) -> PlanFiles:
     """A district plan (:func:`ris_planner.planning.search.district.plan_district`): plan.json, with
     why ``search.method: auto`` chose it (:func:`~ris_planner.planning.resources.admission.
-    adapted_search`), and its coverage-against-count figure."""
+    adapted_search`), the candidates (as any plan.json lists them) and the warnings about the
+    site, its coverage-against-count figure and ``plan.geojson`` (each count's layout and the
+    candidates, for a GIS; a district plan has no per-point results, so no GeoTIFF or CSV)."""
     from ris_planner.model.plan import PlanDocument
+    from ris_planner.planning.inputs.sites import candidate_json
     from ris_planner.planning.outputs.district_figure import district_figure
     from ris_planner.planning.resources.admission import adapted_search
     from ris_planner.planning.search.district import plan_district
@@ -180,13 +183,36 @@ def _district_document(
         "why": why or "search.method 'district' in the document",
     }
     with clock.stage("report"):
+        plan["candidates"] = [{"index": i, **candidate_json(s)} for i, s in enumerate(inputs.sites)]
         if frame is not None:
             plan["frame"] = frame.describe()
         plan.update(license_of_document(document))
+        plan["warnings"] = site_warnings(document)
     with clock.stage("figures"):
         files = district_figure(plan, out_dir, inputs)
+    note = None
+    with clock.stage("exports"):
+        try:
+            from ris_planner.io.gis_outputs import write_gis_files
+
+            files.update(write_gis_files(district_layouts(plan), document, out_dir))
+        except MissingExtraError as exc:
+            note = str(exc)
     plan["timing_s"] = dict(clock.seconds)
-    return PlanFiles(plan, files, None, dict(clock.cpu))
+    return PlanFiles(plan, files, note, dict(clock.cpu))
+
+
+def district_layouts(plan: dict[str, Any]) -> dict[str, Any]:
+    """A district plan.json as the GIS writers read a plan: each count's layout as its one top
+    layout (candidate indices and coverage)."""
+    by_count = [
+        {
+            "ris_count": e["ris_count"],
+            "top_layouts": [{"sites": e["site_indices"], "objective": e["objective"]}],
+        }
+        for e in plan.get("by_count") or []
+    ]
+    return {**plan, "by_count": by_count}
 
 
 def plan_on(
