@@ -1091,6 +1091,12 @@ class PlanDocument(DocumentModel):
                 )
         return self
 
+    def sizing_ris_sizes(self) -> set[tuple[int, int]]:
+        """The RIS sizes (rows, cols) the sizing question compares: the document's own and
+        ``sizing.ris_sizes`` (the own size alone without ``sizing``)."""
+        extra = self.sizing.ris_sizes if self.sizing is not None else []
+        return {(self.ris.rows, self.ris.cols)} | {(int(r), int(c)) for r, c in extra}
+
     def sizing_target(self) -> Target:
         """The target of the sizing question: ``sizing.target``, else ``objective.target``,
         else coverage ≥ :data:`SIZING_COVERAGE_TARGET` (a ValueError naming ``sizing.target``

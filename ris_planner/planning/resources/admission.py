@@ -657,11 +657,7 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         fixed_heatmap_tx=doc.heatmap_tx is not None,
         district=district,
         district_share=document_shares(doc)[1] if district else 0.0,
-        district_sizes=len(
-            {(doc.ris.rows, doc.ris.cols), *(tuple(rc) for rc in doc.sizing.ris_sizes)}
-        )
-        if district and doc.sizing is not None
-        else 1,
+        district_sizes=len(doc.sizing_ris_sizes()) if district else 1,
         obstructed=doc.environment is not None and bool(doc.environment.obstacles),
         relaxed_counts=relaxed if doc.search.certificate_iterations > 0 else 0,
         sizing_runs=sizing_runs(doc),

@@ -518,9 +518,7 @@ def district_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dic
     per_pair = min(float(SEARCH_SITES), entries / n_pairs)
     rescore = per_pair * per_pair * n_pairs / n_sites
     target = doc.sizing is not None or doc.objective.target is not None
-    sizes = 1
-    if doc.sizing is not None:
-        sizes = len({(doc.ris.rows, doc.ris.cols), *(tuple(rc) for rc in doc.sizing.ris_sizes)})
+    sizes = len(doc.sizing_ris_sizes())
     longest = min(max(max(counts), most_ris(doc)) if target else max(counts), n_sites)
     path = longest + (sizes - 1) * min(most_ris(doc), n_sites) if target else longest
     swaps = sum(counts) * (6 if n_sites <= SMALL_DISTRICT_SITES else 1)

@@ -33,6 +33,7 @@ import math
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -939,11 +940,11 @@ def count_lower_bound(
     excluded: tuple[int, ...] = (),
 ) -> int | None:
     """The fewest sites any layout reaching coverage ``target`` can have (relaxation: the
-    smallest Σ z with Σ w_p y_p ≥ target, rounded up); ``None`` when no layout reaches it."""
-    a, n_var, live = _relaxation(problem, needs)
-    reachable = float(problem.weights[live].sum()) if live.size else 0.0
-    if reachable < target - 1e-12:
+    smallest Σ z with Σ w_p y_p ≥ target, rounded up); ``None`` when no layout reaches it
+    (the pairs some layout covers weigh less than the target: known before any LP)."""
+    if float(problem.weights[needs.need > 0].sum()) < target - 1e-12:
         return None
+    a, n_var, live = _relaxation(problem, needs)
     c = np.zeros(n_var)
     c[: problem.n_sites] = 1.0
     cover = -_objective_y(problem, n_var, live)
@@ -1036,7 +1037,7 @@ def plan_district(inputs: PlanInputs, progress: ProgressCallback = no_progress) 
         # behind the relaxations, so the thread beside never waits for the search
         others = {
             size: _other_size(inputs, size, problem, sizing_goal, (required, excluded), lp)
-            for size in _ladder(doc)
+            for size in doc.sizing_ris_sizes()
             if sizing_goal is not None and size != (doc.ris.rows, doc.ris.cols)
         }
         progress(0.5, "greedy path")
@@ -1150,7 +1151,7 @@ def _sizing(
     servable = float(problem.weights[servable_pairs(problem)].sum())
     goal = target * servable
     own_size = (doc.ris.rows, doc.ris.cols)
-    ladder = _ladder(doc)
+    ladder = doc.sizing_ris_sizes()
     rows: list[dict[str, Any]] = []
     answer: dict[str, Any] | None = None
     for k, (r, c) in enumerate(sorted(ladder, key=lambda rc: (rc[0] * rc[1], rc))):
@@ -1165,13 +1166,10 @@ def _sizing(
             )
             pr, seen, nd, lower_of, steps = other.problem, other.seen, other.needs, other.lower, []
         row: dict[str, Any] = {"ris_size": [r, c]}
-        reachable = float(pr.weights[nd.need > 0].sum()) >= goal - 1e-12
         if lower_of is not None:
             lower = lower_of()
-        elif reachable:
-            lower = count_lower_bound(pr, goal, nd, required, excluded)
         else:
-            lower = None
+            lower = count_lower_bound(pr, goal, nd, required, excluded)
         row["lower_bound"] = lower
         if lower is None:
             row["count"] = None
@@ -1228,12 +1226,6 @@ def _sizing(
     return out
 
 
-def _ladder(doc: Any) -> set[tuple[int, int]]:
-    """The RIS sizes of the sizing question: the document's and ``sizing.ris_sizes``."""
-    sizes = doc.sizing.ris_sizes if doc.sizing is not None else []
-    return {(doc.ris.rows, doc.ris.cols)} | {(int(r), int(c)) for r, c in sizes}
-
-
 @dataclass(frozen=True)
 class OtherSize:
     """Another RIS size of the sizing question: its information, what its search sees, its
@@ -1258,23 +1250,14 @@ def _other_size(
     on the thread ``beside`` when given, else when asked."""
     pr = build_problem(_resized(inputs, *size), like=like)
     nd = sites_needed(pr)
-    reachable = goal is not None and float(pr.weights[nd.need > 0].sum()) >= goal - 1e-12
-    if not reachable or goal is None:
-        return OtherSize(pr, pr.strongest(SEARCH_SITES), nd, lambda: None)
-    if beside is not None:
-        return OtherSize(
-            pr,
-            pr.strongest(SEARCH_SITES),
-            nd,
-            beside.submit(count_lower_bound, pr, goal, nd, *constraints).result,
-        )
-    target = goal
-    return OtherSize(
-        pr,
-        pr.strongest(SEARCH_SITES),
-        nd,
-        lambda: count_lower_bound(pr, target, nd, *constraints),
-    )
+    lower: Callable[[], int | None]
+    if goal is None:
+        lower = lambda: None  # noqa: E731
+    elif beside is not None:
+        lower = beside.submit(count_lower_bound, pr, goal, nd, *constraints).result
+    else:
+        lower = partial(count_lower_bound, pr, goal, nd, *constraints)
+    return OtherSize(pr, pr.strongest(SEARCH_SITES), nd, lower)
 
 
 def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:
