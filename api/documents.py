@@ -19,12 +19,12 @@ from pydantic.json_schema import models_json_schema
 
 from ris_planner.core.io_json import parse_json
 from ris_planner.io.candidates import CandidateOptions
-from ris_planner.io.frames import MAX_CRS_CHARS, Frame, to_local
+from ris_planner.io.frames import MAX_CRS_CHARS
+from ris_planner.io.plan_request import PlanRequest, admit_request
 from ris_planner.model.limits import prescan_document
 from ris_planner.model.plan import LayoutBeamsDocument
 from ris_planner.model.scenario import Scenario
 from ris_planner.planning import PlanDocument
-from ris_planner.planning.resources.admission import plan_check
 
 Longitude = Annotated[float, Field(ge=-180, le=180, description="Longitude [deg]")]
 Latitude = Annotated[
@@ -140,13 +140,10 @@ def json_document(body: bytes) -> Any:
     return value
 
 
-def local_plan(document: Any, memory_mb: int) -> tuple[PlanDocument, Frame | None]:
-    """A plan document as sent → (the validated local document, its frame): converted at the
-    boundary, validated (422 naming the field), sizes checked against their limits and the
-    job memory budget (413) – :func:`ris_planner.planning.resources.admission.plan_check`, as
-    ``ris-planner
-    plan`` and the job itself."""
-    local, frame = to_local(document)
-    plan = PlanDocument.model_validate(local)
-    plan_check(plan, memory_mb)
-    return plan, frame
+def local_plan(document: Any, memory_mb: int) -> PlanRequest:
+    """A plan document as sent → its admitted request (:func:`~ris_planner.io.plan_request.
+    admit_request`): converted at the boundary, validated (422 naming the field), its search
+    chosen (422 naming an option the method cannot honour), sizes checked against their limits
+    and the job memory budget (413), its resources estimated – as ``ris-planner plan`` and the
+    job itself do."""
+    return admit_request(document, memory_mb)

@@ -24,7 +24,8 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     of ``RIS_PLANNER_DASK_SCHEDULER``. The pool's processes are in the worker's process
     group: cancelling the job stops them with it (:func:`api.worker.terminate_job`)."""
     from api.settings import Settings
-    from ris_planner.io.estimates import document_estimate, plan_measured
+    from ris_planner.io.estimates import plan_measured
+    from ris_planner.io.plan_request import admit_request
     from ris_planner.planning import DaskExecutor, Executor, LocalExecutor
 
     settings = Settings()
@@ -32,9 +33,10 @@ def plan_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path
     executor: Executor = (
         DaskExecutor(address) if address else LocalExecutor(settings.plan_workers or None)
     )
-    # the submission's estimate (the same document and budget), kept in plan.json "resources"
-    estimate = document_estimate(document, settings.job_memory_mb)
-    done = plan_measured(executor, document, out_dir, progress, estimate=estimate)
+    # admitted once here, as at submission (the same document and budget): its estimate is
+    # kept in plan.json "resources"
+    request = admit_request(document, settings.job_memory_mb)
+    done = plan_measured(executor, request, out_dir, progress)
     return JobOutput(done.plan, done.files)
 
 

@@ -19,14 +19,17 @@ from tolerance import assert_close
 
 from ris_planner.planning import pipeline
 from ris_planner.planning.certify.checks import plan_check_task
-from ris_planner.planning.pipeline import plan_once, run_plan, settle_checks
+from ris_planner.planning.enumerating import run_enumerating
+from ris_planner.planning.outputs.result import PlanResult
+from ris_planner.planning.pipeline import run_plan, settle_checks
+from ris_planner.planning.prepare import prepare_plan
 from ris_planner.runtime.executor import SerialExecutor
 from ris_planner.runtime.progress import no_progress
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def checks_of(result: pipeline.PlanResult) -> list[tuple[object, ...]]:
+def checks_of(result: PlanResult) -> list[tuple[object, ...]]:
     """Each count's random-codebook summary and certificate."""
     return [
         (cr.ris_count, cr.random_codebook, cr.certificate and cr.certificate.loss_bound)
@@ -36,9 +39,11 @@ def checks_of(result: pipeline.PlanResult) -> list[tuple[object, ...]]:
 
 def test_checks_on_a_thread_give_the_in_line_answers() -> None:
     doc = timed_plan()
-    inline = plan_once(doc, no_progress, SerialExecutor())
+    inline = run_enumerating(prepare_plan(doc), no_progress, SerialExecutor())
     assert inline.pending_checks is None
-    background = plan_once(doc, no_progress, SerialExecutor(), background_checks=True)
+    background = run_enumerating(
+        prepare_plan(doc), no_progress, SerialExecutor(), background_checks=True
+    )
     assert background.pending_checks is not None  # they did run on the thread
     assert all(cr.random_codebook is None for cr in background.counts)
     settled = settle_checks(background)

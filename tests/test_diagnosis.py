@@ -21,6 +21,7 @@ from ris_planner.physics.fim import steering_gram
 from ris_planner.physics.geometry import element_positions
 from ris_planner.planning import PlanDocument, SerialExecutor, run_plan
 from ris_planner.planning.beams import layout_scenario
+from ris_planner.planning.enumerating import run_enumerating
 from ris_planner.planning.outputs.diagnosis import (
     BLOCKED_EXAMPLES,
     COVERAGE_FLOOR,
@@ -35,9 +36,10 @@ from ris_planner.planning.outputs.diagnosis import (
     verdict,
 )
 from ris_planner.planning.outputs.report import BLIND_COLOUR, write_figures
-from ris_planner.planning.pipeline import plan_once
+from ris_planner.planning.prepare import prepare_plan
 from ris_planner.planning.resources.admission import estimate_plan
-from ris_planner.planning.search.sizing import smallest
+from ris_planner.planning.search.sizing import SizeRow, answer_row
+from ris_planner.runtime.progress import no_progress
 
 GRID = {"grid": {"x": [-3, 3, 1.5], "y": [-3, 3, 1.5], "z": [1.5, 1.5, 1]}}
 RTOL = 1e-9
@@ -331,51 +333,43 @@ def test_sizing_answer_is_the_smallest_reaching_size_times_count() -> None:
     }
     result = plan(doc)
     sizing = result.to_json()["sizing"]
+    goal = sizing["goal"]["min"]
+    assert goal == pytest.approx(0.6 * sizing["servable_weight"], rel=1e-12)
     # brute force: every size and count, each a plan of its own in this process
-    brute = []
+    brute: dict[tuple[int, int, int], float] = {}
     with SerialExecutor() as ex:
-        for r, c in SIZES:
-            sub = plan_once(
-                {k: v for k, v in doc.items() if k != "sizing"} | {"ris": {"rows": r, "cols": c}},
-                lambda f, m: None,
-                ex,
-            )
-            for cr in sub.counts:
-                value = -cr.ranked[0][1]
-                brute.append(
-                    {
-                        "rows": r,
-                        "cols": c,
-                        "count": cr.ris_count,
-                        "objective": value,
-                        "reaches": value >= 0.6,
-                    }
-                )
-    want = smallest(brute)
+        for r, c in [row["ris_size"] for row in sizing["sizes"]]:  # the ladder and the own size
+            sub = {k: v for k, v in doc.items() if k != "sizing"} | {"ris": {"rows": r, "cols": c}}
+            for cr in run_enumerating(prepare_plan(sub), no_progress, ex).counts:
+                brute[(r, c, cr.ris_count)] = -cr.ranked[0][1]
+    rows = [
+        SizeRow((r, c), n, None, v)
+        for (r, c, n), v in brute.items()
+        if v >= goal - 1e-12 and all(brute[(r, c, m)] < goal for m in (2, 3) if m < n)
+    ]
+    want = answer_row(rows)
     assert want is not None
     ans = sizing["answer"]
-    assert (ans["rows"], ans["cols"], ans["count"]) == (want["rows"], want["cols"], want["count"])
-    assert ans["objective"] == want["objective"]
-    for row in sizing["table"]:  # every evaluated row is the brute-force one
-        same = next(
-            b
-            for b in brute
-            if (b["rows"], b["cols"], b["count"]) == (row["rows"], row["cols"], row["count"])
-        )
-        assert row["objective"] == same["objective"] and row["reaches"] == same["reaches"]
-    for r, c in sizing["skipped"]:  # skipped sizes could not have won
-        assert r * c * 2 >= ans["rows"] * ans["cols"] * ans["count"]
-    assert "smallest reaching" in sizing["message"]
+    assert (tuple(ans["ris_size"]), ans["count"]) == (want.ris_size, want.count)
+    assert ans["objective"] == want.objective
+    for row in sizing["sizes"]:  # every evaluated count is the brute-force one
+        r, c = row["ris_size"]
+        for tried in row["counts"]:
+            assert tried["objective"] == brute[(r, c, tried["count"])]
+            assert tried["reaches"] == (tried["objective"] >= goal - 1e-12)
+        if row["note"] is not None and row["note"].startswith("skipped"):
+            assert r * c * 2 >= ans["elements"]  # skipped sizes could not have won
+    assert "RISs of" in sizing["message"] and "of the servable pairs" in sizing["message"]
 
 
 def test_sizing_ties_go_to_fewer_rises() -> None:
     rows = [
-        {"rows": 16, "cols": 16, "count": 4, "objective": 0.9, "reaches": True},
-        {"rows": 32, "cols": 32, "count": 1, "objective": 0.9, "reaches": True},
-        {"rows": 8, "cols": 8, "count": 2, "objective": 0.1, "reaches": False},
+        SizeRow((16, 16), 4, None, 0.9),
+        SizeRow((32, 32), 1, None, 0.9),
+        SizeRow((8, 8), None, None, note="not reached"),
     ]
-    assert smallest(rows) == rows[1]
-    assert smallest(rows[2:]) is None
+    assert answer_row(rows) == rows[1]
+    assert answer_row(rows[2:]) is None
 
 
 def test_sizing_defaults_and_errors() -> None:
@@ -429,14 +423,14 @@ def test_cli_prints_rounded_objectives_and_answers_sizing(tmp_path: Path) -> Non
     plan_json = json.loads((tmp_path / "out" / "plan.json").read_text())
     full = plan_json["by_count"][0]["objective"]
     line = next(x for x in out.splitlines() if x.startswith("3 RIS:"))
-    assert f"objective {full:.3g} (" in line
+    assert f"3 RIS: {full:.3g} = " in line  # rounded, with its share of the servable pairs
     assert "sizing: " in out and plan_json["sizing"]["message"] in out
     assert (tmp_path / "out" / "sizing.png").read_bytes()[:4] == b"\x89PNG"
     # --sizing without the option in the document: the default ladder
     rc, _, _ = _cli(tmp_path, GOOD, "--sizing")
     assert rc == 0
-    table = json.loads((tmp_path / "out" / "plan.json").read_text())["sizing"]["table"]
-    assert table[0]["rows"] == 10
+    sizes = json.loads((tmp_path / "out" / "plan.json").read_text())["sizing"]["sizes"]
+    assert sizes[0]["ris_size"] == [10, 10]
 
 
 def _colour_share(path: Path, rgb: tuple[float, float, float]) -> float:

@@ -13,36 +13,39 @@ from pathlib import Path
 import numpy as np
 import pytest
 from district_site import street_doc
-from pydantic import ValidationError
 from tolerance import BOUND_ACCURACY, assert_close
 
 from ris_planner.bounds.compute import compute_bounds
+from ris_planner.core.errors import RisPlannerError
 from ris_planner.model.plan import PlanDocument
+from ris_planner.planning import district_plan
 from ris_planner.planning.beams import layout_scenario
+from ris_planner.planning.certify import district_lp as lp
 from ris_planner.planning.pipeline import run_plan
 from ris_planner.planning.prepare import prepare_plan
-from ris_planner.planning.resources.admission import adapted_search, validate_plan
-from ris_planner.planning.search import district as dist
+from ris_planner.planning.resources.admission import resolve_search, validate_plan
+from ris_planner.planning.scoring import sparse
+from ris_planner.planning.search import district as search
 
 
 @pytest.fixture(scope="module", params=[0.5, 2.0])
-def site(request: pytest.FixtureRequest) -> tuple[dict, dist.DistrictProblem, dist.Needs]:
+def site(request: pytest.FixtureRequest) -> tuple[dict, sparse.DistrictProblem, lp.Needs]:
     doc = street_doc(threshold_m=request.param)
     inputs = prepare_plan(doc)
-    problem = dist.build_problem(inputs)
-    return doc, problem, dist.sites_needed(problem)
+    problem = sparse.build_problem(inputs)
+    return doc, problem, lp.sites_needed(problem)
 
 
 def test_district_reaches_the_exhaustive_optimum_and_its_bound_holds(site) -> None:
     doc, problem, needs = site
     exact = run_plan({**doc, "search": {"method": "exhaustive"}})
-    path = dist.greedy_path(problem, 3)
+    path = search.greedy_path(problem, 3)
     for cr in exact.counts:
         best = -cr.ranked[0][1]  # the search's loss is −coverage
-        _, cov = dist.improve(problem, path[cr.ris_count - 1].sites)
+        _, cov = search.improve(problem, path[cr.ris_count - 1].sites)
         assert cov >= best - 0.01  # within 1 % of the optimum
         assert cov <= best + BOUND_ACCURACY
-        assert dist.coverage_upper_bound(problem, cr.ris_count, needs) >= best - 1e-9
+        assert lp.coverage_upper_bound(problem, cr.ris_count, needs) >= best - 1e-9
 
 
 def test_district_coverage_is_the_bounds_engines(site) -> None:
@@ -50,12 +53,12 @@ def test_district_coverage_is_the_bounds_engines(site) -> None:
     compute_bounds' PEB_R within the threshold (the environment's paths from the scene)."""
     doc, problem, _ = site
     inputs = prepare_plan(doc)
-    layout, cov = dist.improve(problem, dist.greedy_path(problem, 3)[-1].sites)
+    layout, cov = search.improve(problem, search.greedy_path(problem, 3)[-1].sites)
     d = inputs.document
     ris = [inputs.sites[s].ris for s in layout]
     scenario = layout_scenario(d.system, ris, list(d.known), d.environment)
     res = compute_bounds(scenario, inputs.pairs.tx, inputs.pairs.rx, profiles=None)
-    state = dist.LayoutState(problem, list(layout))
+    state = sparse.LayoutState(problem, list(layout))
     fin = np.isfinite(res.peb_rx)
     assert np.array_equal(fin, np.isfinite(state.metric))
     assert_close(state.metric[fin], res.peb_rx[fin], accuracy=BOUND_ACCURACY)
@@ -74,7 +77,7 @@ def test_sites_needed_is_a_valid_lower_bound(site) -> None:
         smaller = range(len(sites) + 1) if need[p] == 0 else range(int(need[p]))
         for m in smaller:
             for sub in itertools.combinations(sites, m):
-                st = dist.LayoutState(problem, list(sub))
+                st = sparse.LayoutState(problem, list(sub))
                 assert not st.metric[p] <= problem.threshold, (p, sub, need[p])
 
 
@@ -85,8 +88,8 @@ def test_the_subset_budget_keeps_the_bound_valid(site, monkeypatch: pytest.Monke
     bounds the exhaustive optimum."""
     doc, problem, full = site
     n_serving = np.diff(problem.pair_start)
-    monkeypatch.setattr(dist, "MAX_SUBSET_EVALUATIONS", int(n_serving.sum() // 4))
-    few = dist.sites_needed(problem)
+    monkeypatch.setattr(lp, "MAX_SUBSET_EVALUATIONS", int(n_serving.sum() // 4))
+    few = lp.sites_needed(problem)
     assert 0 < few.complete.sum() < full.complete.sum()
     assert np.all(few.need <= full.need) and np.all(few.complete <= full.complete)
     # the pairs that got their subsets have no more serving sites than those that did not
@@ -95,33 +98,36 @@ def test_the_subset_budget_keeps_the_bound_valid(site, monkeypatch: pytest.Monke
     exact = run_plan({**doc, "search": {"method": "exhaustive"}})
     for cr in exact.counts:
         best = -cr.ranked[0][1]
-        assert dist.coverage_upper_bound(problem, cr.ris_count, few) >= best - 1e-9
+        assert lp.coverage_upper_bound(problem, cr.ris_count, few) >= best - 1e-9
 
 
 def test_sizing_answers_with_a_certified_count(site) -> None:
     _, problem, needs = site
     goal = 0.5 * float(problem.weights[needs.need > 0].sum())
-    path = dist.greedy_path(problem, problem.n_sites, target=goal)
-    lower = dist.count_lower_bound(problem, goal, needs)
+    path = search.greedy_path(problem, problem.n_sites, target=goal)
+    lower = lp.count_lower_bound(problem, goal, needs)
     assert lower is not None
     assert path[-1].coverage >= goal - 1e-12
     assert 1 <= lower <= len(path[-1].sites)
     # every count below the certified one: its upper bound is below the goal
-    assert dist.coverage_upper_bound(problem, lower - 1, needs) < goal + 1e-6
+    assert lp.coverage_upper_bound(problem, lower - 1, needs) < goal + 1e-6
 
 
 def test_counts_above_sixteen_need_the_district_search() -> None:
+    """The enumerating searches place at most sixteen RISs: named explicitly they are refused
+    (naming the method and the count); under auto the district search takes the document."""
     doc = street_doc(counts=(20,), method="greedy")
-    with pytest.raises(ValidationError, match=r"need search\.method 'district'"):
-        PlanDocument.model_validate(doc)
-    PlanDocument.model_validate({**doc, "search": {"method": "district"}})
+    doc["candidates"] = doc["candidates"] * 2
+    with pytest.raises(RisPlannerError, match=r"search method 'greedy' places at most 16"):
+        validate_plan(doc)
+    assert validate_plan({**doc, "search": {"method": "auto"}}).search.method == "district"
 
 
 def test_district_refuses_what_it_does_not_plan() -> None:
     doc = street_doc()
     doc["objective"] = {"kind": "mean_capped", "metric": "rx", "cap_m": 5}
-    with pytest.raises(Exception, match="coverage objective"):
-        dist.build_problem(prepare_plan(doc))
+    with pytest.raises(RisPlannerError, match="plans coverage objectives"):
+        prepare_plan(doc)
 
 
 def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
@@ -139,18 +145,23 @@ def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
     )
     assert run.returncode == 0, run.stderr
     plan = json.loads((out / "plan.json").read_text())
-    assert plan["method"] == "district"
+    assert plan["search_method"]["used"] == "district"
     assert [e["ris_count"] for e in plan["by_count"]] == [2, 4]
     for e in plan["by_count"]:
-        assert e["upper_bound"] >= e["objective"] and e["gap"] >= 0
-    sizing = plan["sizing"]
-    assert sizing["count"] is not None and sizing["lower_bound"] <= sizing["count"]
+        cert = e["certificate"]
+        assert cert["objective_bound"] >= e["objective"] and cert["gap"] >= 0
+    answer = plan["sizing"]["answer"]
+    assert answer["count"] is not None and answer["lower_bound"] <= answer["count"]
     assert "certified" in run.stdout and "sizing:" in run.stdout
     assert (out / "district.png").stat().st_size > 10_000
+    # a whole plan: the figures, the per-point GeoTIFF and CSV as every plan writes them
+    for name in ("topview.png", "heatmap.png", "cdf.png", "heatmap.tif", "points.csv"):
+        assert (out / name).stat().st_size > 0, name
     # the candidates as any plan.json lists them, and plan.geojson for a GIS: each count's
     # layout at its candidates' poses, every candidate, the buildings
     assert [c["name"] for c in plan["candidates"]] == [c["name"] for c in doc["candidates"]]
-    assert plan["warnings"] == []  # local metres: not a real site without buildings
+    # local metres: not a real site without buildings; the near field, as every plan says it
+    assert [w.split(":")[0] for w in plan["warnings"]] == ["near field"]
     fc = json.loads((out / "plan.geojson").read_text())
     roles = [f["properties"]["role"] for f in fc["features"]]
     assert roles.count("candidate") == len(doc["candidates"])
@@ -161,7 +172,7 @@ def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
             for f in fc["features"]
             if f["properties"]["role"] == "site" and f["properties"]["ris_count"] == e["ris_count"]
         ]
-        assert sorted(f["properties"]["name"] for f in placed) == sorted(e["sites"])
+        assert sorted(f["properties"]["name"] for f in placed) == sorted(e["site_names"])
         for f in placed:
             cand = doc["candidates"][f["properties"]["candidate"]]
             assert f["geometry"]["coordinates"] == cand["position"][:2]
@@ -175,18 +186,13 @@ def test_progress_names_a_few_stages_whatever_the_candidate_count() -> None:
     doc["sizing"] = {"target": {"objective": 0.5}, "ris_sizes": [[48, 48]]}
     inputs = prepare_plan(doc)
     seen: list[tuple[float, str]] = []
-    dist.plan_district(inputs, lambda f, m: seen.append((f, m)))
+    run_plan(doc, lambda f, m: seen.append((f, m)))
     stages = {m.split(":", 1)[0] for _, m in seen}
-    assert stages <= {
-        "information",
-        "visibility",
-        "greedy path",
-        "swaps",
-        "certificate",
-        "sizing",
-        "done",
-    }, stages
-    assert sum(m.startswith("information: site") for _, m in seen) == len(inputs.sites)
+    assert stages <= {"plan", "fields", "report", "done"}, stages
+    detail = {m.split(": ")[1].split()[0] for _, m in seen if m.count(": ") >= 1}
+    assert detail <= {"information", "visibility", "path", "swaps", "done", "per-point", "sizing"}
+    steps = [m for _, m in seen if "information: site" in m]
+    assert len(steps) == len(inputs.sites) * 2  # the plan's and the sizing's other size
     fractions = [f for f, _ in seen]
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
 
@@ -204,7 +210,7 @@ def test_cover_sets_are_exactly_the_covering_subsets(site) -> None:
         m = int(needs.need[p])
         union: set[int] = set()
         for sub in itertools.combinations(sorted(problem.sites_of(int(p)).tolist()), m):
-            if dist.LayoutState(problem, list(sub)).metric[p] <= problem.threshold:
+            if sparse.LayoutState(problem, list(sub)).metric[p] <= problem.threshold:
                 union |= set(sub)
         assert union and union == listed[int(p)], p
 
@@ -214,14 +220,16 @@ def test_auto_search_adapts_to_the_district_search_and_says_why() -> None:
     'district' (the why names the limit); within the limit it stays 'auto'; an objective the
     district search does not plan is left to the refusal of the other searches."""
     small = PlanDocument.model_validate(street_doc(method="auto"))
-    assert adapted_search(small) == (small, None)
+    doc, choice, _ = resolve_search(small)
+    assert doc.search.method == "auto" and choice.used == "auto"
     big = street_doc(method="auto", counts=(8,))
     big["search"] = {"method": "auto", "max_exhaustive": 1, "restarts": 1000, "max_rounds": 10000}
-    doc, why = adapted_search(PlanDocument.model_validate(big))
-    assert doc.search.method == "district" and why is not None and "search limit" in why
+    doc, choice, _ = resolve_search(PlanDocument.model_validate(big))
+    assert doc.search.method == "district" and "search limit" in choice.why
     assert validate_plan(big).search.method == "district"
     capped = {**big, "objective": {"kind": "mean_capped", "metric": "rx", "cap_m": 5}}
-    assert adapted_search(PlanDocument.model_validate(capped))[1] is None
+    _, choice, _ = resolve_search(PlanDocument.model_validate(capped))
+    assert choice.used == "auto" and "coverage objectives" in choice.why
 
 
 def test_sizing_ladder_answers_the_fewest_elements(tmp_path: Path) -> None:
@@ -230,20 +238,21 @@ def test_sizing_ladder_answers_the_fewest_elements(tmp_path: Path) -> None:
     elements than the answer is skipped with that reason."""
     doc = street_doc(counts=(2,))
     doc["sizing"] = {"ris_sizes": [[16, 16], [32, 32], [48, 48]], "target": {"objective": 0.4}}
-    inputs = prepare_plan(doc)
-    plan = dist.plan_district(inputs)
+    plan = run_plan(doc).to_json()
     sizing = plan["sizing"]
+    assert sizing["goal"]["min"] == pytest.approx(0.4 * sizing["servable_weight"], rel=1e-12)
     reached = [r for r in sizing["sizes"] if r["count"] is not None]
     assert reached, sizing
     for row in reached:
         assert row["lower_bound"] <= row["count"]
-        assert row["coverage"] >= 0.4 * sizing["servable_weight"] - 1e-12
+        assert row["objective"] >= sizing["goal"]["min"] - 1e-12
     best = min(reached, key=lambda r: r["count"] * r["ris_size"][0] * r["ris_size"][1])
-    assert sizing["ris_size"] == best["ris_size"] and sizing["count"] == best["count"]
+    answer = sizing["answer"]
+    assert answer["ris_size"] == best["ris_size"] and answer["count"] == best["count"]
     for row in sizing["sizes"]:
-        if row["count"] is None and "skipped" in row.get("note", ""):
+        if row["count"] is None and "skipped" in (row["note"] or ""):
             r, c = row["ris_size"]
-            assert row["lower_bound"] * r * c >= sizing["elements"]
+            assert row["lower_bound"] * r * c >= answer["elements"]
 
 
 def test_rest_plan_job_runs_the_district_search(tmp_path: Path) -> None:
@@ -259,9 +268,9 @@ def test_rest_plan_job_runs_the_district_search(tmp_path: Path) -> None:
         view = wait_for(client, job, ("succeeded", "failed"), timeout_s=240)
         assert view["status"] == "succeeded", view.get("error")
         plan = view["result"]
-        assert plan["method"] == "district"
+        assert plan["search_method"]["used"] == "district"
         assert [e["ris_count"] for e in plan["by_count"]] == [2, 3]
-        assert all(e["upper_bound"] >= e["objective"] for e in plan["by_count"])
+        assert all(e["certificate"]["objective_bound"] >= e["objective"] for e in plan["by_count"])
         assert "district" in view["figures"]
 
 
@@ -270,8 +279,8 @@ def test_the_relaxations_layout_keeps_the_constraints() -> None:
     z = np.array([0.9, 0.8, 0.7, 0.6, 0.5])
     conflict = np.zeros((5, 5), dtype=bool)
     conflict[0, 1] = conflict[1, 0] = True  # one mounting point
-    assert dist.rounded_layout(z, 3, (4,), (2,), conflict) == (0, 3, 4)
-    assert dist.rounded_layout(z, 5, (), (2,), conflict) == (0, 3, 4)  # runs out: fewer
+    assert search.rounded_layout(z, 3, (4,), (2,), conflict) == (0, 3, 4)
+    assert search.rounded_layout(z, 5, (), (2,), conflict) == (0, 3, 4)  # runs out: fewer
 
 
 def test_what_the_search_sees_is_each_pairs_strongest_sites(site) -> None:
@@ -293,7 +302,7 @@ def test_what_the_search_sees_is_each_pairs_strongest_sites(site) -> None:
     for s in range(problem.n_sites):  # the by-site index is the pruned entries'
         assert np.array_equal(seen.pairs_of(s), np.sort(seen.entry_pair[seen.entry_site == s]))
     for layout in itertools.combinations(range(problem.n_sites), 3):
-        assert dist.LayoutState(seen, list(layout)).coverage() <= dist.exact_coverage(
+        assert sparse.LayoutState(seen, list(layout)).coverage() <= sparse.exact_coverage(
             problem, layout
         )
     assert problem.strongest(10_000) is problem
@@ -306,19 +315,17 @@ def test_reported_coverage_is_exact_when_the_search_sees_fewer_sites(
     exact one of its layout (all serving sites), at least what the search saw, and within the
     certified bound."""
     doc, problem, _ = site
-    monkeypatch.setattr(dist, "SEARCH_SITES", 2)
-    plan = dist.plan_district(prepare_plan(doc))
+    monkeypatch.setattr(district_plan, "SEARCH_SITES", 2)
+    plan = run_plan(doc).to_json()
     for e in plan["by_count"]:
-        exact = dist.exact_coverage(problem, tuple(e["site_indices"]))
-        assert e["objective"] == exact
-        seen = dist.LayoutState(problem.strongest(2), e["site_indices"]).coverage()
-        assert seen <= exact <= e["upper_bound"]
+        exact = sparse.exact_coverage(problem, tuple(e["sites"]))
+        assert_close(e["objective"], exact, ulps=2 * problem.n_pairs)  # a reordered sum
+        seen = sparse.LayoutState(problem.strongest(2), e["sites"]).coverage()
+        assert seen <= exact <= e["certificate"]["objective_bound"]
 
 
 def test_sizing_path_stops_at_the_transmissions() -> None:
     """A target or sizing path places at most one RIS fewer than the pilot transmissions (L
     RISs need L + 1 time-orthogonal transmissions) and at most MAX_DISTRICT_RIS."""
-    doc = PlanDocument.model_validate({**street_doc(), "system": {"transmissions": 6}})
-    assert dist.most_ris(doc) == 5
-    doc = doc.model_copy(update={"system": doc.system.model_copy(update={"transmissions": 999})})
-    assert dist.most_ris(doc) == dist.MAX_DISTRICT_RIS
+    assert search.most_ris(6) == 5
+    assert search.most_ris(999) == search.MAX_DISTRICT_RIS

@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pytest
 from api_helpers import api_client, wait_for
 from district_site import street_doc
 from test_api_plans import small_plan_doc
@@ -70,17 +69,15 @@ def test_cli_prints_the_estimate_before_the_progress_and_plan_json_keeps_it(
 
 
 def test_a_district_plan_has_its_estimate_and_resources(tmp_path: Path) -> None:
-    """search.method 'district' runs another path (its own stages): its estimate is the
-    district's (:func:`ris_planner.planning.resources.time_estimate.district_seconds`), plan.json
-    has the same
-    ``resources`` block."""
-    from ris_planner.io import geoplan
-
-    if not hasattr(geoplan, "_district_document"):
-        pytest.skip("plan documents do not run the district search on this tree yet")
+    """search.method 'district' has its own time model (:func:`ris_planner.planning.
+    resources.time_estimate.district_seconds`: the stages of the one pipeline, those the
+    district does not have at zero); plan.json has the same ``resources`` block as every
+    plan."""
     doc = street_doc(sample=120)
     parsed = PlanDocument.model_validate(doc)
-    assert set(stage_seconds(parsed)) == {"inputs", "search", "figures"}
+    stages = stage_seconds(parsed)
+    assert {"inputs", "search", "fields", "report", "figures", "exports"} <= set(stages)
+    assert stages["cache"] == stages["checks"] == 0.0
     text, plan = _cli_plan(tmp_path, doc)
     assert LINE.match(text.splitlines()[0]), text[:300]
     assert plan["resources"]["estimate"]["time_s"] == round(plan_estimate(parsed).time_s, 3)
@@ -268,7 +265,7 @@ def test_the_district_estimate_follows_the_entries_of_the_sidelink_pairs() -> No
     from ris_planner.planning.prepare import prepare_plan
     from ris_planner.planning.resources.admission import district_entries, plan_shape
     from ris_planner.planning.resources.served import near_pairs_sample
-    from ris_planner.planning.search.district import build_problem
+    from ris_planner.planning.scoring.sparse import build_problem
 
     doc = street_doc(sample=400, separation_m=30.0)
     parsed = PlanDocument.model_validate(doc)

@@ -137,6 +137,8 @@ def test_the_hand_over_leaves_the_site_cache_behind() -> None:
     job = figure_process.figure_job(result)
     data = pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL)
     assert b"SiteCache" not in data and b"planning.scoring.scorer" not in data  # no Scorer
-    assert len(data) < result.cache.blocks.nbytes
-    assert np.array_equal(job.cache.far_field, result.cache.far_field)
+    assert len(data) < result.scorer.cache.blocks.nbytes  # type: ignore[attr-defined]
+    weights = result.pairs.weights
+    near = job.scorer.near_field_by_site(weights)
+    assert np.array_equal(near, result.scorer.near_field_by_site(weights))
     assert np.array_equal(job.metric_weights, result.metric_weights)

@@ -152,8 +152,7 @@ def test_bench_interactive_smoke() -> None:
 def test_reports_between_stages_are_timed_once() -> None:
     """A progress report made between stages is timed as ``progress``; one made inside a
     stage only by that stage (a service job writes each report to its store)."""
-    from ris_planner.planning.pipeline import BETWEEN_STAGES, StageClock
-    from ris_planner.runtime.progress import Stages
+    from ris_planner.runtime.progress import BETWEEN_STAGES, StageClock, Stages
 
     def slow_report(fraction: float, message: str) -> None:
         time.sleep(0.02)

@@ -15,8 +15,8 @@ from ris_planner.bounds.compute import REASON_DEGENERATE, REASON_UNDERDETERMINED
 from ris_planner.model.scenario import Scenario
 from ris_planner.physics.geometry import rotation_matrix
 from ris_planner.planning import PlanResult, SerialExecutor, plan_preset, run_plan
-from ris_planner.planning.outputs.points import cell_medians, raster_cells
-from ris_planner.planning.outputs.rx_fields import REASON_NO_TX
+from ris_planner.planning.outputs.points import raster_cells
+from ris_planner.planning.outputs.rx_fields import REASON_NO_TX, cell_medians
 
 RTOL = 1e-9
 """A point's bound is compute_bounds' value for the same pairs (the same code path, batched

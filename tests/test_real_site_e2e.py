@@ -101,7 +101,7 @@ def test_command_line_chain(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     out = tmp_path / "out"
     assert main(["plan", str(plan_path), "--out", str(out), "--workers", "1"]) == 0
     text = capsys.readouterr().out
-    assert "2 RIS: sites" in text and "3 RIS: sites" in text
+    assert "\n2 RIS: " in text and "\n3 RIS: " in text
     plan = json.loads((out / "plan.json").read_text())
     check_plan(doc, plan)
     geo = json.loads((out / "plan.geojson").read_text())

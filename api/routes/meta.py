@@ -1,5 +1,5 @@
 """Service metadata: ``GET /healthz`` (no API key), ``GET /v1/presets``,
-``GET /v1/objectives`` and ``GET /v1/obstacle-kinds``."""
+``GET /v1/objectives``, ``GET /v1/obstacle-kinds`` and ``GET /v1/search-methods``."""
 
 from __future__ import annotations
 
@@ -19,7 +19,9 @@ from api.store import JobStore, StoreUnavailableError
 from api.worker import JobRunner, describe_error
 from ris_planner.environment.kinds import describe_kinds
 from ris_planner.model.objectives import objective_kind, objective_names
+from ris_planner.model.plan import SearchSpec
 from ris_planner.model.scenario import PRESET_NAMES, preset_document
+from ris_planner.model.search_methods import AUTO, PLAN_OPTIONS, registered_methods
 from ris_planner.planning import PLAN_PRESET_NAMES, plan_preset
 
 health_router = APIRouter(tags=["service"])
@@ -110,3 +112,60 @@ def obstacle_kinds() -> ObstacleKindList:
     (:func:`ris_planner.environment.kinds.describe_kinds`;
     docs/guides/adding-an-obstacle-kind.md)."""
     return ObstacleKindList(kinds=[ObstacleKindInfo(**k) for k in describe_kinds()])
+
+
+class SearchMethodInfo(BaseModel):
+    """A search method (``search.method``): what it does and its capabilities."""
+
+    name: str = Field(description="The method's JSON name")
+    label: str = Field(description="Short human name")
+    description: str = Field(description="What it does and when to use it")
+    capabilities: dict[str, Any] = Field(
+        description="objectives (any | coverage), pair_models, wavefronts, options it honours"
+        " (names of 'options'), search_fields it reads, max_ris, scoring (site_cache | sparse)"
+    )
+    docs: str = Field(description="The documentation page that explains it")
+
+
+class PlanOptionInfo(BaseModel):
+    """A document option a method may honour (a document asking a method for one it does not
+    honour is refused with 422, naming the method and the option)."""
+
+    name: str = Field(description="The capability table's name")
+    field: str = Field(description="The document field that sets it")
+    flag: str | None = Field(description="The ris-planner plan flag that sets it, if any")
+    what: str = Field(description="What it asks for")
+
+
+class SearchMethodList(BaseModel):
+    """The search methods this service runs."""
+
+    auto: SearchMethodInfo = Field(description="auto: the rule that picks a method")
+    methods: list[SearchMethodInfo] = Field(description="Registered methods, in order")
+    options: list[PlanOptionInfo] = Field(description="The options of the capability table")
+
+
+@router.get(
+    "/search-methods",
+    response_model=SearchMethodList,
+    summary="Search methods and what each honours",
+)
+def search_methods() -> SearchMethodList:
+    """The registered search methods with their capabilities
+    (:mod:`ris_planner.model.search_methods`; docs/concepts/planning.md, "Search methods"): the
+    web page lists the methods and the options each honours from it."""
+    auto = SearchMethodInfo(
+        name=AUTO,
+        label="auto",
+        description=SearchSpec.model_fields["method"].description or "",
+        capabilities={},
+        docs="docs/concepts/planning.md",
+    )
+    return SearchMethodList(
+        auto=auto,
+        methods=[SearchMethodInfo(**m.to_json()) for m in registered_methods()],
+        options=[
+            PlanOptionInfo(name=o.name, field=o.field, flag=o.flag, what=o.what)
+            for o in PLAN_OPTIONS
+        ],
+    )

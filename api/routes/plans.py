@@ -24,7 +24,7 @@ from api.routes.jobs import CONFLICT_RESPONSE, JOB_LINKS, IdempotencyKey, submit
 from api.settings import Settings
 from api.store import JobStore, JsonText
 from api.worker import JobRunner
-from ris_planner.model.plan_physics import PHYSICS_FIELDS
+from ris_planner.model.plan import PlanDocument
 
 router = APIRouter(tags=["jobs"])
 
@@ -81,11 +81,11 @@ def plan_submission(body: bytes, memory_mb: int) -> tuple[JsonText, dict[str, fl
     a geographic document is kept as sent, a local one with the RIS element fields it leaves
     unset still unset (plan.json ``physics.from``). Runs in a parse process
     (:mod:`api.offload`)."""
-    from ris_planner.planning.resources.time_estimate import plan_estimate
-
     document = json_document(body)
-    plan, frame = local_plan(document, memory_mb)
-    unset = {f for f in PHYSICS_FIELDS if f not in plan.ris.model_fields_set}
-    stored = document if frame is not None else plan.model_dump(mode="json", exclude={"ris": unset})
-    estimate = plan_estimate(plan, memory_mb).to_json()
-    return JsonText(json.dumps(stored, allow_nan=False)), estimate
+    request = local_plan(document, memory_mb)
+    if request.frame is not None:
+        stored = document
+    else:  # the fields as sent (validated): what it leaves unset stays unset (physics.from)
+        local = PlanDocument.model_validate(request.local)
+        stored = local.model_dump(mode="json", exclude_unset=True)
+    return JsonText(json.dumps(stored, allow_nan=False)), request.estimate.to_json()

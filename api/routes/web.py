@@ -37,6 +37,7 @@ from api.offload import Answer, ParsePool
 from api.security import PAGE_CSP, docs_csp
 from api.settings import Settings
 from ris_planner.io.candidates import in_document_coordinates
+from ris_planner.model.search_methods import count_method
 from ris_planner.planning.inputs.sites import candidate_json
 from ris_planner.planning.inputs.ue_maps import PointMap
 from ris_planner.planning.prepare import prepare_plan
@@ -84,7 +85,16 @@ class PlanPreview(BaseModel):
     tx_points: int = Field(ge=1, description="Points of the TX map")
     rx_points: int = Field(ge=1, description="Points of the RX map")
     layouts: dict[str, int] = Field(description="Per RIS count: C(sites, count) layouts")
-    methods: dict[str, str] = Field(description="Per RIS count: exhaustive or greedy search")
+    methods: dict[str, str] = Field(
+        description="Per RIS count: the search that runs it (exhaustive, greedy, district …)"
+    )
+    search_method: dict[str, str] = Field(
+        description="The plan's search: requested, used (auto resolved, as the job resolves"
+        " it) and why"
+    )
+    sizing_search_method: dict[str, str] | None = Field(
+        None, description="The sizing question's search (requested, used, why), with sizing"
+    )
     candidates: list[dict[str, Any]] = Field(
         description="Every candidate site: index, position [m], orientation [rad], name"
     )
@@ -149,18 +159,14 @@ def preview_answer(body: bytes, memory_mb: int) -> Answer:
 
 
 def _preview(body: bytes, memory_mb: int) -> PlanPreview:
-    document, frame = local_plan(json_document(body), memory_mb)
+    request = local_plan(json_document(body), memory_mb)
+    frame = request.frame
     with in_document_coordinates(frame):  # sites inside buildings named as the document has them
-        inputs = prepare_plan(document)
+        inputs = prepare_plan(request.admitted)
     n_sites = len(inputs.sites)
     search = inputs.document.search
     layouts = {str(c): math.comb(n_sites, c) for c in inputs.counts}
-    methods = {
-        c: search.method
-        if search.method != "auto"
-        else ("exhaustive" if n <= search.max_exhaustive else "greedy")
-        for c, n in layouts.items()
-    }
+    methods = {c: count_method(search.method, n, search.max_exhaustive) for c, n in layouts.items()}
     env = inputs.document.environment
     return PlanPreview(
         valid=True,
@@ -170,6 +176,10 @@ def _preview(body: bytes, memory_mb: int) -> PlanPreview:
         rx_points=len(inputs.rx_map.points),
         layouts=layouts,
         methods=methods,
+        search_method=inputs.choice.to_json(),
+        sizing_search_method=None
+        if inputs.sizing_choice is None
+        else inputs.sizing_choice.to_json(),
         candidates=[{"index": i, **candidate_json(s)} for i, s in enumerate(inputs.sites)],
         tx_map=_map_preview(inputs.tx_map),
         rx_map=_map_preview(inputs.rx_map),

@@ -27,19 +27,63 @@ def rounded(value: float | None, digits: int = 3) -> str:
     return "inf" if value is None else f"{value:.{digits}g}"
 
 
-def _searched(entry: dict[str, Any]) -> str:
-    """The objective of one count's entry and how it was searched: the layouts scored, or the
-    district search's certified upper bound and gap."""
+def objective_words(plan: dict[str, Any]) -> str:
+    """The objective as plan.json states it: kind, metric, level, unit and direction – ``coverage
+    of PEB_R ≤ 1 m (a fraction of the pairs, higher is better)``."""
+    obj = plan["objective"]
+    metric = {"rx": "PEB_R", "tx": "PEB_T", "max": "max(PEB_T, PEB_R)"}[obj["metric"]]
+    level = next((obj[k] for k in ("threshold_m", "cap_m") if obj.get(k) is not None), None)
+    unit = plan.get("objective_unit") or ""
+    what = "a fraction of the pairs" if unit == "" else f"in {unit}"
+    at = "" if level is None else f" ≤ {level:g} m"
+    return f"{obj['kind']} of {metric}{at} ({what}, {plan['objective_better']} is better)"
+
+
+def count_line(entry: dict[str, Any], plan: dict[str, Any]) -> str:
+    """One count's summary line: its sites by name (and index), the objective with its share
+    of the servable pairs where it is a coverage, how it was found, the certified interval."""
+    names = entry.get("site_names") or [str(s) for s in entry["sites"]]
+    sites = ", ".join(f"{n} [{i}]" for n, i in zip(names, entry["sites"], strict=True))
     value = rounded(entry["objective"])
-    if entry["method"] == "district":
-        return (
-            f"objective {value} (district, certified ≤ {rounded(entry['upper_bound'])},"
-            f" gap {rounded(entry['gap'])})"
-        )
-    return (
-        f"objective {value} ({entry['method']},"
-        f" {entry['layouts_evaluated']}/{entry['layouts_total']} layouts)"
+    share = entry.get("share_of_servable")
+    shown = value if share is None else f"{value} = {100 * share:.3g} % of the servable pairs"
+    cert = entry.get("certificate")
+    how = entry.get("found_by") or entry["method"]
+    if entry["method"] != "district":
+        how += f", {entry['layouts_evaluated']}/{entry['layouts_total']} layouts"
+    text = f"{entry['ris_count']} RIS: {shown} ({how})"
+    if cert is not None and not cert["exact"]:
+        bound = rounded(cert["objective_bound"])
+        side = "≤" if cert["bound_side"] == "upper" else "≥"
+        text += f", certified {side} {bound} (gap {rounded(cert['gap'])})"
+    elif cert is not None:
+        text += ", optimal (certified)"
+    return f"{text}; sites {sites}"
+
+
+def pairs_words(summary: dict[str, Any]) -> str:
+    """plan.json ``pairs_summary`` in words: the servable pairs (every share's denominator)
+    and the coverable ones at this RIS size."""
+    text = (
+        f"{summary['pairs']} pairs; servable (some layout of the candidates locates them):"
+        f" {100 * summary['servable_weight']:.3g} % of the weight – the denominator of every"
+        " share below"
     )
+    share = summary.get("coverable_share")
+    if share is not None:
+        text += f"; coverable at this RIS size: {100 * share:.3g} % of the servable pairs"
+    return text
+
+
+def search_lines(choice: Any, sizing: Any) -> list[str]:
+    """What the plan (and its sizing question) search with and why, when ``auto`` chose the
+    district search or the sizing runs another search than the plan: one line each."""
+    out = []
+    if choice.requested != choice.used:
+        out.append(f"search: {choice.used} ({choice.why})")
+    if sizing is not None and sizing.used != choice.used:
+        out.append(f"sizing search: {sizing.used} ({sizing.why})")
+    return out
 
 
 def listed_lines(diagnosis: dict[str, Any], plan_path: Path) -> list[str]:
@@ -67,7 +111,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
-    from ris_planner.io.estimates import document_estimate, plan_measured
+    from ris_planner.io.estimates import plan_measured
+    from ris_planner.io.plan_request import admit_request
     from ris_planner.planning.inputs.presets import load_plan_file, plan_preset
     from ris_planner.planning.outputs.diagnosis import summary_lines
     from ris_planner.planning.outputs.report import write_plan_json
@@ -87,13 +132,15 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     out = Path(args.out)
     # the interpreter's start, the imports and reading the document, before the first stage
     startup = process_age_s() if launched_as_process() else None
-    # before any work: the refusal (exit 2) or the estimate (plan.json keeps it, "resources")
-    estimate = document_estimate(doc)
-    print(f"estimate: {estimate.describe()}", file=sys.stderr, flush=True)
+    # before any work, once: the refusal (exit 2) or the estimate (plan.json keeps it)
+    request = admit_request(doc)
+    print(f"estimate: {request.estimate.describe()}", file=sys.stderr, flush=True)
+    for line in search_lines(request.admitted.choice, request.admitted.sizing_choice):
+        print(line, file=sys.stderr, flush=True)
     executor: Executor = (
         DaskExecutor(args.scheduler) if args.scheduler else LocalExecutor(args.workers)
     )
-    done = plan_measured(executor, doc, out, ProgressBar("plan"), figures, estimate)
+    done = plan_measured(executor, request, out, ProgressBar("plan"), figures)
     plan = done.plan
     if startup is not None:
         plan["timing_s"] = {"startup": startup, **plan["timing_s"]}
@@ -105,8 +152,12 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     print(f"wrote {plan_path}", file=sys.stderr)
     for p in done.files.values():
         print(f"wrote {p}", file=sys.stderr)
+    print(f"objective: {objective_words(plan)}")
+    summary = plan.get("pairs_summary")
+    if summary is not None:
+        print(f"pairs: {pairs_words(summary)}")
     for entry in plan["by_count"]:
-        print(f"{entry['ris_count']} RIS: sites {entry['sites']} {_searched(entry)}")
+        print(count_line(entry, plan))
     if "decision" in plan:
         print(f"decision: {plan['decision']['message']}")
     if "sizing" in plan:

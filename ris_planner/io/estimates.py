@@ -10,12 +10,10 @@ makes it when a plan job is submitted (the job's ``estimate``); both run the pla
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
-from ris_planner.io.candidates import in_document_coordinates
-from ris_planner.io.frames import to_local
-from ris_planner.planning.resources.time_estimate import PlanEstimate, plan_estimate, resources_json
+from ris_planner.io.plan_request import PlanRequest, admit_request
+from ris_planner.planning.resources.time_estimate import PlanEstimate, resources_json
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 if TYPE_CHECKING:
@@ -26,40 +24,29 @@ if TYPE_CHECKING:
 
 
 def document_estimate(document: dict[str, Any], memory_mb: int | None = None) -> PlanEstimate:
-    """The estimate of a plan document as given: converted from its frame, checked as the run
-    checks it (:func:`~ris_planner.planning.resources.admission.validate_plan`: a document above a
-    limit
-    or the budget raises the refusal, which names the estimate), then
-    :func:`~ris_planner.planning.resources.time_estimate.plan_estimate`. ``memory_mb``: the job
-    memory budget
-    (default ``RIS_PLANNER_JOB_MEMORY_MB``)."""
-    from ris_planner.planning.resources.admission import validate_plan
-
-    t0 = time.perf_counter()
-    local, frame = to_local(document)
-    with in_document_coordinates(frame):
-        doc = validate_plan(local, memory_mb)
-    est = plan_estimate(doc, memory_mb)
-    return replace(est, seconds=time.perf_counter() - t0)
+    """The estimate of a plan document as given (:func:`~ris_planner.io.plan_request.
+    admit_request`: converted, admitted and estimated once; a refusal raises)."""
+    return admit_request(document, memory_mb).estimate
 
 
 def plan_measured(
     executor: Any,
-    document: dict[str, Any],
+    request: PlanRequest | dict[str, Any],
     out_dir: Path,
     progress: ProgressCallback = no_progress,
     figures: FigureProcess | None = None,
-    estimate: PlanEstimate | None = None,
 ) -> PlanFiles:
-    """:func:`~ris_planner.io.geoplan.plan_on` with plan.json ``resources``: ``estimate``
-    (:func:`document_estimate` when not given) and what the run measured – its wall seconds
-    from here to plan.json's content and its process's peak resident memory; making the
-    estimate is a stage of ``timing_s`` (``estimate``)."""
+    """:func:`~ris_planner.io.geoplan.plan_on` with plan.json ``resources``: the request's
+    estimate and what the run measured – its wall seconds from here to plan.json's content and
+    its process's peak resident memory (a document as given is admitted first); making the
+    estimate (the admission) is a stage of ``timing_s`` (``estimate``)."""
     from ris_planner.io.geoplan import plan_on
 
-    est = document_estimate(document) if estimate is None else estimate
+    if not isinstance(request, PlanRequest):
+        request = admit_request(request)
+    est = request.estimate
     t0 = time.perf_counter()
-    done = plan_on(executor, document, out_dir, progress, figures)
+    done = plan_on(executor, request, out_dir, progress, figures)
     done.plan["resources"] = resources_json(est, time.perf_counter() - t0)
     done.plan["timing_s"] = {"estimate": est.seconds, **done.plan["timing_s"]}
     return done

@@ -430,6 +430,10 @@ def license_of_document(document: Any) -> dict[str, str]:
     return out
 
 
+Converted = tuple[dict[str, Any], "Frame | None"]
+"""A document in local metres and its frame (:func:`to_local`'s answer)."""
+
+
 def to_local(document: Any) -> tuple[Any, Frame | None]:
     """(the document in local metres without ``frame``, its :class:`Frame`), or the document
     unchanged and ``None`` when it has no ``frame`` (or is no JSON object: the document model

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from ris_planner.environment.kinds.geojson import obstacle_feature
 from ris_planner.environment.model import Environment
-from ris_planner.io.frames import Frame, license_of_document, to_local
+from ris_planner.io.frames import Converted, Frame, license_of_document, to_local
 
 FloatArray = NDArray[np.float64]
 
@@ -98,10 +98,12 @@ def plan_geojson(
     plan: dict[str, Any],
     document: dict[str, Any],
     points: list[dict[str, Any]] | None = None,
+    converted: Converted | None = None,
 ) -> dict[str, Any]:
     """The FeatureCollection of a plan (module docstring); ``points`` defaults to
-    ``plan["points"]`` (absent: no UE features)."""
-    local, frame = to_local(document)
+    ``plan["points"]`` (absent: no UE features); ``converted``: the document in local metres
+    and its frame when the caller converted it already."""
+    local, frame = to_local(document) if converted is None else converted
     out = _Out(frame)
     h0 = frame.origin[2] if frame is not None else 0.0  # heights back in the document's datum
     size = _ris_size(local)

@@ -1,8 +1,8 @@
-"""A plan document as given – local metres or a geographic ``frame`` – → ``plan.json``, the PNG
+"""An admitted plan document (:mod:`ris_planner.io.plan_request`) → ``plan.json``, the PNG
 figures and the GIS files: the one path of ``ris-planner plan --out`` and of the service's plan
-jobs, so both write the same files for the same document.
+jobs, whatever the search method, so both write the same files for the same document.
 
-The document is converted once (:func:`~ris_planner.io.frames.to_local`), planned in local
+The document was converted once (:func:`~ris_planner.io.frames.to_local`), is planned in local
 metres, and its ``plan.json`` gains ``"frame": {"origin": [lon, lat, h], "local_crs": proj4}``
 when it had a frame, the document's ``license`` / ``attribution``, and a warning first in
 ``warnings`` when such a real site has no obstacles (:func:`site_warnings`); ``plan.geojson`` /
@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING, Any
 
 from ris_planner.io import MissingExtraError
 from ris_planner.io.candidates import in_document_coordinates
-from ris_planner.io.frames import license_of_document, search_region_lonlat, to_local
-from ris_planner.runtime.progress import ProgressCallback, Stages, no_progress
+from ris_planner.io.frames import license_of_document, search_region_lonlat
+from ris_planner.io.plan_request import PlanRequest, admit_request
+from ris_planner.runtime.progress import ProgressCallback, StageClock, Stages, no_progress
 
 if TYPE_CHECKING:
     from ris_planner.planning.figure_process import FigureProcess
@@ -66,54 +67,52 @@ class PlanFiles:
 
 
 def plan_document(
-    document: dict[str, Any],
+    request: PlanRequest | dict[str, Any],
     out_dir: Path,
     progress: ProgressCallback = no_progress,
     executor: Any = None,
     figures: FigureProcess | None = None,
 ) -> PlanFiles:
-    """Convert, plan (:func:`~ris_planner.planning.run_plan` with ``executor``), write
-    the figures and GIS files into ``out_dir``; ``plan.json`` itself is the caller's to write
-    (the command line writes it, a job stores it as its result).
+    """Plan an admitted document (:func:`~ris_planner.io.plan_request.admit_request`; a
+    document as given is admitted first; every
+    search method through the one pipeline, :func:`~ris_planner.planning.pipeline.run_plan`
+    with ``executor``), write the figures and GIS files into ``out_dir``; ``plan.json`` itself
+    is the caller's to write (the command line writes it, a job stores it as its result).
 
     Progress goes over the stages ``plan`` (the search: cache, search, checks, beams),
     ``fields`` (every count's per-point bounds), ``report`` (the summary and plan.json),
-    ``figures`` and ``exports``, each with a share
-    proportional to its estimated work (:mod:`ris_planner.planning.resources.time_estimate`); 1.0
-    only once the
-    files are written. plan.json's ``timing_s`` holds every stage's seconds, these outputs
-    included (:class:`~ris_planner.planning.pipeline.StageClock`): their sum is this call's
-    wall time. Checks that run on a thread
-    (:class:`~ris_planner.planning.certify.checks.PendingChecks`)
+    ``figures`` and ``exports``, each with a share proportional to its estimated work
+    (:mod:`ris_planner.planning.resources.time_estimate`); 1.0 only once the files are
+    written. plan.json's ``timing_s`` holds every stage's seconds, these outputs included
+    (:class:`~ris_planner.runtime.progress.StageClock`): their sum is this call's wall time.
+    Checks that run on a thread (:class:`~ris_planner.planning.certify.checks.PendingChecks`)
     run beside the fields and the figures; ``timing_s["checks"]`` is the part of them that
     those stages did not hide (the wait before plan.json). With ``figures`` (the command
     line's :class:`~ris_planner.planning.figure_process.FigureProcess`) a helper process
-    draws
-    the figures beside the checks, the report and the exports; ``timing_s["figures"]`` is then
-    the hand-over plus the wait for the helper at the end."""
+    draws the figures beside the checks, the report and the exports;
+    ``timing_s["figures"]`` is then the hand-over plus the wait for the helper at the end."""
     t0, c0 = time.perf_counter(), time.process_time()  # the imports: the inputs' time too
     from ris_planner.planning.certify.checks import cancelled_on_error
     from ris_planner.planning.outputs.report import write_figures
-    from ris_planner.planning.pipeline import StageClock, pipeline_work, run_plan, settle_checks
+    from ris_planner.planning.pipeline import pipeline_work, run_plan, settle_checks
     from ris_planner.planning.prepare import prepare_plan
     from ris_planner.planning.resources.time_estimate import report_work
 
+    if not isinstance(request, PlanRequest):
+        request = admit_request(request)
+    document, frame = request.given, request.frame
     clock = StageClock()
     clock.add("inputs", time.perf_counter() - t0, time.process_time() - c0)
-    with clock.stage("inputs"):
-        local, frame = to_local(document)
-        with in_document_coordinates(frame):
-            inputs = prepare_plan(local)
-    if inputs.document.search.method == "district":
-        return _district_document(document, local, inputs, frame, out_dir, progress, clock)
+    with clock.stage("inputs"), in_document_coordinates(frame):
+        inputs = prepare_plan(request.admitted)
     stages = Stages(
         progress, {**pipeline_work(inputs), **{k: report_work(inputs)[k] for k in OUTPUTS}}, clock
     )
-    with in_document_coordinates(frame):  # a sweep prepares its own plans
+    with in_document_coordinates(frame):
         result = run_plan(
-            local,
+            request.admitted,
             executor=executor,
-            inputs=None if inputs.document.sweep is not None else inputs,
+            inputs=inputs,
             stages=stages,
             clock=clock,
             settle=False,
@@ -143,7 +142,8 @@ def plan_document(
         try:
             from ris_planner.io.gis_outputs import plan_outputs
 
-            files.update(plan_outputs(result, plan, document, out_dir))
+            converted = (request.local, frame)
+            files.update(plan_outputs(result, plan, document, out_dir, converted))
         except MissingExtraError as exc:
             note = str(exc)
     if figures is not None:
@@ -154,70 +154,9 @@ def plan_document(
     return PlanFiles(plan, files, note, dict(clock.cpu))
 
 
-def _district_document(
-    document: dict[str, Any],
-    local: dict[str, Any],
-    inputs: Any,
-    frame: Any,
-    out_dir: Path,
-    progress: ProgressCallback,
-    clock: Any,
-) -> PlanFiles:
-    """A district plan (:func:`ris_planner.planning.search.district.plan_district`): plan.json, with
-    why ``search.method: auto`` chose it (:func:`~ris_planner.planning.resources.admission.
-    adapted_search`), the candidates (as any plan.json lists them) and the warnings about the
-    site, its coverage-against-count figure and ``plan.geojson`` (each count's layout and the
-    candidates, for a GIS; a district plan has no per-point results, so no GeoTIFF or CSV)."""
-    from ris_planner.model.plan import PlanDocument
-    from ris_planner.planning.inputs.sites import candidate_json
-    from ris_planner.planning.outputs.district_figure import district_figure
-    from ris_planner.planning.resources.admission import adapted_search
-    from ris_planner.planning.search.district import plan_district
-
-    with clock.stage("search"):
-        plan = plan_district(inputs, progress)
-    _, why = adapted_search(PlanDocument.model_validate(local))
-    plan["search_method"] = {
-        "requested": (local.get("search") or {}).get("method", "auto"),
-        "used": "district",
-        "why": why or "search.method 'district' in the document",
-    }
-    with clock.stage("report"):
-        plan["candidates"] = [{"index": i, **candidate_json(s)} for i, s in enumerate(inputs.sites)]
-        if frame is not None:
-            plan["frame"] = frame.describe()
-        plan.update(license_of_document(document))
-        plan["warnings"] = site_warnings(document)
-    with clock.stage("figures"):
-        files = district_figure(plan, out_dir, inputs)
-    note = None
-    with clock.stage("exports"):
-        try:
-            from ris_planner.io.gis_outputs import write_gis_files
-
-            files.update(write_gis_files(district_layouts(plan), document, out_dir))
-        except MissingExtraError as exc:
-            note = str(exc)
-    plan["timing_s"] = dict(clock.seconds)
-    return PlanFiles(plan, files, note, dict(clock.cpu))
-
-
-def district_layouts(plan: dict[str, Any]) -> dict[str, Any]:
-    """A district plan.json as the GIS writers read a plan: each count's layout as its one top
-    layout (candidate indices and coverage)."""
-    by_count = [
-        {
-            "ris_count": e["ris_count"],
-            "top_layouts": [{"sites": e["site_indices"], "objective": e["objective"]}],
-        }
-        for e in plan.get("by_count") or []
-    ]
-    return {**plan, "by_count": by_count}
-
-
 def plan_on(
     executor: Any,
-    document: dict[str, Any],
+    request: PlanRequest | dict[str, Any],
     out_dir: Path,
     progress: ProgressCallback = no_progress,
     figures: FigureProcess | None = None,
@@ -226,7 +165,7 @@ def plan_on(
     pool is the plan's time too (``timing_s["workers_close"]``, so that ``timing_s`` sums to
     the wall time of the command line's and a job's plan alike)."""
     with executor:  # the document is converted from its frame there (ris_planner.io.frames)
-        done = plan_document(document, out_dir, progress, executor, figures)
+        done = plan_document(request, out_dir, progress, executor, figures)
         t_close = time.perf_counter()
     done.plan["timing_s"]["workers_close"] = time.perf_counter() - t_close
     return done

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ris_planner.environment.kinds import footprint_contains, kind_of
 from ris_planner.environment.model import Environment
 from ris_planner.io import require
-from ris_planner.io.frames import license_of_document, to_local
+from ris_planner.io.frames import Converted, license_of_document, to_local
 
 FloatArray = NDArray[np.float64]
 
@@ -109,11 +109,13 @@ def write_geotiff(
     document: dict[str, Any],
     ris_count: str | None = None,
     pixel_m: float | None = None,
+    converted: Converted | None = None,
 ) -> Path:
     """The heatmap GeoTIFF (module docstring) of per-point results for ``ris_count`` (default
-    the largest count the points carry)."""
+    the largest count the points carry); ``converted``: the document in local metres and its
+    frame when the caller converted it already."""
     rasterio = require("rasterio")
-    local, frame = to_local(document)
+    local, frame = to_local(document) if converted is None else converted
     key = ris_count or _largest_count(points)
     pos = np.array([p["position"] for p in points], dtype=float)
     val = np.array(

@@ -20,6 +20,8 @@ lines ``# license: …`` / ``# attribution: …`` before the CSV header (read wi
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,13 +29,79 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.core.io_json import readable_json
+from ris_planner.io.frames import Converted, to_local
 from ris_planner.io.geojson_write import plan_geojson
 from ris_planner.io.geotiff import write_geotiff
 from ris_planner.io.points_csv import points_csv
 
 FloatArray = NDArray[np.float64]
 
-GIS_FILES = {"geojson": "plan.geojson", "geotiff": "heatmap.tif", "points_csv": "points.csv"}
+
+@dataclass(frozen=True)
+class PlanWriter:
+    """One GIS file of a plan (:data:`PLAN_WRITERS`): the command line writes it into its
+    output folder, a service job stores it under its ``name`` with its ``media_type``, the
+    web page offers it for download."""
+
+    name: str
+    """The job's file name (``GET /v1/jobs/{id}/files/{name}``)."""
+    filename: str
+    """The file written into the output folder."""
+    media_type: str
+    description: str
+    per_point: bool
+    """Written only with per-point results."""
+    write: Callable[[dict[str, Any], dict[str, Any], Converted, Points, Path], None]
+    """(plan.json, the document as given, it converted, the per-point results, the path)."""
+
+
+Points = list[dict[str, Any]]
+
+
+def _geojson(
+    plan: dict[str, Any], doc: dict[str, Any], conv: Converted, pts: Points, to: Path
+) -> None:
+    to.write_text(readable_json(plan_geojson(plan, doc, pts, conv)))
+
+
+def _csv(plan: dict[str, Any], doc: dict[str, Any], conv: Converted, pts: Points, to: Path) -> None:
+    to.write_text(points_csv(pts, doc, conv))
+
+
+def _tif(plan: dict[str, Any], doc: dict[str, Any], conv: Converted, pts: Points, to: Path) -> None:
+    write_geotiff(to, pts, doc, converted=conv)
+
+
+PLAN_WRITERS: tuple[PlanWriter, ...] = (
+    PlanWriter(
+        "geojson",
+        "plan.geojson",
+        "application/geo+json",
+        "chosen sites, candidates, UE results, buildings",
+        False,
+        _geojson,
+    ),
+    PlanWriter(
+        "geotiff",
+        "heatmap.tif",
+        "image/tiff",
+        "the largest count's bound per RX point (GeoTIFF, the frame's CRS)",
+        True,
+        _tif,
+    ),
+    PlanWriter(
+        "points_csv",
+        "points.csv",
+        "text/csv",
+        "every RX point's bound, serving sites and reason per count",
+        True,
+        _csv,
+    ),
+)
+"""The GIS files of a plan, in the order they are written: the one list the command line,
+the service's media types and the web page's downloads read (``GET /v1/plan-files``)."""
+
+GIS_FILES = {w.name: w.filename for w in PLAN_WRITERS}
 """Job file name → file written by :func:`write_gis_files`."""
 
 
@@ -64,25 +132,31 @@ def write_gis_files(
     document: dict[str, Any],
     out_dir: Path,
     points: list[dict[str, Any]] | None = None,
+    converted: Converted | None = None,
 ) -> dict[str, Path]:
-    """Write ``plan.geojson``, and with per-point results (``plan["points"]`` or ``points``)
-    ``heatmap.tif`` and ``points.csv``; returns :data:`GIS_FILES` name → path."""
-
+    """Write every :data:`PLAN_WRITERS` file – the per-point ones only with per-point results
+    (``plan["points"]`` or ``points``); returns name → path. ``converted``: the document in
+    local metres and its frame when the caller converted it already."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    pts = plan.get("points") or points
-    paths = {"geojson": out_dir / GIS_FILES["geojson"]}
-    fc = plan_geojson(plan, document, pts)
-    paths["geojson"].write_text(readable_json(fc))
-    if pts:
-        paths["geotiff"] = write_geotiff(out_dir / GIS_FILES["geotiff"], pts, document)
-        paths["points_csv"] = out_dir / GIS_FILES["points_csv"]
-        paths["points_csv"].write_text(points_csv(pts, document))
+    pts = plan.get("points") or points or []
+    conv = to_local(document) if converted is None else converted
+    paths: dict[str, Path] = {}
+    for writer in PLAN_WRITERS:
+        if writer.per_point and not pts:
+            continue
+        path = out_dir / writer.filename
+        writer.write(plan, document, conv, pts, path)
+        paths[writer.name] = path
     return paths
 
 
 def plan_outputs(
-    result: Any, plan: dict[str, Any], document: dict[str, Any], out_dir: Path
+    result: Any,
+    plan: dict[str, Any],
+    document: dict[str, Any],
+    out_dir: Path,
+    converted: Converted | None = None,
 ) -> dict[str, Path]:
     """:func:`write_gis_files` for a :class:`~ris_planner.planning.PlanResult` (of the
     local document): per-point results from ``plan["points"]``, else from the heatmap (the
@@ -91,4 +165,4 @@ def plan_outputs(
     if not plan.get("points"):
         pts, vals, layout = result.heatmap()
         points = heatmap_points(pts, vals, result.rx_map.weights, len(layout))
-    return write_gis_files(plan, document, out_dir, points)
+    return write_gis_files(plan, document, out_dir, points, converted)

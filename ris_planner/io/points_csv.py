@@ -15,13 +15,16 @@ from typing import Any
 
 import numpy as np
 
-from ris_planner.io.frames import license_of_document, to_local
+from ris_planner.io.frames import Converted, license_of_document, to_local
 from ris_planner.io.geojson_write import LONLAT_DIGITS
 
 
-def points_csv(points: list[dict[str, Any]], document: dict[str, Any]) -> str:
-    """The per-point CSV text (module docstring)."""
-    _, frame = to_local(document)
+def points_csv(
+    points: list[dict[str, Any]], document: dict[str, Any], converted: Converted | None = None
+) -> str:
+    """The per-point CSV text (module docstring); ``converted``: the document in local metres
+    and its frame when the caller converted it already."""
+    _, frame = to_local(document) if converted is None else converted
     counts = sorted({k for p in points for k in (p.get("bound_m") or {})}, key=int)
     geo = ["lon", "lat", "h_m"] if frame is not None else []
     head = ["index", "x_m", "y_m", "z_m", *geo, "weight"]

@@ -40,16 +40,17 @@ from ris_planner.model.scenario import (
     SystemParams,
     finite_point,
 )
+from ris_planner.model.search_methods import (
+    AUTO,
+    MAX_DISTRICT_RIS,
+    MAX_LAYOUT_RIS,
+    method_names,
+    search_method,
+)
 from ris_planner.model.simulation import Multipath
 
 MAX_PAIRS_LIMIT = 500_000
 """The largest ``max_pairs`` a document may set (memory: a cached site holds 28 floats per pair)."""
-
-MAX_LAYOUT_RIS = 16
-"""The most RISs in a layout of the exhaustive and greedy searches."""
-
-MAX_DISTRICT_RIS = 200
-"""The most RISs in a layout of the district search (search.method 'district')."""
 
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
@@ -415,9 +416,22 @@ class Target(DocumentModel):
     def met(self, value: float) -> bool:
         """Whether an objective value meets the target (``inf`` never meets a ``max``)."""
         if self.min is not None:
-            return value >= self.min
+            return value >= self.min - GOAL_ATOL
         assert self.max is not None
         return value <= self.max
+
+
+GOAL_ATOL = 1e-12
+"""A weighted fraction meets a ``min`` within this (rounding of weight sums)."""
+
+
+def target_goal(kind: str, target: Target, servable_weight: float) -> Target:
+    """The objective value a target asks for: a share of the servable pairs' weight for a kind
+    whose targets are shares of them (:attr:`~ris_planner.model.objectives.protocol.
+    ObjectiveKind.share_of_servable`: coverage), else the target as written."""
+    if objective_kind(kind).share_of_servable and target.min is not None:
+        return Target(min=target.min * servable_weight)
+    return target
 
 
 class Constraints(DocumentModel):
@@ -533,6 +547,12 @@ SIZING_COVERAGE_TARGET = 0.9
 pair weight with a bound ≤ threshold_m (docs/concepts/diagnosis.md)."""
 
 
+def _method_schema(schema: dict[str, Any]) -> None:
+    """``search.method``'s JSON schema: ``auto`` and the registered methods (as a Literal
+    gives; methods may register after this module is imported)."""
+    schema["enum"] = list(method_names())
+
+
 class SizingTarget(DocumentModel):
     """The objective value the sizing question must reach: coverage ≥ it (a fraction), a
     bound in metres (mean_capped, quantile) ≤ it."""
@@ -561,9 +581,24 @@ class Sizing(DocumentModel):
     )
     target: SizingTarget | None = Field(
         None,
-        description="What to reach (default: objective.target, else coverage ≥ 0.9; a"
-        " mean_capped or quantile objective without objective.target needs it)",
+        description="What to reach (default: objective.target, else coverage ≥ 0.9 of the"
+        " servable pairs; a mean_capped or quantile objective without objective.target needs"
+        " it)",
     )
+    method: str = Field(
+        AUTO,
+        description="The search that answers it at each size: auto (the plan's own enumerating"
+        " search where its runs fit the search limits, else the district search – the reason is"
+        " in plan.json sizing.search_method) or a registered method",
+        json_schema_extra=_method_schema,
+    )
+
+    @field_validator("method")
+    @classmethod
+    def _known_method(cls, method: str) -> str:
+        if method != AUTO:
+            search_method(method)  # a ValueError naming the known ones
+        return method
 
     @field_validator("ris_sizes")
     @classmethod
@@ -708,12 +743,24 @@ pays its interpreter, imports and kernels before its first task."""
 class SearchSpec(DocumentModel):
     """The placement search."""
 
-    method: Literal["auto", "exhaustive", "greedy", "district"] = Field(
-        "auto",
-        description="auto: exhaustive when the layout count ≤ max_exhaustive, else greedy;"
-        " district: tens of RISs from thousands of candidates by locality, each count with a"
-        " certified coverage gap (coverage objectives; docs/concepts/district.md)",
+    method: str = Field(
+        AUTO,
+        description="auto: the planner chooses – exhaustive when a count's layouts are at most"
+        " max_exhaustive, else greedy, and district where those cannot take the document (the"
+        " reason is in plan.json search_method); exhaustive; greedy; district: tens of RISs"
+        " from thousands of candidates by locality, each count with a certified coverage"
+        " interval (coverage objectives; docs/concepts/district.md). GET /v1/search-methods"
+        " lists each method's capabilities",
+        json_schema_extra=_method_schema,
     )
+
+    @field_validator("method")
+    @classmethod
+    def _known_method(cls, method: str) -> str:
+        if method != AUTO:
+            search_method(method)  # a ValueError naming the known ones
+        return method
+
     max_exhaustive: int = Field(
         100_000, ge=1, le=5_000_000, description="Largest layout count searched exhaustively"
     )
@@ -1064,11 +1111,6 @@ class PlanDocument(DocumentModel):
         if self.pairs == "unordered" and self.tx_map != self.rx_map:
             raise ValueError("pairs 'unordered' needs tx_map and rx_map to be the same map")
         largest = max(self.max_counts)
-        if largest > MAX_LAYOUT_RIS and self.search.method != "district":
-            raise ValueError(
-                f"{largest} RISs in a layout need search.method 'district' (the other searches"
-                f" take at most {MAX_LAYOUT_RIS})"
-            )
         if largest > MAX_DISTRICT_RIS:
             raise ValueError(f"ris_count {largest} is above the limit of {MAX_DISTRICT_RIS}")
         if self.ris_count is None and self.objective.target is None:
@@ -1135,6 +1177,14 @@ class PlanDocument(DocumentModel):
         if self.ris_count is not None:
             return list(self.ris_count)
         return list(range(1, self.max_ris + 1))
+
+    def sizing_counts(self) -> list[int]:
+        """The RIS counts the sizing question tries at each size: ``sizing.counts``, else the
+        document's ``ris_count``, else 1 … ``max_ris`` (stopping at the first that reaches the
+        target)."""
+        if self.sizing is not None and self.sizing.counts is not None:
+            return list(self.sizing.counts)
+        return self.max_counts
 
     def facade_prisms(self) -> list[list[tuple[int, Prism]]]:
         """Per entry of ``facades``: (obstacle index, prism) of each name in ``of``; raises a

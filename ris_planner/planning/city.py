@@ -26,8 +26,7 @@ from ris_planner.core.errors import RisPlannerError
 from ris_planner.model.plan import PairSample, PlanDocument
 from ris_planner.planning.inputs.separation import near_combinations
 from ris_planner.planning.inputs.ue_maps import build_map
-from ris_planner.planning.prepare import prepare_plan
-from ris_planner.planning.search.district import plan_district
+from ris_planner.planning.pipeline import run_plan
 from ris_planner.runtime.executor import Executor, SerialExecutor
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
@@ -107,7 +106,7 @@ def _district_task(_shared: object, district: dict[str, Any]) -> dict[str, Any]:
     doc = {k: v for k, v in district.items() if k not in ("district", "weight")}
     if not doc.get("ris_count"):
         doc.pop("ris_count", None)
-    plan = plan_district(prepare_plan(doc))
+    plan = run_plan(doc, executor=SerialExecutor()).to_json()
     return {"district": district["district"], "weight": district["weight"], **plan}
 
 
@@ -138,7 +137,8 @@ def plan_city(
                 )
                 / weight,
                 "upper_bound": sum(
-                    p["weight"] * r["upper_bound"] for p, r in zip(plans, rows, strict=True)
+                    p["weight"] * r["certificate"]["objective_bound"]
+                    for p, r in zip(plans, rows, strict=True)
                 )
                 / weight,
             }

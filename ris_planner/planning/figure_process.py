@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.planning.outputs.result import PlanResult
-from ris_planner.planning.scoring.scorer import Scorer
+from ris_planner.planning.scoring.layout_scorer import LayoutScorer
 
 _HEADER = struct.Struct("<Q")
 """Each message: its length (8 bytes, little-endian), then a pickle."""
@@ -68,25 +68,28 @@ def _receive(stream: IO[bytes]) -> Any:
 
 
 @dataclass(frozen=True)
-class _CacheView:
-    far_field: NDArray[np.bool_]
-
-
-@dataclass(frozen=True)
 class _ScorerView:
-    """What the figures read of a plan's scorer: its sites' far-field flags and the metric's
-    column weights – not the site cache itself (hundreds of MB for a large plan)."""
+    """What the figures read of a plan's scorer
+    (:class:`~ris_planner.planning.scoring.layout_scorer.LayoutScorer`): each site's
+    near-field weight and the metric's column weights – not the information itself (hundreds of
+    MB for a large plan)."""
 
-    cache: _CacheView
+    near: NDArray[np.float64]
     metric_weights: NDArray[np.float64]
+    mirror: bool
+
+    def near_field_by_site(self, weights: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self.near
 
 
 def figure_job(result: PlanResult) -> PlanResult:
     """``result`` as the helper needs it: without its pending checks (they stay here) and with
     a view of its scorer that holds only what the figures read (:class:`_ScorerView`), so the
-    hand-over's size follows the maps and fields, not the site cache."""
-    view = _ScorerView(_CacheView(result.cache.far_field), result.metric_weights)
-    return dataclasses.replace(result, pending_checks=None, scorer=cast(Scorer, view))
+    hand-over's size follows the maps and fields, not the information."""
+    scorer = result.scorer
+    near = scorer.near_field_by_site(result.pairs.weights)
+    view = _ScorerView(near, scorer.metric_weights, scorer.mirror)
+    return dataclasses.replace(result, pending_checks=None, scorer=cast(LayoutScorer, view))
 
 
 def _draw(result: PlanResult, out_dir: Path) -> dict[str, Path]:

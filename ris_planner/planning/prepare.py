@@ -5,6 +5,7 @@ limit checked before any bound is computed."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -13,15 +14,12 @@ from ris_planner.core.errors import RisPlannerError
 from ris_planner.environment import Scene
 from ris_planner.model.limits import cache_layout
 from ris_planner.model.plan import PlanDocument
+from ris_planner.model.search_methods import sparse_search
 from ris_planner.planning.inputs.constraints import build_feasibility
 from ris_planner.planning.inputs.plan_inputs import PlanInputs
 from ris_planner.planning.inputs.sites import expand_sites
-from ris_planner.planning.inputs.ue_maps import (
-    PointMap,
-    build_map,
-    build_pairs,
-    unordered_directions,
-)
+from ris_planner.planning.inputs.ue_maps import PointMap, build_pairs, unordered_directions
+from ris_planner.planning.resources.admission import Admitted, admit
 from ris_planner.planning.scoring.visibility import check_sites_outside, drop_inside
 from ris_planner.planning.search.layouts import MIN_TASK_MATRICES
 
@@ -29,22 +27,21 @@ from ris_planner.planning.search.layouts import MIN_TASK_MATRICES
 def validate_document(document: PlanDocument | dict[str, Any]) -> PlanDocument:
     """The plan document with the CLI's and the service's checks, sizes before work
     (:func:`ris_planner.planning.resources.admission.validate_plan`)."""
-    from ris_planner.planning.resources.admission import validate_plan
-
-    return validate_plan(document)
+    return admit(document).document
 
 
-def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False) -> PlanInputs:
-    """Validate a plan document, expand its sites and maps, build its pairs and check every limit
-    that :func:`run_plan` checks before its work (RIS counts vs sites, ``max_pairs``, the site
-    cache) – a dry run: raises what ``run_plan`` would raise, computes no bound. ``checked``:
-    the document's sizes were checked already (:func:`plan_once`)."""
-    doc = (
-        document if checked and isinstance(document, PlanDocument) else validate_document(document)
-    )
+def prepare_plan(plan: Admitted | PlanDocument | dict[str, Any]) -> PlanInputs:
+    """The inputs of an admitted plan (a document is admitted first:
+    :func:`~ris_planner.planning.resources.admission.admit`): its sites expanded, its maps
+    built (each once: the admission's), points inside obstacles dropped, its pairs drawn and
+    every limit that :func:`run_plan` checks before its work (RIS counts vs sites,
+    ``max_pairs``, the site cache) – a dry run: raises what ``run_plan`` would raise, computes
+    no bound."""
+    admitted = plan if isinstance(plan, Admitted) else admit(plan)
+    doc = admitted.document
     # the fields of view apply in free space too (an empty scene); obstacles where given
     scene = Scene.from_environment(doc.environment)
-    sites = expand_sites(doc)
+    sites = admitted.sites
     wanted = doc.max_counts
     if doc.ris_count is None:  # target mode up to max_ris: at most every candidate
         wanted = [c for c in wanted if c <= len(sites)]
@@ -52,8 +49,7 @@ def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False)
         raise RisPlannerError(f"ris_count {max(wanted)} exceeds the {len(sites)} candidate sites")
     feasibility = build_feasibility(sites, doc.constraints, doc.cost)
     wanted = [c for c in wanted if c >= len(feasibility.required)]
-    tx_map = build_map(doc.tx_map, "tx_map")
-    rx_map = build_map(doc.rx_map, "rx_map")
+    tx_map, rx_map = admitted.maps
     dropped = {"tx": 0, "rx": 0}
     if not scene.empty:
         check_sites_outside(scene, sites)
@@ -62,10 +58,41 @@ def prepare_plan(document: PlanDocument | dict[str, Any], checked: bool = False)
     pairs = build_pairs(
         tx_map, rx_map, doc.pairs, doc.max_pairs, directions == "explicit", scene=scene
     )
-    if doc.search.method != "district":  # the district search keeps no site cache
+    if not sparse_search(doc):  # the district search keeps no site cache
         cache_layout(len(sites) * pairs.size, doc.system.wavefront)  # the budget, before work
     return PlanInputs(
-        doc, sites, tx_map, rx_map, pairs, scene, dropped, directions, wanted, feasibility
+        doc,
+        sites,
+        tx_map,
+        rx_map,
+        pairs,
+        scene,
+        dropped,
+        directions,
+        wanted,
+        feasibility,
+        admitted.choice,
+        admitted.sizing_choice,
+    )
+
+
+def rebased(inputs: PlanInputs, document: PlanDocument) -> PlanInputs:
+    """``inputs`` for another run over the same maps and pairs – a sweep value or a sizing
+    size: ``document`` (validated; its maps, pairs and environment those of ``inputs``) with
+    its own sites (the RIS grid may differ), constraints and counts, the same search."""
+    sites = expand_sites(document)
+    counts = document.max_counts
+    if document.ris_count is None:
+        counts = [c for c in counts if c <= len(sites)]
+    feasibility = build_feasibility(sites, document.constraints, document.cost)
+    counts = [c for c in counts if c >= len(feasibility.required)]
+    return replace(
+        inputs,
+        document=document,
+        sites=sites,
+        counts=counts,
+        feasibility=feasibility,
+        sizing_choice=None,
     )
 
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable
-from contextlib import AbstractContextManager, nullcontext
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from typing import Protocol, TextIO
 
 ProgressCallback = Callable[[float, str], None]
@@ -55,7 +55,7 @@ end)."""
 
 class StageTimer(Protocol):
     """What :class:`Stages` needs of a plan's clock
-    (:class:`ris_planner.planning.pipeline.StageClock`)."""
+    (:class:`StageClock`)."""
 
     def between(self) -> AbstractContextManager[None]:
         """Time the block as the reports between stages, unless a stage is timing it."""
@@ -118,3 +118,44 @@ class Stages:
         self.fraction = 1.0
         with self._timed():
             self.progress(1.0, message)
+
+
+BETWEEN_STAGES = "progress"
+"""The ``timing_s`` entry of the progress reports made between stages (each stage's start is
+reported before its timer runs): a service job writes every report to its store."""
+
+
+class StageClock:
+    """Wall seconds per named stage (plan.json ``timing_s``) and this process's CPU seconds
+    in each (``cpu``: the time estimate's calibration on a busy machine,
+    docs/validation/resources.md); a stage timed twice adds up."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self.cpu: dict[str, float] = {}
+        self._depth = 0  # stages being timed now (nested: an inner one adds to its own too)
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        """Time the block under ``name``."""
+        t0, c0 = time.perf_counter(), time.process_time()
+        self._depth += 1
+        try:
+            yield
+        finally:
+            self._depth -= 1
+            self.add(name, time.perf_counter() - t0, time.process_time() - c0)
+
+    @contextmanager
+    def between(self) -> Iterator[None]:
+        """Time the block under :data:`BETWEEN_STAGES` unless a stage is timing it already
+        (:class:`~ris_planner.runtime.progress.Stages` reports a stage's start before it)."""
+        if self._depth:
+            yield
+        else:
+            with self.stage(BETWEEN_STAGES):
+                yield
+
+    def add(self, name: str, seconds: float, cpu: float = 0.0) -> None:
+        self.seconds[name] = self.seconds.get(name, 0.0) + seconds
+        self.cpu[name] = self.cpu.get(name, 0.0) + cpu

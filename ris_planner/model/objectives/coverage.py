@@ -21,6 +21,7 @@ class Coverage(ObjectiveKind):
     higher_is_better = True
     unit = ""
     max_value = 1.0
+    share_of_servable = True
 
     @staticmethod
     def _threshold(spec: Objective) -> float:

@@ -74,6 +74,11 @@ class ObjectiveKind:
     """Unit of the value (``""`` for a fraction)."""
     max_value: ClassVar[float | None] = None
     """Largest value the objective can take (a target above it is refused), or None."""
+    share_of_servable: ClassVar[bool] = False
+    """A target (``objective.target.min``, ``sizing.target``) is a share of the *servable*
+    pairs – those some layout of the candidates can locate at all – rather than of every pair
+    (coverage: a pair no RIS placement can serve does not count against a layout;
+    docs/concepts/scoring.md, "One denominator")."""
 
     @property
     def better(self) -> str:

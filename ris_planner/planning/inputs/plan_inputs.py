@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from ris_planner.environment import Scene
 from ris_planner.model.plan import PlanDocument
+from ris_planner.model.search_methods import MethodChoice
 from ris_planner.planning.inputs.constraints import Feasibility
 from ris_planner.planning.inputs.sites import Site
 from ris_planner.planning.inputs.ue_maps import PairSet, PointMap
@@ -30,3 +31,8 @@ class PlanInputs:
     """The RIS counts to search (``ris_count``, or 1 … ``max_ris`` in target mode)."""
     feasibility: Feasibility
     """Constraints and costs of the candidate sites."""
+    choice: MethodChoice
+    """The search that runs and why (plan.json ``search_method``)."""
+    sizing_choice: MethodChoice | None = None
+    """The search that answers the sizing question and why (plan.json
+    ``sizing.search_method``; ``None`` without ``sizing``)."""

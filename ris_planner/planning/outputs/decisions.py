@@ -4,12 +4,14 @@ RIS count that meets ``objective.target``), and the cost-versus-objective Pareto
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ris_planner.core.io_json import finite_or_none
+from ris_planner.model.objectives import objective_kind
 from ris_planner.model.plan import Objective, Target
 from ris_planner.planning.certify.relaxation import Certificate
 from ris_planner.planning.scoring.scorer import objective_from_loss
@@ -64,16 +66,30 @@ def target_status(obj: Objective, target: Target, ans: CountAnswer) -> str:
 
 
 def decision_json(
-    obj: Objective, answers: list[CountAnswer], max_count: int, target_mode: bool
+    obj: Objective,
+    answers: list[CountAnswer],
+    max_count: int,
+    target_mode: bool,
+    goal: Target,
+    share: Callable[[float], float | None],
 ) -> dict[str, Any]:
-    """The ``decision`` block of plan.json (see the README's "Decisions" section)."""
+    """The ``decision`` block of plan.json (docs/concepts/decisions.md): ``target`` as written,
+    ``goal`` the objective value it asks for (a coverage target is a share of the servable
+    pairs: ``share`` maps an objective value to that share)."""
     target = obj.target
     assert target is not None
+    denominator = objective_kind(obj.kind).share_of_servable
+
+    def said(value: float) -> str:
+        pct = share(value) if denominator else None
+        extra = "" if pct is None else f" = {100 * pct:.3g} % of the servable pairs"
+        return f"{obj.kind} {value:.3g}{extra}"
+
     rows = []
     answer: CountAnswer | None = None
     proven = True  # every smaller count searched is certified unreachable
     for a in answers:
-        status = target_status(obj, target, a)
+        status = target_status(obj, goal, a)
         rows.append(
             {
                 "ris_count": a.ris_count,
@@ -94,7 +110,7 @@ def decision_json(
         minimal = proven and not smaller_missing
         msg = (
             f"{answer.ris_count} RIS{'s' if answer.ris_count > 1 else ''} meet the target"
-            f" ({obj.kind} {value:.3g}); "
+            f" ({said(value)}); "
             + (
                 "no smaller count can (certified)"
                 if minimal
@@ -103,6 +119,8 @@ def decision_json(
         )
         return {
             "target": target.model_dump(exclude_none=True),
+            "goal": goal.model_dump(exclude_none=True),
+            "of": "servable pairs" if denominator else None,
             "mode": "target" if target_mode else "compare",
             "met": True,
             "ris_count": answer.ris_count,
@@ -124,9 +142,12 @@ def decision_json(
     )
     if best is not None:
         shown = "inf" if best_val is None else f"{best_val:.3g}"  # full precision in "objective"
-        msg += f"; best {obj.kind} {shown} with {best.ris_count} RISs"
+        shown = shown if best_val is None else said(best_val)
+        msg += f"; best {shown} with {best.ris_count} RISs"
     return {
         "target": target.model_dump(exclude_none=True),
+        "goal": goal.model_dump(exclude_none=True),
+        "of": "servable pairs" if denominator else None,
         "mode": "target" if target_mode else "compare",
         "met": False,
         "ris_count": None,

@@ -443,7 +443,7 @@ def diagnose(result: PlanResult) -> dict[str, Any]:
     weak_w, blind_w = float(weights[weak].sum()), float(weights[blind].sum())
     n_cols = metric.size
     if weak_w > 0 and weak_w >= CAUSE_SHARE * missing:
-        goal = goal_check(obj, obj.target)
+        goal = goal_check(obj, None if obj.target is None else result.goal(obj.target))
         size = suggest_size(result, layout, metric, weights, goal)
         power = suggest_power(result, layout, metric, weights, goal)
         rows, cols = doc.ris.rows, doc.ris.cols
@@ -493,11 +493,9 @@ def diagnose(result: PlanResult) -> dict[str, Any]:
                 "fraction": blind_w,
             }
         )
-    present = result.cache.present
-    if present is not None:
-        dead = np.nonzero(~present.any(axis=1))[0]
-        if dead.size:
-            causes.append(blocked_cause(result, dead))
+    dead = result.scorer.idle_sites()
+    if dead.size:
+        causes.append(blocked_cause(result, dead))
     out["causes"] = causes
     return out
 

@@ -18,9 +18,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.core.io_json import finite_or_none
+from ris_planner.environment import Scene
 from ris_planner.model.objectives import objective_kind
-from ris_planner.planning.outputs.rx_fields import served_level
+from ris_planner.model.plan import PairSample
+from ris_planner.planning.outputs.rx_fields import (
+    RxField,
+    cell_medians,
+    heatmap_rx_index,
+    rx_fields,
+    served_level,
+)
 from ris_planner.planning.scoring.scorer import objective_from_loss
+from ris_planner.planning.search.layouts import Layout
+from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 if TYPE_CHECKING:
     from ris_planner.planning.outputs.result import PlanResult
@@ -95,31 +105,6 @@ def raster_cells(xy: FloatArray) -> tuple[dict[str, float | int], IntArray]:
     return grid, idx[:, 1] * nx + idx[:, 0]
 
 
-def cell_medians(cells: IntArray, values: FloatArray, weights: FloatArray, n: int) -> FloatArray:
-    """[n] weighted median (smallest v with cumulative weight ≥ half, as
-    :func:`~ris_planner.model.objectives.weighted_quantile`) of the values [M] in each cell;
-    NaN values are left out and a cell without values is NaN."""
-    out = np.full(n, np.nan)
-    ok = ~np.isnan(values) & (weights > 0)
-    if not np.any(ok):
-        return out
-    c, v, w = cells[ok], values[ok], weights[ok]
-    order = np.lexsort((v, c))  # by cell, then value (inf last)
-    c, v, w = c[order], v[order], w[order]
-    cw = np.cumsum(w)
-    first = np.r_[True, c[1:] != c[:-1]]
-    start = np.nonzero(first)[0]  # [G] group starts
-    group = np.cumsum(first) - 1  # [K] group of each sorted entry
-    before = np.r_[0.0, cw][start]  # cumulative weight before each group
-    total = np.add.reduceat(w, start)
-    frac = (cw - before[group]) / total[group]
-    # tolerance as weighted_quantile: a median exactly on a step is kept
-    hit = frac >= 0.5 - 1e-12
-    hit_groups, at = np.unique(group[hit], return_index=True)
-    out[c[start[hit_groups]]] = v[np.nonzero(hit)[0][at]]
-    return out
-
-
 def levels_per_count(result: PlanResult) -> tuple[dict[str, float | None], str]:
     """The objective's bound level per RIS count and its label: coverage → ``threshold_m``,
     mean_capped → ``cap_m``, quantile → the best layout's q-quantile itself."""
@@ -186,3 +171,82 @@ def heatmap_json(result: PlanResult) -> dict[str, Any]:
         "threshold_m": levels,
         "threshold_label": label,
     }
+
+
+REASON_NO_PAIR = "no pair of the plan has this RX point"
+
+REASON_TOO_FEW_PATHS = (
+    "underdetermined: the layout's paths to the point's pairs give fewer channel parameters"
+    " than unknown states"
+)
+
+
+def pair_local(result: PlanResult) -> bool:
+    """Whether a plan's per-point fields come from its own pairs (:func:`pair_fields`): a
+    pair model that keeps a pair's UEs near each other (``pairs.max_separation_m``) – the
+    heatmap's TX population would pair a point with UEs far beyond it – or the district
+    search's sparse scoring, whose pairs are the district's."""
+    pairs = result.document.pairs
+    near = isinstance(pairs, PairSample) and pairs.max_separation_m is not None
+    return near or result.scorer.storage_json().get("storage") == "sparse"
+
+
+def plan_fields(
+    result: PlanResult, layouts: list[Layout], progress: ProgressCallback = no_progress
+) -> dict[Layout, RxField]:
+    """Each layout's per-point field: over the plan's own pairs where they are local
+    (:func:`pair_local`, :func:`pair_fields`), else against the heatmap's TX population
+    (:func:`rx_fields`)."""
+    if pair_local(result):
+        return pair_fields(result, layouts, progress)
+    scene = result.scene
+    if scene is None:
+        scene = Scene.from_environment(result.document.environment)
+    doc = result.document
+    return rx_fields(doc, result.sites, scene, result.tx_map, result.rx_map, layouts, progress)
+
+
+def pair_fields(
+    result: PlanResult, layouts: list[Layout], progress: ProgressCallback = no_progress
+) -> dict[Layout, RxField]:
+    """Each layout at every RX map point of :func:`heatmap_rx_index`, over the plan's pairs
+    that end there: the weighted median of their bound, the weighted fraction served
+    (:func:`served_level`), the layout's sites that serve at least one of them; a point no
+    pair ends at is NaN (:data:`REASON_NO_PAIR`). The bounds are the plan's own scores of its
+    pairs (the search's metric, re-scored exactly): nothing is computed again."""
+    layouts = list(dict.fromkeys(tuple(int(s) for s in lay) for lay in layouts))
+    pairs = result.pairs
+    index = heatmap_rx_index(len(result.rx_map.points))
+    where = np.full(len(result.rx_map.points), -1)
+    where[index] = np.arange(index.size)
+    cell = where[pairs.rx_index]  # [P] the pair's heatmap point, −1: not evaluated
+    keep = cell >= 0
+    cell, w = cell[keep], pairs.weights[keep]
+    n = index.size
+    total = np.bincount(cell, w, minlength=n)
+    empty = total <= 0
+    level = served_level(result.document)
+    out: dict[Layout, RxField] = {}
+    for i, layout in enumerate(layouts):
+        progress(i / len(layouts), f"per-point fields of {len(layout)} RISs")
+        metric = result.layout_metric(layout)[: pairs.size][keep]
+        bound = cell_medians(cell, metric, w, n)
+        ok = np.isfinite(metric) & (metric <= level)
+        served = np.full(n, np.nan)
+        served[~empty] = np.minimum(
+            np.bincount(cell, w * ok, minlength=n)[~empty] / total[~empty], 1.0
+        )
+        serves = result.scorer.serves(layout)[:, keep]  # [L, P']
+        by_point = (
+            np.stack([np.bincount(cell, s, minlength=n) > 0 for s in serves])
+            if len(layout)
+            else np.zeros((0, n), dtype=bool)
+        )
+        serving = [[layout[j] for j in np.flatnonzero(by_point[:, m])] for m in range(n)]
+        reasons: list[str | None] = [
+            REASON_NO_PAIR if empty[m] else (REASON_TOO_FEW_PATHS if np.isinf(bound[m]) else None)
+            for m in range(n)
+        ]
+        out[layout] = RxField(layout, bound, reasons, serving, served)
+    progress(1.0, "per-point fields")
+    return out

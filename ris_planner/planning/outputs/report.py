@@ -24,10 +24,9 @@ from numpy.typing import NDArray
 
 from ris_planner.core.io_json import readable_json
 from ris_planner.environment import Scene
-from ris_planner.environment.kinds.prism import Prism
-from ris_planner.environment.model import Environment
 from ris_planner.model.objectives import objective_kind
 from ris_planner.physics.geometry import rotation_matrix
+from ris_planner.planning.outputs.drawing import draw_obstacles
 from ris_planner.planning.outputs.result import PlanResult
 
 FIGURE_NAMES = ("topview", "heatmap", "cdf")
@@ -45,46 +44,6 @@ SPACING_SAMPLE = 2000
 """RX points used to estimate the map's point spacing (median nearest-neighbour distance)."""
 
 FloatArray = NDArray[np.float64]
-
-
-def draw_obstacles(ax: Any, environment: Environment | None) -> None:
-    """Prisms as filled footprints (darker = taller), walls as thick lines."""
-    if environment is None or not environment.obstacles:
-        return
-    from matplotlib.patches import Polygon
-
-    tops = [ob.top_m for ob in environment.obstacles]
-    hi = max(tops)
-    first = {"prism": True, "wall": True}
-    for ob in environment.obstacles:
-        shade = 0.75 - 0.4 * ob.top_m / hi
-        if isinstance(ob, Prism):
-            ax.add_patch(
-                Polygon(
-                    ob.vertices,
-                    closed=True,
-                    facecolor=str(shade),
-                    edgecolor="k",
-                    linewidth=0.6,
-                    alpha=0.8,
-                    zorder=1,
-                    label="obstacle (prism)" if first["prism"] else None,
-                )
-            )
-        else:  # walls (and any kind without an inside): its faces as thick lines
-            faces = ob.faces()
-            for s, e in zip(faces.start, faces.end, strict=True):
-                ax.plot(
-                    [s[0], e[0]],
-                    [s[1], e[1]],
-                    color=str(shade * 0.6),
-                    linewidth=3.5,
-                    solid_capstyle="butt",
-                    zorder=1,
-                    label="obstacle (wall)" if first.get(ob.kind, False) else None,
-                )
-                first[ob.kind] = False
-        first[ob.kind] = False
 
 
 def point_spacing(xy: FloatArray) -> float:
@@ -372,7 +331,7 @@ def topview_figure(result: PlanResult) -> Any:
         w = pm.weights / pm.weights.max()
         ax.scatter(pm.points[:, 0], pm.points[:, 1], s=4 + 16 * w, c=colour, alpha=0.3, label=name)
     pos = np.array([s.ris.position for s in result.sites])
-    flagged = ~np.all(result.cache.far_field, axis=1)
+    flagged = result.scorer.near_field_by_site(result.pairs.weights) > 0
     for mask, colour, name in (
         (~flagged, "grey", "candidates"),
         (flagged, "tab:orange", "candidates (near field for part of the map)"),
@@ -502,6 +461,10 @@ def write_figures(result: PlanResult, out_dir: Path) -> dict[str, Path]:
         paths[SIZING_FIGURE] = write_sizing_figure(result, out_dir / f"{SIZING_FIGURE}.png")
     if result.validation is not None:
         paths["validation"] = write_validation_figure(result.validation, out_dir / "validation.png")
+    if result.search_details.get("path") is not None:  # a path over the counts: the district's
+        from ris_planner.planning.outputs.district_figure import district_figure
+
+        paths.update(district_figure(result, out_dir))
     return paths
 
 
@@ -716,41 +679,45 @@ def write_heatmap(result: PlanResult, path: Path) -> Path:
 
 
 def write_sizing_figure(result: PlanResult, path: Path) -> Path:
-    """The sizing question: objective vs RIS size (elements per RIS, log axis, ticks
-    rows×cols), one line per RIS count, the target as a dotted line and the answer ringed."""
+    """The sizing question: the RIS count each RIS size needs (elements per RIS, log axis,
+    ticks rows×cols) – the count found, and down to the certified lower count where the
+    method certifies one – and the answer ringed."""
     import matplotlib.pyplot as plt
 
     assert result.sizing is not None
     sizing = result.sizing
-    obj = result.document.objective
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    table = sizing["table"]
-    for count in sorted({r["count"] for r in table}):
-        rows = [r for r in table if r["count"] == count]
-        xs = [r["rows"] * r["cols"] for r in rows]
-        ys = [np.nan if r["objective"] is None else r["objective"] for r in rows]
-        ax.plot(xs, ys, "-o", label=f"{count} RIS")
-    ticks = sorted({(r["rows"], r["cols"]) for r in table}, key=lambda t: t[0] * t[1])
+    rows = sizing["sizes"]
+    for r in rows:
+        x = r["ris_size"][0] * r["ris_size"][1]
+        if r["count"] is not None:
+            ax.plot([x], [r["count"]], "o", color="C0")
+        if r["lower_bound"] is not None:
+            top = r["count"] if r["count"] is not None else r["lower_bound"]
+            ax.plot([x, x], [r["lower_bound"], top], "-", color="C3", lw=2)
+            ax.plot([x], [r["lower_bound"]], "_", color="C3", ms=14)
+    ax.plot([], [], "o", color="C0", label="RISs found to reach the goal")
+    ax.plot([], [], "-", color="C3", lw=2, label="down to the certified lower count")
+    ticks = [tuple(r["ris_size"]) for r in rows]
     ax.set_xscale("log")
     ax.set_xticks([a * b for a, b in ticks])
     ax.set_xticklabels([f"{a}×{b}" for a, b in ticks], fontsize=7, rotation=30)
     ax.minorticks_off()
-    ax.axhline(sizing["target"]["objective"], color="k", lw=0.8, ls=":", label="target")
     answer = sizing["answer"]
     if answer is not None:
         ax.scatter(
-            [answer["rows"] * answer["cols"]],
-            [answer["objective"]],
+            [answer["ris_size"][0] * answer["ris_size"][1]],
+            [answer["count"]],
             s=180,
             facecolors="none",
             edgecolors="k",
             linewidths=1.5,
             zorder=5,
-            label=f"answer: {answer['count']} × {answer['rows']}×{answer['cols']}",
+            label=f"answer: {answer['count']} × {answer['ris_size'][0]}×{answer['ris_size'][1]}",
         )
     ax.set_xlabel("RIS size (elements per RIS)")
-    ax.set_ylabel(f"{obj.kind} of {_metric_label(result)}" + objective_kind(obj.kind).unit_suffix)
-    ax.set_title("Sizing: best layout per RIS size and count", fontsize=10)
+    ax.set_ylabel("RIS count")
+    ax.set_title(f"Sizing: {sizing['message']}", fontsize=8, wrap=True)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -21,7 +21,8 @@ from ris_planner.bounds import advice
 from ris_planner.core.io_json import finite_or_none
 from ris_planner.environment import Scene
 from ris_planner.model.objectives import objective_kind, weighted_quantile
-from ris_planner.model.plan import PlanDocument, physics_json
+from ris_planner.model.plan import PlanDocument, Target, physics_json, target_goal
+from ris_planner.model.search_methods import MethodChoice
 from ris_planner.physics.fim import Radio
 from ris_planner.planning.beams import BeamReport
 from ris_planner.planning.certify.checks import PendingChecks
@@ -31,7 +32,8 @@ from ris_planner.planning.inputs.sites import Site, candidate_json
 from ris_planner.planning.inputs.ue_maps import PairSet, PointMap
 from ris_planner.planning.outputs.decisions import CountAnswer, decision_json, pareto
 from ris_planner.planning.outputs.rx_fields import RxField, heatmap_rx_index, heatmap_tx
-from ris_planner.planning.scoring.scorer import Scorer, objective_from_loss, objective_value
+from ris_planner.planning.scoring.layout_scorer import LayoutScorer, PairsSummary
+from ris_planner.planning.scoring.scorer import objective_from_loss, objective_value
 from ris_planner.planning.scoring.site_cache import SiteCache
 from ris_planner.planning.search.layouts import Layout, SearchOutcome
 from ris_planner.runtime.provenance import provenance
@@ -67,6 +69,8 @@ class CountResult:
     ties: tuple[tuple[Layout, float], ...] = ()
     branch_and_bound: dict[str, Any] | None = None
     """What the branch-and-bound after a greedy search did (``None``: not run)."""
+    found_by: str | None = None
+    """Which part of the search found the reported layout (``None``: the method itself)."""
 
 
 @dataclass(frozen=True)
@@ -91,7 +95,9 @@ class PlanResult:
     tx_map: PointMap
     rx_map: PointMap
     pairs: PairSet
-    scorer: Scorer
+    scorer: LayoutScorer
+    """The scoring that searched it: the enumerating searches' site cache or the district
+    search's sparse information."""
     counts: list[CountResult]
     timing: Mapping[str, float]
     """Seconds per stage (plan.json ``timing_s``; :class:`~ris_planner.planning.pipeline.
@@ -126,10 +132,27 @@ class PlanResult:
     """The checks still running on their thread (each count's ``certificate`` and
     ``random_codebook`` are not set yet): :func:`~ris_planner.planning.pipeline.settle_checks`
     waits for them; :meth:`to_json` refuses a result with pending checks."""
+    pairs_summary: PairsSummary | None = None
+    """What the candidates can give the pairs at all: the servable pairs (the denominator of
+    coverage shares and targets) and the coverable ones (plan.json ``pairs_summary``)."""
+    choice: MethodChoice | None = None
+    """The search that ran and why (plan.json ``search_method``)."""
+    search_details: Mapping[str, Any] = field(default_factory=dict)
+    """What the search method reports of its own work (plan.json ``search_details``)."""
+    sizing_state: Any = None
+    """What the search method keeps for the sizing question (not in plan.json)."""
 
     @property
     def cache(self) -> SiteCache:
-        return self.scorer.cache
+        """The enumerating searches' site cache (their :class:`Scorer`'s); a district plan
+        holds sparse information instead (``result.scorer.problem``)."""
+        cache = getattr(self.scorer, "cache", None)
+        if not isinstance(cache, SiteCache):
+            raise AttributeError(
+                "this plan's search holds no site cache: the district search's information is"
+                " result.scorer.problem"
+            )
+        return cache
 
     @property
     def metric_weights(self) -> FloatArray:
@@ -159,11 +182,13 @@ class PlanResult:
         w = self.metric_weights
         obj = float(objective_value(self.document.objective, metric, w)[0])
         quant = weighted_quantile(metric, w, np.array(REPORT_QUANTILES))[0]
-        far = np.all(self.cache.far_field[list(layout)], axis=0)
+        far = self.scorer.far_field_of(layout)
         return {
             "ris_count": len(layout),
             "sites": [int(s) for s in layout],
+            "site_names": [self.sites[int(s)].name for s in layout],
             "objective": finite_or_none(obj),
+            "share_of_servable": self.share_of_servable(obj),
             "quantiles_m": {
                 f"{q:g}": finite_or_none(v) for q, v in zip(REPORT_QUANTILES, quant, strict=True)
             },
@@ -176,6 +201,23 @@ class PlanResult:
             "blind_fraction": _fraction(w, ~np.isfinite(metric[0])),
             "near_field_fraction": _fraction(self.pairs.weights, ~far),
         }
+
+    def share_of_servable(self, value: float) -> float | None:
+        """An objective value as a share of the servable pairs (coverage objectives, whose
+        targets are such shares: docs/concepts/scoring.md, "One denominator"); ``None`` for
+        other objectives."""
+        summary = self.pairs_summary
+        if summary is None or not objective_kind(self.document.objective.kind).share_of_servable:
+            return None
+        share = summary.share(value)
+        return None if share is None else float(min(1.0, share))
+
+    def goal(self, target: Target) -> Target:
+        """A target as the objective value it asks for (:func:`~ris_planner.model.plan.
+        target_goal`: coverage targets are shares of the servable pairs)."""
+        summary = self.pairs_summary
+        servable = 1.0 if summary is None else summary.servable_weight
+        return target_goal(self.document.objective.kind, target, servable)
 
     def cdf(self, metric: FloatArray) -> dict[str, list[float | None]]:
         """The weighted CDF as bound values at probabilities 0.01 … 1 (``null`` = blind)."""
@@ -224,8 +266,7 @@ class PlanResult:
         ]
         wavelength = Radio.from_system(doc.system).wavelength
         out += advice.spacing_warnings([self.sites[0].ris], wavelength, ["the candidate RIS"])
-        lay = list(self.counts[-1].ranked[0][0])
-        far = np.all(self.cache.far_field[lay], axis=0)
+        far = self.scorer.far_field_of(self.counts[-1].ranked[0][0])
         out.append(advice.near_field_warning(float((far * self.pairs.weights).sum())))
         out += self.site_warnings or []
         return list(dict.fromkeys(w for w in out if w is not None))
@@ -256,6 +297,7 @@ class PlanResult:
                     **summ.stats[best_lay],
                     "marginal_gain": gain,
                     "method": cr.outcome.method,
+                    "found_by": cr.found_by or cr.outcome.method,
                     "layouts_total": cr.outcome.total_layouts,
                     "layouts_evaluated": cr.outcome.evaluated,
                     "top_layouts": [
@@ -272,19 +314,23 @@ class PlanResult:
                 }
             )
         top.sort(key=lambda t: (t[0], t[1], t[2]))
-        near = ~self.cache.far_field
+        near = self.scorer.near_field_by_site(self.pairs.weights)
         return {
             "dropped_points": dict(self.dropped_points or {"tx": 0, "rx": 0}),
             "objective": doc.objective.model_dump(),
             "objective_better": objective_kind(doc.objective.kind).better,
+            "objective_unit": objective_kind(doc.objective.kind).unit,
+            "search_method": None if self.choice is None else self.choice.to_json(),
+            "pairs_summary": None if self.pairs_summary is None else self.pairs_summary.to_json(),
+            "search_details": dict(self.search_details),
             "layouts": [summ.stats[lay] for _, _, lay in top],
             "by_count": by_count,
             "candidates": [
                 {
                     "index": i,
                     **candidate_json(s),
-                    "near_field_fraction": _fraction(self.pairs.weights, near[i]),
-                    "far_field_flag": bool(np.any(near[i])),
+                    "near_field_fraction": float(min(1.0, near[i])),
+                    "far_field_flag": bool(near[i] > 0),
                 }
                 for i, s in enumerate(self.sites)
             ],
@@ -296,11 +342,7 @@ class PlanResult:
             "points": self.maps["points"],
             "heatmap": self.maps["heatmap"],
             "timing_s": dict(self.timing),
-            "site_cache": {
-                "storage": self.cache.storage,
-                "rows_stored": self.cache.factor is not None,
-                "bytes": self.cache.nbytes,
-            },
+            "site_cache": self.scorer.storage_json(),
             "warnings": list(summ.warnings),
             **({"beams": self.beams_json()} if self.document.beams is not None else {}),
             **({"rollout": self.rollout} if self.rollout is not None else {}),
@@ -361,7 +403,8 @@ class PlanResult:
                     "objective": finite_or_none(val),
                     "gap": None if fields is None else fields["gap"],
                     "cost": self.layout_cost(lay),
-                    "target_met": None if obj.target is None else obj.target.met(val),
+                    "target_met": None if obj.target is None else self.goal(obj.target).met(val),
+                    "objective_bound": None if fields is None else fields["objective_bound"],
                 }
             )
         return rows
@@ -411,7 +454,12 @@ class PlanResult:
             answers.sort(key=lambda a: a.ris_count)
             searched = [a.ris_count for a in answers]
             out["decision"] = decision_json(
-                obj, answers, max(searched) if searched else 0, doc.target_mode
+                obj,
+                answers,
+                max(searched) if searched else 0,
+                doc.target_mode,
+                self.goal(obj.target),
+                lambda v: self.share_of_servable(v),
             )
         return out
 

@@ -30,6 +30,7 @@ from ris_planner.planning.search.layouts import Layout
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int_]
 BoolArray = NDArray[np.bool_]
 
 REASON_NO_TX = "no TX point of the heatmap differs from this RX point"
@@ -178,4 +179,29 @@ def rx_fields(
         serving = [[layout[j] for j in np.nonzero(serves[:, m])[0]] for m in range(n_rx)]
         out[layout] = RxField(layout, vals, reasons, serving, served)
     progress(1.0, "per-point bounds")
+    return out
+
+
+def cell_medians(cells: IntArray, values: FloatArray, weights: FloatArray, n: int) -> FloatArray:
+    """[n] weighted median (smallest v with cumulative weight ≥ half, as
+    :func:`~ris_planner.model.objectives.weighted_quantile`) of the values [M] in each cell;
+    NaN values are left out and a cell without values is NaN."""
+    out = np.full(n, np.nan)
+    ok = ~np.isnan(values) & (weights > 0)
+    if not np.any(ok):
+        return out
+    c, v, w = cells[ok], values[ok], weights[ok]
+    order = np.lexsort((v, c))  # by cell, then value (inf last)
+    c, v, w = c[order], v[order], w[order]
+    cw = np.cumsum(w)
+    first = np.r_[True, c[1:] != c[:-1]]
+    start = np.nonzero(first)[0]  # [G] group starts
+    group = np.cumsum(first) - 1  # [K] group of each sorted entry
+    before = np.r_[0.0, cw][start]  # cumulative weight before each group
+    total = np.add.reduceat(w, start)
+    frac = (cw - before[group]) / total[group]
+    # tolerance as weighted_quantile: a median exactly on a step is kept
+    hit = frac >= 0.5 - 1e-12
+    hit_groups, at = np.unique(group[hit], return_index=True)
+    out[c[start[hit_groups]]] = v[np.nonzero(hit)[0][at]]
     return out

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Any
 
 from ris_planner.bounds.resources import check_bounds_size
@@ -44,16 +45,26 @@ from ris_planner.model.limits import (
     memory_terms,
     rounded,
 )
-from ris_planner.model.objectives.protocol import objective_kind
 from ris_planner.model.plan import LayoutBeamsDocument, PlanDocument, WallSites, map_points
+from ris_planner.model.search_methods import (
+    AUTO,
+    MAX_LAYOUT_RIS,
+    MethodChoice,
+    SearchMethod,
+    count_method,
+    method_refusals,
+    scoring_of,
+    search_method,
+    sparse_search,
+)
 from ris_planner.model.simulation import (
     MIN_SCATTERER_DISTANCE_M,
     Multipath,
     describe_scatterer,
     scatterer_too_close,
 )
-from ris_planner.planning.inputs.sites import facade_walls
-from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
+from ris_planner.planning.inputs.sites import Site, expand_sites, facade_walls
+from ris_planner.planning.inputs.ue_maps import PointMap, build_map, build_pairs
 from ris_planner.planning.resources.served import document_shares
 
 # peak bytes per item (see the module docstring and docs/validation/resources.md)
@@ -200,13 +211,13 @@ def greedy_layouts(n_sites: int, count: int, restarts: int, rounds: int, seeds: 
 def _exhaustive(doc: PlanDocument, sites: int, n_ris: int) -> bool:
     spec = doc.search
     layouts = math.comb(sites, n_ris) if sites >= n_ris else 0
-    return spec.method == "exhaustive" or (spec.method == "auto" and layouts <= spec.max_exhaustive)
+    return count_method(spec.method, layouts, spec.max_exhaustive) == "exhaustive"
 
 
 def _memo_layouts(doc: PlanDocument, sites: int) -> int:
     """Layouts one run's searches score and memoise, summed over the RIS counts, as a search
     typically runs (:func:`greedy_layouts`; every layout of an exhaustive count)."""
-    if doc.search.method == "district":
+    if sparse_search(doc):
         return 0
     counts = [c for c in doc.max_counts if c <= sites]
     total = 0.0
@@ -224,16 +235,13 @@ def _memo_layouts(doc: PlanDocument, sites: int) -> int:
 def _search_layouts(doc: PlanDocument, sites: int) -> int:
     """Layouts the searches may score, summed over the RIS counts (the worst case: every
     start runs ``max_rounds``; the limit's :data:`MAX_SEARCH_LAYOUTS`)."""
+    if sparse_search(doc):
+        return 0  # no layout is enumerated: the district term counts its work
     total = 0
+    spec = doc.search
     for i, n_ris in enumerate(c for c in doc.max_counts if c <= sites):
-        spec = doc.search
-        if spec.method == "district":
-            return 0  # no layout is enumerated: the district term counts its work
-        layouts = math.comb(sites, n_ris) if sites >= n_ris else 0
-        if spec.method == "exhaustive" or (
-            spec.method == "auto" and layouts <= spec.max_exhaustive
-        ):
-            total += min(layouts, spec.max_exhaustive)
+        if _exhaustive(doc, sites, n_ris):
+            total += min(math.comb(sites, n_ris), spec.max_exhaustive)
             continue
         starts = 1 + i + spec.restarts  # greedy, seeds (smaller counts), random restarts
         total += starts * (spec.max_rounds * n_ris * max(0, sites - n_ris) + n_ris * sites)
@@ -609,8 +617,11 @@ def _memory(shape: PlanShape) -> int:
 
 
 def sizing_runs(doc: PlanDocument) -> int:
-    """Plan runs the sizing question adds to a document's own (one per RIS size; 0 without)."""
-    return 0 if doc.sizing is None else len(doc.sizing.ris_sizes)
+    """Enumerating plan runs the sizing question adds to a document's own (one per RIS size;
+    0 without, or when the district search answers it)."""
+    if doc.sizing is None or scoring_of(doc.sizing.method) == "sparse":
+        return 0
+    return len(doc.sizing.ris_sizes)
 
 
 def plan_runs(doc: PlanDocument) -> int:
@@ -629,8 +640,9 @@ def explain_plan_memory(shape: PlanShape, budget_bytes: int) -> str:
     return explain_memory(PLAN_MEMORY_TERMS, shape, budget_bytes)
 
 
-def plan_shape(doc: PlanDocument) -> PlanShape:
-    """The :class:`PlanShape` of a validated plan document (nothing is built)."""
+def plan_shape(doc: PlanDocument, shares: tuple[float, float] | None = None) -> PlanShape:
+    """The :class:`PlanShape` of a validated plan document (nothing is built but, for a district
+    plan without ``shares``, the served-share sample: :func:`document_shares`)."""
     sites = plan_sites(doc)
     n_t, n_r = map_points(doc.tx_map), map_points(doc.rx_map)
     pairs_spec = doc.pairs
@@ -640,7 +652,7 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         pairs = pairs_spec.sample
     counts = [c for c in doc.max_counts if c <= sites]
     relaxed = sum(not _exhaustive(doc, sites, c) for c in counts)
-    district = doc.search.method == "district"
+    district = sparse_search(doc)
     return PlanShape(
         sites=sites,
         tx_points=n_t,
@@ -656,7 +668,7 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
         wavefront=doc.system.wavefront,
         fixed_heatmap_tx=doc.heatmap_tx is not None,
         district=district,
-        district_share=document_shares(doc)[1] if district else 0.0,
+        district_share=(document_shares(doc) if shares is None else shares)[1] if district else 0.0,
         district_sizes=len(doc.sizing_ris_sizes()) if district else 1,
         obstructed=doc.environment is not None and bool(doc.environment.obstacles),
         relaxed_counts=relaxed if doc.search.certificate_iterations > 0 else 0,
@@ -665,21 +677,22 @@ def plan_shape(doc: PlanDocument) -> PlanShape:
     )
 
 
-def largest_plan_shape(doc: PlanDocument) -> PlanShape:
+def largest_plan_shape(doc: PlanDocument, shares: tuple[float, float] | None = None) -> PlanShape:
     """The :func:`plan_shape` of the document's run that needs the most memory: its own, or one
     with another RIS size of ``sweep.ris_size`` or ``sizing.ris_sizes`` (those runs are
     sequential: the estimate is the largest one's)."""
-    shape = plan_shape(doc)
+    shape = plan_shape(doc, shares)
     sides = [tuple(rc) for rc in (doc.sweep.ris_size or [])] if doc.sweep is not None else []
     sides += [tuple(rc) for rc in doc.sizing.ris_sizes] if doc.sizing is not None else []
     shapes = [shape] + [replace(shape, ris_side=(r, c), elements=r * c) for r, c in sides]
     return max(shapes, key=_memory)
 
 
-def estimate_plan(doc: PlanDocument) -> Sizes:
+def estimate_plan(doc: PlanDocument, shares: tuple[float, float] | None = None) -> Sizes:
     """Every size of a plan run from its validated document (nothing is built); the memory is
-    the sum of :func:`plan_memory` for its largest run (:func:`largest_plan_shape`)."""
-    shape = largest_plan_shape(doc)
+    the sum of :func:`plan_memory` for its largest run (:func:`largest_plan_shape`; ``shares``:
+    the document's :func:`document_shares` when the caller has them)."""
+    shape = largest_plan_shape(doc, shares)
     n_t, n_r = shape.tx_points, shape.rx_points
     pairs_spec = doc.pairs
     if isinstance(pairs_spec, str):
@@ -699,93 +712,228 @@ def estimate_plan(doc: PlanDocument) -> Sizes:
     )
 
 
-def validate_plan(
-    document: PlanDocument | dict[str, Any], memory_mb: int | None = None
-) -> PlanDocument:
-    """A plan document that ``run_plan`` accepts: the model, the candidate count against
-    ``ris_count``, the sizes against their limits and the job memory budget (default
-    ``RIS_PLANNER_JOB_MEMORY_MB``); with ``search.method: auto`` the search the document's size
-    takes (:func:`adapted_search`)."""
+@dataclass(frozen=True)
+class Admitted:
+    """A plan document admitted to run (:func:`admit`): validated and its search chosen
+    (:func:`resolve_search`). What the estimates and the plan's inputs read of it is made once,
+    when first needed: its UE maps (:attr:`maps`), candidate sites (:attr:`sites`), served
+    shares (:attr:`shares`) and sizes (:attr:`sizes`, checked by :func:`admit`)."""
+
+    document: PlanDocument
+    """The document with ``search.method`` and ``sizing.method`` as they run (``auto``
+    resolved to the district search where that is the choice)."""
+    choice: MethodChoice
+    sizing_choice: MethodChoice | None = None
+
+    @cached_property
+    def maps(self) -> tuple[PointMap, PointMap]:
+        """(TX map, RX map) as the document gives them (before points inside obstacles are
+        dropped)."""
+        doc = self.document
+        return build_map(doc.tx_map, "tx_map"), build_map(doc.rx_map, "rx_map")
+
+    @cached_property
+    def sites(self) -> list[Site]:
+        """The candidate sites, expanded (:func:`~ris_planner.planning.inputs.sites.
+        expand_sites`)."""
+        return expand_sites(self.document)
+
+    @cached_property
+    def shares(self) -> tuple[float, float]:
+        """:func:`~ris_planner.planning.resources.served.document_shares` of the document."""
+        return document_shares(self.document, self.maps, self.sites)
+
+    @cached_property
+    def sizes(self) -> Sizes:
+        """:func:`estimate_plan` of the document (its shares sampled only for a district
+        plan, whose memory follows them)."""
+        doc = self.document
+        return estimate_plan(doc, self.shares if sparse_search(doc) else (0.0, 0.0))
+
+    @cached_property
+    def shape(self) -> PlanShape:
+        """:func:`largest_plan_shape` of the document."""
+        doc = self.document
+        return largest_plan_shape(doc, self.shares if sparse_search(doc) else (0.0, 0.0))
+
+
+def admit(document: PlanDocument | dict[str, Any], memory_mb: int | None = None) -> Admitted:
+    """The one admission path of a plan document (the command line, the service's routes and
+    its jobs, :func:`~ris_planner.planning.pipeline.run_plan`): the model, the candidate count
+    against ``ris_count``, the search method (:func:`resolve_search`: what the method cannot
+    honour is refused, naming the option), the sizes against their limits and the job memory
+    budget (default ``RIS_PLANNER_JOB_MEMORY_MB``) and the validation's scatterers – each
+    once."""
     doc = document if isinstance(document, PlanDocument) else PlanDocument.model_validate(document)
-    return _checked(doc, memory_mb)[0]
-
-
-def adapted_search(
-    doc: PlanDocument, sizes: Sizes | None = None
-) -> tuple[PlanDocument, str | None]:
-    """``search.method: auto`` on a document the enumerating searches cannot take – more
-    layouts than the search limit over the plan and its sizing runs, or a site cache above its
-    budget – becomes the district search when that plans the objective (coverage over sampled
-    or all pairs; docs/concepts/district.md): (the document, why) – else (the document, None).
-    ``sizes``: the document's :func:`estimate_plan`, when the caller has it."""
-    if doc.search.method != "auto" or doc.pairs == "unordered":
-        return doc, None
-    kind = objective_kind(doc.objective.kind)
-    if not kind.higher_is_better or kind.screen_level(doc.objective) is None:
-        return doc, None
-    sizes = estimate_plan(doc) if sizes is None else sizes
-    why = None
-    if sizes.search_layouts > MAX_SEARCH_LAYOUTS:
-        why = (
-            f"the enumerating searches would score {grouped(sizes.search_layouts)} layouts,"
-            f" above the search limit of {grouped(MAX_SEARCH_LAYOUTS)}"
-        )
-    else:
-        try:
-            cache_layout(sizes.cache_entries)
-        except LimitExceededError as exc:
-            why = str(exc).split(";")[0]
-    if why is None:
-        return doc, None
-    search = doc.search.model_copy(update={"method": "district"})
-    return doc.model_copy(update={"search": search}), why
-
-
-def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
-    """The cross-field and size rules of a validated plan document (with the search its size
-    takes, :func:`adapted_search`); its sizes."""
-    return _checked(doc, memory_mb)[1]
-
-
-def _checked(doc: PlanDocument, memory_mb: int | None) -> tuple[PlanDocument, Sizes]:
-    """:func:`plan_check`'s rules: (the document with the search its size takes, its sizes),
-    each estimated once."""
     sites = plan_sites(doc)
     if doc.ris_count is not None and max(doc.ris_count) > sites:
         raise DocumentFieldError(
             "ris_count",
             f"ris_count {max(doc.ris_count)} exceeds the {sites} candidate sites",
         )
-    sizes = estimate_plan(doc)
-    doc, why = adapted_search(doc, sizes)
-    if why is not None:
-        sizes = estimate_plan(doc)
-    shape = largest_plan_shape(doc)
+    admitted = Admitted(*resolve_search(doc))
     check_sizes(
-        sizes,
-        max_pairs=doc.max_pairs,
+        admitted.sizes,
+        max_pairs=admitted.document.max_pairs,
         memory_mb=budget_mb(memory_mb),
-        explain=lambda budget: explain_plan_memory(shape, budget),
+        explain=lambda budget: explain_plan_memory(admitted.shape, budget),
     )
-    check_validation_scatterers(doc)
-    return doc, sizes
+    check_validation_scatterers(admitted)
+    return admitted
 
 
-def check_validation_scatterers(doc: PlanDocument) -> None:
+def validate_plan(
+    document: PlanDocument | dict[str, Any], memory_mb: int | None = None
+) -> PlanDocument:
+    """The admitted document (:func:`admit`): what ``run_plan`` accepts, ``auto`` resolved."""
+    return admit(document, memory_mb).document
+
+
+def plan_check(doc: PlanDocument, memory_mb: int | None = None) -> Sizes:
+    """The sizes of an admitted plan document (:func:`admit`)."""
+    return admit(doc, memory_mb).sizes
+
+
+def _enumerating_overflow(doc: PlanDocument) -> str | None:
+    """Why the enumerating searches cannot take the document (``auto`` then takes the district
+    search): more RISs in a layout than they place, more layouts than the search limit over
+    the plan and its sizing runs, or a site cache above its budget; ``None`` when they can."""
+    largest = max(doc.max_counts)
+    if largest > MAX_LAYOUT_RIS:
+        return (
+            f"{largest} RISs in a layout: the enumerating searches place at most {MAX_LAYOUT_RIS}"
+        )
+    sites = plan_sites(doc)
+    layouts = _search_layouts(doc, sites) * plan_runs(doc)
+    if layouts > MAX_SEARCH_LAYOUTS:
+        return (
+            f"the enumerating searches would score {grouped(layouts)} layouts,"
+            f" above the search limit of {grouped(MAX_SEARCH_LAYOUTS)}"
+        )
+    try:
+        cache_layout(sites * _pairs_built(doc))
+    except LimitExceededError as exc:
+        return str(exc).split(";")[0]
+    return None
+
+
+def resolve_search(doc: PlanDocument) -> tuple[PlanDocument, MethodChoice, MethodChoice | None]:
+    """The searches a document runs – the one place ``auto`` is resolved – and why: (the
+    document with ``search.method`` and ``sizing.method`` as they run, the plan's choice, the
+    sizing question's choice or ``None`` without ``sizing``).
+
+    A method named in the document runs as named. ``auto`` runs the enumerating searches
+    (:func:`~ris_planner.model.search_methods.count_method` per RIS count) unless they cannot
+    take the plan (:func:`_enumerating_overflow`, the sizing runs aside) and the district
+    search can; the sizing question keeps the plan's search where its runs fit too, else it
+    takes the district search, and says why. What the method cannot plan or honour
+    (:func:`~ris_planner.model.search_methods.method_refusals`) is refused before any work: a
+    :class:`DocumentFieldError` naming the method and the option."""
+    base = doc.model_copy(update={"sizing": None}) if doc.sizing is not None else doc
+    method, choice = _resolve(doc, _enumerating_overflow(base))
+    doc = _as_method(doc, method)
+    if doc.sizing is None:
+        return doc, choice, None
+    asked = doc.sizing.method
+    if asked != AUTO:
+        _refuse(search_method(asked), _sizing_runs_document(doc, asked))
+        sizing = MethodChoice(asked, asked, f"sizing.method {asked!r} in the document")
+    elif scoring_of(method) == "sparse":
+        sizing = MethodChoice(AUTO, method, f"the plan's own search ({choice.why})")
+    else:
+        overflow = _enumerating_overflow(doc)
+        if overflow is None:
+            sizing = MethodChoice(AUTO, AUTO, "the plan's own search: its runs fit at every size")
+        else:
+            sized, sizing = _resolve(_sizing_runs_document(doc, AUTO), overflow)
+            if sized != AUTO:
+                sizing = MethodChoice(AUTO, sized, f"{sizing.why}; the plan keeps its own search")
+    spec = doc.sizing.model_copy(update={"method": sizing.used})
+    return doc.model_copy(update={"sizing": spec}), choice, sizing
+
+
+def _resolve(doc: PlanDocument, overflow: str | None) -> tuple[str, MethodChoice]:
+    """(the method ``doc``'s ``search.method`` resolves to, the choice) given why the
+    enumerating searches cannot take it (``overflow``, None when they can)."""
+    requested = doc.search.method
+    if requested != AUTO:
+        _refuse(search_method(requested), doc)
+        return requested, MethodChoice(requested, requested, f"search.method {requested!r}")
+    if overflow is None:
+        _refuse(search_method("exhaustive"), doc)
+        why = (
+            "auto: each RIS count searched exhaustively when it has at most"
+            f" {grouped(doc.search.max_exhaustive)} layouts (search.max_exhaustive), else"
+            " greedily"
+        )
+        return AUTO, MethodChoice(AUTO, AUTO, why)
+    district = search_method("district")
+    refusals = method_refusals(district, _as_method(doc, district.name))
+    # auto's own settings for the enumerating searches do not bind the district search
+    unused = [f for f, _ in refusals if f.startswith("search.")]
+    refusals = [(f, m) for f, m in refusals if not f.startswith("search.")]
+    if refusals:  # neither can: the enumerating searches' limits say why (check_sizes)
+        if max(doc.max_counts) > MAX_LAYOUT_RIS:
+            field, message = refusals[0]
+            raise DocumentFieldError(field, f"{overflow}, and {message}")
+        why = f"auto; {overflow} (the district search: {refusals[0][1]})"
+        return AUTO, MethodChoice(AUTO, AUTO, why)
+    why = f"auto: {overflow}"
+    if unused:
+        why += f" ({', '.join(unused)}: the enumerating searches' settings, not used)"
+    return district.name, MethodChoice(AUTO, district.name, why)
+
+
+def _sizing_runs_document(doc: PlanDocument, method: str) -> PlanDocument:
+    """What the sizing question runs at each size: the document without the options only the
+    plan itself takes (beams, validation, roll-out, sweep), with ``search.method`` ``method``."""
+    bare = doc.model_copy(
+        update={"beams": None, "validation": None, "rollout": "free", "sweep": None}
+    )
+    return _as_method(bare, method)
+
+
+def _as_method(doc: PlanDocument, name: str) -> PlanDocument:
+    """``doc`` with ``search.method`` set to ``name``, the other search fields as given."""
+    search = doc.search.model_copy(update={"method": name})
+    return doc.model_copy(update={"search": search})
+
+
+def _refuse(method: SearchMethod, doc: PlanDocument) -> None:
+    refusals = method_refusals(method, doc)
+    if refusals:
+        field, message = refusals[0]
+        raise DocumentFieldError(field, message)
+
+
+def _pairs_built(doc: PlanDocument) -> int:
+    """The pairs a plan run builds (the sample, or every pair up to ``max_pairs``)."""
+    n_t, n_r = map_points(doc.tx_map), map_points(doc.rx_map)
+    spec = doc.pairs
+    if isinstance(spec, str):
+        pairs = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
+    else:
+        pairs = spec.sample
+    return min(pairs, doc.max_pairs)
+
+
+def check_validation_scatterers(admitted: Admitted) -> None:
     """``validation.multipath``: no scatterer or cluster disk may come within
     :data:`~ris_planner.model.simulation.MIN_SCATTERER_DISTANCE_M` of a point of the TX or RX
     map (every point may be a sampled UE; docs/validation/estimator.md): a
     :class:`DocumentFieldError` naming the entry, the map and the point. Runs after the size
     checks (it builds the maps)."""
+    doc = admitted.document
     spec = doc.validation
     if spec is None or not spec.multipath:
         return
     mp = Multipath.model_validate(spec.multipath)
     if not mp.scatterers and not mp.clusters:
         return
-    maps = [("tx_map", doc.tx_map)] + ([] if doc.rx_map == doc.tx_map else [("rx_map", doc.rx_map)])
-    for what, spec_map in maps:
-        points = build_map(spec_map, what).points
+    tx_map, rx_map = admitted.maps
+    maps = [("tx_map", tx_map)] + ([] if doc.rx_map == doc.tx_map else [("rx_map", rx_map)])
+    for what, point_map in maps:
+        points = point_map.points
         hit = scatterer_too_close(mp, points)
         if hit is not None:
             name, k, dist = hit

@@ -4,7 +4,6 @@ before any work: the share that the time and memory estimates scale the served w
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -12,6 +11,7 @@ from numpy.typing import NDArray
 
 from ris_planner.bounds.paths import ris_serves
 from ris_planner.model.plan import PairSample, PlanDocument
+from ris_planner.model.search_methods import sparse_search
 
 if TYPE_CHECKING:
     from ris_planner.environment import Scene
@@ -132,31 +132,27 @@ def near_pairs_sample(
     return np.array(tx), np.array(rx), np.ones(len(tx))
 
 
-_DOCUMENT_SHARES: OrderedDict[int, tuple[PlanDocument, tuple[float, float]]] = OrderedDict()
-""":func:`document_shares` of the last few documents (the time and the memory estimate of one
-document each ask for them)."""
-
-
-def document_shares(doc: PlanDocument) -> tuple[float, float]:
+def document_shares(
+    doc: PlanDocument,
+    maps: tuple[PointMap, PointMap] | None = None,
+    sites: list[Site] | None = None,
+) -> tuple[float, float]:
     """(:func:`served_share`, :func:`pair_served_share` over :func:`near_pairs_sample` – for a
-    district plan with sampled pairs, else the former) of a validated document: its sites,
-    maps and environment expanded, nothing computed on them beyond the sample."""
-    hit = _DOCUMENT_SHARES.get(id(doc))
-    if hit is not None and hit[0] is doc:
-        return hit[1]
+    district plan with sampled pairs, else the former) of a validated document: its sites
+    (``sites`` when the caller expanded them), maps (``maps``, likewise) and environment,
+    nothing computed on them beyond the sample."""
     from ris_planner.environment import Scene
     from ris_planner.planning.inputs.sites import expand_sites
     from ris_planner.planning.inputs.ue_maps import build_map
 
-    sites = expand_sites(doc)
-    tx_map, rx_map = build_map(doc.tx_map, "tx_map"), build_map(doc.rx_map, "rx_map")
+    sites = expand_sites(doc) if sites is None else sites
+    if maps is None:
+        maps = build_map(doc.tx_map, "tx_map"), build_map(doc.rx_map, "rx_map")
+    tx_map, rx_map = maps
     scene = Scene.from_environment(doc.environment)
     share = served_share(sites, tx_map, rx_map, scene)
     by_pair = share
-    if doc.search.method == "district" and isinstance(doc.pairs, PairSample):
+    if sparse_search(doc) and isinstance(doc.pairs, PairSample):
         tx, rx, w = near_pairs_sample(tx_map, rx_map, doc.pairs)
         by_pair = pair_served_share(sites, tx, rx, w, scene)
-    _DOCUMENT_SHARES[id(doc)] = (doc, (share, by_pair))
-    while len(_DOCUMENT_SHARES) > 4:
-        _DOCUMENT_SHARES.popitem(last=False)
     return share, by_pair

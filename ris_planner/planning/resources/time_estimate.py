@@ -30,8 +30,13 @@ from typing import TYPE_CHECKING
 
 from ris_planner.model.limits import HEATMAP_MAX_PAIRS, budget_mb, grouped
 from ris_planner.model.plan import PlanDocument
+from ris_planner.model.search_methods import count_method, sparse_search
 from ris_planner.physics.codebooks import block_length
-from ris_planner.planning.resources.admission import greedy_layouts
+from ris_planner.planning.resources.admission import (
+    Admitted,
+    greedy_layouts,
+    plan_shape,
+)
 from ris_planner.planning.resources.served import (
     document_shares,
     pair_served_share,
@@ -39,7 +44,12 @@ from ris_planner.planning.resources.served import (
 )
 
 if TYPE_CHECKING:
+    from typing import TypeAlias
+
     from ris_planner.planning.inputs.plan_inputs import PlanInputs
+
+    Sized: TypeAlias = "PlanInputs | Admitted | PlanDocument | WorkSizes"
+    """What the time model reads sizes from (:meth:`WorkSizes.of`)."""
 
 CHECKS_HIDDEN_BY = ("sizing", "validation", "fields", "figures")
 """The stages that checks running beside them (:func:`checks_beside`) overlap: the checks'
@@ -139,7 +149,7 @@ def _inputs_served(inputs: PlanInputs) -> tuple[float, float]:
     pairs = inputs.pairs
     by_pair = (
         pair_served_share(inputs.sites, pairs.tx, pairs.rx, pairs.weights, inputs.scene)
-        if inputs.document.search.method == "district"
+        if sparse_search(inputs.document)
         else share
     )
     for k in [k for k, (ref, _) in _SERVED.items() if ref() is None]:
@@ -172,10 +182,13 @@ class WorkSizes:
     else :attr:`served`)."""
 
     @classmethod
-    def of(cls, plan: PlanInputs | PlanDocument | WorkSizes) -> WorkSizes:
-        """The sizes of prepared inputs, of a validated document, or themselves."""
+    def of(cls, plan: Sized) -> WorkSizes:
+        """The sizes of prepared inputs, of an admitted or a validated document, or
+        themselves."""
         if isinstance(plan, WorkSizes):
             return plan
+        if isinstance(plan, Admitted):
+            return cls.from_document(plan.document, plan)
         if isinstance(plan, PlanDocument):
             return cls.from_document(plan)
         doc = plan.document
@@ -191,18 +204,16 @@ class WorkSizes:
         )
 
     @classmethod
-    def from_document(cls, doc: PlanDocument) -> WorkSizes:
+    def from_document(cls, doc: PlanDocument, admitted: Admitted | None = None) -> WorkSizes:
         """The sizes of a validated document (the memory estimate's
         :func:`~ris_planner.planning.resources.admission.plan_shape`) and its served share (its
-        sites
-        and maps expanded, :func:`served_share`)."""
-        from ris_planner.planning.resources.admission import plan_shape
-
-        shape = plan_shape(doc)
+        sites and maps expanded, :func:`served_share`; an admitted document's own, made
+        once)."""
+        share, by_pair = document_shares(doc) if admitted is None else admitted.shares
+        shape = plan_shape(doc, (share, by_pair))
         counts = doc.max_counts
         if doc.ris_count is None:  # target mode: at most every candidate (prepare_plan's rule)
             counts = [c for c in counts if c <= shape.sites]
-        share, by_pair = document_shares(doc)
         return cls(
             doc,
             shape.sites,
@@ -216,16 +227,15 @@ class WorkSizes:
         )
 
 
-def searched_exhaustively(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> bool:
+def searched_exhaustively(plan: Sized, count: int) -> bool:
     """Whether the search for ``count`` RISs is exhaustive (``auto`` within
     ``max_exhaustive`` layouts)."""
     w = WorkSizes.of(plan)
     s = w.document.search
-    total = math.comb(w.sites, count)
-    return s.method == "exhaustive" or (s.method == "auto" and total <= s.max_exhaustive)
+    return count_method(s.method, math.comb(w.sites, count), s.max_exhaustive) == "exhaustive"
 
 
-def search_layouts(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> float:
+def search_layouts(plan: Sized, count: int) -> float:
     """Layouts the search for ``count`` RISs evaluates (all of them when exhaustive)."""
     w = WorkSizes.of(plan)
     s = w.document.search
@@ -236,7 +246,7 @@ def search_layouts(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> f
     return min(total, greedy_layouts(w.sites, count, s.restarts, s.max_rounds, seeds))
 
 
-def heatmap_pairs(plan: PlanInputs | PlanDocument | WorkSizes) -> int:
+def heatmap_pairs(plan: Sized) -> int:
     """TX × RX pairs of the per-point bounds
     (:func:`~ris_planner.planning.outputs.rx_fields.rx_fields`)."""
     w = WorkSizes.of(plan)
@@ -245,7 +255,7 @@ def heatmap_pairs(plan: PlanInputs | PlanDocument | WorkSizes) -> int:
     return min(n_tx * n_rx, max(HEATMAP_MAX_PAIRS, n_rx))
 
 
-def codebook_macs(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> float:
+def codebook_macs(plan: Sized, count: int) -> float:
     """Complex multiply-adds of one ``random``-codebook evaluation of a ``count``-RIS layout:
     per RIS the first block's 3·G̃ derivative-weighted profiles times the N-element steering
     vectors of every checked pair (:func:`ris_planner.physics.fim.planar_transmission_gram`)."""
@@ -260,7 +270,7 @@ def codebook_macs(plan: PlanInputs | PlanDocument | WorkSizes, count: int) -> fl
     return float(count * 3 * g_tilde * w.elements * pairs)
 
 
-def validation_estimates(plan: PlanInputs | PlanDocument | WorkSizes) -> float:
+def validation_estimates(plan: Sized) -> float:
     """Estimator runs of the document's ``validation``: its pairs × draws on each count's best
     layout (:func:`ris_planner.planning.outputs.estimator_check.run_estimator_check`); 0 without."""
     w = WorkSizes.of(plan)
@@ -270,7 +280,7 @@ def validation_estimates(plan: PlanInputs | PlanDocument | WorkSizes) -> float:
     return float(spec.pairs * spec.draws * max(len(w.counts), 1))
 
 
-def sizing_runs_sizes(plan: PlanInputs | PlanDocument | WorkSizes) -> list[WorkSizes]:
+def sizing_runs_sizes(plan: Sized) -> list[WorkSizes]:
     """The sizes of each run of the sizing question (one per RIS size of ``sizing.ris_sizes``,
     sequential, each a search-only plan over the same candidates and pairs: its counts are
     ``sizing.counts``, else ``ris_count``, else 1 … ``max_ris``); none without ``sizing``.
@@ -295,7 +305,7 @@ def _modelled(terms: dict[str, dict[str, float]], stages: tuple[str, ...]) -> fl
     return sum(TIME_COEFFICIENTS[st][t] * v for st in stages for t, v in terms[st].items())
 
 
-def stage_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dict[str, float]]:
+def stage_terms(plan: Sized) -> dict[str, dict[str, float]]:
     """The sizes that drive each stage's time, by the names of :data:`TIME_COEFFICIENTS`."""
     w = WorkSizes.of(plan)
     terms = _run_terms(w)
@@ -415,7 +425,7 @@ def _run_terms(w: WorkSizes) -> dict[str, dict[str, float]]:
     }
 
 
-def checks_beside(plan: PlanInputs | PlanDocument | WorkSizes) -> bool:
+def checks_beside(plan: Sized) -> bool:
     """Whether the plan's checks will run on a thread beside the fields and the figures
     (:class:`ris_planner.planning.certify.checks.PendingChecks`): every count is searched
     exhaustively
@@ -435,7 +445,7 @@ def checks_beside(plan: PlanInputs | PlanDocument | WorkSizes) -> bool:
     return not (workers > 1 and splits and sum(per_count) >= spec.pool_min_work)
 
 
-def stage_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+def stage_seconds(plan: Sized) -> dict[str, float]:
     """Estimated seconds of each stage of :func:`~ris_planner.planning.pipeline.run_plan` and
     of the outputs (plan.json ``timing_s`` names): :data:`TIME_COEFFICIENTS` times
     :func:`stage_terms`, :data:`MARGIN` included; checks that run beside the later stages
@@ -444,7 +454,7 @@ def stage_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, floa
     (:func:`district_seconds`)."""
     w = WorkSizes.of(plan)
     doc = w.document
-    if doc.search.method == "district":
+    if sparse_search(doc):
         return district_seconds(w)
     work = {
         stage: sum(TIME_COEFFICIENTS[stage][term] * size for term, size in sizes.items())
@@ -468,6 +478,9 @@ DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
     },
     "search_lp": {"per_lp_row_entry": 1.8e-6},
     "figures": {"const": 1.0},
+    "fields": {"per_pair": 2e-6},
+    "report": {"per_pair": 2e-6},
+    "exports": {"per_pair": 2e-6},
 }
 """Seconds per unit of the district search's work (:func:`district_terms` names the sizes),
 fitted by hand to the phases of eight district plans on the Helsinki district of
@@ -497,7 +510,7 @@ DISTRICT_LOOKAHEAD_STEPS = 40
 coverage needs two sites placed together)."""
 
 
-def district_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dict[str, float]]:
+def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     """The sizes of a district plan's work (:data:`DISTRICT_COEFFICIENTS`): the (pair, serving
     site) entries E = pairs × sites × :attr:`WorkSizes.pair_served`, the search's entries per
     pair K = min(:data:`~ris_planner.planning.search.district.SEARCH_SITES`, E / pairs) and a
@@ -519,8 +532,9 @@ def district_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dic
     rescore = per_pair * per_pair * n_pairs / n_sites
     target = doc.sizing is not None or doc.objective.target is not None
     sizes = len(doc.sizing_ris_sizes())
-    longest = min(max(max(counts), most_ris(doc)) if target else max(counts), n_sites)
-    path = longest + (sizes - 1) * min(most_ris(doc), n_sites) if target else longest
+    most = most_ris(doc.system.transmissions)
+    longest = min(max(max(counts), most) if target else max(counts), n_sites)
+    path = longest + (sizes - 1) * min(most, n_sites) if target else longest
     swaps = sum(counts) * (6 if n_sites <= SMALL_DISTRICT_SITES else 1)
     lps = len(counts) + (DISTRICT_LOWER_BOUND_LPS * sizes if target else 0.0)
     return {
@@ -533,10 +547,13 @@ def district_terms(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, dic
         },
         "search_lp": {"per_lp_row_entry": (entries + DISTRICT_LP_ROWS_PER_PAIR * n_pairs) * lps},
         "figures": {"const": 1.0},
+        "fields": {"per_pair": float(n_pairs) * len(counts)},
+        "report": {"per_pair": float(n_pairs) * len(counts)},
+        "exports": {"per_pair": float(n_pairs) * len(counts)},
     }
 
 
-def district_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+def district_seconds(plan: Sized) -> dict[str, float]:
     """Estimated seconds of a district plan's stages (plan.json ``timing_s``: ``inputs``,
     ``search``, ``figures``), :data:`MARGIN` included; the search's two threads overlap
     (:data:`DISTRICT_OVERLAP`)."""
@@ -546,17 +563,19 @@ def district_seconds(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, f
     }
     main, lp = part.pop("search_main"), part.pop("search_lp")
     part["search"] = max(main, lp) + DISTRICT_OVERLAP * min(main, lp)
-    return {stage: MARGIN * part[stage] for stage in ("inputs", "search", "figures")}
+    # the enumerating searches' stages that a district plan does not have: none of its time
+    part |= {stage: 0.0 for stage in ("visibility", "cache", "checks", "rollout")}
+    return {stage: MARGIN * value for stage, value in part.items()}
 
 
-def time_estimate(plan: PlanInputs | PlanDocument | WorkSizes) -> float:
+def time_estimate(plan: Sized) -> float:
     """The plan's estimated wall time [s] (the sum of :func:`stage_seconds`): within
     [0.5, 2] of the measured time on the calibration cases and the held-out real sites
     (docs/validation/resources.md)."""
     return sum(stage_seconds(plan).values())
 
 
-def plan_work(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+def plan_work(plan: Sized) -> dict[str, float]:
     """Estimated seconds of :func:`~ris_planner.planning.pipeline.plan_once`'s progress stages:
     ``cache`` (visibility and site cache), ``search``, ``checks``, ``rollout`` (the nested
     chain) and (with ``beams``) ``beams``."""
@@ -572,7 +591,7 @@ def plan_work(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
     return work
 
 
-def report_work(plan: PlanInputs | PlanDocument | WorkSizes) -> dict[str, float]:
+def report_work(plan: Sized) -> dict[str, float]:
     """Estimated seconds after the search: ``fields`` (every count's per-point bounds),
     ``report`` (the diagnosis, the summary and plan.json), ``figures`` and ``exports``
     (:func:`ris_planner.io.geoplan.plan_document`)."""
@@ -621,14 +640,16 @@ def seconds_text(seconds: float) -> str:
     return f"{minutes} min {rest} s" if minutes < 60 else f"{minutes // 60} h {minutes % 60} min"
 
 
-def plan_estimate(doc: PlanDocument, memory_mb: int | None = None) -> PlanEstimate:
-    """The :class:`PlanEstimate` of a validated plan document (nothing is built): the budget
-    is ``memory_mb``, else ``RIS_PLANNER_JOB_MEMORY_MB``."""
-    from ris_planner.planning.resources.admission import estimate_plan
+def plan_estimate(plan: Admitted | PlanDocument, memory_mb: int | None = None) -> PlanEstimate:
+    """The :class:`PlanEstimate` of an admitted plan (its sizes as admitted; a validated
+    document is admitted first): the budget is ``memory_mb``, else
+    ``RIS_PLANNER_JOB_MEMORY_MB``."""
+    from ris_planner.planning.resources.admission import admit
 
+    admitted = plan if isinstance(plan, Admitted) else admit(plan, memory_mb)
     return PlanEstimate(
-        time_estimate(doc),
-        estimate_plan(doc).memory_bytes / 2**20,
+        time_estimate(admitted),
+        admitted.sizes.memory_bytes / 2**20,
         budget_mb(memory_mb),
     )
 

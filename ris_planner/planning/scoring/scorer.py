@@ -25,7 +25,7 @@ holds 2P values – this direction's, then the reverse's – weighted by :attr:`
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -400,6 +400,55 @@ class Scorer:
         peb_t, peb_r = self._peb(diag, tx).reshape(nb, -1), self._peb(diag, rx).reshape(nb, -1)
         first, second = (peb_r, peb_t) if self.objective.metric == "rx" else (peb_t, peb_r)
         return np.concatenate([first, second], axis=1)
+
+    def far_field_of(self, layout: Sequence[int]) -> BoolArray:
+        """[P] whether every site of ``layout`` has the pair in its far field
+        (:class:`~ris_planner.planning.scoring.layout_scorer.LayoutScorer`)."""
+        return np.asarray(np.all(self.cache.far_field[list(layout)], axis=0))
+
+    def near_field_by_site(self, weights: FloatArray) -> FloatArray:
+        """[S] per site the weight of the pairs it has in its near field."""
+        return np.asarray((~self.cache.far_field) @ weights, dtype=np.float64)
+
+    def serves(self, layout: Sequence[int]) -> BoolArray:
+        """[L, P] whether each site of ``layout`` has a RIS path to each pair (every one
+        without presence masks)."""
+        present = self.cache.present
+        if present is None:
+            return np.ones((len(layout), self.cache.n_pairs), dtype=bool)
+        return np.asarray(present[list(layout)])
+
+    def idle_sites(self) -> IntArray:
+        """The sites that serve no pair (none without presence masks: every path exists)."""
+        present = self.cache.present
+        if present is None:
+            return np.zeros(0, dtype=np.int64)
+        return np.flatnonzero(~present.any(axis=1))
+
+    def servable(self) -> BoolArray:
+        """[P] the pairs a layout of every candidate gives a finite bound: the planar
+        counting rule on the present paths (3 channel parameters per RIS path, 1 for LOS, at
+        least the unknown states), the spherical model's bound with every site."""
+        cache = self.cache
+        if cache.wavefront == "spherical":
+            every = np.arange(cache.n_sites)[None]
+            metric = self.metric(every)[0]
+            n = cache.n_pairs
+            return np.isfinite(metric[:n]) & (np.isfinite(metric[n:]) if self.mirror else True)
+        paths = cache.n_sites if cache.present is None else cache.present.sum(axis=0)
+        los: IntArray | int = 0 if cache.los is None else 1
+        if cache.los_present is not None:
+            los = cache.los_present.astype(int)
+        return np.asarray(los + 3 * paths >= len(kept_states(self.known)))
+
+    def storage_json(self) -> dict[str, Any]:
+        """plan.json ``site_cache``: its storage precision, whether the square-root rows are
+        stored, and its bytes."""
+        return {
+            "storage": self.cache.storage,
+            "rows_stored": self.cache.factor is not None,
+            "bytes": self.cache.nbytes,
+        }
 
     def exact_metric(self, layouts: IntArray) -> FloatArray:
         """:meth:`metric`, float64-exact whatever the cache's storage: with float32 storage

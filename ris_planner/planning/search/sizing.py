@@ -1,129 +1,206 @@
 """The sizing question: the smallest RIS size × count that reaches a target
 (docs/concepts/diagnosis.md, "Sizing").
 
-Each RIS size of ``document.sizing.ris_sizes`` runs the plan once more over the same candidates
-and pairs – the ``sweep`` machinery over ``ris_size`` (:func:`ris_planner.planning.
-sweep_rows`) – with the sizing target as ``objective.target``: with explicit counts every count
-is searched (``mode: compare``); without, each size searches 1, 2, … ``max_ris`` and stops at
-the first count that reaches the target (``mode: target``). The answer is the reaching row with
-the fewest elements in total (rows · cols · count); ties go to fewer RISs. Sizes are tried in
-ascending element count, and a size whose smallest count already needs more elements than the
-answer found so far cannot win: it is skipped (and named in the message)."""
+Every search method answers it in one shape (plan.json ``sizing``, :func:`sizing_json`): per
+RIS size of ``sizing.ris_sizes`` (and the document's own), in ascending element count, a
+:class:`SizeRow` – the smallest count found to reach the goal, the certified lower bound on the
+count of any layout that reaches it where the method certifies one, the layout and its
+objective – and the answer, the reaching row with the fewest elements in total
+(rows · cols · count; ties to fewer RISs). The goal is the target as an objective value: for a
+coverage objective a share of the servable pairs (docs/concepts/scoring.md, "One
+denominator"), so a size is judged against the same pairs whatever it can cover.
+
+The enumerating searches run the plan once per size in target mode
+(:func:`enumerating_size_rows`, over the pipeline's run); the district search walks its greedy
+path per size and solves its relaxation's lower bound
+(:func:`ris_planner.planning.district_plan.district_size_rows`).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
-from ris_planner.model.plan import PlanDocument, Sweep
-from ris_planner.runtime.executor import Executor
-from ris_planner.runtime.progress import ProgressCallback
+from ris_planner.core.io_json import finite_or_none
+from ris_planner.model.objectives import objective_kind
+from ris_planner.model.plan import Target
+from ris_planner.model.search_methods import MethodChoice
 
 
-def sizing_document(doc: PlanDocument) -> dict[str, Any]:
-    """The plan document (JSON dict) each sizing run starts from: without ``sweep``,
-    ``sizing`` and ``beams``, the sizing target as ``objective.target`` and the sizing counts
-    (compare mode) or 1 … ``max_ris`` in target mode."""
-    assert doc.sizing is not None
-    target = doc.sizing_target()
-    raw = {
-        k: v
-        for k, v in doc.model_dump(mode="json").items()
-        if k not in ("sweep", "sizing", "beams")
-    }
-    raw["objective"] = {**raw["objective"], "target": target.model_dump(exclude_none=True)}
-    counts = doc.sizing.counts if doc.sizing.counts is not None else doc.ris_count
-    if counts is not None:
-        raw["ris_count"], raw["mode"] = list(counts), "compare"
-    else:
-        raw["ris_count"], raw["mode"] = None, "target"
-    return raw
+@dataclass(frozen=True)
+class SizeRow:
+    """One RIS size of the sizing question."""
+
+    ris_size: tuple[int, int]
+    count: int | None
+    """The smallest count found to reach the goal (``None``: none found)."""
+    lower_bound: int | None
+    """No layout of this size with fewer RISs reaches the goal (certified; ``None``: the
+    method certifies none, or the goal is out of reach with every candidate)."""
+    objective: float | None = None
+    """The objective of the layout found."""
+    sites: tuple[int, ...] | None = None
+    note: str | None = None
+    """Why no count is given, when none is."""
+    counts: tuple[dict[str, Any], ...] = field(default_factory=tuple)
+    """Each count tried (enumerating searches: ``{"count", "objective", "reaches",
+    "objective_bound"}``)."""
+
+    @property
+    def elements(self) -> int | None:
+        r, c = self.ris_size
+        return None if self.count is None else r * c * self.count
 
 
-def smallest(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
-    """The reaching row with the fewest elements in total (rows · cols · count); ties → fewer
-    RISs, then the smaller grid."""
-    reaching = [r for r in rows if r["reaches"]]
+def answer_row(rows: Sequence[SizeRow]) -> SizeRow | None:
+    """The reaching row with the fewest elements in total; ties → fewer RISs, then the smaller
+    grid."""
+    reaching = [r for r in rows if r.count is not None]
     if not reaching:
         return None
-    return min(reaching, key=lambda r: (r["rows"] * r["cols"] * r["count"], r["count"], r["rows"]))
+    return min(reaching, key=lambda r: (r.elements, r.count, r.ris_size))
 
 
-SweepRows = Callable[[dict[str, Any], Sweep, Any, ProgressCallback, Executor], list[dict[str, Any]]]
-"""The pipeline's sweep runner (:func:`ris_planner.planning.pipeline.sweep_rows`): the rows
-of one sweep value, each RIS count's objective and whether it meets the target."""
+def interval_text(lower: int | None, count: int, size: tuple[int, int], goal: str) -> str:
+    """The answer in plain words: ``between 131 and 168 RISs of 64×64 reach …`` (``lower`` the
+    certified count, ``count`` the one found)."""
+    r, c = size
+    if lower is None:
+        return f"{count} RISs of {r}×{c} reach {goal} (no certified lower count)"
+    if lower >= count:
+        return f"exactly {count} RISs of {r}×{c} reach {goal} (certified: no fewer can)"
+    return f"between {lower} and {count} RISs of {r}×{c} reach {goal}"
 
 
-def run_sizing(
-    doc: PlanDocument, progress: ProgressCallback, ex: Executor, sweep_rows: SweepRows
-) -> dict[str, Any]:
-    """``plan.json["sizing"]``: ``{"target", "answer", "table", "skipped", "message"}``.
-
-    ``answer`` is ``{"rows", "cols", "count", "objective", "sites"}`` of :func:`smallest` or
-    ``None``; ``table`` one row per (size, searched count) with ``reaches``. ``sweep_rows``
-    runs the plans (the pipeline passes its own, so this stage does not import it)."""
-    assert doc.sizing is not None
-    sizes = doc.sizing.ris_sizes
-    target = doc.sizing_target()
-    raw = sizing_document(doc)
-    sweep = Sweep(ris_size=sizes)
-    counts = raw["ris_count"] or list(range(1, doc.max_ris + 1))
-    table: list[dict[str, Any]] = []
-    skipped: list[list[int]] = []
-    for i, (r, c) in enumerate(sizes):
-        best = smallest(table)
-        if best is not None and (r * c * counts[0], counts[0]) >= (
-            best["rows"] * best["cols"] * best["count"],
-            best["count"],
-        ):
-            skipped.append([r, c])
-            continue
-
-        def sub_progress(f: float, m: str, i: int = i, r: int = r, c: int = c) -> None:
-            progress((i + f) / len(sizes), f"sizing {r}×{c}: {m}")
-
-        for row in sweep_rows(raw, sweep, [r, c], sub_progress, ex):
-            table.append(
-                {
-                    "rows": r,
-                    "cols": c,
-                    "count": row["ris_count"],
-                    "objective": row["objective"],
-                    "reaches": bool(row["target_met"]),
-                    "sites": row["sites"],
-                    "cost": row["cost"],
-                }
-            )
-    progress(1.0, "sizing done")
-    best = smallest(table)
+def goal_words(kind: str, target: Target, servable_weight: float | None) -> str:
+    """The target in words, with its denominator: ``90 % of the servable pairs`` (coverage),
+    ``quantile ≤ 0.5 m``."""
+    spec = objective_kind(kind)
+    if spec.share_of_servable and target.min is not None:
+        return f"{100 * target.min:.3g} % of the servable pairs"
     level = target.min if target.min is not None else target.max
     side = "≥" if target.min is not None else "≤"
-    goal = f"{doc.objective.kind} {side} {level:g}"
-    if best is None:
-        largest = sizes[-1]
-        message = (
-            f"no RIS size up to {largest[0]}×{largest[1]} with {counts[0]}–{counts[-1]} RISs"
-            f" reaches {goal}: try larger RISs, more RISs (counts), more power or other sites"
-        )
-        answer = None
-    else:
-        obj = best["objective"]
-        message = (
-            f"smallest reaching {goal}: {best['count']} × {best['rows']}×{best['cols']} RIS"
-            f" ({best['count'] * best['rows'] * best['cols']} elements, objective"
-            f" {obj:.3g} at sites {best['sites']})"
-        )
-        answer = {k: best[k] for k in ("rows", "cols", "count", "objective", "sites")}
-    if skipped:
-        message += (
-            f"; sizes {', '.join(f'{a}×{b}' for a, b in skipped)} skipped: they need more"
-            " elements than the answer"
-        )
-    return {
-        "target": {"objective": level, "better": "higher" if target.min is not None else "lower"},
-        "counts": counts,
-        "answer": answer,
-        "table": table,
-        "skipped": skipped,
-        "message": message,
+    return f"{kind} {side} {level:g}{' ' + spec.unit if spec.unit else ''}"
+
+
+def sizing_json(
+    rows: Sequence[SizeRow],
+    kind: str,
+    target: Target,
+    goal: Target,
+    servable_weight: float | None,
+    choice: MethodChoice,
+) -> dict[str, Any]:
+    """``plan.json["sizing"]`` (one shape for every search method): the target and its goal as
+    an objective value, each size's row, the answer (``None`` when no size reaches the goal)
+    with its certified interval, the search that answered and why, and a message."""
+    best = answer_row(rows)
+    words = goal_words(kind, target, servable_weight)
+    out: dict[str, Any] = {
+        "target": target.model_dump(exclude_none=True),
+        "of": "servable pairs" if objective_kind(kind).share_of_servable else None,
+        "goal": goal.model_dump(exclude_none=True),
+        "servable_weight": servable_weight,
+        "sizes": [_row_json(r) for r in rows],
+        "search_method": choice.to_json(),
     }
+    if best is None:
+        out["answer"] = None
+        out["message"] = (
+            f"no RIS size of the ladder reaches {words} (each size's reason in 'sizes'):"
+            " try larger RISs, more RISs, more power or other sites"
+        )
+        return out
+    assert best.count is not None
+    gap = None if best.lower_bound is None else best.count - best.lower_bound
+    out["answer"] = {
+        "ris_size": list(best.ris_size),
+        "count": best.count,
+        "lower_bound": best.lower_bound,
+        "gap": gap,
+        "gap_share": None if gap is None else gap / best.count,
+        "elements": best.elements,
+        "objective": finite_or_none(best.objective),
+        "sites": None if best.sites is None else list(best.sites),
+    }
+    out["message"] = interval_text(best.lower_bound, best.count, best.ris_size, words)
+    return out
+
+
+def _row_json(row: SizeRow) -> dict[str, Any]:
+    return {
+        "ris_size": list(row.ris_size),
+        "count": row.count,
+        "lower_bound": row.lower_bound,
+        "objective": finite_or_none(row.objective),
+        "sites": None if row.sites is None else list(row.sites),
+        "note": row.note,
+        "counts": list(row.counts),
+    }
+
+
+RunCounts = Callable[[tuple[int, int], Callable[[float, str], None]], list[dict[str, Any]]]
+"""Runs the plan at one RIS size in target mode: the rows of
+:meth:`~ris_planner.planning.outputs.result.PlanResult.summary_rows` (each count's objective,
+whether it meets the goal and its certified bound)."""
+
+
+def enumerating_size_rows(
+    sizes: Sequence[tuple[int, int]],
+    goal: Target,
+    first_count: int,
+    run_counts: RunCounts,
+    progress: Callable[[float, str], None],
+) -> list[SizeRow]:
+    """The enumerating searches' rows: each size's plan in target mode (``run_counts``); the
+    count found is the first that meets the goal, the lower bound the first count whose
+    certificate does not rule the goal out (every smaller count's certified bound misses it;
+    exhaustive counts are exact). A size whose smallest count (``first_count``) already needs
+    more elements than the answer so far is skipped."""
+    rows: list[SizeRow] = []
+    for i, (r, c) in enumerate(sizes):
+        best = answer_row(rows)
+        if best is not None and best.elements is not None and r * c * first_count >= best.elements:
+            rows.append(SizeRow((r, c), None, None, note="skipped: more elements than the answer"))
+            continue
+
+        def sub(f: float, m: str, i: int = i, r: int = r, c: int = c) -> None:
+            progress((i + f) / len(sizes), f"sizing {r}×{c}: {m}")
+
+        tried = run_counts((r, c), sub)
+        hit = next((t for t in tried if t["target_met"]), None)
+        lower: int | None = None
+        for t in tried:
+            bound = t.get("objective_bound")
+            if bound is None or goal.met(bound):
+                lower = int(t["ris_count"])
+                break
+        else:
+            lower = None if hit is None else int(hit["ris_count"])
+        counts = tuple(
+            {
+                "count": t["ris_count"],
+                "objective": t["objective"],
+                "reaches": bool(t["target_met"]),
+                "objective_bound": t.get("objective_bound"),
+            }
+            for t in tried
+        )
+        if hit is None:
+            rows.append(
+                SizeRow((r, c), None, None, note="no searched count reaches it", counts=counts)
+            )
+            continue
+        rows.append(
+            SizeRow(
+                (r, c),
+                int(hit["ris_count"]),
+                lower,
+                hit["objective"],
+                tuple(hit["sites"]),
+                counts=counts,
+            )
+        )
+    progress(1.0, "sizing done")
+    return rows

@@ -1,0 +1,359 @@
+"""The district search as a search method of the one pipeline (docs/concepts/district.md): its
+run returns the same :class:`~ris_planner.planning.outputs.result.PlanResult` as the
+enumerating searches', so its plan.json, figures, GIS files, roll-out, sizing, diagnosis and
+per-point fields are every plan's.
+
+:func:`run_district` builds the sparse information
+(:func:`~ris_planner.planning.scoring.sparse.build_problem`), searches each RIS count
+(:func:`~ris_planner.planning.search.district.greedy_path`, swaps, and the relaxation's own
+layout on small districts), certifies it (:mod:`ris_planner.planning.certify.district_lp`, on a
+thread beside the search: HiGHS releases the GIL) and, with ``rollout: nested``, extends each
+count's nested layout greedily from the previous one. :func:`district_size_rows` answers the
+sizing question at each RIS size: the smallest count its greedy path needs and the certified
+lower bound on any layout's count.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.model.plan import Target, target_goal
+from ris_planner.planning.certify.district_lp import (
+    Needs,
+    count_lower_bound,
+    relaxed_coverage,
+    sites_needed,
+)
+from ris_planner.planning.certify.relaxation import Certificate
+from ris_planner.planning.inputs.plan_inputs import PlanInputs
+from ris_planner.planning.outputs.result import CountResult, PlanResult
+from ris_planner.planning.scoring.layout_scorer import pairs_summary
+from ris_planner.planning.scoring.sparse import (
+    DistrictProblem,
+    LayoutState,
+    SparseScorer,
+    build_problem,
+)
+from ris_planner.planning.search.district import (
+    GAIN_TIE,
+    SEARCH_SITES,
+    SMALL_DISTRICT_SITES,
+    PathStep,
+    greedy_path,
+    improve,
+    most_ris,
+    rounded_layout,
+)
+from ris_planner.planning.search.layouts import Layout, SearchOutcome
+from ris_planner.planning.search.rollout import NestedStep, rollout_json
+from ris_planner.planning.search.sizing import SizeRow
+from ris_planner.runtime.progress import ProgressCallback, StageClock, no_progress
+
+BoolArray = NDArray[np.bool_]
+Constraints = tuple[tuple[int, ...], tuple[int, ...], BoolArray | None]
+"""(required sites, excluded sites, conflict [S, S] or None)."""
+
+
+def constraints_of(inputs: PlanInputs) -> Constraints:
+    """The feasibility the district search honours: required, excluded and conflicting sites
+    (spacing, one mounting point)."""
+    feas = inputs.feasibility
+    required = tuple(int(s) for s in feas.required)
+    excluded = tuple(int(s) for s in np.flatnonzero(~feas.allowed))
+    return required, excluded, feas.conflict if feas.conflict.any() else None
+
+
+def level_of(inputs: PlanInputs) -> float:
+    """The coverage objective's threshold [m] (the district search plans coverage only: its
+    capabilities, :mod:`ris_planner.model.search_methods`)."""
+    from ris_planner.model.objectives import objective_kind
+
+    spec = inputs.document.objective
+    level = objective_kind(spec.kind).screen_level(spec)
+    assert level is not None
+    return float(level)
+
+
+@dataclass(frozen=True)
+class DistrictSearch:
+    """The district search's state that the sizing question reuses: the information, what the
+    search sees, the cover sets and the greedy path already walked."""
+
+    problem: DistrictProblem
+    seen: DistrictProblem
+    needs: Needs
+    path: list[PathStep]
+
+
+def run_district(
+    inputs: PlanInputs,
+    progress: ProgressCallback = no_progress,
+    clock: StageClock | None = None,
+    goal: Target | None = None,
+) -> PlanResult:
+    """The district search's plan run (module docstring): per RIS count the layout of the
+    greedy path improved by swaps (and, on small districts, the relaxation's own layout
+    improved likewise), its exact coverage and the certified upper bound on any layout of that
+    count; in target mode the counts up to the first that reaches the target (a share of the
+    servable pairs; ``goal``: that target as an objective value, when the caller fixed it)."""
+    doc = inputs.document
+    clock = StageClock() if clock is None else clock
+    required, excluded, conflict = cons = constraints_of(inputs)
+    with clock.stage("cache"):  # the sparse information, what every candidate gives
+        progress(0.0, "information")
+        problem = build_problem(inputs, lambda f, m: progress(0.4 * f, m))
+        scorer = SparseScorer(problem)
+        seen = problem.strongest(SEARCH_SITES)
+        needs = sites_needed(problem)
+        summary = pairs_summary(scorer, problem.weights, problem.n_sites, problem.threshold)
+    counts = [c for c in inputs.counts if c <= problem.n_sites]
+    target = doc.objective.target
+    if goal is None and target is not None:
+        goal = target_goal(doc.objective.kind, target, summary.servable_weight)
+    level = goal.min if doc.target_mode and goal is not None else None
+    lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-relaxation")
+    try:
+        with clock.stage("search"):
+            relaxed = {
+                c: lp.submit(relaxed_coverage, problem, c, needs, required, excluded)
+                for c in counts
+            }
+            progress(0.5, "path")
+            most = most_ris(doc.system.transmissions)
+            longest = max(counts) if level is None else max(max(counts), most)
+            path = greedy_path(
+                seen,
+                min(longest, problem.n_sites),
+                level,
+                required,
+                excluded,
+                min_count=0 if level is not None else max(counts),
+                conflict=conflict,
+            )
+            progress(0.7, "swaps")
+            found, infeasible = _count_results(problem, seen, path, counts, relaxed, cons, level)
+    finally:
+        lp.shutdown(wait=False, cancel_futures=True)
+    with clock.stage("rollout"):
+        rollout = _rollout(doc, seen, problem, found, cons)
+    progress(1.0, "done")
+    return PlanResult(
+        doc,
+        inputs.sites,
+        inputs.tx_map,
+        inputs.rx_map,
+        inputs.pairs,
+        scorer,
+        found,
+        clock.seconds,
+        scene=inputs.scene,
+        dropped_points=inputs.dropped,
+        feasibility=inputs.feasibility,
+        infeasible_counts=tuple(infeasible),
+        rollout=rollout,
+        pairs_summary=summary,
+        choice=inputs.choice,
+        search_details={
+            "path": [{"ris_count": len(p.sites), "coverage": p.coverage} for p in path],
+            "search_sites_per_pair": SEARCH_SITES,
+            "pairs_with_cover_sets": int(needs.complete.sum()),
+            "serving_sites_per_pair": float(np.diff(problem.pair_start).mean())
+            if problem.n_pairs
+            else 0.0,
+            "entries": problem.n_entries,
+        },
+        sizing_state=DistrictSearch(problem, seen, needs, path),
+    )
+
+
+def _count_results(
+    problem: DistrictProblem,
+    seen: DistrictProblem,
+    path: list[PathStep],
+    counts: list[int],
+    relaxed: dict[int, Future[tuple[float, Any]]],
+    cons: Constraints,
+    goal: float | None,
+) -> tuple[list[CountResult], list[int]]:
+    """Each count's :class:`CountResult` (the searched layout re-scored with every serving
+    site, its certificate) and the counts the path never reached (no site adds information)."""
+    required, excluded, conflict = cons
+    small = problem.n_sites <= SMALL_DISTRICT_SITES
+    rounds = 3 if small else 1
+    out: list[CountResult] = []
+    missing: list[int] = []
+    for c in counts:
+        step = next((p for p in path if len(p.sites) == c), None)
+        if step is None:
+            missing.append(c)
+            continue
+        layout, cov = improve(seen, step.sites, required, excluded, rounds, conflict)
+        found_by = "greedy path and swaps"
+        ub, z = relaxed[c].result()
+        if small:  # the relaxation's own layout, improved likewise
+            rounded = rounded_layout(z, c, required, excluded, conflict)
+            if len(rounded) == c:
+                other, other_cov = improve(seen, rounded, required, excluded, rounds, conflict)
+                if other_cov > cov + GAIN_TIE:
+                    layout, cov = other, other_cov
+                    found_by = "relaxation rounding and swaps"
+        out.append(count_result(problem, layout, ub, found_by))
+        if goal is not None and -out[-1].ranked[0][1] >= goal - 1e-12:
+            break  # target mode: the smallest count that reaches the target
+    return out, missing
+
+
+def count_result(
+    problem: DistrictProblem, layout: Layout, bound: float, found_by: str
+) -> CountResult:
+    """One count's result from its layout (re-scored exactly, every serving site) and the
+    certified upper bound on any layout of that count."""
+    layout = tuple(sorted(int(s) for s in layout))
+    state = LayoutState(problem, list(layout))
+    cov = state.coverage()
+    loss = -cov
+    outcome = SearchOutcome(
+        np.array([layout], dtype=np.int64),
+        np.array([loss]),
+        method="district",
+        total_layouts=math.comb(problem.n_sites, len(layout)),
+    )
+    cert = Certificate(-max(bound, cov), exact=False, method="district relaxation")
+    return CountResult(
+        len(layout),
+        outcome,
+        [(layout, loss)],
+        state.metric,
+        certificate=cert,
+        found_by=found_by,
+    )
+
+
+def _rollout(
+    doc: Any,
+    seen: DistrictProblem,
+    problem: DistrictProblem,
+    found: list[CountResult],
+    cons: Constraints,
+) -> dict[str, Any]:
+    """plan.json ``rollout``: with ``nested`` each count's layout the greedy extension of the
+    previous count's nested one (the first is the free one), priced against the free layout;
+    in free mode the free layouts only."""
+    _, excluded, conflict = cons
+    free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in found]
+    if doc.rollout != "nested":
+        note = 'the nested chain is searched with rollout "nested"'
+        return rollout_json(doc.rollout, doc.objective, free, None, note)
+    steps: list[NestedStep] = []
+    for i, (count, lay, loss) in enumerate(free):
+        if i == 0:
+            steps.append(NestedStep(count, lay, loss, "free", 0))
+            continue
+        prev = steps[-1].layout or ()
+        grown = greedy_path(seen, count, None, tuple(prev), excluded, conflict=conflict)
+        nested = grown[-1].sites if grown and len(grown[-1].sites) == count else None
+        if nested is None:
+            steps.append(NestedStep(count, None, math.inf, "district greedy", 0))
+            continue
+        nested_loss = -LayoutState(problem, list(nested)).coverage()
+        steps.append(NestedStep(count, tuple(nested), nested_loss, "district greedy", 0))
+    return rollout_json("nested", doc.objective, free, steps)
+
+
+def district_size_rows(
+    inputs: PlanInputs,
+    state: DistrictSearch,
+    sizes: list[tuple[int, int]],
+    goal: float,
+    progress: ProgressCallback = no_progress,
+) -> list[SizeRow]:
+    """The sizing question at each RIS size (ascending element count): the smallest count
+    whose greedy path reaches ``goal`` (an objective value: a share of the servable pairs'
+    weight) and the certified lower bound on any layout's count; a size whose lower bound
+    already needs more elements than the answer so far is skipped, one that cannot reach the
+    goal with every candidate says so. The other sizes' information shares the document's
+    visibility; their lower bounds solve on a thread beside their paths."""
+    doc = inputs.document
+    required, excluded, conflict = constraints_of(inputs)
+    own = (doc.ris.rows, doc.ris.cols)
+    lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-sizing")
+    rows: list[SizeRow] = []
+    best: int | None = None  # elements of the answer so far
+    try:
+        for k, (r, c) in enumerate(sizes):
+            progress(k / len(sizes), f"sizing: {r}×{c}")
+            if (r, c) == own:
+                pr, seen, nd, steps = state.problem, state.seen, state.needs, state.path
+            else:
+
+                def on_build(f: float, m: str, k: int = k, r: int = r, c: int = c) -> None:
+                    progress((k + 0.5 * f) / len(sizes), f"sizing {r}×{c}: {m}")
+
+                pr = build_problem(_resized(inputs, r, c), on_build, like=state.problem)
+                seen, nd, steps = pr.strongest(SEARCH_SITES), sites_needed(pr), []
+            lower: Callable[[], int | None] = lp.submit(
+                count_lower_bound, pr, goal, nd, required, excluded
+            ).result
+            if not steps or steps[-1].coverage < goal:
+                steps = greedy_path(
+                    seen,
+                    min(most_ris(doc.system.transmissions), pr.n_sites),
+                    goal,
+                    required,
+                    excluded,
+                    conflict=conflict,
+                )
+            lb = lower()
+            rows.append(_size_row((r, c), pr, seen, steps, goal, lb, best))
+            row = rows[-1]
+            if row.count is not None and (best is None or r * c * row.count < best):
+                best = r * c * row.count
+    finally:
+        lp.shutdown(wait=False, cancel_futures=True)
+    return rows
+
+
+def _size_row(
+    size: tuple[int, int],
+    problem: DistrictProblem,
+    seen: DistrictProblem,
+    steps: list[PathStep],
+    goal: float,
+    lower: int | None,
+    best: int | None,
+) -> SizeRow:
+    r, c = size
+    if lower is None:
+        return SizeRow(size, None, None, note="not reachable: every candidate together covers less")
+    if best is not None and lower * r * c >= best:
+        note = f"skipped: at least {lower} RISs, not fewer elements than the answer"
+        return SizeRow(size, None, lower, note=note)
+    hit = next((p for p in steps if p.coverage >= goal - 1e-12), None)
+    if hit is None:
+        note = f"the greedy path stops at {len(steps)} RISs below the target"
+        return SizeRow(size, None, lower, note=note)
+    cov = LayoutState(problem, list(hit.sites)).coverage() if seen is not problem else hit.coverage
+    return SizeRow(size, len(hit.sites), lower, cov, tuple(hit.sites))
+
+
+def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:
+    """The same plan with every candidate a ``rows`` × ``cols`` RIS."""
+    ris = inputs.document.ris.model_copy(update={"rows": rows, "cols": cols})
+    sites = [
+        replace(s, ris=s.ris.model_copy(update={"rows": rows, "cols": cols})) for s in inputs.sites
+    ]
+    return replace(inputs, sites=sites, document=inputs.document.model_copy(update={"ris": ris}))
+
+
+def district_state(inputs: PlanInputs, progress: ProgressCallback = no_progress) -> DistrictSearch:
+    """The :class:`DistrictSearch` of prepared inputs, no path walked (the sizing question of a
+    plan whose own search was another method)."""
+    problem = build_problem(inputs, progress)
+    return DistrictSearch(problem, problem.strongest(SEARCH_SITES), sites_needed(problem), [])

@@ -1,0 +1,468 @@
+"""Sparse information of a district plan: one 7×7 matrix (on the kept states) per (pair,
+serving site), the LOS once per pair, and a layout's metric from it (docs/concepts/district.md).
+
+A sidelink pair sees only the few candidates that serve both of its UEs, so the information is
+held sparsely (:class:`DistrictProblem`). A layout's metric for pair p sums the LOS and the
+matrices of its serving sites in the layout (eq. FIM_measurement, summed over paths) and
+inverts once (:func:`ris_planner.inversion.crb.crb_diagonal`, the bounds' hybrid route); a pair
+whose present paths give fewer geometric channel parameters than unknown states is ``inf``
+(the counting rule of ``compute_bounds``). :class:`LayoutState` keeps one layout's per-pair
+information up to date site by site (only the pairs a site serves change);
+:class:`SparseScorer` is what a plan's result reads of it
+(:class:`~ris_planner.planning.scoring.layout_scorer.LayoutScorer`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_matrix
+
+from ris_planner.bounds.compute import (
+    kept_states,
+    los_gradient,
+    los_path_information,
+    n_observations,
+    ris_path_information,
+    stand_ins,
+    to_los_reference,
+    ue_on_ris,
+    uses_los_reference,
+)
+from ris_planner.core.errors import RisPlannerError
+from ris_planner.inversion.crb import (
+    JIT_MIN_MATRICES,
+    Engine,
+    crb_diagonal,
+    summed_crb_diagonal,
+)
+from ris_planner.inversion.ldl import pack, packed_slots
+from ris_planner.model.objectives.protocol import objective_kind
+from ris_planner.physics import fim
+from ris_planner.planning.inputs.plan_inputs import PlanInputs
+from ris_planner.planning.scoring.visibility import pair_visibility
+from ris_planner.runtime.blas import one_blas_thread
+from ris_planner.runtime.progress import ProgressCallback, no_progress
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int_]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class DistrictProblem:
+    """The sparse information of a plan's pairs and candidate sites.
+
+    entry_pair, entry_site : [E] the (pair, serving site) entries, pair-major; pair_start [P+1]
+    their offsets per pair (CSR); info [E, k(k+1)/2] each entry's packed information on the k
+    kept states, factor [E, m, k] its square-root rows; los [k(k+1)/2, P] and los_factor
+    [P, 1, k] the LOS path's (zero where absent); los_present [P]; weights [P] (sum 1);
+    threshold θ [m] of the coverage objective; n_obs_los [P] the LOS path's channel parameters
+    (1 or 0); n_kept k; metric "rx", "tx" or "max"; rows_t, rows_r the kept states' indices of
+    p_T and p_R; by_site [E] the entries in site order and site_start [S+1] their offsets.
+    """
+
+    n_sites: int
+    entry_pair: IntArray
+    entry_site: IntArray
+    pair_start: IntArray
+    info: FloatArray
+    factor: FloatArray
+    los: FloatArray
+    los_factor: FloatArray
+    los_present: BoolArray
+    weights: FloatArray
+    threshold: float
+    n_kept: int
+    counting: bool
+    metric: str
+    rows_t: IntArray
+    rows_r: IntArray
+    by_site: IntArray
+    site_start: IntArray
+    far: BoolArray
+
+    @property
+    def n_pairs(self) -> int:
+        return int(self.weights.size)
+
+    @property
+    def n_entries(self) -> int:
+        return int(self.entry_pair.size)
+
+    def sites_of(self, p: int) -> IntArray:
+        return self.entry_site[self.pair_start[p] : self.pair_start[p + 1]]
+
+    def pairs_of(self, site: int) -> IntArray:
+        """The pairs ``site`` serves (increasing)."""
+        return self.entry_pair[self.by_site[self.site_start[site] : self.site_start[site + 1]]]
+
+    @property
+    def metric_rows(self) -> IntArray:
+        """The kept states whose CRB diagonal the metric sums (both for ``max``)."""
+        if self.metric == "rx":
+            return self.rows_r
+        if self.metric == "tx":
+            return self.rows_t
+        return np.union1d(self.rows_t, self.rows_r)
+
+    def strength(self) -> FloatArray:
+        """[E] each entry's information on the metric's position: the trace of its metric
+        rows' block (the diagonal of the packed information)."""
+        slots = packed_slots(self.n_kept)
+        diag = [slots[(int(i), int(i))] for i in self.metric_rows]
+        return np.asarray(self.info[:, diag].sum(axis=1))
+
+    def strongest(self, per_pair: int) -> DistrictProblem:
+        """The same problem with each pair's ``per_pair`` strongest serving sites only
+        (:meth:`strength`; all of them where it has no more): what the search sees
+        (:data:`SEARCH_SITES`). Itself when no pair has more."""
+        n_serving = np.diff(self.pair_start)
+        if n_serving.max(initial=0) <= per_pair:
+            return self
+        key = self.strength()
+        # rank of each entry within its pair by decreasing strength (pairs stay contiguous)
+        order = np.lexsort((-key, self.entry_pair))
+        rank = np.empty(self.n_entries, dtype=np.int64)
+        rank[order] = np.arange(self.n_entries) - self.pair_start[self.entry_pair[order]]
+        keep = np.flatnonzero(rank < per_pair)
+        entry_pair, entry_site = self.entry_pair[keep], self.entry_site[keep]
+        by_site = np.argsort(entry_site, kind="stable")
+        return replace(
+            self,
+            entry_pair=entry_pair,
+            entry_site=entry_site,
+            pair_start=np.searchsorted(entry_pair, np.arange(self.n_pairs + 1)),
+            info=self.info[keep],
+            factor=self.factor[keep],
+            far=self.far[keep],
+            by_site=by_site,
+            site_start=np.searchsorted(entry_site[by_site], np.arange(self.n_sites + 1)),
+        )
+
+
+def build_problem(
+    inputs: PlanInputs,
+    progress: ProgressCallback = no_progress,
+    like: DistrictProblem | None = None,
+) -> DistrictProblem:
+    """The :class:`DistrictProblem` of a prepared plan: visibility per (map point, site), the
+    serving sites of each pair from it, and each entry's information, site by site over that
+    site's pairs only. ``like``: a problem of the same sites and pairs (another RIS size)
+    whose visibility is taken instead of walked again."""
+    doc = inputs.document
+    spec = doc.objective
+    kind = objective_kind(spec.kind)
+    level = kind.screen_level(spec)
+    if not kind.higher_is_better or level is None:
+        raise RisPlannerError(
+            f"search.method 'district' plans a coverage objective (a fraction of pairs within"
+            f" a threshold); objective {spec.kind!r} is searched by 'auto', 'exhaustive' or"
+            " 'greedy'"
+        )
+    if inputs.directions != "single":
+        raise RisPlannerError(
+            "search.method 'district' takes sampled or 'all' pairs; 'unordered' pairs are"
+            ' counted in both directions: use "pairs": {"sample": N, "max_separation_m": D}'
+        )
+    system, pairs, sites = doc.system, inputs.pairs, inputs.sites
+    known = tuple(doc.known)
+    kept = kept_states(known)
+    k = len(kept)
+    with one_blas_thread():
+        if like is None:
+            # per distinct map point and site, then gathered per pair (the site cache's rule)
+            vis = pair_visibility(inputs.scene, sites, pairs, system.los)
+            entry_pair, entry_site = np.nonzero(vis.present.T)  # pair-major
+            los_clear_pairs = vis.los
+            del vis
+        else:
+            entry_pair, entry_site = like.entry_pair, like.entry_site
+            los_clear_pairs = like.los_present
+        progress(0.3, "visibility")
+        pair_start = np.searchsorted(entry_pair, np.arange(pairs.size + 1))
+        radio = fim.Radio.from_system(system)
+        g = system.transmissions
+        referenced = uses_los_reference(system.los, known)
+        los_present = np.zeros(pairs.size, dtype=bool)
+        los = np.zeros((k * (k + 1) // 2, pairs.size))
+        los_factor = np.zeros((pairs.size, 1, k))
+        grad = None
+        if system.los:
+            assert los_clear_pairs is not None
+            los_present = los_clear_pairs
+            info = los_path_information(pairs.tx, pairs.rx, radio, float(g))
+            grad = los_gradient(info).copy()
+            if referenced:
+                info = to_los_reference(info, grad)
+            st = info.state_information()[:, kept][:, :, kept]
+            los = pack(st) * los_present
+            los_factor = info.factor()[:, :, kept] * los_present[:, None, None]
+        e = entry_pair.size
+        packed = np.empty((k * (k + 1) // 2, e))
+        factor = np.empty((e, 3, k))
+        degenerate = np.zeros(e, dtype=bool)
+        far = np.ones(e, dtype=bool)
+        by_site = np.argsort(entry_site, kind="stable")
+        site_start = np.searchsorted(entry_site[by_site], np.arange(len(sites) + 1))
+        ones = np.ones(g)
+        for s, site in enumerate(sites):
+            idx = by_site[site_start[s] : site_start[s + 1]]
+            if idx.size == 0:
+                continue
+            p = entry_pair[idx]
+            bad = ue_on_ris(pairs.tx[p], pairs.rx[p], site.ris.position)
+            t, r = stand_ins(pairs.tx[p], pairs.rx[p], bad)
+            info, far[idx] = ris_path_information(
+                site.ris, t, r, radio, None, 1, ones, wavefront=system.wavefront
+            )
+            if referenced:
+                assert grad is not None
+                info = to_los_reference(info, grad[p])
+            st = info.state_information()[:, kept][:, :, kept]
+            packed[:, idx] = pack(st)
+            f = info.factor()[:, :, kept]
+            if f.shape[1] != 3:
+                raise RisPlannerError("search.method 'district' needs the planar wavefront")
+            factor[idx] = f
+            degenerate[idx] = bad
+            progress(0.3 + 0.7 * (s + 1) / len(sites), f"information: site {s + 1}/{len(sites)}")
+        # a UE on a RIS leaves that pair blind in every layout of the site: no information
+        packed[:, degenerate] = 0.0
+        factor[degenerate] = 0.0
+    rows_t = np.flatnonzero(kept < 3)
+    rows_r = np.flatnonzero((kept >= 3) & (kept < 6))
+    return DistrictProblem(
+        len(sites),
+        entry_pair,
+        entry_site,
+        pair_start,
+        np.ascontiguousarray(packed.T),
+        factor,
+        los,
+        los_factor,
+        los_present,
+        pairs.weights,
+        float(level),
+        k,
+        n_observations(1, False, system.wavefront) is not None,
+        spec.metric,
+        rows_t,
+        rows_r,
+        by_site,
+        site_start,
+        far,
+    )
+
+
+def entry_metric(
+    problem: DistrictProblem,
+    packed: FloatArray,
+    rows: Callable[[IntArray], FloatArray],
+    n_obs: IntArray,
+) -> FloatArray:
+    """The metric (PEB_R, PEB_T or their max) of the information ``packed`` [n, k(k+1)/2];
+    ``rows(i)`` the stacked square-root rows of items i (for the few the LDLᵀ does not settle).
+    Items whose channel parameters ``n_obs`` [n] are fewer than the states are ``inf`` without
+    an inversion (the counting rule)."""
+    live = _live(problem, n_obs)
+    if live.size == 0:
+        return np.full(len(n_obs), np.inf)
+    f = np.ascontiguousarray(packed[live].T)
+    diag, _ = crb_diagonal(f, problem.n_kept, lambda i: rows(live[i]))
+    return _metric_of(problem, diag, live, len(n_obs))
+
+
+def summed_entry_metric(
+    problem: DistrictProblem,
+    base: FloatArray,
+    base_idx: IntArray,
+    entries: IntArray,
+    rows: Callable[[IntArray], FloatArray],
+    n_obs: IntArray,
+) -> FloatArray:
+    """:func:`entry_metric` of the information ``base[base_idx[i]] + info[entries[i]]`` (a
+    layout's information per pair and one more entry's), without forming the sums
+    (:func:`ris_planner.inversion.crb.summed_crb_diagonal`: the same bits)."""
+    live = _live(problem, n_obs)
+    if live.size == 0:
+        return np.full(len(n_obs), np.inf)
+    # a district's steps are many small batches: compiled from the problem's size on, not
+    # the batch's (crb.JIT_MIN_MATRICES)
+    engine: Engine = "numba" if problem.n_entries >= JIT_MIN_MATRICES else "auto"
+    diag, _ = summed_crb_diagonal(
+        base,
+        problem.info,
+        base_idx[live],
+        entries[live],
+        problem.n_kept,
+        lambda i: rows(live[i]),
+        engine,
+    )
+    return _metric_of(problem, diag, live, len(n_obs))
+
+
+def _live(problem: DistrictProblem, n_obs: IntArray) -> IntArray:
+    """The items the counting rule leaves to invert (all of them without it)."""
+    return np.flatnonzero(n_obs >= problem.n_kept) if problem.counting else np.arange(len(n_obs))
+
+
+def _metric_of(problem: DistrictProblem, diag: FloatArray, live: IntArray, n: int) -> FloatArray:
+    """[n] the metric from the CRB diagonal [k, len(live)] of the live items (``inf`` for the
+    others and where undefined)."""
+    metric = np.full(n, np.inf)
+    with np.errstate(invalid="ignore", over="ignore"):
+        peb_r = np.sqrt(diag[problem.rows_r].sum(axis=0))
+        peb_t = np.sqrt(diag[problem.rows_t].sum(axis=0)) if problem.rows_t.size else peb_r
+    m = {"rx": peb_r, "tx": peb_t, "max": np.maximum(peb_r, peb_t)}[problem.metric]
+    metric[live] = np.where(np.isnan(m), np.inf, m)
+    return metric
+
+
+def pair_entries(problem: DistrictProblem, pairs: IntArray) -> tuple[IntArray, IntArray]:
+    """(item, entry) of every entry of the given pairs: item i is ``pairs[i]``."""
+    lo = problem.pair_start[pairs]
+    n = problem.pair_start[pairs + 1] - lo
+    item = np.repeat(np.arange(len(pairs)), n)
+    first = np.repeat(lo - (np.cumsum(n) - n), n)
+    return item, first + np.arange(int(n.sum()))
+
+
+class LayoutState:
+    """A layout's per-pair information, channel-parameter count and metric, updated site by
+    site (only the pairs a site serves change)."""
+
+    def __init__(self, problem: DistrictProblem, sites: list[int] | tuple[int, ...] = ()) -> None:
+        self.problem = problem
+        self.member = np.zeros(problem.n_sites, dtype=bool)
+        self.member[list(sites)] = True
+        self.info = problem.los.T.copy()  # [P, k(k+1)/2]
+        self.count = problem.los_present.astype(int)  # channel parameters
+        self.metric = np.full(problem.n_pairs, np.inf)
+        self._refresh(np.arange(problem.n_pairs))
+
+    def rows(self, pairs: IntArray, extra: IntArray | None = None) -> FloatArray:
+        """[n, 1 + 3·w, k] square-root rows of the given pairs' layouts (plus the entry
+        ``extra[i]`` for item i): the LOS rows, then each layout site's rows, zero rows
+        padding the items with fewer sites (a zero row adds no information)."""
+        pr = self.problem
+        item, entry = pair_entries(pr, pairs)
+        keep = self.member[pr.entry_site[entry]]
+        if extra is not None:
+            keep |= entry == extra[item]
+        item, entry = item[keep], entry[keep]
+        # the rank of each kept entry within its item (items are contiguous and increasing)
+        start = np.searchsorted(item, np.arange(len(pairs)))
+        rank = np.arange(item.size) - start[item]
+        width = int(rank.max(initial=-1)) + 1
+        f = np.zeros((len(pairs), width, 3, pr.n_kept))
+        f[item, rank] = pr.factor[entry]
+        return np.concatenate([pr.los_factor[pairs], f.reshape(len(pairs), -1, pr.n_kept)], 1)
+
+    def _refresh(self, pairs: IntArray) -> None:
+        pr = self.problem
+        item, entry = pair_entries(pr, pairs)
+        keep = self.member[pr.entry_site[entry]]
+        item, entry = item[keep], entry[keep]
+        gather = csr_matrix((np.ones(entry.size), (item, entry)), shape=(len(pairs), pr.n_entries))
+        info = pr.los.T[pairs] + gather @ pr.info
+        count = pr.los_present[pairs] + 3 * np.bincount(item, minlength=len(pairs))
+        self.info[pairs] = info
+        self.count[pairs] = count
+        self.metric[pairs] = entry_metric(pr, info, lambda i: self.rows(pairs[i]), count)
+
+    def set(self, site: int, member: bool) -> IntArray:
+        """Put ``site`` in the layout or take it out; the pairs it serves (whose metric
+        changed)."""
+        self.member[site] = member
+        pairs = self.problem.pairs_of(site)
+        self._refresh(pairs)
+        return pairs
+
+    def coverage(self) -> float:
+        return float(self.problem.weights[self.metric <= self.problem.threshold].sum())
+
+
+def exact_coverage(problem: DistrictProblem, layout: tuple[int, ...] | list[int]) -> float:
+    """A layout's coverage with every serving site's information (the search may see only the
+    strongest: :data:`SEARCH_SITES`)."""
+    return LayoutState(problem, list(layout)).coverage()
+
+
+def servable_pairs(problem: DistrictProblem) -> BoolArray:
+    """[P] the pairs some layout can serve: with every candidate in place their paths give
+    at least as many channel parameters as unknown states (the planar counting rule; the
+    spherical model: a finite bound with every candidate). Whatever the RIS size."""
+    if problem.counting:
+        n_obs = problem.los_present + 3 * np.diff(problem.pair_start)
+        return np.asarray(n_obs >= problem.n_kept)
+    full = LayoutState(problem, list(range(problem.n_sites)))
+    return np.asarray(np.isfinite(full.metric))
+
+
+@dataclass(frozen=True)
+class SparseScorer:
+    """What a district plan's result reads of its scoring
+    (:class:`~ris_planner.planning.scoring.layout_scorer.LayoutScorer`): a layout's metric per
+    pair, its far-field flags, the sites that serve no pair, the storage."""
+
+    problem: DistrictProblem
+    mirror: bool = False
+
+    @property
+    def metric_weights(self) -> FloatArray:
+        return self.problem.weights
+
+    def exact_metric(self, layouts: IntArray) -> FloatArray:
+        """[B, P] the metric of each layout [B, L] with every serving site's information."""
+        layouts = np.atleast_2d(np.asarray(layouts, dtype=np.int64))
+        out = np.empty((layouts.shape[0], self.problem.n_pairs))
+        for b, lay in enumerate(layouts):
+            out[b] = LayoutState(self.problem, [int(s) for s in lay]).metric
+        return out
+
+    def far_field_of(self, layout: Sequence[int]) -> BoolArray:
+        """[P] whether every site of ``layout`` that serves the pair has it in its far field."""
+        pr = self.problem
+        member = np.zeros(pr.n_sites, dtype=bool)
+        member[list(layout)] = True
+        near = member[pr.entry_site] & ~pr.far
+        out = np.ones(pr.n_pairs, dtype=bool)
+        out[pr.entry_pair[near]] = False
+        return out
+
+    def near_field_by_site(self, weights: FloatArray) -> FloatArray:
+        """[S] per site the weight of the pairs it serves in its near field."""
+        pr = self.problem
+        near = ~pr.far
+        w = weights[pr.entry_pair[near]]
+        return np.asarray(np.bincount(pr.entry_site[near], w, minlength=pr.n_sites), float)
+
+    def serves(self, layout: Sequence[int]) -> BoolArray:
+        """[L, P] whether each site of ``layout`` serves each pair (has an entry)."""
+        pr = self.problem
+        out = np.zeros((len(layout), pr.n_pairs), dtype=bool)
+        for j, s in enumerate(layout):
+            out[j, pr.pairs_of(int(s))] = True
+        return out
+
+    def idle_sites(self) -> IntArray:
+        """The sites that serve no pair."""
+        return np.flatnonzero(np.diff(self.problem.site_start) == 0)
+
+    def servable(self) -> BoolArray:
+        """[P] :func:`servable_pairs`."""
+        return servable_pairs(self.problem)
+
+    def storage_json(self) -> dict[str, Any]:
+        pr = self.problem
+        return {
+            "storage": "sparse",
+            "entries": pr.n_entries,
+            "rows_stored": True,
+            "bytes": int(pr.info.nbytes + pr.factor.nbytes),
+        }
