@@ -183,6 +183,7 @@ def test_a_method_registered_here_runs_through_the_one_pipeline() -> None:
             objectives="any",
             pair_models=frozenset({"all", "sample"}),
             wavefronts=frozenset({"planar"}),
+            codebooks=frozenset({"expected_random"}),
             options=frozenset(),
             search_fields=frozenset({"top_k"}),
             max_ris=4,

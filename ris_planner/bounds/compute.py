@@ -41,6 +41,7 @@ from ris_planner.model.scenario import (
     Wavefront,
 )
 from ris_planner.physics import beams, codebooks, fim, geometry, spherical
+from ris_planner.physics.separable import SeparableBlock, grid_axes, separable_gram
 from ris_planner.runtime import blas
 from ris_planner.runtime.provenance import provenance
 
@@ -273,9 +274,14 @@ def ris_path_information(
     name: str = "ris",
     wavefront: Wavefront = "planar",
     present: NDArray[np.bool_] | None = None,
+    separable: SeparableBlock | None = None,
 ) -> tuple[PathInfo, NDArray[np.bool_]]:
     """One RIS path's equivalent FIM on (ξ, ζ, cτ) (planar) or (p_T, p_R, cτ) (spherical,
     :mod:`ris_planner.physics.spherical`), its Jacobian, and far-field flags [P].
+
+    ``separable``: the first block as column × row factors (planar only,
+    :mod:`ris_planner.physics.separable`; ``profile`` is then ``None``): its Gram in
+    O(columns + rows) per pair and beam, the same as the element-by-element route's.
 
     profile : [G̃, N] first-block profiles or ``None`` for the expected-random FIM;
     block_count : Γ; weights : [G̃] beam powers δ² repeated over the Γ blocks. The gain is
@@ -290,6 +296,13 @@ def ris_path_information(
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
     alpha = ris_path_gain(ris, geo, tx, rx, radio.wavelength)
     jacobian = geo.jacobian()
+    if separable is not None:
+        if wavefront != "planar":
+            raise ValueError("a separable block is the planar model's")
+        yc, zr = separable_axes(ris, radio.wavelength)
+        gram = separable_gram(separable, weights, geo.xi, geo.zeta, yc, zr, radio.wavelength)
+        efim = fim.eliminate_nuisance(fim.ris_path_fim(block_count * gram, alpha, radio), 3)
+        return PathInfo(name, efim, jacobian), _far_field(ris, geo, radio)
     if wavefront == "spherical":
         if profile is None:
             # E[Q] = Σ_g δ_g² Vᴴ V per pair (it depends on the geometry here)
@@ -331,6 +344,14 @@ def ris_path_information(
         gram = _present_gram(tx.shape[0], present, planar, expected)
         efim = fim.eliminate_nuisance(fim.ris_path_fim(block_count * gram, alpha, radio), 3)
     return PathInfo(name, efim, jacobian), _far_field(ris, geo, radio)
+
+
+def separable_axes(ris: RIS, wavelength: float) -> tuple[FloatArray, FloatArray]:
+    """(y_c [C], z_r [R]) of a RIS's element grid (:func:`ris_planner.physics.separable.
+    grid_axes`)."""
+    from ris_planner.physics.separable import grid_axes
+
+    return grid_axes(ris.rows, ris.cols, ris.element_spacing(wavelength))
 
 
 def _present_gram(

@@ -355,15 +355,60 @@ class Facades(DocumentModel):
         return self
 
 
-class PlanCodebook(DocumentModel):
-    """The codebook of the plan: the scenario document's ``expected_random`` (the closed-form
-    expectation of the FIM over uniformly random phases, deterministic)."""
+PlanCodebookKind = Literal["expected_random", "directional", "directional_derivative"]
+"""The codebooks a plan scores layouts with (``codebook.kind``)."""
 
-    kind: Literal["expected_random"] = Field(
+DEFAULT_GAMMA_P = 0.5
+"""Default DER-to-DIR amplitude ratio γ_P of a designed DIR+DER codebook (eq.
+opt_formulation_3; docs/concepts/district-physics.md, "Beams")."""
+
+
+class PlanCodebook(DocumentModel):
+    """The codebook layouts are scored with: ``expected_random`` (the closed-form expectation
+    of the FIM over uniformly random phases, deterministic: the planning default), or a
+    codebook designed per candidate site from the UE pairs it serves – ``directional`` (DIR
+    beams, eq. DIR_codebook) or ``directional_derivative`` (DIR+DER, eq. DER_codebook, with the
+    γ_P power split of eq. opt_formulation_3). Designed codebooks are scored by the district
+    search (docs/concepts/district-physics.md); the enumerating searches score
+    ``expected_random`` and design beams for their recommended layouts with ``beams``."""
+
+    kind: PlanCodebookKind = Field(
         "expected_random",
-        description="expected_random only: the site cache needs a layout-independent per-site"
-        " information (no draws, no per-layout profiles)",
+        description="expected_random (random phases, the expected FIM); directional (DIR);"
+        " directional_derivative (DIR+DER with the γ_P power split)",
     )
+    gamma_p: float | None = Field(
+        None,
+        ge=0,
+        le=100,
+        allow_inf_nan=False,
+        description="directional_derivative: γ_P, the DER beams' amplitude relative to the DIR"
+        f" beams' (DIR power 3/(1+2γ_P²), DER 3γ_P²/(1+2γ_P²)); default {DEFAULT_GAMMA_P}",
+    )
+    blocks: int | None = Field(
+        None,
+        ge=2,
+        le=4096,
+        description="Γ, the time-orthogonal blocks of the G transmissions (a divisor of"
+        " system.transmissions, at least one more than the profile colours a layout needs);"
+        " default: the planner chooses the smallest that every reported layout fits",
+    )
+    seed: int | None = Field(
+        None, ge=0, description="Designed codebooks: seed of the pairs each site's beams point at"
+    )
+
+    @model_validator(mode="after")
+    def _check_kind(self) -> PlanCodebook:
+        if self.gamma_p is not None and self.kind != "directional_derivative":
+            raise ValueError(f"codebook.gamma_p applies to directional_derivative, not {self.kind}")
+        if self.seed is not None and self.kind == "expected_random":
+            raise ValueError("codebook.seed applies to designed codebooks, not expected_random")
+        return self
+
+    @property
+    def gamma(self) -> float:
+        """γ_P in force (:data:`DEFAULT_GAMMA_P` unless given)."""
+        return DEFAULT_GAMMA_P if self.gamma_p is None else float(self.gamma_p)
 
 
 class RISDefaults(RISGrid):
@@ -1038,7 +1083,9 @@ class PlanDocument(DocumentModel):
         " (plan.json 'sizing'; docs/concepts/diagnosis.md)",
     )
     codebook: PlanCodebook = Field(
-        default_factory=PlanCodebook, description="Codebook (expected_random, unitless)"
+        default_factory=PlanCodebook,
+        description="The codebook layouts are scored with (expected_random; designed per site"
+        " by the district search)",
     )
     known: list[KnownPart] = Field(
         default_factory=list, description="Known state parts: clock, height, tx"
@@ -1086,19 +1133,6 @@ class PlanDocument(DocumentModel):
     def _unique_known(cls, v: list[str]) -> list[str]:
         return Scenario._unique_known(v)  # the scenario document's rule
 
-    @model_validator(mode="before")
-    @classmethod
-    def _clear_codebook_error(cls, data: Any) -> Any:
-        if isinstance(data, dict):
-            cb = data.get("codebook")
-            if isinstance(cb, dict) and cb.get("kind", "expected_random") != "expected_random":
-                raise ValueError(
-                    f"codebook kind {cb.get('kind')!r} is not supported for planning; use"
-                    " {'kind': 'expected_random'} (the site cache needs a layout-independent"
-                    " per-site information)"
-                )
-        return data
-
     @model_validator(mode="after")
     def _check_plan(self) -> PlanDocument:
         if not self.candidates and not self.walls and not self.facades:
@@ -1124,6 +1158,19 @@ class PlanDocument(DocumentModel):
             )
         if self.sizing is not None:
             self.sizing_target()  # a target exists
+        if self.codebook.kind != "expected_random" and self.system.wavefront == "spherical":
+            raise ValueError(
+                f"codebook.kind {self.codebook.kind!r} is scored with the planar (far-field)"
+                " model: a designed block of 64×64 beams needs its O(columns + rows) products"
+                " per pair (docs/concepts/district-physics.md); the spherical wavefront plans"
+                " with expected_random"
+            )
+        blocks = self.codebook.blocks
+        if blocks is not None and self.system.transmissions % blocks:
+            raise ValueError(
+                f"codebook.blocks {blocks} does not divide system.transmissions"
+                f" {self.system.transmissions}"
+            )
         sizing_counts = [] if self.sizing is None else list(self.sizing.counts or [])
         for c in self.max_counts + sizing_counts:
             if c + 1 > self.system.transmissions:

@@ -131,6 +131,8 @@ class Capabilities:
     """Pair models it takes: ``all``, ``unordered``, ``sample``."""
     wavefronts: frozenset[str]
     """``system.wavefront`` values it takes."""
+    codebooks: frozenset[str]
+    """``codebook.kind`` values it scores layouts with."""
     options: frozenset[str]
     """Names of :data:`PLAN_OPTIONS` it honours."""
     search_fields: frozenset[str]
@@ -145,6 +147,7 @@ class Capabilities:
             "objectives": self.objectives,
             "pair_models": sorted(self.pair_models),
             "wavefronts": sorted(self.wavefronts),
+            "codebooks": sorted(self.codebooks),
             "options": [o.name for o in PLAN_OPTIONS if o.name in self.options],
             "search_fields": sorted(self.search_fields),
             "max_ris": self.max_ris,
@@ -272,6 +275,16 @@ def method_refusals(method: SearchMethod, doc: PlanDocument) -> list[tuple[str, 
     wave = doc.system.wavefront
     if wave not in cap.wavefronts:
         out.append(("system.wavefront", f"{who} does not take the {wave!r} wavefront"))
+    kind = doc.codebook.kind
+    if kind not in cap.codebooks:
+        out.append(
+            (
+                "codebook.kind",
+                f"{who} scores layouts with the codebooks {', '.join(sorted(cap.codebooks))},"
+                f" not {kind!r} (designed per-site codebooks: search.method 'district'; beams"
+                " for the recommended layouts: beams / --beams)",
+            )
+        )
     largest = max(doc.max_counts)
     if largest > cap.max_ris:
         out.append(("ris_count", f"{who} places at most {cap.max_ris} RISs, not {largest}"))
@@ -289,6 +302,7 @@ ENUMERATING = Capabilities(
     objectives="any",
     pair_models=frozenset({"all", "unordered", "sample"}),
     wavefronts=frozenset({"planar", "spherical"}),
+    codebooks=frozenset({"expected_random"}),
     options=frozenset(o.name for o in PLAN_OPTIONS),
     search_fields=ENUMERATING_FIELDS,
     max_ris=MAX_LAYOUT_RIS,
@@ -325,7 +339,8 @@ def _builtin() -> None:
             Capabilities(
                 objectives="coverage",
                 pair_models=frozenset({"all", "sample"}),
-                wavefronts=frozenset({"planar"}),
+                wavefronts=frozenset({"planar", "spherical"}),
+                codebooks=frozenset({"expected_random", "directional", "directional_derivative"}),
                 options=frozenset({"sizing", "nested"}),
                 search_fields=frozenset(),
                 max_ris=MAX_DISTRICT_RIS,

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.model.plan import Target, target_goal
+from ris_planner.model.profiles import block_count
 from ris_planner.planning.certify.district_lp import (
     Needs,
     count_lower_bound,
@@ -41,6 +42,7 @@ from ris_planner.planning.scoring.sparse import (
     SparseScorer,
     build_problem,
 )
+from ris_planner.planning.scoring.time_blocks import profile_colours
 from ris_planner.planning.search.district import (
     GAIN_TIE,
     SEARCH_SITES,
@@ -97,18 +99,27 @@ def run_district(
     progress: ProgressCallback = no_progress,
     clock: StageClock | None = None,
     goal: Target | None = None,
+    blocks: int | None = None,
 ) -> PlanResult:
     """The district search's plan run (module docstring): per RIS count the layout of the
     greedy path improved by swaps (and, on small districts, the relaxation's own layout
     improved likewise), its exact coverage and the certified upper bound on any layout of that
     count; in target mode the counts up to the first that reaches the target (a share of the
-    servable pairs; ``goal``: that target as an objective value, when the caller fixed it)."""
+    servable pairs; ``goal``: that target as an objective value, when the caller fixed it).
+
+    A designed codebook is built for ``blocks`` = Γ time-orthogonal blocks (default
+    ``codebook.blocks``, else :func:`initial_blocks`); when a count's layout needs more
+    profile colours than Γ − 1 (:func:`~ris_planner.planning.scoring.time_blocks.
+    profile_colours`) and the document leaves Γ to the planner, the plan is run again with the
+    Γ it needs, so every reported layout fits the blocks its information was computed with."""
     doc = inputs.document
     clock = StageClock() if clock is None else clock
+    if blocks is None:
+        blocks = doc.codebook.blocks or initial_blocks(doc)
     required, excluded, conflict = cons = constraints_of(inputs)
     with clock.stage("cache"):  # the sparse information, what every candidate gives
         progress(0.0, "information")
-        problem = build_problem(inputs, lambda f, m: progress(0.4 * f, m))
+        problem = build_problem(inputs, lambda f, m: progress(0.4 * f, m), blocks=blocks)
         scorer = SparseScorer(problem)
         seen = problem.strongest(SEARCH_SITES)
         needs = sites_needed(problem)
@@ -143,6 +154,10 @@ def run_district(
         lp.shutdown(wait=False, cancel_futures=True)
     with clock.stage("rollout"):
         rollout = _rollout(doc, seen, problem, found, cons)
+    timing = time_orthogonal(problem, found, doc.system.transmissions, blocks)
+    if timing["blocks_needed"] > blocks and problem.codebooks.designed and not doc.codebook.blocks:
+        progress(0.0, f"information for Γ = {timing['blocks_needed']} blocks")
+        return run_district(inputs, progress, clock, goal, timing["blocks_needed"])
     progress(1.0, "done")
     return PlanResult(
         doc,
@@ -168,6 +183,8 @@ def run_district(
             if problem.n_pairs
             else 0.0,
             "entries": problem.n_entries,
+            "time_orthogonal": timing,
+            "codebook": codebook_json(problem),
         },
         sizing_state=DistrictSearch(problem, seen, needs, path),
     )
@@ -208,6 +225,68 @@ def _count_results(
         if goal is not None and -out[-1].ranked[0][1] >= goal - 1e-12:
             break  # target mode: the smallest count that reaches the target
     return out, missing
+
+
+INITIAL_COLOURS = 5
+"""Profile colours a designed codebook's blocks are first built for (Γ ≥ 6: G̃ = 32 beams
+per block at G = 192): on the street districts of docs/validation/benchmarks.md a pair hears at
+most a few RISs of a layout, and the conflict graph's colourings stay within it; a layout that
+needs more runs the plan again with the Γ it needs (:func:`run_district`)."""
+
+
+def initial_blocks(doc: Any) -> int:
+    """Γ a designed codebook is first built for: the smallest divisor of G above
+    :data:`INITIAL_COLOURS` (fewer when G is small)."""
+    g = doc.system.transmissions
+    colours = min(INITIAL_COLOURS, g - 1)
+    return block_count(g, colours)
+
+
+def time_orthogonal(
+    problem: DistrictProblem, found: list[CountResult], transmissions: int, blocks: int
+) -> dict[str, Any]:
+    """plan.json ``search_details.time_orthogonal``: per count the profile colours its layout
+    needs and each RIS's colour (the column of B it takes after the LOS's), the Γ they need
+    (the largest over the counts) and the Γ a designed codebook was built for with its beams
+    per block."""
+    rows = []
+    for cr in found:
+        layout = cr.ranked[0][0]
+        colour = profile_colours(problem, layout)
+        n = int(colour.max()) + 1 if colour.size else 0
+        rows.append(
+            {
+                "ris_count": cr.ris_count,
+                "colours": n,
+                "blocks_needed": block_count(transmissions, n),
+                "colour_of_site": {str(s): int(c) for s, c in zip(layout, colour, strict=True)},
+            }
+        )
+    needed = max((r["blocks_needed"] for r in rows), default=block_count(transmissions, 1))
+    designed = problem.codebooks.designed
+    used = max(blocks, needed) if designed else needed
+    return {
+        "blocks": used,
+        "beams_per_block": transmissions // used,
+        "blocks_needed": needed,
+        "designed_for": blocks if designed else None,
+        "counts": rows,
+    }
+
+
+def codebook_json(problem: DistrictProblem) -> dict[str, Any]:
+    """plan.json ``search_details.codebook``: the codebook each site's information was
+    computed with (its kind, Γ, beams per block, the slots' powers for a designed one)."""
+    cb = problem.codebooks
+    if not cb.designed:
+        return {"kind": cb.kind}
+    return {
+        "kind": cb.kind,
+        "blocks": cb.blocks,
+        "beams_per_block": int(cb.powers.size),
+        "slot_powers": [float(x) for x in cb.powers],
+        "beam_types": [int(t) for t in cb.beam_types],
+    }
 
 
 def count_result(
@@ -296,7 +375,8 @@ def district_size_rows(
                 def on_build(f: float, m: str, k: int = k, r: int = r, c: int = c) -> None:
                     progress((k + 0.5 * f) / len(sizes), f"sizing {r}×{c}: {m}")
 
-                pr = build_problem(_resized(inputs, r, c), on_build, like=state.problem)
+                blocks = state.problem.codebooks.blocks
+                pr = build_problem(_resized(inputs, r, c), on_build, state.problem, blocks)
                 seen, nd, steps = pr.strongest(SEARCH_SITES), sites_needed(pr), []
             lower: Callable[[], int | None] = lp.submit(
                 count_lower_bound, pr, goal, nd, required, excluded
@@ -355,5 +435,7 @@ def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:
 def district_state(inputs: PlanInputs, progress: ProgressCallback = no_progress) -> DistrictSearch:
     """The :class:`DistrictSearch` of prepared inputs, no path walked (the sizing question of a
     plan whose own search was another method)."""
-    problem = build_problem(inputs, progress)
+    problem = build_problem(
+        inputs, progress, blocks=inputs.document.codebook.blocks or initial_blocks(inputs.document)
+    )
     return DistrictSearch(problem, problem.strongest(SEARCH_SITES), sites_needed(problem), [])

@@ -44,6 +44,7 @@ from ris_planner.inversion.ldl import pack, packed_slots
 from ris_planner.model.objectives.protocol import objective_kind
 from ris_planner.physics import fim
 from ris_planner.planning.inputs.plan_inputs import PlanInputs
+from ris_planner.planning.scoring.site_beams import beams_per_block, design_site
 from ris_planner.planning.scoring.visibility import pair_visibility
 from ris_planner.runtime.blas import one_blas_thread
 from ris_planner.runtime.progress import ProgressCallback, no_progress
@@ -51,6 +52,26 @@ from ris_planner.runtime.progress import ProgressCallback, no_progress
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int_]
 BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class Codebooks:
+    """The codebook each site's information was computed with: ``kind`` (``expected_random``
+    or a designed one), Γ ``blocks`` (1 for expected_random: its information does not depend on
+    Γ), and for designed codebooks each site's beams – the spatial frequencies ξ₀, ζ₀ [S, G̃]
+    of its slots, the slots' beam types and powers [G̃] (the same for every site)
+    (:mod:`ris_planner.planning.scoring.site_beams`)."""
+
+    kind: str
+    blocks: int
+    xi: FloatArray
+    zeta: FloatArray
+    beam_types: IntArray
+    powers: FloatArray
+
+    @property
+    def designed(self) -> bool:
+        return self.kind != "expected_random"
 
 
 @dataclass(frozen=True)
@@ -85,6 +106,7 @@ class DistrictProblem:
     by_site: IntArray
     site_start: IntArray
     far: BoolArray
+    codebooks: Codebooks
 
     @property
     def n_pairs(self) -> int:
@@ -149,11 +171,14 @@ def build_problem(
     inputs: PlanInputs,
     progress: ProgressCallback = no_progress,
     like: DistrictProblem | None = None,
+    blocks: int = 1,
 ) -> DistrictProblem:
     """The :class:`DistrictProblem` of a prepared plan: visibility per (map point, site), the
     serving sites of each pair from it, and each entry's information, site by site over that
-    site's pairs only. ``like``: a problem of the same sites and pairs (another RIS size)
-    whose visibility is taken instead of walked again."""
+    site's pairs only, with the document's codebook – ``expected_random`` (whatever Γ), or
+    each site's designed block of G/Γ beams for ``blocks`` = Γ time-orthogonal blocks
+    (:mod:`ris_planner.planning.scoring.site_beams`). ``like``: a problem of the same sites
+    and pairs (another RIS size) whose visibility is taken instead of walked again."""
     doc = inputs.document
     spec = doc.objective
     kind = objective_kind(spec.kind)
@@ -204,12 +229,21 @@ def build_problem(
             los_factor = info.factor()[:, :, kept] * los_present[:, None, None]
         e = entry_pair.size
         packed = np.empty((k * (k + 1) // 2, e))
-        factor = np.empty((e, 3, k))
+        spherical = system.wavefront == "spherical"
+        # square-root rows per entry: 3 for the planar path (ξ, ζ, cτ), 7 for a spherical one
+        factor = np.zeros((e, 7 if spherical else 3, k))
         degenerate = np.zeros(e, dtype=bool)
         far = np.ones(e, dtype=bool)
         by_site = np.argsort(entry_site, kind="stable")
         site_start = np.searchsorted(entry_site[by_site], np.arange(len(sites) + 1))
         ones = np.ones(g)
+        cb_spec = doc.codebook
+        designed = cb_spec.kind != "expected_random"
+        g_tilde = beams_per_block(g, blocks, cb_spec.kind) if designed else g
+        beam_xi = np.zeros((len(sites), g_tilde if designed else 0))
+        beam_zeta = np.zeros_like(beam_xi)
+        types = np.zeros(0, dtype=int)
+        powers = ones
         for s, site in enumerate(sites):
             idx = by_site[site_start[s] : site_start[s + 1]]
             if idx.size == 0:
@@ -217,18 +251,33 @@ def build_problem(
             p = entry_pair[idx]
             bad = ue_on_ris(pairs.tx[p], pairs.rx[p], site.ris.position)
             t, r = stand_ins(pairs.tx[p], pairs.rx[p], bad)
-            info, far[idx] = ris_path_information(
-                site.ris, t, r, radio, None, 1, ones, wavefront=system.wavefront
-            )
+            if designed and np.any(~bad):
+                rng = np.random.default_rng([cb_spec.seed or 0, s])
+                w = np.where(bad, 0.0, pairs.weights[p])
+                beams = design_site(site.ris, t, r, w, cb_spec, g_tilde, radio.wavelength, rng)
+                beam_xi[s], beam_zeta[s] = beams.xi, beams.zeta
+                types, powers = beams.block.beam_types, beams.powers
+                info, far[idx] = ris_path_information(
+                    site.ris, t, r, radio, None, blocks, powers, separable=beams.block
+                )
+            else:
+                info, far[idx] = ris_path_information(site.ris, t, r, radio, None, 1, ones)
             if referenced:
                 assert grad is not None
                 info = to_los_reference(info, grad[p])
             st = info.state_information()[:, kept][:, :, kept]
             packed[:, idx] = pack(st)
-            f = info.factor()[:, :, kept]
-            if f.shape[1] != 3:
-                raise RisPlannerError("search.method 'district' needs the planar wavefront")
-            factor[idx] = f
+            factor[idx, :3] = info.factor()[:, :, kept]
+            near = np.flatnonzero(~far[idx]) if spherical else np.zeros(0, dtype=int)
+            if near.size:  # inside the Fraunhofer distance: the exact per-element response
+                sph, _ = ris_path_information(
+                    site.ris, t[near], r[near], radio, None, 1, ones, wavefront="spherical"
+                )
+                if referenced:
+                    assert grad is not None
+                    sph = to_los_reference(sph, grad[p[near]])
+                packed[:, idx[near]] = pack(sph.state_information()[:, kept][:, :, kept])
+                factor[idx[near]] = sph.factor()[:, :, kept]
             degenerate[idx] = bad
             progress(0.3 + 0.7 * (s + 1) / len(sites), f"information: site {s + 1}/{len(sites)}")
         # a UE on a RIS leaves that pair blind in every layout of the site: no information
@@ -256,6 +305,7 @@ def build_problem(
         by_site,
         site_start,
         far,
+        Codebooks(cb_spec.kind, blocks if designed else 1, beam_xi, beam_zeta, types, powers),
     )
 
 
@@ -359,7 +409,7 @@ class LayoutState:
         start = np.searchsorted(item, np.arange(len(pairs)))
         rank = np.arange(item.size) - start[item]
         width = int(rank.max(initial=-1)) + 1
-        f = np.zeros((len(pairs), width, 3, pr.n_kept))
+        f = np.zeros((len(pairs), width, pr.factor.shape[1], pr.n_kept))
         f[item, rank] = pr.factor[entry]
         return np.concatenate([pr.los_factor[pairs], f.reshape(len(pairs), -1, pr.n_kept)], 1)
 

@@ -1,0 +1,116 @@
+"""District plans with the physics their range needs (docs/concepts/district-physics.md):
+each site's designed codebook gives the bounds an independent evaluation gives with the same
+profiles and powers, the profile colours separate every pair's RISs, and Γ follows the
+colours."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from district_site import street_doc
+from tolerance import BOUND_ACCURACY, assert_close
+
+from ris_planner.bounds.compute import compute_bounds
+from ris_planner.model.profiles import block_count
+from ris_planner.physics.separable import beam_block, grid_axes
+from ris_planner.planning.beams import layout_scenario
+from ris_planner.planning.pipeline import run_plan
+from ris_planner.planning.prepare import prepare_plan
+from ris_planner.planning.scoring.sparse import LayoutState, build_problem
+from ris_planner.planning.scoring.time_blocks import conflict_graph, profile_colours
+
+
+def _designed(kind: str) -> dict:
+    doc = street_doc(threshold_m=1.0, side=16, counts=(2, 3))
+    doc["codebook"] = {"kind": kind}
+    return doc
+
+
+@pytest.mark.parametrize("kind", ["directional", "directional_derivative"])
+def test_designed_information_is_compute_bounds_with_the_same_profiles(kind: str) -> None:
+    """For a layout and every pair it serves, the district's metric with each site's designed
+    block equals ``compute_bounds`` (element-by-element products, its own state assembly and
+    inversion) on a scenario of those sites with the same profiles and beam powers – Γ made
+    the district's by padding the scenario with RISs that serve no pair."""
+    doc = _designed(kind)
+    inputs = prepare_plan(doc)
+    blocks = 4
+    problem = build_problem(inputs, blocks=blocks)
+    cb = problem.codebooks
+    assert cb.designed and cb.blocks == blocks and cb.xi.shape[1] == 192 // blocks
+    layout = [0, 10, 12]
+    state = LayoutState(problem, layout)
+    served = np.flatnonzero(
+        np.isin(problem.entry_pair, problem.entry_pair[np.isin(problem.entry_site, layout)])
+    )
+    pairs = np.unique(problem.entry_pair[served])
+    d = inputs.document
+    ris = [inputs.sites[s].ris for s in layout]
+    wavelength = 3e8 / d.system.carrier_hz
+    profiles = []
+    for s, r in zip(layout, ris, strict=True):
+        yc, zr = grid_axes(r.rows, r.cols, r.element_spacing(wavelength))
+        profiles.append(
+            beam_block(yc, zr, cb.xi[s], cb.zeta[s], cb.beam_types, wavelength).profiles()
+        )
+    # padding: RISs high above the street facing up serve none of the pairs, so Γ = blocks
+    pad = ris[0].model_copy(
+        update={"position": [0.0, 0.0, 300.0], "orientation": [0.0, -np.pi / 2, 0.0]}
+    )
+    n_pad = blocks - 1 - len(layout)
+    assert block_count(d.system.transmissions, len(layout) + n_pad) == blocks
+    scenario = layout_scenario(d.system, ris + [pad] * n_pad, list(d.known), d.environment)
+    all_profiles = profiles + [profiles[0]] * n_pad
+    res = compute_bounds(
+        scenario,
+        inputs.pairs.tx[pairs],
+        inputs.pairs.rx[pairs],
+        profiles=all_profiles,
+        beam_powers=cb.powers,
+        channel=False,
+    )
+    got = state.metric[pairs]
+    want = res.peb_rx
+    assert np.array_equal(np.isfinite(got), np.isfinite(want))
+    fin = np.isfinite(got)
+    assert fin.sum() > 10
+    assert_close(got[fin], want[fin], accuracy=BOUND_ACCURACY)
+
+
+def test_profile_colours_separate_every_pairs_rises() -> None:
+    """No pair hears two RISs of one colour; the colours are at least the most RISs one pair
+    hears (a clique) and at most the layout's size."""
+    inputs = prepare_plan(street_doc(side=16))
+    problem = build_problem(inputs)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        layout = sorted(rng.choice(problem.n_sites, size=6, replace=False).tolist())
+        colour = profile_colours(problem, layout)
+        adjacent = conflict_graph(problem, layout)
+        for i, j in zip(*np.nonzero(adjacent), strict=True):
+            assert colour[i] != colour[j]
+        heard = np.zeros(problem.n_pairs, dtype=int)
+        np.add.at(heard, problem.entry_pair[np.isin(problem.entry_site, layout)], 1)
+        assert heard.max() <= colour.max() + 1 <= len(layout)
+
+
+def test_a_designed_district_plan_reports_its_blocks_and_codebook() -> None:
+    plan = run_plan(_designed("directional_derivative")).to_json()
+    timing = plan["search_details"]["time_orthogonal"]
+    assert timing["blocks"] >= timing["blocks_needed"]
+    assert 192 % timing["blocks"] == 0 and timing["beams_per_block"] == 192 // timing["blocks"]
+    for row in timing["counts"]:
+        assert row["blocks_needed"] == block_count(192, row["colours"])
+        assert len(row["colour_of_site"]) == row["ris_count"]
+    cb = plan["search_details"]["codebook"]
+    assert cb["kind"] == "directional_derivative" and cb["blocks"] == timing["blocks"]
+    assert sum(cb["slot_powers"]) == pytest.approx(cb["beams_per_block"], rel=1e-12)
+
+
+def test_designed_codebooks_are_refused_by_the_enumerating_searches() -> None:
+    from ris_planner.core.errors import DocumentFieldError
+    from ris_planner.planning.resources.admission import admit
+
+    doc = _designed("directional") | {"search": {"method": "exhaustive"}}
+    with pytest.raises(DocumentFieldError, match="codebook.kind"):
+        admit(doc)
