@@ -76,22 +76,21 @@ def test_each_method_refuses_an_explicit_search_field_it_does_not_read(method: s
 
 
 def test_refused_on_the_command_line_with_exit_two(tmp_path: Path) -> None:
-    """The refusal reaches the command line as exit status 2 and one line naming the option and
-    its flag, before any work (nothing written)."""
-    doc = street_doc(method="district")
+    """The refusal reaches the command line as exit status 2 and one line naming the method
+    and the option, before any work (nothing written)."""
+    doc = street_doc(method="district") | {"heatmap_tx": [0.0, 0.0, 1.5]}
     f = tmp_path / "doc.json"
     f.write_text(json.dumps(doc))
     out = tmp_path / "out"
     run = subprocess.run(
-        [sys.executable, "-m", "ris_planner.cli", "plan", str(f), "--beams", "--out", str(out)],
+        [sys.executable, "-m", "ris_planner.cli", "plan", str(f), "--out", str(out)],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=600,
         check=False,
     )
     assert run.returncode == 2, run.stderr
-    assert "search method 'district' does not give beam designs" in run.stderr
-    assert "--beams" in run.stderr
+    assert "heatmap_tx: search method 'district' does not give per-point bounds" in run.stderr
     assert not out.exists()
 
 

@@ -349,7 +349,6 @@ def ris_path_information(
 def separable_axes(ris: RIS, wavelength: float) -> tuple[FloatArray, FloatArray]:
     """(y_c [C], z_r [R]) of a RIS's element grid (:func:`ris_planner.physics.separable.
     grid_axes`)."""
-    from ris_planner.physics.separable import grid_axes
 
     return grid_axes(ris.rows, ris.cols, ris.element_spacing(wavelength))
 

@@ -141,6 +141,9 @@ class Capabilities:
     """The most RISs in a layout."""
     scoring: Scoring
     """How it holds the information (its memory and time estimates follow)."""
+    unread: frozenset[str] = frozenset()
+    """Dotted paths of other document fields it does not read (refused when given
+    explicitly), e.g. ``beams.random_seeds``."""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -150,6 +153,7 @@ class Capabilities:
             "codebooks": sorted(self.codebooks),
             "options": [o.name for o in PLAN_OPTIONS if o.name in self.options],
             "search_fields": sorted(self.search_fields),
+            "unread": sorted(self.unread),
             "max_ris": self.max_ris,
             "scoring": self.scoring,
         }
@@ -295,7 +299,21 @@ def method_refusals(method: SearchMethod, doc: PlanDocument) -> list[tuple[str, 
     given = doc.search.model_fields_set - {"method"}
     for name in sorted(given - cap.search_fields):
         out.append((f"search.{name}", f"{who} does not read search.{name}"))
+    for path in sorted(cap.unread):
+        if _given(doc, path):
+            out.append((path, f"{who} does not read {path}"))
     return out
+
+
+def _given(doc: Any, path: str) -> bool:
+    """Whether the dotted field ``path`` is set explicitly in the document."""
+    *parents, name = path.split(".")
+    node = doc
+    for part in parents:
+        node = getattr(node, part, None)
+        if node is None:
+            return False
+    return name in getattr(node, "model_fields_set", set())
 
 
 ENUMERATING = Capabilities(
@@ -341,8 +359,9 @@ def _builtin() -> None:
                 pair_models=frozenset({"all", "sample"}),
                 wavefronts=frozenset({"planar", "spherical"}),
                 codebooks=frozenset({"expected_random", "directional", "directional_derivative"}),
-                options=frozenset({"sizing", "nested"}),
+                options=frozenset({"sizing", "nested", "validation", "beams"}),
                 search_fields=frozenset(),
+                unread=frozenset({"beams.random_seeds"}),
                 max_ris=MAX_DISTRICT_RIS,
                 scoring="sparse",
             ),

@@ -42,7 +42,7 @@ def grid_axes(rows: int, cols: int, spacing: float) -> tuple[FloatArray, FloatAr
     element_positions` lays it out)."""
     yc = (np.arange(cols) - (cols - 1) / 2) * spacing
     zr = (np.arange(rows) - (rows - 1) / 2) * spacing
-    return yc, zr
+    return np.asarray(yc, dtype=float), np.asarray(zr, dtype=float)
 
 
 @dataclass(frozen=True)

@@ -159,7 +159,7 @@ def run_district(
         progress(0.0, f"information for Γ = {timing['blocks_needed']} blocks")
         return run_district(inputs, progress, clock, goal, timing["blocks_needed"])
     progress(1.0, "done")
-    return PlanResult(
+    result = PlanResult(
         doc,
         inputs.sites,
         inputs.tx_map,
@@ -188,6 +188,12 @@ def run_district(
         },
         sizing_state=DistrictSearch(problem, seen, needs, path),
     )
+    if doc.beams is not None:  # the layouts' beams and power (one SDP over the slot powers)
+        from ris_planner.planning.district_beams import district_beams
+
+        with clock.stage("beams"):
+            result = replace(result, beams=district_beams(result, inputs, progress))
+    return replace(result, timing=dict(clock.seconds))
 
 
 def _count_results(
@@ -249,7 +255,7 @@ def time_orthogonal(
     needs and each RIS's colour (the column of B it takes after the LOS's), the Γ they need
     (the largest over the counts) and the Γ a designed codebook was built for with its beams
     per block."""
-    rows = []
+    rows: list[dict[str, Any]] = []
     for cr in found:
         layout = cr.ranked[0][0]
         colour = profile_colours(problem, layout)

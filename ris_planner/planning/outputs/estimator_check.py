@@ -56,8 +56,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.bounds.compute import compute_bounds
+from ris_planner.bounds.paths import ris_serves
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.core.io_json import finite_or_none
+from ris_planner.environment import Scene
 from ris_planner.estimation.channel_estimation import ChannelEstimate, wrap
 from ris_planner.estimation.pipeline import Estimator
 from ris_planner.estimation.position_estimation import (
@@ -79,6 +81,9 @@ from ris_planner.estimation.signal import (
 )
 from ris_planner.model.scenario import RIS, ExplicitCodebook, RandomCodebook, Scenario
 from ris_planner.model.simulation import EstimatorSettings, Multipath
+from ris_planner.physics.separable import beam_block, grid_axes
+from ris_planner.planning.beams import BeamReport
+from ris_planner.planning.scoring.sparse import SparseScorer
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 if TYPE_CHECKING:
@@ -230,7 +235,7 @@ def layout_codebook(
     assert spec is not None
     random = {"kind": "random", "seed": spec.seed}
     report = result.beams.get(layout)
-    if spec.codebook == "random" or report is None:
+    if spec.codebook == "random" or not isinstance(report, BeamReport):
         return None, random
     best = report.best_design(objective_kind(doc.objective.kind).better)
     name: str | None = spec.design
@@ -479,6 +484,124 @@ def shortfall_cause(
     return "threshold_snr" if weakest_snr_db < SNR_THRESHOLD_DB else "few_draws"
 
 
+PairSetup = tuple[Scenario, list[int], FloatArray | None]
+"""(the scenario a pair is simulated and bounded with, the candidate site of each of its RISs
+(padding aside), the beam powers or None)."""
+
+
+def pair_bounds(
+    per_pair: list[PairSetup], tx: FloatArray, rx: FloatArray
+) -> list[tuple[float, float, float]]:
+    """(PEB_T, PEB_R, CEB) of each pair under its own scenario (``compute_bounds`` with the
+    scenario's codebook and powers, nothing known), batched over the pairs that share one."""
+    out: list[tuple[float, float, float]] = [(math.inf, math.inf, math.inf)] * len(tx)
+    groups: dict[int, list[int]] = {}
+    for j, (base, _, _) in enumerate(per_pair):
+        groups.setdefault(id(base), []).append(j)
+    for idx in groups.values():
+        base, _, powers = per_pair[idx[0]]
+        res = compute_bounds(base, tx=tx[idx], rx=rx[idx], beam_powers=powers)
+        n = len(idx)
+        peb_tx = res.peb_tx if res.peb_tx is not None else np.full(n, np.inf)
+        ceb = res.ceb if res.ceb is not None else np.full(n, np.inf)
+        for i, j in enumerate(idx):
+            out[j] = (float(peb_tx[i]), float(res.peb_rx[i]), float(ceb[i]))
+    return out
+
+
+PAD_HEIGHT_M = 1000.0
+"""Height of the padding RISs of a district pair's scenario (:func:`district_pair`): facing
+up from there they serve no UE, so they carry no path and only fix Γ."""
+
+
+def padding_ris(template: RIS) -> RIS:
+    """A RIS that serves no UE (:data:`PAD_HEIGHT_M` above ``template``, facing up): it pads a
+    scenario to the Γ − 1 RIS columns of a district's blocks and carries no path."""
+    x, y = float(template.position[0]), float(template.position[1])
+    return template.model_copy(
+        update={"position": [x, y, PAD_HEIGHT_M], "orientation": [0.0, -math.pi / 2, 0.0]}
+    )
+
+
+def district_pair(
+    result: PlanResult, layout: tuple[int, ...], tx: FloatArray, rx: FloatArray, seed: int
+) -> PairSetup:
+    """A district pair's scenario: the layout's RISs that serve it (the others reach it by no
+    path), each with its site's designed block – or a seeded random one under the
+    expected-random codebook – in the plan's Γ blocks: RISs that serve no UE pad the scenario
+    to Γ − 1 RIS columns (the columns the pair's RISs take among the district's colours do not
+    change its information: B's columns are orthogonal and unit-modulus)."""
+    scorer = result.scorer
+    assert isinstance(scorer, SparseScorer)
+    problem = scorer.problem
+    doc = result.document
+    timing = result.search_details.get("time_orthogonal") or {}
+    blocks = int(timing.get("blocks") or problem.codebooks.blocks)
+    scene = result.scene or Scene.from_environment(doc.environment)
+    mine = [
+        s
+        for s in layout
+        if bool(ris_serves(scene, result.sites[s].ris, tx[None])[0])
+        and bool(ris_serves(scene, result.sites[s].ris, rx[None])[0])
+    ]
+    ris = [result.sites[s].ris for s in mine]
+    pad_count = max(0, blocks - 1 - len(ris))
+    pad = padding_ris(result.sites[layout[0]].ris)
+    cb = problem.codebooks
+    wavelength = doc.system.wavelength
+    if cb.designed:
+        profiles = [site_profiles(problem, s, result.sites[s].ris, wavelength) for s in mine]
+        profiles += profiles[:1] * pad_count
+        if not mine:
+            codebook: RandomCodebook | ExplicitCodebook = RandomCodebook(seed=seed)
+            powers = None
+        else:
+            codebook = ExplicitCodebook.model_construct(
+                kind="explicit", phases=[np.angle(p).tolist() for p in profiles]
+            )
+            powers = cb.powers
+    else:
+        codebook, powers = RandomCodebook(seed=seed), None
+    base = Scenario.model_construct(
+        system=doc.system,
+        ris=ris + [pad] * pad_count,
+        tx=[0.0, 0.0, 0.0],
+        rx=[1.0, 0.0, 0.0],
+        codebook=codebook,
+        known=[],
+        environment=doc.environment,
+    )
+    return base, mine, powers
+
+
+def site_profiles(problem: Any, site: int, ris: RIS, wavelength: float) -> Any:
+    """[G̃, N] the designed first block of a district site (its beams' spatial frequencies as
+    the plan stored them, :class:`~ris_planner.planning.scoring.sparse.Codebooks`)."""
+    cb = problem.codebooks
+    yc, zr = grid_axes(ris.rows, ris.cols, ris.element_spacing(wavelength))
+    return beam_block(yc, zr, cb.xi[site], cb.zeta[site], cb.beam_types, wavelength).profiles()
+
+
+def district_codebook(result: PlanResult, seed: int) -> dict[str, Any]:
+    """plan.json's description of a district layout's codebook in the validation: each site's
+    designed block (its kind, Γ, the slots' powers) or a seeded random one."""
+    scorer = result.scorer
+    assert isinstance(scorer, SparseScorer)
+    cb = scorer.problem.codebooks
+    if not cb.designed:
+        return {"kind": "random", "seed": seed, "note": "each pair with the RISs that serve it"}
+    return {
+        "kind": "designed",
+        "name": cb.kind,
+        "design": "per site",
+        "seed": result.document.codebook.seed or 0,
+        "blocks": cb.blocks,
+        "beams_per_block": int(cb.powers.size),
+        "powers": "gamma_p" if cb.kind == "directional_derivative" else "uniform",
+        "note": "each pair with the RISs that serve it, each RIS with its site's designed block",
+    }
+
+
 def check_layout(
     result: PlanResult,
     layout: tuple[int, ...],
@@ -494,25 +617,30 @@ def check_layout(
     spec = doc.validation
     assert spec is not None
     metric_name = doc.objective.metric
-    design, codebook = layout_codebook(result, layout)
-    powers = None if design is None else design.powers
-    base = layout_base(doc, [result.sites[s].ris for s in layout], spec.seed, design)
-    bres = compute_bounds(base, tx=tx, rx=rx, beam_powers=powers)
-    peb_tx = bres.peb_tx if bres.peb_tx is not None else np.full(len(tx), np.inf)
-    ceb = bres.ceb if bres.ceb is not None else np.full(len(tx), np.inf)
+    local = isinstance(result.scorer, SparseScorer)
+    if local:  # a district layout: each pair with the RISs that serve it, in Γ blocks
+        design, codebook = None, district_codebook(result, spec.seed)
+        per_pair = [district_pair(result, layout, tx[j], rx[j], spec.seed) for j in range(len(tx))]
+    else:
+        design, codebook = layout_codebook(result, layout)
+        powers = None if design is None else design.powers
+        base = layout_base(doc, [result.sites[s].ris for s in layout], spec.seed, design)
+        per_pair = [(base, list(layout), powers)] * len(tx)
     rows: list[dict[str, Any]] = []
     causes: Counter[str] = Counter()
     shortfalls: Counter[str] = Counter()
     seconds, n_est = 0.0, 0
+    bounds_all = pair_bounds(per_pair, tx, rx)
     for j in range(len(tx)):
         progress(j / len(tx), f"{len(layout)} RISs: pair {j + 1}/{len(tx)}")
-        setup = signal_setup(pair_scenario(base, tx[j], rx[j]), beam_powers=powers)
-        bounds = (float(peb_tx[j]), float(bres.peb_rx[j]), float(ceb[j]))
+        base_j, sites_j, powers_j = per_pair[j]
+        setup = signal_setup(pair_scenario(base_j, tx[j], rx[j]), beam_powers=powers_j)
+        bounds = bounds_all[j]
         bound = _metric(metric_name, bounds[0], bounds[1])
         row: dict[str, Any] = {
             "tx": [float(v) for v in tx[j]],
             "rx": [float(v) for v in rx[j]],
-            "paths": {"los": setup.los, "ris": [int(layout[i]) for i in setup.ris_present]},
+            "paths": {"los": setup.los, "ris": [int(sites_j[i]) for i in setup.ris_present]},
             "path_snr_db": path_snr_db(setup),
             "peb_tx_m": finite_or_none(bounds[0]),
             "peb_rx_m": finite_or_none(bounds[1]),

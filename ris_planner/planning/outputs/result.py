@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,7 +24,6 @@ from ris_planner.model.objectives import objective_kind, weighted_quantile
 from ris_planner.model.plan import PlanDocument, Target, physics_json, target_goal
 from ris_planner.model.search_methods import MethodChoice
 from ris_planner.physics.fim import Radio
-from ris_planner.planning.beams import BeamReport
 from ris_planner.planning.certify.checks import PendingChecks
 from ris_planner.planning.certify.relaxation import Certificate
 from ris_planner.planning.inputs.constraints import Feasibility
@@ -53,6 +52,19 @@ def _relative(gap: float, bound: float) -> float | None:
     """gap / |bound| (``None`` where undefined: an infinite gap or a zero or infinite bound)."""
     ok = np.isfinite(gap) and np.isfinite(bound) and bound != 0
     return float(gap / abs(bound)) if ok else None
+
+
+class LayoutBeams(Protocol):
+    """A layout's beams and power as plan.json reports them
+    (:class:`~ris_planner.planning.beams.BeamReport` of an enumerating plan, a district plan's
+    :class:`~ris_planner.planning.district_beams.DistrictBeams`)."""
+
+    @property
+    def objective(self) -> dict[str, float | None]:
+        """The plan objective of the layout under each design."""
+        ...
+
+    def to_json(self) -> dict[str, Any]: ...
 
 
 @dataclass(frozen=True)
@@ -106,7 +118,7 @@ class PlanResult:
     dropped_points: dict[str, int] | None = None
     site_warnings: list[str] | None = None
     """Candidates that serve (almost) none of the pairs (:func:`visibility.serve_warnings`)."""
-    beams: Mapping[Layout, BeamReport] = field(default_factory=dict)
+    beams: Mapping[Layout, LayoutBeams] = field(default_factory=dict)
     """Beam designs per evaluated layout (``document.beams``): the best of each count first."""
     feasibility: Feasibility | None = None
     infeasible_counts: tuple[int, ...] = ()

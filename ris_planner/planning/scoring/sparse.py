@@ -42,7 +42,9 @@ from ris_planner.inversion.crb import (
 )
 from ris_planner.inversion.ldl import pack, packed_slots
 from ris_planner.model.objectives.protocol import objective_kind
+from ris_planner.model.scenario import RIS
 from ris_planner.physics import fim
+from ris_planner.physics.separable import SeparableBlock
 from ris_planner.planning.inputs.plan_inputs import PlanInputs
 from ris_planner.planning.scoring.site_beams import beams_per_block, design_site
 from ris_planner.planning.scoring.visibility import pair_visibility
@@ -251,33 +253,24 @@ def build_problem(
             p = entry_pair[idx]
             bad = ue_on_ris(pairs.tx[p], pairs.rx[p], site.ris.position)
             t, r = stand_ins(pairs.tx[p], pairs.rx[p], bad)
+            block = None
             if designed and np.any(~bad):
                 rng = np.random.default_rng([cb_spec.seed or 0, s])
                 w = np.where(bad, 0.0, pairs.weights[p])
                 beams = design_site(site.ris, t, r, w, cb_spec, g_tilde, radio.wavelength, rng)
                 beam_xi[s], beam_zeta[s] = beams.xi, beams.zeta
-                types, powers = beams.block.beam_types, beams.powers
-                info, far[idx] = ris_path_information(
-                    site.ris, t, r, radio, None, blocks, powers, separable=beams.block
-                )
-            else:
-                info, far[idx] = ris_path_information(site.ris, t, r, radio, None, 1, ones)
-            if referenced:
-                assert grad is not None
-                info = to_los_reference(info, grad[p])
-            st = info.state_information()[:, kept][:, :, kept]
-            packed[:, idx] = pack(st)
-            factor[idx, :3] = info.factor()[:, :, kept]
-            near = np.flatnonzero(~far[idx]) if spherical else np.zeros(0, dtype=int)
-            if near.size:  # inside the Fraunhofer distance: the exact per-element response
-                sph, _ = ris_path_information(
-                    site.ris, t[near], r[near], radio, None, 1, ones, wavefront="spherical"
-                )
-                if referenced:
-                    assert grad is not None
-                    sph = to_los_reference(sph, grad[p[near]])
-                packed[:, idx[near]] = pack(sph.state_information()[:, kept][:, :, kept])
-                factor[idx[near]] = sph.factor()[:, :, kept]
+                types, powers, block = beams.block.beam_types, beams.powers, beams.block
+            rows = site_information(
+                site.ris,
+                t,
+                r,
+                radio,
+                kept,
+                None if grad is None or not referenced else grad[p],
+                SiteCodebook(block, blocks, powers) if block is not None else None,
+                spherical,
+            )
+            packed[:, idx], factor[idx], far[idx] = rows
             degenerate[idx] = bad
             progress(0.3 + 0.7 * (s + 1) / len(sites), f"information: site {s + 1}/{len(sites)}")
         # a UE on a RIS leaves that pair blind in every layout of the site: no information
@@ -307,6 +300,64 @@ def build_problem(
         far,
         Codebooks(cb_spec.kind, blocks if designed else 1, beam_xi, beam_zeta, types, powers),
     )
+
+
+@dataclass(frozen=True)
+class SiteCodebook:
+    """A site's designed first block as :func:`site_information` applies it: its factors, Γ
+    and the slots' powers."""
+
+    block: SeparableBlock
+    blocks: int
+    powers: FloatArray
+
+
+def site_information(
+    ris: RIS,
+    tx: FloatArray,
+    rx: FloatArray,
+    radio: fim.Radio,
+    kept: IntArray,
+    los_grad: FloatArray | None,
+    codebook: SiteCodebook | None,
+    spherical: bool,
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """One site's (packed information [k(k+1)/2, n], square-root rows [n, 3 or 7, k], far-field
+    flags [n]) on the kept states for its pairs (tx, rx [n, 3], stand-ins where a UE sits on
+    it): the expected-random FIM without ``codebook``, else its designed block's; referred to
+    the LOS delay with the pairs' LOS gradients ``los_grad`` when the clock is; with
+    ``spherical`` the pairs inside the Fraunhofer distance get the exact per-element response
+    (:func:`ris_planner.bounds.compute.ris_path_information`)."""
+    ones = np.ones(radio.transmissions)  # the expected-random FIM: Σ_g δ_g² = G
+    if codebook is None:
+        info, far = ris_path_information(ris, tx, rx, radio, None, 1, ones)
+    else:
+        info, far = ris_path_information(
+            ris,
+            tx,
+            rx,
+            radio,
+            None,
+            codebook.blocks,
+            codebook.powers,
+            separable=codebook.block,
+        )
+    if los_grad is not None:
+        info = to_los_reference(info, los_grad)
+    k = kept.size
+    packed = pack(info.state_information()[:, kept][:, :, kept])
+    factor = np.zeros((tx.shape[0], 7 if spherical else 3, k))
+    factor[:, :3] = info.factor()[:, :, kept]
+    near = np.flatnonzero(~far) if spherical else np.zeros(0, dtype=int)
+    if near.size:  # inside the Fraunhofer distance: the exact per-element response
+        sph, _ = ris_path_information(
+            ris, tx[near], rx[near], radio, None, 1, ones, wavefront="spherical"
+        )
+        if los_grad is not None:
+            sph = to_los_reference(sph, los_grad[near])
+        packed[:, near] = pack(sph.state_information()[:, kept][:, :, kept])
+        factor[near] = sph.factor()[:, :, kept]
+    return packed, factor, far
 
 
 def entry_metric(
@@ -516,3 +567,60 @@ class SparseScorer:
             "rows_stored": True,
             "bytes": int(pr.info.nbytes + pr.factor.nbytes),
         }
+
+
+def layout_information(
+    problem: DistrictProblem,
+    inputs: PlanInputs,
+    blocks: dict[int, SeparableBlock],
+    gamma: int,
+    powers: FloatArray,
+) -> DistrictProblem:
+    """``problem`` restricted to the entries of the sites in ``blocks``, their information
+    computed anew with each site's block at the slot powers ``powers`` [G̃] in ``gamma`` = Γ
+    blocks (:func:`site_information`): a layout scored with other beams or powers than the
+    search's (the power allocation of its beams). A layout's metric needs only its own sites'
+    entries and the LOS."""
+    doc = inputs.document
+    pairs = inputs.pairs
+    radio = fim.Radio.from_system(doc.system)
+    kept = kept_states(tuple(doc.known))
+    grad = None
+    if doc.system.los and uses_los_reference(True, tuple(doc.known)):
+        grad = los_gradient(los_path_information(pairs.tx, pairs.rx, radio, radio.transmissions))
+    keep = np.flatnonzero(np.isin(problem.entry_site, list(blocks)))
+    info = problem.info[keep].copy()
+    factor = problem.factor[keep].copy()
+    for site, block in blocks.items():
+        mine = np.flatnonzero(problem.entry_site[keep] == site)
+        p = problem.entry_pair[keep[mine]]
+        ris = inputs.sites[site].ris
+        bad = ue_on_ris(pairs.tx[p], pairs.rx[p], ris.position)
+        t, r = stand_ins(pairs.tx[p], pairs.rx[p], bad)
+        packed, rows, _ = site_information(
+            ris,
+            t,
+            r,
+            radio,
+            kept,
+            None if grad is None else grad[p],
+            SiteCodebook(block, gamma, powers),
+            factor.shape[1] == 7,
+        )
+        packed[:, bad] = 0.0
+        rows[bad] = 0.0
+        info[mine] = packed.T
+        factor[mine] = rows
+    entry_pair, entry_site = problem.entry_pair[keep], problem.entry_site[keep]
+    by_site = np.argsort(entry_site, kind="stable")
+    return replace(
+        problem,
+        entry_pair=entry_pair,
+        entry_site=entry_site,
+        pair_start=np.searchsorted(entry_pair, np.arange(problem.n_pairs + 1)),
+        info=info,
+        factor=factor,
+        by_site=by_site,
+        site_start=np.searchsorted(entry_site[by_site], np.arange(problem.n_sites + 1)),
+        far=problem.far[keep],
+    )

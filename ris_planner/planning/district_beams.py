@@ -1,0 +1,284 @@
+"""Beams and power for a district plan's layouts (``beams`` / ``--beams`` with the district
+search; docs/concepts/district-physics.md, "Beams and power").
+
+For each count's layout (and ``beams.layouts``):
+
+1. **Beams per RIS**: each RIS keeps its site's DIR+DER block designed from the pairs it serves
+   (:mod:`ris_planner.planning.scoring.site_beams`: the plan's own when it scored with
+   ``directional_derivative``, else designed here with ``beams.seed``), in the plan's Γ blocks
+   (:func:`ris_planner.planning.district_plan.time_orthogonal`).
+2. **Design positions**: at most ``beams.design_positions`` pairs the layout resolves (a finite
+   bound), drawn ∝ weight (:func:`ris_planner.planning.beams.design_positions`). Each is
+   described by the RISs that serve it, padded to Γ − 1 with RISs that serve nobody (so every
+   position's state has the same size): its per-beam information
+   (:func:`ris_planner.power.information.beam_information` with the plan's Γ).
+3. **Power**: the slot powers δ² of the block are the transmitting UE's per transmission, the
+   same for every RIS a pair hears: one allocation for the district – γ_P (eq.
+   opt_formulation_3, :func:`ris_planner.power.gamma.search_gamma_p`) and the appendix SDP
+   (:func:`ris_planner.power.sdp.solve_power_sdp`, its status as data), each minimising the
+   mean PEB² over the design positions.
+4. **Coverage**: the layout re-scored on every pair with each allocation
+   (:func:`ris_planner.planning.scoring.sparse.layout_information`), next to the plan's own.
+
+plan.json ``beams.layouts[i]``: the objectives, the SDP's status, solver, time and powers,
+γ_P, the design positions, and per RIS its site, colour and beams (each slot's type and
+spatial frequencies, from which eqs. sum_diff_beam_1–3 give its phases) with the digest of its
+phases.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.core.io_json import finite_or_none
+from ris_planner.model.plan import PlanCodebook
+from ris_planner.physics.separable import SeparableBlock, beam_block, grid_axes
+from ris_planner.planning.beams import POWER_OBJECTIVE_OF_METRIC, design_positions
+from ris_planner.planning.inputs.plan_inputs import PlanInputs
+from ris_planner.planning.outputs.estimator_check import padding_ris
+from ris_planner.planning.outputs.result import PlanResult
+from ris_planner.planning.scoring.site_beams import beams_per_block, design_site
+from ris_planner.planning.scoring.sparse import (
+    DistrictProblem,
+    LayoutState,
+    SparseScorer,
+    layout_information,
+    stand_ins,
+    ue_on_ris,
+)
+from ris_planner.planning.scoring.time_blocks import profile_colours
+from ris_planner.planning.search.layouts import Layout
+from ris_planner.runtime.progress import ProgressCallback, no_progress
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class DistrictBeams:
+    """One layout's beams and power (in memory: the blocks; plan.json: :meth:`to_json`)."""
+
+    blocks: dict[int, SeparableBlock]
+    powers: dict[str, FloatArray] = field(default_factory=dict)
+    """Slot powers per allocation: ``gamma_p`` and, when the SDP solved, ``sdp``."""
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return dict(self.detail)
+
+    @property
+    def objective(self) -> dict[str, float | None]:
+        """The layout's coverage under each beam design (the beams figure's curves)."""
+        return dict(self.detail.get("objective", {}))
+
+
+def district_beams(
+    result: PlanResult, inputs: PlanInputs, progress: ProgressCallback = no_progress
+) -> dict[Layout, DistrictBeams]:
+    """Every count's layout (and ``beams.layouts``): beams, γ_P, the SDP and the coverage
+    under each (module docstring)."""
+    doc = result.document
+    spec = doc.beams
+    assert spec is not None
+    scorer = result.scorer
+    assert isinstance(scorer, SparseScorer)
+    layouts: list[Layout] = [cr.ranked[0][0] for cr in result.counts]
+    layouts += [tuple(sorted(lay)) for lay in spec.layouts]
+    layouts = list(dict.fromkeys(layouts))
+    out: dict[Layout, DistrictBeams] = {}
+    for i, layout in enumerate(layouts):
+
+        def sub(f: float, m: str, i: int = i) -> None:
+            progress((i + f) / len(layouts), m)
+
+        out[layout] = layout_beams(result, inputs, scorer.problem, layout, sub)
+    return out
+
+
+def layout_beams(
+    result: PlanResult,
+    inputs: PlanInputs,
+    problem: DistrictProblem,
+    layout: Layout,
+    progress: ProgressCallback = no_progress,
+) -> DistrictBeams:
+    """One layout's :class:`DistrictBeams` (module docstring)."""
+    from ris_planner.power.gamma import search_gamma_p
+    from ris_planner.power.sdp import mean_trace_bound, objective_index, solve_power_sdp
+
+    doc = result.document
+    spec = doc.beams
+    assert spec is not None
+    t0 = time.perf_counter()
+    timing = result.search_details.get("time_orthogonal") or {}
+    gamma = int(timing.get("blocks") or problem.codebooks.blocks)
+    g_tilde = beams_per_block(doc.system.transmissions, gamma, "directional_derivative")
+    design = PlanCodebook(kind="directional_derivative", seed=spec.seed)
+    blocks, types, aims = _layout_blocks(problem, inputs, layout, design, g_tilde)
+    timing_s = {"design": time.perf_counter() - t0}
+    progress(0.2, "beams: design positions")
+    t1 = time.perf_counter()
+    own = LayoutState(problem, list(layout))
+    pick = design_positions(
+        problem.weights, np.isfinite(own.metric), spec.design_positions, spec.seed
+    )
+    info = _position_information(result, inputs, layout, blocks, pick, gamma)
+    objective = POWER_OBJECTIVE_OF_METRIC[doc.objective.metric]
+    index = objective_index(info, objective)
+    gp = search_gamma_p(lambda p: mean_trace_bound(info, p, index), types)
+    timing_s["gamma_p"] = time.perf_counter() - t1
+    progress(0.6, "beams: SDP")
+    sdp = solve_power_sdp(info, objective, solver=spec.solver)
+    timing_s["sdp"] = sdp.solve_time_s
+    progress(0.8, "beams: coverage")
+    t3 = time.perf_counter()
+    powers = {"uniform": np.ones(g_tilde), "gamma_p": np.asarray(gp.powers, dtype=float)}
+    if sdp.powers is not None:
+        powers["sdp"] = np.asarray(sdp.powers, dtype=float)
+    coverage = {
+        name: LayoutState(layout_information(problem, inputs, blocks, gamma, p), list(layout))
+        for name, p in powers.items()
+    }
+    objective_values = {
+        problem.codebooks.kind: finite_or_none(own.coverage()),
+        **{f"dir_der_{k}": finite_or_none(v.coverage()) for k, v in coverage.items()},
+    }
+    timing_s["evaluate"] = time.perf_counter() - t3
+    colour = profile_colours(problem, layout)
+    kinds = ("dir", "der_xi", "der_zeta")
+    rises = []
+    for j, s in enumerate(layout):
+        block = blocks[s]
+        xi, zeta = aims[s]
+        rises.append(
+            {
+                "site": int(s),
+                "name": result.sites[s].name,
+                "colour": int(colour[j]),
+                "beams": int(block.beam_types.size),
+                "slots": [
+                    {"type": kinds[int(t)], "xi": float(x), "zeta": float(z)}
+                    for t, x, z in zip(block.beam_types, xi, zeta, strict=True)
+                ],
+                "sha256_16": _digest(block),
+            }
+        )
+    detail = {
+        "sites": [int(s) for s in layout],
+        "objective": objective_values,
+        "blocks": gamma,
+        "beams_per_block": g_tilde,
+        "design_positions": int(pick.size),
+        "power_objective": objective,
+        "gamma_p": float(gp.value),
+        "powers": {k: [float(x) for x in v] for k, v in powers.items()},
+        "sdp": {
+            "status": sdp.status,
+            "solver": sdp.solver,
+            "solve_time_s": sdp.solve_time_s,
+            "message": sdp.message,
+            "design_objective_m2": finite_or_none(sdp.objective),
+        },
+        "ris": rises,
+        "timing_s": timing_s,
+    }
+    progress(1.0, "beams: done")
+    return DistrictBeams(blocks, powers, detail)
+
+
+def _layout_blocks(
+    problem: DistrictProblem,
+    inputs: PlanInputs,
+    layout: Layout,
+    design: PlanCodebook,
+    g_tilde: int,
+) -> tuple[dict[int, SeparableBlock], NDArray[np.int_], dict[int, tuple[FloatArray, FloatArray]]]:
+    """Each layout site's DIR+DER block (the plan's own when it designed them with this G̃),
+    the slots' beam types, and each site's slots' spatial frequencies (ξ₀, ζ₀)."""
+    cb = problem.codebooks
+    pairs = inputs.pairs
+    wavelength = inputs.document.system.wavelength
+    own = cb.kind == "directional_derivative" and cb.xi.shape[1] == g_tilde
+    out: dict[int, SeparableBlock] = {}
+    aims: dict[int, tuple[FloatArray, FloatArray]] = {}
+    types = np.zeros(0, dtype=int)
+    for s in layout:
+        ris = inputs.sites[s].ris
+        yc, zr = grid_axes(ris.rows, ris.cols, ris.element_spacing(wavelength))
+        if own:
+            xi, zeta = cb.xi[s], cb.zeta[s]
+            block = beam_block(yc, zr, xi, zeta, cb.beam_types, wavelength)
+        else:
+            p = problem.pairs_of(int(s))
+            bad = ue_on_ris(pairs.tx[p], pairs.rx[p], ris.position)
+            t, r = stand_ins(pairs.tx[p], pairs.rx[p], bad)
+            w = np.where(bad, 0.0, pairs.weights[p])
+            rng = np.random.default_rng([design.seed or 0, int(s)])
+            beams = design_site(ris, t, r, w, design, g_tilde, wavelength, rng)
+            block, xi, zeta = beams.block, beams.xi, beams.zeta
+        out[int(s)] = block
+        aims[int(s)] = (xi, zeta)
+        types = block.beam_types
+    return out, types, aims
+
+
+def _position_information(
+    result: PlanResult,
+    inputs: PlanInputs,
+    layout: Layout,
+    blocks: dict[int, SeparableBlock],
+    pick: NDArray[np.int_],
+    gamma: int,
+) -> Any:
+    """The stacked per-beam information of the design positions: each with the layout's RISs
+    that serve it and RISs that serve nobody up to Γ − 1 (one state size for all)."""
+    from ris_planner.planning.beams import layout_scenario
+    from ris_planner.power.information import BeamInformation, PathBlocks, beam_information
+
+    doc = result.document
+    pairs = inputs.pairs
+    serves = result.scorer.serves(layout)  # [L, P]
+    parts = []
+    for p in pick.tolist():
+        mine = [s for j, s in enumerate(layout) if serves[j, p]]
+        ris = [inputs.sites[s].ris for s in mine]
+        pad = padding_ris(inputs.sites[layout[0]].ris)
+        n_pad = gamma - 1 - len(ris)
+        scenario = layout_scenario(doc.system, ris + [pad] * n_pad, [], doc.environment)
+        prof = [blocks[s].profiles() for s in mine]
+        prof += [blocks[layout[0]].profiles()] * n_pad
+        parts.append(
+            beam_information(scenario, pairs.tx[[p]], pairs.rx[[p]], prof, [], n_blocks=gamma)
+        )
+    first = parts[0]
+    paths = tuple(
+        PathBlocks(
+            np.concatenate([q.paths[k].blocks for q in parts]),
+            np.concatenate([q.paths[k].maps for q in parts]),
+            first.paths[k].name,
+            np.concatenate([q.paths[k].jacobian for q in parts]),
+            np.concatenate([q.paths[k].present for q in parts]),
+        )
+        for k in range(len(first.paths))
+    )
+    return BeamInformation(
+        np.concatenate([q.stack for q in parts]),
+        first.beam_group,
+        first.tx_index,
+        first.rx_index,
+        paths,
+        first.known,
+        first.n_observations,
+    )
+
+
+def _digest(block: SeparableBlock) -> str:
+    """SHA-256 (first 16 hex digits) of the block's profiles (little-endian complex128)."""
+    return hashlib.sha256(
+        np.ascontiguousarray(block.profiles(), dtype="<c16").tobytes()
+    ).hexdigest()[:16]
