@@ -127,11 +127,12 @@ def _renderer(fig: Any) -> Any:
     return fig.canvas.get_renderer()
 
 
-def _overlap(a: Any, b: Any) -> float:
-    """Overlap area of two display-space boxes (0 when they do not intersect)."""
-    w = min(a.x1, b.x1) - max(a.x0, b.x0)
-    h = min(a.y1, b.y1) - max(a.y0, b.y0)
-    return max(w, 0.0) * max(h, 0.0)
+def _overlaps(a: FloatArray, b: FloatArray) -> FloatArray:
+    """[A, B] overlap areas of display-space boxes a [A, 4] and b [B, 4] (x0, y0, x1, y1; 0
+    where they do not intersect)."""
+    w = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0])
+    h = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1])
+    return np.asarray(np.clip(w, 0.0, None) * np.clip(h, 0.0, None))
 
 
 def place_labels(
@@ -162,16 +163,27 @@ def place_labels(
     px_per_pt = fig.dpi / 72.0
     frame = ax.get_window_extent(renderer).padded(-LABEL_PAD_PX)
     r_px = marker_pt * px_per_pt
-    taken = [
-        Bbox.from_bounds(x - r_px, y - r_px, 2 * r_px, 2 * r_px)
-        for x, y in ax.transData.transform(np.asarray(anchors, dtype=float).reshape(-1, 2))
-    ]
+    xy = ax.transData.transform(np.asarray(anchors, dtype=float).reshape(-1, 2))
+    boxes = [np.column_stack([xy - r_px, xy + r_px])]  # [n, 4] x0, y0, x1, y1 of the markers
     for a, b in avoid:
         (x0, y0), (x1, y1) = ax.transData.transform(np.array([a, b], dtype=float))
         box = Bbox.from_extents(min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1))
-        taken.append(box.padded(LABEL_PAD_PX))  # a straight arrow's box has no width
+        box = box.padded(LABEL_PAD_PX)  # a straight arrow's box has no width
+        boxes.append(np.array([[box.x0, box.y0, box.x1, box.y1]]))
+    taken = np.concatenate(boxes)
+    edge = np.array([frame.x0, frame.y0, frame.x1, frame.y1])
+    # every offset tried, nearest ring first: (ring, dx, dy [px], ha, va, points offset)
+    tries = []
+    for ring in LABEL_RINGS_PT:
+        for deg in LABEL_DIRECTIONS_DEG:
+            c, s_ = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+            dist = marker_pt + ring
+            ha = "left" if c > 0.1 else "right" if c < -0.1 else "center"
+            va = "bottom" if s_ > 0.1 else "top" if s_ < -0.1 else "center"
+            tries.append((ring, dist * c, dist * s_, ha, va))
+    shift = {"left": 0.0, "center": 0.5, "right": 1.0, "bottom": 0.0, "top": 1.0}
     out = []
-    for (x, y), text in zip(anchors, texts, strict=True):
+    for (x, y), (px, py), text in zip(anchors, xy, texts, strict=True):
         label = ax.text(
             x,
             y,
@@ -180,30 +192,27 @@ def place_labels(
             zorder=20,
             gid=SITE_LABEL_GID,
             clip_on=False,
+            ha="left",
+            va="bottom",
             bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8, "lw": 0},
         )
-        best: tuple[float, float, Any, Any, str, str] | None = None
-        for ring in LABEL_RINGS_PT:
-            for deg in LABEL_DIRECTIONS_DEG:
-                c, s_ = math.cos(math.radians(deg)), math.sin(math.radians(deg))
-                dist = marker_pt + ring
-                ha = "left" if c > 0.1 else "right" if c < -0.1 else "center"
-                va = "bottom" if s_ > 0.1 else "top" if s_ < -0.1 else "center"
-                trans = offset_copy(ax.transData, fig=fig, x=dist * c, y=dist * s_, units="points")
-                label.set(transform=trans, ha=ha, va=va)
-                box = label.get_window_extent(renderer).padded(LABEL_PAD_PX)
-                cost = sum(_overlap(box, t) for t in taken)
-                cost += box.width * box.height - _overlap(box, frame)  # outside the axes
-                if best is None or cost < best[0]:
-                    best = (cost, ring, trans, box, ha, va)
-                if cost == 0:
-                    break
-            if best is not None and best[0] == 0:
-                break
-        assert best is not None
-        _, ring, trans, box, ha, va = best
+        # the label's box at its anchor, measured once; each offset moves it as a whole
+        ext = label.get_window_extent(renderer)
+        w, h = ext.width, ext.height
+        x0 = np.array([px + dx * px_per_pt - shift[ha] * w for _, dx, _, ha, _ in tries])
+        y0 = np.array([py + dy * px_per_pt - shift[va] * h for _, _, dy, _, va in tries])
+        cand = np.column_stack([x0, y0, x0 + w, y0 + h])  # [T, 4]
+        cand += [-LABEL_PAD_PX, -LABEL_PAD_PX, LABEL_PAD_PX, LABEL_PAD_PX]
+        cost = _overlaps(cand, taken).sum(axis=1)
+        inside = _overlaps(cand, edge[None])[:, 0]
+        cost += (cand[:, 2] - cand[:, 0]) * (cand[:, 3] - cand[:, 1]) - inside  # outside
+        free = np.flatnonzero(cost == 0)
+        k = int(free[0]) if free.size else int(np.argmin(cost))
+        ring, dx, dy, ha, va = tries[k]
+        trans = offset_copy(ax.transData, fig=fig, x=dx, y=dy, units="points")
         label.set(transform=trans, ha=ha, va=va)
-        taken.append(box)
+        box = label.get_window_extent(renderer).padded(LABEL_PAD_PX)
+        taken = np.vstack([taken, [box.x0, box.y0, box.x1, box.y1]])
         out.append(label)
         if ring > LABEL_RINGS_PT[0]:
             centre = ((box.x0 + box.x1) / 2, (box.y0 + box.y1) / 2)
