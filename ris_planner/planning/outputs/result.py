@@ -490,7 +490,14 @@ class PlanResult:
 def summarise(result: PlanResult) -> Summary:
     """The summary stage: every ranked layout's statistics (:meth:`PlanResult.layout_stats`),
     each count's CDF, the warnings and the provenance."""
-    stats = {lay: result.layout_stats(lay) for cr in result.counts for lay, _ in cr.ranked}
+    stats: dict[Layout, dict[str, Any]] = {}
+    for cr in result.counts:  # each count's ranked layouts scored in one call
+        layouts = [lay for lay, _ in cr.ranked if lay not in stats]
+        if not layouts:
+            continue
+        metrics = result.scorer.exact_metric(np.array(layouts, dtype=int))
+        for lay, metric in zip(layouts, metrics, strict=True):
+            stats[lay] = result.metric_stats(lay, metric)
     return Summary(
         stats,
         tuple(result.cdf(cr.best_metric) for cr in result.counts),

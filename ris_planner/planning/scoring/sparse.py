@@ -27,6 +27,7 @@ from ris_planner.bounds.compute import (
     los_gradient,
     los_path_information,
     n_observations,
+    ris_path_gain,
     ris_path_information,
     stand_ins,
     to_los_reference,
@@ -43,7 +44,7 @@ from ris_planner.inversion.crb import (
 from ris_planner.inversion.ldl import pack, packed_slots
 from ris_planner.model.objectives.protocol import objective_kind
 from ris_planner.model.scenario import RIS
-from ris_planner.physics import fim
+from ris_planner.physics import fim, geometry
 from ris_planner.physics.separable import SeparableBlock
 from ris_planner.planning.inputs.plan_inputs import PlanInputs
 from ris_planner.planning.scoring.site_beams import beams_per_block, design_site
@@ -109,6 +110,12 @@ class DistrictProblem:
     site_start: IntArray
     far: BoolArray
     codebooks: Codebooks
+    visible: tuple[IntArray, IntArray]
+    """(pair, site) of every RIS path that exists (visibility): another RIS size's problem
+    starts from them."""
+    audible: BoolArray
+    """[E] whether the entry's path is audible at its pair (:func:`audible`): profile colours
+    separate audible paths only."""
 
     @property
     def n_pairs(self) -> int:
@@ -164,9 +171,43 @@ class DistrictProblem:
             info=self.info[keep],
             factor=self.factor[keep],
             far=self.far[keep],
+            audible=self.audible[keep],
             by_site=by_site,
             site_start=np.searchsorted(entry_site[by_site], np.arange(self.n_sites + 1)),
         )
+
+
+AUDIBLE_SNR_DB = 0.0
+"""A RIS path is audible at a pair when its integrated SNR over the whole pilot – K
+subcarriers × G transmissions with random phases, P·K·G·N·|ρ|²/σ² – is at least this
+(docs/concepts/district-physics.md, "Audible paths"). Two RISs need different profile columns
+only where a pair hears both audibly: an inaudible path sharing a column is below the noise
+over the whole pilot, and its interference is neglected (its information is counted, as
+``compute_bounds`` counts every path; the benchmark measures what it adds)."""
+
+
+def audible(
+    sites: list[Any], pairs: Any, visible: tuple[IntArray, IntArray], system: Any
+) -> BoolArray:
+    """[V] whether each visible (pair, site) path is audible (:data:`AUDIBLE_SNR_DB`), by its
+    gain from the path geometry (:func:`~ris_planner.bounds.compute.ris_path_gain`)."""
+    entry_pair, entry_site = visible
+    out = np.zeros(entry_pair.size, dtype=bool)
+    floor = 10 ** (AUDIBLE_SNR_DB / 10)
+    base = system.tx_power_w * system.subcarriers * system.transmissions / system.noise_variance_w
+    order = np.argsort(entry_site, kind="stable")
+    start = np.searchsorted(entry_site[order], np.arange(len(sites) + 1))
+    for s, site in enumerate(sites):
+        idx = order[start[s] : start[s + 1]]
+        if idx.size == 0:
+            continue
+        p = entry_pair[idx]
+        ris = site.ris
+        geo = geometry.ris_path_geometry(pairs.tx[p], pairs.rx[p], ris.position, ris.orientation)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            gain = ris_path_gain(ris, geo, pairs.tx[p], pairs.rx[p], system.wavelength)
+            out[idx] = ~(base * ris.elements * gain**2 < floor)  # a UE on the RIS: audible
+    return out
 
 
 def build_problem(
@@ -204,13 +245,15 @@ def build_problem(
         if like is None:
             # per distinct map point and site, then gathered per pair (the site cache's rule)
             vis = pair_visibility(inputs.scene, sites, pairs, system.los)
-            entry_pair, entry_site = np.nonzero(vis.present.T)  # pair-major
+            visible = np.nonzero(vis.present.T)  # pair-major
             los_clear_pairs = vis.los
             del vis
         else:
-            entry_pair, entry_site = like.entry_pair, like.entry_site
+            visible = like.visible
             los_clear_pairs = like.los_present
         progress(0.3, "visibility")
+        entry_pair, entry_site = visible
+        loud = audible(sites, pairs, visible, system)
         pair_start = np.searchsorted(entry_pair, np.arange(pairs.size + 1))
         radio = fim.Radio.from_system(system)
         g = system.transmissions
@@ -299,6 +342,8 @@ def build_problem(
         site_start,
         far,
         Codebooks(cb_spec.kind, blocks if designed else 1, beam_xi, beam_zeta, types, powers),
+        visible,
+        loud,
     )
 
 
@@ -623,4 +668,5 @@ def layout_information(
         by_site=by_site,
         site_start=np.searchsorted(entry_site[by_site], np.arange(problem.n_sites + 1)),
         far=problem.far[keep],
+        audible=problem.audible[keep],
     )

@@ -5,7 +5,8 @@ The time-orthogonal profiles (eq. orthogonal_profiles) separate the paths a rece
 the columns of B: the LOS takes column 0 and each RIS one more, so one pair with L RISs needs
 Γ ≥ L + 1 blocks. In a district no pair hears most RISs: two RISs need different columns only
 when some pair hears both, so RISs that share no pair may share a column – a colouring of the
-RIS conflict graph (RISs adjacent when a pair is served by both). Γ is then the smallest
+RIS conflict graph (RISs adjacent when a pair hears both audibly: a path below the noise over
+the whole pilot needs no column of its own). Γ is then the smallest
 divisor of G at least one more than the colours (:func:`~ris_planner.model.profiles.
 block_count` of the colour count), not of the RIS count, and each RIS has G/Γ beams per block.
 """
@@ -24,11 +25,13 @@ IntArray = NDArray[np.int_]
 
 
 def conflict_graph(problem: DistrictProblem, layout: Sequence[int]) -> NDArray[np.bool_]:
-    """[L, L] whether two sites of ``layout`` serve a common pair (False on the diagonal)."""
+    """[L, L] whether some pair hears two sites of ``layout`` audibly (their paths must be
+    separated: :data:`~ris_planner.planning.scoring.sparse.AUDIBLE_SNR_DB`; False on the
+    diagonal)."""
     layout = [int(s) for s in layout]
     column = np.full(problem.n_sites, -1)
     column[layout] = np.arange(len(layout))
-    keep = column[problem.entry_site] >= 0
+    keep = (column[problem.entry_site] >= 0) & problem.audible
     m = csr_matrix(
         (np.ones(int(keep.sum())), (problem.entry_pair[keep], column[problem.entry_site[keep]])),
         shape=(problem.n_pairs, len(layout)),
