@@ -397,7 +397,8 @@ def district_size_rows(
                     conflict=conflict,
                 )
             lb = lower()
-            rows.append(_size_row((r, c), pr, seen, steps, goal, lb, best))
+            row = _size_row((r, c), pr, seen, steps, goal, lb, best)
+            rows.append(replace(row, coverable=float(pr.weights[nd.need > 0].sum())))
             row = rows[-1]
             if row.count is not None and (best is None or r * c * row.count < best):
                 best = r * c * row.count

@@ -206,14 +206,18 @@ def sizing_stage(
     sizes = sorted(doc.sizing_ris_sizes(), key=lambda rc: (rc[0] * rc[1], rc))
     raw = sizing_raw(doc)
 
-    def run_counts(size: tuple[int, int], sub_progress: ProgressCallback) -> list[dict[str, Any]]:
+    def run_counts(
+        size: tuple[int, int], sub_progress: ProgressCallback
+    ) -> tuple[list[dict[str, Any]], float | None]:
         sub = PlanDocument.model_validate(
             {**raw, "ris": {**raw["ris"], "rows": size[0], "cols": size[1]}}
         )
         run = strategy.run(rebased(inputs, sub), sub_progress, ex, StageClock(), goal=goal)
-        return [
+        rows = [
             dict(r, target_met=goal.met(r["objective"] or -1.0)) for r in run.summary_rows(size)
         ]
+        summary = run.pairs_summary
+        return rows, None if summary is None else summary.coverable_weight
 
     rows = strategy.size_rows(
         result if own else None, inputs, sizes, goal, progress, ex, run_counts

@@ -245,7 +245,8 @@ def build_problem(
         if like is None:
             # per distinct map point and site, then gathered per pair (the site cache's rule)
             vis = pair_visibility(inputs.scene, sites, pairs, system.los)
-            visible = np.nonzero(vis.present.T)  # pair-major
+            heard_pair, heard_site = np.nonzero(vis.present.T)  # pair-major
+            visible: tuple[IntArray, IntArray] = (heard_pair, heard_site)
             los_clear_pairs = vis.los
             del vis
         else:

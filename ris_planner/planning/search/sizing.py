@@ -46,6 +46,9 @@ class SizeRow:
     counts: tuple[dict[str, Any], ...] = field(default_factory=tuple)
     """Each count tried (enumerating searches: ``{"count", "objective", "reaches",
     "objective_bound"}``)."""
+    coverable: float | None = None
+    """The weight every candidate of this size together brings within the objective's level
+    (the coverable pairs depend on the RIS size; the servable ones do not)."""
 
     @property
     def elements(self) -> int | None:
@@ -102,7 +105,7 @@ def sizing_json(
         "of": "servable pairs" if objective_kind(kind).share_of_servable else None,
         "goal": goal.model_dump(exclude_none=True),
         "servable_weight": servable_weight,
-        "sizes": [_row_json(r) for r in rows],
+        "sizes": [_row_json(r, servable_weight) for r in rows],
         "search_method": choice.to_json(),
     }
     if best is None:
@@ -128,11 +131,15 @@ def sizing_json(
     return out
 
 
-def _row_json(row: SizeRow) -> dict[str, Any]:
+def _row_json(row: SizeRow, servable_weight: float | None) -> dict[str, Any]:
+    share = None
+    if row.coverable is not None and servable_weight:
+        share = min(1.0, row.coverable / servable_weight)
     return {
         "ris_size": list(row.ris_size),
         "count": row.count,
         "lower_bound": row.lower_bound,
+        "coverable_share": share,
         "objective": finite_or_none(row.objective),
         "sites": None if row.sites is None else list(row.sites),
         "note": row.note,
@@ -140,10 +147,12 @@ def _row_json(row: SizeRow) -> dict[str, Any]:
     }
 
 
-RunCounts = Callable[[tuple[int, int], Callable[[float, str], None]], list[dict[str, Any]]]
+RunCounts = Callable[
+    [tuple[int, int], Callable[[float, str], None]], tuple[list[dict[str, Any]], float | None]
+]
 """Runs the plan at one RIS size in target mode: the rows of
 :meth:`~ris_planner.planning.outputs.result.PlanResult.summary_rows` (each count's objective,
-whether it meets the goal and its certified bound)."""
+whether it meets the goal and its certified bound) and the size's coverable weight."""
 
 
 def enumerating_size_rows(
@@ -168,7 +177,7 @@ def enumerating_size_rows(
         def sub(f: float, m: str, i: int = i, r: int = r, c: int = c) -> None:
             progress((i + f) / len(sizes), f"sizing {r}×{c}: {m}")
 
-        tried = run_counts((r, c), sub)
+        tried, coverable = run_counts((r, c), sub)
         hit = next((t for t in tried if t["target_met"]), None)
         lower: int | None = None
         for t in tried:
@@ -188,9 +197,8 @@ def enumerating_size_rows(
             for t in tried
         )
         if hit is None:
-            rows.append(
-                SizeRow((r, c), None, None, note="no searched count reaches it", counts=counts)
-            )
+            note = "no searched count reaches it"
+            rows.append(SizeRow((r, c), None, None, note=note, counts=counts, coverable=coverable))
             continue
         rows.append(
             SizeRow(
@@ -200,6 +208,7 @@ def enumerating_size_rows(
                 hit["objective"],
                 tuple(hit["sites"]),
                 counts=counts,
+                coverable=coverable,
             )
         )
     progress(1.0, "sizing done")
