@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from district_site import street_doc
-from tolerance import BOUND_ACCURACY, assert_close
+from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.model.profiles import block_count
@@ -115,3 +115,36 @@ def test_designed_codebooks_are_refused_by_the_enumerating_searches() -> None:
     doc = _designed("directional") | {"search": {"method": "exhaustive"}}
     with pytest.raises(DocumentFieldError, match="codebook.kind"):
         admit(doc)
+
+
+def test_district_beams_solve_one_allocation_the_rises_share() -> None:
+    """``beams`` on a district plan: each count's layout gets DIR+DER blocks, the γ_P search and
+    the appendix SDP over the slot powers on the same design positions – the SDP's optimum
+    (mean PEB² there, by the bounds' route) is never above γ_P's, a feasible point of it, and
+    neither above uniform powers – and the layout is re-scored on every pair under each."""
+    doc = _designed("directional_derivative") | {"beams": {"design_positions": 12}}
+    doc["ris_count"] = [3]
+    plan = run_plan(doc).to_json()
+    (lay,) = plan["beams"]["layouts"]
+    assert lay["sdp"]["status"] in ("optimal", "inaccurate"), lay["sdp"]
+    design = lay["design_objective_m2"]
+    assert design["sdp"] <= design["gamma_p"] * (1 + SDP_ACCURACY)
+    assert design["gamma_p"] <= design["uniform"] * (1 + SDP_ACCURACY)
+    for name in ("dir_der_uniform", "dir_der_gamma_p", "dir_der_sdp"):
+        assert 0.0 <= lay["objective"][name] <= 1.0
+    assert sum(lay["powers"]["sdp"]) == pytest.approx(lay["beams_per_block"], rel=1e-9)
+    colours = plan["search_details"]["time_orthogonal"]["counts"][0]["colour_of_site"]
+    assert [r["colour"] for r in lay["ris"]] == [colours[str(s)] for s in lay["sites"]]
+
+
+def test_district_validation_checks_each_pair_with_the_rises_it_hears() -> None:
+    """``validation`` on a district plan: each checked pair is simulated with the layout's RISs
+    it hears audibly – a subset of the layout – and its bound is compute_bounds' of that
+    configuration."""
+    doc = _designed("directional") | {"validation": {"pairs": 4, "draws": 1}}
+    doc["ris_count"] = [3]
+    plan = run_plan(doc).to_json()
+    (lay,) = plan["validation"]["layouts"]
+    assert lay["codebook"]["kind"] == "designed" and lay["codebook"]["blocks"] >= 4
+    for pair in lay["pairs"]:
+        assert set(pair["paths"]["ris"]) <= set(lay["sites"])

@@ -176,6 +176,13 @@ def layout_beams(
         "design_positions": int(pick.size),
         "power_objective": objective,
         "gamma_p": float(gp.value),
+        "design_objective_m2": {
+            "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
+            "gamma_p": finite_or_none(float(gp.objective)),
+            "sdp": None
+            if sdp.powers is None
+            else finite_or_none(mean_trace_bound(info, sdp.powers, index)),
+        },
         "powers": {k: [float(x) for x in v] for k, v in powers.items()},
         "sdp": {
             "status": sdp.status,
@@ -235,22 +242,25 @@ def _position_information(
     pick: NDArray[np.int_],
     gamma: int,
 ) -> Any:
-    """The stacked per-beam information of the design positions: each with the layout's RISs
-    that serve it and RISs that serve nobody up to Γ − 1 (one state size for all)."""
+    """The stacked per-beam information of the design positions in the plan's Γ blocks: each
+    with the layout's RISs that serve it, padded with RISs that serve nobody to the most any
+    position has (one state size for all: a padding RIS's gains are decoupled from every other
+    state, :data:`~ris_planner.power.information.ABSENT_GAIN_INFORMATION`)."""
     from ris_planner.planning.beams import layout_scenario
     from ris_planner.power.information import BeamInformation, PathBlocks, beam_information
 
     doc = result.document
     pairs = inputs.pairs
     serves = result.scorer.serves(layout)  # [L, P]
+    mine = [[s for j, s in enumerate(layout) if serves[j, p]] for p in pick.tolist()]
+    width = max(len(m) for m in mine)  # every position's state padded to the same size
+    pad = padding_ris(inputs.sites[layout[0]].ris)
     parts = []
-    for p in pick.tolist():
-        mine = [s for j, s in enumerate(layout) if serves[j, p]]
-        ris = [inputs.sites[s].ris for s in mine]
-        pad = padding_ris(inputs.sites[layout[0]].ris)
-        n_pad = gamma - 1 - len(ris)
+    for p, sites in zip(pick.tolist(), mine, strict=True):
+        ris = [inputs.sites[s].ris for s in sites]
+        n_pad = width - len(ris)
         scenario = layout_scenario(doc.system, ris + [pad] * n_pad, [], doc.environment)
-        prof = [blocks[s].profiles() for s in mine]
+        prof = [blocks[s].profiles() for s in sites]
         prof += [blocks[layout[0]].profiles()] * n_pad
         parts.append(
             beam_information(scenario, pairs.tx[[p]], pairs.rx[[p]], prof, [], n_blocks=gamma)

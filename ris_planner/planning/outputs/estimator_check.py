@@ -56,10 +56,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.bounds.compute import compute_bounds
-from ris_planner.bounds.paths import ris_serves
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.core.io_json import finite_or_none
-from ris_planner.environment import Scene
 from ris_planner.estimation.channel_estimation import ChannelEstimate, wrap
 from ris_planner.estimation.pipeline import Estimator
 from ris_planner.estimation.position_estimation import (
@@ -523,27 +521,23 @@ def padding_ris(template: RIS) -> RIS:
     )
 
 
-def district_pair(
-    result: PlanResult, layout: tuple[int, ...], tx: FloatArray, rx: FloatArray, seed: int
-) -> PairSetup:
-    """A district pair's scenario: the layout's RISs that serve it (the others reach it by no
-    path), each with its site's designed block – or a seeded random one under the
-    expected-random codebook – in the plan's Γ blocks: RISs that serve no UE pad the scenario
-    to Γ − 1 RIS columns (the columns the pair's RISs take among the district's colours do not
-    change its information: B's columns are orthogonal and unit-modulus)."""
+def district_pair(result: PlanResult, layout: tuple[int, ...], pair: int, seed: int) -> PairSetup:
+    """A district pair's scenario: the layout's RISs it hears audibly (their paths separated by
+    the plan's profile colours; the others reach it by no path or below the noise over the
+    whole pilot, :data:`~ris_planner.planning.scoring.sparse.AUDIBLE_SNR_DB`), each with its
+    site's designed block – or a seeded random one under the expected-random codebook – in the
+    plan's Γ blocks: RISs that serve no UE pad the scenario to Γ − 1 RIS columns (the columns
+    the pair's RISs take among the district's colours do not change its information: B's
+    columns are orthogonal and unit-modulus)."""
     scorer = result.scorer
     assert isinstance(scorer, SparseScorer)
     problem = scorer.problem
     doc = result.document
     timing = result.search_details.get("time_orthogonal") or {}
     blocks = int(timing.get("blocks") or problem.codebooks.blocks)
-    scene = result.scene or Scene.from_environment(doc.environment)
-    mine = [
-        s
-        for s in layout
-        if bool(ris_serves(scene, result.sites[s].ris, tx[None])[0])
-        and bool(ris_serves(scene, result.sites[s].ris, rx[None])[0])
-    ]
+    lo, hi = problem.pair_start[pair], problem.pair_start[pair + 1]
+    loud = set(problem.entry_site[lo:hi][problem.audible[lo:hi]].tolist())
+    mine = [s for s in layout if s in loud]
     ris = [result.sites[s].ris for s in mine]
     pad_count = max(0, blocks - 1 - len(ris))
     pad = padding_ris(result.sites[layout[0]].ris)
@@ -611,8 +605,10 @@ def check_layout(
     threshold: float,
     multipath: Multipath,
     progress: ProgressCallback,
+    picks: NDArray[np.int_] | None = None,
 ) -> dict[str, Any]:
-    """The validation of one layout (plan.json ``validation.layouts[i]``)."""
+    """The validation of one layout (plan.json ``validation.layouts[i]``); ``picks``: the
+    plan's pair index of each checked pair."""
     doc = result.document
     spec = doc.validation
     assert spec is not None
@@ -620,7 +616,8 @@ def check_layout(
     local = isinstance(result.scorer, SparseScorer)
     if local:  # a district layout: each pair with the RISs that serve it, in Γ blocks
         design, codebook = None, district_codebook(result, spec.seed)
-        per_pair = [district_pair(result, layout, tx[j], rx[j], spec.seed) for j in range(len(tx))]
+        assert picks is not None, "a district layout is checked at the plan's own pairs"
+        per_pair = [district_pair(result, layout, int(p), spec.seed) for p in picks]
     else:
         design, codebook = layout_codebook(result, layout)
         powers = None if design is None else design.powers
@@ -796,7 +793,7 @@ def run_estimator_check(
         {**(spec.multipath or {}), **({"site_reflections": True} if spec.reflections else {})}
     )
     candidates, region = search_candidates(spec, result.tx_map.points)
-    tx, rx, _ = sample_pairs(result, spec.pairs, spec.seed)
+    tx, rx, picks = sample_pairs(result, spec.pairs, spec.seed)
     layouts = list(dict.fromkeys(cr.ranked[0][0] for cr in result.counts))
     out = []
     for i, lay in enumerate(layouts):
@@ -804,7 +801,7 @@ def run_estimator_check(
         def sub(f: float, m: str, i: int = i) -> None:
             progress((i + f) / len(layouts), m)
 
-        out.append(check_layout(result, lay, tx, rx, candidates, threshold, multipath, sub))
+        out.append(check_layout(result, lay, tx, rx, candidates, threshold, multipath, sub, picks))
     body: dict[str, Any] = {
         "settings": spec.model_dump(mode="json"),
         "pairs": spec.pairs,
