@@ -51,7 +51,8 @@ def sizing_text(plan: dict[str, Any]) -> str:
 def run_table(work: Path, base: dict[str, Any], pairs: int, beams: bool) -> dict[str, Any]:
     rows = {}
     print(
-        "\n| codebook | wavefront | RISs | coverage (of servable) | certified ≤ | sizing [certified, found] | time [s] | peak [MiB] |"
+        "\n| codebook | wavefront | RISs | coverage (of servable) | certified ≤ |"
+        " sizing [certified, found] | time [s] | peak [MiB] |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for name, wavefront, codebook in RUNS:
@@ -87,7 +88,8 @@ def run_table(work: Path, base: dict[str, Any], pairs: int, beams: bool) -> dict
 def validation(work: Path, base: dict[str, Any], pairs: int, n: int) -> None:
     print(f"\n## The estimator on the designed plan: {n} pairs × 5 draws, 60 RISs")
     print(
-        "| reflections | estimator coverage | bound coverage | median RMSE/bound (covered) | outliers | time [s] |"
+        "| reflections | estimator coverage | bound coverage | median RMSE/bound (covered) |"
+        " outliers | time [s] |"
     )
     print("|---|---|---|---|---|---|")
     for reflections in (False, True):

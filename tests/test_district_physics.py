@@ -113,7 +113,7 @@ def test_designed_codebooks_are_refused_by_the_enumerating_searches() -> None:
     from ris_planner.planning.resources.admission import admit
 
     doc = _designed("directional") | {"search": {"method": "exhaustive"}}
-    with pytest.raises(DocumentFieldError, match="codebook.kind"):
+    with pytest.raises(DocumentFieldError, match=r"codebook\.kind"):
         admit(doc)
 
 
