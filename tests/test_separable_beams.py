@@ -28,8 +28,8 @@ def test_factorised_beams_are_the_designed_ones(rows: int, cols: int) -> None:
     equal :func:`sample_beams`' (the same phases: a few roundings of one exponential)."""
     rng = np.random.default_rng(1)
     ris = RIS(position=[0, 0, 3], orientation=[0.3, -0.2, 0.1], rows=rows, cols=cols)
-    tx = rng.uniform([-5, -5, 0], [20, 20, 2], size=(4, 3)) + [5, 0, 0]
-    rx = rng.uniform([-5, -5, 0], [20, 20, 2], size=(4, 3)) + [5, 0, 0]
+    tx = rng.uniform([0, -5, 0], [25, 20, 2], size=(4, 3))
+    rx = rng.uniform([0, -5, 0], [25, 20, 2], size=(4, 3))
     geo = geometry.ris_path_geometry(tx, rx, ris.position, ris.orientation)
     want = sample_beams(ris, tx, rx, WAVELENGTH, True)  # [S, 3, N]
     yc, zr = grid_axes(rows, cols, ris.element_spacing(WAVELENGTH))
