@@ -248,6 +248,18 @@ def _search_layouts(doc: PlanDocument, sites: int) -> int:
     return total
 
 
+def run_layouts(doc: PlanDocument, sites: int) -> int:
+    """Layouts a plan's enumerating runs may score: its own searches' and, when the enumerating
+    searches answer the sizing question, one run per RIS size over the sizing counts
+    (:meth:`~ris_planner.model.plan.PlanDocument.sizing_counts`)."""
+    own = _search_layouts(doc, sites)
+    runs = sizing_runs(doc)
+    if not runs:
+        return own
+    sizing = doc.model_copy(update={"ris_count": doc.sizing_counts(), "sizing": None})
+    return own + _search_layouts(sizing, sites) * runs
+
+
 @dataclass(frozen=True)
 class PlanShape:
     """The quantities a plan's memory grows with, read from its document
@@ -707,7 +719,7 @@ def estimate_plan(doc: PlanDocument, shares: tuple[float, float] | None = None) 
         pairs=pairs,
         cache_entries=0 if shape.district else shape.sites * pairs,
         heatmap_pairs=heat_rx * heat_tx,
-        search_layouts=_search_layouts(doc, shape.sites) * plan_runs(doc),
+        search_layouts=run_layouts(doc, shape.sites),
         memory_bytes=sum(plan_memory(shape).values()),
     )
 
@@ -804,7 +816,7 @@ def _enumerating_overflow(doc: PlanDocument) -> str | None:
             f"{largest} RISs in a layout: the enumerating searches place at most {MAX_LAYOUT_RIS}"
         )
     sites = plan_sites(doc)
-    layouts = _search_layouts(doc, sites) * plan_runs(doc)
+    layouts = run_layouts(doc, sites)
     if layouts > MAX_SEARCH_LAYOUTS:
         return (
             f"the enumerating searches would score {grouped(layouts)} layouts,"
