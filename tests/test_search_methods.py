@@ -16,6 +16,7 @@ import pytest
 from district_site import street_doc
 
 from ris_planner.core.errors import DocumentFieldError
+from ris_planner.io.gis_outputs import PLAN_WRITERS
 from ris_planner.model.search_methods import (
     PLAN_OPTIONS,
     Capabilities,
@@ -120,6 +121,12 @@ def test_the_methods_and_their_capabilities_are_listed(tmp_path: Path) -> None:
         assert listed[m.name]["capabilities"] == m.capabilities.to_json()
     assert body["auto"]["name"] == "auto" and body["auto"]["description"]
     assert [o["name"] for o in body["options"]] == [o.name for o in PLAN_OPTIONS]
+    # the GIS files come from the writers' registry too (the page's download list)
+    with api_client(tmp_path / "files", workers=1) as client:
+        files = client.get("/v1/plan-files").json()["files"]
+    assert [(f["name"], f["filename"], f["media_type"]) for f in files] == [
+        (w.name, w.filename, w.media_type) for w in PLAN_WRITERS
+    ]
 
 
 def test_the_preview_names_the_method_that_runs() -> None:

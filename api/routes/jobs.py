@@ -23,6 +23,7 @@ from api.models import JobPage, JobSummary, JobView
 from api.settings import Settings
 from api.store import Job, JobHead, JobStatus, JobStore, JsonText
 from api.worker import JobRunner
+from ris_planner.io.gis_outputs import PLAN_WRITERS
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -31,11 +32,10 @@ JobId = Annotated[
 ]
 MEDIA_TYPES = {
     ".png": "image/png",
-    ".geojson": "application/geo+json",
-    ".tif": "image/tiff",
-    ".csv": "text/csv",
+    **{Path(w.filename).suffix: w.media_type for w in PLAN_WRITERS},
 }
-"""Media type of a job file by suffix (PNG figures; the plan's GIS files)."""
+"""Media type of a job file by suffix: PNG figures and the plan's GIS files (their writers'
+registry, :data:`ris_planner.io.gis_outputs.PLAN_WRITERS`)."""
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody, "description": "No such job"}
 }

@@ -1,5 +1,6 @@
 """Service metadata: ``GET /healthz`` (no API key), ``GET /v1/presets``,
-``GET /v1/objectives``, ``GET /v1/obstacle-kinds`` and ``GET /v1/search-methods``."""
+``GET /v1/objectives``, ``GET /v1/obstacle-kinds``, ``GET /v1/search-methods`` and
+``GET /v1/plan-files``."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from api.settings import Settings
 from api.store import JobStore, StoreUnavailableError
 from api.worker import JobRunner, describe_error
 from ris_planner.environment.kinds import describe_kinds
+from ris_planner.io.gis_outputs import PLAN_WRITERS
 from ris_planner.model.objectives import objective_kind, objective_names
 from ris_planner.model.plan import SearchSpec
 from ris_planner.model.scenario import PRESET_NAMES, preset_document
@@ -168,4 +170,39 @@ def search_methods() -> SearchMethodList:
             PlanOptionInfo(name=o.name, field=o.field, flag=o.flag, what=o.what)
             for o in PLAN_OPTIONS
         ],
+    )
+
+
+class PlanFileInfo(BaseModel):
+    """A GIS file a plan job writes (a job file: ``GET /v1/jobs/{id}/files/{name}``)."""
+
+    name: str = Field(description="The job file's name")
+    filename: str = Field(description="The file ris-planner plan writes into its folder")
+    media_type: str = Field(description="Its media type")
+    description: str = Field(description="What it holds")
+    per_point: bool = Field(description="Written only when the plan has per-point results")
+
+
+class PlanFileList(BaseModel):
+    """The GIS files of a plan, in the order they are written."""
+
+    files: list[PlanFileInfo] = Field(description="The writers' registry")
+
+
+@router.get("/plan-files", response_model=PlanFileList, summary="The GIS files a plan writes")
+def plan_files() -> PlanFileList:
+    """The plan writers' registry (:data:`ris_planner.io.gis_outputs.PLAN_WRITERS`): what the
+    command line writes, the job's files and their media types – the web page's download list
+    reads it."""
+    return PlanFileList(
+        files=[
+            PlanFileInfo(
+                name=w.name,
+                filename=w.filename,
+                media_type=w.media_type,
+                description=w.description,
+                per_point=w.per_point,
+            )
+            for w in PLAN_WRITERS
+        ]
     )
