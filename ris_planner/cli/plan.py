@@ -113,6 +113,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     from ris_planner.io.estimates import plan_measured
     from ris_planner.io.plan_request import admit_request
+    from ris_planner.model.search_methods import sparse_search
     from ris_planner.planning.inputs.presets import load_plan_file, plan_preset
     from ris_planner.planning.outputs.diagnosis import summary_lines
     from ris_planner.planning.outputs.report import write_plan_json
@@ -134,6 +135,13 @@ def _plan(args: argparse.Namespace, figures: FigureProcess) -> int:
     startup = process_age_s() if launched_as_process() else None
     # before any work, once: the refusal (exit 2) or the estimate (plan.json keeps it)
     request = admit_request(doc)
+    if sparse_search(request.admitted.document) and (args.scheduler or args.workers):
+        flag = "--scheduler" if args.scheduler else "--workers"
+        raise RisPlannerError(
+            f"{flag}: the district search runs in this process (its relaxations on a thread"
+            " beside it); worker processes and a Dask cluster score the enumerating searches'"
+            " layouts"
+        )
     print(f"estimate: {request.estimate.describe()}", file=sys.stderr, flush=True)
     for line in search_lines(request.admitted.choice, request.admitted.sizing_choice):
         print(line, file=sys.stderr, flush=True)
