@@ -18,10 +18,11 @@ from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import models_json_schema
 
 from ris_planner.core.io_json import parse_json
+from ris_planner.environment.model import Environment
 from ris_planner.io.candidates import CandidateOptions
 from ris_planner.io.frames import MAX_CRS_CHARS, Frame, to_local
 from ris_planner.model.limits import prescan_document
-from ris_planner.model.plan import LayoutBeamsDocument
+from ris_planner.model.plan import LayoutBeamsDocument, UEMap
 from ris_planner.model.scenario import Scenario
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.resources.admission import plan_check
@@ -81,12 +82,27 @@ class GeoDocument(BaseModel):
     )
 
 
+class SiteDocument(BaseModel):
+    """What ``POST /v1/site/preview`` reads of a plan document: its UE maps, its obstacles and
+    its frame; every other field is ignored (a site before any candidate is placed)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    tx_map: UEMap | None = Field(None, description="The TX map (in the frame's coordinates)")
+    rx_map: UEMap | None = Field(None, description="The RX map (in the frame's coordinates)")
+    environment: Environment | None = Field(None, description="The obstacles")
+    frame: GeoFrame | CrsFrame | None = Field(
+        None, description="The frame of the document's coordinates (absent: local metres)"
+    )
+
+
 DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (
     PlanDocument,
     Scenario,
     LayoutBeamsDocument,
     GeoDocument,
     CandidateOptions,
+    SiteDocument,
 )
 """Models the request bodies of :func:`document_body` refer to (added to the OpenAPI
 components by :func:`install_document_schemas`)."""
