@@ -122,6 +122,49 @@ GIS_EXTRA_RESPONSE: dict[int | str, dict[str, Any]] = {
 """``responses=`` entry of the routes that may need the GIS libraries."""
 
 
+def _error_entry(description: str) -> dict[str, Any]:
+    return {
+        "description": description,
+        "content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorBody"}}},
+    }
+
+
+POLICY_RESPONSES: dict[str, dict[str, Any]] = {
+    "403": _error_entry(
+        "Refused: a write from a browser page of another origin, or a host name that is not a"
+        " loopback one on a server listening on a loopback address"
+    ),
+    "413": _error_entry("Request too large (body bytes, or a size above its limit)"),
+    "415": _error_entry(
+        "A body whose media type this operation does not declare (or a body without one)"
+    ),
+}
+"""The answers of the front middleware's rules (:mod:`api.front`), by the operations they
+apply to: 403 to every operation that may change something, 413 and 415 to every operation
+that takes a body."""
+
+
+def install_policy_responses(app: FastAPI) -> None:
+    """Declare :data:`POLICY_RESPONSES` in ``app``'s OpenAPI document, on every operation they
+    apply to (one rule for every route, those added later too)."""
+    generate = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        schema = generate()
+        for item in schema.get("paths", {}).values():
+            for method, op in item.items():
+                if not isinstance(op, dict) or method in ("get", "head", "options"):
+                    continue
+                responses = op.setdefault("responses", {})
+                responses.setdefault("403", POLICY_RESPONSES["403"])
+                if "requestBody" in op:
+                    responses.setdefault("413", POLICY_RESPONSES["413"])
+                    responses.setdefault("415", POLICY_RESPONSES["415"])
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
 def error_response(
     status: int,
     error: str,
@@ -171,6 +214,7 @@ def _validation_response(fields: list[FieldError]) -> JSONResponse:
 _HTTP_CODES = {
     400: "bad_request",
     401: "unauthorized",
+    403: "forbidden",
     404: "not_found",
     405: "method_not_allowed",
     406: "not_acceptable",

@@ -13,13 +13,14 @@ from importlib.metadata import version
 
 import anyio
 from fastapi import Depends, FastAPI
+from starlette.types import ASGIApp
 from threadpoolctl import threadpool_limits
 
 from api.auth import KeyRing
 from api.deps import reject_unknown_query, require_api_key
 from api.documents import install_document_schemas
-from api.errors import V1_ERROR_RESPONSES, install_error_handlers
-from api.front import FrontMiddleware
+from api.errors import V1_ERROR_RESPONSES, install_error_handlers, install_policy_responses
+from api.front import FrontMiddleware, with_security_headers
 from api.kinds import JOB_KINDS
 from api.offload import ParsePool, install_answered_handler
 from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
@@ -43,6 +44,15 @@ the job database does not answer within a bound, every route answers 503 with `R
 
 GIL_SWITCH_S = 0.001
 """The interpreter's thread switch interval while the service runs (default 5 ms)."""
+
+
+class ServiceApp(FastAPI):
+    """The service's application: FastAPI with the security headers as its outermost layer
+    (:func:`api.front.with_security_headers`), around Starlette's own error middleware, so that
+    every answer has them – the 500 of an unexpected error too."""
+
+    def build_middleware_stack(self) -> ASGIApp:
+        return with_security_headers(super().build_middleware_stack())
 
 
 def create_app(
@@ -99,7 +109,7 @@ def create_app(
                 blas.restore_original_limits()
                 sys.setswitchinterval(switch)
 
-    app = FastAPI(
+    app = ServiceApp(
         title="ris_planner",
         version=version("ris_planner"),
         description=DESCRIPTION,
@@ -113,14 +123,15 @@ def create_app(
     install_answered_handler(app)
     keys = KeyRing(settings)
     app.state.keys = keys
-    # one layer: security headers (on the 401 and 413 it answers too), the store wait bound,
-    # the API key, the body limit, and the fast path of POST /v1/bounds (api.front)
+    # one layer: the store wait bound, hosts and origins, the API key, the body limit, the
+    # body's media type, and the fast path of POST /v1/bounds (api.front)
     app.add_middleware(
         FrontMiddleware,
         keys=keys,
         header=API_KEY_HEADER,
         max_bytes=settings.max_body_bytes,
         store_wait_s=settings.request_store_wait_s,
+        policy=settings.origin_policy,
         fast_bounds=fast_paths,
     )
     app.include_router(meta.health_router)
@@ -140,6 +151,7 @@ def create_app(
     for router in (*routers, meta.router):
         app.include_router(router, prefix="/v1", dependencies=v1, responses=V1_ERROR_RESPONSES)
     install_document_schemas(app)
+    install_policy_responses(app)
     return app
 
 

@@ -21,6 +21,7 @@ from typing import Any
 
 import httpx
 import pytest
+from api_helpers import JSON
 from test_api_faults import FINAL, _group_leader, children, poll, wait_gone
 from test_api_plans import small_plan_doc
 
@@ -28,8 +29,6 @@ from api.auth import key_digest
 from api.launch import Server, served
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")
-
-JSON = {"Content-Type": "application/json"}
 
 UNDECLARED_MEDIA: list[str | None] = [
     "text/plain",
@@ -123,7 +122,11 @@ def test_cross_origin_writes_are_refused(server: Server) -> None:
         ("POST", "/v1/plans", {"Origin": f"http://127.0.0.1:{int(port) + 1}"}),
         ("POST", "/v1/plans", {"Sec-Fetch-Site": "cross-site"}),
         ("POST", "/v1/bounds", {"Origin": "http://evil.example"}),
-        ("POST", "/v1/plans", {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"}),
+        (
+            "POST",
+            "/v1/plans",
+            {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"},
+        ),
         ("GET", "/v1/jobs", {"Host": f"evil.example:{port}"}),
     ]
     for method, path, headers in refused:
@@ -132,8 +135,11 @@ def test_cross_origin_writes_are_refused(server: Server) -> None:
         assert r.status_code == 403, (headers, r.status_code, r.text[:200])
         assert r.json()["error"] == "forbidden" and r.headers["x-content-type-options"] == "nosniff"
     assert jobs_total(url) == before
-    for headers in ({"Origin": f"http://{host}"}, {"Origin": f"http://localhost:{port}",
-                                                    "Host": f"localhost:{port}"}, {}):
+    for headers in (
+        {"Origin": f"http://{host}"},
+        {"Origin": f"http://localhost:{port}", "Host": f"localhost:{port}"},
+        {},
+    ):
         r = httpx.post(f"{url}/v1/plans/validate", json=doc, headers=headers, timeout=60)
         assert r.status_code == 200, (headers, r.text[:200])
 
@@ -371,8 +377,11 @@ def _prisms(n: int) -> dict[str, Any]:
         "obstacles": [
             {
                 "kind": "prism",
-                "footprint": [[100 + i % 100 * 3, 100 + i // 100 * 3], [101 + i % 100 * 3,
-                              100 + i // 100 * 3], [101 + i % 100 * 3, 101 + i // 100 * 3]],
+                "footprint": [
+                    [100 + i % 100 * 3, 100 + i // 100 * 3],
+                    [101 + i % 100 * 3, 100 + i // 100 * 3],
+                    [101 + i % 100 * 3, 101 + i // 100 * 3],
+                ],
                 "height_m": 3,
             }
             for i in range(n)
@@ -394,8 +403,9 @@ def test_a_parse_process_death_fails_only_its_request(tmp_path: Path) -> None:
         answers: list[httpx.Response] = []
 
         def send() -> None:
-            answers.append(httpx.post(f"{url}/v1/plans/validate", content=body, headers=JSON,
-                                      timeout=300))
+            answers.append(
+                httpx.post(f"{url}/v1/plans/validate", content=body, headers=JSON, timeout=300)
+            )
 
         threads = [threading.Thread(target=send) for _ in range(2)]
         for t in threads:
@@ -460,8 +470,9 @@ def test_openapi_declares_every_request_body(server: Server) -> None:
                 problems.append((method, path, "declares a body without an example"))
                 continue
             media, body = example
-            r = httpx.request(method, target, content=body, headers={"Content-Type": media},
-                              timeout=120)
+            r = httpx.request(
+                method, target, content=body, headers={"Content-Type": media}, timeout=120
+            )
             if not 200 <= r.status_code < 300:
                 problems.append((method, path, r.status_code, r.text[:200]))
             if path == "/v1/plans" and r.status_code == 202:

@@ -18,6 +18,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
+from api_helpers import GEOJSON, OCTETS
 from test_api_e2e import poll
 from test_api_plans import small_plan_doc, without_timing
 from test_io_import import _floor_plan
@@ -300,7 +301,7 @@ def test_import_dxf(server: str, tmp_path: Path) -> None:
     _floor_plan(path, insunits=4)  # millimetres
     body = path.read_bytes()
     url = f"{server}/v1/import?format=dxf&layer=WALLS=wall:2.7&layer=COLUMNS=prism:3:0.1"
-    r = httpx.post(url, content=body, timeout=60)
+    r = httpx.post(url, content=body, headers=OCTETS, timeout=60)
     assert r.status_code == 200, r.text
     doc, report = r.json()["document"], r.json()["report"]
     walls = [(o["start"], o["end"]) for o in doc["environment"]["obstacles"] if o["kind"] == "wall"]
@@ -308,11 +309,13 @@ def test_import_dxf(server: str, tmp_path: Path) -> None:
     assert report["units_to_m"] == 0.001 and report["prisms"] == 1
     assert doc["tx_map"]["grid"]["x"] == [0.0, 10.0, 5.0]  # a grid over the plan
     # layers that the drawing does not have: a 422 naming them
-    r = httpx.post(f"{server}/v1/import?format=dxf&layer=DOORS=wall:2", content=body, timeout=60)
+    doors = f"{server}/v1/import?format=dxf&layer=DOORS=wall:2"
+    r = httpx.post(doors, content=body, headers=OCTETS, timeout=60)
     assert r.status_code == 422 and "'DOORS' not in the drawing" in r.json()["message"]
-    r = httpx.post(f"{server}/v1/import?format=dxf", content=body, timeout=60)
+    r = httpx.post(f"{server}/v1/import?format=dxf", content=body, headers=OCTETS, timeout=60)
     assert r.status_code == 422 and "no layers chosen" in r.json()["message"]
-    r = httpx.post(f"{server}/v1/import?format=dxf", content=b"0\nSECTION\nnonsense", timeout=60)
+    nonsense = b"0\nSECTION\nnonsense"
+    r = httpx.post(f"{server}/v1/import?format=dxf", content=nonsense, headers=OCTETS, timeout=60)
     assert r.status_code == 422 and "request body" in r.json()["message"]
 
 
@@ -361,10 +364,10 @@ def test_import_errors(server: str) -> None:
         (b'{"type": "FeatureCollection", "features": []}', 422),
         (b"\x00\x01", 422),
     ]:
-        r = httpx.post(f"{server}/v1/import", content=body, timeout=60)
+        r = httpx.post(f"{server}/v1/import", content=body, headers=OCTETS, timeout=60)
         assert r.status_code == status and r.json()["message"], (body, r.text)
     big = json.dumps(helsinki_site()).encode() * 6  # > RIS_PLANNER_MAX_BODY_BYTES = 200 000
-    r = httpx.post(f"{server}/v1/import", content=big, timeout=60)
+    r = httpx.post(f"{server}/v1/import", content=big, headers=GEOJSON, timeout=60)
     assert r.status_code == 413 and r.json()["limit"] == 200_000
     spec = httpx.get(f"{server}/openapi.json", timeout=30).json()
     body_types = spec["paths"]["/v1/import"]["post"]["requestBody"]["content"]

@@ -64,11 +64,9 @@ def small_disk(folder: Path) -> Iterator[Path]:
 def full(db: Path) -> Iterator[None]:
     """Every free byte of the database's file system taken by one file (removed on exit)."""
     filler = db.parent / "filler"
-    with open(filler, "wb") as f:
-        with contextlib.suppress(OSError):
-            while True:
-                f.write(b"\0" * (1 << 16))
-                f.flush()
+    with open(filler, "wb", buffering=0) as f, contextlib.suppress(OSError):
+        while True:
+            f.write(b"\0" * (1 << 16))
     try:
         yield
     finally:

@@ -83,8 +83,14 @@ def test_a_cross_origin_page_queues_no_job(
     console.allow(r"status of 4(03|15)")  # the browser logs the refusals it receives
     before = httpx.get(f"{server}/v1/jobs", timeout=10).json()["total"]
     pg.goto(attacker + "/")
-    with pg.expect_response(lambda r: r.url == f"{server}/v1/plans" and r.request.method == "POST"
-                            and r.request.resource_type == "document", timeout=WAIT_MS) as sent:
+    with pg.expect_response(
+        lambda r: (
+            r.url == f"{server}/v1/plans"
+            and r.request.method == "POST"
+            and r.request.resource_type == "document"
+        ),
+        timeout=WAIT_MS,
+    ) as sent:
         pg.evaluate("window.attack()")
     assert sent.value.status in (403, 415), sent.value.status
     assert httpx.get(f"{server}/v1/jobs", timeout=10).json()["total"] == before
