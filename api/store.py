@@ -90,10 +90,18 @@ _ADDED_COLUMNS = {"owner": "TEXT", "idempotency_key": "TEXT", "estimate": "TEXT"
 """Columns added after the first schema (added to an older database when it is opened)."""
 
 _ADDED_INDEXES = """
-CREATE UNIQUE INDEX IF NOT EXISTS jobs_idempotency ON jobs (owner, idempotency_key)
-    WHERE idempotency_key IS NOT NULL;
+CREATE UNIQUE INDEX IF NOT EXISTS jobs_idempotency_key
+    ON jobs (COALESCE(owner, ''), idempotency_key) WHERE idempotency_key IS NOT NULL;
 CREATE INDEX IF NOT EXISTS jobs_owner ON jobs (owner, seq);
 """
+"""Indexes added after the first schema. An Idempotency-Key is unique per owner, the keyless
+owner (NULL) included: SQLite takes NULLs as distinct in a unique index, so the index is on
+``COALESCE(owner, '')`` (an API key's name is never empty)."""
+
+SCHEMA_VERSION = 2
+"""``PRAGMA user_version`` of the current schema. 0 or 1: the unique index was on
+``(owner, idempotency_key)`` and held nothing without API keys; :func:`_migrate` keeps the key
+on the first job of each duplicate (the others stay, without a key) before the new index."""
 
 
 class DatabaseInUseError(RuntimeError):
@@ -164,6 +172,29 @@ def server_lock(db_path: Path | str) -> Iterator[DatabaseLock]:
         yield lock
     finally:
         lock.release()
+
+
+def _migrate(con: sqlite3.Connection) -> None:
+    """Create the schema, or bring an older database to :data:`SCHEMA_VERSION` (in the
+    caller's transaction)."""
+    for statement in _SCHEMA.split(";"):
+        if statement.strip():
+            con.execute(statement)
+    have = {row[1] for row in con.execute("PRAGMA table_info(jobs)")}
+    for name, sql_type in _ADDED_COLUMNS.items():
+        if name not in have:
+            con.execute(f"ALTER TABLE jobs ADD COLUMN {name} {sql_type}")
+    if int(con.execute("PRAGMA user_version").fetchone()[0]) < SCHEMA_VERSION:
+        con.execute("DROP INDEX IF EXISTS jobs_idempotency")
+        con.execute(  # duplicates made while the old index held nothing: the first keeps it
+            "UPDATE jobs SET idempotency_key = NULL WHERE idempotency_key IS NOT NULL AND seq >"
+            " (SELECT MIN(seq) FROM jobs AS first WHERE first.idempotency_key ="
+            " jobs.idempotency_key AND COALESCE(first.owner, '') = COALESCE(jobs.owner, ''))"
+        )
+    for statement in _ADDED_INDEXES.split(";"):
+        if statement.strip():
+            con.execute(statement)
+    con.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
 
 
 def _transient(exc: sqlite3.Error) -> bool:
@@ -293,15 +324,16 @@ class JobStore:
             self._check_identity()
 
     def _create_schema(self) -> None:
-        con = sqlite3.connect(self.path, timeout=self.busy_timeout_s)
+        con = sqlite3.connect(self.path, timeout=self.busy_timeout_s, isolation_level=None)
         try:
             con.execute("PRAGMA journal_mode=WAL")
-            con.executescript(_SCHEMA)
-            have = {row[1] for row in con.execute("PRAGMA table_info(jobs)")}
-            for name, sql_type in _ADDED_COLUMNS.items():
-                if name not in have:
-                    con.execute(f"ALTER TABLE jobs ADD COLUMN {name} {sql_type}")
-            con.executescript(_ADDED_INDEXES)
+            con.execute("BEGIN IMMEDIATE")  # one schema change at a time, all or nothing
+            try:
+                _migrate(con)
+            except BaseException:
+                con.execute("ROLLBACK")
+                raise
+            con.execute("COMMIT")
         finally:
             con.close()
 
@@ -411,8 +443,12 @@ class JobStore:
 
         def work(con: sqlite3.Connection) -> sqlite3.Row | None:
             if idempotency_key is not None:
+                # the write lock first: the look-up and the insert are one transaction, so of
+                # concurrent retries the first creates the job and the others find it
+                con.execute("BEGIN IMMEDIATE")
                 row: sqlite3.Row | None = con.execute(
-                    "SELECT * FROM jobs WHERE owner IS ? AND idempotency_key = ?",
+                    "SELECT * FROM jobs WHERE COALESCE(owner, '') = COALESCE(?, '')"
+                    " AND idempotency_key = ?",
                     (owner, idempotency_key),
                 ).fetchone()
                 if row is not None:

@@ -226,7 +226,10 @@ def test_an_old_database_is_migrated_to_one_job_per_key(tmp_path: Path) -> None:
     con.close()
     with served(db, log=tmp_path / "server.log") as srv:
         r = httpx.post(
-            f"{srv.url}/v1/plans", json=small_plan_doc(), headers={"Idempotency-Key": "k"}
+            f"{srv.url}/v1/plans",
+            json=small_plan_doc(),
+            headers={"Idempotency-Key": "k"},
+            timeout=120,
         )
         assert r.status_code == 409 and f"{1:032x}" in r.json()["message"], r.text[:300]
         assert jobs_total(srv.url) == 3
