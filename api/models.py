@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from api.store import Job, JobHead, JobStatus
+from api.store import FaultKind, Job, JobHead, JobStatus
 from ris_planner.model.scenario import KnownPart, preset_document
 
 Bound = float | None
@@ -304,9 +304,15 @@ class Health(BaseModel):
     status: Literal["ok", "degraded", "unavailable"] = Field(
         description="ok; degraded: a fault now, the service still answers (see reason), e.g. a"
         " write lock the store is retrying; unavailable (503): the job database does not"
-        " answer. Back to ok as soon as the fault is over"
+        " answer or takes no writes (read-only, full, corrupt). Back to ok as soon as the"
+        " fault is over"
     )
     reason: str | None = Field(None, description="Why the service is degraded or unavailable")
+    fault: FaultKind | None = Field(
+        None,
+        description="The class of the job database's fault now: locked, read-only, full,"
+        " corrupt, io, missing, gone (removed or replaced), error; null when none",
+    )
     last_fault: str | None = Field(
         None, description="The last fault within 5 minutes, also after recovery (for the record)"
     )

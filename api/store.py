@@ -15,7 +15,13 @@ run again on the next start.
 
 Faults (README "Fault behaviour"): every call is retried with exponential backoff while SQLite
 reports a transient error (locked, busy, I/O) for up to ``retry_s`` seconds, then raises
-:class:`StoreUnavailableError`. The store remembers the identity (device, inode) of its file:
+:class:`StoreUnavailableError`. Every failing call records its fault by class (:func:`fault_kind`:
+locked, read-only, full, corrupt, …) in :attr:`JobStore.faults`; a fault met by a write lasts
+until a write succeeds (a read-only file still reads), one met by a read until any call does.
+:meth:`JobStore.check_writes` writes one row, at most every :data:`PROBE_EVERY_S`, for
+``/healthz``: a read-only or full database is seen even when nobody submits.
+
+The store remembers the identity (device, inode) of its file:
 a call that finds the file removed or replaced raises :class:`StoreGoneError` – a worker's
 store never creates a file – except in the server's store (``recreate=True``), which creates a
 fresh empty database at the same path, records the fault and tells its listener (the job runner
@@ -29,6 +35,7 @@ from __future__ import annotations
 import fcntl
 import json
 import logging
+import math
 import os
 import sqlite3
 import threading
@@ -84,6 +91,10 @@ CREATE TABLE IF NOT EXISTS jobs (
 );
 CREATE INDEX IF NOT EXISTS jobs_seq ON jobs (seq);
 CREATE INDEX IF NOT EXISTS jobs_status ON jobs (status);
+CREATE TABLE IF NOT EXISTS health_probe (
+    id INTEGER PRIMARY KEY CHECK (id = 1),
+    at TEXT NOT NULL
+);
 """
 
 _ADDED_COLUMNS = {"owner": "TEXT", "idempotency_key": "TEXT", "estimate": "TEXT"}
@@ -109,7 +120,12 @@ class DatabaseInUseError(RuntimeError):
 
 
 class StoreUnavailableError(RuntimeError):
-    """The database did not answer within the retry time (locked, busy, I/O errors)."""
+    """The database did not answer within the retry time (locked, busy, I/O errors); ``kind``:
+    the fault's class (:func:`fault_kind`)."""
+
+    def __init__(self, message: str, kind: FaultKind = "error") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 class StoreGoneError(StoreUnavailableError):
@@ -205,29 +221,85 @@ def _transient(exc: sqlite3.Error) -> bool:
     )
 
 
+FaultKind = Literal["locked", "read-only", "full", "corrupt", "io", "missing", "gone", "error"]
+"""The class of a storage fault: the database locked or busy, read-only, its disk full, its
+file corrupt (or not a database), an I/O error, the file missing or unopenable, replaced or
+removed under the server, any other SQLite error."""
+
+
+def _no_space(path: Path) -> bool:
+    """Whether the file system of ``path`` has no free block left (a full disk shows up in
+    SQLite as an I/O error as often as SQLITE_FULL: its shared-memory file cannot grow)."""
+    try:
+        return os.statvfs(path.parent).f_bavail == 0
+    except OSError:
+        return False
+
+
+def fault_kind(exc: BaseException, path: Path) -> FaultKind:
+    """The class of a store error (SQLite's error name where Python gives it, else its text)."""
+    if isinstance(exc, StoreGoneError):
+        return "gone"
+    if isinstance(exc, StoreUnavailableError):
+        return exc.kind
+    name = str(getattr(exc, "sqlite_errorname", "") or "")
+    text = str(exc).lower()
+    if name.startswith(("SQLITE_BUSY", "SQLITE_LOCKED")) or "locked" in text or "busy" in text:
+        return "locked"
+    if name.startswith("SQLITE_READONLY") or "readonly" in text:
+        return "read-only"
+    if name.startswith("SQLITE_FULL") or "is full" in text:
+        return "full"
+    if name.startswith(("SQLITE_CORRUPT", "SQLITE_NOTADB")) or "malformed" in text:
+        return "corrupt"
+    if "not a database" in text:
+        return "corrupt"
+    io = name.startswith("SQLITE_IOERR") or "disk i/o" in text
+    unopened = name.startswith("SQLITE_CANTOPEN") or "unable to open" in text
+    if (io or unopened) and _no_space(path):
+        return "full"
+    return "io" if io else "missing" if unopened else "error"
+
+
 @dataclass
 class Fault:
     """One fault the store met (README "Fault behaviour")."""
 
     at: str
     reason: str
+    kind: FaultKind = "error"
     mono: float = field(default_factory=time.monotonic)
 
 
 @dataclass
 class FaultLog:
-    """The last faults, and whether the store is failing now."""
+    """The last faults, and the one the store has now (``current``: its reason, ``kind``: its
+    class, ``by_write``: whether a write met it – only a write that succeeds ends it then)."""
 
     current: str | None = None
+    kind: FaultKind | None = None
+    by_write: bool = False
     recent: list[Fault] = field(default_factory=list)
 
-    def record(self, reason: str) -> None:
-        self.current = reason
+    def record(self, reason: str, kind: FaultKind = "error", write: bool = False) -> None:
+        self.current, self.kind, self.by_write = reason, kind, write
         if not self.recent or self.recent[-1].reason != reason:
-            self.recent = [*self.recent[-9:], Fault(utc_now(), reason)]
+            self.recent = [*self.recent[-9:], Fault(utc_now(), reason, kind)]
 
-    def clear(self) -> None:
-        self.current = None
+    def clear(self, write: bool = True) -> None:
+        """A call succeeded: a write ends any fault, a read one that a read met."""
+        if write or not self.by_write:
+            self.current, self.kind, self.by_write = None, None, False
+
+
+def fault_reason(kind: FaultKind, exc: BaseException) -> str:
+    """A fault's line: its class and SQLite's words (``job database read-only: attempt to
+    write a readonly database``)."""
+    return f"job database {kind}: {exc}"
+
+
+PROBE_EVERY_S = 1.0
+"""``/healthz`` writes its probe row at most this often (:meth:`JobStore.check_writes`)."""
 
 
 def utc_now() -> str:
@@ -313,6 +385,8 @@ class JobStore:
         self.faults = FaultLog()
         self.on_recreated: Callable[[], None] | None = None
         self._reopen_lock = threading.Lock()
+        self._probe_lock = threading.Lock()
+        self._probe: tuple[float, BaseException | None] = (-math.inf, None)
         if expect is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._create_schema()
@@ -359,7 +433,7 @@ class JobStore:
                 " ran; a new empty database was created (jobs it held are lost)"
             )
             log.error(reason)
-            self.faults.record(reason)
+            self.faults.record(reason, "gone")
             self.faults.clear()
         if self.on_recreated is not None:
             self.on_recreated()
@@ -378,11 +452,14 @@ class JobStore:
         finally:
             con.close()
 
-    def _run(self, work: Callable[[sqlite3.Connection], Any], *, retry: bool = True) -> Any:
+    def _run(
+        self, work: Callable[[sqlite3.Connection], Any], *, retry: bool = True, write: bool = False
+    ) -> Any:
         """``work(con)`` in one transaction, retried with backoff on transient errors for up
         to ``retry_s`` (README "Fault behaviour"); :class:`StoreUnavailableError` after that.
         Within an HTTP request (:data:`CALL_BUDGET_S` set) lock waits and retries together end
-        after that budget (docs/guides/service-operations.md)."""
+        after that budget (docs/guides/service-operations.md). Every error is recorded in
+        :attr:`faults` by its class; ``write``: the call writes (see :class:`FaultLog`)."""
         budget = CALL_BUDGET_S.get()
         retry_s = self.retry_s if budget is None else min(self.retry_s, budget)
         start = time.monotonic()
@@ -397,19 +474,20 @@ class JobStore:
                 with self._connect(timeout_s) as con:
                     out = work(con)
                 if self.faults.current is not None:
-                    self.faults.clear()
+                    self.faults.clear(write)
                 return out
             except StoreGoneError:
                 raise
             except sqlite3.Error as exc:
+                kind = fault_kind(exc, self.path)
+                self.faults.record(fault_reason(kind, exc), kind, write)
                 if not _transient(exc) and file_identity(self.path) == self.identity:
                     raise
-                reason = f"job database error: {exc}"
-                self.faults.record(reason)
                 if time.monotonic() + pause > deadline:
                     waited = time.monotonic() - start
                     raise StoreUnavailableError(
-                        f"the job database did not answer for {waited:.1f} s ({exc})"
+                        f"the job database did not answer for {waited:.1f} s ({kind}: {exc})",
+                        kind,
                     ) from None
                 time.sleep(pause)
                 pause = min(2 * pause, BACKOFF_S[1])
@@ -461,7 +539,7 @@ class JobStore:
             )
             return None
 
-        existing: sqlite3.Row | None = self._run(work)
+        existing: sqlite3.Row | None = self._run(work, write=True)
         if existing is not None:
             return Job.from_row(existing), False
         job = Job(
@@ -485,7 +563,8 @@ class JobStore:
     def delete(self, job_id: str) -> bool:
         """Remove the job's row (True if it existed)."""
         changed: int = self._run(
-            lambda con: con.execute("DELETE FROM jobs WHERE id = ?", (job_id,)).rowcount
+            lambda con: con.execute("DELETE FROM jobs WHERE id = ?", (job_id,)).rowcount,
+            write=True,
         )
         return changed == 1
 
@@ -558,10 +637,36 @@ class JobStore:
         found = {r["status"]: int(r["n"]) for r in rows}
         return {s: found.get(s, 0) for s in JOB_STATUSES}
 
+    def check_writes(self, max_age_s: float = PROBE_EVERY_S) -> None:
+        """Raise what a write meets now – one attempt, no retries: the probe row of
+        ``health_probe`` written (``/healthz``: a read-only or full database, a lock held); a
+        result younger than ``max_age_s`` is given again instead of writing (the health checks
+        of a busy service write at most once a second)."""
+        with self._probe_lock:
+            at, error = self._probe
+            fresh = time.monotonic() - at < max_age_s
+            if not fresh:
+                self._probe = (time.monotonic(), None)
+        if fresh:
+            if error is not None:
+                raise error
+            return
+        try:
+            self._run(
+                lambda con: con.execute(
+                    "INSERT OR REPLACE INTO health_probe (id, at) VALUES (1, ?)", (utc_now(),)
+                ),
+                retry=False,
+                write=True,
+            )
+        except (sqlite3.Error, StoreUnavailableError) as exc:
+            self._probe = (time.monotonic(), exc)
+            raise
+
     # -- transitions (conditional: each returns whether it applied) ------------------------
 
     def _update(self, job_id: str, sql: str, args: tuple[Any, ...]) -> bool:
-        changed: int = self._run(lambda con: con.execute(sql, (*args, job_id)).rowcount)
+        changed: int = self._run(lambda con: con.execute(sql, (*args, job_id)).rowcount, write=True)
         return changed == 1
 
     def start(self, job_id: str, at: str | None = None) -> bool:
@@ -617,7 +722,8 @@ class JobStore:
                     " COALESCE(MAX(seq), 0) + 1, ?, ? FROM jobs",
                     (job_id, kind, error, now, now),
                 ).rowcount
-            )
+            ),
+            write=True,
         )
         return changed == 1
 
@@ -649,6 +755,7 @@ class JobStore:
                 "UPDATE jobs SET status = 'failed', message = 'failed', error = ?,"
                 " finished_at = ? WHERE status = 'running'",
                 (INTERRUPTED_MESSAGE, utc_now()),
-            )
+            ),
+            write=True,
         )
         return self.ids_with_status("queued")

@@ -276,10 +276,10 @@ def execute_job(
     threadpool_limits(limits=blas_threads)
     try:
         _execute(db_path, figures_dir, job_id, func, identity, store_options or {})
-    except StoreUnavailableError as exc:
+    except (StoreUnavailableError, sqlite3.Error) as exc:  # read-only, full, corrupt: no retry
         from api.store import StoreGoneError
 
-        log.error("job %s: %s", job_id, exc)
+        log.error("job %s: the job database failed: %s", job_id, exc)
         _remove(staging_dir(figures_dir, job_id))
         sys.exit(EXIT_STORE_GONE if isinstance(exc, StoreGoneError) else EXIT_STORE_UNAVAILABLE)
 
@@ -313,7 +313,7 @@ def _execute(
     except JobCancelledError:
         _remove(staging)
         return
-    except StoreUnavailableError:
+    except (StoreUnavailableError, sqlite3.Error):
         raise
     except Exception as exc:  # every failure ends the job with a message, never a hang
         _remove(staging)
@@ -448,13 +448,16 @@ class JobRunner:
         return self.store.faults.current
 
     def last_fault(self) -> str | None:
-        """The last fault met within :data:`FAULT_HOLD_S` (recovered or not), for the record."""
-        if self._last_fault is not None and time.monotonic() - self._fault_at < FAULT_HOLD_S:
-            return self._last_fault
-        recent = self.store.faults.recent
-        if recent and time.monotonic() - recent[-1].mono < FAULT_HOLD_S:
-            return recent[-1].reason
-        return None
+        """The last fault met within :data:`FAULT_HOLD_S` (recovered or not), for the record:
+        the dispatcher's or the store's, whichever came later."""
+        found = []
+        if self._last_fault is not None:
+            found.append((self._fault_at, self._last_fault))
+        if self.store.faults.recent:
+            last = self.store.faults.recent[-1]
+            found.append((last.mono, last.reason))
+        at, reason = max(found, default=(-math.inf, None))
+        return reason if time.monotonic() - at < FAULT_HOLD_S else None
 
     def stop(self, timeout_s: float = 10.0) -> None:
         """Stop dispatching; terminate running workers and put their jobs back in the queue."""
