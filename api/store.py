@@ -18,8 +18,9 @@ reports a transient error (locked, busy, I/O) for up to ``retry_s`` seconds, the
 :class:`StoreUnavailableError`. Every failing call records its fault by class (:func:`fault_kind`:
 locked, read-only, full, corrupt, …) in :attr:`JobStore.faults`; a fault met by a write lasts
 until a write succeeds (a read-only file still reads), one met by a read until any call does.
-:meth:`JobStore.check_writes` writes one row, at most every :data:`PROBE_EVERY_S`, for
-``/healthz``: a read-only or full database is seen even when nobody submits.
+:meth:`JobStore.write_fault` has one row written, at most every :data:`PROBE_EVERY_S` and on a
+thread of its own, for ``/healthz``: a read-only or full database is seen even when nobody
+submits.
 
 The store remembers the identity (device, inode) of its file:
 a call that finds the file removed or replaced raises :class:`StoreGoneError` – a worker's
@@ -299,7 +300,9 @@ def fault_reason(kind: FaultKind, exc: BaseException) -> str:
 
 
 PROBE_EVERY_S = 1.0
-"""``/healthz`` writes its probe row at most this often (:meth:`JobStore.check_writes`)."""
+"""``/healthz`` has its probe row written at most this often (:meth:`JobStore.write_fault`)."""
+PROBE_LOCK_WAIT_S = 1.0
+"""The probe's wait for the write lock (a lock held longer is not a fault of its own)."""
 
 
 def utc_now() -> str:
@@ -387,6 +390,7 @@ class JobStore:
         self._reopen_lock = threading.Lock()
         self._probe_lock = threading.Lock()
         self._probe: tuple[float, BaseException | None] = (-math.inf, None)
+        self._probing = False
         if expect is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._create_schema()
@@ -637,31 +641,42 @@ class JobStore:
         found = {r["status"]: int(r["n"]) for r in rows}
         return {s: found.get(s, 0) for s in JOB_STATUSES}
 
-    def check_writes(self, max_age_s: float = PROBE_EVERY_S) -> None:
-        """Raise what a write meets now – one attempt, no retries: the probe row of
-        ``health_probe`` written (``/healthz``: a read-only or full database, a lock held); a
-        result younger than ``max_age_s`` is given again instead of writing (the health checks
-        of a busy service write at most once a second)."""
+    def write_fault(self) -> BaseException | None:
+        """What the last write probe met (None: it wrote, or none has run yet), for
+        ``/healthz``; a new probe starts on a thread of its own when the last is older than
+        :data:`PROBE_EVERY_S` – the health check never waits for a write (under a burst of
+        submissions the write lock and its disk sync can take a while)."""
         with self._probe_lock:
             at, error = self._probe
-            fresh = time.monotonic() - at < max_age_s
-            if not fresh:
-                self._probe = (time.monotonic(), None)
-        if fresh:
-            if error is not None:
-                raise error
-            return
+            if time.monotonic() - at >= PROBE_EVERY_S and not self._probing:
+                self._probing = True
+                threading.Thread(target=self._probe_once, name="store-probe", daemon=True).start()
+        return error
+
+    def _probe_once(self) -> None:
+        """One attempt to write the probe row of ``health_probe``: a read-only or full
+        database, a corrupt one, is recorded as a fault met by a write; a lock held by other
+        writers is not a fault (their own calls record one when it lasts)."""
+        error: BaseException | None = None
         try:
-            self._run(
-                lambda con: con.execute(
+            with self._connect(PROBE_LOCK_WAIT_S) as con:
+                con.execute(
                     "INSERT OR REPLACE INTO health_probe (id, at) VALUES (1, ?)", (utc_now(),)
-                ),
-                retry=False,
-                write=True,
-            )
-        except (sqlite3.Error, StoreUnavailableError) as exc:
-            self._probe = (time.monotonic(), exc)
-            raise
+                )
+        except StoreGoneError as exc:
+            error = exc
+        except sqlite3.Error as exc:
+            kind = fault_kind(exc, self.path)
+            if kind != "locked":
+                error = exc
+                self.faults.record(fault_reason(kind, exc), kind, write=True)
+        else:
+            if self.faults.current is not None:
+                self.faults.clear(write=True)
+        finally:
+            with self._probe_lock:
+                self._probe = (time.monotonic(), error)
+                self._probing = False
 
     # -- transitions (conditional: each returns whether it applied) ------------------------
 

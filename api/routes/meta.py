@@ -50,10 +50,10 @@ async def healthz(
 
 
 def _health(store: JobStore, runner: JobRunner, settings: Settings) -> JSONResponse:
-    """The store asked twice, one attempt each: a read (the counts) and a write
-    (:meth:`api.store.JobStore.check_writes`). A read that fails is ``unavailable`` (503); a
-    write that fails too, unless a lock holds it (``degraded``: the store waits for locks);
-    the dispatcher's fault is ``degraded``. ``fault`` names the storage fault's class."""
+    """The store asked for a read (the counts, one attempt) and for what its last write probe
+    met (:meth:`api.store.JobStore.write_fault`). A read that fails is ``unavailable`` (503),
+    a write that failed too; a fault of a call failing now (a lock the store retries) and the
+    dispatcher's are ``degraded``. ``fault`` names the storage fault's class."""
     reasons: list[str] = []
     fault: FaultKind | None = None
     status, code = "ok", 200
@@ -64,15 +64,15 @@ def _health(store: JobStore, runner: JobRunner, settings: Settings) -> JSONRespo
         fault = fault_kind(exc, store.path)
         reasons.append(f"the job database does not answer: {fault} ({describe_error(exc)})")
     else:
-        try:
-            store.check_writes()
-        except (sqlite3.Error, StoreUnavailableError) as exc:
-            fault = fault_kind(exc, store.path)
-            if fault != "locked":
-                status, code = "unavailable", 503
-            reasons.append(f"the job database takes no writes: {fault} ({describe_error(exc)})")
+        failed = store.write_fault()
+        if failed is not None:
+            fault = fault_kind(failed, store.path)
+            status, code = "unavailable", 503
+            reasons.append(f"the job database takes no writes: {fault} ({describe_error(failed)})")
     if fault is None and store.faults.current is not None:
         fault = store.faults.kind  # a call failing now (a retried lock, a write)
+        if fault not in ("locked", "gone"):  # a write that no wait can help
+            status, code = "unavailable", 503
     other = runner.health()
     if other is not None and other not in " ".join(reasons):
         reasons.append(other)
