@@ -44,6 +44,7 @@ from api.store import StoreUnavailableError
 from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.core.io_json import MalformedJsonError
 from ris_planner.io import MissingExtraError
+from ris_planner.model.limits import COUNT_LIMITS, LIST_LIMITS, MAX_CANDIDATES
 
 log = logging.getLogger("api")
 
@@ -246,7 +247,42 @@ def _validation_answer(exc: RequestValidationError | ValidationError) -> JSONRes
     if bad_json:  # text that is not JSON: a malformed request, not an invalid document
         detail = bad_json[0].get("ctx", {}).get("error", "JSON decode error")
         return error_response(400, "bad_request", f"request body: not valid JSON ({detail})")
+    size = size_limit(errors)
+    if size is not None:  # a size above its limit: 413 with the limit, whatever else is wrong
+        return _limit_answer(size)
     return _validation_response(_field_errors(errors))
+
+
+API_LIST_LIMITS: dict[str, tuple[int, str]] = {
+    "local": (MAX_CANDIDATES, "candidates"),
+    "document": (MAX_CANDIDATES, "candidates"),
+    "properties": (MAX_CANDIDATES, "candidate properties"),
+}
+"""The service's own bulk lists (the candidate routes' bodies), as
+:data:`ris_planner.model.limits.LIST_LIMITS` for the documents."""
+
+BULK_LISTS = {**LIST_LIMITS, **API_LIST_LIMITS}
+
+
+def size_limit(errors: Sequence[Any]) -> LimitExceededError | None:
+    """The first size limit among validation errors, as the engine's error (its message naming
+    the field, its limit): a validator that raised :class:`LimitExceededError` (a grid above
+    its points), a bulk list above its ``max_length`` (:data:`BULK_LISTS`), a count above its
+    ``le`` (:data:`ris_planner.model.limits.COUNT_LIMITS`). None when there is none."""
+    for err in errors:
+        ctx = err.get("ctx") or {}
+        field = _field_errors([err])[0].field
+        cause = ctx.get("error")
+        if isinstance(cause, LimitExceededError) and cause.limit is not None:
+            return LimitExceededError(f"{field}: {cause}", cause.limit)
+        names = [p for p in err.get("loc", ()) if isinstance(p, str)]
+        name = names[-1] if names else ""
+        kind, message = err.get("type"), err.get("msg", "")
+        if kind == "too_long" and ctx.get("max_length") == BULK_LISTS.get(name, (None,))[0]:
+            return LimitExceededError(f"{field}: {message}", BULK_LISTS[name][0])
+        if kind == "less_than_equal" and ctx.get("le") == COUNT_LIMITS.get(name, (None,))[0]:
+            return LimitExceededError(f"{field}: {message}", COUNT_LIMITS[name][0])
+    return None
 
 
 async def _on_limit(request: Request, exc: Exception) -> JSONResponse:

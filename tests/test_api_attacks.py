@@ -333,6 +333,61 @@ def test_every_size_limit_is_413_with_its_limit(server: Server) -> None:
     assert jobs_total(url) == before
 
 
+def _arrays(schema: Any, name: str = "") -> Iterator[tuple[str, dict[str, Any]]]:
+    """(property name, array schema) of every array property in a JSON schema."""
+    if isinstance(schema, dict):
+        if schema.get("type") == "array" and name:
+            yield name, schema
+        for key, value in schema.items():
+            if key == "properties" and isinstance(value, dict):
+                for prop, sub in value.items():
+                    yield from _arrays(sub, prop)
+            else:
+                yield from _arrays(value, name)
+    elif isinstance(schema, list):
+        for value in schema:
+            yield from _arrays(value, name)
+
+
+def _properties(schema: Any) -> Iterator[tuple[str, dict[str, Any]]]:
+    if isinstance(schema, dict):
+        for key, value in schema.items():
+            if key == "properties" and isinstance(value, dict):
+                yield from value.items()
+            yield from _properties(value)
+    elif isinstance(schema, list):
+        for value in schema:
+            yield from _properties(value)
+
+
+def test_every_size_limit_of_the_schema_is_a_registered_size() -> None:
+    """The size limits are one class: every list of the request bodies that may hold 1000
+    items or more (variable length) is registered with its limit (refused by the pre-scan before
+    validation, and reported as a size if a model refuses it), and every count named in the
+    registry has the registry's maximum – a bulk list added to a document later is held to it
+    (this fails until it is registered)."""
+    from api.errors import BULK_LISTS
+    from api.main import create_app
+    from api.settings import Settings
+    from ris_planner.model.limits import COUNT_LIMITS
+
+    spec = create_app(Settings(db=Path("unused.db"))).openapi()
+    unregistered = []
+    for name, array in _arrays(spec["components"]["schemas"]):
+        limit = array.get("maxItems")
+        if limit is None or limit < 1000 or array.get("minItems") == limit:
+            continue
+        if BULK_LISTS.get(name, (None,))[0] != limit:
+            unregistered.append((name, limit))
+    assert unregistered == []
+    counts = {
+        (name, prop.get("maximum"))
+        for name, prop in _properties(spec["components"]["schemas"])
+        if name in COUNT_LIMITS and prop.get("type") == "integer"
+    }
+    assert counts == {(name, limit) for name, (limit, _) in COUNT_LIMITS.items()}
+
+
 def parse_pids(server_pid: int) -> list[int]:
     """The parse processes: the forkserver's children that lead no process group (the job
     workers do)."""

@@ -168,12 +168,11 @@ def test_list_sizes_refused_before_validation(tmp_path: Path) -> None:
         small = httpx.post(f"{server.url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
         assert small.status_code == 200, small.text[:300]
         for route in ("/v1/plans", "/v1/plans/validate", "/v1/bounds"):
-            t0 = time.monotonic()
             r = httpx.post(f"{server.url}{route}", content=body, headers=JSON, timeout=60)
-            took = time.monotonic() - t0
+            # counted, never validated: every prism is invalid ("height" is not a field), so a
+            # validation would have answered 422
             assert r.status_code == 413 and r.json()["limit"] == 100_000, r.text[:300]
-            assert "obstacles" in r.json()["message"]
-            assert took < 5.0, took  # parsed and counted, never validated (validation: ~10 s)
+            assert "100001 obstacles exceed the limit of 100000" in r.json()["message"]
 
 
 def headers(key: str, **more: str) -> dict[str, str]:

@@ -43,10 +43,10 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from api.documents import GeoFrame, json_document
-from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE
+from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, size_limit
 from api.models import plan_examples
 from api.routes.web import MapPreview, _map_preview
-from ris_planner.core.errors import DocumentFieldError, RisPlannerError
+from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.environment.model import Environment
 from ris_planner.io.candidates import (
     ATTRIBUTION_KEYS,
@@ -56,13 +56,14 @@ from ris_planner.io.candidates import (
 )
 from ris_planner.io.frames import MAX_LICENSE_CHARS, Frame, parse_frame, to_local
 from ris_planner.io.site_points import import_sites
+from ris_planner.model.limits import MAX_CANDIDATES
 from ris_planner.model.plan import Candidate, UEMap
 from ris_planner.planning.inputs.ue_maps import build_map
 
 router = APIRouter(tags=["import"])
 
-MAX_CONVERT_CANDIDATES = 10_000
-"""Candidates per request: a plan document's limit on explicit candidates."""
+MAX_CONVERT_CANDIDATES = MAX_CANDIDATES
+"""Candidates per request: a plan document's limit on explicit candidates (413 above it)."""
 
 
 class CandidateConversion(BaseModel):
@@ -330,6 +331,9 @@ def _valid(model: Any, value: Any, where: str) -> Any:
     try:
         return model.model_validate(value)
     except ValidationError as exc:
+        size = size_limit(exc.errors())
+        if size is not None:  # 413 with the limit, the field named from the document's top
+            raise LimitExceededError(f"{where}.{size}", size.limit) from None
         first = exc.errors()[0]
         loc = ".".join(str(p) for p in first["loc"])
         raise DocumentFieldError(f"{where}.{loc}" if loc else where, first["msg"]) from None
