@@ -6,6 +6,7 @@ runner (start-up recovery, worker processes) are created in the application's li
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import AsyncIterator, Mapping
 from contextlib import asynccontextmanager
@@ -46,6 +47,27 @@ GIL_SWITCH_S = 0.001
 """The interpreter's thread switch interval while the service runs (default 5 ms)."""
 
 
+def service_logging() -> None:
+    """Show the service's own log lines (the ``api`` logger and its children: a client gone
+    before its body, a job's start and end, a storage fault) beside uvicorn's, at uvicorn's
+    ``--log-level`` and in its format – when the server runs under uvicorn and nothing else
+    configured logging (uvicorn configures only its own loggers: without this, lines below
+    WARNING went nowhere)."""
+    service = logging.getLogger("api")
+    level = logging.getLogger("uvicorn.error").level
+    if service.handlers or logging.getLogger().handlers or level == logging.NOTSET:
+        return
+    handler = logging.StreamHandler()
+    try:
+        from uvicorn.logging import DefaultFormatter
+
+        handler.setFormatter(DefaultFormatter("%(levelprefix)s %(message)s", use_colors=False))
+    except ImportError:  # uvicorn's level was set, so it is there; a plain format otherwise
+        handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+    service.addHandler(handler)
+    service.setLevel(level)
+
+
 class ServiceApp(FastAPI):
     """The service's application: FastAPI with the security headers as its outermost layer
     (:func:`api.front.with_security_headers`), around Starlette's own error middleware, so that
@@ -70,6 +92,7 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
+        service_logging()
         allocator.tune_malloc()  # the service's entry point (ris_planner.runtime.allocator)
         # a thread validating a large document hands the GIL over every 1 ms instead of 5 ms:
         # the event loop and /healthz wait less behind it (docs/guides/service-operations.md)

@@ -43,6 +43,7 @@ import traceback
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from datetime import datetime
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
@@ -519,6 +520,7 @@ class JobRunner:
         )
         proc.start()
         self._procs[job_id] = proc
+        log.info("job %s (%s) started in process %s", job_id, job.kind, proc.pid)
 
     def _settle(self, job_id: str, error: str) -> None:
         """Store a job's final error; kept for a later cycle when the store is unavailable."""
@@ -535,13 +537,35 @@ class JobRunner:
             proc.join()
             del self._procs[job_id]
             _remove(staging_dir(self.figures_dir, job_id))
+            kind = self._kind_of.get(job_id, "unknown")
             if job_id in self._deleted:  # removed (DELETE): nothing to record
                 self._deleted.discard(job_id)
                 self._kind_of.pop(job_id, None)
-            elif proc.exitcode != 0:  # no-op when the job was cancelled (terminated) or ended
+                log.info("job %s (%s) removed", job_id, kind)
+                continue
+            if proc.exitcode != 0:  # no-op when the job was cancelled (terminated) or ended
                 self._settle(job_id, exit_message(proc.exitcode))
             else:
                 self._kind_of.pop(job_id, None)
+            self._log_end(job_id, kind, proc.exitcode)
+
+    def _log_end(self, job_id: str, kind: str, exitcode: int | None) -> None:
+        """One info line for a job whose process ended: its final state and time."""
+        try:
+            head = self.store.head(job_id)
+        except (StoreUnavailableError, sqlite3.Error):
+            head = None
+        if head is None:
+            log.info("job %s (%s) ended (worker exit code %s)", job_id, kind, exitcode)
+            return
+        took = ""
+        if head.started_at and head.finished_at:
+            seconds = datetime.fromisoformat(head.finished_at) - datetime.fromisoformat(
+                head.started_at
+            )
+            took = f" in {seconds.total_seconds():.1f} s"
+        error = f": {head.error}" if head.error else ""
+        log.info("job %s (%s) %s%s%s", job_id, kind, head.status, took, error)
 
     def _handle_lost_database(self) -> None:
         """The store recreated a removed database: stop the workers writing to the old one
