@@ -25,6 +25,7 @@ from test_io_import import _floor_plan
 from tolerance import BOUND_ACCURACY, assert_close
 
 from api.launch import served
+from api.models import SITE_OSM_XML
 from ris_planner.io.frames import Frame
 
 ORIGIN = (24.9384, 60.1699, 10.0)
@@ -273,17 +274,10 @@ def test_import_geojson_gives_a_plan_document(
 
 
 def test_import_osm_xml(server: str) -> None:
-    osm = """<?xml version="1.0"?><osm version="0.6">
-      <node id="1" lon="24.9380" lat="60.1700"/><node id="2" lon="24.9382" lat="60.1700"/>
-      <node id="3" lon="24.9382" lat="60.1701"/><node id="4" lon="24.9380" lat="60.1701"/>
-      <node id="5" lon="24.9375" lat="60.1698"/><node id="6" lon="24.9390" lat="60.1698"/>
-      <way id="10"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/>
-        <tag k="building" v="yes"/><tag k="building:levels" v="4"/></way>
-      <way id="11"><nd ref="5"/><nd ref="6"/><tag k="highway" v="residential"/></way>
-    </osm>"""
+    """The OpenAPI document's OSM XML example: a four-storey building and a street."""
     r = httpx.post(
         f"{server}/v1/import",
-        content=osm.encode(),
+        content=SITE_OSM_XML.encode(),
         headers={"Content-Type": "application/xml"},
         timeout=60,
     )

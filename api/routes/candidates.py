@@ -168,16 +168,20 @@ def convert_candidates(req: CandidateConversion) -> ConvertedCandidates:
     return ConvertedCandidates(local=local, document=_to_frame(frame, local))
 
 
+EXAMPLE_FRAMED_CANDIDATES: dict[str, Any] = {
+    "frame": {"origin": [24.9382, 60.17, 0.0]},
+    "local": [
+        {"position": [-10.0, 5.0, 6.0], "orientation": [3.14159, 0.2, 0.0]},
+        {"position": [12.0, -4.0, 4.0], "name": "pole"},
+    ],
+}
+"""Two candidates in local metres and the frame of their document (central Helsinki): the
+OpenAPI examples of the candidate routes."""
+
 CONVERT_EXAMPLES: dict[str, Any] = {
     "to_document": {
         "summary": "Two candidates in local metres → a WGS84 document's coordinates",
-        "value": {
-            "frame": {"origin": [24.9382, 60.17, 0.0]},
-            "local": [
-                {"position": [-10.0, 5.0, 6.0], "orientation": [3.14159, 0.2, 0.0]},
-                {"position": [12.0, -4.0, 4.0], "name": "pole"},
-            ],
-        },
+        "value": EXAMPLE_FRAMED_CANDIDATES,
     }
 }
 """The OpenAPI example of ``POST /v1/candidates/convert``."""
@@ -261,14 +265,7 @@ def candidates_file(req: CandidatesFileRequest) -> dict[str, Any]:
 FILE_EXAMPLES: dict[str, Any] = {
     "two": {
         "summary": "Two candidates of a document framed in central Helsinki",
-        "value": {
-            "frame": {"origin": [24.9382, 60.17, 0.0]},
-            "local": [
-                {"position": [-10.0, 5.0, 6.0], "orientation": [3.14159, 0.2, 0.0]},
-                {"position": [12.0, -4.0, 4.0], "name": "pole"},
-            ],
-            "license": "© OpenStreetMap contributors, ODbL 1.0",
-        },
+        "value": {**EXAMPLE_FRAMED_CANDIDATES, "license": "© OpenStreetMap contributors, ODbL 1.0"},
     }
 }
 """The OpenAPI example of ``POST /v1/candidates/geojson``."""
