@@ -27,10 +27,12 @@ from ris_planner.model.scenario import Scenario
 from ris_planner.planning import PlanDocument
 from ris_planner.planning.resources.admission import plan_check
 
-Longitude = Annotated[float, Field(ge=-180, le=180, description="Longitude [deg]")]
+Longitude = Annotated[float, Field(ge=-180, le=180, strict=True, description="Longitude [deg]")]
 Latitude = Annotated[
-    float, Field(ge=-84, le=84, description="Latitude [deg] (polar sites refused)")
+    float, Field(ge=-84, le=84, strict=True, description="Latitude [deg] (polar sites refused)")
 ]
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+"""A coordinate: a JSON number (a boolean or a string is refused, as in every document)."""
 
 
 class GeoFrame(BaseModel):
@@ -39,7 +41,7 @@ class GeoFrame(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    origin: tuple[Longitude, Latitude] | tuple[Longitude, Latitude, float] = Field(
+    origin: tuple[Longitude, Latitude] | tuple[Longitude, Latitude, Number] = Field(
         description="[lon, lat(, h)]: WGS84 degrees (|lat| ≤ 84°), height in metres"
     )
 
@@ -57,7 +59,7 @@ class CrsFrame(BaseModel):
         description="A projected CRS in metres, e.g. 'EPSG:32635' (UTM 35N): an EPSG code, a PROJ"
         " string or WKT, not blank (an unknown or geographic CRS is a 422)",
     )
-    origin: tuple[float, float] | tuple[float, float, float] | None = Field(
+    origin: tuple[Number, Number] | tuple[Number, Number, Number] | None = Field(
         None, description="[E, N(, h)] in the CRS's metres"
     )
 
