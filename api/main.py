@@ -124,6 +124,9 @@ def create_app(
             blas = threadpool_limits(limits=current.blas_threads)  # this process's threads
             runner.start()
             parse_pool.start()
+            # the OpenAPI document now, off the event loop: the front middleware reads each
+            # operation's body media types from it (api.security.DeclaredBodies)
+            await anyio.to_thread.run_sync(app.openapi)
             try:
                 yield
             finally:
