@@ -18,18 +18,21 @@ from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import models_json_schema
 
 from ris_planner.core.io_json import parse_json
+from ris_planner.environment.model import Environment
 from ris_planner.io.candidates import CandidateOptions
 from ris_planner.io.frames import MAX_CRS_CHARS
 from ris_planner.io.plan_request import PlanRequest, admit_request
 from ris_planner.model.limits import prescan_document
-from ris_planner.model.plan import LayoutBeamsDocument
+from ris_planner.model.plan import LayoutBeamsDocument, UEMap
 from ris_planner.model.scenario import Scenario
 from ris_planner.planning import PlanDocument
 
-Longitude = Annotated[float, Field(ge=-180, le=180, description="Longitude [deg]")]
+Longitude = Annotated[float, Field(ge=-180, le=180, strict=True, description="Longitude [deg]")]
 Latitude = Annotated[
-    float, Field(ge=-84, le=84, description="Latitude [deg] (polar sites refused)")
+    float, Field(ge=-84, le=84, strict=True, description="Latitude [deg] (polar sites refused)")
 ]
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+"""A coordinate: a JSON number (a boolean or a string is refused, as in every document)."""
 
 
 class GeoFrame(BaseModel):
@@ -38,7 +41,7 @@ class GeoFrame(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    origin: tuple[Longitude, Latitude] | tuple[Longitude, Latitude, float] = Field(
+    origin: tuple[Longitude, Latitude] | tuple[Longitude, Latitude, Number] = Field(
         description="[lon, lat(, h)]: WGS84 degrees (|lat| ≤ 84°), height in metres"
     )
 
@@ -56,7 +59,7 @@ class CrsFrame(BaseModel):
         description="A projected CRS in metres, e.g. 'EPSG:32635' (UTM 35N): an EPSG code, a PROJ"
         " string or WKT, not blank (an unknown or geographic CRS is a 422)",
     )
-    origin: tuple[float, float] | tuple[float, float, float] | None = Field(
+    origin: tuple[Number, Number] | tuple[Number, Number, Number] | None = Field(
         None, description="[E, N(, h)] in the CRS's metres"
     )
 
@@ -81,12 +84,27 @@ class GeoDocument(BaseModel):
     )
 
 
+class SiteDocument(BaseModel):
+    """What ``POST /v1/site/preview`` reads of a plan document: its UE maps, its obstacles and
+    its frame; every other field is ignored (a site before any candidate is placed)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    tx_map: UEMap | None = Field(None, description="The TX map (in the frame's coordinates)")
+    rx_map: UEMap | None = Field(None, description="The RX map (in the frame's coordinates)")
+    environment: Environment | None = Field(None, description="The obstacles")
+    frame: GeoFrame | CrsFrame | None = Field(
+        None, description="The frame of the document's coordinates (absent: local metres)"
+    )
+
+
 DOCUMENT_MODELS: tuple[type[BaseModel], ...] = (
     PlanDocument,
     Scenario,
     LayoutBeamsDocument,
     GeoDocument,
     CandidateOptions,
+    SiteDocument,
 )
 """Models the request bodies of :func:`document_body` refer to (added to the OpenAPI
 components by :func:`install_document_schemas`)."""

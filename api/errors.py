@@ -44,6 +44,7 @@ from api.store import StoreUnavailableError
 from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.core.io_json import MalformedJsonError
 from ris_planner.io import MissingExtraError
+from ris_planner.model.limits import COUNT_LIMITS, LIST_LIMITS, MAX_CANDIDATES
 
 log = logging.getLogger("api")
 
@@ -122,6 +123,49 @@ GIS_EXTRA_RESPONSE: dict[int | str, dict[str, Any]] = {
 """``responses=`` entry of the routes that may need the GIS libraries."""
 
 
+def _error_entry(description: str) -> dict[str, Any]:
+    return {
+        "description": description,
+        "content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorBody"}}},
+    }
+
+
+POLICY_RESPONSES: dict[str, dict[str, Any]] = {
+    "403": _error_entry(
+        "Refused: a write from a browser page of another origin, or a host name that is not a"
+        " loopback one on a server listening on a loopback address"
+    ),
+    "413": _error_entry("Request too large (body bytes, or a size above its limit)"),
+    "415": _error_entry(
+        "A body whose media type this operation does not declare (or a body without one)"
+    ),
+}
+"""The answers of the front middleware's rules (:mod:`api.front`), by the operations they
+apply to: 403 to every operation that may change something, 413 and 415 to every operation
+that takes a body."""
+
+
+def install_policy_responses(app: FastAPI) -> None:
+    """Declare :data:`POLICY_RESPONSES` in ``app``'s OpenAPI document, on every operation they
+    apply to (one rule for every route, those added later too)."""
+    generate = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        schema = generate()
+        for item in schema.get("paths", {}).values():
+            for method, op in item.items():
+                if not isinstance(op, dict) or method in ("get", "head", "options"):
+                    continue
+                responses = op.setdefault("responses", {})
+                responses.setdefault("403", POLICY_RESPONSES["403"])
+                if "requestBody" in op:
+                    responses.setdefault("413", POLICY_RESPONSES["413"])
+                    responses.setdefault("415", POLICY_RESPONSES["415"])
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
 def error_response(
     status: int,
     error: str,
@@ -171,6 +215,7 @@ def _validation_response(fields: list[FieldError]) -> JSONResponse:
 _HTTP_CODES = {
     400: "bad_request",
     401: "unauthorized",
+    403: "forbidden",
     404: "not_found",
     405: "method_not_allowed",
     406: "not_acceptable",
@@ -202,7 +247,42 @@ def _validation_answer(exc: RequestValidationError | ValidationError) -> JSONRes
     if bad_json:  # text that is not JSON: a malformed request, not an invalid document
         detail = bad_json[0].get("ctx", {}).get("error", "JSON decode error")
         return error_response(400, "bad_request", f"request body: not valid JSON ({detail})")
+    size = size_limit(errors)
+    if size is not None:  # a size above its limit: 413 with the limit, whatever else is wrong
+        return _limit_answer(size)
     return _validation_response(_field_errors(errors))
+
+
+API_LIST_LIMITS: dict[str, tuple[int, str]] = {
+    "local": (MAX_CANDIDATES, "candidates"),
+    "document": (MAX_CANDIDATES, "candidates"),
+    "properties": (MAX_CANDIDATES, "candidate properties"),
+}
+"""The service's own bulk lists (the candidate routes' bodies), as
+:data:`ris_planner.model.limits.LIST_LIMITS` for the documents."""
+
+BULK_LISTS = {**LIST_LIMITS, **API_LIST_LIMITS}
+
+
+def size_limit(errors: Sequence[Any]) -> LimitExceededError | None:
+    """The first size limit among validation errors, as the engine's error (its message naming
+    the field, its limit): a validator that raised :class:`LimitExceededError` (a grid above
+    its points), a bulk list above its ``max_length`` (:data:`BULK_LISTS`), a count above its
+    ``le`` (:data:`ris_planner.model.limits.COUNT_LIMITS`). None when there is none."""
+    for err in errors:
+        ctx = err.get("ctx") or {}
+        field = _field_errors([err])[0].field
+        cause = ctx.get("error")
+        if isinstance(cause, LimitExceededError) and cause.limit is not None:
+            return LimitExceededError(f"{field}: {cause}", cause.limit)
+        names = [p for p in err.get("loc", ()) if isinstance(p, str)]
+        name = names[-1] if names else ""
+        kind, message = err.get("type"), err.get("msg", "")
+        if kind == "too_long" and ctx.get("max_length") == BULK_LISTS.get(name, (None,))[0]:
+            return LimitExceededError(f"{field}: {message}", BULK_LISTS[name][0])
+        if kind == "less_than_equal" and ctx.get("le") == COUNT_LIMITS.get(name, (None,))[0]:
+            return LimitExceededError(f"{field}: {message}", COUNT_LIMITS[name][0])
+    return None
 
 
 async def _on_limit(request: Request, exc: Exception) -> JSONResponse:

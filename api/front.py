@@ -1,18 +1,25 @@
 """The service's one ASGI middleware: every request's per-request work in one layer, and the
-fast path of ``POST /v1/bounds``.
+fast path of ``POST /v1/bounds``; and the outermost layer that adds the security headers.
 
 Per HTTP request, in this order (each was a middleware of its own until a profile of
 ``POST /v1/bounds`` showed the layers' cost; docs/validation/speed-guard.md):
 
-1. the response headers of :mod:`api.security` on every answer (``nosniff``; the page policy
-   on HTML) and the job database's wait bound of the request (:data:`api.store.CALL_BUDGET_S`,
-   set for everything the request runs: thread pools copy the context);
-2. with API keys configured (:class:`api.auth.KeyRing`), a ``/v1`` request without a known
+1. the job database's wait bound of the request (:data:`api.store.CALL_BUDGET_S`, set for
+   everything the request runs: thread pools copy the context);
+2. 403 for a request the :class:`api.security.OriginPolicy` refuses: a host name that is not
+   a loopback one on a loopback server, a write from a page of another origin;
+3. with API keys configured (:class:`api.auth.KeyRing`), a ``/v1`` request without a known
    ``X-API-Key`` gets 401 before anything reads its body; a known key's
    :class:`api.auth.Principal` goes to ``scope["state"]["principal"]``;
-3. 400 for an invalid ``Content-Length``, 413 before reading a body whose ``Content-Length``
+4. 400 for an invalid ``Content-Length``, 413 before reading a body whose ``Content-Length``
    exceeds ``max_bytes``; a streamed (chunked) body is counted as it arrives and stopped at the
-   limit (:class:`api.errors.BodyTooLargeError`, 413).
+   limit (:class:`api.errors.BodyTooLargeError`, 413);
+5. 415 for a body whose media type the operation does not declare in the OpenAPI document
+   (:class:`api.security.DeclaredBodies`), before anything reads it.
+
+The security headers of :mod:`api.security` (``nosniff`` on every answer, the page policy on
+HTML) are added by :func:`with_security_headers`, which wraps the whole application – the
+500 of an unexpected error, answered outside every middleware, included.
 
 The fast path: ``POST /v1/bounds`` without a query string is answered here, without FastAPI's
 routing, dependency solving and response machinery, by the route's own functions
@@ -21,9 +28,9 @@ at most :data:`api.settings.INLINE_MAX_BODY_BYTES` is parsed on the event loop, 
 whose work (:func:`ris_planner.bounds.resources.request_work`) is at most the setting
 ``bounds_inline_work`` is answered there too (≈ 1 ms: a worker thread's hand-off and GIL
 switches cost more); larger ones run in a worker thread under the route's limiter. The
-route's dependencies have nothing to do for such a request (the key was checked in step 2; no
+route's dependencies have nothing to do for such a request (the key was checked in step 3; no
 query parameter to reject), and its errors go to the application's own exception handlers, so
-the answers – 200, 400, 401, 413, 422, 501 and their bodies – are those of the route
+the answers – 200, 400, 401, 413, 415, 422, 501 and their bodies – are those of the route
 (``tests/test_api_front.py`` compares both). Any other request, a query string included,
 takes the route.
 """
@@ -41,7 +48,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from api.auth import KeyRing
 from api.errors import BodyTooLargeError, error_response
 from api.routes.bounds import bounds_answer, bounds_scenario, scenario_answer
-from api.security import PAGE_CSP
+from api.security import PAGE_CSP, SAFE_METHODS, DeclaredBodies, OriginPolicy, media_refusal
 from api.settings import INLINE_MAX_BODY_BYTES
 from api.store import CALL_BUDGET_S
 from ris_planner.bounds.resources import request_work
@@ -62,6 +69,26 @@ def _security_headers(message: Message) -> None:
         headers.setdefault("Referrer-Policy", "no-referrer")
 
 
+def with_security_headers(app: ASGIApp) -> ASGIApp:
+    """``app`` with the headers of :mod:`api.security` on every HTTP answer: the outermost
+    layer of the service (:class:`api.main.ServiceApp`), so that the 500 of an unexpected error
+    – rendered by Starlette's outermost ``ServerErrorMiddleware`` – has them too."""
+
+    async def secured(scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await app(scope, receive, send)
+            return
+
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                _security_headers(message)
+            await send(message)
+
+        await app(scope, receive, send_with_headers)
+
+    return secured
+
+
 class FrontMiddleware:
     """Pure ASGI middleware: the per-request work above, and the fast path of
     ``POST /v1/bounds`` (``fast_bounds=False`` sends it through the route like any other)."""
@@ -74,10 +101,13 @@ class FrontMiddleware:
         header: str,
         max_bytes: int,
         store_wait_s: float,
+        policy: OriginPolicy | None = None,
         prefix: str = "/v1",
         fast_bounds: bool = True,
     ) -> None:
         self.app = app
+        self.policy = policy if policy is not None else OriginPolicy()
+        self.bodies = DeclaredBodies()
         self.keys = keys
         self.header = header.lower().encode("latin-1")
         self.header_name = header
@@ -90,20 +120,19 @@ class FrontMiddleware:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-
-        async def send_with_headers(message: Message) -> None:
-            if message["type"] == "http.response.start":
-                _security_headers(message)
-            await send(message)
-
         token = CALL_BUDGET_S.set(self.store_wait_s)
         try:
-            await self._http(scope, receive, send_with_headers)
+            await self._http(scope, receive, send)
         finally:
             CALL_BUDGET_S.reset(token)
 
     async def _http(self, scope: Scope, receive: Receive, send: Send) -> None:
         path: str = scope.get("path", "")
+        headers = dict(scope.get("headers", []))
+        refused = self.policy.refusal(scope, headers)
+        if refused is not None:
+            await error_response(403, "forbidden", refused)(scope, receive, send)
+            return
         if self.keys.enabled and (path == self.prefix or path.startswith(self.prefix + "/")):
             given = next((v for k, v in scope.get("headers", []) if k == self.header), None)
             principal = self.keys.lookup(given)
@@ -137,6 +166,12 @@ class FrontMiddleware:
                     )
                     await response(scope, receive, send)
                     return
+        if scope["method"] not in SAFE_METHODS:
+            refused = media_refusal(self.bodies.of(scope["app"], scope), headers)
+            if refused is not None:
+                response = error_response(415, "unsupported_media_type", refused)
+                await response(scope, receive, send)
+                return
         if (
             self.fast_bounds
             and path == BOUNDS_PATH

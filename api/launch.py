@@ -48,18 +48,20 @@ def served(
     env: dict[str, str] | None = None,
     startup_timeout_s: float = 60.0,
     log: Path | None = None,
+    log_level: str = "warning",
 ) -> Iterator[Server]:
     """A server on a free port with job database ``db``; ``via`` is ``"serve"`` (the CLI) or
-    ``"uvicorn"`` (``uvicorn api.main:app``, settings from the environment)."""
+    ``"uvicorn"`` (``uvicorn api.main:app``, settings from the environment); ``log_level``:
+    its ``--log-level``."""
     port = free_port()
     environ = dict(os.environ) | {"RIS_PLANNER_DB": str(db), "RIS_PLANNER_WORKERS": str(workers)}
     environ |= env or {}
     if via == "serve":
         cmd = [sys.executable, "-m", "ris_planner.cli", "serve", "--port", str(port)]
-        cmd += ["--log-level", "warning"]
+        cmd += ["--log-level", log_level]
     elif via == "uvicorn":
         cmd = [sys.executable, "-m", "uvicorn", "api.main:app", "--host", HOST]
-        cmd += ["--port", str(port), "--log-level", "warning"]
+        cmd += ["--port", str(port), "--log-level", log_level]
     else:
         raise ValueError(f"via must be 'serve' or 'uvicorn', got {via!r}")
     out = open(log, "ab") if log is not None else subprocess.DEVNULL  # noqa: SIM115

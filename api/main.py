@@ -6,6 +6,7 @@ runner (start-up recovery, worker processes) are created in the application's li
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import AsyncIterator, Mapping
 from contextlib import asynccontextmanager
@@ -13,13 +14,14 @@ from importlib.metadata import version
 
 import anyio
 from fastapi import Depends, FastAPI
+from starlette.types import ASGIApp
 from threadpoolctl import threadpool_limits
 
 from api.auth import KeyRing
 from api.deps import reject_unknown_query, require_api_key
 from api.documents import install_document_schemas
-from api.errors import V1_ERROR_RESPONSES, install_error_handlers
-from api.front import FrontMiddleware
+from api.errors import V1_ERROR_RESPONSES, install_error_handlers, install_policy_responses
+from api.front import FrontMiddleware, with_security_headers
 from api.kinds import JOB_KINDS
 from api.offload import ParsePool, install_answered_handler
 from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
@@ -45,6 +47,36 @@ GIL_SWITCH_S = 0.001
 """The interpreter's thread switch interval while the service runs (default 5 ms)."""
 
 
+def service_logging() -> None:
+    """Show the service's own log lines (the ``api`` logger and its children: a client gone
+    before its body, a job's start and end, a storage fault) beside uvicorn's, at uvicorn's
+    ``--log-level`` and in its format – when the server runs under uvicorn and nothing else
+    configured logging (uvicorn configures only its own loggers: without this, lines below
+    WARNING went nowhere)."""
+    service = logging.getLogger("api")
+    level = logging.getLogger("uvicorn.error").level
+    if service.handlers or logging.getLogger().handlers or level == logging.NOTSET:
+        return
+    handler = logging.StreamHandler()
+    try:
+        from uvicorn.logging import DefaultFormatter
+
+        handler.setFormatter(DefaultFormatter("%(levelprefix)s %(message)s", use_colors=False))
+    except ImportError:  # uvicorn's level was set, so it is there; a plain format otherwise
+        handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+    service.addHandler(handler)
+    service.setLevel(level)
+
+
+class ServiceApp(FastAPI):
+    """The service's application: FastAPI with the security headers as its outermost layer
+    (:func:`api.front.with_security_headers`), around Starlette's own error middleware, so that
+    every answer has them – the 500 of an unexpected error too."""
+
+    def build_middleware_stack(self) -> ASGIApp:
+        return with_security_headers(super().build_middleware_stack())
+
+
 def create_app(
     settings: Settings | None = None,
     kinds: Mapping[str, JobFunction] | None = None,
@@ -60,6 +92,7 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         current: Settings = app.state.settings  # read at start-up (tests may swap the DB)
+        service_logging()
         allocator.tune_malloc()  # the service's entry point (ris_planner.runtime.allocator)
         # a thread validating a large document hands the GIL over every 1 ms instead of 5 ms:
         # the event loop and /healthz wait less behind it (docs/guides/service-operations.md)
@@ -91,6 +124,9 @@ def create_app(
             blas = threadpool_limits(limits=current.blas_threads)  # this process's threads
             runner.start()
             parse_pool.start()
+            # the OpenAPI document now, off the event loop: the front middleware reads each
+            # operation's body media types from it (api.security.DeclaredBodies)
+            await anyio.to_thread.run_sync(app.openapi)
             try:
                 yield
             finally:
@@ -99,7 +135,7 @@ def create_app(
                 blas.restore_original_limits()
                 sys.setswitchinterval(switch)
 
-    app = FastAPI(
+    app = ServiceApp(
         title="ris_planner",
         version=version("ris_planner"),
         description=DESCRIPTION,
@@ -113,14 +149,15 @@ def create_app(
     install_answered_handler(app)
     keys = KeyRing(settings)
     app.state.keys = keys
-    # one layer: security headers (on the 401 and 413 it answers too), the store wait bound,
-    # the API key, the body limit, and the fast path of POST /v1/bounds (api.front)
+    # one layer: the store wait bound, hosts and origins, the API key, the body limit, the
+    # body's media type, and the fast path of POST /v1/bounds (api.front)
     app.add_middleware(
         FrontMiddleware,
         keys=keys,
         header=API_KEY_HEADER,
         max_bytes=settings.max_body_bytes,
         store_wait_s=settings.request_store_wait_s,
+        policy=settings.origin_policy,
         fast_bounds=fast_paths,
     )
     app.include_router(meta.health_router)
@@ -140,6 +177,7 @@ def create_app(
     for router in (*routers, meta.router):
         app.include_router(router, prefix="/v1", dependencies=v1, responses=V1_ERROR_RESPONSES)
     install_document_schemas(app)
+    install_policy_responses(app)
     return app
 
 

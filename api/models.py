@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from api.store import Job, JobHead, JobStatus
+from api.store import FaultKind, Job, JobHead, JobStatus
 from ris_planner.model.scenario import KnownPart, preset_document
 
 Bound = float | None
@@ -54,6 +54,53 @@ def plan_examples() -> dict[str, Any]:
     from ris_planner.planning import plan_preset
 
     return {"fig10": {"summary": "Fig. 10 anchor sites", "value": plan_preset("fig10-anchors")}}
+
+
+def site_geojson() -> dict[str, Any]:
+    """A small site as GeoJSON (WGS84): one building with a height and one residential street,
+    in central Helsinki – the example body of the import and of the candidate-site generator."""
+    return {
+        "type": "FeatureCollection",
+        "features": [
+            {
+                "type": "Feature",
+                "properties": {"building": "yes", "height": 12, "name": "Talo"},
+                "geometry": {
+                    "type": "Polygon",
+                    "coordinates": [
+                        [
+                            [24.9380, 60.1700],
+                            [24.9383, 60.1700],
+                            [24.9383, 60.17015],
+                            [24.9380, 60.17015],
+                            [24.9380, 60.1700],
+                        ]
+                    ],
+                },
+            },
+            {
+                "type": "Feature",
+                "properties": {"highway": "residential", "name": "Katu"},
+                "geometry": {
+                    "type": "LineString",
+                    "coordinates": [[24.9376, 60.16985], [24.9388, 60.16985]],
+                },
+            },
+        ],
+    }
+
+
+SITE_OSM_XML = """<?xml version="1.0"?>
+<osm version="0.6">
+  <node id="1" lon="24.9380" lat="60.1700"/><node id="2" lon="24.9382" lat="60.1700"/>
+  <node id="3" lon="24.9382" lat="60.1701"/><node id="4" lon="24.9380" lat="60.1701"/>
+  <node id="5" lon="24.9375" lat="60.1698"/><node id="6" lon="24.9390" lat="60.1698"/>
+  <way id="10"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/>
+    <tag k="building" v="yes"/><tag k="building:levels" v="4"/></way>
+  <way id="11"><nd ref="5"/><nd ref="6"/><tag k="highway" v="residential"/></way>
+</osm>
+"""
+"""The same kind of site as OSM XML: a four-storey building and a residential street."""
 
 
 class ChannelBounds(BaseModel):
@@ -257,9 +304,15 @@ class Health(BaseModel):
     status: Literal["ok", "degraded", "unavailable"] = Field(
         description="ok; degraded: a fault now, the service still answers (see reason), e.g. a"
         " write lock the store is retrying; unavailable (503): the job database does not"
-        " answer. Back to ok as soon as the fault is over"
+        " answer or takes no writes (read-only, full, corrupt). Back to ok as soon as the"
+        " fault is over"
     )
     reason: str | None = Field(None, description="Why the service is degraded or unavailable")
+    fault: FaultKind | None = Field(
+        None,
+        description="The class of the job database's fault now: locked, read-only, full,"
+        " corrupt, io, missing, gone (removed or replaced), error; null when none",
+    )
     last_fault: str | None = Field(
         None, description="The last fault within 5 minutes, also after recovery (for the record)"
     )

@@ -14,13 +14,16 @@ The pool has ``RIS_PLANNER_PARSE_CONCURRENCY`` processes (the bound on document 
 once; the others wait in its queue), forked from the job runner's forkserver (the engine
 already imported), started with the server and stopped with it: each exits when the server is
 gone (it closes the forkserver's "alive" pipe and watches the server's pid), and the server's
-shutdown terminates them.
+shutdown terminates them. A process that dies (killed, out of memory) fails only the request it
+was serving (:class:`ParseProcessDiedError`, 500) and is replaced; one found dead while idle is
+replaced before it takes a request, failing no one.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import multiprocessing
 import os
 import threading
@@ -34,8 +37,11 @@ import anyio
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse, Response
 
+from api.errors import error_response
 from api.processes import WORKER_MODULES, close_inherited_alive_pipe, exit_when_orphaned
 from ris_planner.runtime import allocator
+
+log = logging.getLogger("api")
 
 
 @dataclass(frozen=True)
@@ -73,9 +79,17 @@ async def _on_answered(request: Request, exc: Exception) -> Response:
     return exc.answer.response()
 
 
+async def _on_process_died(request: Request, exc: Exception) -> Response:
+    """The parse process serving the request died: this request fails, with a message."""
+    log.warning("%s %s: %s", request.method, request.url.path, exc)
+    return error_response(500, "internal_error", str(exc))
+
+
 def install_answered_handler(app: FastAPI) -> None:
-    """Register the handler of :class:`AnsweredError` on ``app``."""
+    """Register the handlers of :class:`AnsweredError` and :class:`ParseProcessDiedError` on
+    ``app``."""
     app.add_exception_handler(AnsweredError, _on_answered)
+    app.add_exception_handler(ParseProcessDiedError, _on_process_died)
 
 
 @dataclass(frozen=True)
@@ -116,19 +130,32 @@ def _call(fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
         return _Refused(Answer.of(answer))
 
 
+class ParseProcessDiedError(RuntimeError):
+    """The parse process serving a request died (killed, out of memory) before it answered:
+    that request fails (500), the process is replaced."""
+
+
 class ParsePool:
-    """The bounded process pool of the document routes (see the module docstring)."""
+    """The bounded process pool of the document routes (see the module docstring).
+
+    Each process is an executor of its own (a ``ProcessPoolExecutor`` of one worker) that
+    serves one request at a time: when a process dies, the executor breaks with it and fails
+    only the request it was serving – an executor of several processes fails every request it
+    holds – and only that executor is replaced. A process found dead before it takes a request
+    (killed while idle) is replaced without failing anyone."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
         self.limiter = anyio.CapacityLimiter(workers)
         self._closed = False
         self._starter: threading.Thread | None = None
-        self._pool = self._new_pool()
+        self._idle = [self._new_executor() for _ in range(workers)]
+        self._live = set(self._idle)
 
-    def _new_pool(self) -> ProcessPoolExecutor:
+    @staticmethod
+    def _new_executor() -> ProcessPoolExecutor:
         return ProcessPoolExecutor(
-            max_workers=self.workers,
+            max_workers=1,
             mp_context=multiprocessing.get_context("forkserver"),
             initializer=_init_parse_worker,
             initargs=(os.getpid(), WORKER_MODULES),
@@ -138,38 +165,73 @@ class ParsePool:
         """Start every process now, in the background (the server answers meanwhile; the
         first document then seldom waits for a process to start: starting the forkserver,
         which imports the engine, takes seconds)."""
+        executors = list(self._idle)
 
         def spawn() -> None:
-            with contextlib.suppress(RuntimeError):  # closed meanwhile
-                for _ in range(self.workers):
+            with contextlib.suppress(RuntimeError, BrokenProcessPool):  # closed meanwhile
+                for executor in executors:
                     if self._closed:
                         return
-                    self._pool.submit(_ready)
+                    executor.submit(_ready)
 
         self._starter = threading.Thread(target=spawn, name="parse-pool-start", daemon=True)
         self._starter.start()
 
     def pids(self) -> list[int]:
-        procs = self._pool._processes or {}
-        return sorted(p.pid for p in list(procs.values()) if p.pid is not None)
+        procs = [p for e in list(self._live) for p in list((e._processes or {}).values())]
+        return sorted(p.pid for p in procs if p.pid is not None)
+
+    @staticmethod
+    def _dead(executor: ProcessPoolExecutor) -> bool:
+        """Whether the executor broke, or its process died, while it was idle."""
+        if getattr(executor, "_broken", False):
+            return True
+        procs = list((executor._processes or {}).values())
+        return any(p.exitcode is not None for p in procs)
+
+    def _replace(self, executor: ProcessPoolExecutor) -> ProcessPoolExecutor:
+        """A new executor in the place of ``executor``. On a thread of its own (joining a
+        manager thread, starting a process must not hold the event loop) the old one is shut
+        down and the new one's process started: the pool is whole again at once."""
+        self._live.discard(executor)
+        fresh = self._new_executor()
+        self._live.add(fresh)
+
+        def swap() -> None:
+            self._terminate(executor)
+            with contextlib.suppress(RuntimeError, BrokenProcessPool):  # closed meanwhile
+                if not self._closed:
+                    fresh.submit(_ready)
+
+        threading.Thread(target=swap, name="parse-pool-replace", daemon=True).start()
+        return fresh
 
     async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
         """``fn(*args)`` in a pool process (at most ``workers`` at once); a document's error
-        raises :class:`AnsweredError` with the answer the exception handlers would give."""
+        raises :class:`AnsweredError` with the answer the exception handlers would give,
+        the death of the process that served it :class:`ParseProcessDiedError`."""
         async with self.limiter:
-            pool = self._pool
+            # processes killed while idle are not this request's doing: replaced, every one
+            self._idle = [self._replace(e) if self._dead(e) else e for e in self._idle]
+            executor = self._idle.pop()  # one idle executor per token of the limiter
             try:
-                # submitting may start a process (and wait for the forkserver to boot): in a
-                # thread, never on the event loop
-                future = await anyio.to_thread.run_sync(pool.submit, _call, fn, args)
-                out = await asyncio.wrap_future(future)
-            except BrokenProcessPool:
-                # a process died (killed, out of memory): this request fails, the next ones
-                # get a fresh pool
-                if self._pool is pool:
-                    self._terminate(pool)
-                    self._pool = self._new_pool()
-                raise
+                try:
+                    # submitting may start a process (and wait for the forkserver to boot): in
+                    # a thread, never on the event loop
+                    future = await anyio.to_thread.run_sync(executor.submit, _call, fn, args)
+                except BrokenProcessPool:  # it died between the check and the submission
+                    executor = self._replace(executor)
+                    future = await anyio.to_thread.run_sync(executor.submit, _call, fn, args)
+                try:
+                    out = await asyncio.wrap_future(future)
+                except BrokenProcessPool:
+                    executor = self._replace(executor)
+                    raise ParseProcessDiedError(
+                        "the parse process reading this request's document died (killed, or out"
+                        " of memory); nothing was done – a smaller document, or try again"
+                    ) from None
+            finally:
+                self._idle.append(executor)
         if isinstance(out, _Refused):
             raise AnsweredError(out.answer)
         return out
@@ -181,7 +243,9 @@ class ParsePool:
         self._closed = True
         if self._starter is not None:
             self._starter.join(timeout_s)
-        self._terminate(self._pool, timeout_s)
+        for executor in list(self._live):
+            self._terminate(executor, timeout_s)
+        self._live.clear()
 
     @staticmethod
     def _terminate(pool: ProcessPoolExecutor, timeout_s: float = 10.0) -> None:

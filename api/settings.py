@@ -16,6 +16,8 @@ RIS_PLANNER_MAX_BODY_BYTES 10000000                     request body limit [byte
 RIS_PLANNER_API_KEY      (unset: no authentication)     the admin key (sees every job) on /v1
 RIS_PLANNER_API_KEYS     (unset)                        more keys: ``name:sha256hex,...``
 RIS_PLANNER_API_KEYS_FILE (unset)                       more keys: one ``name:sha256hex`` a line
+RIS_PLANNER_ALLOWED_ORIGINS (unset)                     other origins whose pages may write
+RIS_PLANNER_ALLOWED_HOSTS (unset)                       host names a loopback server answers too
 RIS_PLANNER_REQUEST_STORE_WAIT_S 10                     a request's longest wait for the DB [s]
 RIS_PLANNER_PARSE_CONCURRENCY 4                         request bodies parsed/validated at once
 RIS_PLANNER_DB_BUSY_TIMEOUT_S 10                        SQLite lock wait per attempt [s]
@@ -33,6 +35,7 @@ from pathlib import Path
 from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from api.security import OriginPolicy, parse_list
 from ris_planner.model.limits import (
     JOB_MEMORY_MB_DEFAULT,
     MAX_ARRAY_ELEMENTS,
@@ -130,6 +133,21 @@ class Settings(BaseSettings):
     api_keys_file: Path | None = Field(
         None, description="A file of further API keys, one 'name:sha256hex' a line (# comments)"
     )
+    allowed_origins: str | None = Field(
+        None,
+        max_length=10_000,
+        description="Origins besides the server's own whose browser pages may send it writes"
+        " (POST, DELETE), comma-separated 'scheme://host[:port]': a page served elsewhere that"
+        " uses this service; without them a write whose Origin is another is refused (403)",
+    )
+    allowed_hosts: str | None = Field(
+        None,
+        max_length=10_000,
+        description="Host names a server listening on a loopback address answers besides"
+        " localhost and IP addresses, comma-separated (a name of this machine, a local proxy's"
+        " name); any other Host is refused (403: a page of another site resolving its own name"
+        " to 127.0.0.1)",
+    )
     request_store_wait_s: float = Field(
         10.0,
         gt=0,
@@ -155,6 +173,11 @@ class Settings(BaseSettings):
         pattern=r"^(tcp|tls|inproc|ucx)://\S+$",
         description="Dask scheduler address; plan jobs send their layout search there",
     )
+
+    @property
+    def origin_policy(self) -> OriginPolicy:
+        """Which hosts and origins may send what (:class:`api.security.OriginPolicy`)."""
+        return OriginPolicy(parse_list(self.allowed_origins), parse_list(self.allowed_hosts))
 
     @property
     def request_limits(self) -> RequestLimits:

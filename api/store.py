@@ -15,7 +15,14 @@ run again on the next start.
 
 Faults (README "Fault behaviour"): every call is retried with exponential backoff while SQLite
 reports a transient error (locked, busy, I/O) for up to ``retry_s`` seconds, then raises
-:class:`StoreUnavailableError`. The store remembers the identity (device, inode) of its file:
+:class:`StoreUnavailableError`. Every failing call records its fault by class (:func:`fault_kind`:
+locked, read-only, full, corrupt, …) in :attr:`JobStore.faults`; a fault met by a write lasts
+until a write succeeds (a read-only file still reads), one met by a read until any call does.
+:meth:`JobStore.write_fault` has one row written, at most every :data:`PROBE_EVERY_S` and on a
+thread of its own, for ``/healthz``: a read-only or full database is seen even when nobody
+submits.
+
+The store remembers the identity (device, inode) of its file:
 a call that finds the file removed or replaced raises :class:`StoreGoneError` – a worker's
 store never creates a file – except in the server's store (``recreate=True``), which creates a
 fresh empty database at the same path, records the fault and tells its listener (the job runner
@@ -29,6 +36,7 @@ from __future__ import annotations
 import fcntl
 import json
 import logging
+import math
 import os
 import sqlite3
 import threading
@@ -84,16 +92,28 @@ CREATE TABLE IF NOT EXISTS jobs (
 );
 CREATE INDEX IF NOT EXISTS jobs_seq ON jobs (seq);
 CREATE INDEX IF NOT EXISTS jobs_status ON jobs (status);
+CREATE TABLE IF NOT EXISTS health_probe (
+    id INTEGER PRIMARY KEY CHECK (id = 1),
+    at TEXT NOT NULL
+);
 """
 
 _ADDED_COLUMNS = {"owner": "TEXT", "idempotency_key": "TEXT", "estimate": "TEXT"}
 """Columns added after the first schema (added to an older database when it is opened)."""
 
 _ADDED_INDEXES = """
-CREATE UNIQUE INDEX IF NOT EXISTS jobs_idempotency ON jobs (owner, idempotency_key)
-    WHERE idempotency_key IS NOT NULL;
+CREATE UNIQUE INDEX IF NOT EXISTS jobs_idempotency_key
+    ON jobs (COALESCE(owner, ''), idempotency_key) WHERE idempotency_key IS NOT NULL;
 CREATE INDEX IF NOT EXISTS jobs_owner ON jobs (owner, seq);
 """
+"""Indexes added after the first schema. An Idempotency-Key is unique per owner, the keyless
+owner (NULL) included: SQLite takes NULLs as distinct in a unique index, so the index is on
+``COALESCE(owner, '')`` (an API key's name is never empty)."""
+
+SCHEMA_VERSION = 2
+"""``PRAGMA user_version`` of the current schema. 0 or 1: the unique index was on
+``(owner, idempotency_key)`` and held nothing without API keys; :func:`_migrate` keeps the key
+on the first job of each duplicate (the others stay, without a key) before the new index."""
 
 
 class DatabaseInUseError(RuntimeError):
@@ -101,7 +121,12 @@ class DatabaseInUseError(RuntimeError):
 
 
 class StoreUnavailableError(RuntimeError):
-    """The database did not answer within the retry time (locked, busy, I/O errors)."""
+    """The database did not answer within the retry time (locked, busy, I/O errors); ``kind``:
+    the fault's class (:func:`fault_kind`)."""
+
+    def __init__(self, message: str, kind: FaultKind = "error") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 class StoreGoneError(StoreUnavailableError):
@@ -166,6 +191,29 @@ def server_lock(db_path: Path | str) -> Iterator[DatabaseLock]:
         lock.release()
 
 
+def _migrate(con: sqlite3.Connection) -> None:
+    """Create the schema, or bring an older database to :data:`SCHEMA_VERSION` (in the
+    caller's transaction)."""
+    for statement in _SCHEMA.split(";"):
+        if statement.strip():
+            con.execute(statement)
+    have = {row[1] for row in con.execute("PRAGMA table_info(jobs)")}
+    for name, sql_type in _ADDED_COLUMNS.items():
+        if name not in have:
+            con.execute(f"ALTER TABLE jobs ADD COLUMN {name} {sql_type}")
+    if int(con.execute("PRAGMA user_version").fetchone()[0]) < SCHEMA_VERSION:
+        con.execute("DROP INDEX IF EXISTS jobs_idempotency")
+        con.execute(  # duplicates made while the old index held nothing: the first keeps it
+            "UPDATE jobs SET idempotency_key = NULL WHERE idempotency_key IS NOT NULL AND seq >"
+            " (SELECT MIN(seq) FROM jobs AS first WHERE first.idempotency_key ="
+            " jobs.idempotency_key AND COALESCE(first.owner, '') = COALESCE(jobs.owner, ''))"
+        )
+    for statement in _ADDED_INDEXES.split(";"):
+        if statement.strip():
+            con.execute(statement)
+    con.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+
+
 def _transient(exc: sqlite3.Error) -> bool:
     """Errors worth another attempt: locks and busy databases, I/O hiccups."""
     text = str(exc).lower()
@@ -174,29 +222,87 @@ def _transient(exc: sqlite3.Error) -> bool:
     )
 
 
+FaultKind = Literal["locked", "read-only", "full", "corrupt", "io", "missing", "gone", "error"]
+"""The class of a storage fault: the database locked or busy, read-only, its disk full, its
+file corrupt (or not a database), an I/O error, the file missing or unopenable, replaced or
+removed under the server, any other SQLite error."""
+
+
+def _no_space(path: Path) -> bool:
+    """Whether the file system of ``path`` has no free block left (a full disk shows up in
+    SQLite as an I/O error as often as SQLITE_FULL: its shared-memory file cannot grow)."""
+    try:
+        return os.statvfs(path.parent).f_bavail == 0
+    except OSError:
+        return False
+
+
+def fault_kind(exc: BaseException, path: Path) -> FaultKind:
+    """The class of a store error (SQLite's error name where Python gives it, else its text)."""
+    if isinstance(exc, StoreGoneError):
+        return "gone"
+    if isinstance(exc, StoreUnavailableError):
+        return exc.kind
+    name = str(getattr(exc, "sqlite_errorname", "") or "")
+    text = str(exc).lower()
+    if name.startswith(("SQLITE_BUSY", "SQLITE_LOCKED")) or "locked" in text or "busy" in text:
+        return "locked"
+    if name.startswith("SQLITE_READONLY") or "readonly" in text:
+        return "read-only"
+    if name.startswith("SQLITE_FULL") or "is full" in text:
+        return "full"
+    if name.startswith(("SQLITE_CORRUPT", "SQLITE_NOTADB")) or "malformed" in text:
+        return "corrupt"
+    if "not a database" in text:
+        return "corrupt"
+    io = name.startswith("SQLITE_IOERR") or "disk i/o" in text
+    unopened = name.startswith("SQLITE_CANTOPEN") or "unable to open" in text
+    if (io or unopened) and _no_space(path):
+        return "full"
+    return "io" if io else "missing" if unopened else "error"
+
+
 @dataclass
 class Fault:
     """One fault the store met (README "Fault behaviour")."""
 
     at: str
     reason: str
+    kind: FaultKind = "error"
     mono: float = field(default_factory=time.monotonic)
 
 
 @dataclass
 class FaultLog:
-    """The last faults, and whether the store is failing now."""
+    """The last faults, and the one the store has now (``current``: its reason, ``kind``: its
+    class, ``by_write``: whether a write met it – only a write that succeeds ends it then)."""
 
     current: str | None = None
+    kind: FaultKind | None = None
+    by_write: bool = False
     recent: list[Fault] = field(default_factory=list)
 
-    def record(self, reason: str) -> None:
-        self.current = reason
+    def record(self, reason: str, kind: FaultKind = "error", write: bool = False) -> None:
+        self.current, self.kind, self.by_write = reason, kind, write
         if not self.recent or self.recent[-1].reason != reason:
-            self.recent = [*self.recent[-9:], Fault(utc_now(), reason)]
+            self.recent = [*self.recent[-9:], Fault(utc_now(), reason, kind)]
 
-    def clear(self) -> None:
-        self.current = None
+    def clear(self, write: bool = True) -> None:
+        """A call succeeded: a write ends any fault, a read one that a read met."""
+        if write or not self.by_write:
+            self.current, self.kind, self.by_write = None, None, False
+
+
+def fault_reason(kind: FaultKind, exc: BaseException) -> str:
+    """A fault's line: its class and SQLite's words (``job database read-only: attempt to
+    write a readonly database``)."""
+    return f"job database {kind}: {exc}"
+
+
+PROBE_EVERY_S = 1.0
+"""``/healthz`` has its probe row written at most this often (:meth:`JobStore.write_fault`)."""
+PROBE_LOCK_WAIT_S = 1.0
+"""The probe's wait for the write lock (a lock held longer is not a fault of its own)."""
 
 
 def utc_now() -> str:
@@ -282,6 +388,9 @@ class JobStore:
         self.faults = FaultLog()
         self.on_recreated: Callable[[], None] | None = None
         self._reopen_lock = threading.Lock()
+        self._probe_lock = threading.Lock()
+        self._probe: tuple[float, BaseException | None] = (-math.inf, None)
+        self._probing = False
         if expect is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._create_schema()
@@ -293,15 +402,16 @@ class JobStore:
             self._check_identity()
 
     def _create_schema(self) -> None:
-        con = sqlite3.connect(self.path, timeout=self.busy_timeout_s)
+        con = sqlite3.connect(self.path, timeout=self.busy_timeout_s, isolation_level=None)
         try:
             con.execute("PRAGMA journal_mode=WAL")
-            con.executescript(_SCHEMA)
-            have = {row[1] for row in con.execute("PRAGMA table_info(jobs)")}
-            for name, sql_type in _ADDED_COLUMNS.items():
-                if name not in have:
-                    con.execute(f"ALTER TABLE jobs ADD COLUMN {name} {sql_type}")
-            con.executescript(_ADDED_INDEXES)
+            con.execute("BEGIN IMMEDIATE")  # one schema change at a time, all or nothing
+            try:
+                _migrate(con)
+            except BaseException:
+                con.execute("ROLLBACK")
+                raise
+            con.execute("COMMIT")
         finally:
             con.close()
 
@@ -327,7 +437,7 @@ class JobStore:
                 " ran; a new empty database was created (jobs it held are lost)"
             )
             log.error(reason)
-            self.faults.record(reason)
+            self.faults.record(reason, "gone")
             self.faults.clear()
         if self.on_recreated is not None:
             self.on_recreated()
@@ -346,11 +456,14 @@ class JobStore:
         finally:
             con.close()
 
-    def _run(self, work: Callable[[sqlite3.Connection], Any], *, retry: bool = True) -> Any:
+    def _run(
+        self, work: Callable[[sqlite3.Connection], Any], *, retry: bool = True, write: bool = False
+    ) -> Any:
         """``work(con)`` in one transaction, retried with backoff on transient errors for up
         to ``retry_s`` (README "Fault behaviour"); :class:`StoreUnavailableError` after that.
         Within an HTTP request (:data:`CALL_BUDGET_S` set) lock waits and retries together end
-        after that budget (docs/guides/service-operations.md)."""
+        after that budget (docs/guides/service-operations.md). Every error is recorded in
+        :attr:`faults` by its class; ``write``: the call writes (see :class:`FaultLog`)."""
         budget = CALL_BUDGET_S.get()
         retry_s = self.retry_s if budget is None else min(self.retry_s, budget)
         start = time.monotonic()
@@ -365,19 +478,20 @@ class JobStore:
                 with self._connect(timeout_s) as con:
                     out = work(con)
                 if self.faults.current is not None:
-                    self.faults.clear()
+                    self.faults.clear(write)
                 return out
             except StoreGoneError:
                 raise
             except sqlite3.Error as exc:
+                kind = fault_kind(exc, self.path)
+                self.faults.record(fault_reason(kind, exc), kind, write)
                 if not _transient(exc) and file_identity(self.path) == self.identity:
                     raise
-                reason = f"job database error: {exc}"
-                self.faults.record(reason)
                 if time.monotonic() + pause > deadline:
                     waited = time.monotonic() - start
                     raise StoreUnavailableError(
-                        f"the job database did not answer for {waited:.1f} s ({exc})"
+                        f"the job database did not answer for {waited:.1f} s ({kind}: {exc})",
+                        kind,
                     ) from None
                 time.sleep(pause)
                 pause = min(2 * pause, BACKOFF_S[1])
@@ -411,8 +525,12 @@ class JobStore:
 
         def work(con: sqlite3.Connection) -> sqlite3.Row | None:
             if idempotency_key is not None:
+                # the write lock first: the look-up and the insert are one transaction, so of
+                # concurrent retries the first creates the job and the others find it
+                con.execute("BEGIN IMMEDIATE")
                 row: sqlite3.Row | None = con.execute(
-                    "SELECT * FROM jobs WHERE owner IS ? AND idempotency_key = ?",
+                    "SELECT * FROM jobs WHERE COALESCE(owner, '') = COALESCE(?, '')"
+                    " AND idempotency_key = ?",
                     (owner, idempotency_key),
                 ).fetchone()
                 if row is not None:
@@ -425,7 +543,7 @@ class JobStore:
             )
             return None
 
-        existing: sqlite3.Row | None = self._run(work)
+        existing: sqlite3.Row | None = self._run(work, write=True)
         if existing is not None:
             return Job.from_row(existing), False
         job = Job(
@@ -449,7 +567,8 @@ class JobStore:
     def delete(self, job_id: str) -> bool:
         """Remove the job's row (True if it existed)."""
         changed: int = self._run(
-            lambda con: con.execute("DELETE FROM jobs WHERE id = ?", (job_id,)).rowcount
+            lambda con: con.execute("DELETE FROM jobs WHERE id = ?", (job_id,)).rowcount,
+            write=True,
         )
         return changed == 1
 
@@ -522,10 +641,47 @@ class JobStore:
         found = {r["status"]: int(r["n"]) for r in rows}
         return {s: found.get(s, 0) for s in JOB_STATUSES}
 
+    def write_fault(self) -> BaseException | None:
+        """What the last write probe met (None: it wrote, or none has run yet), for
+        ``/healthz``; a new probe starts on a thread of its own when the last is older than
+        :data:`PROBE_EVERY_S` – the health check never waits for a write (under a burst of
+        submissions the write lock and its disk sync can take a while)."""
+        with self._probe_lock:
+            at, error = self._probe
+            if time.monotonic() - at >= PROBE_EVERY_S and not self._probing:
+                self._probing = True
+                threading.Thread(target=self._probe_once, name="store-probe", daemon=True).start()
+        return error
+
+    def _probe_once(self) -> None:
+        """One attempt to write the probe row of ``health_probe``: a read-only or full
+        database, a corrupt one, is recorded as a fault met by a write; a lock held by other
+        writers is not a fault (their own calls record one when it lasts)."""
+        error: BaseException | None = None
+        try:
+            with self._connect(PROBE_LOCK_WAIT_S) as con:
+                con.execute(
+                    "INSERT OR REPLACE INTO health_probe (id, at) VALUES (1, ?)", (utc_now(),)
+                )
+        except StoreGoneError as exc:
+            error = exc
+        except sqlite3.Error as exc:
+            kind = fault_kind(exc, self.path)
+            if kind != "locked":
+                error = exc
+                self.faults.record(fault_reason(kind, exc), kind, write=True)
+        else:
+            if self.faults.current is not None:
+                self.faults.clear(write=True)
+        finally:
+            with self._probe_lock:
+                self._probe = (time.monotonic(), error)
+                self._probing = False
+
     # -- transitions (conditional: each returns whether it applied) ------------------------
 
     def _update(self, job_id: str, sql: str, args: tuple[Any, ...]) -> bool:
-        changed: int = self._run(lambda con: con.execute(sql, (*args, job_id)).rowcount)
+        changed: int = self._run(lambda con: con.execute(sql, (*args, job_id)).rowcount, write=True)
         return changed == 1
 
     def start(self, job_id: str, at: str | None = None) -> bool:
@@ -581,7 +737,8 @@ class JobStore:
                     " COALESCE(MAX(seq), 0) + 1, ?, ? FROM jobs",
                     (job_id, kind, error, now, now),
                 ).rowcount
-            )
+            ),
+            write=True,
         )
         return changed == 1
 
@@ -613,6 +770,7 @@ class JobStore:
                 "UPDATE jobs SET status = 'failed', message = 'failed', error = ?,"
                 " finished_at = ? WHERE status = 'running'",
                 (INTERRUPTED_MESSAGE, utc_now()),
-            )
+            ),
+            write=True,
         )
         return self.ids_with_status("queued")

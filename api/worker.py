@@ -43,6 +43,7 @@ import traceback
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from datetime import datetime
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
@@ -276,10 +277,10 @@ def execute_job(
     threadpool_limits(limits=blas_threads)
     try:
         _execute(db_path, figures_dir, job_id, func, identity, store_options or {})
-    except StoreUnavailableError as exc:
+    except (StoreUnavailableError, sqlite3.Error) as exc:  # read-only, full, corrupt: no retry
         from api.store import StoreGoneError
 
-        log.error("job %s: %s", job_id, exc)
+        log.error("job %s: the job database failed: %s", job_id, exc)
         _remove(staging_dir(figures_dir, job_id))
         sys.exit(EXIT_STORE_GONE if isinstance(exc, StoreGoneError) else EXIT_STORE_UNAVAILABLE)
 
@@ -313,7 +314,7 @@ def _execute(
     except JobCancelledError:
         _remove(staging)
         return
-    except StoreUnavailableError:
+    except (StoreUnavailableError, sqlite3.Error):
         raise
     except Exception as exc:  # every failure ends the job with a message, never a hang
         _remove(staging)
@@ -448,13 +449,16 @@ class JobRunner:
         return self.store.faults.current
 
     def last_fault(self) -> str | None:
-        """The last fault met within :data:`FAULT_HOLD_S` (recovered or not), for the record."""
-        if self._last_fault is not None and time.monotonic() - self._fault_at < FAULT_HOLD_S:
-            return self._last_fault
-        recent = self.store.faults.recent
-        if recent and time.monotonic() - recent[-1].mono < FAULT_HOLD_S:
-            return recent[-1].reason
-        return None
+        """The last fault met within :data:`FAULT_HOLD_S` (recovered or not), for the record:
+        the dispatcher's or the store's, whichever came later."""
+        found = []
+        if self._last_fault is not None:
+            found.append((self._fault_at, self._last_fault))
+        if self.store.faults.recent:
+            last = self.store.faults.recent[-1]
+            found.append((last.mono, last.reason))
+        at, reason = max(found, default=(-math.inf, None))
+        return reason if time.monotonic() - at < FAULT_HOLD_S else None
 
     def stop(self, timeout_s: float = 10.0) -> None:
         """Stop dispatching; terminate running workers and put their jobs back in the queue."""
@@ -516,6 +520,7 @@ class JobRunner:
         )
         proc.start()
         self._procs[job_id] = proc
+        log.info("job %s (%s) started in process %s", job_id, job.kind, proc.pid)
 
     def _settle(self, job_id: str, error: str) -> None:
         """Store a job's final error; kept for a later cycle when the store is unavailable."""
@@ -532,13 +537,35 @@ class JobRunner:
             proc.join()
             del self._procs[job_id]
             _remove(staging_dir(self.figures_dir, job_id))
+            kind = self._kind_of.get(job_id, "unknown")
             if job_id in self._deleted:  # removed (DELETE): nothing to record
                 self._deleted.discard(job_id)
                 self._kind_of.pop(job_id, None)
-            elif proc.exitcode != 0:  # no-op when the job was cancelled (terminated) or ended
+                log.info("job %s (%s) removed", job_id, kind)
+                continue
+            if proc.exitcode != 0:  # no-op when the job was cancelled (terminated) or ended
                 self._settle(job_id, exit_message(proc.exitcode))
             else:
                 self._kind_of.pop(job_id, None)
+            self._log_end(job_id, kind, proc.exitcode)
+
+    def _log_end(self, job_id: str, kind: str, exitcode: int | None) -> None:
+        """One info line for a job whose process ended: its final state and time."""
+        try:
+            head = self.store.head(job_id)
+        except (StoreUnavailableError, sqlite3.Error):
+            head = None
+        if head is None:
+            log.info("job %s (%s) ended (worker exit code %s)", job_id, kind, exitcode)
+            return
+        took = ""
+        if head.started_at and head.finished_at:
+            seconds = datetime.fromisoformat(head.finished_at) - datetime.fromisoformat(
+                head.started_at
+            )
+            took = f" in {seconds.total_seconds():.1f} s"
+        error = f": {head.error}" if head.error else ""
+        log.info("job %s (%s) %s%s%s", job_id, kind, head.status, took, error)
 
     def _handle_lost_database(self) -> None:
         """The store recreated a removed database: stop the workers writing to the old one

@@ -14,6 +14,11 @@ from api.main import create_app
 from api.settings import Settings
 from api.worker import JobFunction
 
+JSON = {"Content-Type": "application/json"}
+GEOJSON = {"Content-Type": "application/geo+json"}
+OCTETS = {"Content-Type": "application/octet-stream"}
+"""Request headers of a body of each media type (a body must say its type: 415 otherwise)."""
+
 
 @contextmanager
 def api_client(

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from api_helpers import api_client
+from api_helpers import GEOJSON, api_client
 from tolerance import assert_close
 
 pyproj = pytest.importorskip("pyproj")
@@ -135,7 +135,9 @@ def test_site_preview_of_an_import_without_candidates(tmp_path: Path) -> None:
     buildings and road points as validate does once a candidate is added."""
     body = (HELSINKI / "helsinki.geojson").read_bytes()
     with api_client(tmp_path) as client:
-        doc = client.post("/v1/import?format=geojson", content=body).json()["document"]
+        doc = client.post("/v1/import?format=geojson", content=body, headers=GEOJSON).json()[
+            "document"
+        ]
         assert client.post("/v1/plans/validate", json=doc).status_code == 422
         site = client.post("/v1/site/preview", json=doc)
         assert site.status_code == 200, site.text
@@ -313,7 +315,9 @@ def test_every_candidate_inside_a_building_is_named_where_the_document_has_it(
 
     body = (HELSINKI / "helsinki.geojson").read_bytes()
     with api_client(tmp_path) as client:
-        doc = client.post("/v1/import?format=geojson", content=body).json()["document"]
+        doc = client.post("/v1/import?format=geojson", content=body, headers=GEOJSON).json()[
+            "document"
+        ]
         local_doc, _ = to_local(doc)
         obstacles = local_doc["environment"]["obstacles"]
         tall = [k for k, ob in enumerate(obstacles) if ob["height_m"] > 4][:5]

@@ -182,7 +182,12 @@ def test_client_gone_before_its_body_is_the_same_400(tmp_path: Path) -> None:
             "raw_path": b"/v1/bounds",
             "root_path": "",
             "query_string": b"",
-            "headers": [(b"host", b"t"), (b"content-length", b"600"), (b"x-api-key", KEY.encode())],
+            "headers": [
+                (b"host", b"127.0.0.1:8000"),
+                (b"content-type", b"application/json"),
+                (b"content-length", b"600"),
+                (b"x-api-key", KEY.encode()),
+            ],
             "client": ("127.0.0.1", 5000),
             "server": ("127.0.0.1", 8000),
         }

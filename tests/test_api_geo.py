@@ -18,12 +18,14 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
+from api_helpers import GEOJSON, OCTETS
 from test_api_e2e import poll
 from test_api_plans import small_plan_doc, without_timing
 from test_io_import import _floor_plan
 from tolerance import BOUND_ACCURACY, assert_close
 
 from api.launch import served
+from api.models import SITE_OSM_XML
 from ris_planner.io.frames import Frame
 
 ORIGIN = (24.9384, 60.1699, 10.0)
@@ -272,17 +274,10 @@ def test_import_geojson_gives_a_plan_document(
 
 
 def test_import_osm_xml(server: str) -> None:
-    osm = """<?xml version="1.0"?><osm version="0.6">
-      <node id="1" lon="24.9380" lat="60.1700"/><node id="2" lon="24.9382" lat="60.1700"/>
-      <node id="3" lon="24.9382" lat="60.1701"/><node id="4" lon="24.9380" lat="60.1701"/>
-      <node id="5" lon="24.9375" lat="60.1698"/><node id="6" lon="24.9390" lat="60.1698"/>
-      <way id="10"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/>
-        <tag k="building" v="yes"/><tag k="building:levels" v="4"/></way>
-      <way id="11"><nd ref="5"/><nd ref="6"/><tag k="highway" v="residential"/></way>
-    </osm>"""
+    """The OpenAPI document's OSM XML example: a four-storey building and a street."""
     r = httpx.post(
         f"{server}/v1/import",
-        content=osm.encode(),
+        content=SITE_OSM_XML.encode(),
         headers={"Content-Type": "application/xml"},
         timeout=60,
     )
@@ -300,7 +295,7 @@ def test_import_dxf(server: str, tmp_path: Path) -> None:
     _floor_plan(path, insunits=4)  # millimetres
     body = path.read_bytes()
     url = f"{server}/v1/import?format=dxf&layer=WALLS=wall:2.7&layer=COLUMNS=prism:3:0.1"
-    r = httpx.post(url, content=body, timeout=60)
+    r = httpx.post(url, content=body, headers=OCTETS, timeout=60)
     assert r.status_code == 200, r.text
     doc, report = r.json()["document"], r.json()["report"]
     walls = [(o["start"], o["end"]) for o in doc["environment"]["obstacles"] if o["kind"] == "wall"]
@@ -308,11 +303,13 @@ def test_import_dxf(server: str, tmp_path: Path) -> None:
     assert report["units_to_m"] == 0.001 and report["prisms"] == 1
     assert doc["tx_map"]["grid"]["x"] == [0.0, 10.0, 5.0]  # a grid over the plan
     # layers that the drawing does not have: a 422 naming them
-    r = httpx.post(f"{server}/v1/import?format=dxf&layer=DOORS=wall:2", content=body, timeout=60)
+    doors = f"{server}/v1/import?format=dxf&layer=DOORS=wall:2"
+    r = httpx.post(doors, content=body, headers=OCTETS, timeout=60)
     assert r.status_code == 422 and "'DOORS' not in the drawing" in r.json()["message"]
-    r = httpx.post(f"{server}/v1/import?format=dxf", content=body, timeout=60)
+    r = httpx.post(f"{server}/v1/import?format=dxf", content=body, headers=OCTETS, timeout=60)
     assert r.status_code == 422 and "no layers chosen" in r.json()["message"]
-    r = httpx.post(f"{server}/v1/import?format=dxf", content=b"0\nSECTION\nnonsense", timeout=60)
+    nonsense = b"0\nSECTION\nnonsense"
+    r = httpx.post(f"{server}/v1/import?format=dxf", content=nonsense, headers=OCTETS, timeout=60)
     assert r.status_code == 422 and "request body" in r.json()["message"]
 
 
@@ -361,10 +358,10 @@ def test_import_errors(server: str) -> None:
         (b'{"type": "FeatureCollection", "features": []}', 422),
         (b"\x00\x01", 422),
     ]:
-        r = httpx.post(f"{server}/v1/import", content=body, timeout=60)
+        r = httpx.post(f"{server}/v1/import", content=body, headers=OCTETS, timeout=60)
         assert r.status_code == status and r.json()["message"], (body, r.text)
     big = json.dumps(helsinki_site()).encode() * 6  # > RIS_PLANNER_MAX_BODY_BYTES = 200 000
-    r = httpx.post(f"{server}/v1/import", content=big, timeout=60)
+    r = httpx.post(f"{server}/v1/import", content=big, headers=GEOJSON, timeout=60)
     assert r.status_code == 413 and r.json()["limit"] == 200_000
     spec = httpx.get(f"{server}/openapi.json", timeout=30).json()
     body_types = spec["paths"]["/v1/import"]["post"]["requestBody"]["content"]

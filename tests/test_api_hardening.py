@@ -24,6 +24,7 @@ from typing import Any
 
 import httpx
 import pytest
+from api_helpers import JSON
 from test_api_faults import FINAL, poll, wait_gone
 from test_api_plans import small_plan_doc
 
@@ -125,7 +126,7 @@ def test_client_disconnect_mid_body_is_no_error(tmp_path: Path) -> None:
         host, port = server.url.removeprefix("http://").split(":")
         for path in ("/v1/plans", "/v1/bounds", "/v1/import", "/v1/plans/validate"):
             with socket.create_connection((host, int(port)), timeout=5) as s:
-                head = f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                head = f"POST {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
                 s.sendall(f"{head}Content-Length: 1000\r\n\r\n".encode() + b'{"a": 1')
             time.sleep(0.3)
         assert httpx.get(f"{server.url}/healthz", timeout=5).status_code == 200
@@ -148,9 +149,9 @@ def test_one_error_class_per_failure_kind(tmp_path: Path) -> None:
         huge = '{"a": ' + "7" * 100_000 + "}"
         for route in routes:
             for body in (nested(10_000), '{"x": ' + nested(100) + "}", "{not json"):
-                r = httpx.post(f"{url}{route}", content=body, timeout=30)
+                r = httpx.post(f"{url}{route}", content=body, headers=JSON, timeout=30)
                 assert r.status_code == 400 and r.json()["error"] == "bad_request", (route, r.text)
-            r = httpx.post(f"{url}{route}", content=huge, timeout=30)
+            r = httpx.post(f"{url}{route}", content=huge, headers=JSON, timeout=30)
             assert r.status_code == 413, (route, r.status_code, r.text[:300])
             assert "digits" in r.json()["message"] and "sys." not in r.text, route
             r = httpx.post(f"{url}{route}", content=b"x" * 20_000_000, timeout=30)
@@ -167,12 +168,11 @@ def test_list_sizes_refused_before_validation(tmp_path: Path) -> None:
         small = httpx.post(f"{server.url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
         assert small.status_code == 200, small.text[:300]
         for route in ("/v1/plans", "/v1/plans/validate", "/v1/bounds"):
-            t0 = time.monotonic()
-            r = httpx.post(f"{server.url}{route}", content=body, timeout=60)
-            took = time.monotonic() - t0
+            r = httpx.post(f"{server.url}{route}", content=body, headers=JSON, timeout=60)
+            # counted, never validated: every prism is invalid ("height" is not a field), so a
+            # validation would have answered 422
             assert r.status_code == 413 and r.json()["limit"] == 100_000, r.text[:300]
-            assert "obstacles" in r.json()["message"]
-            assert took < 5.0, took  # parsed and counted, never validated (validation: ~10 s)
+            assert "100001 obstacles exceed the limit of 100000" in r.json()["message"]
 
 
 def headers(key: str, **more: str) -> dict[str, str]:

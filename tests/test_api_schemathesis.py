@@ -53,6 +53,8 @@ CONFIG = SchemathesisConfig.from_dict(
         }
     }
 )
+for dxf in ("application/dxf", "image/vnd.dxf", "image/x-dxf"):  # the import's DXF bodies: bytes
+    schemathesis.serializer.alias(dxf, "application/octet-stream")
 schema = schemathesis.openapi.from_dict(app.openapi(), config=CONFIG)
 schema.app = app
 
@@ -104,7 +106,10 @@ def test_schema_states_the_string_rules(tmp_path: Path) -> None:
                 assert r.status_code == 422, (route, frame, r.text)
         for spec_text in ("", "=wall:3", "a=wall:0", "a=roof:3", "a=prism:3:-1", "a=wall:1e3"):
             r = client.post(
-                "/v1/import?format=dxf", params={"layer": spec_text}, content=b"0", headers=AUTH
+                "/v1/import?format=dxf",
+                params={"layer": spec_text},
+                content=b"0",
+                headers=AUTH | {"Content-Type": "application/octet-stream"},
             )
             assert r.status_code == 422, (spec_text, r.text)
             assert r.json()["fields"][0]["location"] == "query", r.text

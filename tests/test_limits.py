@@ -376,3 +376,22 @@ def test_bench_memory_rows_carry_the_time_model_terms() -> None:
     got = run_case(SMOKE[0], timeout=120)
     assert set(got["terms"]) == set(got["estimate_stages_s"]) - {"beams"}
     assert got["terms"]["search"]["per_layout_pair"] > 0
+
+
+def test_every_limit_refusal_states_its_limit() -> None:
+    """Every ``LimitExceededError`` the code raises carries the limit it exceeded (the service
+    answers 413 with ``limit``: never a 413 without it)."""
+    import ast
+
+    root = Path(__file__).resolve().parent.parent
+    missing = []
+    for top in ("ris_planner", "api"):
+        for path in sorted((root / top).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if not isinstance(node, ast.Call):
+                    continue
+                if getattr(node.func, "id", None) != "LimitExceededError":
+                    continue
+                if len(node.args) < 2 and not any(k.arg == "limit" for k in node.keywords):
+                    missing.append(f"{path.relative_to(root)}:{node.lineno}")
+    assert missing == []

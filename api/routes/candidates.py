@@ -35,16 +35,18 @@ before any candidate is placed): its obstacles and UE maps in local metres, as t
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
 import anyio
-from fastapi import APIRouter, Request
+from fastapi import APIRouter, Body, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from api.documents import GeoFrame, json_document
+from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, size_limit
+from api.models import plan_examples
 from api.routes.web import MapPreview, _map_preview
-from ris_planner.core.errors import DocumentFieldError, RisPlannerError
+from ris_planner.core.errors import DocumentFieldError, LimitExceededError, RisPlannerError
 from ris_planner.environment.model import Environment
 from ris_planner.io.candidates import (
     ATTRIBUTION_KEYS,
@@ -54,13 +56,14 @@ from ris_planner.io.candidates import (
 )
 from ris_planner.io.frames import MAX_LICENSE_CHARS, Frame, parse_frame, to_local
 from ris_planner.io.site_points import import_sites
+from ris_planner.model.limits import MAX_CANDIDATES
 from ris_planner.model.plan import Candidate, UEMap
 from ris_planner.planning.inputs.ue_maps import build_map
 
 router = APIRouter(tags=["import"])
 
-MAX_CONVERT_CANDIDATES = 10_000
-"""Candidates per request: a plan document's limit on explicit candidates."""
+MAX_CONVERT_CANDIDATES = MAX_CANDIDATES
+"""Candidates per request: a plan document's limit on explicit candidates (413 above it)."""
 
 
 class CandidateConversion(BaseModel):
@@ -165,12 +168,33 @@ def convert_candidates(req: CandidateConversion) -> ConvertedCandidates:
     return ConvertedCandidates(local=local, document=_to_frame(frame, local))
 
 
+EXAMPLE_FRAMED_CANDIDATES: dict[str, Any] = {
+    "frame": {"origin": [24.9382, 60.17, 0.0]},
+    "local": [
+        {"position": [-10.0, 5.0, 6.0], "orientation": [3.14159, 0.2, 0.0]},
+        {"position": [12.0, -4.0, 4.0], "name": "pole"},
+    ],
+}
+"""Two candidates in local metres and the frame of their document (central Helsinki): the
+OpenAPI examples of the candidate routes."""
+
+CONVERT_EXAMPLES: dict[str, Any] = {
+    "to_document": {
+        "summary": "Two candidates in local metres → a WGS84 document's coordinates",
+        "value": EXAMPLE_FRAMED_CANDIDATES,
+    }
+}
+"""The OpenAPI example of ``POST /v1/candidates/convert``."""
+
+
 @router.post(
     "/candidates/convert",
     response_model=ConvertedCandidates,
     summary="Candidate sites: local metres ↔ a document's frame; GeoJSON sites → candidates",
 )
-async def post_convert(body: CandidateConversion) -> ConvertedCandidates:
+async def post_convert(
+    body: Annotated[CandidateConversion, Body(openapi_examples=CONVERT_EXAMPLES)],
+) -> ConvertedCandidates:
     """``local`` (what the planner page edits) → the document's coordinates; ``document`` →
     local metres (:func:`ris_planner.io.frames.to_local`); ``sites`` (WGS84 mounting Points,
     e.g. the answer of ``POST /v1/sites``) → both, through the import's
@@ -238,12 +262,23 @@ def candidates_file(req: CandidatesFileRequest) -> dict[str, Any]:
     return candidates_geojson(frame, local, members, req.properties)
 
 
+FILE_EXAMPLES: dict[str, Any] = {
+    "two": {
+        "summary": "Two candidates of a document framed in central Helsinki",
+        "value": {**EXAMPLE_FRAMED_CANDIDATES, "license": "© OpenStreetMap contributors, ODbL 1.0"},
+    }
+}
+"""The OpenAPI example of ``POST /v1/candidates/geojson``."""
+
+
 @router.post(
     "/candidates/geojson",
     response_model=CandidatesFile,
     summary="Candidate sites → the candidates file (what ris-planner sites writes)",
 )
-async def post_candidates_file(body: CandidatesFileRequest) -> JSONResponse:
+async def post_candidates_file(
+    body: Annotated[CandidatesFileRequest, Body(openapi_examples=FILE_EXAMPLES)],
+) -> JSONResponse:
     """Candidates in local metres (the page's list, or a plan's ``candidates``) → the GeoJSON
     candidates file of ``ris-planner sites`` and ``POST /v1/sites``, from the same function
     (:func:`ris_planner.io.candidates.candidates_geojson`): WGS84 Points with ``name``,
@@ -293,6 +328,9 @@ def _valid(model: Any, value: Any, where: str) -> Any:
     try:
         return model.model_validate(value)
     except ValidationError as exc:
+        size = size_limit(exc.errors())
+        if size is not None:  # 413 with the limit, the field named from the document's top
+            raise LimitExceededError(f"{where}.{size}", size.limit) from None
         first = exc.errors()[0]
         loc = ".".join(str(p) for p in first["loc"])
         raise DocumentFieldError(f"{where}.{loc}" if loc else where, first["msg"]) from None
@@ -301,7 +339,22 @@ def _valid(model: Any, value: Any, where: str) -> Any:
 @router.post(
     "/site/preview",
     response_model=SitePreview,
+    responses={**TOO_LARGE_RESPONSE, **GIS_EXTRA_RESPONSE},
     summary="Obstacles and UE maps of a plan document in local metres (no candidates needed)",
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "description": "A plan document, or the start of one (an import's): its tx_map,"
+            " rx_map, environment and frame are read, in local metres or in the frame's"
+            " coordinates; nothing else is needed",
+            "content": {
+                "application/json": {
+                    "schema": {"$ref": "#/components/schemas/SiteDocument"},
+                    "examples": plan_examples(),
+                }
+            },
+        }
+    },
 )
 async def post_site_preview(request: Request) -> SitePreview:
     """The parts of ``POST /v1/plans/validate``'s preview that need no candidate sites: the

@@ -16,6 +16,7 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field, StringConstraints
 
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
+from api.models import SITE_OSM_XML, site_geojson
 from api.offload import Answer, ParsePool
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.io.dxf import LAYER_SPEC_PATTERN, parse_layer_spec
@@ -71,14 +72,26 @@ class ImportAnswer(BaseModel):
     )
 
 
+def _import_media(media: str) -> dict[str, Any]:
+    """The OpenAPI entry of one media type the import takes (with an example for GeoJSON and
+    OSM XML)."""
+    fmt = MEDIA_FORMATS.get(media)
+    if fmt == "geojson":
+        example = {"summary": "A building and a street", "value": site_geojson()}
+        return {"schema": {"type": "object"}, "examples": {"site": example}}
+    if fmt == "osm":
+        example = {"summary": "A building and a street", "value": SITE_OSM_XML}
+        return {"schema": {"type": "string"}, "examples": {"site": example}}
+    return {"schema": {"type": "string", "format": "binary"}}
+
+
 IMPORT_BODY: dict[str, Any] = {
     "requestBody": {
         "required": True,
-        "description": "The file itself: a GeoJSON FeatureCollection, OSM XML or a DXF drawing",
+        "description": "The file itself: a GeoJSON FeatureCollection, OSM XML or a DXF drawing,"
+        " sent with its media type (application/octet-stream for any format, with ?format=)",
         "content": {
-            "application/geo+json": {"schema": {"type": "object"}},
-            "application/xml": {"schema": {"type": "string"}},
-            "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
+            media: _import_media(media) for media in (*MEDIA_FORMATS, "application/octet-stream")
         },
     }
 }

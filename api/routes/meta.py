@@ -16,7 +16,7 @@ from pydantic import BaseModel, Field
 from api.deps import get_runner, get_settings, get_store
 from api.models import Health, ObjectiveInfo, ObjectiveList, Preset, PresetList
 from api.settings import Settings
-from api.store import JobStore, StoreUnavailableError
+from api.store import FaultKind, JobStore, StoreUnavailableError, fault_kind
 from api.worker import JobRunner, describe_error
 from ris_planner.environment.kinds import describe_kinds
 from ris_planner.io.gis_outputs import PLAN_WRITERS
@@ -43,26 +43,49 @@ async def healthz(
     settings: Annotated[Settings, Depends(get_settings)],
 ) -> JSONResponse:
     """``ok``; ``degraded`` (200) with the ``reason`` while a fault lasts and the service still
-    answers (a locked database the store retries, a dispatcher error); 503 while the job
-    database does not answer (one attempt, no retries: the answer comes at once); ``ok`` again
-    when the fault is over, ``last_fault`` keeping the last one for 5 minutes. Its work runs
-    on its own threads (never queued behind request work), so it answers under load."""
+    answers (a locked database the store retries, a dispatcher error); 503 ``unavailable``
+    while the job database does not answer or takes no writes (read-only, full, corrupt: one
+    attempt each, no retries: the answer comes at once); ``fault`` names the storage fault's
+    class while it lasts; ``ok`` again when the fault is over, ``last_fault`` keeping the last
+    one for 5 minutes. Its work runs on its own threads (never queued behind request work), so
+    it answers under load."""
     limiter: anyio.CapacityLimiter = request.app.state.health_limiter
     return await anyio.to_thread.run_sync(_health, store, runner, settings, limiter=limiter)
 
 
 def _health(store: JobStore, runner: JobRunner, settings: Settings) -> JSONResponse:
-    reason = runner.health()
+    """The store asked for a read (the counts, one attempt) and for what its last write probe
+    met (:meth:`api.store.JobStore.write_fault`). A read that fails is ``unavailable`` (503),
+    a write that failed too; a fault of a call failing now (a lock the store retries) and the
+    dispatcher's are ``degraded``. ``fault`` names the storage fault's class."""
+    reasons: list[str] = []
+    fault: FaultKind | None = None
+    status, code = "ok", 200
     try:
-        counts, status, code = store.counts(retry=False), "ok", 200
+        counts = store.counts(retry=False)
     except (sqlite3.Error, StoreUnavailableError) as exc:
         counts, status, code = {}, "unavailable", 503
-        reason = f"the job database does not answer ({describe_error(exc)})"
-    if status == "ok" and reason is not None:
+        fault = fault_kind(exc, store.path)
+        reasons.append(f"the job database does not answer: {fault} ({describe_error(exc)})")
+    else:
+        failed = store.write_fault()
+        if failed is not None:
+            fault = fault_kind(failed, store.path)
+            status, code = "unavailable", 503
+            reasons.append(f"the job database takes no writes: {fault} ({describe_error(failed)})")
+    if fault is None and store.faults.current is not None:
+        fault = store.faults.kind  # a call failing now (a retried lock, a write)
+        if fault not in ("locked", "gone"):  # a write that no wait can help
+            status, code = "unavailable", 503
+    other = runner.health()
+    if other is not None and other not in " ".join(reasons):
+        reasons.append(other)
+    if status == "ok" and reasons:
         status = "degraded"
     body = Health(
         status=status,
-        reason=reason,
+        reason="; ".join(reasons) or None,
+        fault=fault,
         last_fault=runner.last_fault(),
         version=version("ris_planner"),
         workers=settings.workers,

@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from api.documents import json_document
 from api.errors import GIS_EXTRA_RESPONSE, TOO_LARGE_RESPONSE, ErrorBody
+from api.models import site_geojson
 from ris_planner.io.candidates import CandidateOptions, candidate_sites
 
 router = APIRouter(tags=["import"])
@@ -72,7 +73,17 @@ SITES_BODY: dict[str, Any] = {
     "requestBody": {
         "required": True,
         "description": "The site and the layout options",
-        "content": {"application/json": {"schema": _request_schema()}},
+        "content": {
+            "application/json": {
+                "schema": _request_schema(),
+                "examples": {
+                    "block": {
+                        "summary": "A building and a street, default options",
+                        "value": {"site": site_geojson(), "options": {}},
+                    }
+                },
+            }
+        },
     }
 }
 

@@ -128,7 +128,8 @@ def cost_map(
     nx, ny = count((xmax - xmin) / step_m + 1e-9) + 1, count((ymax - ymin) / step_m + 1e-9) + 1
     if nx * ny > MAX_MAP_POINTS:
         raise LimitExceededError(
-            f"{nx * ny} map points exceed the limit {MAX_MAP_POINTS}; use a larger step"
+            f"{nx * ny} map points exceed the limit {MAX_MAP_POINTS}; use a larger step",
+            MAX_MAP_POINTS,
         )
     x = np.asarray(xmin + step_m * np.arange(nx))
     y = np.asarray(ymin + step_m * np.arange(ny))

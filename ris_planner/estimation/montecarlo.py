@@ -245,11 +245,13 @@ def run_monte_carlo(
     if runs < 1:
         raise RisPlannerError(f"runs must be ≥ 1, got {runs}")
     if runs > MAX_RUNS:
-        raise LimitExceededError(f"runs = {runs} exceeds the limit {MAX_RUNS}")
+        raise LimitExceededError(f"runs = {runs} exceeds the limit {MAX_RUNS}", MAX_RUNS)
     if not powers_dbm:
         raise RisPlannerError("give at least one transmit power")
     if len(powers_dbm) > MAX_POWERS:
-        raise LimitExceededError(f"{len(powers_dbm)} powers exceed the limit {MAX_POWERS}")
+        raise LimitExceededError(
+            f"{len(powers_dbm)} powers exceed the limit {MAX_POWERS}", MAX_POWERS
+        )
     for p in powers_dbm:
         if not np.isfinite(p) or abs(p) > 100:
             raise RisPlannerError(f"transmit powers must be finite dBm within ±100, got {p}")

@@ -30,6 +30,15 @@ JOB_MEMORY_ENV = "RIS_PLANNER_JOB_MEMORY_MB"
 
 MAX_SITES = 100_000
 """Candidate sites: explicit candidates + Σ over walls of (length/spacing)·heights·tilts."""
+MAX_CANDIDATES = 10_000
+"""Explicit candidate sites of one document (a plan's ``candidates``, a conversion's)."""
+MAX_WALLS = 1000
+"""Walls, and facade groups, of one plan document (each expanded to many sites)."""
+MAX_FACADE_PRISMS = 10_000
+"""Prisms named by one facade group (``facades[].of``)."""
+MAX_PAIRS_LIMIT = 500_000
+"""The largest ``max_pairs`` and ``pairs.sample`` a document may set (memory: a cached site
+holds 28 floats per pair)."""
 MAX_MAP_POINTS = 1_000_000
 """Points of one UE map (grid + points + road lattice + CSV rows)."""
 CACHE_MEMORY_MB_DEFAULT = 3072
@@ -432,9 +441,86 @@ LIST_LIMITS: dict[str, tuple[int, str]] = {
     "features": (MAX_OBSTACLES, "features"),
     "points": (MAX_MAP_POINTS, "points"),
     "sites": (MAX_SITES, "sites"),
+    "candidates": (MAX_CANDIDATES, "candidates"),
+    "exclude": (MAX_SITES, "excluded candidates"),
+    "walls": (MAX_WALLS, "walls"),
+    "facades": (MAX_WALLS, "facade groups"),
+    "of": (MAX_FACADE_PRISMS, "prism names"),
 }
 """The lists a document may carry in bulk, by field name, with their limits (the models'
-``max_length``); :func:`prescan_document` refuses longer ones before validation."""
+``max_length``: every list whose limit is 1000 items or more); :func:`prescan_document` refuses
+longer ones before validation, and a model that refuses one reports it as a size limit too
+(the service answers 413 with the limit either way)."""
+
+COUNT_LIMITS: dict[str, tuple[int, str]] = {
+    "sample": (MAX_PAIRS_LIMIT, "sampled pairs"),
+    "max_pairs": (MAX_PAIRS_LIMIT, "pairs"),
+}
+"""The counts a document states (``pairs.sample``, ``max_pairs``), by field name, with their
+limits (the models' ``le``); refused like the lists."""
+
+MAP_FIELDS = ("tx_map", "rx_map", "ue_map")
+"""The fields that hold a UE map: its grid, points and CSV rows count against
+:data:`MAX_MAP_POINTS` together (a road lattice is counted once the map is validated)."""
+
+
+def range_points(start: float, stop: float, step: float) -> int:
+    """Values of a grid axis [start, stop, step] (stop included); above :data:`MAX_MAP_POINTS`
+    however far (no float overflow). The range must be valid (finite, step > 0, stop ≥ start)."""
+    ratio = (stop - start) / step
+    if not math.isfinite(ratio) or ratio > MAX_MAP_POINTS:
+        return MAX_MAP_POINTS + 1
+    return math.floor(ratio + 1e-9) + 1
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def grid_points(grid: Any) -> int | None:
+    """The points of a grid as a document gives it (``{"x": [start, stop, step], "y": …,
+    "z": …}``), or None where it is not a valid grid (validation says why)."""
+    if not isinstance(grid, dict):
+        return None
+    total = 1
+    for axis in ("x", "y", "z"):
+        r = grid.get(axis)
+        if not (isinstance(r, list) and len(r) == 3 and all(_number(v) for v in r)):
+            return None
+        start, stop, step = (float(v) for v in r)
+        if not (math.isfinite(start) and math.isfinite(stop) and step > 0 and stop >= start):
+            return None
+        total *= range_points(start, stop, step)
+    return total
+
+
+def _check_counts(item: dict[Any, Any], name: str, what: str) -> None:
+    """The counts, the grid and the map size of one object of a document (413 above them)."""
+    for key, (limit, label) in COUNT_LIMITS.items():
+        value = item.get(key)
+        if isinstance(value, int | float) and not isinstance(value, bool) and value > limit:
+            raise LimitExceededError(
+                f"{what}: {key} = {value} {label} exceed the limit of {limit}", limit
+            )
+    grid = grid_points(item.get("grid"))
+    if grid is not None and grid > MAX_MAP_POINTS:
+        raise LimitExceededError(
+            f"{what}: {name or 'a map'}.grid has {grouped(grid)} points, above the limit of"
+            f" {grouped(MAX_MAP_POINTS)}",
+            MAX_MAP_POINTS,
+        )
+    if name in MAP_FIELDS:
+        points, csv = item.get("points"), item.get("csv_text")
+        total = grid or 0
+        total += len(points) if isinstance(points, list) else 0
+        total += csv_rows(csv) if isinstance(csv, str) else 0
+        if total > MAX_MAP_POINTS:
+            raise LimitExceededError(
+                f"{what}: {name} has {grouped(total)} points (grid, points and CSV rows), above"
+                f" the limit of {grouped(MAX_MAP_POINTS)}",
+                MAX_MAP_POINTS,
+            )
+
 
 MAX_LIST_ITEMS = MAX_MAP_POINTS
 """Longest list of any other name (no field of a document takes more)."""
@@ -444,17 +530,20 @@ MAX_COORDINATES = 4 * MAX_MAP_POINTS
 
 
 def prescan_document(value: Any, what: str = "request body") -> None:
-    """Refuse a parsed JSON document whose lists exceed their limits – obstacles, footprint
-    vertices, features, points, sites (:data:`LIST_LIMITS`), any list above
-    :data:`MAX_LIST_ITEMS`, or more than :data:`MAX_COORDINATES` numbers in them together –
-    with :class:`LimitExceededError` (413) in one pass over the decoded value, before the
-    (much slower) model validation. Iterative: no recursion limit (depth was checked when it
-    was parsed)."""
+    """Refuse a parsed JSON document above a size limit – lists longer than their limits
+    (:data:`LIST_LIMITS`: obstacles, footprint vertices, features, points, sites, candidates,
+    walls, …), any list above :data:`MAX_LIST_ITEMS`, more than :data:`MAX_COORDINATES` numbers
+    in them together, a count above its limit (:data:`COUNT_LIMITS`: ``pairs.sample``,
+    ``max_pairs``), a grid or a UE map above :data:`MAX_MAP_POINTS` points – with
+    :class:`LimitExceededError` (413, with the limit) in one pass over the decoded value,
+    before the (much slower) model validation. Iterative: no recursion limit (depth was checked
+    when it was parsed)."""
     numbers = 0
     stack: list[tuple[Any, str]] = [(value, "")]
     while stack:
         item, name = stack.pop()
         if isinstance(item, dict):
+            _check_counts(item, name, what)
             stack.extend((v, str(k)) for k, v in item.items())
             continue
         if not isinstance(item, list):

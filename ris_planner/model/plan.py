@@ -18,9 +18,21 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from ris_planner.core.errors import LimitExceededError
 from ris_planner.environment.kinds.prism import Prism
 from ris_planner.environment.model import Environment
-from ris_planner.model.limits import MAX_DESIGN_POSITIONS, MAX_MAP_POINTS, count, csv_rows
+from ris_planner.model.limits import (
+    MAX_CANDIDATES,
+    MAX_DESIGN_POSITIONS,
+    MAX_FACADE_PRISMS,
+    MAX_MAP_POINTS,
+    MAX_PAIRS_LIMIT,
+    MAX_SITES,
+    MAX_WALLS,
+    count,
+    csv_rows,
+    range_points,
+)
 from ris_planner.model.objectives import objective_kind, objective_names
 from ris_planner.model.plan_physics import (
     ISOTROPIC_SOURCE,
@@ -49,8 +61,6 @@ from ris_planner.model.search_methods import (
 )
 from ris_planner.model.simulation import Multipath
 
-MAX_PAIRS_LIMIT = 500_000
-"""The largest ``max_pairs`` a document may set (memory: a cached site holds 28 floats per pair)."""
 
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
@@ -76,10 +86,7 @@ def range_count(r: list[float], what: str) -> int:
         raise ValueError(f"{what}: step must be > 0, got {step}")
     if stop < start:
         raise ValueError(f"{what}: stop {stop} is below start {start}")
-    ratio = (stop - start) / step
-    if not math.isfinite(ratio) or ratio > MAX_MAP_POINTS:
-        return MAX_MAP_POINTS + 1  # above the limit however far (no float overflow)
-    return math.floor(ratio + 1e-9) + 1
+    return range_points(start, stop, step)
 
 
 def finite_weights(v: list[float], what: str) -> list[float]:
@@ -106,8 +113,10 @@ class GridMap(DocumentModel):
     def _check_range(cls, v: list[float], info: Any) -> list[float]:
         v = finite_point(v, f"grid.{info.field_name}")
         n = range_count(v, f"grid.{info.field_name}")
-        if n > MAX_MAP_POINTS:
-            raise ValueError(f"grid.{info.field_name} has {n} values (limit {MAX_MAP_POINTS})")
+        if n > MAX_MAP_POINTS:  # a size: the service answers 413 with the limit
+            raise LimitExceededError(
+                f"grid.{info.field_name} has {n} values (limit {MAX_MAP_POINTS})", MAX_MAP_POINTS
+            )
         return v
 
     @field_validator("weights")
@@ -119,7 +128,9 @@ class GridMap(DocumentModel):
     def _check_size(self) -> GridMap:
         n = self.size
         if n > MAX_MAP_POINTS:
-            raise ValueError(f"grid has {n} points, above the limit of {MAX_MAP_POINTS}")
+            raise LimitExceededError(
+                f"grid has {n} points, above the limit of {MAX_MAP_POINTS}", MAX_MAP_POINTS
+            )
         if self.weights is not None and len(self.weights) != n:
             raise ValueError(f"grid.weights must hold one weight per point ({n})")
         return self
@@ -320,7 +331,7 @@ class Facades(DocumentModel):
 
     of: list[str] = Field(
         min_length=1,
-        max_length=10_000,
+        max_length=MAX_FACADE_PRISMS,
         description="Names of prisms in environment.obstacles whose facades carry sites",
     )
     heights_m: list[float] = Field(
@@ -498,7 +509,7 @@ class Constraints(DocumentModel):
         default_factory=list, max_length=16, description="Candidates every layout must use"
     )
     exclude: list[int] = Field(
-        default_factory=list, max_length=100_000, description="Candidates never used"
+        default_factory=list, max_length=MAX_SITES, description="Candidates never used"
     )
     budget: float | None = Field(
         None, ge=0, allow_inf_nan=False, description="Largest total cost of a layout"
@@ -1020,14 +1031,14 @@ class PlanDocument(DocumentModel):
         default_factory=RISDefaults, description="Element grid of every candidate RIS"
     )
     candidates: list[Candidate] = Field(
-        default_factory=list, max_length=10_000, description="Explicit candidate sites"
+        default_factory=list, max_length=MAX_CANDIDATES, description="Explicit candidate sites"
     )
     walls: list[WallSites] = Field(
-        default_factory=list, max_length=1000, description="Walls expanded to candidate sites"
+        default_factory=list, max_length=MAX_WALLS, description="Walls expanded to candidate sites"
     )
     facades: list[Facades] = Field(
         default_factory=list,
-        max_length=1000,
+        max_length=MAX_WALLS,
         description="Facades of named environment prisms expanded to candidate sites",
     )
     environment: Environment | None = Field(

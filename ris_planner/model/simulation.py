@@ -182,7 +182,8 @@ class SearchArea(DocumentModel):
         if total > MAX_SEARCH_CANDIDATES:
             raise LimitExceededError(
                 f"search_area: {total} TX candidates (step_m = {self.step_m}) exceed the limit"
-                f" {MAX_SEARCH_CANDIDATES}; use a larger step_m or a smaller box"
+                f" {MAX_SEARCH_CANDIDATES}; use a larger step_m or a smaller box",
+                MAX_SEARCH_CANDIDATES,
             )
         axes = [lo[i] + self.step_m * np.arange(counts[i]) for i in range(3)]
         grid = np.meshgrid(*axes, indexing="ij")

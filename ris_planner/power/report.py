@@ -152,10 +152,13 @@ def run_power(
     g_tilde = profiles[0].shape[0]
     if tx.shape[0] > MAX_DESIGN_POSITIONS:
         raise LimitExceededError(
-            f"{tx.shape[0]} design positions exceed the limit of {MAX_DESIGN_POSITIONS}"
+            f"{tx.shape[0]} design positions exceed the limit of {MAX_DESIGN_POSITIONS}",
+            MAX_DESIGN_POSITIONS,
         )
     if g_tilde > MAX_DESIGN_BEAMS:
-        raise LimitExceededError(f"{g_tilde} beams exceed the limit of {MAX_DESIGN_BEAMS}")
+        raise LimitExceededError(
+            f"{g_tilde} beams exceed the limit of {MAX_DESIGN_BEAMS}", MAX_DESIGN_BEAMS
+        )
     evaluate = design_objective(sc, tx, rx, profiles, objective)
     uniform = evaluate(np.ones(g_tilde))
     info = beam_information(sc, tx, rx, profiles)

@@ -62,7 +62,8 @@ def near_combinations(
         raise LimitExceededError(
             f"pairs.max_separation_m = {radius:g} m gives {count} TX–RX combinations to draw"
             f" from, above the limit of {MAX_NEAR_COMBINATIONS}; lower max_separation_m or"
-            " sample the maps more coarsely"
+            " sample the maps more coarsely",
+            MAX_NEAR_COMBINATIONS,
         )
     near = tree_t.sparse_distance_matrix(tree_r, radius, output_type="ndarray")
     order = np.lexsort((near["j"], near["i"]))

@@ -71,7 +71,8 @@ def road_points(road: Road) -> PointMap:
     half = road.width_m / 2 / road.step_m  # lateral samples each side (inf for a 5e-324 step)
     if not half <= MAX_MAP_POINTS:
         raise LimitExceededError(
-            f"road width_m / step_m gives more than {MAX_MAP_POINTS} lateral samples; raise step_m"
+            f"road width_m / step_m gives more than {MAX_MAP_POINTS} lateral samples; raise step_m",
+            MAX_MAP_POINTS,
         )
     n_lat = int(np.floor(half + 1e-9))
     lateral = road.step_m * np.arange(-n_lat, n_lat + 1)
@@ -85,7 +86,8 @@ def road_points(road: Road) -> PointMap:
         n_along = int(np.ceil(length / road.step_m - 1e-9))
         if n_along * len(lateral) > MAX_MAP_POINTS:
             raise LimitExceededError(
-                f"road samples exceed the limit of {MAX_MAP_POINTS} map points; raise step_m"
+                f"road samples exceed the limit of {MAX_MAP_POINTS} map points; raise step_m",
+                MAX_MAP_POINTS,
             )
         last = (a, b, length)
         along = np.arange(n_along) * float(road.step_m)
@@ -141,7 +143,7 @@ def csv_points(text: str) -> PointMap:
         except (TypeError, ValueError):
             raise RisPlannerError(f"CSV map line {n}: x, y, z, weight must be numbers") from None
         if len(rows) > MAX_MAP_POINTS:
-            raise LimitExceededError(f"CSV map has more than {MAX_MAP_POINTS} rows")
+            raise LimitExceededError(f"CSV map has more than {MAX_MAP_POINTS} rows", MAX_MAP_POINTS)
     if not rows:
         raise RisPlannerError("CSV map has no rows")
     arr = np.asarray(rows, dtype=float)
@@ -166,7 +168,9 @@ def build_map(spec: UEMap, what: str) -> PointMap:
     pts = np.concatenate([p.points for p in parts])
     w = np.concatenate([p.weights for p in parts])
     if len(pts) > MAX_MAP_POINTS:
-        raise LimitExceededError(f"{what} has {len(pts)} points, above the limit {MAX_MAP_POINTS}")
+        raise LimitExceededError(
+            f"{what} has {len(pts)} points, above the limit {MAX_MAP_POINTS}", MAX_MAP_POINTS
+        )
     street = None
     if any(p.street is not None for p in parts):
         street = np.concatenate(
@@ -232,7 +236,7 @@ def build_pairs(
     if isinstance(spec, PairSample):
         if spec.sample > max_pairs:
             raise LimitExceededError(
-                f"pairs.sample = {spec.sample} exceeds max_pairs = {max_pairs}"
+                f"pairs.sample = {spec.sample} exceeds max_pairs = {max_pairs}", max_pairs
             )
         if spec.max_separation_m is None and not spec.line_of_sight:
             return _sample_pairs(tx_map, rx_map, spec)
@@ -243,7 +247,8 @@ def build_pairs(
     if count > max_pairs:
         raise LimitExceededError(
             f"pairs {spec!r} gives {count} TX–RX pairs, above max_pairs = {max_pairs}; use"
-            ' "pairs": {"sample": N, "seed": S} or coarser maps'
+            ' "pairs": {"sample": N, "seed": S} or coarser maps',
+            max_pairs,
         )
     if spec == "unordered":
         it, ir = canonical_unordered(tx_map, *np.triu_indices(n_t, k=1), both_directions)

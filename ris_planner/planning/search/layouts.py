@@ -506,7 +506,8 @@ def search(
         if total > spec.max_exhaustive:
             raise LimitExceededError(
                 f"{total} layouts of {n_ris} among {n_sites} sites exceed"
-                f" search.max_exhaustive = {spec.max_exhaustive}; use method 'greedy' or 'auto'"
+                f" search.max_exhaustive = {spec.max_exhaustive}; use method 'greedy' or 'auto'",
+                spec.max_exhaustive,
             )
         return exhaustive(scorer, n_sites, n_ris, executor, on_fraction, feasible, layouts)
     out = greedy(scorer, n_sites, n_ris, spec, executor, on_fraction, seeds, feasible)
