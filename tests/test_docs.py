@@ -273,3 +273,29 @@ def test_no_issue_numbers_in_code_or_docs() -> None:
             if ISSUE_NUMBER.search(line):
                 hits.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()[:80]}")
     assert not hits, "say what an issue asked for, not its number:\n" + "\n".join(hits)
+
+
+ENDPOINT = re.compile(r"`(GET|POST|PUT|PATCH|DELETE) (/[^`?\s]*)")
+PATH_PARAMETER = re.compile(r"\{[^}]*\}")
+
+
+def _route(method: str, path: str) -> str:
+    """``METHOD /path`` with every path parameter written ``{}``."""
+    return f"{method.upper()} {PATH_PARAMETER.sub('{}', path)}"
+
+
+def test_rest_guide_lists_every_route() -> None:
+    """The REST guide's endpoint table names every operation of the service's OpenAPI
+    document (method and path, any name for a path parameter), and nothing else but the page
+    at ``GET /``."""
+    from api.main import create_app
+    from api.settings import Settings
+
+    spec = create_app(Settings()).openapi()
+    served = {_route(m, p) for p, item in spec["paths"].items() for m in item}
+    text = (ROOT / "docs" / "guides" / "rest.md").read_text(encoding="utf-8")
+    table = text.split("| endpoint | what |", 1)[1].split("\n\n", 1)[0]
+    first_cells = [row.split("|")[1] for row in table.splitlines() if row.count("|") > 2]
+    listed = {_route(m, p) for cell in first_cells for m, p in ENDPOINT.findall(cell)}
+    assert served <= listed, f"routes missing from the REST guide: {sorted(served - listed)}"
+    assert listed - served <= {"GET /"}, f"listed, not served: {sorted(listed - served)}"
