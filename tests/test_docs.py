@@ -299,3 +299,50 @@ def test_rest_guide_lists_every_route() -> None:
     listed = {_route(m, p) for cell in first_cells for m, p in ENDPOINT.findall(cell)}
     assert served <= listed, f"routes missing from the REST guide: {sorted(served - listed)}"
     assert listed - served <= {"GET /"}, f"listed, not served: {sorted(listed - served)}"
+
+
+def test_import_guide_names_each_option_as_each_entry_point_does() -> None:
+    """The import guide's table of options gives, per option, the name of the Python field
+    (``ImportOptions``), of the command line's flag and of the REST query parameter, and its
+    default: each is that entry point's own, and every option of each is in the table."""
+    import argparse
+    import dataclasses
+
+    from api.main import create_app
+    from api.settings import Settings
+    from ris_planner.cli.app import build_parser
+    from ris_planner.io.import_options import ImportOptions
+
+    python = {f.name: f.default for f in dataclasses.fields(ImportOptions)}
+    parser = build_parser("import")
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    cli = {s: a.default for a in sub.choices["import"]._actions for s in a.option_strings}
+    spec = create_app(Settings()).openapi()["paths"]["/v1/import"]["post"]["parameters"]
+    rest = {p["name"]: p["schema"].get("default") for p in spec if p["in"] == "query"}
+    text = (ROOT / "docs" / "guides" / "import.md").read_text(encoding="utf-8")
+    table = text.split("| Python (`ImportOptions`) | CLI | REST query | Default |", 1)[1]
+    rows = [r.split("|")[1:5] for r in table.split("\n\n", 1)[0].splitlines()[2:]]
+    seen: dict[str, set[str]] = {"python": set(), "cli": set(), "rest": set()}
+    for cells in rows:
+        py, flag, query, default = (c.strip().strip("`") for c in cells)
+        assert py in python and flag in cli and query in rest, cells
+        seen["python"].add(py)
+        seen["cli"].add(flag)
+        seen["rest"].add(query)
+        number = re.fullmatch(r"([\d.]+) m", default)
+        if number:
+            value = float(number.group(1))
+            assert python[py] == cli[flag] == rest[query] == value, (cells, python[py])
+    assert seen["python"] == set(python), set(python) - seen["python"]
+    # the flags and query parameters that are not import options: output, frame origin, DXF
+    assert set(cli) - seen["cli"] == {
+        "-h",
+        "--help",
+        "--out",
+        "--plan",
+        "--candidates",
+        "--origin",
+        "--layer",
+        "--units",
+    }
+    assert set(rest) - seen["rest"] == {"format", "origin", "layer", "units"}

@@ -491,7 +491,11 @@ def assert_same_output(got: str, shown: list[str], where: str) -> None:
 
 
 def _environment() -> dict[str, str]:
-    return dict(os.environ, PYTHONPATH=str(ROOT), COLUMNS="200", MPLBACKEND="Agg")
+    """The environment of a page's command: the checkout importable, output unbuffered (stdout
+    and stderr interleave as on a terminal), figures without a display."""
+    return dict(
+        os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1", COLUMNS="200", MPLBACKEND="Agg"
+    )
 
 
 def run_command(words: list[str], cwd: Path) -> tuple[int, str]:
