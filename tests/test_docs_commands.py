@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import io
 import itertools
 import json
@@ -44,7 +45,7 @@ import re
 import shlex
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -71,8 +72,61 @@ SMALLER = {
     " --powers-dbm 20,25,30 --out out/sim": ("--runs 200", "--runs 3"),
 }
 """Commands run with a smaller option than the page shows: page command → (shown, run)."""
-FILES = {"my-plan.json": small_plan_doc}
-"""Files a runnable command names that the reader brings: made here from the tests' data."""
+
+
+def link_document() -> dict[str, Any]:
+    """docs/concepts/diagnosis.md's tiny-RIS case: tests/test_diagnosis.py's LINK document
+    with the sizing ladder the page gives."""
+    from test_diagnosis import LINK
+
+    ladder = [[8, 8], [16, 16], [32, 32], [64, 64]]
+    return LINK | {"sizing": {"ris_sizes": ladder, "counts": [2, 3], "target": {"objective": 0.85}}}
+
+
+def helsinki_10x10_document() -> dict[str, Any]:
+    """docs/concepts/diagnosis.md's street case: examples/plan_helsinki.py's document with
+    400 pairs, 10 × 10 RISs, coverage of PEB_R ≤ 1 m, 2 RISs and the sizing ladder the page
+    gives."""
+    spec = importlib.util.spec_from_file_location(
+        "plan_helsinki", ROOT / "examples" / "plan_helsinki.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    doc, _ = module.helsinki_document(400)
+    ladder = [[32, 32], [64, 64], [100, 100], [160, 160]]
+    return doc | {
+        "ris": {"rows": 10, "cols": 10},
+        "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
+        "ris_count": [2],
+        "sizing": {"ris_sizes": ladder, "counts": [2, 3]},
+    }
+
+
+def preset_with(name: str, **fields: Any) -> Callable[[], dict[str, Any]]:
+    """A shipped plan preset with some of its fields replaced, as a page describes it."""
+
+    def make() -> dict[str, Any]:
+        from ris_planner.planning import plan_preset
+
+        return plan_preset(name) | fields
+
+    return make
+
+
+SAMPLE = {"sample": 1000, "seed": 1}
+FILES: dict[str, Callable[[], dict[str, Any]]] = {
+    "my-plan.json": small_plan_doc,
+    "link.json": link_document,
+    "helsinki_10x10.json": helsinki_10x10_document,
+    "junction-phys.json": preset_with("junction", pairs=SAMPLE, ris={"rows": 20, "cols": 20}),
+    "junction-iso.json": preset_with("junction", pairs=SAMPLE),
+    "hall-sample.json": preset_with("hall", pairs={"sample": 2000, "seed": 1}),
+}
+"""Files a runnable command names that the reader brings: made here from the tests' data and
+the examples, as the page describes them."""
+EXIT_STATUS = "echo $?"
+"""A page's ``$ echo $?`` shows the exit status of the command before it."""
 CURL_PORT = "127.0.0.1:8000"
 ELLIPSIS = ("…", "...")
 """A shown output line that is only this stands for any number of lines."""
@@ -528,9 +582,9 @@ def run_command(words: list[str], cwd: Path) -> tuple[int, str]:
 
 def runnable_words(words: list[str]) -> bool:
     """A simple command the suite runs: ``ris-planner``, ``python -c``, a script of
-    ``examples/``."""
+    ``examples/``, ``echo $?`` after one of them."""
     name = program(words)
-    if name == "ris-planner":
+    if name == "ris-planner" or words == EXIT_STATUS.split():
         return True
     if name in ("python", "python3") and len(words) > 1:
         return words[1] == "-c" or words[1].startswith("examples/")
@@ -563,26 +617,39 @@ def make_workdir(work: Path) -> Path:
     return work
 
 
-def run_shown(command: Command, cwd: Path) -> None:
-    """Run a command of a page as it shows it (a smaller run where SMALLER says so) and compare
-    the output it shows."""
+def run_shown(command: Command, cwd: Path, status_shown: bool = False) -> int:
+    """Run a command of a page as it shows it (a smaller run where SMALLER says so), compare
+    the output it shows and return its exit status: 0 unless ``status_shown`` (the page shows
+    the status next, ``$ echo $?``)."""
     text = command.text
     if text in SMALLER:
         shown, smaller = SMALLER[text]
         text = text.replace(shown, smaller)
-    output = ""
+    status, output = 0, ""
     for words in simple_commands(text):
         status, output = run_command(words, cwd)
-        assert status == 0, f"{command.where}: `{text}` exited {status}:\n{output[-2000:]}"
+        assert status == 0 or status_shown, (
+            f"{command.where}: `{text}` exited {status}:\n{output[-2000:]}"
+        )
     if command.output:
         assert_same_output(output, command.output, command.where)
+    return status
+
+
+def run_block(block: Block, cwd: Path) -> None:
+    """Run a block's commands in order; ``echo $?`` compares the status it shows."""
+    status = 0
+    for k, command in enumerate(block.commands):
+        if command.text == EXIT_STATUS:
+            assert [str(status)] == command.output, f"{command.where}: exit status {status}"
+            continue
+        following = block.commands[k + 1].text if k + 1 < len(block.commands) else ""
+        status = run_shown(command, cwd, status_shown=following == EXIT_STATUS)
 
 
 @pytest.mark.parametrize("block", runnable(), ids=lambda b: b.where)
 def test_block_runs_as_shown(block: Block, tmp_path: Path) -> None:
-    cwd = make_workdir(tmp_path)
-    for command in block.commands:
-        run_shown(command, cwd)
+    run_block(block, make_workdir(tmp_path))
 
 
 @pytest.mark.parametrize("example", ALL_EXAMPLES, ids=lambda e: e.where)
