@@ -6,12 +6,14 @@ history, and no code or page names an issue by its number."""
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import re
 import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -346,3 +348,77 @@ def test_import_guide_names_each_option_as_each_entry_point_does() -> None:
         "--units",
     }
     assert set(rest) - seen["rest"] == {"format", "origin", "layer", "units"}
+
+
+def _mkdocs_hooks() -> Any:
+    """scripts/mkdocs_hooks.py, which generates the schemas page."""
+    spec = importlib.util.spec_from_file_location("mkdocs_hooks", ROOT / "scripts/mkdocs_hooks.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _expected_default(info: Any) -> str:
+    """A field's default as the page shows it: JSON, ``{}`` for a nested model of defaults."""
+    from pydantic import BaseModel
+    from pydantic_core import to_jsonable_python
+
+    if info.is_required():
+        return "required"
+    value = info.get_default(call_default_factory=True)
+    if isinstance(value, BaseModel):
+        assert value == type(value)(), f"{value!r} is not its model's defaults"
+        return "{}"
+    return json.dumps(to_jsonable_python(value), ensure_ascii=False)
+
+
+def test_every_document_model_lists_its_fields_types_and_defaults(site: Path) -> None:
+    """Each model of the JSON documents (PlanDocument, SearchSpec, Sizing, PairSample, … – every
+    model of the schemas page) has its entry on an API page with a table of every field: its
+    type, its default, its unit and its description; the schemas page has one section per
+    model with that model's own JSON schema."""
+    import html as html_module
+
+    hooks = _mkdocs_hooks()
+    models = hooks.schema_models()
+    assert {"PlanDocument", "SearchSpec", "Sizing", "PairSample", "Scenario"} <= set(models)
+    pages = {p: p.read_text(encoding="utf-8") for p in (site / "reference" / "api").glob("*.html")}
+    schemas = (site / "reference" / "schemas.html").read_text(encoding="utf-8")
+    for name in models:
+        path = hooks._model_path(name)
+        assert path is not None, name
+        model = getattr(importlib.import_module(path.rpartition(".")[0]), name)
+        # its entry: at its module, or where a package above it exports it
+        parts = path.split(".")
+        ids = [f'id="{".".join(parts[:k])}.{name}"' for k in range(len(parts) - 1, 1, -1)]
+        found = [(t, i) for i in ids for t in pages.values() if i in t]
+        assert found, f"{path} has no entry on an API page"
+        page, anchor = found[0]
+        entry = page.split(anchor, 1)[1]
+        table = entry.split(f"Fields of <code>{name}</code>", 1)[1].split("</table>", 1)[0]
+        assert 'href="../schemas.html#' + name.lower() + '"' in entry.split("<table>", 1)[0]
+        rows = re.findall(r"<tr>\s*(.*?)</tr>", table, flags=re.S)[1:]
+        cells = {}
+        for row in rows:
+            cell = [
+                re.sub(r"<[^>]+>", "", c).strip()
+                for c in re.findall(r"<td>(.*?)</td>", row, flags=re.S)
+            ]
+            cells[cell[0]] = [html_module.unescape(c) for c in cell]
+        assert list(cells) == list(model.model_fields), (name, list(cells))
+        for field, info in model.model_fields.items():
+            _, type_text, default, unit, _, description = cells[field]
+            assert type_text, (name, field)
+            assert default == _expected_default(info), (name, field, default)
+            shown = " ".join(re.sub(r"`+", "", info.description or "").split())
+            assert description == shown, (name, field)
+            if field.endswith("_m") and info.annotation in (float, float | None):
+                assert unit == "m", (name, field, unit)
+        # the schemas page: a section of its own with the model's own schema
+        section = schemas.split(f'id="{name.lower()}"', 1)
+        assert len(section) == 2, f"no section for {name} on the schemas page"
+        block = section[1].split("<details", 1)[1].split("</details>", 1)[0]
+        code = block.split("<code>", 1)[1].split("</code>", 1)[0]
+        assert json.loads(html_module.unescape(re.sub(r"<[^>]+>", "", code))) == models[name][0]
+    assert schemas.count("<details") == len(models), "one JSON schema per model"
