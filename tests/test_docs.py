@@ -5,6 +5,7 @@ history, and no code or page names an issue by its number."""
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import json
 import os
@@ -422,3 +423,63 @@ def test_every_document_model_lists_its_fields_types_and_defaults(site: Path) ->
         code = block.split("<code>", 1)[1].split("</code>", 1)[0]
         assert json.loads(html_module.unescape(re.sub(r"<[^>]+>", "", code))) == models[name][0]
     assert schemas.count("<details") == len(models), "one JSON schema per model"
+
+
+TAGGED_EQUATIONS = """() => [...document.querySelectorAll('.katex-display')].flatMap((d) => {
+  const tag = d.querySelector('.katex-html > .tag');
+  if (!tag) return [];
+  const box = (e) => {
+    const r = e.getBoundingClientRect();
+    return [r.left, r.top, r.right, r.bottom];
+  };
+  return [{tag: tag.textContent, box: box(tag),
+           formula: [...d.querySelectorAll('.katex-html > .base')].map(box)}];
+})"""
+"""Each numbered display equation of a page: its tag's box and its formula's boxes (KaTeX's
+``.base`` spans), in CSS pixels."""
+
+
+@pytest.mark.parametrize("width", [1280, 1600])
+def test_equation_numbers_do_not_cover_their_formulas(site: Path, width: int) -> None:
+    """The model page rendered by headless Chromium at a desktop width: no equation tag's box
+    intersects its formula's (docs/stylesheets/equations.css)."""
+    import functools
+    import http.server
+    import threading
+
+    from test_web import CHROMIUM, CHROMIUM_FLAGS  # skips (fails under CI) without Chromium
+
+    sync_playwright = importlib.import_module("playwright.sync_api").sync_playwright
+
+    class Quiet(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, *args: Any) -> None:
+            pass
+
+    handler = functools.partial(Quiet, directory=str(site))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+            try:
+                page = browser.new_page(viewport={"width": width, "height": 900})
+                page.goto(f"http://127.0.0.1:{server.server_address[1]}/concepts/model.html")
+                page.wait_for_function(
+                    "document.querySelectorAll('.katex-display .katex-html > .tag').length >= 13",
+                    timeout=120_000,
+                )
+                page.evaluate("document.fonts.ready")
+                equations = page.evaluate(TAGGED_EQUATIONS)
+            finally:
+                browser.close()
+    finally:
+        server.shutdown()
+        thread.join()
+    assert len(equations) == 13
+    for eq in equations:
+        left, top, right, bottom = eq["box"]
+        assert right > left and bottom > top, eq["tag"]
+        for f_left, f_top, f_right, f_bottom in eq["formula"]:
+            apart = right <= f_left or f_right <= left or bottom <= f_top or f_bottom <= top
+            assert apart, f"at {width} px the tag {eq['tag']!r} covers its formula"
