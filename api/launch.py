@@ -46,11 +46,13 @@ def served(
     workers: int = 1,
     via: str = "serve",
     env: dict[str, str] | None = None,
-    startup_timeout_s: float = 60.0,
+    startup_timeout_s: float = 600.0,
     log: Path | None = None,
 ) -> Iterator[Server]:
     """A server on a free port with job database ``db``; ``via`` is ``"serve"`` (the CLI) or
-    ``"uvicorn"`` (``uvicorn api.main:app``, settings from the environment)."""
+    ``"uvicorn"`` (``uvicorn api.main:app``, settings from the environment).
+    ``startup_timeout_s`` ends a start that hangs: a busy machine may take minutes to import
+    the service."""
     port = free_port()
     environ = dict(os.environ) | {"RIS_PLANNER_DB": str(db), "RIS_PLANNER_WORKERS": str(workers)}
     environ |= env or {}

@@ -12,6 +12,7 @@ from typing import Any
 
 import httpx
 from test_api_plans import small_plan_doc
+from waits import HANG_S
 
 from api.launch import served
 from api.store import INTERRUPTED_MESSAGE
@@ -19,7 +20,7 @@ from ris_planner import preset_document
 from ris_planner.model.paper import fig10_pairs
 
 
-def poll(url: str, job_id: str, timeout_s: float = 120.0) -> dict[str, Any]:
+def poll(url: str, job_id: str, timeout_s: float = HANG_S) -> dict[str, Any]:
     deadline = time.monotonic() + timeout_s
     while True:
         view: dict[str, Any] = httpx.get(f"{url}/v1/jobs/{job_id}").json()
@@ -36,11 +37,11 @@ def healthz_answers_during_bounds(url: str) -> int:
     doc = preset_document("2-ris-L") | {"tx": tx[:4500].tolist() * 2, "rx": rx[:4500].tolist() * 2}
     with ThreadPoolExecutor(8) as pool:
         futures = [
-            pool.submit(httpx.post, f"{url}/v1/bounds", json=doc, timeout=120) for _ in range(8)
+            pool.submit(httpx.post, f"{url}/v1/bounds", json=doc, timeout=HANG_S) for _ in range(8)
         ]
         answered = 0
         while not all(f.done() for f in futures):
-            if httpx.get(f"{url}/healthz", timeout=120).status_code == 200:
+            if httpx.get(f"{url}/healthz", timeout=HANG_S).status_code == 200:
                 answered += 1
             time.sleep(0.02)
         assert all(f.result().status_code == 200 for f in futures)
@@ -79,7 +80,7 @@ def test_killed_server_running_job_is_failed_on_restart(tmp_path: Path) -> None:
     big["tx_map"] = big["rx_map"] = {"grid": {"x": [-3, 3, 0.1], "y": [-3, 3, 0.1], "z": [0, 0, 1]}}
     with served(db, log=tmp_path / "server.log") as server:
         job_id = httpx.post(f"{server.url}/v1/plans", json=big).json()["id"]
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + HANG_S
         while True:  # the plan's own progress reaches SQLite while it runs
             view = httpx.get(f"{server.url}/v1/jobs/{job_id}").json()
             if view["status"] == "running" and 0 < view["progress"] < 1:

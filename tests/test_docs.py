@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from waits import HANG_MS, HANG_S
 
 ROOT = Path(__file__).resolve().parent.parent
 README_MAX_LINES = 150
@@ -61,7 +62,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
         env=env,
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
     )
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-4000:]
     return site
@@ -467,7 +468,7 @@ def test_equation_numbers_do_not_cover_their_formulas(site: Path, width: int) ->
                 page.goto(f"http://127.0.0.1:{server.server_address[1]}/concepts/model.html")
                 page.wait_for_function(
                     "document.querySelectorAll('.katex-display .katex-html > .tag').length >= 13",
-                    timeout=120_000,
+                    timeout=HANG_MS,
                 )
                 page.evaluate("document.fonts.ready")
                 equations = page.evaluate(TAGGED_EQUATIONS)

@@ -53,6 +53,7 @@ from typing import Any
 import pytest
 from test_api_plans import small_plan_doc
 from tolerance import assert_close
+from waits import HANG_S
 
 from ris_planner.cli.app import build_parser
 
@@ -62,9 +63,9 @@ SHELL = {"bash", "console", "sh", "shell"}
 FENCE = re.compile(r"^(\s*)(`{3,}|~{3,})\s*([\w+-]*)")
 MARK = re.compile(r"^<!--\s*docs-check:\s*(\S+)\s*(.*?)\s*-->$")
 KINDS = {"skip", "synopsis", "output"}
-RUN_TIMEOUT_S = 900
-"""A command that has not ended after this long hangs: the guard of a hang, not a speed limit
-(the suite's commands take seconds; a busy machine may make them many times slower)."""
+RUN_TIMEOUT_S = HANG_S
+"""A command that has not ended after this long hangs (tests/waits.py): the guard of a hang,
+not a speed limit."""
 PLACEHOLDERS = {"N": "2"}
 """Placeholder values a synopsis leaves to the reader, where the parser checks the type."""
 SMALLER = {

@@ -6,6 +6,7 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
+from waits import HANG_S
 
 from ris_planner.inversion import ldl
 
@@ -304,7 +305,7 @@ def test_generated_kernels_are_up_to_date() -> None:
 
     script = Path(__file__).resolve().parent.parent / "scripts" / "gen_ldl_kernels.py"
     done = subprocess.run(
-        [sys.executable, str(script), "--check"], capture_output=True, text=True, timeout=60
+        [sys.executable, str(script), "--check"], capture_output=True, text=True, timeout=HANG_S
     )
     assert done.returncode == 0, done.stderr
 
@@ -455,7 +456,7 @@ def test_bench_scorer_refuses_more_layouts_than_the_search_run_has() -> None:
 
     script = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_scorer.py"
     cmd = [sys.executable, str(script), "--sections", "flops", "--flops-layouts", "277"]
-    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_S, check=False)
     assert res.returncode == 2 and "1 … 276" in res.stderr, res.stderr
 
 
