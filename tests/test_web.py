@@ -24,6 +24,7 @@ from typing import Any
 
 import httpx
 import pytest
+from waits import HANG_MS
 
 from api.launch import served
 from ris_planner.planning import plan_preset as plan_preset_doc
@@ -44,9 +45,16 @@ INSTALL_HINT = (
     " RIS_PLANNER_CHROMIUM at a Chromium binary; and the playwright package"
     " (`pip install -e '.[dev]'`; never `playwright install`)"
 )
-WAIT_MS = 60_000
-"""Upper bound for a job's progress to reach an end state (the fig10 plan takes ~2 s)."""
+WAIT_MS = HANG_MS
+"""How long a page's wait for an element, a text or a job's end may last before it counts as a
+hang (tests/waits.py): every wait of these tests is for an event, none for a fixed time."""
 
+LOADED_IMAGE = """(img, ms) => new Promise((resolve, reject) => {
+  if (img.complete && img.naturalWidth > 0) return resolve(true);
+  const timer = setTimeout(() => reject(new Error(`image not loaded after ${ms} ms`)), ms);
+  img.addEventListener("load", () => { clearTimeout(timer); resolve(true); }, { once: true });
+})"""
+"""Wait for an ``<img>``'s load event (``locator.evaluate(LOADED_IMAGE, ms)``)."""
 BOUND_DIGITS_RTOL = 5e-3
 """The page prints bounds with 3 significant digits: relative rounding ≤ 5e-3."""
 
@@ -70,6 +78,8 @@ if _MISSING is not None:
     pytest.skip(_MISSING, allow_module_level=True)
 
 from playwright.sync_api import Browser, ConsoleMessage, Page, expect, sync_playwright  # noqa: E402
+
+expect.set_options(timeout=WAIT_MS)  # every expect(...) without its own timeout, too
 
 
 def slow_plan_doc() -> dict[str, Any]:
@@ -159,6 +169,7 @@ class Console:
 @pytest.fixture
 def page(browser: Browser) -> Iterator[tuple[Page, Console]]:
     context = browser.new_context(viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)  # clicks, fills, waits for a locator
     pg = context.new_page()
     console = Console(pg)
     try:
@@ -698,10 +709,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     # the figure, the chosen sites on the map, no per-point results
     figure = pg.locator("#district-figure")
     expect(figure).to_be_visible(timeout=WAIT_MS)
-    for _ in range(WAIT_MS // 100):  # the page's CSP forbids wait_for_function's eval
-        if figure.evaluate("img => img.complete && img.naturalWidth") > 0:
-            break
-        pg.wait_for_timeout(100)
+    figure.evaluate(LOADED_IMAGE, WAIT_MS)
     assert figure.evaluate("img => img.naturalWidth") > 0
     assert pg.locator("#charts").is_hidden() and pg.locator("#top-layouts").is_hidden()
     shown = plan["by_count"][-1]["site_indices"]
@@ -717,6 +725,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
 def test_api_docs_work_offline(browser: Browser, server: str, shots: Shots) -> None:
     """Every request of /docs and /redoc stays on the server (others would be aborted)."""
     context = browser.new_context(viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
     outside: list[str] = []
 
     def only_local(route: Any) -> None:
