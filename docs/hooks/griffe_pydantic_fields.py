@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import annotated_types
-from griffe import Alias, Class, Extension, GriffeLoader, Module, Object
+from griffe import Class, Docstring, Extension, GriffeLoader, Module
 from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined, to_jsonable_python
@@ -159,17 +159,22 @@ def fields_table(model: type[BaseModel]) -> str:
 
 
 @functools.cache
+def _sibling(name: str, folder: str = "docs/hooks") -> Any:
+    """A module of the site's build code by its file (mkdocs and griffe load these by path:
+    they are no package)."""
+    path = Path(__file__).resolve().parents[2] / folder / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@functools.cache
 def schema_names() -> frozenset[str]:
     """The models with a section on the schemas page (``schema_models`` of
     scripts/mkdocs_hooks.py, which writes that page)."""
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location(
-        "mkdocs_hooks", root / "scripts" / "mkdocs_hooks.py"
-    )
-    assert spec is not None and spec.loader is not None
-    hooks = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(hooks)
-    return frozenset(hooks.schema_models())
+    return frozenset(_sibling("mkdocs_hooks", "scripts").schema_models())
 
 
 def _runtime(path: str) -> Any:
@@ -185,24 +190,13 @@ class PydanticFields(Extension):
     package (see the module docstring)."""
 
     def on_package(self, *, pkg: Module, loader: GriffeLoader, **kwargs: Any) -> None:
-        seen: set[int] = set()
-        stack: list[Object] = [pkg]
-        while stack:
-            obj = stack.pop()
-            if id(obj) in seen:
+        for obj in _sibling("griffe_docstrings").package_objects(pkg):
+            if not isinstance(obj, Class):
                 continue
-            seen.add(id(obj))
-            if isinstance(obj, Class):
-                model = _runtime(obj.path)
-                if isinstance(model, type) and issubclass(model, BaseModel) and model.model_fields:
-                    table = fields_table(model)
-                    if obj.docstring is None:
-                        from griffe import Docstring
-
-                        obj.docstring = Docstring(table, parent=obj)
-                    else:
-                        obj.docstring.value = obj.docstring.value.rstrip() + "\n\n" + table
-            for member in obj.members.values():
-                if isinstance(member, Alias):
-                    continue
-                stack.append(member)
+            model = _runtime(obj.path)
+            if isinstance(model, type) and issubclass(model, BaseModel) and model.model_fields:
+                table = fields_table(model)
+                if obj.docstring is None:
+                    obj.docstring = Docstring(table, parent=obj)
+                else:
+                    obj.docstring.value = obj.docstring.value.rstrip() + "\n\n" + table
