@@ -23,7 +23,7 @@ from ris_planner.model.paper import fig10_pairs
 def poll(url: str, job_id: str, timeout_s: float = HANG_S) -> dict[str, Any]:
     deadline = time.monotonic() + timeout_s
     while True:
-        view: dict[str, Any] = httpx.get(f"{url}/v1/jobs/{job_id}").json()
+        view: dict[str, Any] = httpx.get(f"{url}/v1/jobs/{job_id}", timeout=HANG_S).json()
         if view["status"] in ("succeeded", "failed", "cancelled"):
             return view
         assert time.monotonic() < deadline, f"job still {view['status']}"
@@ -51,22 +51,22 @@ def healthz_answers_during_bounds(url: str) -> int:
 def test_plan_job_survives_a_restart(tmp_path: Path) -> None:
     db = tmp_path / "jobs.db"
     with served(db, via="uvicorn", log=tmp_path / "server.log") as server:
-        r = httpx.post(f"{server.url}/v1/plans", json=small_plan_doc())
+        r = httpx.post(f"{server.url}/v1/plans", json=small_plan_doc(), timeout=HANG_S)
         assert r.status_code == 202
         job_id = r.json()["id"]
         first = poll(server.url, job_id)
         assert first["status"] == "succeeded", first["error"]
-        png = httpx.get(f"{server.url}{first['figures']['cdf']}")
+        png = httpx.get(f"{server.url}{first['figures']['cdf']}", timeout=HANG_S)
         assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
         # the bounds computations run beside the event loop, which keeps answering
         assert healthz_answers_during_bounds(server.url) >= 3
     assert server.process.returncode == 0  # graceful stop on SIGINT
     with served(db, via="serve", log=tmp_path / "server.log") as server:
-        again = httpx.get(f"{server.url}/v1/jobs/{job_id}").json()
+        again = httpx.get(f"{server.url}/v1/jobs/{job_id}", timeout=HANG_S).json()
         assert again == first
-        listed = httpx.get(f"{server.url}/v1/jobs").json()
+        listed = httpx.get(f"{server.url}/v1/jobs", timeout=HANG_S).json()
         assert [j["id"] for j in listed["items"]] == [job_id]
-        png2 = httpx.get(f"{server.url}{first['figures']['cdf']}")
+        png2 = httpx.get(f"{server.url}{first['figures']['cdf']}", timeout=HANG_S)
         assert png2.content == png.content
 
 
@@ -79,10 +79,10 @@ def test_killed_server_running_job_is_failed_on_restart(tmp_path: Path) -> None:
     )
     big["tx_map"] = big["rx_map"] = {"grid": {"x": [-3, 3, 0.1], "y": [-3, 3, 0.1], "z": [0, 0, 1]}}
     with served(db, log=tmp_path / "server.log") as server:
-        job_id = httpx.post(f"{server.url}/v1/plans", json=big).json()["id"]
+        job_id = httpx.post(f"{server.url}/v1/plans", json=big, timeout=HANG_S).json()["id"]
         deadline = time.monotonic() + HANG_S
         while True:  # the plan's own progress reaches SQLite while it runs
-            view = httpx.get(f"{server.url}/v1/jobs/{job_id}").json()
+            view = httpx.get(f"{server.url}/v1/jobs/{job_id}", timeout=HANG_S).json()
             if view["status"] == "running" and 0 < view["progress"] < 1:
                 break
             assert view["status"] in ("queued", "running") and time.monotonic() < deadline
@@ -90,7 +90,7 @@ def test_killed_server_running_job_is_failed_on_restart(tmp_path: Path) -> None:
         server.process.send_signal(signal.SIGKILL)
         server.process.wait()
     with served(db, log=tmp_path / "server.log") as server:
-        view = httpx.get(f"{server.url}/v1/jobs/{job_id}").json()
+        view = httpx.get(f"{server.url}/v1/jobs/{job_id}", timeout=HANG_S).json()
         assert view["status"] == "failed" and view["error"] == INTERRUPTED_MESSAGE
         time.sleep(1.5)  # the orphaned worker (if still alive) cannot overwrite the verdict
-        assert httpx.get(f"{server.url}/v1/jobs/{job_id}").json() == view
+        assert httpx.get(f"{server.url}/v1/jobs/{job_id}", timeout=HANG_S).json() == view

@@ -71,25 +71,29 @@ def test_sites_of_the_helsinki_site(server: str) -> None:
 
 def test_sites_errors(server: str) -> None:
     url = f"{server}/v1/sites"
-    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0, "kinds": []}})
+    r = httpx.post(
+        url, json={"site": helsinki(), "options": {"spacing_m": 0, "kinds": []}}, timeout=HANG_S
+    )
     assert r.status_code == 422
     fields = {f["field"] for f in r.json()["fields"]}
     assert fields == {"options.spacing_m", "options.kinds"}, r.json()
-    r = httpx.post(url, json={"site": helsinki(), "options": {"tilts": [10]}})
+    r = httpx.post(url, json={"site": helsinki(), "options": {"tilts": [10]}}, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "options.tilts"
-    r = httpx.post(url, json={"options": {}})
+    r = httpx.post(url, json={"options": {}}, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "site"
     ring = [[24.94, 160.17], [24.941, 160.17], [24.941, 160.171], [24.94, 160.17]]  # lat > 90
     feature = {"type": "Feature", "properties": {"building": "yes"}}
     feature["geometry"] = {"type": "Polygon", "coordinates": [ring]}
-    r = httpx.post(url, json={"site": {"type": "FeatureCollection", "features": [feature]}})
+    r = httpx.post(
+        url, json={"site": {"type": "FeatureCollection", "features": [feature]}}, timeout=HANG_S
+    )
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "site.features.0"
     assert "swapped?" in r.json()["message"]
     no_ue = {"frame": {"origin": [24.94, 60.17]}, "environment": {"obstacles": []}}
-    r = httpx.post(url, json={"site": no_ue})
+    r = httpx.post(url, json={"site": no_ue}, timeout=HANG_S)
     assert r.status_code == 422 and "no UE positions" in r.json()["message"]
     # too large: the body (before it is read), the layout (before any visibility test)
-    r = httpx.post(url, content=b"{" + b" " * BODY_LIMIT + b"}")
+    r = httpx.post(url, content=b"{" + b" " * BODY_LIMIT + b"}", timeout=HANG_S)
     assert r.status_code == 413 and r.json()["limit"] == BODY_LIMIT
     r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0.001}}, timeout=HANG_S)
     assert r.status_code == 413 and "sites before the visibility filter" in r.json()["message"]

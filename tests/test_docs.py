@@ -465,6 +465,7 @@ def test_equation_numbers_do_not_cover_their_formulas(site: Path, width: int) ->
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
             try:
                 page = browser.new_page(viewport={"width": width, "height": 900})
+                page.set_default_timeout(HANG_MS)
                 page.goto(f"http://127.0.0.1:{server.server_address[1]}/concepts/model.html")
                 page.wait_for_function(
                     "document.querySelectorAll('.katex-display .katex-html > .tag').length >= 13",
@@ -476,6 +477,7 @@ def test_equation_numbers_do_not_cover_their_formulas(site: Path, width: int) ->
                 browser.close()
     finally:
         server.shutdown()
+        server.server_close()
         thread.join()
     assert len(equations) == 13
     for eq in equations:

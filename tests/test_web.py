@@ -24,7 +24,7 @@ from typing import Any
 
 import httpx
 import pytest
-from waits import HANG_MS
+from waits import HANG_MS, HANG_S
 
 from api.launch import served
 from ris_planner.planning import plan_preset as plan_preset_doc
@@ -322,7 +322,7 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     assert pg.locator("#progress").get_attribute("value") == "100"
     expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     plan = view["result"]
     objective = {k: v for k, v in view["request"]["objective"].items() if v is not None}
     assert objective == {"kind": "coverage", "metric": "rx", "threshold_m": 0.02}
@@ -431,7 +431,7 @@ def test_validation_errors_next_to_their_fields(
     pg.click("#submit")
     expect(pg.locator("#err-f-ris_count")).to_contain_text("ris_count 9 exceeds the 4 candidate")
     expect(pg.locator("#err-f-ris-rows")).to_be_hidden()
-    assert httpx.get(f"{server}/v1/jobs?status=queued").json()["total"] == 0
+    assert httpx.get(f"{server}/v1/jobs?status=queued", timeout=HANG_S).json()["total"] == 0
     body = pg.locator("body").inner_text()
     assert "Traceback" not in body and "Internal Server Error" not in body
 
@@ -459,7 +459,7 @@ def test_cancel_a_running_job(page: tuple[Page, Console], server: str, shots: Sh
     expect(pg.locator("#job-status")).to_contain_text("cancelled", timeout=WAIT_MS)
     expect(pg.locator("#cancel")).to_be_disabled()
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    assert httpx.get(f"{server}/v1/jobs/{job_id}").json()["status"] == "cancelled"
+    assert httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()["status"] == "cancelled"
     expect(pg.locator(f"#jobs-body tr[data-job='{job_id}']")).to_contain_text("cancelled")
     assert int(pg.locator("#progress").get_attribute("value") or "0") < 100
     shots.take(pg, "07-cancelled")
@@ -596,7 +596,7 @@ def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: S
     expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=WAIT_MS)
     expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     assert view["request"]["frame"] == doc["frame"] and "frame" in view["result"]
     assert "geojson" in view["figures"]
     link = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
@@ -635,7 +635,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     doc["pairs"] = {"sample": 300, "seed": 3}  # the page adds the pair model
     del doc["search"]  # and the method
     open_page(pg, server)
-    spec = httpx.get(f"{server}/openapi.json").json()["components"]["schemas"]
+    spec = httpx.get(f"{server}/openapi.json", timeout=HANG_S).json()["components"]["schemas"]
     pair_props = spec["PairSample"]["properties"]
     pg.set_input_files(
         "#upload",
@@ -669,7 +669,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     expect(pg.locator("#job-status")).to_contain_text("Job ", timeout=WAIT_MS)
     expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     assert view["status"] == "succeeded", view["error"]
     request, plan = view["request"], view["result"]
     assert request["search"]["method"] == "district"

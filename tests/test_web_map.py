@@ -30,7 +30,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     server,
     shots,
 )
-from waits import HANG_MS
+from waits import HANG_MS, HANG_S
 
 PX_TOL = 1.5
 """A site placed or dropped with the mouse lands within 1.5 screen pixels of the pointer (the
@@ -317,7 +317,7 @@ def test_ue_points_inside_buildings_not_drawn(
     # with candidates the validation's preview has the plan's maps: the same points drawn
     upload(pg, block_doc(), "blocks.json")
     expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
-    preview = httpx.post(f"{server}/v1/plans/validate", json=block_doc()).json()
+    preview = httpx.post(f"{server}/v1/plans/validate", json=block_doc(), timeout=HANG_S).json()
     assert preview["rx_points"] == 961 - INSIDE
     assert preview["dropped"] == {"tx": INSIDE, "rx": INSIDE}
     (ue,) = map_info(pg)["ues"]

@@ -224,7 +224,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=JOB_WAIT_MS)
     expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     request = view["request"]
     assert request["known"] == ["clock", "height"]
     # the sample size from the form, the rest of the pairs (seed, pair model) the import's
@@ -240,6 +240,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     back = httpx.post(
         f"{server}/v1/candidates/convert",
         json={"frame": request["frame"], "document": request["candidates"]},
+        timeout=HANG_S,
     ).json()["local"]
     for got, want in zip(back, edited, strict=True):
         assert math.dist(got["position"], want["position"]) <= 1e-6  # PROJ round trip
@@ -273,7 +274,10 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     assert json.loads(Path(dl.value.path()).read_text())["by_count"] == plan["by_count"]
     gj = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
     assert gj.get_attribute("download") == f"plan-{job_id[:8]}.geojson"
-    assert httpx.get(server + view["figures"]["geojson"]).json()["type"] == "FeatureCollection"
+    assert (
+        httpx.get(server + view["figures"]["geojson"], timeout=HANG_S).json()["type"]
+        == "FeatureCollection"
+    )
     cand_link = pg.locator("#dl-candidates")
     expect(cand_link).to_be_visible(timeout=WAIT_MS)
     with pg.expect_download() as dl:
@@ -293,6 +297,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     again = httpx.post(
         f"{server}/v1/candidates/convert",
         json={"frame": {"origin": plan["frame"]["origin"]}, "sites": sites},
+        timeout=HANG_S,
     ).json()["local"]
     for got, want in zip(again, edited, strict=True):
         assert math.dist(got["position"], want["position"]) <= EXPORT_ROUNDING_M
@@ -393,7 +398,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     assert (pg.input_value("#f-ris-rows"), pg.input_value("#f-ris-cols")) == ("16", "16")
     pg.unroute(f"**/v1/jobs/{job_id}")
     # the sizing control: the plan document with "sizing": {} where the server knows it
-    spec = httpx.get(f"{server}/openapi.json").json()
+    spec = httpx.get(f"{server}/openapi.json", timeout=HANG_S).json()
     if "sizing" in spec["components"]["schemas"]["PlanDocument"]["properties"]:
         expect(pg.locator("#find-size")).to_be_enabled()
         pg.click("#find-size")
@@ -402,7 +407,9 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         )
         sized = pg.evaluate("window.risPlanner.state.job.id")
         expect(pg.locator("#job-status")).to_contain_text("succeeded", timeout=JOB_WAIT_MS)
-        assert httpx.get(f"{server}/v1/jobs/{sized}").json()["request"]["sizing"] == {}
+        assert (
+            httpx.get(f"{server}/v1/jobs/{sized}", timeout=HANG_S).json()["request"]["sizing"] == {}
+        )
         expect(pg.locator("#sizing")).to_be_visible(timeout=WAIT_MS)
     else:
         expect(pg.locator("#find-size")).to_be_disabled()
@@ -456,7 +463,7 @@ def test_generate_candidates_from_the_site(
     starts from the defaults of ``ris-planner sites``, the list downloads as the file the
     command line writes; a site dragged into a building turns red, is named, and Submit says
     why it refuses."""
-    probe = httpx.post(f"{server}/v1/sites", json={})
+    probe = httpx.post(f"{server}/v1/sites", json={}, timeout=HANG_S)
     if probe.status_code == 404:
         pytest.skip("this server has no POST /v1/sites yet (candidate generation is being added)")
     pg, console = page
@@ -526,7 +533,7 @@ def test_generate_candidates_from_the_site(
         f"1 candidate lies inside a building (red on the map): {moved} ({name}) in {building}"
     )
     expect(pg.locator("#legend")).to_contain_text("candidate inside a building")
-    jobs_before = httpx.get(f"{server}/v1/jobs").json()
+    jobs_before = httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json()
     pg.click("#submit")
     status = pg.locator("#validation-status")
     expect(status).to_contain_text(
@@ -535,7 +542,7 @@ def test_generate_candidates_from_the_site(
     problems = pg.locator("#other-errors")  # the whole message: each site where the document has it
     expect(problems).to_contain_text(f"candidate {moved} ({name}) at [lon, lat, h] = [")
     expect(problems).to_contain_text(f"inside environment obstacle {k} (")
-    assert httpx.get(f"{server}/v1/jobs").json() == jobs_before  # nothing queued
+    assert httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json() == jobs_before  # nothing queued
     shots.take(pg, "planner-08-inside-a-building")
     # the moved site is no longer the generated one: the file keeps its pose, not what the
     # generator said of it
@@ -615,9 +622,9 @@ def test_real_osm_cut_through_the_page(
     expect(pg.locator("#diagnosis")).to_be_visible(timeout=WAIT_MS)
     shots.take(pg, "planner-07-real-osm-cut")
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     assert view["status"] == "succeeded", view["error"]
     check_plan(view["request"], view["result"])
-    geo = httpx.get(server + view["figures"]["geojson"]).json()
+    geo = httpx.get(server + view["figures"]["geojson"], timeout=HANG_S).json()
     assert geo["license"] == LICENSE
     assert console.unexpected() == []
