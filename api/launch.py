@@ -46,13 +46,14 @@ def served(
     workers: int = 1,
     via: str = "serve",
     env: dict[str, str] | None = None,
-    startup_timeout_s: float = 60.0,
+    startup_timeout_s: float = 600.0,
     log: Path | None = None,
     log_level: str = "warning",
 ) -> Iterator[Server]:
     """A server on a free port with job database ``db``; ``via`` is ``"serve"`` (the CLI) or
     ``"uvicorn"`` (``uvicorn api.main:app``, settings from the environment); ``log_level``:
-    its ``--log-level``."""
+    its ``--log-level``. ``startup_timeout_s`` ends a start that hangs: a busy machine may
+    take minutes to import the service."""
     port = free_port()
     environ = dict(os.environ) | {"RIS_PLANNER_DB": str(db), "RIS_PLANNER_WORKERS": str(workers)}
     environ |= env or {}

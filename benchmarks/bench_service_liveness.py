@@ -189,6 +189,12 @@ def idle(seconds: float) -> Callable[[str], Counter[int]]:
     return load
 
 
+P99_BOUND_S = 0.5
+"""The liveness criterion: ``/healthz`` answers 99 % of its probes within this under each load
+(docs/guides/service-operations.md, "Liveness under load"); a bound on speed, so it is this
+benchmark's, not the test suite's (tests/test_api_hardening.py checks that it answers)."""
+
+
 def measure(smoke: bool, only: str | tuple[str, ...] | None = None) -> list[dict[str, Any]]:
     """Every load (those whose name contains ``only`` or one of its texts) against one server;
     the figures."""
@@ -257,6 +263,11 @@ def main() -> None:
     results = measure(args.smoke, args.only)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
+    slow = [r["load"] for r in results if r["p99_s"] >= P99_BOUND_S]
+    verdict = "no: " + ", ".join(slow) if slow else "yes"
+    print(f"/healthz p99 below {P99_BOUND_S} s under every load: {verdict}")
+    if slow:
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":

@@ -44,22 +44,70 @@ def _cell(text: object) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
-def schemas() -> str:
+def documents() -> list[tuple[str, Any, str]]:
+    """(title, pydantic model, what reads it) of each JSON document."""
     from ris_planner.estimation.document import SimulationDocument
     from ris_planner.model.plan import PlanDocument
     from ris_planner.model.scenario import Scenario
 
-    parts = []
-    for title, model, where in (
+    return [
         ("Scenario document", Scenario, "`ris-planner bounds`, `power`, `POST /v1/bounds`"),
         ("Plan document", PlanDocument, "`ris-planner plan`, `POST /v1/plans`"),
         ("Simulation document", SimulationDocument, "`ris-planner simulate`"),
-    ):
+    ]
+
+
+def schema_models() -> dict[str, tuple[dict[str, Any], list[str]]]:
+    """Every model of the documents' JSON schemas by name (a document's own model included):
+    (its schema without ``$defs``, the titles of the documents that use it)."""
+    models: dict[str, tuple[dict[str, Any], list[str]]] = {}
+    for title, model, _ in documents():
+        schema = model.model_json_schema()
+        defs = schema.pop("$defs", {})
+        for name, part in [(model.__name__, schema), *defs.items()]:
+            known = models.setdefault(name, (part, []))
+            if known[0] != part:
+                raise ValueError(f"two JSON schemas named {name!r}")
+            known[1].append(title)
+    return models
+
+
+def _model_path(name: str) -> str | None:
+    """The Python path of the package's pydantic model of that name (the class a schema of
+    that name was made from)."""
+    import pydantic
+
+    found = set()
+    stack: list[type] = [pydantic.BaseModel]
+    while stack:
+        cls = stack.pop()
+        stack += cls.__subclasses__()
+        if cls.__name__ == name and cls.__module__.startswith("ris_planner."):
+            found.add(f"{cls.__module__}.{cls.__qualname__}")
+    return found.pop() if len(found) == 1 else None
+
+
+def schemas() -> str:
+    """The documents and, one section each, the JSON schema of every model they are made of
+    (the fields, their types, defaults and units are on the Python API pages)."""
+    models = schema_models()
+    rows = ["| document | read by | model |", "|---|---|---|"]
+    for title, model, where in documents():
+        rows.append(f"| {title} | {where} | [{model.__name__}](#{model.__name__.lower()}) |")
+    parts = ["\n".join(rows) + "\n", "## Models\n"]
+    for name in sorted(models, key=str.lower):
+        schema, used_by = models[name]
+        refs = sorted(set(re.findall(r'"\$ref": "#/\$defs/(\w+)"', json.dumps(schema))))
+        path = _model_path(name)
+        lines = [f"### {name}\n", f"Used in: {', '.join(used_by)}."]
+        if path is not None:
+            lines.append(f"Fields, types, defaults and units: [`{path}`][{path}].")
+        if refs:
+            lines.append("Refers to: " + ", ".join(f"[{r}](#{r.lower()})" for r in refs) + ".")
         parts.append(
-            f"## {title}\n\nRead by {where}. Generated from `{model.__module__}."
-            f"{model.__name__}`.\n\n"
-            f'??? note "JSON schema of the {title.lower()}"\n\n'
-            + _indent(_json_block(model.model_json_schema()))
+            "\n".join(lines)
+            + f'\n\n??? note "JSON schema of {name}"\n\n'
+            + _indent(_json_block(schema))
             + "\n"
         )
     return "\n".join(parts)

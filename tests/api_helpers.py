@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi.testclient import TestClient
+from waits import HANG_S
 
 from api.main import create_app
 from api.settings import Settings
@@ -31,9 +32,10 @@ def api_client(
 
 
 def wait_for(
-    client: Any, job_id: str, statuses: tuple[str, ...], timeout_s: float = 30.0
+    client: Any, job_id: str, statuses: tuple[str, ...], timeout_s: float = HANG_S
 ) -> dict[str, Any]:
-    """Poll GET /v1/jobs/{id} until its status is one of ``statuses``; the last view."""
+    """Poll GET /v1/jobs/{id} until its status is one of ``statuses``; the last view
+    (``timeout_s`` ends a hang: tests/waits.py)."""
     deadline = time.monotonic() + timeout_s
     while True:
         view: dict[str, Any] = client.get(f"/v1/jobs/{job_id}").json()

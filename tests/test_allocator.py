@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from waits import HANG_S
 
 GLIBC = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
 
@@ -42,7 +43,7 @@ def run(code: str | Path, *args: str, **env: str) -> list[str]:
         env=full | env,
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=HANG_S,
     )
     assert out.returncode == 0, out.stderr
     return out.stdout.split()
@@ -82,7 +83,7 @@ def test_import_changes_nothing_entry_points_and_opt_in_tune() -> None:
     assert run(tune, RIS_PLANNER_MALLOC_TUNING="0") == ["False", "False"]
     assert run(tune, MALLOC_MMAP_THRESHOLD_="131072") == ["False", "False"]  # the user's choice
     out = subprocess.run(
-        [sys.executable, "-c", CLI_PROBE], capture_output=True, text=True, timeout=60
+        [sys.executable, "-c", CLI_PROBE], capture_output=True, text=True, timeout=HANG_S
     )
     assert out.returncode == 0 and out.stderr.split()[-1] == "True"  # the command line tunes
 

@@ -24,6 +24,7 @@ import pytest
 from api_helpers import JSON
 from test_api_faults import FINAL, _group_leader, children, poll, wait_gone
 from test_api_plans import small_plan_doc
+from waits import HANG_S
 
 from api.auth import key_digest
 from api.launch import Server, served
@@ -53,7 +54,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
 
 
 def jobs_total(url: str, headers: dict[str, str] | None = None) -> int:
-    total: int = httpx.get(f"{url}/v1/jobs", headers=headers, timeout=30).json()["total"]
+    total: int = httpx.get(f"{url}/v1/jobs", headers=headers, timeout=HANG_S).json()["total"]
     return total
 
 
@@ -82,7 +83,7 @@ def test_every_body_refuses_an_undeclared_media_type(server: Server) -> None:
     later is held to it too – answers 415 to a body of a media type it does not declare (or of
     none), before any work: nothing is queued."""
     url = server.url
-    spec = httpx.get(f"{url}/openapi.json", timeout=30).json()
+    spec = httpx.get(f"{url}/openapi.json", timeout=HANG_S).json()
     before = jobs_total(url)
     wrong = []
     undocumented = []
@@ -97,7 +98,7 @@ def test_every_body_refuses_an_undeclared_media_type(server: Server) -> None:
         body = example[1] if example is not None else json.dumps(small_plan_doc()).encode()
         for media in UNDECLARED_MEDIA:
             headers = {} if media is None else {"Content-Type": media}
-            r = httpx.request(method, f"{url}{path}", content=body, headers=headers, timeout=60)
+            r = httpx.request(method, f"{url}{path}", content=body, headers=headers, timeout=HANG_S)
             if r.status_code != 415 or r.json().get("error") != "unsupported_media_type":
                 wrong.append((method, path, media, r.status_code, r.text[:120]))
     assert wrong == [], "\n".join(map(str, wrong))
@@ -131,7 +132,7 @@ def test_cross_origin_writes_are_refused(server: Server) -> None:
     ]
     for method, path, headers in refused:
         body = doc if method == "POST" else None
-        r = httpx.request(method, f"{url}{path}", json=body, headers=headers, timeout=30)
+        r = httpx.request(method, f"{url}{path}", json=body, headers=headers, timeout=HANG_S)
         assert r.status_code == 403, (headers, r.status_code, r.text[:200])
         assert r.json()["error"] == "forbidden" and r.headers["x-content-type-options"] == "nosniff"
     assert jobs_total(url) == before
@@ -140,7 +141,7 @@ def test_cross_origin_writes_are_refused(server: Server) -> None:
         {"Origin": f"http://localhost:{port}", "Host": f"localhost:{port}"},
         {},
     ):
-        r = httpx.post(f"{url}/v1/plans/validate", json=doc, headers=headers, timeout=60)
+        r = httpx.post(f"{url}/v1/plans/validate", json=doc, headers=headers, timeout=HANG_S)
         assert r.status_code == 200, (headers, r.text[:200])
 
 
@@ -152,7 +153,7 @@ def _concurrent_posts(
     answers: list[httpx.Response | None] = [None] * n
 
     def send(i: int) -> None:
-        with httpx.Client(timeout=120) as client:
+        with httpx.Client(timeout=HANG_S) as client:
             barrier.wait(60)
             answers[i] = client.post(f"{url}/v1/plans", json=doc, headers=headers)
 
@@ -188,7 +189,7 @@ def test_concurrent_idempotent_retries_create_one_job(tmp_path: Path, keyed: boo
                 f"{srv.url}/v1/plans",
                 content=json.dumps(small_plan_doc()),
                 headers=auth | {"Content-Type": "text/plain"},
-                timeout=30,
+                timeout=HANG_S,
             )
             assert r.status_code == 415, r.text[:200]
 
@@ -229,7 +230,7 @@ def test_an_old_database_is_migrated_to_one_job_per_key(tmp_path: Path) -> None:
             f"{srv.url}/v1/plans",
             json=small_plan_doc(),
             headers={"Idempotency-Key": "k"},
-            timeout=120,
+            timeout=HANG_S,
         )
         assert r.status_code == 409 and f"{1:032x}" in r.json()["message"], r.text[:300]
         assert jobs_total(srv.url) == 3
@@ -325,7 +326,7 @@ def test_every_size_limit_is_413_with_its_limit(server: Server) -> None:
     for name, (limit, routes, make) in SIZE_CASES.items():
         body = json.dumps(make()).encode()
         for route in routes:
-            r = httpx.post(f"{url}{route}", content=body, headers=JSON, timeout=120)
+            r = httpx.post(f"{url}{route}", content=body, headers=JSON, timeout=HANG_S)
             answer = r.json()
             if r.status_code != 413 or answer.get("limit") != limit:
                 wrong.append((name, route, r.status_code, answer.get("limit"), r.text[:200]))
@@ -417,13 +418,13 @@ def test_a_dead_idle_parse_process_fails_no_request(tmp_path: Path) -> None:
     """A parse process killed while idle: every later request is answered as if nothing had
     happened, and the pool is whole again."""
     with served(tmp_path / "jobs.db", env=POOL_ENV, log=tmp_path / "server.log") as srv:
-        r = httpx.post(f"{srv.url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
+        r = httpx.post(f"{srv.url}/v1/plans/validate", json=small_plan_doc(), timeout=HANG_S)
         assert r.status_code == 200, r.text[:200]
         pids = wait_until(lambda: len(p := parse_pids(srv.process.pid)) == 2 and p, "2 parsers")
         os.kill(pids[0], signal.SIGKILL)
         wait_gone([pids[0]])
         for _ in range(4):
-            r = httpx.post(f"{srv.url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
+            r = httpx.post(f"{srv.url}/v1/plans/validate", json=small_plan_doc(), timeout=HANG_S)
             assert r.status_code == 200, r.text[:300]
         wait_until(lambda: len(parse_pids(srv.process.pid)) == 2, "the pool rebuilt")
 
@@ -454,7 +455,7 @@ def test_a_parse_process_death_fails_only_its_request(tmp_path: Path) -> None:
     the other is answered, and the pool is rebuilt for the next ones."""
     with served(tmp_path / "jobs.db", env=POOL_ENV, log=tmp_path / "server.log") as srv:
         url = srv.url
-        assert httpx.post(f"{url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
+        assert httpx.post(f"{url}/v1/plans/validate", json=small_plan_doc(), timeout=HANG_S)
         pids = wait_until(lambda: len(p := parse_pids(srv.process.pid)) == 2 and p, "2 parsers")
         base = {p: cpu_ticks(p) for p in pids}
         body = json.dumps(_prisms(50_000)).encode()
@@ -462,7 +463,7 @@ def test_a_parse_process_death_fails_only_its_request(tmp_path: Path) -> None:
 
         def send() -> None:
             answers.append(
-                httpx.post(f"{url}/v1/plans/validate", content=body, headers=JSON, timeout=300)
+                httpx.post(f"{url}/v1/plans/validate", content=body, headers=JSON, timeout=HANG_S)
             )
 
         threads = [threading.Thread(target=send) for _ in range(2)]
@@ -479,7 +480,7 @@ def test_a_parse_process_death_fails_only_its_request(tmp_path: Path) -> None:
         assert failed.headers["x-content-type-options"] == "nosniff"
         assert failed.json()["error"] == "internal_error"
         assert "parse process" in failed.json()["message"], failed.text
-        r = httpx.post(f"{url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
+        r = httpx.post(f"{url}/v1/plans/validate", json=small_plan_doc(), timeout=HANG_S)
         assert r.status_code == 200, r.text[:300]
         wait_until(lambda: len(parse_pids(srv.process.pid)) == 2, "the pool rebuilt")
 
@@ -513,7 +514,7 @@ def test_openapi_declares_every_request_body(server: Server) -> None:
     with its declared media type (answered 2xx), or no body where it declares none (never a
     complaint about a missing body); a job's operations take the id of a job it queued."""
     url = server.url
-    spec = httpx.get(f"{url}/openapi.json", timeout=30).json()
+    spec = httpx.get(f"{url}/openapi.json", timeout=HANG_S).json()
     ops = sorted(
         operations(spec),
         key=lambda o: (o[1] == "DELETE", o[0] != "/v1/plans", "{" in o[0], o[0], o[1]),
@@ -529,7 +530,7 @@ def test_openapi_declares_every_request_body(server: Server) -> None:
                 continue
             media, body = example
             r = httpx.request(
-                method, target, content=body, headers={"Content-Type": media}, timeout=120
+                method, target, content=body, headers={"Content-Type": media}, timeout=HANG_S
             )
             if not 200 <= r.status_code < 300:
                 problems.append((method, path, r.status_code, r.text[:200]))
@@ -538,10 +539,10 @@ def test_openapi_declares_every_request_body(server: Server) -> None:
                 poll(url, job_id, FINAL)
             continue
         if path.endswith("/events"):
-            with httpx.stream(method, target, timeout=60) as r:
+            with httpx.stream(method, target, timeout=HANG_S) as r:
                 status, complaint = r.status_code, None
         else:
-            r = httpx.request(method, target, timeout=60)
+            r = httpx.request(method, target, timeout=HANG_S)
             status = r.status_code
             complaint = r.json() if r.headers.get("content-type") == "application/json" else None
         if str(status) not in op["responses"]:
@@ -558,11 +559,11 @@ def test_info_log_shows_the_services_own_lines(tmp_path: Path) -> None:
     job's start and end, a client gone before its body arrived."""
     log = tmp_path / "server.log"
     with served(tmp_path / "jobs.db", log=log, log_level="info") as srv:
-        r = httpx.post(f"{srv.url}/v1/plans", json=small_plan_doc(), timeout=60)
+        r = httpx.post(f"{srv.url}/v1/plans", json=small_plan_doc(), timeout=HANG_S)
         job = r.json()["id"]
         assert poll(srv.url, job, FINAL)["status"] == "succeeded"
         host, port = srv.url.removeprefix("http://").split(":")
-        with socket.create_connection((host, int(port)), timeout=5) as s:
+        with socket.create_connection((host, int(port)), timeout=HANG_S) as s:
             head = f"POST /v1/plans HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
             s.sendall(f"{head}Content-Length: 1000\r\n\r\n".encode() + b'{"a": 1')
         wait_until(lambda: "client disconnected" in log.read_text(), "the disconnect's line")

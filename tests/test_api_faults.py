@@ -17,6 +17,7 @@ from typing import Any
 import httpx
 import pytest
 from test_api_plans import small_plan_doc
+from waits import HANG_S
 
 from api.launch import served
 
@@ -67,7 +68,7 @@ def alive(pid: int) -> bool:
     return state != "Z"
 
 
-def wait_gone(pids: list[int], timeout_s: float = 15.0) -> None:
+def wait_gone(pids: list[int], timeout_s: float = HANG_S) -> None:
     deadline = time.monotonic() + timeout_s
     while any(alive(p) for p in pids):
         assert time.monotonic() < deadline, f"still alive: {[p for p in pids if alive(p)]}"
@@ -75,11 +76,11 @@ def wait_gone(pids: list[int], timeout_s: float = 15.0) -> None:
 
 
 def poll(
-    url: str, job_id: str, statuses: tuple[str, ...], timeout_s: float = 120.0
+    url: str, job_id: str, statuses: tuple[str, ...], timeout_s: float = HANG_S
 ) -> dict[str, Any]:
     deadline = time.monotonic() + timeout_s
     while True:
-        view: dict[str, Any] = httpx.get(f"{url}/v1/jobs/{job_id}", timeout=30).json()
+        view: dict[str, Any] = httpx.get(f"{url}/v1/jobs/{job_id}", timeout=HANG_S).json()
         if view["status"] in statuses:
             return view
         assert time.monotonic() < deadline, f"job {job_id} still {view['status']}"
@@ -87,7 +88,7 @@ def poll(
 
 
 def submit(url: str, doc: dict[str, Any]) -> str:
-    r = httpx.post(f"{url}/v1/plans", json=doc, timeout=30)
+    r = httpx.post(f"{url}/v1/plans", json=doc, timeout=HANG_S)
     assert r.status_code == 202, r.text
     job_id: str = r.json()["id"]
     return job_id
@@ -111,14 +112,23 @@ def _group_leader(pid: int) -> bool:
         return False
 
 
-def hold_lock(db: Path, seconds: float) -> str:
-    """An exclusive transaction on the database for ``seconds``; the UTC time it ended."""
+def hold_lock(
+    db: Path, until: float | threading.Event, ready: threading.Event | None = None
+) -> str:
+    """An exclusive transaction on the database (writers wait, readers go on) for ``until``
+    seconds – the fault – or until that event is set; ``ready`` is set once it holds. The UTC
+    time it ended."""
     from api.store import utc_now
 
-    con = sqlite3.connect(db, isolation_level=None, timeout=10)
+    con = sqlite3.connect(db, isolation_level=None, timeout=HANG_S)
     try:
         con.execute("BEGIN EXCLUSIVE")  # every write of the workers and the dispatcher waits
-        time.sleep(seconds)
+        if ready is not None:
+            ready.set()
+        if isinstance(until, threading.Event):
+            until.wait(HANG_S)
+        else:
+            time.sleep(until)
         con.execute("ROLLBACK")
     finally:
         con.close()
@@ -142,21 +152,31 @@ def test_lock_past_the_busy_timeout_while_a_job_finishes(tmp_path: Path) -> None
 
 def test_lock_past_the_retry_time_fails_the_job_and_degrades_health(tmp_path: Path) -> None:
     """A lock longer than the retry time: the worker gives up, the dispatcher keeps the job's
-    failure until the database answers, /healthz says degraded with the reason meanwhile."""
+    failure until the database answers, /healthz says degraded with the reason meanwhile – it
+    answers while the lock is held (it does not wait for the database)."""
     db = tmp_path / "jobs.db"
     env = ENV | {"RIS_PLANNER_DB_RETRY_S": "1"}
     with served(db, env=env, log=tmp_path / "server.log") as server:
         job_id = submit(server.url, long_plan())
         poll(server.url, job_id, ("running",))
-        holder = threading.Thread(target=hold_lock, args=(db, 6.0))
+        ready, release = threading.Event(), threading.Event()
+        holder = threading.Thread(target=hold_lock, args=(db, release, ready))
         holder.start()
-        time.sleep(4.5)
-        t0 = time.monotonic()
-        health = httpx.get(f"{server.url}/healthz", timeout=5).json()
-        assert time.monotonic() - t0 < 2.0  # one attempt, no retries: it answers at once
-        holder.join(timeout=30)
-        assert health["status"] == "degraded" and "did not answer" in health["reason"], health
-        view = poll(server.url, job_id, FINAL, timeout_s=30)
+        try:
+            assert ready.wait(HANG_S)
+            # the dispatcher and the worker give up after the retry time: degraded, and why
+            deadline = time.monotonic() + HANG_S
+            while True:
+                health = httpx.get(f"{server.url}/healthz", timeout=HANG_S).json()
+                if health["status"] == "degraded" and "did not answer" in health["reason"]:
+                    break
+                assert time.monotonic() < deadline, health
+                time.sleep(0.1)
+            assert holder.is_alive()  # answered with the database still locked
+        finally:
+            release.set()
+            holder.join(HANG_S)
+        view = poll(server.url, job_id, FINAL)
         assert view["status"] == "failed" and "did not answer" in view["error"], view
         next_job_runs(server.url)
         pids = descendants(server.process.pid)
@@ -171,12 +191,14 @@ def test_database_removed_mid_job(tmp_path: Path) -> None:
         old_workers = worker_pids(server.process.pid)
         for suffix in ("", "-wal", "-shm"):
             Path(f"{db}{suffix}").unlink(missing_ok=True)
-        view = poll(server.url, job_id, FINAL, timeout_s=30)
+        view = poll(server.url, job_id, FINAL)
         assert view["status"] == "failed" and "database was removed" in view["error"]
         assert str(tmp_path) not in view["error"]  # no server paths in job messages
         wait_gone(old_workers)  # its worker was stopped: its result has nowhere to go
-        deadline = time.monotonic() + 10  # the store answers again: ok, the fault on record
-        while (health := httpx.get(f"{server.url}/healthz", timeout=5).json())["status"] != "ok":
+        deadline = time.monotonic() + HANG_S  # the store answers again: ok, the fault on record
+        while (health := httpx.get(f"{server.url}/healthz", timeout=HANG_S).json())[
+            "status"
+        ] != "ok":
             assert time.monotonic() < deadline, health
             time.sleep(0.1)
         assert "removed" in health["last_fault"], health
@@ -194,7 +216,7 @@ def test_sigkill_of_the_server_ends_its_workers(tmp_path: Path) -> None:
         pids = descendants(server.process.pid)
         assert worker_pids(server.process.pid), "a worker runs the job"
         server.process.send_signal(signal.SIGKILL)
-        server.process.wait(timeout=10)
+        server.process.wait(timeout=HANG_S)
         wait_gone(pids)  # forkserver and worker end with their server
     with served(db, env=ENV, log=tmp_path / "server.log") as server:
         view = poll(server.url, job_id, FINAL)
@@ -211,7 +233,7 @@ def test_sigkill_of_a_worker_fails_its_job(tmp_path: Path) -> None:
         poll(server.url, job_id, ("running",))
         (worker,) = worker_pids(server.process.pid)
         os.kill(worker, signal.SIGKILL)
-        view = poll(server.url, job_id, FINAL, timeout_s=30)
+        view = poll(server.url, job_id, FINAL)
         assert view["status"] == "failed" and "SIGKILL" in view["error"]
         next_job_runs(server.url)
         pids = descendants(server.process.pid)

@@ -23,6 +23,7 @@ from test_api_e2e import poll
 from test_api_plans import small_plan_doc, without_timing
 from test_io_import import _floor_plan
 from tolerance import BOUND_ACCURACY, assert_close
+from waits import HANG_S
 
 from api.launch import served
 from api.models import SITE_OSM_XML
@@ -82,7 +83,7 @@ def test_geographic_plan_job_writes_the_cli_files(server: str, tmp_path: Path) -
     from ris_planner.cli import main
 
     doc = geo_plan_doc()
-    r = httpx.post(f"{server}/v1/plans", json=doc, timeout=60)
+    r = httpx.post(f"{server}/v1/plans", json=doc, timeout=HANG_S)
     assert r.status_code == 202, r.text
     view = poll(server, r.json()["id"])
     assert view["status"] == "succeeded", view["error"]
@@ -90,7 +91,7 @@ def test_geographic_plan_job_writes_the_cli_files(server: str, tmp_path: Path) -
     plan = view["result"]
     assert plan["frame"]["origin"] == list(ORIGIN)
     assert plan["frame"]["local_crs"] == Frame(ORIGIN).proj4
-    files = {k: httpx.get(server + u, timeout=30) for k, u in view["figures"].items()}
+    files = {k: httpx.get(server + u, timeout=HANG_S) for k, u in view["figures"].items()}
     geo = files["geojson"].json()
     coords = np.array(
         [f["geometry"]["coordinates"] for f in geo["features"] if f["properties"]["role"] == "ue"]
@@ -146,10 +147,10 @@ def geotiff_contents(data: bytes) -> dict[str, Any]:
 
 def test_validate_and_bounds_take_frames(server: str) -> None:
     doc = geo_plan_doc()
-    preview = httpx.post(f"{server}/v1/plans/validate", json=doc, timeout=60).json()
+    preview = httpx.post(f"{server}/v1/plans/validate", json=doc, timeout=HANG_S).json()
     assert preview["frame"]["origin"] == list(ORIGIN) and preview["sites"] == 5
     local = small_plan_doc()  # the same site in local metres: the same expanded positions
-    local_preview = httpx.post(f"{server}/v1/plans/validate", json=local, timeout=60).json()
+    local_preview = httpx.post(f"{server}/v1/plans/validate", json=local, timeout=HANG_S).json()
     got = np.array([c["position"] for c in preview["candidates"]])
     want = np.array([c["position"] for c in local_preview["candidates"]])
     assert np.allclose(got, want, atol=1e-6)  # 1e-10° rounding ≈ 10 µm
@@ -160,8 +161,8 @@ def test_validate_and_bounds_take_frames(server: str) -> None:
         "rx": [2, 3, 0],
     }
     geo = geo_scenario(scenario)
-    a = httpx.post(f"{server}/v1/bounds", json=geo, timeout=60)
-    b = httpx.post(f"{server}/v1/bounds", json=scenario, timeout=60)
+    a = httpx.post(f"{server}/v1/bounds", json=geo, timeout=HANG_S)
+    b = httpx.post(f"{server}/v1/bounds", json=scenario, timeout=HANG_S)
     assert a.status_code == 200, a.text
     assert a.json()["peb_rx_m"] == pytest.approx(b.json()["peb_rx_m"], rel=1e-6)
 
@@ -171,10 +172,10 @@ def test_geographic_power_allocation(server: str) -> None:
 
     local = small_power_doc()
     geo = geo_scenario(local)
-    r = httpx.post(f"{server}/v1/power-allocations?objective=sum", json=geo, timeout=60)
+    r = httpx.post(f"{server}/v1/power-allocations?objective=sum", json=geo, timeout=HANG_S)
     assert r.status_code == 202, r.text
     assert r.json()["request"]["scenario"] == geo  # kept as sent
-    ref = httpx.post(f"{server}/v1/power-allocations?objective=sum", json=local, timeout=60)
+    ref = httpx.post(f"{server}/v1/power-allocations?objective=sum", json=local, timeout=HANG_S)
     a, b = poll(server, r.json()["id"]), poll(server, ref.json()["id"])
     assert a["status"] == b["status"] == "succeeded", (a["error"], b["error"])
     for part in ("uniform", "sdp"):
@@ -182,7 +183,7 @@ def test_geographic_power_allocation(server: str) -> None:
             b["result"][part]["objective"], rel=POWER_RTOL
         )
     bad = geo | {"rx": [60.1699, 24.9384, 0.0]}  # [lat, lon]
-    r = httpx.post(f"{server}/v1/power-allocations", json=bad, timeout=60)
+    r = httpx.post(f"{server}/v1/power-allocations", json=bad, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "rx"
 
 
@@ -198,7 +199,7 @@ def test_geographic_power_allocation(server: str) -> None:
 )
 def test_bad_frames_name_the_field(server: str, change: dict[str, Any], field: str) -> None:
     for path in ("/v1/plans", "/v1/plans/validate"):
-        r = httpx.post(f"{server}{path}", json=geo_plan_doc() | change, timeout=60)
+        r = httpx.post(f"{server}{path}", json=geo_plan_doc() | change, timeout=HANG_S)
         assert r.status_code == 422, r.text
         assert r.json()["fields"][0]["field"] == field, r.json()
 
@@ -207,10 +208,10 @@ def test_a_point_swapped_far_away_names_the_field(server: str) -> None:
     doc = geo_plan_doc()
     p = doc["candidates"][2]["position"]
     doc["candidates"][2]["position"] = [p[1], p[0], p[2]]  # [lat, lon]: 2000 km off
-    r = httpx.post(f"{server}/v1/plans", json=doc, timeout=60)
+    r = httpx.post(f"{server}/v1/plans", json=doc, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "candidates.2.position"
     assert "swapped" in r.json()["message"]
-    assert httpx.get(f"{server}/v1/jobs?kind=plan", timeout=30).json()["total"] <= 1
+    assert httpx.get(f"{server}/v1/jobs?kind=plan", timeout=HANG_S).json()["total"] <= 1
 
 
 def test_without_pyproj_a_frame_is_a_501(tmp_path: Path) -> None:
@@ -225,10 +226,10 @@ def test_without_pyproj_a_frame_is_a_501(tmp_path: Path) -> None:
     doc = geo_plan_doc() | {"frame": {"origin": [24.93851, 60.16991, 0.0]}}
     with served(tmp_path / "jobs.db", env={"PYTHONPATH": path}) as server:
         for route in ("/v1/plans", "/v1/plans/validate"):
-            r = httpx.post(f"{server.url}{route}", json=doc, timeout=120)
+            r = httpx.post(f"{server.url}{route}", json=doc, timeout=HANG_S)
             assert r.status_code == 501, r.text
             assert "pip install 'ris_planner[gis]'" in r.json()["message"]
-        ok = httpx.post(f"{server.url}/v1/plans/validate", json=small_plan_doc(), timeout=120)
+        ok = httpx.post(f"{server.url}/v1/plans/validate", json=small_plan_doc(), timeout=HANG_S)
         assert ok.status_code == 200
 
 
@@ -252,7 +253,7 @@ def test_import_geojson_gives_a_plan_document(
         f"{server}/v1/import?highways=residential",
         content=body,
         headers={"Content-Type": "application/geo+json"},
-        timeout=60,
+        timeout=HANG_S,
     )
     assert r.status_code == 200, r.text
     answer = r.json()
@@ -262,7 +263,7 @@ def test_import_geojson_gives_a_plan_document(
     assert len(doc["environment"]["obstacles"]) == 29 and doc["tx_map"] == doc["rx_map"]
     assert doc["frame"] == answer["fragment"]["frame"]
     assert doc["license"] == report["license"] == "© OpenStreetMap contributors, ODbL 1.0"
-    preview = httpx.post(f"{server}/v1/plans/validate", json=doc, timeout=60)
+    preview = httpx.post(f"{server}/v1/plans/validate", json=doc, timeout=HANG_S)
     assert preview.status_code == 200, preview.text
     assert preview.json()["sites"] == 6 and len(preview.json()["obstacles"]) == 29
     assert preview.json()["tx_points"] == 278  # plan_helsinki.py's street points
@@ -279,7 +280,7 @@ def test_import_osm_xml(server: str) -> None:
         f"{server}/v1/import",
         content=SITE_OSM_XML.encode(),
         headers={"Content-Type": "application/xml"},
-        timeout=60,
+        timeout=HANG_S,
     )
     assert r.status_code == 200, r.text
     doc, report = r.json()["document"], r.json()["report"]
@@ -295,7 +296,7 @@ def test_import_dxf(server: str, tmp_path: Path) -> None:
     _floor_plan(path, insunits=4)  # millimetres
     body = path.read_bytes()
     url = f"{server}/v1/import?format=dxf&layer=WALLS=wall:2.7&layer=COLUMNS=prism:3:0.1"
-    r = httpx.post(url, content=body, headers=OCTETS, timeout=60)
+    r = httpx.post(url, content=body, headers=OCTETS, timeout=HANG_S)
     assert r.status_code == 200, r.text
     doc, report = r.json()["document"], r.json()["report"]
     walls = [(o["start"], o["end"]) for o in doc["environment"]["obstacles"] if o["kind"] == "wall"]
@@ -304,12 +305,14 @@ def test_import_dxf(server: str, tmp_path: Path) -> None:
     assert doc["tx_map"]["grid"]["x"] == [0.0, 10.0, 5.0]  # a grid over the plan
     # layers that the drawing does not have: a 422 naming them
     doors = f"{server}/v1/import?format=dxf&layer=DOORS=wall:2"
-    r = httpx.post(doors, content=body, headers=OCTETS, timeout=60)
+    r = httpx.post(doors, content=body, headers=OCTETS, timeout=HANG_S)
     assert r.status_code == 422 and "'DOORS' not in the drawing" in r.json()["message"]
-    r = httpx.post(f"{server}/v1/import?format=dxf", content=body, headers=OCTETS, timeout=60)
+    r = httpx.post(f"{server}/v1/import?format=dxf", content=body, headers=OCTETS, timeout=HANG_S)
     assert r.status_code == 422 and "no layers chosen" in r.json()["message"]
     nonsense = b"0\nSECTION\nnonsense"
-    r = httpx.post(f"{server}/v1/import?format=dxf", content=nonsense, headers=OCTETS, timeout=60)
+    r = httpx.post(
+        f"{server}/v1/import?format=dxf", content=nonsense, headers=OCTETS, timeout=HANG_S
+    )
     assert r.status_code == 422 and "request body" in r.json()["message"]
 
 
@@ -319,7 +322,7 @@ def test_import_errors(server: str) -> None:
     ring = site["features"][i]["geometry"]["coordinates"][0]
     ring[1] = ring[1][::-1]  # one vertex of a building as [lat, lon]
     name = site["features"][i]["properties"].get("name")
-    r = httpx.post(f"{server}/v1/import?origin=24.949,60.1655", json=site, timeout=60)
+    r = httpx.post(f"{server}/v1/import?origin=24.949,60.1655", json=site, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["message"].startswith(f"feature {i} (id ")
     assert "swapped" in r.json()["message"] and (name is None or name in r.json()["message"])
     assert r.json()["fields"][0]["field"] == f"features.{i}"  # the feature's path in the body
@@ -335,22 +338,22 @@ def test_import_errors(server: str) -> None:
             }
         ],
     }
-    r = httpx.post(f"{server}/v1/import?invalid=error", json=bad, timeout=60)
+    r = httpx.post(f"{server}/v1/import?invalid=error", json=bad, timeout=HANG_S)
     assert r.status_code == 422, r.text
     assert "feature 0 (id b7) at [24.940000, 60.160000]: invalid outline" in r.json()["message"]
     assert r.json()["fields"][0]["field"] == "features.0"
     # by default repaired, and listed by id and lon/lat; or skipped
-    r = httpx.post(f"{server}/v1/import", json=bad, timeout=60)
+    r = httpx.post(f"{server}/v1/import", json=bad, timeout=HANG_S)
     assert r.status_code == 200, r.text
     (entry,) = r.json()["report"]["repaired"]
     assert (entry["id"], entry["lonlat"], entry["parts"]) == ("b7", [24.94, 60.16], 2)
     assert len(r.json()["document"]["environment"]["obstacles"]) == 2
-    r = httpx.post(f"{server}/v1/import?invalid=skip", json=bad, timeout=60)
+    r = httpx.post(f"{server}/v1/import?invalid=skip", json=bad, timeout=HANG_S)
     assert r.status_code == 200 and r.json()["report"]["skipped_invalid"][0]["id"] == "b7"
-    r = httpx.post(f"{server}/v1/import?invalid=mend", json=bad, timeout=60)
+    r = httpx.post(f"{server}/v1/import?invalid=mend", json=bad, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "invalid"
     # an origin given as LAT,LON: the origin is named, not a feature
-    r = httpx.post(f"{server}/v1/import?origin=60.1655,24.949", json=site, timeout=60)
+    r = httpx.post(f"{server}/v1/import?origin=60.1655,24.949", json=site, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "origin"
     assert "swapped?" in r.json()["message"]
     for body, status in [
@@ -358,12 +361,12 @@ def test_import_errors(server: str) -> None:
         (b'{"type": "FeatureCollection", "features": []}', 422),
         (b"\x00\x01", 422),
     ]:
-        r = httpx.post(f"{server}/v1/import", content=body, headers=OCTETS, timeout=60)
+        r = httpx.post(f"{server}/v1/import", content=body, headers=OCTETS, timeout=HANG_S)
         assert r.status_code == status and r.json()["message"], (body, r.text)
     big = json.dumps(helsinki_site()).encode() * 6  # > RIS_PLANNER_MAX_BODY_BYTES = 200 000
-    r = httpx.post(f"{server}/v1/import", content=big, headers=GEOJSON, timeout=60)
+    r = httpx.post(f"{server}/v1/import", content=big, headers=GEOJSON, timeout=HANG_S)
     assert r.status_code == 413 and r.json()["limit"] == 200_000
-    spec = httpx.get(f"{server}/openapi.json", timeout=30).json()
+    spec = httpx.get(f"{server}/openapi.json", timeout=HANG_S).json()
     body_types = spec["paths"]["/v1/import"]["post"]["requestBody"]["content"]
     assert {"application/geo+json", "application/xml", "application/octet-stream"} <= set(
         body_types

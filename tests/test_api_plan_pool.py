@@ -18,6 +18,7 @@ import pytest
 from api_helpers import api_client, wait_for
 from test_api_plans import GRID, without_timing
 from tolerance import BOUND_ACCURACY, assert_close
+from waits import HANG_S
 
 from api.launch import served
 
@@ -74,7 +75,7 @@ def alive(pid: int) -> bool:
     return state != "Z"
 
 
-def pool_of(client: Any, timeout_s: float = 90.0) -> tuple[int, set[int]]:
+def pool_of(client: Any, timeout_s: float = HANG_S) -> tuple[int, set[int]]:
     """(the running job's worker pid, its pool's processes) once the pool has 2 workers."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -91,7 +92,7 @@ def pool_of(client: Any, timeout_s: float = 90.0) -> tuple[int, set[int]]:
     raise AssertionError("the plan job started no process pool")
 
 
-def wait_gone(pids: set[int], timeout_s: float = 15.0) -> set[int]:
+def wait_gone(pids: set[int], timeout_s: float = HANG_S) -> set[int]:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline and any(alive(p) for p in pids):
         time.sleep(0.05)
@@ -120,7 +121,7 @@ def test_plan_job_on_the_pool_equals_the_command_line(tmp_path: Path) -> None:
     doc = pool_doc()
     with api_client(tmp_path, workers=1, plan_workers=2) as client:
         job = client.post("/v1/plans", json=doc).json()["id"]
-        view = wait_for(client, job, ("succeeded", "failed"), timeout_s=300)
+        view = wait_for(client, job, ("succeeded", "failed"))
     assert view["status"] == "succeeded", view["error"]
     src = tmp_path / "doc.json"
     src.write_text(json.dumps(doc))
@@ -140,7 +141,7 @@ def test_plan_job_on_the_pool_equals_the_command_line(tmp_path: Path) -> None:
         ],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         env=env,
     )
     assert run.returncode == 0, run.stderr
@@ -157,9 +158,9 @@ def test_no_process_outlives_a_real_server(tmp_path: Path, stop: str) -> None:
     – forkserver, job worker, the job's pool, parse processes – is gone, by PID."""
     env = {"RIS_PLANNER_PLAN_WORKERS": "2", "RIS_PLANNER_PARSE_CONCURRENCY": "2"}
     with served(tmp_path / "jobs.db", env=env) as server:
-        r = httpx.post(f"{server.url}/v1/plans", json=pool_doc(counts=(2, 3, 4)), timeout=60)
+        r = httpx.post(f"{server.url}/v1/plans", json=pool_doc(counts=(2, 3, 4)), timeout=HANG_S)
         assert r.status_code == 202
-        deadline = time.monotonic() + 90
+        deadline = time.monotonic() + HANG_S
         while True:
             spawned = [
                 c
@@ -175,4 +176,4 @@ def test_no_process_outlives_a_real_server(tmp_path: Path, stop: str) -> None:
         if stop == "sigkill":
             server.process.kill()
             server.process.wait()
-    assert wait_gone(started, timeout_s=20) == set()
+    assert wait_gone(started) == set()

@@ -47,7 +47,7 @@ def test_plan_job_equals_run_plan_with_figures(tmp_path: Path) -> None:
     with api_client(tmp_path, workers=1) as client:
         r = client.post("/v1/plans", json=doc)
         assert r.status_code == 202 and r.json()["kind"] == "plan"
-        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=120)
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"))
         assert view["status"] == "succeeded", view["error"]
         gis = {"geojson", "geotiff", "points_csv"}  # ris_planner.io.gis_outputs.GIS_FILES
         assert set(view["figures"]) == {"topview", "heatmap", "cdf"} | gis
@@ -97,7 +97,7 @@ def test_plan_job_with_validation(tmp_path: Path) -> None:
     with api_client(tmp_path, workers=1) as client:
         r = client.post("/v1/plans", json=doc)
         assert r.status_code == 202
-        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=300)
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"))
         assert view["status"] == "succeeded", view["error"]
         v = view["result"]["validation"]
         assert v["pairs"] == 2 and [lay["ris_count"] for lay in v["layouts"]] == [3]

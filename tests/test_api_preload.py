@@ -7,6 +7,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+from waits import HANG_S
+
 PROBE = """
 import os, sys
 import numpy, scipy.linalg  # their BLAS threads (OpenBLAS's own, fork-safe) exist before
@@ -44,7 +46,7 @@ print("ok")
 
 def test_preload_sets_up_matplotlib_and_numba_without_a_thread() -> None:
     done = subprocess.run(
-        [sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=300, check=False
+        [sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=HANG_S, check=False
     )
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
 
@@ -58,6 +60,6 @@ def test_the_server_process_does_not_load_the_preload() -> None:
         "assert 'matplotlib' not in sys.modules, 'the server imported matplotlib'\n"
     )
     done = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_S, check=False
     )
     assert done.returncode == 0, done.stderr[-2000:]

@@ -1,20 +1,21 @@
 """A REST plan job's progress events are honest (tests/test_progress_honest.py's rules, seen
 through ``GET /v1/jobs/{id}/events``): the fraction never goes back, stays below 1 while the job
-runs, reaches 1 only with the result, and no stretch of most of the run leaves the bar
-standing."""
+runs, reaches 1 only with the result, and the stages are named on the way. That no stretch of
+the run leaves the bar standing is tested on the job's own function in its process
+(tests/test_progress_honest.py, on its CPU time): the events' arrival times here are the
+machine's load as much as the job's."""
 
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 from api_helpers import api_client
-from test_progress_honest import STALL_MOVE, STALL_WALL_SHARE, small_plan
+from test_progress_honest import small_plan
 
 
 def test_plan_job_progress_events_are_honest(tmp_path: Path) -> None:
-    events: list[tuple[str, dict[str, object], float]] = []  # (name, summary, arrival time)
+    events: list[tuple[str, dict[str, object]]] = []  # (name, summary)
     with api_client(tmp_path, workers=1) as client:
         r = client.post("/v1/plans", json=small_plan())
         assert r.status_code == 202
@@ -26,26 +27,15 @@ def test_plan_job_progress_events_are_honest(tmp_path: Path) -> None:
                 if line.startswith("event:"):
                     name = line[6:].strip()
                 elif line.startswith("data:"):
-                    events.append((name, json.loads(line[5:]), time.monotonic()))
+                    events.append((name, json.loads(line[5:])))
     assert events[-1][0] == "end" and events[-1][1]["status"] == "succeeded"
-    progress = [float(d["progress"]) for _, d, _ in events]  # type: ignore[arg-type]
+    progress = [float(d["progress"]) for _, d in events]  # type: ignore[arg-type]
     assert progress == sorted(progress)
     assert progress[-1] == 1.0
     assert all(
-        p < 1.0 for p, (_, d, _) in zip(progress, events, strict=True) if d["status"] != "succeeded"
+        p < 1.0 for p, (_, d) in zip(progress, events, strict=True) if d["status"] != "succeeded"
     )
-    running = [
-        (p, t) for p, (_, d, t) in zip(progress, events, strict=True) if d["status"] == "running"
-    ] + [(progress[-1], events[-1][2])]
-    wall = running[-1][1] - running[0][1]
-    # the longest stretch over which the bar moved less than STALL_MOVE
-    start = 0
-    for i in range(1, len(running)):
-        while running[i][0] - running[start][0] >= STALL_MOVE:
-            start += 1
-        stood = running[i][1] - running[start][1]
-        assert stood <= STALL_WALL_SHARE * wall, (stood, wall, running[start][0], running[i][0])
-    messages = [str(d["message"]) for _, d, _ in events if d["status"] == "running"]
+    messages = [str(d["message"]) for _, d in events if d["status"] == "running"]
     assert any(m.startswith("figures") for m in messages), messages
 
 

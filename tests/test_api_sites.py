@@ -12,6 +12,7 @@ from pathlib import Path
 import httpx
 import pytest
 from api_helpers import api_client
+from waits import HANG_S
 
 from api.launch import served
 from ris_planner.io.candidates import (
@@ -39,7 +40,9 @@ def helsinki() -> dict:
 
 def test_sites_of_the_helsinki_site(server: str) -> None:
     options = {"kinds": ["facade", "pole"], "heights_m": [4, 8], "max_candidates": 200}
-    r = httpx.post(f"{server}/v1/sites", json={"site": helsinki(), "options": options}, timeout=60)
+    r = httpx.post(
+        f"{server}/v1/sites", json={"site": helsinki(), "options": options}, timeout=HANG_S
+    )
     assert r.status_code == 200, r.text
     answer = r.json()
     want, summary = candidate_sites(helsinki(), CandidateOptions.model_validate(options))
@@ -48,18 +51,18 @@ def test_sites_of_the_helsinki_site(server: str) -> None:
     assert answer["type"] == "FeatureCollection" and answer["license"].startswith("©")
     assert summary.candidates == 200 and set(summary.by_kind) == {"facade", "pole"}
     # the answer as it is is a sites file: POST /v1/import takes it, in the site's frame
-    r = httpx.post(f"{server}/v1/import?format=sites", json=answer, timeout=60)
+    r = httpx.post(f"{server}/v1/import?format=sites", json=answer, timeout=HANG_S)
     assert r.status_code == 200, r.text
     fragment = r.json()["fragment"]
     assert fragment["frame"] == answer["frame"] and len(fragment["candidates"]) == 200
     names = [c["name"] for c in fragment["candidates"]]
     assert names == [f["properties"]["name"] for f in answer["features"]]
     # the document POST /v1/import makes of the site: the same frame, prisms, streets
-    imported = httpx.post(f"{server}/v1/import", json=helsinki(), timeout=60)
+    imported = httpx.post(f"{server}/v1/import", json=helsinki(), timeout=HANG_S)
     assert imported.status_code == 200, imported.text
     doc = imported.json()["document"]
     facades = {"kinds": ["facade"]}
-    r = httpx.post(f"{server}/v1/sites", json={"site": doc, "options": facades}, timeout=60)
+    r = httpx.post(f"{server}/v1/sites", json={"site": doc, "options": facades}, timeout=HANG_S)
     assert r.status_code == 200, r.text
     assert r.json()["frame"] == doc["frame"] == answer["frame"]
     want = generate_candidates(helsinki(), CandidateOptions(kinds=["facade"]))
@@ -68,30 +71,34 @@ def test_sites_of_the_helsinki_site(server: str) -> None:
 
 def test_sites_errors(server: str) -> None:
     url = f"{server}/v1/sites"
-    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0, "kinds": []}})
+    r = httpx.post(
+        url, json={"site": helsinki(), "options": {"spacing_m": 0, "kinds": []}}, timeout=HANG_S
+    )
     assert r.status_code == 422
     fields = {f["field"] for f in r.json()["fields"]}
     assert fields == {"options.spacing_m", "options.kinds"}, r.json()
-    r = httpx.post(url, json={"site": helsinki(), "options": {"tilts": [10]}})
+    r = httpx.post(url, json={"site": helsinki(), "options": {"tilts": [10]}}, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "options.tilts"
-    r = httpx.post(url, json={"options": {}})
+    r = httpx.post(url, json={"options": {}}, timeout=HANG_S)
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "site"
     ring = [[24.94, 160.17], [24.941, 160.17], [24.941, 160.171], [24.94, 160.17]]  # lat > 90
     feature = {"type": "Feature", "properties": {"building": "yes"}}
     feature["geometry"] = {"type": "Polygon", "coordinates": [ring]}
-    r = httpx.post(url, json={"site": {"type": "FeatureCollection", "features": [feature]}})
+    r = httpx.post(
+        url, json={"site": {"type": "FeatureCollection", "features": [feature]}}, timeout=HANG_S
+    )
     assert r.status_code == 422 and r.json()["fields"][0]["field"] == "site.features.0"
     assert "swapped?" in r.json()["message"]
     no_ue = {"frame": {"origin": [24.94, 60.17]}, "environment": {"obstacles": []}}
-    r = httpx.post(url, json={"site": no_ue})
+    r = httpx.post(url, json={"site": no_ue}, timeout=HANG_S)
     assert r.status_code == 422 and "no UE positions" in r.json()["message"]
     # too large: the body (before it is read), the layout (before any visibility test)
-    r = httpx.post(url, content=b"{" + b" " * BODY_LIMIT + b"}")
+    r = httpx.post(url, content=b"{" + b" " * BODY_LIMIT + b"}", timeout=HANG_S)
     assert r.status_code == 413 and r.json()["limit"] == BODY_LIMIT
-    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0.001}}, timeout=60)
+    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0.001}}, timeout=HANG_S)
     assert r.status_code == 413 and "sites before the visibility filter" in r.json()["message"]
     # 48 627 sites × 692 UE points = 33.6 M legs fit; 97 195 × 692 = 67.3 M do not
-    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0.05}}, timeout=60)
+    r = httpx.post(url, json={"site": helsinki(), "options": {"spacing_m": 0.05}}, timeout=HANG_S)
     assert r.status_code == 413 and "visibility legs" in r.json()["message"]
     assert r.json()["limit"] == MAX_VISIBILITY_LEGS
 
@@ -111,7 +118,7 @@ def test_one_set_of_generation_defaults(server: str) -> None:
     from ris_planner.cli.app import build_parser
     from ris_planner.cli.geo import candidate_options_of
 
-    spec = httpx.get(f"{server}/openapi.json", timeout=60).json()
+    spec = httpx.get(f"{server}/openapi.json", timeout=HANG_S).json()
     props = spec["components"]["schemas"]["CandidateOptions"]["properties"]
     defaults = CandidateOptions().model_dump(mode="json")
     assert {k: p.get("default") for k, p in props.items()} == defaults
@@ -141,9 +148,9 @@ def test_the_swap_check_can_be_turned_off(server: str) -> None:
     serves both."""
     site = swapped(helsinki())
     options = {"max_candidates": 5, "kinds": ["facade"]}
-    r = httpx.post(f"{server}/v1/sites", json={"site": site, "options": options}, timeout=60)
+    r = httpx.post(f"{server}/v1/sites", json={"site": site, "options": options}, timeout=HANG_S)
     assert r.status_code == 422 and "turn the swap check off" in r.json()["message"]
     off = {**options, "swap_check": False}
-    r = httpx.post(f"{server}/v1/sites", json={"site": site, "options": off}, timeout=60)
+    r = httpx.post(f"{server}/v1/sites", json={"site": site, "options": off}, timeout=HANG_S)
     assert r.status_code == 200, r.text
     assert r.json()["summary"]["candidates"] == 5

@@ -25,6 +25,7 @@ from test_api_attacks import wait_until
 from test_api_faults import FINAL, poll
 from test_api_hardening import lock_database
 from test_api_plans import small_plan_doc
+from waits import HANG_S
 
 from api.launch import served
 
@@ -104,7 +105,7 @@ FAULTS = {"read-only": read_only, "full": full, "locked": locked, "corrupt": cor
 
 
 def health(url: str) -> dict[str, Any]:
-    answer: dict[str, Any] = httpx.get(f"{url}/healthz", timeout=10).json()
+    answer: dict[str, Any] = httpx.get(f"{url}/healthz", timeout=HANG_S).json()
     return answer
 
 
@@ -117,11 +118,11 @@ def test_health_reports_a_storage_fault_while_it_lasts_and_after(
         db = folder / "jobs.db"
         server = stack.enter_context(served(db, env=ENV, log=tmp_path / "server.log"))
         url = server.url
-        first = httpx.post(f"{url}/v1/plans", json=small_plan_doc(), timeout=60).json()["id"]
+        first = httpx.post(f"{url}/v1/plans", json=small_plan_doc(), timeout=HANG_S).json()["id"]
         poll(url, first, FINAL)
         assert health(url)["status"] == "ok"
         with FAULTS[fault](db):
-            r = httpx.post(f"{url}/v1/plans", json=small_plan_doc(), timeout=60)
+            r = httpx.post(f"{url}/v1/plans", json=small_plan_doc(), timeout=HANG_S)
             assert r.status_code == 503 and r.headers["retry-after"].isdigit(), r.text[:300]
             during = wait_until(
                 lambda: (h := health(url)).get("fault") == fault and h,
@@ -134,7 +135,7 @@ def test_health_reports_a_storage_fault_while_it_lasts_and_after(
             lambda: f"/healthz not ok: {health(url)}",
         )
         assert after["fault"] is None and fault in after["last_fault"], after
-        job = httpx.post(f"{url}/v1/plans", json=small_plan_doc(), timeout=60)
+        job = httpx.post(f"{url}/v1/plans", json=small_plan_doc(), timeout=HANG_S)
         assert job.status_code == 202, job.text[:300]
         assert poll(url, job.json()["id"], FINAL)["status"] == "succeeded"
     text = (tmp_path / "server.log").read_text()

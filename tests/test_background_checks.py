@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from test_plan_timing import timed_plan
 from tolerance import assert_close
+from waits import HANG_S
 
 from ris_planner.planning import pipeline
 from ris_planner.planning.certify.checks import plan_check_task
@@ -87,7 +88,7 @@ def test_a_failed_stage_stops_the_checks(monkeypatch: pytest.MonkeyPatch) -> Non
     monkeypatch.setattr(pipeline, "fields_stage", failing_fields)
     with pytest.raises(RuntimeError, match="fields failed"):
         run_plan(timed_plan(), executor=SerialExecutor())
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + HANG_S
     while any(t.name.startswith("plan-checks") for t in threading.enumerate()):
         assert time.monotonic() < deadline, "the checks' thread did not stop"
         time.sleep(0.05)
@@ -140,7 +141,7 @@ def test_a_failing_task_in_settle_stops_the_thread(monkeypatch: pytest.MonkeyPat
     pending = checks.PendingChecks(None, list(range(40)), list)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="a task failed"):
         pending.settle()
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + HANG_S
     while any(t.name.startswith("plan-checks") for t in threading.enumerate()):
         assert time.monotonic() < deadline, "the checks' thread did not stop"
         time.sleep(0.05)
@@ -187,7 +188,7 @@ def test_parallel_kernels_from_two_threads_on_the_workqueue_layer() -> None:
         env=env,
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         check=False,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]

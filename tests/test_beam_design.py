@@ -194,7 +194,7 @@ def test_layout_and_maps_power_document_over_rest(tmp_path: Path) -> None:
     with api_client(tmp_path, workers=1) as client:
         r = client.post("/v1/power-allocations", json=doc)
         assert r.status_code == 202, r.text
-        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=120)
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"))
         assert view["status"] == "succeeded", view["error"]
         got = view["result"]
         # another process (its own BLAS threads): the same SDP solved to the solver's tolerance

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from dask_cluster import local_cluster
 from district_site import street_doc
+from waits import HANG_S
 
 from ris_planner.model.plan import PlanDocument
 from ris_planner.planning.city import plan_city, split_city
@@ -77,7 +78,7 @@ def test_city_command_writes_the_city_plan(tmp_path) -> None:
         ],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         check=False,
     )
     assert run.returncode == 0, run.stderr

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from waits import HANG_S
 
 from ris_planner import compute_bounds, load_scenario, preset_document
 from ris_planner.cli import main
@@ -119,7 +120,7 @@ def test_a_command_loads_only_its_own_feature() -> None:
     power and estimation features, the importers and the service are never imported (the
     whole parser, for --help, has them all: test_help_lists_every_command)."""
     out = subprocess.run(
-        [sys.executable, "-c", LAZY_PROBE], capture_output=True, text=True, timeout=120
+        [sys.executable, "-c", LAZY_PROBE], capture_output=True, text=True, timeout=HANG_S
     )
     assert out.returncode == 0, out.stderr
     assert out.stderr.strip().splitlines()[-1] == "LOADED []"
@@ -170,7 +171,7 @@ def test_plan_process_exits_fast_with_its_status_and_output(tmp_path: Path) -> N
     )
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "ris_planner.cli", "plan", str(doc), "--out", str(out)]
-    ok = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    ok = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_S, check=False)
     assert ok.returncode == 0, ok.stderr[-2000:]
     assert "2 RIS: " in ok.stdout  # the summary, flushed before the fast exit
     assert f"wrote {out / 'plan.json'}" in ok.stderr
@@ -179,7 +180,7 @@ def test_plan_process_exits_fast_with_its_status_and_output(tmp_path: Path) -> N
         [*cmd[:4], str(tmp_path / "missing.json"), "--out", str(out)],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         check=False,
     )
     assert bad.returncode == 2 and bad.stderr.startswith("error:")

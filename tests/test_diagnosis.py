@@ -470,7 +470,7 @@ def test_rest_plan_carries_sizing_and_diagnosis(tmp_path: Path) -> None:
         assert bad.status_code == 422 and "sizing" in bad.json()["fields"][0]["field"]
         r = client.post("/v1/plans", json=doc)
         assert r.status_code == 202
-        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=120)
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"))
         assert view["status"] == "succeeded", view["error"]
         assert "sizing" in view["figures"]
     want = plan(doc).to_json()

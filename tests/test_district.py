@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from district_site import street_doc
 from tolerance import BOUND_ACCURACY, assert_close
+from waits import HANG_S
 
 from ris_planner.bounds.compute import compute_bounds
 from ris_planner.core.errors import RisPlannerError
@@ -140,7 +141,7 @@ def test_command_line_district_plan_with_sizing(tmp_path: Path) -> None:
         [sys.executable, "-m", "ris_planner.cli", "plan", str(f), "--out", str(out)],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         check=False,
     )
     assert run.returncode == 0, run.stderr

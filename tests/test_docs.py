@@ -5,15 +5,19 @@ history, and no code or page names an issue by its number."""
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import json
 import os
 import re
 import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
+from waits import HANG_MS, HANG_S
 
 ROOT = Path(__file__).resolve().parent.parent
 README_MAX_LINES = 150
@@ -58,7 +62,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
         env=env,
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
     )
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-4000:]
     return site
@@ -273,3 +277,212 @@ def test_no_issue_numbers_in_code_or_docs() -> None:
             if ISSUE_NUMBER.search(line):
                 hits.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()[:80]}")
     assert not hits, "say what an issue asked for, not its number:\n" + "\n".join(hits)
+
+
+ENDPOINT = re.compile(r"`(GET|POST|PUT|PATCH|DELETE) (/[^`?\s]*)")
+PATH_PARAMETER = re.compile(r"\{[^}]*\}")
+
+
+def _route(method: str, path: str) -> str:
+    """``METHOD /path`` with every path parameter written ``{}``."""
+    return f"{method.upper()} {PATH_PARAMETER.sub('{}', path)}"
+
+
+def test_rest_guide_lists_every_route() -> None:
+    """The REST guide's endpoint table names every operation of the service's OpenAPI
+    document (method and path, any name for a path parameter), and nothing else but the page
+    at ``GET /``."""
+    from api.main import create_app
+    from api.settings import Settings
+
+    spec = create_app(Settings()).openapi()
+    served = {_route(m, p) for p, item in spec["paths"].items() for m in item}
+    text = (ROOT / "docs" / "guides" / "rest.md").read_text(encoding="utf-8")
+    table = text.split("| endpoint | what |", 1)[1].split("\n\n", 1)[0]
+    first_cells = [row.split("|")[1] for row in table.splitlines() if row.count("|") > 2]
+    listed = {_route(m, p) for cell in first_cells for m, p in ENDPOINT.findall(cell)}
+    assert served <= listed, f"routes missing from the REST guide: {sorted(served - listed)}"
+    assert listed - served <= {"GET /"}, f"listed, not served: {sorted(listed - served)}"
+
+
+def test_import_guide_names_each_option_as_each_entry_point_does() -> None:
+    """The import guide's table of options gives, per option, the name of the Python field
+    (``ImportOptions``), of the command line's flag and of the REST query parameter, and its
+    default: each is that entry point's own, and every option of each is in the table."""
+    import argparse
+    import dataclasses
+
+    from api.main import create_app
+    from api.settings import Settings
+    from ris_planner.cli.app import build_parser
+    from ris_planner.io.import_options import ImportOptions
+
+    python = {f.name: f.default for f in dataclasses.fields(ImportOptions)}
+    parser = build_parser("import")
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    cli = {s: a.default for a in sub.choices["import"]._actions for s in a.option_strings}
+    spec = create_app(Settings()).openapi()["paths"]["/v1/import"]["post"]["parameters"]
+    rest = {p["name"]: p["schema"].get("default") for p in spec if p["in"] == "query"}
+    text = (ROOT / "docs" / "guides" / "import.md").read_text(encoding="utf-8")
+    table = text.split("| Python (`ImportOptions`) | CLI | REST query | Default |", 1)[1]
+    rows = [r.split("|")[1:5] for r in table.split("\n\n", 1)[0].splitlines()[2:]]
+    seen: dict[str, set[str]] = {"python": set(), "cli": set(), "rest": set()}
+    for cells in rows:
+        py, flag, query, default = (c.strip().strip("`") for c in cells)
+        assert py in python and flag in cli and query in rest, cells
+        seen["python"].add(py)
+        seen["cli"].add(flag)
+        seen["rest"].add(query)
+        number = re.fullmatch(r"([\d.]+) m", default)
+        if number:
+            value = float(number.group(1))
+            assert python[py] == cli[flag] == rest[query] == value, (cells, python[py])
+    assert seen["python"] == set(python), set(python) - seen["python"]
+    # the flags and query parameters that are not import options: output, frame origin, DXF
+    assert set(cli) - seen["cli"] == {
+        "-h",
+        "--help",
+        "--out",
+        "--plan",
+        "--candidates",
+        "--origin",
+        "--layer",
+        "--units",
+    }
+    assert set(rest) - seen["rest"] == {"format", "origin", "layer", "units"}
+
+
+def _mkdocs_hooks() -> Any:
+    """scripts/mkdocs_hooks.py, which generates the schemas page."""
+    spec = importlib.util.spec_from_file_location("mkdocs_hooks", ROOT / "scripts/mkdocs_hooks.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _expected_default(info: Any) -> str:
+    """A field's default as the page shows it: JSON, ``{}`` for a nested model of defaults."""
+    from pydantic import BaseModel
+    from pydantic_core import to_jsonable_python
+
+    if info.is_required():
+        return "required"
+    value = info.get_default(call_default_factory=True)
+    if isinstance(value, BaseModel):
+        assert value == type(value)(), f"{value!r} is not its model's defaults"
+        return "{}"
+    return json.dumps(to_jsonable_python(value), ensure_ascii=False)
+
+
+def test_every_document_model_lists_its_fields_types_and_defaults(site: Path) -> None:
+    """Each model of the JSON documents (PlanDocument, SearchSpec, Sizing, PairSample, … – every
+    model of the schemas page) has its entry on an API page with a table of every field: its
+    type, its default, its unit and its description; the schemas page has one section per
+    model with that model's own JSON schema."""
+    import html as html_module
+
+    hooks = _mkdocs_hooks()
+    models = hooks.schema_models()
+    assert {"PlanDocument", "SearchSpec", "Sizing", "PairSample", "Scenario"} <= set(models)
+    pages = {p: p.read_text(encoding="utf-8") for p in (site / "reference" / "api").glob("*.html")}
+    schemas = (site / "reference" / "schemas.html").read_text(encoding="utf-8")
+    for name in models:
+        path = hooks._model_path(name)
+        assert path is not None, name
+        model = getattr(importlib.import_module(path.rpartition(".")[0]), name)
+        # its entry: at its module, or where a package above it exports it
+        parts = path.split(".")
+        ids = [f'id="{".".join(parts[:k])}.{name}"' for k in range(len(parts) - 1, 1, -1)]
+        found = [(t, i) for i in ids for t in pages.values() if i in t]
+        assert found, f"{path} has no entry on an API page"
+        page, anchor = found[0]
+        entry = page.split(anchor, 1)[1]
+        table = entry.split(f"Fields of <code>{name}</code>", 1)[1].split("</table>", 1)[0]
+        assert 'href="../schemas.html#' + name.lower() + '"' in entry.split("<table>", 1)[0]
+        rows = re.findall(r"<tr>\s*(.*?)</tr>", table, flags=re.S)[1:]
+        cells = {}
+        for row in rows:
+            cell = [
+                re.sub(r"<[^>]+>", "", c).strip()
+                for c in re.findall(r"<td>(.*?)</td>", row, flags=re.S)
+            ]
+            cells[cell[0]] = [html_module.unescape(c) for c in cell]
+        assert list(cells) == list(model.model_fields), (name, list(cells))
+        for field, info in model.model_fields.items():
+            _, type_text, default, unit, _, description = cells[field]
+            assert type_text, (name, field)
+            assert default == _expected_default(info), (name, field, default)
+            shown = " ".join(re.sub(r"`+", "", info.description or "").split())
+            assert description == shown, (name, field)
+            if field.endswith("_m") and info.annotation in (float, float | None):
+                assert unit == "m", (name, field, unit)
+        # the schemas page: a section of its own with the model's own schema
+        section = schemas.split(f'id="{name.lower()}"', 1)
+        assert len(section) == 2, f"no section for {name} on the schemas page"
+        block = section[1].split("<details", 1)[1].split("</details>", 1)[0]
+        code = block.split("<code>", 1)[1].split("</code>", 1)[0]
+        assert json.loads(html_module.unescape(re.sub(r"<[^>]+>", "", code))) == models[name][0]
+    assert schemas.count("<details") == len(models), "one JSON schema per model"
+
+
+TAGGED_EQUATIONS = """() => [...document.querySelectorAll('.katex-display')].flatMap((d) => {
+  const tag = d.querySelector('.katex-html > .tag');
+  if (!tag) return [];
+  const box = (e) => {
+    const r = e.getBoundingClientRect();
+    return [r.left, r.top, r.right, r.bottom];
+  };
+  return [{tag: tag.textContent, box: box(tag),
+           formula: [...d.querySelectorAll('.katex-html > .base')].map(box)}];
+})"""
+"""Each numbered display equation of a page: its tag's box and its formula's boxes (KaTeX's
+``.base`` spans), in CSS pixels."""
+
+
+@pytest.mark.parametrize("width", [1280, 1600])
+def test_equation_numbers_do_not_cover_their_formulas(site: Path, width: int) -> None:
+    """The model page rendered by headless Chromium at a desktop width: no equation tag's box
+    intersects its formula's (docs/stylesheets/equations.css)."""
+    import functools
+    import http.server
+    import threading
+
+    from test_web import CHROMIUM, CHROMIUM_FLAGS  # skips (fails under CI) without Chromium
+
+    sync_playwright = importlib.import_module("playwright.sync_api").sync_playwright
+
+    class Quiet(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, *args: Any) -> None:
+            pass
+
+    handler = functools.partial(Quiet, directory=str(site))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+            try:
+                page = browser.new_page(viewport={"width": width, "height": 900})
+                page.set_default_timeout(HANG_MS)
+                page.goto(f"http://127.0.0.1:{server.server_address[1]}/concepts/model.html")
+                page.wait_for_function(
+                    "document.querySelectorAll('.katex-display .katex-html > .tag').length >= 13",
+                    timeout=HANG_MS,
+                )
+                page.evaluate("document.fonts.ready")
+                equations = page.evaluate(TAGGED_EQUATIONS)
+            finally:
+                browser.close()
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join()
+    assert len(equations) == 13
+    for eq in equations:
+        left, top, right, bottom = eq["box"]
+        assert right > left and bottom > top, eq["tag"]
+        for f_left, f_top, f_right, f_bottom in eq["formula"]:
+            apart = right <= f_left or f_right <= left or bottom <= f_top or f_bottom <= top
+            assert apart, f"at {width} px the tag {eq['tag']!r} covers its formula"

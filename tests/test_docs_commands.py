@@ -1,4 +1,5 @@
-"""Every shell command the documentation shows runs as shipped (README.md, docs/**/*.md).
+"""Every shell command the documentation shows runs as shipped (README.md, docs/**/*.md), and
+every output the pages quote is the output of that command.
 
 The pages' commands are read from their fenced blocks (``bash``, ``console``, ``sh``, and
 any block whose lines start with ``$`` or ``ris-planner``) and from inline ``ris-planner …``
@@ -8,38 +9,51 @@ code. Each is checked in one of these ways:
   option – goes through the real parser (:func:`ris_planner.cli.app.build_parser`), so an
   unknown subcommand or flag fails here; a ``python script.py --flag`` names a script that
   exists and a flag it defines; a ``make TARGET`` a target of the Makefile;
-* **run**: a block without a marker is run, command by command, in a temporary folder that
-  sees the repository's ``examples/`` and ``tests/`` (``ris-planner`` in this interpreter, with
-  a timeout); where the page shows the output (``$ command`` then its lines), the output must
-  be the same text with numbers compared by the one tolerance rule (tests/tolerance.py);
-* **served**: ``curl`` commands of an unmarked block go to a real ``ris-planner serve`` on
-  127.0.0.1 (started and stopped by its PID), and the fields a ``# {...}`` comment shows must
-  be those of the answer;
-* **skipped**: a block the suite cannot run (minutes of work, a cluster, the reader's own
-  files) carries ``<!-- docs-check: skip (why) -->`` on the line before it, and the reason is
+* **run**: a block without a marker is run, its commands in order, in a temporary folder of its
+  own that sees the repository's ``examples/`` and ``tests/`` (``ris-planner`` and the scripts
+  of ``examples/`` in this interpreter, ``python -c`` too); where the page shows the output
+  (``$ command`` then its lines), the output must be the same text with numbers compared by the
+  one tolerance rule (tests/tolerance.py) at the precision the page prints them. A line ``…``
+  of the shown output stands for any number of lines, a ``…`` inside a line for any text;
+* **Python examples**: a ``python`` block followed by a block marked
+  ``<!-- docs-check: output -->`` is run as a script in such a folder, and what it prints is
+  compared with that block by the same rule;
+* **served**: a block with ``curl`` commands is run against a real ``ris-planner serve`` on
+  127.0.0.1 (started and stopped by its PID), its other commands (``python -c`` making a body
+  file) in order beside; the fields that a ``# {...}`` comment or the shown output gives – nested
+  objects by their path – must be those of the answer, and ``→ NNN`` its HTTP status;
+* **skipped**: a block the suite cannot run (a cluster, the reader's own files, a benchmark of
+  minutes) carries ``<!-- docs-check: skip (why) -->`` on the line before it, and the reason is
   required. Its commands are still parsed. ``<!-- docs-check: synopsis -->`` marks a usage
   synopsis (brackets for optional parts, ``a|b`` for alternatives, continuation lines that
   start with ``[`` or ``--``), which is parsed with each optional part given.
+
+Where a page quotes the figures of a run too long for the suite, the figures come from a file
+that run wrote (tests/test_docs_figures.py compares them).
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import io
+import itertools
 import json
 import os
 import re
 import shlex
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pytest
 from test_api_plans import small_plan_doc
 from tolerance import assert_close
+from waits import HANG_S
 
 from ris_planner.cli.app import build_parser
 
@@ -48,8 +62,10 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 SHELL = {"bash", "console", "sh", "shell"}
 FENCE = re.compile(r"^(\s*)(`{3,}|~{3,})\s*([\w+-]*)")
 MARK = re.compile(r"^<!--\s*docs-check:\s*(\S+)\s*(.*?)\s*-->$")
-KINDS = {"skip", "synopsis"}
-RUN_TIMEOUT_S = 90
+KINDS = {"skip", "synopsis", "output"}
+RUN_TIMEOUT_S = HANG_S
+"""A command that has not ended after this long hangs (tests/waits.py): the guard of a hang,
+not a speed limit."""
 PLACEHOLDERS = {"N": "2"}
 """Placeholder values a synopsis leaves to the reader, where the parser checks the type."""
 SMALLER = {
@@ -57,9 +73,75 @@ SMALLER = {
     " --powers-dbm 20,25,30 --out out/sim": ("--runs 200", "--runs 3"),
 }
 """Commands run with a smaller option than the page shows: page command → (shown, run)."""
-FILES = {"my-plan.json": small_plan_doc}
-"""Files a runnable command names that the reader brings: made here from the tests' data."""
+
+
+def link_document() -> dict[str, Any]:
+    """docs/concepts/diagnosis.md's tiny-RIS case: tests/test_diagnosis.py's LINK document
+    with the sizing ladder the page gives."""
+    from test_diagnosis import LINK
+
+    ladder = [[8, 8], [16, 16], [32, 32], [64, 64]]
+    return LINK | {"sizing": {"ris_sizes": ladder, "counts": [2, 3], "target": {"objective": 0.85}}}
+
+
+def helsinki_10x10_document() -> dict[str, Any]:
+    """docs/concepts/diagnosis.md's street case: examples/plan_helsinki.py's document with
+    400 pairs, 10 × 10 RISs, coverage of PEB_R ≤ 1 m, 2 RISs and the sizing ladder the page
+    gives."""
+    spec = importlib.util.spec_from_file_location(
+        "plan_helsinki", ROOT / "examples" / "plan_helsinki.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    doc, _ = module.helsinki_document(400)
+    ladder = [[32, 32], [64, 64], [100, 100], [160, 160]]
+    return doc | {
+        "ris": {"rows": 10, "cols": 10},
+        "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
+        "ris_count": [2],
+        "sizing": {"ris_sizes": ladder, "counts": [2, 3]},
+    }
+
+
+def preset_with(name: str, **fields: Any) -> Callable[[], dict[str, Any]]:
+    """A shipped plan preset with some of its fields replaced, as a page describes it."""
+
+    def make() -> dict[str, Any]:
+        from ris_planner.planning import plan_preset
+
+        return plan_preset(name) | fields
+
+    return make
+
+
+SAMPLE = {"sample": 1000, "seed": 1}
+FILES: dict[str, Callable[[], dict[str, Any]]] = {
+    "my-plan.json": small_plan_doc,
+    "link.json": link_document,
+    "helsinki_10x10.json": helsinki_10x10_document,
+    "junction-phys.json": preset_with("junction", pairs=SAMPLE, ris={"rows": 20, "cols": 20}),
+    "junction-iso.json": preset_with("junction", pairs=SAMPLE),
+    "hall-sample.json": preset_with("hall", pairs={"sample": 2000, "seed": 1}),
+}
+"""Files a runnable command names that the reader brings: made here from the tests' data and
+the examples, as the page describes them."""
+EXIT_STATUS = "echo $?"
+"""A page's ``$ echo $?`` shows the exit status of the command before it."""
 CURL_PORT = "127.0.0.1:8000"
+ELLIPSIS = ("…", "...")
+"""A shown output line that is only this stands for any number of lines."""
+
+
+@dataclass
+class Fenced:
+    """One fenced block of a page: its first body line, language, body and marker."""
+
+    page: Path
+    line: int
+    lang: str
+    body: list[str]
+    mark: tuple[str, str] | None
 
 
 @dataclass
@@ -84,6 +166,28 @@ class Block:
     line: int
     mark: tuple[str, str] | None
     commands: list[Command]
+
+    @property
+    def where(self) -> str:
+        return f"{self.page.relative_to(ROOT)}:{self.line}"
+
+    @property
+    def served(self) -> bool:
+        return any(c.text.split()[:1] == ["curl"] for c in self.commands)
+
+
+@dataclass
+class Example:
+    """A Python block whose printed output the page shows in the block after it."""
+
+    page: Path
+    line: int
+    code: str
+    output: list[str]
+
+    @property
+    def where(self) -> str:
+        return f"{self.page.relative_to(ROOT)}:{self.line}"
 
 
 def split_comment(line: str) -> tuple[str, str]:
@@ -144,10 +248,10 @@ def _commands(
     return out
 
 
-def blocks(page: Path) -> list[Block]:
-    """The fenced blocks of a page that hold commands, with the marker on the line before."""
+def fenced(page: Path) -> list[Fenced]:
+    """Every fenced block of a page, with the marker on the line before it."""
     lines = page.read_text(encoding="utf-8").splitlines()
-    found: list[Block] = []
+    found: list[Fenced] = []
     i = 0
     while i < len(lines):
         fence = FENCE.match(lines[i])
@@ -159,21 +263,42 @@ def blocks(page: Path) -> list[Block]:
             end += 1
         indent = len(fence.group(1))
         body = [line[indent:] for line in lines[i + 1 : end]]
-        lang = fence.group(3)
         before = next((line.strip() for line in reversed(lines[:i]) if line.strip()), "")
         marker = MARK.match(before)
         mark = (marker.group(1), marker.group(2)) if marker else None
-        holds = lang in SHELL or any(b.startswith(("$ ", "ris-planner")) for b in body)
-        if holds and lang not in {"json", "python", "js", "javascript", "toml", "yaml"}:
-            commands = _commands(page, i + 2, lang, body, mark)
-            if commands:
-                found.append(Block(page, i + 1, mark, commands))
+        found.append(Fenced(page, i + 2, fence.group(3), body, mark))
         i = end + 1
+    return found
+
+
+def blocks(page: Path) -> list[Block]:
+    """The fenced blocks of a page that hold commands."""
+    found = []
+    for b in fenced(page):
+        holds = b.lang in SHELL or any(x.startswith(("$ ", "ris-planner")) for x in b.body)
+        if holds and b.lang not in {"json", "python", "js", "javascript", "toml", "yaml"}:
+            if b.mark is not None and b.mark[0] == "output":
+                continue
+            commands = _commands(page, b.line, b.lang, b.body, b.mark)
+            if commands:
+                found.append(Block(page, b.line - 1, b.mark, commands))
+    return found
+
+
+def examples(page: Path) -> list[Example]:
+    """The Python blocks of a page that the next block, marked ``output``, shows the output
+    of."""
+    found = []
+    every = fenced(page)
+    for before, after in itertools.pairwise(every):
+        if after.mark is not None and after.mark[0] == "output" and before.lang == "python":
+            found.append(Example(page, before.line, "\n".join(before.body) + "\n", after.body))
     return found
 
 
 ALL_BLOCKS = [block for page in PAGES for block in blocks(page)]
 ALL_COMMANDS = [command for block in ALL_BLOCKS for command in block.commands]
+ALL_EXAMPLES = [example for page in PAGES for example in examples(page)]
 
 
 def simple_commands(text: str) -> Iterator[list[str]]:
@@ -281,19 +406,33 @@ def test_every_command_block_runs_or_says_why() -> None:
         where = f"{block.page.relative_to(ROOT)}:{block.line}"
         if block.mark is not None:
             kind, reason = block.mark
-            if kind not in KINDS:
+            if kind not in KINDS - {"output"}:
                 problems.append(f"{where}: unknown docs-check kind {kind!r}")
             elif kind == "skip" and not re.fullmatch(r"\(.{10,}\)", reason):
                 problems.append(f"{where}: docs-check: skip needs a reason in parentheses")
             continue
         for command in block.commands:
             for words in simple_commands(command.text):
-                name = program(words)
-                if name not in ("ris-planner", "curl") and words[:2] != ["python", "-c"]:
+                if program(words) != "curl" and not runnable_words(words):
                     problems.append(
                         f"{where}: `{command.text[:60]}` cannot be run by the suite:"
                         " mark the block <!-- docs-check: skip (why) -->"
                     )
+    assert not problems, "\n".join(problems)
+
+
+def test_every_marker_is_known_and_every_output_follows_a_python_block() -> None:
+    problems = []
+    for page in PAGES:
+        every = fenced(page)
+        for k, block in enumerate(every):
+            where = f"{page.relative_to(ROOT)}:{block.line - 1}"
+            if block.mark is None:
+                continue
+            if block.mark[0] not in KINDS:
+                problems.append(f"{where}: unknown docs-check kind {block.mark[0]!r}")
+            if block.mark[0] == "output" and (k == 0 or every[k - 1].lang != "python"):
+                problems.append(f"{where}: docs-check: output follows no python block")
     assert not problems, "\n".join(problems)
 
 
@@ -347,38 +486,90 @@ def test_scripts_and_make_targets_exist() -> None:
 NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
+def assert_same_line(got: str, shown: str, context: str) -> None:
+    """One output line against the page's: the same text, the same integers, floats by the
+    tolerance rule at the precision the page prints them; a ``…`` in the shown line stands
+    for any text."""
+    if "…" in shown:
+        pattern = ".*?".join(re.escape(part) for part in shown.split("…"))
+        assert re.fullmatch(pattern, got, flags=re.S), context
+        return
+    assert NUMBER.split(got) == NUMBER.split(shown), context
+    for x, y in zip(NUMBER.findall(got), NUMBER.findall(shown), strict=True):
+        if "." in y or "e" in y:
+            digits = len(y.split(".")[1].split("e")[0]) if "." in y else 0
+            scale = abs(float(y)) or 1.0
+            assert_close(float(x), float(y), accuracy=10.0**-digits / scale, where=context)
+        else:
+            assert x == y, context
+
+
+def _line_matches(got: str, shown: str) -> bool:
+    try:
+        assert_same_line(got, shown, "")
+    except AssertionError:
+        return False
+    return True
+
+
 def assert_same_output(got: str, shown: list[str], where: str) -> None:
-    """The output the page shows against the command's: the same text, the same integers,
-    floats by the tolerance rule at the precision the page prints them."""
+    """The output the page shows against the command's: line by line
+    (:func:`assert_same_line`); a shown line ``…`` stands for any number of lines, so the
+    shown lines between two of them are found in order."""
     lines = [line.rstrip() for line in got.strip("\n").splitlines()]
-    assert len(lines) == len(shown), (
-        f"{where}: output has {len(lines)} lines, page shows "
-        + str(len(shown))
-        + ":\n"
-        + "\n".join(lines)
+    shown = [line.rstrip() for line in shown]
+    listing = "\n".join(lines)
+    if not any(line.strip() in ELLIPSIS for line in shown):
+        assert len(lines) == len(shown), (
+            f"{where}: output has {len(lines)} lines, page shows {len(shown)}:\n{listing}"
+        )
+        for number, (a, b) in enumerate(zip(lines, shown, strict=True), 1):
+            assert_same_line(a, b, f"{where}, output line {number}:\n  got   {a}\n  shown {b}")
+        return
+    at = 0
+    anchored = True  # the next shown line must be the next output line
+    for b in shown:
+        if b.strip() in ELLIPSIS:
+            anchored = False
+            continue
+        if anchored:
+            assert at < len(lines), f"{where}: the output ends before {b!r}:\n{listing}"
+            assert_same_line(lines[at], b, f"{where}:\n  got   {lines[at]}\n  shown {b}")
+        else:
+            found = next((k for k in range(at, len(lines)) if _line_matches(lines[k], b)), None)
+            assert found is not None, f"{where}: no output line is {b!r}:\n{listing}"
+            at = found
+        at += 1
+        anchored = True
+    if anchored:
+        assert at == len(lines), f"{where}: more output after the shown lines:\n{listing}"
+
+
+def _environment() -> dict[str, str]:
+    """The environment of a page's command: the checkout importable, output unbuffered (stdout
+    and stderr interleave as on a terminal), figures without a display."""
+    return dict(
+        os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1", COLUMNS="200", MPLBACKEND="Agg"
     )
-    for number, (a, b) in enumerate(zip(lines, shown, strict=True), 1):
-        context = f"{where}, output line {number}:\n  got   {a}\n  shown {b}"
-        assert NUMBER.split(a) == NUMBER.split(b), context
-        for x, y in zip(NUMBER.findall(a), NUMBER.findall(b), strict=True):
-            if "." in y or "e" in y:
-                digits = len(y.split(".")[1].split("e")[0]) if "." in y else 0
-                scale = abs(float(y)) or 1.0
-                assert_close(float(x), float(y), accuracy=10.0**-digits / scale, where=context)
-            else:
-                assert x == y, context
 
 
-def _run_ris_planner(words: list[str], cwd: Path) -> tuple[int, str]:
+def run_command(words: list[str], cwd: Path) -> tuple[int, str]:
+    """Run one simple command of a page in ``cwd``: ``ris-planner``, a script of
+    ``examples/`` or ``python -c`` in this interpreter. Returns (status, output): stdout and
+    stderr together, or stderr alone when stdout goes to a file (``> FILE``)."""
     stdout_file = None
     if ">" in words:
         at = words.index(">")
         words, stdout_file = words[:at], cwd / words[at + 1]
-    env = dict(os.environ, PYTHONPATH=str(ROOT), COLUMNS="200")
+    if program(words) == "ris-planner":
+        argv = [sys.executable, "-m", "ris_planner.cli", *words[1:]]
+    else:
+        assert words[0] in ("python", "python3"), words
+        argv = [sys.executable, *words[1:]]
     run = subprocess.run(
-        [sys.executable, "-m", "ris_planner.cli", *words[1:]],
+        argv,
         cwd=cwd,
-        env=env,
+        env=_environment(),
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT if stdout_file is None else subprocess.PIPE,
         text=True,
@@ -390,24 +581,36 @@ def _run_ris_planner(words: list[str], cwd: Path) -> tuple[int, str]:
     return run.returncode, run.stdout
 
 
-def runnable() -> list[Command]:
-    """The commands of unmarked blocks but curl, each once (``.venv/bin/ris-planner`` is
+def runnable_words(words: list[str]) -> bool:
+    """A simple command the suite runs: ``ris-planner``, ``python -c``, a script of
+    ``examples/``, ``echo $?`` after one of them."""
+    name = program(words)
+    if name == "ris-planner" or words == EXIT_STATUS.split():
+        return True
+    if name in ("python", "python3") and len(words) > 1:
+        return words[1] == "-c" or words[1].startswith("examples/")
+    return False
+
+
+def _key(block: Block) -> tuple[str, ...]:
+    return tuple(re.sub(r"\S*/ris-planner\b", "ris-planner", c.text) for c in block.commands)
+
+
+def runnable() -> list[Block]:
+    """The unmarked blocks without curl, each once (``.venv/bin/ris-planner`` is
     ``ris-planner``)."""
-    seen: set[str] = set()
+    seen: set[tuple[str, ...]] = set()
     out = []
-    for command in ALL_COMMANDS:
-        key = re.sub(r"\S*/ris-planner\b", "ris-planner", command.text)
-        if command.mark or key in seen or command.text.split()[:1] == ["curl"]:
+    for block in ALL_BLOCKS:
+        if block.mark or block.served or _key(block) in seen:
             continue
-        seen.add(key)
-        out.append(command)
+        seen.add(_key(block))
+        out.append(block)
     return out
 
 
-@pytest.fixture(scope="module")
-def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def make_workdir(work: Path) -> Path:
     """A folder that sees examples/ and tests/ of the checkout, and the readers' files."""
-    work = tmp_path_factory.mktemp("docs-commands")
     for name in ("examples", "tests"):
         (work / name).symlink_to(ROOT / name)
     for name, make in FILES.items():
@@ -415,77 +618,173 @@ def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return work
 
 
-@pytest.mark.parametrize("command", runnable(), ids=lambda c: c.where)
-def test_command_runs_as_shown(command: Command, workdir: Path) -> None:
+def run_shown(command: Command, cwd: Path, status_shown: bool = False) -> int:
+    """Run a command of a page as it shows it (a smaller run where SMALLER says so), compare
+    the output it shows and return its exit status: 0 unless ``status_shown`` (the page shows
+    the status next, ``$ echo $?``)."""
     text = command.text
     if text in SMALLER:
         shown, smaller = SMALLER[text]
         text = text.replace(shown, smaller)
+    status, output = 0, ""
     for words in simple_commands(text):
-        if words[:2] == ["python", "-c"]:
-            run = subprocess.run(
-                [sys.executable, *words[1:]], capture_output=True, text=True, timeout=30
-            )
-            status, output = run.returncode, run.stdout + run.stderr
-        else:
-            status, output = _run_ris_planner(words, workdir)
-        assert status == 0, f"{command.where}: `{text}` exited {status}:\n{output[-2000:]}"
+        status, output = run_command(words, cwd)
+        assert status == 0 or status_shown, (
+            f"{command.where}: `{text}` exited {status}:\n{output[-2000:]}"
+        )
     if command.output:
         assert_same_output(output, command.output, command.where)
+    return status
+
+
+def run_block(block: Block, cwd: Path) -> None:
+    """Run a block's commands in order; ``echo $?`` compares the status it shows."""
+    status = 0
+    for k, command in enumerate(block.commands):
+        if command.text == EXIT_STATUS:
+            assert [str(status)] == command.output, f"{command.where}: exit status {status}"
+            continue
+        following = block.commands[k + 1].text if k + 1 < len(block.commands) else ""
+        status = run_shown(command, cwd, status_shown=following == EXIT_STATUS)
+
+
+@pytest.mark.parametrize("block", runnable(), ids=lambda b: b.where)
+def test_block_runs_as_shown(block: Block, tmp_path: Path) -> None:
+    run_block(block, make_workdir(tmp_path))
+
+
+@pytest.mark.parametrize("example", ALL_EXAMPLES, ids=lambda e: e.where)
+def test_python_example_prints_what_the_page_shows(example: Example, tmp_path: Path) -> None:
+    cwd = make_workdir(tmp_path)
+    run = subprocess.run(
+        [sys.executable, "-c", example.code],
+        cwd=cwd,
+        env=_environment(),
+        capture_output=True,
+        text=True,
+        timeout=RUN_TIMEOUT_S,
+    )
+    assert run.returncode == 0, f"{example.where}: exited {run.returncode}:\n{run.stderr[-3000:]}"
+    assert_same_output(run.stdout, example.output, example.where)
+
+
+def test_python_examples_are_found() -> None:
+    """The pages' Python examples with a shown output are found (a broken marker would leave
+    them unchecked)."""
+    pages = {e.page.relative_to(ROOT).as_posix() for e in ALL_EXAMPLES}
+    assert "docs/guides/candidates.md" in pages, pages
 
 
 # --- curl against a real server -----------------------------------------------------------
 
 
-def served_commands() -> list[Command]:
-    return [c for c in ALL_COMMANDS if not c.mark and c.text.split()[:1] == ["curl"]]
+def served_blocks() -> list[Block]:
+    seen: set[tuple[str, ...]] = set()
+    out = []
+    for block in ALL_BLOCKS:
+        if not block.mark and block.served and _key(block) not in seen:
+            seen.add(_key(block))
+            out.append(block)
+    return out
 
 
-SHOWN_FIELD = re.compile(r'"(\w+)": (null|"[^"…]*"|-?\d+(?:\.\d+)?(?:\.\.\.)?)')
+SHOWN_TOKEN = re.compile(
+    r'"(\w+)":\s*(\{|null|"[^"…]*"|-?\d+(?:\.\d+)?(?:\.\.\.)?)|(\{)|(\})|(\[)|(\])'
+)
 
 
-def assert_shown_fields(answer: dict, comment: str, where: str) -> None:
-    """Each ``"key": value`` the comment shows is the answer's; ``0.1445...`` is a value shown
-    to four decimals."""
-    for key, shown in SHOWN_FIELD.findall(comment):
-        assert key in answer, f"{where}: the answer has no {key!r}"
-        if shown == "null" or shown.startswith('"'):
-            assert answer[key] == json.loads(shown), f"{where}: {key}"
+def shown_fields(text: str) -> list[tuple[tuple[str, ...], str]]:
+    """(path, value) of every ``"key": value`` a comment or shown output gives, nested objects
+    by their path (``{"summary": {"by_kind": {"pole": 14}}}`` → (summary, by_kind, pole));
+    what a list holds is not read."""
+    path: list[str | None] = []
+    lists = 0
+    out = []
+    for key, value, open_brace, close_brace, open_list, close_list in SHOWN_TOKEN.findall(text):
+        if open_list:
+            lists += 1
+        elif close_list:
+            lists = max(0, lists - 1)
+        elif lists:
             continue
-        value = shown.removesuffix("...")
-        digits = len(value.split(".")[1]) if "." in value else 0
-        scale = abs(float(value)) or 1.0
-        assert_close(
-            answer[key], float(value), accuracy=10.0**-digits / scale, where=f"{where}: {key}"
-        )
+        elif open_brace:
+            path.append(None)
+        elif close_brace:
+            if path:
+                path.pop()
+        elif value == "{":
+            path.append(key)
+        else:
+            out.append(((*(p for p in path if p is not None), key), value))
+    return out
 
 
-def test_curl_commands_against_a_live_server(workdir: Path) -> None:
+def assert_shown_fields(answer: dict, shown: str, where: str) -> None:
+    """Each ``"key": value`` the page shows is the answer's at that path; ``0.1445...`` is a
+    value shown to four decimals."""
+    for path, value in shown_fields(shown):
+        name = ".".join(path)
+        got: Any = answer
+        for key in path:
+            assert isinstance(got, dict) and key in got, f"{where}: the answer has no {name!r}"
+            got = got[key]
+        if value == "null" or value.startswith('"'):
+            assert got == json.loads(value), f"{where}: {name}: {got!r}"
+            continue
+        number = value.removesuffix("...")
+        if "." not in number:
+            assert got == int(number), f"{where}: {name}: {got!r} != {number}"
+            continue
+        digits = len(number.split(".")[1])
+        scale = abs(float(number)) or 1.0
+        assert_close(got, float(number), accuracy=10.0**-digits / scale, where=f"{where}: {name}")
+
+
+def test_shown_fields_follow_the_nesting() -> None:
+    shown = (
+        '→ 200 {"type": "FeatureCollection", "features": [{"a": 1}, …], "summary":'
+        ' {"candidates": 100, "by_kind": {"facade": 86}, "roads": 65, …}, "x": 0.12...}'
+    )
+    assert shown_fields(shown) == [
+        (("type",), '"FeatureCollection"'),
+        (("summary", "candidates"), "100"),
+        (("summary", "by_kind", "facade"), "86"),
+        (("summary", "roads"), "65"),
+        (("x",), "0.12..."),
+    ]
+
+
+def test_curl_commands_against_a_live_server(tmp_path: Path) -> None:
     from api.launch import served
 
-    commands = served_commands()
-    assert len(commands) >= 3
+    blocks = served_blocks()
+    assert sum(c.text.split()[:1] == ["curl"] for b in blocks for c in b.commands) >= 4
+    workdir = make_workdir(tmp_path)
     last_id = "ID"
     with served(workdir / "jobs.db", log=workdir / "server.log") as server:
         port = server.url.removeprefix("http://")
-        for command in commands:
-            text = command.text.replace(CURL_PORT, port).replace("/jobs/ID", f"/jobs/{last_id}")
-            words = next(simple_commands(text))
-            run = subprocess.run(
-                [*words, "--write-out", "\n%{http_code}"],
-                cwd=workdir,
-                capture_output=True,
-                text=True,
-                timeout=60,
-            )
-            body, _, status = run.stdout.rpartition("\n")
-            assert run.returncode == 0 and status.startswith("2"), (
-                f"{command.where}: HTTP {status}: {body[:500]}"
-            )
-            answer = json.loads(body)
-            shown_status = re.search(r"→ (\d{3})", command.comment)
-            if shown_status:
-                assert status == shown_status.group(1), command.where
-            assert_shown_fields(answer, command.comment, command.where)
-            last_id = answer.get("id", last_id)
+        for block in blocks:
+            for command in block.commands:
+                if command.text.split()[:1] != ["curl"]:
+                    run_shown(command, workdir)
+                    continue
+                text = command.text.replace(CURL_PORT, port).replace("/jobs/ID", f"/jobs/{last_id}")
+                words = next(simple_commands(text))
+                run = subprocess.run(
+                    [*words, "--write-out", "\n%{http_code}"],
+                    cwd=workdir,
+                    capture_output=True,
+                    text=True,
+                    timeout=RUN_TIMEOUT_S,
+                )
+                body, _, status = run.stdout.rpartition("\n")
+                shown = " ".join([command.comment, *command.output])
+                shown_status = re.search(r"→ (\d{3})", shown)
+                expected = shown_status.group(1) if shown_status else "2"
+                assert run.returncode == 0 and status.startswith(expected), (
+                    f"{command.where}: HTTP {status}: {body[:500]}"
+                )
+                answer = json.loads(body)
+                assert_shown_fields(answer, shown, command.where)
+                last_id = answer.get("id", last_id)
     assert server.process.returncode == 0

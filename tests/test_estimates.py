@@ -3,8 +3,9 @@ measures (docs/validation/resources.md): the command line prints it on stderr be
 plan's progress, plan.json keeps it beside the measured wall time and peak memory
 (``resources``; a district plan too), a REST plan job holds it from its submission (and keeps
 it across a restart of the store), the sizing question and the validation have their terms,
-the greedy search's layout count is what the search scores, and one real OpenStreetMap site's
-plan – run as a user runs it – lands within the estimate's bounds."""
+the greedy search's layout count is what the search scores, the time estimate of the real
+OpenStreetMap sites' documents is within the benchmark's bounds of their recorded runs, and one
+real site's plan – run as a user runs it – peaks within the memory estimate's bounds."""
 
 from __future__ import annotations
 
@@ -96,7 +97,7 @@ def test_the_rest_job_shows_the_estimate_from_its_creation(tmp_path: Path) -> No
         assert client.get(f"/v1/jobs/{job_id}").json()["estimate"] == expected
         listed = client.get("/v1/jobs").json()["items"]
         assert [j["estimate"] for j in listed if j["id"] == job_id] == [expected]
-        view = wait_for(client, job_id, ("succeeded", "failed"), timeout_s=120)
+        view = wait_for(client, job_id, ("succeeded", "failed"))
         assert view["status"] == "succeeded", view["error"]
         assert view["estimate"] == expected
         res = view["result"]["resources"]
@@ -191,16 +192,45 @@ def test_the_greedy_layout_count_is_what_the_search_scores() -> None:
     assert 0.5 <= modelled / scored[0] <= 2, (modelled, scored[0])
 
 
-def test_a_real_site_plan_lands_within_the_estimate(tmp_path: Path) -> None:
+RECORDED = ROOT / "tests" / "data" / "estimates" / "real_sites.json"
+"""Measured runs of the held-out real sites (docs/validation/resources.md, "Real sites")."""
+
+ESTIMATE_BOUNDS = (0.5, 2.0)
+"""Estimate / measured of the benchmark (benchmarks/bench_estimates.py, docs/validation/
+resources.md): time and peak memory."""
+
+
+def test_the_time_estimate_meets_the_recorded_runs(tmp_path: Path) -> None:
+    """Each run recorded in tests/data/estimates/real_sites.json – the committed real sites
+    made into plan documents as a user makes them (``ris-planner sites``, ``ris-planner import
+    geojson --plan --candidates``) and planned plain, with ``--sizing``, ``--nested`` and
+    ``--validate 5`` – has a time estimate within the benchmark's [0.5, 2] of the wall time the
+    run measured. The estimate is the model's answer for the document, the same on any machine;
+    the measurement is the recorded one, not this machine's clock (which a busy machine stretches
+    many times: docs/validation/robustness.md, "A loaded machine")."""
+    from ris_planner.io.estimates import document_estimate
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_estimates import HELD_OUT, VARIANTS, write_documents
+
+    runs = json.loads(RECORDED.read_text())["runs"]
+    assert {(r["site"], r["variant"]) for r in runs} == {
+        (site.name, v) for site in HELD_OUT for v in VARIANTS
+    }
+    write_documents(HELD_OUT, list(VARIANTS), tmp_path)
+    low, high = ESTIMATE_BOUNDS
+    for run in runs:
+        doc = json.loads((tmp_path / f"{run['site']}-{run['variant']}.json").read_text())
+        ratio = document_estimate(doc).time_s / run["measured_s"]
+        assert low <= ratio <= high, (run, ratio)
+
+
+def test_a_real_site_plan_lands_within_the_memory_estimate(tmp_path: Path) -> None:
     """The committed Helsinki site run as a user runs it – ``ris-planner import geojson
-    --plan --candidates``, then ``ris-planner plan`` in a process of its own – measures a
-    peak resident memory within [0.5, 2] of the estimate printed before it, and a wall time
-    within [1/3, 3] of it. The time bound is wider than the benchmark's [0.5, 2]
-    (docs/validation/resources.md, "Real sites": 0.8–1.6 on the 2-core development machine)
-    because a CI machine may be several times slower or busier than the calibration's – yet
-    it still fails the model this replaced (its search term alone was 18–33× the measured
-    search on this site, the whole estimate up to 7.7×) and any error of a factor 3. The
-    memory does not depend on the machine's speed: the benchmark's bound holds."""
+    --plan --candidates``, then ``ris-planner plan`` in a process of its own – prints its
+    estimate first and measures a peak resident memory within the benchmark's [0.5, 2] of it
+    (memory does not depend on the machine's speed or load; the time is tested against
+    recorded runs above)."""
     site = ROOT / "examples" / "helsinki"
     plan = tmp_path / "plan.json"
     cmd = [sys.executable, "-m", "ris_planner.cli"]
@@ -223,10 +253,9 @@ def test_a_real_site_plan_lands_within_the_estimate(tmp_path: Path) -> None:
     assert LINE.match(proc.stderr.splitlines()[0]), proc.stderr[:300]
     res = json.loads((out / "plan.json").read_text())["resources"]
     memory = res["estimate"]["memory_mib"] / res["measured"]["peak_memory_mib"]
-    time_ratio = res["estimate"]["time_s"] / res["measured"]["time_s"]
-    assert 0.5 <= memory <= 2, res
-    assert 1 / 3 <= time_ratio <= 3, res
-    assert math.isfinite(time_ratio)
+    low, high = ESTIMATE_BOUNDS
+    assert low <= memory <= high, res
+    assert res["measured"]["time_s"] > 0 and math.isfinite(res["estimate"]["time_s"])
 
 
 def test_the_pair_served_share_is_the_brute_force_share() -> None:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 from tolerance import BOUND_ACCURACY, assert_close
+from waits import HANG_S
 
 from ris_planner import load_scenario, preset_document
 from ris_planner.core.errors import RisPlannerError
@@ -224,7 +225,7 @@ def test_cli_validate_prints_the_summary(tmp_path: Path) -> None:
         [*CLI, "plan", str(path), "--validate", "1", "--out", str(tmp_path / "out")],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         cwd=ROOT,
     )
     assert out.returncode == 0, out.stderr[-2000:]

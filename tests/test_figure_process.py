@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 from test_plan_timing import timed_plan
+from waits import HANG_S
 
 from ris_planner.io.geoplan import plan_document
 from ris_planner.planning import figure_process
@@ -31,7 +32,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _ended(pid: int, within_s: float = 10.0) -> bool:
+def _ended(pid: int, within_s: float = HANG_S) -> bool:
     deadline = time.monotonic() + within_s
     while time.monotonic() < deadline:
         if not _alive(pid):
@@ -81,7 +82,7 @@ def test_the_parent_draws_when_the_helper_dies(tmp_path: Path) -> None:
         pid = figures.pid
         assert pid is not None
         os.kill(pid, 9)
-        deadline = time.monotonic() + 10.0
+        deadline = time.monotonic() + HANG_S
         while figures.pid is not None and time.monotonic() < deadline:  # reaped by its poll
             time.sleep(0.05)
         assert figures.pid is None
@@ -107,7 +108,7 @@ def test_the_helper_exits_when_its_parent_goes(tmp_path: Path) -> None:
         "os._exit(0)\n"  # no clean-up: the helper sees its stdin close
     )
     done = subprocess.run(
-        [sys.executable, "-c", parent], capture_output=True, text=True, timeout=60, check=True
+        [sys.executable, "-c", parent], capture_output=True, text=True, timeout=HANG_S, check=True
     )
     pid = int(done.stdout.strip())
     assert _ended(pid, 30.0), "the helper outlived its parent"
@@ -120,7 +121,7 @@ def test_cli_plan_draws_with_the_helper(tmp_path: Path) -> None:
     doc.write_text(json.dumps(timed_plan()))
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "ris_planner.cli", "plan", str(doc), "--out", str(out)]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_S, check=False)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "figures drawn in this process" not in done.stderr
     assert all((out / f"{name}.png").is_file() for name in FIGURES)

@@ -15,6 +15,7 @@ import pytest
 from api_helpers import api_client
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from waits import HANG_S
 
 from ris_planner import preset_document
 from ris_planner.cli import main
@@ -186,5 +187,5 @@ def test_closed_stdin_and_stdout(tmp_path: Path) -> None:
     for redirect, text in [("<&-", "standard input is closed"), (">&-", "standard output")]:
         argv = "bounds -" if redirect == "<&-" else "bounds --preset paper-table1"
         cmd = f"{sys.executable} -m ris_planner.cli {argv} {redirect}"
-        out = subprocess.run(cmd, shell=True, capture_output=True, text=True, timeout=120)
+        out = subprocess.run(cmd, shell=True, capture_output=True, text=True, timeout=HANG_S)
         assert out.returncode == 2 and text in out.stderr and "Traceback" not in out.stderr

@@ -334,6 +334,43 @@ def test_cli_import_geojson_and_errors(tmp_path: Path, capsys: pytest.CaptureFix
     assert "invalid outline (Self-intersection at [" in err
 
 
+def test_import_help_gives_each_option_its_unit_and_default() -> None:
+    """``ris-planner import --help``: every option with a value says what it is, a length its
+    unit, and the default it falls back to (the ImportOptions defaults, one source)."""
+    import argparse
+
+    from ris_planner.cli.app import build_parser
+
+    parser = build_parser("import")
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command = sub.choices["import"]
+    checked = []
+    for action in command._actions:
+        if not action.option_strings or action.nargs == 0 or action.dest == "help":
+            continue
+        help_text = command._get_formatter()._expand_help(action) if action.help else ""
+        assert help_text, f"{action.option_strings[0]} has no help"
+        if action.default is not None:
+            assert f"({action.default}" in help_text, (action.option_strings[0], help_text)
+            checked.append(action.dest)
+        if action.type is float:
+            assert "[m]" in help_text, (action.option_strings[0], help_text)
+    options = ImportOptions()
+    defaults = {
+        "metres_per_level": options.metres_per_level,
+        "default_height": options.default_height_m,
+        "road_step": options.road_step_m,
+        "ue_height": options.ue_height_m,
+        "density_key": options.density_key,
+        "area_step": options.area_step_m,
+        "site_spacing": options.site_spacing_m,
+        "invalid": options.invalid,
+    }
+    assert sorted(checked) == sorted(defaults)
+    for dest, value in defaults.items():
+        assert command.get_default(dest) == value, dest
+
+
 def test_helsinki_data_imports() -> None:
     path = HELSINKI / "helsinki.geojson"
     assert path.stat().st_size < 200_000

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from waits import HANG_S
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLE = ROOT / "docs" / "reference" / "layers.md"
@@ -206,6 +207,8 @@ def test_import_does_not_load(module: str, forbidden: str) -> None:
         " bad = [n for n in sys.modules if n == f or n.startswith(f + '.')];"
         " print(','.join(bad))"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_S
+    )
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "", f"{module} loads {out.stdout.strip()}"

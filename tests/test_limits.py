@@ -1,6 +1,8 @@
 """Every size-driving quantity is computed from the document and refused before anything is
 built: each document below would need gigabytes (or hours); under a 1.5 GiB address-space cap
-each is refused within a second with its limit named, by the CLI and by the service."""
+each is refused with its limit named – exit status 2 and no MemoryError: nothing was built – by
+the CLI and by the service. How long a refusal takes is the benchmark's figure
+(benchmarks/bench_refusals.py, docs/validation/resources.md)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import numpy as np
 import pytest
 from api_helpers import api_client
 from test_api_plans import small_plan_doc
+from waits import HANG_S
 
 from ris_planner import preset_document
 from ris_planner.planning import PlanDocument
@@ -23,8 +26,6 @@ from ris_planner.planning.resources.admission import HEATMAP_MAX_PAIRS, estimate
 
 MEMORY_CAP_MB = 1536
 """Address-space cap of the refusing process (imports need ~1 GiB of address space)."""
-REFUSAL_S = 1.0
-"""Each refusal, timed inside the capped process (after its imports)."""
 
 
 def ring(n: int) -> list[dict[str, Any]]:
@@ -125,12 +126,12 @@ CASES: dict[str, tuple[str, dict[str, Any], str]] = {
 ENV_BUDGET_MB = {"memory budget": 600}
 
 REFUSER = r"""
-import io, json, resource, sys, time
+import io, json, resource, sys
 from contextlib import redirect_stderr
 cap = int(sys.argv[1]) << 20
 resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
 from ris_planner.cli import main
-import ris_planner.planning, ris_planner.planning.resources.admission  # before the clock
+import ris_planner.planning, ris_planner.planning.resources.admission  # under the cap
 import ris_planner.power.report
 out = {}
 for name, (command, doc, budget) in json.load(sys.stdin).items():
@@ -138,10 +139,9 @@ for name, (command, doc, budget) in json.load(sys.stdin).items():
     os.environ["RIS_PLANNER_JOB_MEMORY_MB"] = str(budget)
     sys.stdin = io.TextIOWrapper(io.BytesIO(json.dumps(doc).encode()))
     err = io.StringIO()
-    t0 = time.perf_counter()
     with redirect_stderr(err):
         code = main([command, "-"])
-    out[name] = {"code": code, "seconds": time.perf_counter() - t0, "stderr": err.getvalue()}
+    out[name] = {"code": code, "stderr": err.getvalue()}
 print(json.dumps(out))
 """
 
@@ -159,7 +159,7 @@ def refusals() -> dict[str, dict[str, Any]]:
         input=json.dumps(cases),
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         env=env,
         cwd=Path(__file__).parent.parent,
     )
@@ -176,7 +176,6 @@ def test_each_quantity_is_refused_before_it_is_built(
     assert got["code"] == 2, got
     assert CASES[name][2] in got["stderr"], got["stderr"]
     assert "Traceback" not in got["stderr"] and "MemoryError" not in got["stderr"]
-    assert got["seconds"] < REFUSAL_S, got
 
 
 def test_the_service_refuses_at_submission_with_the_limit(tmp_path: Path) -> None:
@@ -223,7 +222,7 @@ def test_smoke_estimates_cover_the_measured_peak_within_twice() -> None:
     from bench_memory import SMOKE, run_case
 
     for case in SMOKE:
-        got = run_case(case, timeout=120)
+        got = run_case(case, timeout=HANG_S)
         assert got["peak"] <= got["estimate"] <= 2 * got["peak"], (case.name, got)
 
 
@@ -373,7 +372,7 @@ def test_bench_memory_rows_carry_the_time_model_terms() -> None:
     sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
     from bench_memory import SMOKE, run_case
 
-    got = run_case(SMOKE[0], timeout=120)
+    got = run_case(SMOKE[0], timeout=HANG_S)
     assert set(got["terms"]) == set(got["estimate_stages_s"]) - {"beams"}
     assert got["terms"]["search"]["per_layout_pair"] > 0
 

@@ -21,6 +21,7 @@ import pytest
 from api_helpers import api_client
 from test_api_plans import small_plan_doc
 from test_limits import power_doc
+from waits import HANG_S
 
 from ris_planner.core.errors import LimitExceededError
 from ris_planner.model.limits import (
@@ -210,7 +211,7 @@ def test_the_command_line_refuses_the_largest_ris_in_one_line(tmp_path: Path) ->
         [sys.executable, "-m", "ris_planner.cli", "plan", str(src), "--out", str(tmp_path / "o")],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=HANG_S,
         env={"PATH": "/usr/bin:/bin", "OPENBLAS_NUM_THREADS": "1"},
         cwd=Path(__file__).parent.parent,
     )

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from api_helpers import api_client, wait_for
+from waits import HANG_S
 
 from ris_planner.cli import main
 
@@ -123,12 +124,12 @@ def test_rest_job_stage_times_sum_to_the_job_time(tmp_path: Path) -> None:
         r = client.post("/v1/plans", json=timed_plan())
         assert r.status_code == 202
         job_id = r.json()["id"]
-        view = wait_for(client, job_id, ("succeeded", "failed"), timeout_s=300)
+        view = wait_for(client, job_id, ("succeeded", "failed"))
         assert view["status"] == "succeeded", view["error"]
         # a second job of the same plan: the worker's kernels are warm (the forkserver's
         # preload does not compile every kernel)
         r = client.post("/v1/plans", json=timed_plan())
-        view = wait_for(client, r.json()["id"], ("succeeded", "failed"), timeout_s=300)
+        view = wait_for(client, r.json()["id"], ("succeeded", "failed"))
         assert view["status"] == "succeeded", view["error"]
     start = datetime.fromisoformat(view["started_at"])
     end = datetime.fromisoformat(view["finished_at"])
@@ -142,7 +143,7 @@ def test_bench_interactive_smoke() -> None:
         [sys.executable, str(ROOT / "benchmarks" / "bench_interactive.py"), "--smoke"],
         capture_output=True,
         text=True,
-        timeout=600,
+        timeout=HANG_S,
         check=False,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
@@ -157,12 +158,15 @@ def test_reports_between_stages_are_timed_once() -> None:
     def slow_report(fraction: float, message: str) -> None:
         time.sleep(0.02)
 
+    t0 = time.perf_counter()
     clock = StageClock()
     stages = Stages(slow_report, {"a": 1.0, "b": 1.0}, clock)
     on_a = stages.callback("a")  # before the stage's timer: between stages
     with clock.stage("a"):
         on_a(0.5, "half")  # inside: the stage's own time
     stages.finish()
+    wall = time.perf_counter() - t0
     assert clock.seconds[BETWEEN_STAGES] >= 0.04  # the start and the end
     assert clock.seconds["a"] >= 0.02
-    assert sum(clock.seconds.values()) < 0.06 + 0.05  # nothing counted twice
+    # nothing counted twice: the timed stretches fit in the time they all took together
+    assert sum(clock.seconds.values()) <= wall, (clock.seconds, wall)

@@ -19,6 +19,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
+from waits import HANG_S
 
 from api.launch import served
 from ris_planner.cli import main
@@ -128,13 +129,13 @@ def test_rest_chain(server: str) -> None:
         f"{server}/v1/import",
         content=raw,
         headers={"Content-Type": "application/geo+json"},
-        timeout=120,
+        timeout=HANG_S,
     )
     assert r.status_code == 200, r.text
     doc = r.json()["document"]
     options = {"max_candidates": MAX_CANDIDATES}
     r = httpx.post(
-        f"{server}/v1/sites", json={"site": json.loads(raw), "options": options}, timeout=120
+        f"{server}/v1/sites", json={"site": json.loads(raw), "options": options}, timeout=HANG_S
     )
     assert r.status_code == 200, r.text
     sites = r.json()
@@ -143,25 +144,25 @@ def test_rest_chain(server: str) -> None:
         f"{server}/v1/import?format=sites",
         content=json.dumps(sites).encode(),
         headers={"Content-Type": "application/geo+json"},
-        timeout=120,
+        timeout=HANG_S,
     )
     assert r.status_code == 200, r.text
     doc["candidates"] = r.json()["fragment"]["candidates"]
     doc["pairs"]["sample"] = PAIRS
-    r = httpx.post(f"{server}/v1/plans", json=doc, timeout=120)
+    r = httpx.post(f"{server}/v1/plans", json=doc, timeout=HANG_S)
     assert r.status_code == 202, r.text
     job = r.json()["id"]
-    deadline = 300.0
+    deadline = HANG_S
     import time
 
     t0 = time.monotonic()
     while True:
-        view = httpx.get(f"{server}/v1/jobs/{job}", timeout=60).json()
+        view = httpx.get(f"{server}/v1/jobs/{job}", timeout=HANG_S).json()
         if view["status"] in ("succeeded", "failed", "cancelled"):
             break
         assert time.monotonic() - t0 < deadline, f"job still {view['status']}"
         time.sleep(0.5)
     assert view["status"] == "succeeded", view["error"]
     check_plan(doc, view["result"])
-    geo = httpx.get(server + view["figures"]["geojson"], timeout=60).json()
+    geo = httpx.get(server + view["figures"]["geojson"], timeout=HANG_S).json()
     assert geo["license"] == LICENSE

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 from district_site import street_doc
+from waits import HANG_S
 
 from ris_planner.core.errors import DocumentFieldError
 from ris_planner.io.gis_outputs import PLAN_WRITERS
@@ -87,7 +88,7 @@ def test_refused_on_the_command_line_with_exit_two(tmp_path: Path) -> None:
         [sys.executable, "-m", "ris_planner.cli", "plan", str(f), "--out", str(out)],
         capture_output=True,
         text=True,
-        timeout=600,
+        timeout=HANG_S,
         check=False,
     )
     assert run.returncode == 2, run.stderr

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from district_site import street_doc
+from waits import HANG_S
 
 ROOT = Path(__file__).resolve().parents[1]
 FILES = ("plan.json", "topview.png", "heatmap.png", "cdf.png", "sizing.png", "plan.geojson")
@@ -25,7 +26,7 @@ def _plan(tmp_path: Path, doc: dict, *flags: str) -> tuple[subprocess.CompletedP
         [sys.executable, "-m", "ris_planner.cli", "plan", str(f), "--out", str(out), *flags],
         capture_output=True,
         text=True,
-        timeout=900,
+        timeout=HANG_S,
         check=False,
     )
     plan = json.loads((out / "plan.json").read_text()) if (out / "plan.json").exists() else {}

@@ -16,6 +16,7 @@ from api_helpers import api_client
 from pydantic import ValidationError
 from test_estimator_check import table1_plan
 from tolerance import assert_close
+from waits import HANG_S
 
 from ris_planner import preset_document
 from ris_planner.core.errors import DocumentFieldError
@@ -35,7 +36,9 @@ CLI = [sys.executable, "-m", "ris_planner.cli"]
 def cli_plan(path: Path, out: Path) -> subprocess.CompletedProcess[str]:
     """``ris-planner plan PATH --out OUT`` as a process (its status and streams)."""
     cmd = [*CLI, "plan", str(path), "--out", str(out)]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, check=False)
+    return subprocess.run(
+        cmd, capture_output=True, text=True, timeout=HANG_S, cwd=ROOT, check=False
+    )
 
 
 TX = [-2.0, -4.0, 0.0]
@@ -96,7 +99,7 @@ def test_cli_simulate_refuses_a_cluster_on_the_tx_with_exit_2(tmp_path: Path) ->
         [*CLI, "simulate", str(path), "--runs", "1"],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=HANG_S,
         cwd=ROOT,
     )
     assert out.returncode == 2, out.stderr[-2000:]

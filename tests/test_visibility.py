@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 from visibility_reference import reference_blocked, reference_inside
+from waits import HANG_S
 
 import ris_planner.environment._grid as grid_module
 import ris_planner.environment.scene as scene_module
@@ -364,7 +365,9 @@ def test_compiled_code_loaded_turns_true_with_the_first_kernel() -> None:
         "_crb_jit.work_rows(7)\n"
         "assert compiled_code_loaded()\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_S
+    )
     assert done.returncode == 0, done.stderr
 
 
@@ -374,7 +377,7 @@ def test_bench_visibility_warm_table_runs() -> None:
         [sys.executable, str(root / "benchmarks" / "bench_visibility.py"), "--warm"],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         check=False,
     )
     assert done.returncode == 0, done.stderr[-2000:]

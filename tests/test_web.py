@@ -24,6 +24,7 @@ from typing import Any
 
 import httpx
 import pytest
+from waits import HANG_MS, HANG_S
 
 from api.launch import served
 from ris_planner.planning import plan_preset as plan_preset_doc
@@ -44,9 +45,16 @@ INSTALL_HINT = (
     " RIS_PLANNER_CHROMIUM at a Chromium binary; and the playwright package"
     " (`pip install -e '.[dev]'`; never `playwright install`)"
 )
-WAIT_MS = 60_000
-"""Upper bound for a job's progress to reach an end state (the fig10 plan takes ~2 s)."""
+WAIT_MS = HANG_MS
+"""How long a page's wait for an element, a text or a job's end may last before it counts as a
+hang (tests/waits.py): every wait of these tests is for an event, none for a fixed time."""
 
+LOADED_IMAGE = """(img, ms) => new Promise((resolve, reject) => {
+  if (img.complete && img.naturalWidth > 0) return resolve(true);
+  const timer = setTimeout(() => reject(new Error(`image not loaded after ${ms} ms`)), ms);
+  img.addEventListener("load", () => { clearTimeout(timer); resolve(true); }, { once: true });
+})"""
+"""Wait for an ``<img>``'s load event (``locator.evaluate(LOADED_IMAGE, ms)``)."""
 BOUND_DIGITS_RTOL = 5e-3
 """The page prints bounds with 3 significant digits: relative rounding ≤ 5e-3."""
 
@@ -70,6 +78,8 @@ if _MISSING is not None:
     pytest.skip(_MISSING, allow_module_level=True)
 
 from playwright.sync_api import Browser, ConsoleMessage, Page, expect, sync_playwright  # noqa: E402
+
+expect.set_options(timeout=WAIT_MS)  # every expect(...) without its own timeout, too
 
 
 def slow_plan_doc() -> dict[str, Any]:
@@ -159,6 +169,7 @@ class Console:
 @pytest.fixture
 def page(browser: Browser) -> Iterator[tuple[Page, Console]]:
     context = browser.new_context(viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)  # clicks, fills, waits for a locator
     pg = context.new_page()
     console = Console(pg)
     try:
@@ -311,7 +322,7 @@ def test_plan_job_end_to_end(page: tuple[Page, Console], server: str, shots: Sho
     assert pg.locator("#progress").get_attribute("value") == "100"
     expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     plan = view["result"]
     objective = {k: v for k, v in view["request"]["objective"].items() if v is not None}
     assert objective == {"kind": "coverage", "metric": "rx", "threshold_m": 0.02}
@@ -420,7 +431,7 @@ def test_validation_errors_next_to_their_fields(
     pg.click("#submit")
     expect(pg.locator("#err-f-ris_count")).to_contain_text("ris_count 9 exceeds the 4 candidate")
     expect(pg.locator("#err-f-ris-rows")).to_be_hidden()
-    assert httpx.get(f"{server}/v1/jobs?status=queued").json()["total"] == 0
+    assert httpx.get(f"{server}/v1/jobs?status=queued", timeout=HANG_S).json()["total"] == 0
     body = pg.locator("body").inner_text()
     assert "Traceback" not in body and "Internal Server Error" not in body
 
@@ -448,7 +459,7 @@ def test_cancel_a_running_job(page: tuple[Page, Console], server: str, shots: Sh
     expect(pg.locator("#job-status")).to_contain_text("cancelled", timeout=WAIT_MS)
     expect(pg.locator("#cancel")).to_be_disabled()
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    assert httpx.get(f"{server}/v1/jobs/{job_id}").json()["status"] == "cancelled"
+    assert httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()["status"] == "cancelled"
     expect(pg.locator(f"#jobs-body tr[data-job='{job_id}']")).to_contain_text("cancelled")
     assert int(pg.locator("#progress").get_attribute("value") or "0") < 100
     shots.take(pg, "07-cancelled")
@@ -585,7 +596,7 @@ def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: S
     expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=WAIT_MS)
     expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     assert view["request"]["frame"] == doc["frame"] and "frame" in view["result"]
     assert "geojson" in view["figures"]
     link = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
@@ -624,7 +635,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     doc["pairs"] = {"sample": 300, "seed": 3}  # the page adds the pair model
     del doc["search"]  # and the method
     open_page(pg, server)
-    spec = httpx.get(f"{server}/openapi.json").json()["components"]["schemas"]
+    spec = httpx.get(f"{server}/openapi.json", timeout=HANG_S).json()["components"]["schemas"]
     pair_props = spec["PairSample"]["properties"]
     pg.set_input_files(
         "#upload",
@@ -658,7 +669,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     expect(pg.locator("#job-status")).to_contain_text("Job ", timeout=WAIT_MS)
     expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     assert view["status"] == "succeeded", view["error"]
     request, plan = view["request"], view["result"]
     assert request["search"]["method"] == "district"
@@ -698,10 +709,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     # the figure, the chosen sites on the map, no per-point results
     figure = pg.locator("#district-figure")
     expect(figure).to_be_visible(timeout=WAIT_MS)
-    for _ in range(WAIT_MS // 100):  # the page's CSP forbids wait_for_function's eval
-        if figure.evaluate("img => img.complete && img.naturalWidth") > 0:
-            break
-        pg.wait_for_timeout(100)
+    figure.evaluate(LOADED_IMAGE, WAIT_MS)
     assert figure.evaluate("img => img.naturalWidth") > 0
     assert pg.locator("#charts").is_hidden() and pg.locator("#top-layouts").is_hidden()
     shown = plan["by_count"][-1]["site_indices"]
@@ -717,6 +725,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
 def test_api_docs_work_offline(browser: Browser, server: str, shots: Shots) -> None:
     """Every request of /docs and /redoc stays on the server (others would be aborted)."""
     context = browser.new_context(viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
     outside: list[str] = []
 
     def only_local(route: Any) -> None:

@@ -25,6 +25,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server)
     page,
     server,
 )
+from waits import HANG_S
 
 
 def attack_page(target: str) -> str:
@@ -81,7 +82,7 @@ def test_a_cross_origin_page_queues_no_job(
 ) -> None:
     pg, console = page
     console.allow(r"status of 4(03|15)")  # the browser logs the refusals it receives
-    before = httpx.get(f"{server}/v1/jobs", timeout=10).json()["total"]
+    before = httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json()["total"]
     pg.goto(attacker + "/")
     with pg.expect_response(
         lambda r: (
@@ -93,4 +94,4 @@ def test_a_cross_origin_page_queues_no_job(
     ) as sent:
         pg.evaluate("window.attack()")
     assert sent.value.status in (403, 415), sent.value.status
-    assert httpx.get(f"{server}/v1/jobs", timeout=10).json()["total"] == before
+    assert httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json()["total"] == before

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Callable
 from typing import Any
 
 import httpx
@@ -29,6 +30,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     server,
     shots,
 )
+from waits import HANG_MS, HANG_S
 
 PX_TOL = 1.5
 """A site placed or dropped with the mouse lands within 1.5 screen pixels of the pointer (the
@@ -90,13 +92,25 @@ def upload(pg: Page, doc: dict[str, Any], name: str = "blocks.json") -> None:
 
 
 def wait_until(pg: Page, script: str, timeout_ms: int = WAIT_MS) -> Any:
-    """Poll a page expression until it is truthy (the page's CSP forbids wait_for_function)."""
-    for _ in range(timeout_ms // 50):
-        got = pg.evaluate(script)
-        if got:
-            return got
-        pg.wait_for_timeout(50)
-    raise AssertionError(f"{script} stayed falsy for {timeout_ms} ms")
+    """Wait until a page expression is truthy (given as a function: the page's CSP forbids
+    evaluating a string); its value."""
+    return pg.wait_for_function(f"() => {script}", timeout=timeout_ms).json_value()
+
+
+def after_map_event(pg: Page, event: str, action: Callable[[], None]) -> None:
+    """Do ``action`` and wait for the map's ``event`` that it causes (``zoomend``: the zoom's
+    animation is over)."""
+    pg.evaluate(
+        "(event) => { window.testMapEvent = new Promise((resolve) =>"
+        " window.risPlanner.map.once(event, () => resolve(true))); }",
+        event,
+    )
+    action()
+    pg.evaluate(
+        "(ms) => Promise.race([window.testMapEvent, new Promise((_, reject) =>"
+        " setTimeout(() => reject(new Error('no map event')), ms))])",
+        WAIT_MS,
+    )
 
 
 def view(pg: Page) -> dict[str, float]:
@@ -118,9 +132,8 @@ def test_zoom_and_pan_change_the_view(
     fitted = view(pg)
     corner = screen_of(pg, -20, 5)
     # the zoom control: one step in, the scale grows by its factor, the corner moves
-    pg.click(".leaflet-control-zoom-in")
+    after_map_event(pg, "zoomend", lambda: pg.click(".leaflet-control-zoom-in"))
     wait_until(pg, f"window.risPlanner.map.getZoom() > {fitted['zoom']}")
-    pg.wait_for_timeout(400)  # the zoom animation
     zoomed = view(pg)
     assert zoomed["k"] / fitted["k"] == pytest.approx(2 ** (zoomed["zoom"] - fitted["zoom"]))
     assert math.dist(screen_of(pg, -20, 5), corner) > 20
@@ -128,9 +141,8 @@ def test_zoom_and_pan_change_the_view(
     box = pg.locator("#map").bounding_box()
     assert box is not None
     pg.mouse.move(box["x"] + box["width"] / 2, box["y"] + 60)
-    pg.mouse.wheel(0, -240)
+    after_map_event(pg, "zoomend", lambda: pg.mouse.wheel(0, -240))
     wait_until(pg, f"window.risPlanner.map.getZoom() > {zoomed['zoom']}")
-    pg.wait_for_timeout(400)
     # dragging the map (on no site) pans it: a fixed point follows the pointer
     before = view(pg)
     start = (box["x"] + 80, box["y"] + box["height"] - 60)
@@ -202,14 +214,16 @@ def test_add_mode_adds_one_site_over_others(
 
 
 def settle(pg: Page) -> None:
-    """Wait out the page's automatic validation after an edit (a 300 ms debounce, then the
-    request and a redraw of the markers), so no redraw replaces a marker under the pointer."""
-    pg.wait_for_timeout(400)
+    """Wait for the page's automatic validation after the last edit (a 300 ms debounce, then
+    the request and a redraw of the markers), so no redraw replaces a marker under the
+    pointer: its preview is a new one, not the one :func:`drag` marked before its edit."""
+    wait_until(pg, "window.risPlanner.state.preview && !window.risPlanner.state.preview.testOld")
     expect(pg.locator("#validation-status")).to_have_text(re.compile(r"^Valid: "))
 
 
 def drag(pg: Page, src: tuple[float, float], dst: tuple[float, float]) -> None:
     settle(pg)
+    pg.evaluate("() => { window.risPlanner.state.preview.testOld = true; }")  # see settle
     x, y = screen_of(pg, *src)
     pg.mouse.move(x, y)
     # an editable site's marker is under the pointer (not the map, which would pan)
@@ -217,7 +231,7 @@ def drag(pg: Page, src: tuple[float, float], dst: tuple[float, float]) -> None:
         "([x, y]) => { const e = document.elementFromPoint(x, y);"
         " return Boolean(e && e.closest('.leaflet-marker-icon.editable')); }",
         arg=[x, y],
-        timeout=5000,
+        timeout=HANG_MS,
     )
     pg.mouse.down()
     pg.mouse.move(*screen_of(pg, *dst), steps=8)
@@ -294,13 +308,8 @@ def test_ue_points_inside_buildings_not_drawn(
     open_page(pg, server)
     upload(pg, block_doc(with_candidates=False), "no-sites.json")
     expect(pg.locator("#validation-status")).to_contain_text("No candidate sites yet")
-    ues = map_info(pg)["ues"]
-    for _ in range(WAIT_MS // 100):
-        if ues:
-            break
-        pg.wait_for_timeout(100)
-        ues = map_info(pg)["ues"]
-    (ue,) = ues
+    wait_until(pg, "window.risPlanner.mapInfo().ues.length > 0")
+    (ue,) = map_info(pg)["ues"]
     assert (ue["listed"], ue["inside"], ue["drawn"]) == (961, INSIDE, 961 - INSIDE)
     legend = pg.locator("#legend")
     expect(legend).to_contain_text(f"{INSIDE} inside buildings not drawn – the plan drops them")
@@ -308,7 +317,7 @@ def test_ue_points_inside_buildings_not_drawn(
     # with candidates the validation's preview has the plan's maps: the same points drawn
     upload(pg, block_doc(), "blocks.json")
     expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
-    preview = httpx.post(f"{server}/v1/plans/validate", json=block_doc()).json()
+    preview = httpx.post(f"{server}/v1/plans/validate", json=block_doc(), timeout=HANG_S).json()
     assert preview["rx_points"] == 961 - INSIDE
     assert preview["dropped"] == {"tx": INSIDE, "rx": INSIDE}
     (ue,) = map_info(pg)["ues"]

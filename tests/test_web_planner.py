@@ -36,6 +36,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     shots,
     unlabelled_controls,
 )
+from waits import HANG_S
 
 from api.launch import served
 from ris_planner.io.candidates import CandidateOptions, candidates_geojson
@@ -43,10 +44,9 @@ from ris_planner.io.frames import Frame
 
 HELSINKI = Path(__file__).resolve().parent.parent / "examples" / "helsinki"
 
-JOB_WAIT_MS = 180_000
-"""Upper bound for the small plan (3 sites, 4 × 4 elements, 200 pairs, 1–2 RISs) to finish:
-a few seconds on an idle machine; the worker's start, imports and figures take most of it,
-and the bound leaves room for a machine shared with other work."""
+JOB_WAIT_MS = WAIT_MS
+"""The wait for a small plan (3 sites, 4 × 4 elements, 200 pairs, 1–2 RISs) to finish: a few
+seconds on an idle machine; the wait ends a hang only (tests/waits.py)."""
 
 PX_TOL = 1.5
 """A dragged candidate lands within 1.5 screen pixels of the pointer (the map's rounding of
@@ -61,11 +61,8 @@ def open_planner(pg: Page, url: str) -> None:
 
 def drawn_ues_of(pg: Page, preview: str) -> int:
     """UE points the map draws once ``state.<preview>`` is there (0 before)."""
-    for _ in range(WAIT_MS // 100):  # the page's CSP forbids wait_for_function's eval
-        if pg.evaluate(f"Boolean(window.risPlanner.state.{preview})"):
-            return drawn_ue_points(pg)
-        pg.wait_for_timeout(100)
-    raise AssertionError(f"no {preview} after {WAIT_MS} ms")
+    pg.wait_for_function(f"() => Boolean(window.risPlanner.state.{preview})", timeout=WAIT_MS)
+    return drawn_ue_points(pg)
 
 
 EXPORT_ROUNDING_M = 1e-4
@@ -227,7 +224,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(pg.locator("#progress-text")).to_have_text("100 %", timeout=JOB_WAIT_MS)
     expect(pg.locator("#heatmap-image")).to_be_attached(timeout=WAIT_MS)
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     request = view["request"]
     assert request["known"] == ["clock", "height"]
     # the sample size from the form, the rest of the pairs (seed, pair model) the import's
@@ -243,6 +240,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     back = httpx.post(
         f"{server}/v1/candidates/convert",
         json={"frame": request["frame"], "document": request["candidates"]},
+        timeout=HANG_S,
     ).json()["local"]
     for got, want in zip(back, edited, strict=True):
         assert math.dist(got["position"], want["position"]) <= 1e-6  # PROJ round trip
@@ -276,7 +274,10 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     assert json.loads(Path(dl.value.path()).read_text())["by_count"] == plan["by_count"]
     gj = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
     assert gj.get_attribute("download") == f"plan-{job_id[:8]}.geojson"
-    assert httpx.get(server + view["figures"]["geojson"]).json()["type"] == "FeatureCollection"
+    assert (
+        httpx.get(server + view["figures"]["geojson"], timeout=HANG_S).json()["type"]
+        == "FeatureCollection"
+    )
     cand_link = pg.locator("#dl-candidates")
     expect(cand_link).to_be_visible(timeout=WAIT_MS)
     with pg.expect_download() as dl:
@@ -296,6 +297,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     again = httpx.post(
         f"{server}/v1/candidates/convert",
         json={"frame": {"origin": plan["frame"]["origin"]}, "sites": sites},
+        timeout=HANG_S,
     ).json()["local"]
     for got, want in zip(again, edited, strict=True):
         assert math.dist(got["position"], want["position"]) <= EXPORT_ROUNDING_M
@@ -396,17 +398,18 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     assert (pg.input_value("#f-ris-rows"), pg.input_value("#f-ris-cols")) == ("16", "16")
     pg.unroute(f"**/v1/jobs/{job_id}")
     # the sizing control: the plan document with "sizing": {} where the server knows it
-    spec = httpx.get(f"{server}/openapi.json").json()
+    spec = httpx.get(f"{server}/openapi.json", timeout=HANG_S).json()
     if "sizing" in spec["components"]["schemas"]["PlanDocument"]["properties"]:
         expect(pg.locator("#find-size")).to_be_enabled()
         pg.click("#find-size")
-        for _ in range(WAIT_MS // 100):  # the page's CSP forbids wait_for_function's eval
-            if pg.evaluate("window.risPlanner.state.job.id") != job_id:
-                break
-            pg.wait_for_timeout(100)
+        pg.wait_for_function(
+            "(before) => window.risPlanner.state.job.id !== before", arg=job_id, timeout=WAIT_MS
+        )
         sized = pg.evaluate("window.risPlanner.state.job.id")
         expect(pg.locator("#job-status")).to_contain_text("succeeded", timeout=JOB_WAIT_MS)
-        assert httpx.get(f"{server}/v1/jobs/{sized}").json()["request"]["sizing"] == {}
+        assert (
+            httpx.get(f"{server}/v1/jobs/{sized}", timeout=HANG_S).json()["request"]["sizing"] == {}
+        )
         expect(pg.locator("#sizing")).to_be_visible(timeout=WAIT_MS)
     else:
         expect(pg.locator("#find-size")).to_be_disabled()
@@ -420,6 +423,7 @@ def test_api_key_banner_follows_the_server(browser: Browser, tmp_path: Path, sho
     """Without a key the banner asks for one; a wrong key keeps it; the right key hides it
     (and loads what the 401s refused); a later 401 (a wrong key again) shows it again."""
     context = browser.new_context(viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
     pg = context.new_page()
     console = Console(pg)
     console.allow(r"status of 401")
@@ -459,7 +463,7 @@ def test_generate_candidates_from_the_site(
     starts from the defaults of ``ris-planner sites``, the list downloads as the file the
     command line writes; a site dragged into a building turns red, is named, and Submit says
     why it refuses."""
-    probe = httpx.post(f"{server}/v1/sites", json={})
+    probe = httpx.post(f"{server}/v1/sites", json={}, timeout=HANG_S)
     if probe.status_code == 404:
         pytest.skip("this server has no POST /v1/sites yet (candidate generation is being added)")
     pg, console = page
@@ -488,7 +492,7 @@ def test_generate_candidates_from_the_site(
     options = {"spacing_m": 30, "heights_m": [6], "kinds": ["facade", "pole"]}
     site = json.loads((HELSINKI / "helsinki.geojson").read_text())
     want = httpx.post(
-        f"{server}/v1/sites", json={"site": site, "options": options}, timeout=60
+        f"{server}/v1/sites", json={"site": site, "options": options}, timeout=HANG_S
     ).json()
     want.pop("summary")
     with pg.expect_download() as dl:
@@ -529,7 +533,7 @@ def test_generate_candidates_from_the_site(
         f"1 candidate lies inside a building (red on the map): {moved} ({name}) in {building}"
     )
     expect(pg.locator("#legend")).to_contain_text("candidate inside a building")
-    jobs_before = httpx.get(f"{server}/v1/jobs").json()
+    jobs_before = httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json()
     pg.click("#submit")
     status = pg.locator("#validation-status")
     expect(status).to_contain_text(
@@ -538,7 +542,7 @@ def test_generate_candidates_from_the_site(
     problems = pg.locator("#other-errors")  # the whole message: each site where the document has it
     expect(problems).to_contain_text(f"candidate {moved} ({name}) at [lon, lat, h] = [")
     expect(problems).to_contain_text(f"inside environment obstacle {k} (")
-    assert httpx.get(f"{server}/v1/jobs").json() == jobs_before  # nothing queued
+    assert httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json() == jobs_before  # nothing queued
     shots.take(pg, "planner-08-inside-a-building")
     # the moved site is no longer the generated one: the file keeps its pose, not what the
     # generator said of it
@@ -618,9 +622,9 @@ def test_real_osm_cut_through_the_page(
     expect(pg.locator("#diagnosis")).to_be_visible(timeout=WAIT_MS)
     shots.take(pg, "planner-07-real-osm-cut")
     job_id = pg.evaluate("window.risPlanner.state.job.id")
-    view = httpx.get(f"{server}/v1/jobs/{job_id}").json()
+    view = httpx.get(f"{server}/v1/jobs/{job_id}", timeout=HANG_S).json()
     assert view["status"] == "succeeded", view["error"]
     check_plan(view["request"], view["result"])
-    geo = httpx.get(server + view["figures"]["geojson"]).json()
+    geo = httpx.get(server + view["figures"]["geojson"], timeout=HANG_S).json()
     assert geo["license"] == LICENSE
     assert console.unexpected() == []

@@ -25,6 +25,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     server,
     shots,
 )
+from waits import HANG_S
 
 REFUSAL = re.compile(r"dominated by the codebook checks \(512 × 512 elements per RIS")
 FITS = re.compile(r"the largest RIS that fits is (\d+) × \1")
@@ -44,7 +45,7 @@ def _refused_without_a_job(pg: Page, server: str) -> None:
     body = pg.locator("body").inner_text()
     assert "internal problem" not in body and "Traceback" not in body, body
     assert pg.evaluate("window.risPlanner.state.job") is None
-    assert httpx.get(f"{server}/v1/jobs").json()["total"] == 0  # nothing was queued
+    assert httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json()["total"] == 0  # nothing was queued
 
 
 def test_an_uploaded_plan_too_large_is_refused_with_the_ris_that_fits(

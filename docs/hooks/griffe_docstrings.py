@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import html
 import re
+from collections.abc import Iterator
 from typing import Any
 
 from griffe import Alias, Extension, GriffeLoader, Module, Object
@@ -131,17 +132,25 @@ def _brackets(text: str) -> str:
     return "".join(out)
 
 
+def package_objects(pkg: Module) -> Iterator[Object]:
+    """Every object of a loaded package once – its modules, classes, functions and attributes;
+    an alias is left to its target."""
+    seen: set[int] = set()
+    stack: list[Object] = [pkg]
+    while stack:
+        obj = stack.pop()
+        if id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        yield obj
+        stack += [m for m in obj.members.values() if not isinstance(m, Alias)]
+
+
 class SphinxToMarkdown(Extension):
     """Rewrites the docstrings of a loaded package (see the module docstring)."""
 
     def on_package(self, *, pkg: Module, loader: GriffeLoader, **kwargs: Any) -> None:
-        seen: set[int] = set()
-        stack: list[Object] = [pkg]
-        while stack:
-            obj = stack.pop()
-            if id(obj) in seen:
-                continue
-            seen.add(id(obj))
+        for obj in package_objects(pkg):
             if obj.docstring is not None and obj.docstring.value:
                 value = obj.docstring.value
                 value = _sections(value)
@@ -149,7 +158,3 @@ class SphinxToMarkdown(Extension):
                 value = _brackets(value)
                 value = _roles(obj, value)
                 obj.docstring.value = value
-            for member in obj.members.values():
-                if isinstance(member, Alias):
-                    continue
-                stack.append(member)

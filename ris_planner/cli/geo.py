@@ -280,21 +280,57 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         " fragment or plan; the site is imported in the candidates' frame",
     )
     p.add_argument("--origin", help="frame origin LON,LAT[,H] (default: bounding-box centre)")
-    p.add_argument("--metres-per-level", type=float, default=METRES_PER_LEVEL)
-    p.add_argument("--default-height", type=float, default=DEFAULT_BUILDING_HEIGHT_M)
-    p.add_argument("--road-step", type=float, default=DEFAULT_ROAD_STEP_M)
-    p.add_argument("--ue-height", type=float, default=DEFAULT_UE_HEIGHT_M)
-    p.add_argument("--density-key", default="density")
-    p.add_argument("--area-step", type=float, default=DEFAULT_AREA_STEP_M)
-    p.add_argument("--site-spacing", type=float, default=DEFAULT_SITE_SPACING_M)
+    p.add_argument(
+        "--metres-per-level",
+        type=float,
+        default=METRES_PER_LEVEL,
+        help="storey height for building:levels and building:min_level [m] (%(default)s)",
+    )
+    p.add_argument(
+        "--default-height",
+        type=float,
+        default=DEFAULT_BUILDING_HEIGHT_M,
+        help="height of a building with no usable height or building:levels tag [m]"
+        " (%(default)s; such buildings are listed in the summary)",
+    )
+    p.add_argument(
+        "--road-step",
+        type=float,
+        default=DEFAULT_ROAD_STEP_M,
+        help="UE sampling step along and across imported roads [m] (%(default)s)",
+    )
+    p.add_argument(
+        "--ue-height",
+        type=float,
+        default=DEFAULT_UE_HEIGHT_M,
+        help="height of the imported UE positions (roads, areas) [m] (%(default)s)",
+    )
+    p.add_argument(
+        "--density-key",
+        default="density",
+        help="property of a polygon that makes it a UE density area [UEs per m²] (%(default)s)",
+    )
+    p.add_argument(
+        "--area-step",
+        type=float,
+        default=DEFAULT_AREA_STEP_M,
+        help="grid step of the UE points inside a density area [m] (%(default)s)",
+    )
+    p.add_argument(
+        "--site-spacing",
+        type=float,
+        default=DEFAULT_SITE_SPACING_M,
+        help="spacing of candidate sites along a mounting line (sites: LineStrings) [m]"
+        " (%(default)s)",
+    )
     p.add_argument("--highways", help="road classes to import, comma-separated (default: all)")
     p.add_argument(
         "--invalid",
         choices=INVALID_POLICIES,
         default="repair",
         help="invalid outlines (self-intersecting, unclosed, degenerate): repair them"
-        " (shapely make_valid, listed in the summary; default), skip them (listed) or stop"
-        " with an error",
+        " (shapely make_valid, listed in the summary), skip them (listed) or stop with an"
+        " error (%(default)s)",
     )
     p.add_argument(
         "--no-swap-check",
@@ -307,6 +343,10 @@ def add_cli(sub: argparse._SubParsersAction) -> None:
         action="append",
         help="dxf: LAYER=wall:HEIGHT_M or LAYER=prism:HEIGHT_M[:BASE_M] (repeatable)",
     )
-    p.add_argument("--units", choices=("mm", "cm", "m", "in", "ft"), help="dxf: override $INSUNITS")
+    p.add_argument(
+        "--units",
+        choices=("mm", "cm", "m", "in", "ft"),
+        help="dxf: the drawing's length unit (default: its $INSUNITS; unitless: metres)",
+    )
     p.set_defaults(func=_cmd_import)
     _add_sites(sub)
