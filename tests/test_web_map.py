@@ -89,14 +89,14 @@ def upload(pg: Page, doc: dict[str, Any], name: str = "blocks.json") -> None:
     pg.locator("#map").scroll_into_view_if_needed()
 
 
-def wait_until(pg: Page, script: str, timeout_ms: int = WAIT_MS) -> Any:
-    """Poll a page expression until it is truthy (the page's CSP forbids wait_for_function)."""
-    for _ in range(timeout_ms // 50):
-        got = pg.evaluate(script)
-        if got:
-            return got
-        pg.wait_for_timeout(50)
-    raise AssertionError(f"{script} stayed falsy for {timeout_ms} ms")
+def zoomed_past(pg: Page, zoom: float) -> None:
+    """Wait until the map's zoom is above ``zoom`` and its view has stopped changing (the zoom
+    animation over: window.risPlanner.moving())."""
+    pg.wait_for_function(
+        "(z) => window.risPlanner.map.getZoom() > z && !window.risPlanner.moving()",
+        arg=zoom,
+        timeout=WAIT_MS,
+    )
 
 
 def view(pg: Page) -> dict[str, float]:
@@ -113,14 +113,15 @@ def test_zoom_and_pan_change_the_view(
     pg, _ = page
     open_page(pg, server)
     upload(pg, block_doc())
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     expect(pg.locator("path.prism")).to_have_count(2)
     fitted = view(pg)
     corner = screen_of(pg, -20, 5)
     # the zoom control: one step in, the scale grows by its factor, the corner moves
     pg.click(".leaflet-control-zoom-in")
-    wait_until(pg, f"window.risPlanner.map.getZoom() > {fitted['zoom']}")
-    pg.wait_for_timeout(400)  # the zoom animation
+    zoomed_past(pg, fitted["zoom"])
     zoomed = view(pg)
     assert zoomed["k"] / fitted["k"] == pytest.approx(2 ** (zoomed["zoom"] - fitted["zoom"]))
     assert math.dist(screen_of(pg, -20, 5), corner) > 20
@@ -129,8 +130,7 @@ def test_zoom_and_pan_change_the_view(
     assert box is not None
     pg.mouse.move(box["x"] + box["width"] / 2, box["y"] + 60)
     pg.mouse.wheel(0, -240)
-    wait_until(pg, f"window.risPlanner.map.getZoom() > {zoomed['zoom']}")
-    pg.wait_for_timeout(400)
+    zoomed_past(pg, zoomed["zoom"])
     # dragging the map (on no site) pans it: a fixed point follows the pointer
     before = view(pg)
     start = (box["x"] + 80, box["y"] + box["height"] - 60)
@@ -167,7 +167,9 @@ def test_add_mode_adds_one_site_over_others(
     pg, _ = page
     open_page(pg, server)
     upload(pg, block_doc())
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     expect(pg.locator("#candidates .site")).to_have_count(ROW)
     k = pg.evaluate("window.risPlanner.pxPerMetre()")
     assert 0.5 * k < 16  # neighbours closer than a glyph's pointer disc
@@ -175,6 +177,9 @@ def test_add_mode_adds_one_site_over_others(
     x, y = -10 + 0.5 * last, 0.0
     pg.mouse.click(*screen_of(pg, x, y))
     expect(pg.locator("#cand-editor-title")).to_contain_text(f"Candidate {last} – C{last}")
+    # the map names a site with its index, as the command line does
+    title = pg.locator(f"#candidates .site[data-site='{last}'] title")
+    expect(title).to_contain_text(f"Site C{last} [{last}]: x ")
     assert pg.evaluate("window.risPlanner.state.cands.length") == ROW
     pg.check("#mode-add")
     pg.mouse.click(*screen_of(pg, x, y))
@@ -203,8 +208,9 @@ def test_add_mode_adds_one_site_over_others(
 
 def settle(pg: Page) -> None:
     """Wait out the page's automatic validation after an edit (a 300 ms debounce, then the
-    request and a redraw of the markers), so no redraw replaces a marker under the pointer."""
-    pg.wait_for_timeout(400)
+    request and a redraw of the markers: window.risPlanner.busy()), so no redraw replaces a
+    marker under the pointer."""
+    pg.wait_for_function("() => !window.risPlanner.busy()", timeout=WAIT_MS)
     expect(pg.locator("#validation-status")).to_have_text(re.compile(r"^Valid: "))
 
 
@@ -234,7 +240,9 @@ def test_dragged_site_snaps_to_a_facade(
     pg, _ = page
     open_page(pg, server)
     upload(pg, block_doc())
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     offset = pg.evaluate("window.risPlanner.state.facadeOffset")
     assert offset == FACADE_OFFSET_M  # the generator's, read from the OpenAPI schema
     pg.evaluate(f"window.risPlanner.map.setView([0, 0], {ZOOM}, {{animate: false}}) && null")
@@ -293,21 +301,20 @@ def test_ue_points_inside_buildings_not_drawn(
     console.allow(r"status of 422")  # no candidates yet: validation refuses the document
     open_page(pg, server)
     upload(pg, block_doc(with_candidates=False), "no-sites.json")
-    expect(pg.locator("#validation-status")).to_contain_text("No candidate sites yet")
-    ues = map_info(pg)["ues"]
-    for _ in range(WAIT_MS // 100):
-        if ues:
-            break
-        pg.wait_for_timeout(100)
-        ues = map_info(pg)["ues"]
-    (ue,) = ues
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "No candidate sites yet", timeout=WAIT_MS
+    )
+    pg.wait_for_function("() => window.risPlanner.mapInfo().ues.length > 0", timeout=WAIT_MS)
+    (ue,) = map_info(pg)["ues"]
     assert (ue["listed"], ue["inside"], ue["drawn"]) == (961, INSIDE, 961 - INSIDE)
     legend = pg.locator("#legend")
     expect(legend).to_contain_text(f"{INSIDE} inside buildings not drawn – the plan drops them")
     shots.take(pg, "map-04-inside-points-site-preview", full_page=False)
     # with candidates the validation's preview has the plan's maps: the same points drawn
     upload(pg, block_doc(), "blocks.json")
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     preview = httpx.post(f"{server}/v1/plans/validate", json=block_doc()).json()
     assert preview["rx_points"] == 961 - INSIDE
     assert preview["dropped"] == {"tx": INSIDE, "rx": INSIDE}
