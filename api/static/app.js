@@ -1489,9 +1489,8 @@
     const tb = h("tbody");
     let prevCount = null;
     for (const b of plan.by_count) {
-      const step = prevCount === null ? null : b.ris_count - prevCount;
-      const gain = b.marginal_gain === null || b.marginal_gain === undefined || step === null ? "—"
-        : fmtGain(b.marginal_gain) + (step > 1 ? `; per added RIS ${fmtGain(b.marginal_gain / step)}` : "");
+      // over the previous count (per added RIS: the gain chart)
+      const gain = b.marginal_gain === null || b.marginal_gain === undefined || prevCount === null ? "—" : fmtGain(b.marginal_gain);
       const q = b.quantiles_m || {};
       tb.append(h("tr", { class: String(b.ris_count) === state.count ? "current" : null, "data-count": b.ris_count },
         h("th", { scope: "row", text: `${b.ris_count}` }),
