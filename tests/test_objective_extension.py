@@ -26,10 +26,12 @@ try:  # the browser test's fixtures and helpers; the rest runs without a browser
         WAIT_MS,
         browser,
         expect,
+        js_num,
         open_page,
         page,
         server,
         shots,
+        undeclared_percentages,
     )
     from test_web_map import upload
 
@@ -244,6 +246,12 @@ def test_the_page_plans_with_it(
     assert plan["objective_better"] == "higher"
     expect(pg.locator("#results-note")).to_contain_text(f"{toy.name} of")
     expect(pg.locator("#results-note")).to_contain_text("higher is better")
-    best = plan["by_count"][0]["top_layouts"][0]["objective"]
-    expect(pg.locator("#count-table tbody tr").first).to_contain_text(f"{100 * best:.1f} %")
+    # a fraction that is no share of the pairs (share_of_servable null): the number itself,
+    # never a percentage without its denominator
+    entry = plan["by_count"][0]
+    assert entry["share_of_servable"] is None and plan["objective_unit"] == ""
+    best = entry["top_layouts"][0]["objective"]
+    first = pg.locator("#count-table tbody tr").first
+    expect(first.locator("td.objective")).to_have_text(js_num(best))
+    assert undeclared_percentages(pg) == []
     shots.take(pg, "objective-extension")

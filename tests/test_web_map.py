@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Callable
 from typing import Any
 
 import httpx
@@ -91,25 +90,13 @@ def upload(pg: Page, doc: dict[str, Any], name: str = "blocks.json") -> None:
     pg.locator("#map").scroll_into_view_if_needed()
 
 
-def wait_until(pg: Page, script: str, timeout_ms: int = WAIT_MS) -> Any:
-    """Wait until a page expression is truthy (given as a function: the page's CSP forbids
-    evaluating a string); its value."""
-    return pg.wait_for_function(f"() => {script}", timeout=timeout_ms).json_value()
-
-
-def after_map_event(pg: Page, event: str, action: Callable[[], None]) -> None:
-    """Do ``action`` and wait for the map's ``event`` that it causes (``zoomend``: the zoom's
-    animation is over)."""
-    pg.evaluate(
-        "(event) => { window.testMapEvent = new Promise((resolve) =>"
-        " window.risPlanner.map.once(event, () => resolve(true))); }",
-        event,
-    )
-    action()
-    pg.evaluate(
-        "(ms) => Promise.race([window.testMapEvent, new Promise((_, reject) =>"
-        " setTimeout(() => reject(new Error('no map event')), ms))])",
-        WAIT_MS,
+def zoomed_past(pg: Page, zoom: float) -> None:
+    """Wait until the map's zoom is above ``zoom`` and its view has stopped changing (the zoom
+    animation over: window.risPlanner.moving())."""
+    pg.wait_for_function(
+        "(z) => window.risPlanner.map.getZoom() > z && !window.risPlanner.moving()",
+        arg=zoom,
+        timeout=WAIT_MS,
     )
 
 
@@ -127,13 +114,15 @@ def test_zoom_and_pan_change_the_view(
     pg, _ = page
     open_page(pg, server)
     upload(pg, block_doc())
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     expect(pg.locator("path.prism")).to_have_count(2)
     fitted = view(pg)
     corner = screen_of(pg, -20, 5)
     # the zoom control: one step in, the scale grows by its factor, the corner moves
-    after_map_event(pg, "zoomend", lambda: pg.click(".leaflet-control-zoom-in"))
-    wait_until(pg, f"window.risPlanner.map.getZoom() > {fitted['zoom']}")
+    pg.click(".leaflet-control-zoom-in")
+    zoomed_past(pg, fitted["zoom"])
     zoomed = view(pg)
     assert zoomed["k"] / fitted["k"] == pytest.approx(2 ** (zoomed["zoom"] - fitted["zoom"]))
     assert math.dist(screen_of(pg, -20, 5), corner) > 20
@@ -141,8 +130,8 @@ def test_zoom_and_pan_change_the_view(
     box = pg.locator("#map").bounding_box()
     assert box is not None
     pg.mouse.move(box["x"] + box["width"] / 2, box["y"] + 60)
-    after_map_event(pg, "zoomend", lambda: pg.mouse.wheel(0, -240))
-    wait_until(pg, f"window.risPlanner.map.getZoom() > {zoomed['zoom']}")
+    pg.mouse.wheel(0, -240)
+    zoomed_past(pg, zoomed["zoom"])
     # dragging the map (on no site) pans it: a fixed point follows the pointer
     before = view(pg)
     start = (box["x"] + 80, box["y"] + box["height"] - 60)
@@ -179,7 +168,9 @@ def test_add_mode_adds_one_site_over_others(
     pg, _ = page
     open_page(pg, server)
     upload(pg, block_doc())
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     expect(pg.locator("#candidates .site")).to_have_count(ROW)
     k = pg.evaluate("window.risPlanner.pxPerMetre()")
     assert 0.5 * k < 16  # neighbours closer than a glyph's pointer disc
@@ -187,6 +178,9 @@ def test_add_mode_adds_one_site_over_others(
     x, y = -10 + 0.5 * last, 0.0
     pg.mouse.click(*screen_of(pg, x, y))
     expect(pg.locator("#cand-editor-title")).to_contain_text(f"Candidate {last} – C{last}")
+    # the map names a site with its index, as the command line does
+    title = pg.locator(f"#candidates .site[data-site='{last}'] title")
+    expect(title).to_contain_text(f"Site C{last} [{last}]: x ")
     assert pg.evaluate("window.risPlanner.state.cands.length") == ROW
     pg.check("#mode-add")
     pg.mouse.click(*screen_of(pg, x, y))
@@ -214,16 +208,15 @@ def test_add_mode_adds_one_site_over_others(
 
 
 def settle(pg: Page) -> None:
-    """Wait for the page's automatic validation after the last edit (a 300 ms debounce, then
-    the request and a redraw of the markers), so no redraw replaces a marker under the
-    pointer: its preview is a new one, not the one :func:`drag` marked before its edit."""
-    wait_until(pg, "window.risPlanner.state.preview && !window.risPlanner.state.preview.testOld")
+    """Wait out the page's automatic validation after an edit (a 300 ms debounce, then the
+    request and a redraw of the markers: window.risPlanner.busy()), so no redraw replaces a
+    marker under the pointer."""
+    pg.wait_for_function("() => !window.risPlanner.busy()", timeout=WAIT_MS)
     expect(pg.locator("#validation-status")).to_have_text(re.compile(r"^Valid: "))
 
 
 def drag(pg: Page, src: tuple[float, float], dst: tuple[float, float]) -> None:
     settle(pg)
-    pg.evaluate("() => { window.risPlanner.state.preview.testOld = true; }")  # see settle
     x, y = screen_of(pg, *src)
     pg.mouse.move(x, y)
     # an editable site's marker is under the pointer (not the map, which would pan)
@@ -248,7 +241,9 @@ def test_dragged_site_snaps_to_a_facade(
     pg, _ = page
     open_page(pg, server)
     upload(pg, block_doc())
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     offset = pg.evaluate("window.risPlanner.state.facadeOffset")
     assert offset == FACADE_OFFSET_M  # the generator's, read from the OpenAPI schema
     pg.evaluate(f"window.risPlanner.map.setView([0, 0], {ZOOM}, {{animate: false}}) && null")
@@ -307,8 +302,10 @@ def test_ue_points_inside_buildings_not_drawn(
     console.allow(r"status of 422")  # no candidates yet: validation refuses the document
     open_page(pg, server)
     upload(pg, block_doc(with_candidates=False), "no-sites.json")
-    expect(pg.locator("#validation-status")).to_contain_text("No candidate sites yet")
-    wait_until(pg, "window.risPlanner.mapInfo().ues.length > 0")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "No candidate sites yet", timeout=WAIT_MS
+    )
+    pg.wait_for_function("() => window.risPlanner.mapInfo().ues.length > 0", timeout=WAIT_MS)
     (ue,) = map_info(pg)["ues"]
     assert (ue["listed"], ue["inside"], ue["drawn"]) == (961, INSIDE, 961 - INSIDE)
     legend = pg.locator("#legend")
@@ -316,7 +313,9 @@ def test_ue_points_inside_buildings_not_drawn(
     shots.take(pg, "map-04-inside-points-site-preview", full_page=False)
     # with candidates the validation's preview has the plan's maps: the same points drawn
     upload(pg, block_doc(), "blocks.json")
-    expect(pg.locator("#validation-status")).to_contain_text("Valid: 40 candidate sites")
+    expect(pg.locator("#validation-status")).to_contain_text(
+        "Valid: 40 candidate sites", timeout=WAIT_MS
+    )
     preview = httpx.post(f"{server}/v1/plans/validate", json=block_doc(), timeout=HANG_S).json()
     assert preview["rx_points"] == 961 - INSIDE
     assert preview["dropped"] == {"tx": INSIDE, "rx": INSIDE}

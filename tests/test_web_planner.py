@@ -34,6 +34,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     screen_of,
     server,
     shots,
+    undeclared_percentages,
     unlabelled_controls,
 )
 from waits import HANG_S
@@ -60,7 +61,7 @@ def open_planner(pg: Page, url: str) -> None:
 
 
 def drawn_ues_of(pg: Page, preview: str) -> int:
-    """UE points the map draws once ``state.<preview>`` is there (0 before)."""
+    """UE points the map draws once ``state.<preview>`` is there."""
     pg.wait_for_function(f"() => Boolean(window.risPlanner.state.{preview})", timeout=WAIT_MS)
     return drawn_ue_points(pg)
 
@@ -89,7 +90,20 @@ def spread_near_centre(points: list[list[float]], n: int, spacing: float) -> lis
 
 def import_helsinki(pg: Page) -> None:
     pg.set_input_files("#upload-geojson", str(HELSINKI / "helsinki.geojson"))
-    expect(pg.locator("#import-table")).to_be_visible(timeout=WAIT_MS)
+    expect(pg.locator("#import-summary")).to_be_visible(timeout=WAIT_MS)
+
+
+SUBMIT_TOP_PX = 1600
+"""At a 1280 × 800 window with a site loaded, Submit and the first parameter (the RIS counts)
+start at most this far down the page: reachable without scrolling past the map or the lists."""
+
+
+def in_reach(pg: Page, selector: str) -> float:
+    """The top of an element in page coordinates (its box plus the scroll)."""
+    box = pg.locator(selector).bounding_box()
+    assert box is not None, selector
+    top: float = box["y"] + pg.evaluate("window.scrollY")
+    return top
 
 
 def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, shots: Shots) -> None:
@@ -115,10 +129,21 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         "service",
     ]
     expect(pg.locator("path.prism")).to_have_count(29)
+    expect(pg.locator("#import-summary")).to_contain_text("29 buildings, 120 road pieces")
+    expect(pg.locator("#import-details")).not_to_have_attribute("open", "")  # on request
     expect(pg.locator("#validation-status")).to_contain_text("No candidate sites yet")
+    # no red refusal for the candidates nobody could have placed yet
+    expect(pg.locator("#other-errors")).to_be_empty()
+    # Submit and the parameters within reach at 1280 × 800, the site loaded
+    pg.set_viewport_size({"width": 1280, "height": 800})
+    assert in_reach(pg, "#submit") <= SUBMIT_TOP_PX
+    assert in_reach(pg, "#f-ris_count") <= SUBMIT_TOP_PX
+    pg.set_viewport_size({"width": 1280, "height": 900})
     all_points = pg.evaluate("window.risPlanner.state.sitePreview.rx_map.total")
     first = pg.evaluate("window.risPlanner.state.doc")
-    # import again: residential streets only, UEs at 2 m, the default building height 12 m
+    # import again: residential streets only, UEs at 2 m, the default building height 12 m (the
+    # options fold away once a file is imported: opened on request)
+    pg.click("#import-options summary")
     pg.uncheck("#road-footway")
     pg.uncheck("#road-service")
     pg.fill("#imp-ue_height", "2")
@@ -128,6 +153,10 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(report.locator("tr", has_text="Road pieces skipped")).to_contain_text(
         "footway (not chosen): 47", timeout=WAIT_MS
     )
+    # asked to plan without candidates, the page says why in red (the server's refusal)
+    pg.click("#submit")
+    expect(pg.locator("#other-errors")).to_contain_text("no candidate sites", timeout=WAIT_MS)
+    expect(pg.locator("#validation-status")).to_contain_text("Not submitted")
     doc = pg.evaluate("window.risPlanner.state.doc")
     assert doc["frame"]["origin"][:2] == [24.949, 60.1655]
     assert {r["height_m"] for r in doc["tx_map"]["roads"]} == {2.0}
@@ -329,13 +358,55 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         "best": 0.4,
         "worst": 0.1,
     }
-    sizing = {
-        "answer": {"rows": 8, "cols": 8, "count": 2, "objective": 0.9},
-        "table": [
-            {"rows": 4, "cols": 4, "count": 2, "objective": 0.5, "reaches": False},
-            {"rows": 8, "cols": 8, "count": 2, "objective": 0.9, "reaches": True},
+    servable = plan["pairs_summary"]["servable_weight"]
+    sizing = {  # plan.json sizing (one shape for every search: search.sizing.SizeRow)
+        "target": {"min": 0.9},
+        "of": "servable pairs",
+        "goal": {"min": 0.9 * servable},
+        "servable_weight": servable,
+        "sizes": [
+            {
+                "ris_size": [4, 4],
+                "count": None,
+                "lower_bound": None,
+                "objective": None,
+                "sites": None,
+                "note": "no searched count reaches it",
+                "counts": [
+                    {"count": 2, "objective": 0.5, "reaches": False, "objective_bound": 0.5}
+                ],
+            },
+            {
+                "ris_size": [8, 8],
+                "count": 2,
+                "lower_bound": 1,
+                "objective": 0.9,
+                "sites": [0, 2],
+                "note": None,
+                "counts": [{"count": 2, "objective": 0.9, "reaches": True, "objective_bound": 0.9}],
+            },
         ],
-        "message": "8 × 8 elements with 2 RISs reach the objective",
+        "search_method": {
+            "requested": "auto",
+            "used": "district",
+            "why": "the enumerating search does not fit at 8×8 (a rendering test's answer)",
+        },
+        "answer": {
+            "ris_size": [8, 8],
+            "count": 2,
+            "lower_bound": 1,
+            "gap": 1,
+            "gap_share": 0.5,
+            "elements": 128,
+            "objective": 0.9,
+            "sites": [0, 2],
+        },
+        "message": "between 1 and 2 RISs of 8×8 reach 90 % of the servable pairs",
+    }
+    search = {  # the plan's search as auto resolved it (plan.json search_method)
+        "requested": "auto",
+        "used": "district",
+        "why": "the layouts of 2 RISs do not fit (a rendering test's answer)",
     }
 
     validation = {  # plan.json validation (ris_planner.planning.outputs.estimator_check)
@@ -360,7 +431,12 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     def with_keys(route: Any) -> None:
         answer = route.fetch()
         body = answer.json()
-        body["result"] |= {"diagnosis": diagnosis, "sizing": sizing, "validation": validation}
+        body["result"] |= {
+            "diagnosis": diagnosis,
+            "sizing": sizing,
+            "validation": validation,
+            "search_method": search,
+        }
         route.fulfill(response=answer, json=body)
 
     pg.route(f"**/v1/jobs/{job_id}", with_keys)
@@ -384,15 +460,32 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     assert rows[0] == "index,name,reason" and len(rows) == 144
     assert rows[-1] == "142,B142-f0-0-h4,no_visible_point"
     expect(blocked.locator("ul.cause-list li")).to_have_count(143)
-    expect(pg.locator("#sizing-answer")).to_contain_text("8 × 8 elements with 2 RIS")
+    # the sizing in plain words (the server's message), its certified interval, the sizes
+    # tried, the search that answered it and why
+    expect(pg.locator("#sizing-answer")).to_contain_text(sizing["message"])
+    expect(pg.locator("#sizing-interval")).to_have_text(
+        "Certified interval: 1 to 2 RISs of 8 × 8 elements – no layout of fewer than 1 RIS"
+        " reaches the target (certified), the search found one of 2 (gap 1 RIS)."
+    )
+    expect(pg.locator("#sizing-target")).to_contain_text("at least 90.0 % of the servable pairs")
     expect(pg.locator("#sizing-table tbody tr")).to_have_count(2)
-    expect(pg.locator("#sizing-table tr.answer")).to_contain_text("yes")
+    expect(pg.locator("#sizing-table tr.answer td").first).to_have_text("8 × 8")
+    expect(pg.locator("#sizing-table tr.answer td.lower")).to_have_text("1")
+    methods = httpx.get(f"{server}/v1/search-methods", timeout=HANG_S).json()
+    label = next(m["label"] for m in methods["methods"] if m["name"] == "district")
+    expect(pg.locator("#sizing-search")).to_contain_text(f"the {label} search")
+    # the plan's own search, auto resolved: one line with the reason
+    expect(pg.locator("#search-why")).to_have_text(
+        f"auto chose the {label} search: {search['why']}."
+    )
     row = pg.locator("#estimator-check-table tbody tr")
     expect(row).to_have_count(1)
     expect(row).to_contain_text("40 %")
     expect(row).to_contain_text("80 %")
     expect(row).to_contain_text("3 of 8 (ghost 3)")
+    expect(row).to_contain_text(f"{plan['candidates'][0]['name']} [0]")  # by name and index
     expect(pg.locator("#estimator-check")).to_contain_text("designed beams (dir der sdp)")
+    assert undeclared_percentages(pg) == []  # every share with its denominator
     shots.take(pg, "planner-04-diagnosis-sizing")
     box.get_by_role("button", name="Use 16 × 16 elements").click()
     assert (pg.input_value("#f-ris-rows"), pg.input_value("#f-ris-cols")) == ("16", "16")
@@ -403,7 +496,9 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         expect(pg.locator("#find-size")).to_be_enabled()
         pg.click("#find-size")
         pg.wait_for_function(
-            "(before) => window.risPlanner.state.job.id !== before", arg=job_id, timeout=WAIT_MS
+            "(id) => window.risPlanner.state.job && window.risPlanner.state.job.id !== id",
+            arg=job_id,
+            timeout=WAIT_MS,
         )
         sized = pg.evaluate("window.risPlanner.state.job.id")
         expect(pg.locator("#job-status")).to_contain_text("succeeded", timeout=JOB_WAIT_MS)
@@ -494,7 +589,22 @@ def test_generate_candidates_from_the_site(
     want = httpx.post(
         f"{server}/v1/sites", json={"site": site, "options": options}, timeout=HANG_S
     ).json()
-    want.pop("summary")
+    summary = want.pop("summary")
+    # what the generation did, readable: the sites kept per kind, those dropped and why, the
+    # UE points in the kept sites' field of view, the warnings as a list
+    kinds = ", ".join(f"{n} {k}" for k, n in summary["by_kind"].items())
+    expect(pg.locator("#gen-kept")).to_have_text(f"{summary['candidates']} sites kept: {kinds}.")
+    expect(pg.locator("#gen-dropped")).to_contain_text(
+        f"{summary['dropped_unseen']} seeing no UE point in their field of view"
+    )
+    sees = sorted(f["properties"]["sees_points"] for f in want["features"])
+    expect(pg.locator("#gen-view")).to_contain_text(
+        f"each kept site sees {sees[0]} to {sees[-1]} of the site's"
+        f" {summary['ue_points']} UE points"
+    )
+    warnings = len(summary["buildings_without_candidates"]) + len(summary["notes"])
+    expect(pg.locator("#gen-warnings li")).to_have_count(warnings)
+    assert "{" not in pg.locator("#gen-summary").inner_text()  # no raw dump
     with pg.expect_download() as dl:
         pg.click("#download-candidates")
     assert dl.value.suggested_filename == "candidates.geojson"
@@ -530,7 +640,7 @@ def test_generate_candidates_from_the_site(
     assert name.endswith(" (moved)")  # a generated facade's name would lie
     building = obstacles[k]["name"] or f"obstacle {k}"
     expect(note).to_contain_text(
-        f"1 candidate lies inside a building (red on the map): {moved} ({name}) in {building}"
+        f"1 candidate lies inside a building (red on the map): {name} [{moved}] in {building}"
     )
     expect(pg.locator("#legend")).to_contain_text("candidate inside a building")
     jobs_before = httpx.get(f"{server}/v1/jobs", timeout=HANG_S).json()
@@ -579,9 +689,9 @@ def test_a_swapped_file_and_the_swap_check(
     err = pg.locator("#err-upload-geojson")
     expect(err).to_contain_text("turn the swap check off", timeout=WAIT_MS)
     expect(err).to_contain_text("untick “Lat/lon swap check” under Import options")
-    pg.uncheck("#imp-swap_check")
+    pg.uncheck("#imp-swap_check")  # (a refused file leaves the options open)
     pg.click("#reimport")
-    expect(pg.locator("#import-table")).to_be_visible(timeout=WAIT_MS)
+    expect(pg.locator("#import-summary")).to_be_visible(timeout=WAIT_MS)
     expect(err).to_be_empty()
     pg.fill("#gen-spacing", "30")
     pg.click("#generate")
@@ -602,7 +712,7 @@ def test_real_osm_cut_through_the_page(
     console.allow(r"status of 422")  # validation before the candidates are placed
     open_planner(pg, server)
     pg.set_input_files("#upload-geojson", str(SITE))
-    expect(pg.locator("#import-table")).to_be_visible(timeout=WAIT_MS)
+    expect(pg.locator("#import-summary")).to_be_visible(timeout=WAIT_MS)
     report = pg.locator("#import-report")
     expect(report.locator("tr", has_text="Buildings").first).to_contain_text("45")
     pg.click("#generate")

@@ -12,8 +12,12 @@
  * layouts with the estimator) → progress from GET /v1/jobs/{id}/events
  * (server-sent events, read with fetch so an API key header can be sent; reconnects with
  * backoff) → GET /v1/jobs/{id}: plan.json's by_count, points, heatmap, diagnosis and sizing
- * drawn on the map, in the tables and in the charts; its validation as a table. Obstacles are
- * drawn from their kind's spec (GET /v1/obstacle-kinds), whatever the kind.
+ * drawn on the map, in the tables and in the charts; its validation as a table. Every plan has
+ * one plan.json shape, whatever its search: the page renders one results view and names no
+ * search method – the methods, their labels and the options each honours come from
+ * GET /v1/search-methods. Every share it prints names its denominator (the servable pairs, all
+ * pairs, …). Obstacles are drawn from their kind's spec (GET /v1/obstacle-kinds), whatever the
+ * kind.
  */
 (function () {
   "use strict";
@@ -70,6 +74,9 @@
     sitesPath: null,
     sizingSupported: false,
     bannerKind: null, // "auth" while the banner asks for an API key
+    searchMethods: null, // GET /v1/search-methods: {auto, methods, options}
+    tried: false, // the user asked to validate, submit or generate (problems are shown in red then)
+    validating: 0, // validations in flight (window.risPlanner.busy(), for the browser tests)
   };
 
   const $ = (id) => document.getElementById(id);
@@ -252,6 +259,7 @@
   const LEVEL_FIELD = {};
   const LEVEL_LABEL = {};
   const OBJECTIVE_UNIT = {};
+  const OBJECTIVE_HIGHER = {}; // name → higher_is_better (a coverage-only search takes those)
   // a fraction (unit ""), shown in %; other kinds in their unit (m when the server is unknown)
   const isFraction = (kind) => (kind in OBJECTIVE_UNIT ? OBJECTIVE_UNIT[kind] === "" : kind === "coverage");
 
@@ -268,6 +276,8 @@
     state.candNote = "";  // a new document: the last list's note no longer applies
     state.generated = new Map();
     state.genMembers = {};
+    state.tried = false; // a new document: no attempt on it yet
+    $("gen-summary").hidden = true;
     const own = doc && Array.isArray(doc.candidates) ? doc.candidates : [];
     if (own.length && geographic()) {
       try {
@@ -317,7 +327,7 @@
     $("f-pairs-maxsep").value = sample.max_separation_m === undefined || sample.max_separation_m === null ? "" : String(sample.max_separation_m);
     $("f-pairs-separation").value = sample.separation || sch.separationDefault || "straight";
     $("f-pairs-los").checked = sample.line_of_sight === undefined ? Boolean(sch.losDefault) : Boolean(sample.line_of_sight);
-    const method = doc.search && doc.search.method ? doc.search.method : sch.methodDefault || "auto";
+    const method = doc.search && doc.search.method ? doc.search.method : sch.methodDefault || autoName();
     if (![...$("f-search-method").options].some((o) => o.value === method)) {
       $("f-search-method").append(h("option", { value: method, text: method })); // the server says if it knows it
     }
@@ -327,6 +337,7 @@
       : isFraction(doc.objective && doc.objective.kind ? doc.objective.kind : "coverage") ? String(Number((100 * target).toPrecision(6))) : String(target);
     updatePairsField();
     updateSizingField();
+    updateSearchField();
   }
 
   function updatePairsField() {
@@ -334,10 +345,12 @@
     for (const id of ["f-pairs-sample", "f-pairs-maxsep", "f-pairs-separation", "f-pairs-los"]) $(id).disabled = !sample;
   }
 
-  /** The sizing target's label and unit follow the objective: a fraction in %, else metres. */
+  /** The sizing target's label and unit follow the objective: a fraction in % of the servable
+   * pairs (the denominator of a coverage target), else the objective's unit. */
   function updateSizingField() {
     const kind = $("f-objective-kind").value || "coverage";
-    $("label-sizing-target").textContent = isFraction(kind) ? "Coverage target [%]" : "Target bound [m]";
+    $("label-sizing-target").textContent = isFraction(kind) ? "Coverage target [% of the servable pairs]"
+      : `Target [${OBJECTIVE_UNIT[kind] || "m"}]`;
   }
 
   /** The sizing question of the form: {target} with the target field, else {} (the server's
@@ -405,11 +418,12 @@
       doc.pairs = mode;
     }
     const method = $("f-search-method").value;
-    if (method !== (state.schema.methodDefault || "auto") || (doc.search && doc.search.method !== undefined)) {
+    if (method !== (state.schema.methodDefault || autoName()) || (doc.search && doc.search.method !== undefined)) {
       doc.search = Object.assign({}, doc.search || {}, { method });
     }
-    // the district search answers the sizing question (the smallest count) with the target
-    if (method === "district" && $("f-sizing-target").value.trim() !== "") {
+    // a target asks the sizing question too (the smallest count, and size, that reaches it),
+    // where the chosen search answers it (the field is disabled otherwise)
+    if (!$("f-sizing-target").disabled && $("f-sizing-target").value.trim() !== "") {
       doc.sizing = Object.assign({}, doc.sizing || {}, sizingFromForm());
     }
     doc.candidates = await candidatesForDocument();
@@ -491,10 +505,26 @@
 
   let validationSeq = 0;  // the newest validate() call (see there)
 
-  /** Dry run of the job (POST /v1/plans/validate); ``opts.auto`` (after a map edit): the
-   * errors are shown without moving the focus away from the map. */
+  /** An automatic validation after a short pause (edits come in bursts). */
+  function scheduleValidation() {
+    clearTimeout(state.validateTimer);
+    state.validateTimer = setTimeout(() => { state.validateTimer = null; validate({ auto: true }); }, 300);
+  }
+
+  /** The search a plan (or its sizing question) runs, when it is not the one asked for: "auto
+   * chose the district (many RISs) search: …" (plan.json and the validation's search_method). */
+  function searchWhy(choice, what) {
+    if (!choice || !choice.used || choice.used === choice.requested) return "";
+    return `${methodLabel(choice.requested)} chose the ${methodLabel(choice.used)} search${what ? ` for ${what}` : ""}: ${choice.why}`;
+  }
+
+  /** Dry run of the job (POST /v1/plans/validate); ``opts.auto`` (after a map edit, an import):
+   * the errors are shown without moving the focus away from the map, and a document without
+   * candidates is only said to lack them – the red refusal comes once the user asks (validate,
+   * submit, generate). */
   async function validate(opts) {
-    const focus = !(opts && opts.auto);
+    const auto = Boolean(opts && opts.auto);
+    if (!auto) state.tried = true;
     if (!state.doc) { $("validation-status").textContent = "Load a preset or upload a document first."; return null; }
     clearErrors();
     $("validation-status").textContent = "Validating…";
@@ -502,6 +532,7 @@
     // with the form as it was) that answers later must not overwrite its result
     const seq = ++validationSeq;
     state.refusal = null;
+    state.validating += 1;
     try {
       const doc = await documentFromForm();
       const preview = await api("/v1/plans/validate", { method: "POST", json: doc });
@@ -510,8 +541,11 @@
       state.previewExplicit = Array.isArray(doc.candidates) ? doc.candidates.length : 0;
       renderCandSummary();
       const per = Object.entries(preview.layouts).map(([c, n]) => `${c} RIS: ${n} layouts (${preview.methods[c]})`).join("; ");
+      const sizingOwn = preview.sizing_search_method && preview.search_method && preview.sizing_search_method.used === preview.search_method.used;
+      const why = [searchWhy(preview.search_method, ""), sizingOwn ? "" : searchWhy(preview.sizing_search_method, "the sizing")].filter(Boolean);
       $("validation-status").textContent =
-        `Valid: ${preview.sites} candidate sites, ${preview.pairs} TX–RX pairs, ${preview.rx_points} RX points. ${per}.`;
+        `Valid: ${preview.sites} candidate sites, ${preview.pairs} TX–RX pairs, ${preview.rx_points} RX points. ${per}.`
+        + why.map((w) => ` ${w}.`).join("");
       if (!state.plan) drawAll();
       return doc;
     } catch (err) {
@@ -520,12 +554,16 @@
       $("validation-status").textContent = "";
       state.preview = null;
       await loadSitePreview();
-      if (err.status === 422 && !state.cands.length && !(state.doc.walls || []).length && !(state.doc.facades || []).length) {
-        showErrors(err, focus);
+      if (seq !== validationSeq) return null;
+      const noSites = !state.cands.length && !(state.doc.walls || []).length && !(state.doc.facades || []).length;
+      if (err.status === 422 && noSites) {
+        if (state.tried) showErrors(err, !auto);
         $("validation-status").textContent = "No candidate sites yet: generate them or click “add a candidate” and click the map.";
-      } else if (err.status === 422 || err.status === 413) showErrors(err, focus);
+      } else if (err.status === 422 || err.status === 413) showErrors(err, !auto);
       else showBanner(err.message);
       return null;
+    } finally {
+      state.validating -= 1;
     }
   }
 
@@ -544,6 +582,7 @@
     if (!state.doc) { $("validation-status").textContent = "Load a preset or upload a document first."; return; }
     $("submit").disabled = true;
     clearTimeout(state.validateTimer); // this validation answers for the edits too
+    state.validateTimer = null;
     try {
       // the dry run first: what the job would fail on at its start is shown at the fields now
       const checked = await validate();
@@ -553,9 +592,10 @@
         // its first clause
         const msg = state.refusal || "";
         const cut = msg.length > 160 ? msg.indexOf(": ", 20) : -1;
-        const why = !msg ? "the document has problems (listed above)" : cut > 0 ? `${msg.slice(0, cut)} (listed above)` : msg;
+        const where = "(listed under Key parameters)";
+        const why = !msg ? `the document has problems ${where}` : cut > 0 ? `${msg.slice(0, cut)} ${where}` : msg;
         $("validation-status").textContent = `Not submitted: ${why}`;
-        $("validation-status").scrollIntoView({ block: "nearest" });
+        if ($("other-errors").firstChild) $("other-errors").scrollIntoView({ block: "nearest" });
         return;
       }
       const doc = Object.assign({}, checked, extra || {});
@@ -588,6 +628,7 @@
         LEVEL_FIELD[o.name] = o.parameter;
         LEVEL_LABEL[o.name] = o.parameter_label;
         OBJECTIVE_UNIT[o.name] = o.unit;
+        OBJECTIVE_HIGHER[o.name] = Boolean(o.higher_is_better);
         sel.append(h("option", { value: o.name, text: o.label }));
       }
       // the list may arrive after the user has edited the form: rebuild the kind's choice and
@@ -599,6 +640,8 @@
       const level = $("f-objective-level"); // filled before the kinds were known: the document's
       const lv = doc.objective && sel.value === doc.objective.kind ? doc.objective[LEVEL_FIELD[kind]] : undefined;
       if (level.value === "" && lv !== undefined && lv !== null) level.value = String(lv);
+      updateSizingField();
+      updateSearchField();
     } catch (err) {
       if (err.status !== 0) showBanner(err.message);
     }
@@ -726,7 +769,12 @@
         h("td", {}, value, detail ? h("details", {}, h("summary", { text: "which" }), h("span", { class: "small", text: detail })) : null)));
     }
     table.append(tb);
-    box.append(h("p", { class: "muted", text: `Imported (${report.format || "site"}):` }), table);
+    // a short line of the counts; the whole report on request (it is long for a real site)
+    const count = (k, one) => (typeof report[k] === "number" ? plural(report[k], one) : null);
+    const said = [count("buildings", "building"), count("roads", "road piece"), count("areas", "density area"), count("candidates", "candidate site")]
+      .filter(Boolean).join(", ");
+    box.append(h("p", { id: "import-summary" }, h("strong", { text: `Imported (${report.format || "site"})` }), said ? `: ${said}.` : "."),
+      h("details", { id: "import-details" }, h("summary", { text: "Import report (every count, the defaults the document got)" }), table));
     const notes = report.notes || [];
     if (notes.length) box.append(h("ul", { class: "small" }, notes.map((n) => h("li", { text: String(n) }))));
   }
@@ -808,6 +856,7 @@
       state.siteSource = fmt === "geojson" ? JSON.parse(new TextDecoder().decode(bytes)) : doc;
       await setDocument(doc, `${file.name} (imported)`);
       renderImportReport(body.report, doc);
+      $("import-options").open = false; // imported: the options on request ("Import again")
       drawAll();
       validate({ auto: true });
     } catch (err) {
@@ -851,6 +900,7 @@
       const planSchema = ((spec.components || {}).schemas || {}).PlanDocument;
       readPlanSchema((spec.components || {}).schemas || {});
       state.sizingSupported = Boolean(planSchema && planSchema.properties && "sizing" in planSchema.properties);
+      $("find-size").dataset.unsupported = String(!state.sizingSupported);
       $("find-size").disabled = !state.sizingSupported;
       if (!state.sizingSupported) $("hint-find-size").textContent = "This server cannot size the RIS yet (its plan documents have no sizing).";
       const sysSchema = ((spec.components || {}).schemas || {}).SystemParams;
@@ -893,41 +943,124 @@
     }
     if (pairProps.line_of_sight) sch.losDefault = Boolean(pairProps.line_of_sight.default);
     if (pairProps.sample) $("f-pairs-sample").setAttribute("aria-description", `Pairs to draw, ${limitsText(numberLimits(pairProps.sample), "")}`);
+    // the search methods themselves come from GET /v1/search-methods; the schema gives the
+    // default (a document names the method only when it differs) and, from a server without
+    // that route, the names
     const methodProp = schemas.SearchSpec && schemas.SearchSpec.properties ? schemas.SearchSpec.properties.method : null;
-    if (methodProp && Array.isArray(methodProp.enum)) {
-      const sel = $("f-search-method");
-      const chosen = sel.value;
-      const LABELS = { district: "district (many RISs)" };
-      clear(sel);
-      for (const v of methodProp.enum) sel.append(h("option", { value: v, text: LABELS[v] || v }));
-      sch.methodDefault = methodProp.default;
-      const doc = state.doc || {};
-      const want = doc.search && doc.search.method ? doc.search.method : chosen;
-      sel.value = methodProp.enum.includes(want) ? want : methodProp.default;
-      sch.methodHelp = methodProp.description || "";
-    }
-    const planProps = (schemas.PlanDocument && schemas.PlanDocument.properties) || {};
-    const maxRis = numberLimits(planProps.max_ris).max;
-    if (maxRis !== undefined && methodProp && (methodProp.enum || []).includes("district")) {
-      $("hint-ris_count-district").textContent = `; the district search takes up to ${maxRis}`;
+    if (methodProp) sch.methodDefault = methodProp.default;
+    if (methodProp && Array.isArray(methodProp.enum) && !state.searchMethods) {
+      fillMethods(methodProp.enum.map((name) => ({ name, label: name, description: "" })));
     }
     const sizingProps = (schemas.Sizing && schemas.Sizing.properties) || {};
     $("f-sizing-target").closest(".field").hidden = !sizingProps.target;
     if (sizingProps.target && sizingProps.target.description) {
       // the server's default target, as its schema states it ("default: …; …")
       const said = (sizingProps.target.description.match(/default: ([^;)]*)/) || [])[1];
-      $("hint-sizing-target").textContent = "District search: the smallest RIS count that reaches it, with a"
-        + " certified lower count; Find the smallest RIS size: the smallest size." + (said ? ` Blank: ${said}.` : "");
+      $("hint-sizing-target").textContent = "With a target, Submit plan job also answers the smallest RIS count (and"
+        + " size) that reaches it, with a certified lower count; Find the smallest RIS size asks it"
+        + (said ? ` with the server's default target when blank (${said}).` : ".");
     }
     updateSearchField();
   }
 
-  /** The search method's note (from its schema description, for the chosen method). */
+  /** ``auto``: the planner's choice, not a method (GET /v1/search-methods, else the schema's
+   * default). */
+  const autoName = () => (state.searchMethods && state.searchMethods.auto ? state.searchMethods.auto.name : state.schema.methodDefault || "");
+  /** A search method's entry of GET /v1/search-methods (auto's included), or null. */
+  function methodEntry(name) {
+    const sm = state.searchMethods;
+    if (!sm) return null;
+    if (sm.auto && sm.auto.name === name) return sm.auto;
+    return (sm.methods || []).find((m) => m.name === name) || null;
+  }
+  /** A method's label as the server gives it ("district (many RISs)"), else its name. */
+  const methodLabel = (name) => { const m = methodEntry(name); return m && m.label ? m.label : String(name); };
+
+  /** The search select: auto and the registered methods, labelled as the server says. */
+  function fillMethods(list) {
+    const sel = $("f-search-method");
+    const chosen = sel.value;
+    clear(sel);
+    for (const m of list) sel.append(h("option", { value: m.name, text: m.label || m.name }));
+    const doc = state.doc || {};
+    const want = doc.search && doc.search.method ? doc.search.method : chosen || state.schema.methodDefault;
+    const names = list.map((m) => m.name);
+    sel.value = names.includes(want) ? want : names.includes(state.schema.methodDefault) ? state.schema.methodDefault : names[0];
+  }
+
+  /** GET /v1/search-methods: the list of the search select, each method's description and the
+   * options it honours (the page's controls for an option a method does not honour are
+   * disabled while it is chosen). */
+  async function loadSearchMethods() {
+    try {
+      const body = await api("/v1/search-methods");
+      state.searchMethods = body;
+      fillMethods([body.auto, ...(body.methods || [])]);
+      // the most RISs per method, under the counts field
+      const byMax = new Map();
+      for (const m of body.methods || []) {
+        const n = m.capabilities && m.capabilities.max_ris;
+        if (typeof n === "number") byMax.set(n, [...(byMax.get(n) || []), m.label || m.name]);
+      }
+      $("hint-ris_count-max").textContent = byMax.size
+        ? "; at most " + [...byMax.entries()].sort((a, b) => a[0] - b[0]).map(([n, who]) => `${n} with ${who.join(" or ")}`).join(", ")
+        : "";
+      updateSearchField();
+    } catch (err) {
+      if (err.status !== 0 && err.status !== 404) showBanner(err.message);
+    }
+  }
+
+  /** The chosen method's description, and what it does not take: the controls of an option it
+   * does not honour are disabled (their hint says why), choices it does not take (pair models,
+   * wavefronts, objective kinds) cannot be picked; a value already chosen that it does not take
+   * is refused by the server's validation, next to its field. */
   function updateSearchField() {
-    const m = $("f-search-method").value;
-    const help = state.schema.methodHelp || "";
-    const part = help.split(/;\s*(?=[a-z_]+:\s)/).find((t) => t.startsWith(`${m}:`));
-    $("hint-search-method").textContent = part ? part.slice(m.length + 1).trim() : "";
+    const name = $("f-search-method").value;
+    const entry = methodEntry(name);
+    const sm = state.searchMethods;
+    let help = entry ? String(entry.description || "") : "";
+    if (sm && entry === sm.auto) {
+      // auto's description goes on to list the methods; the select lists them already
+      const next = (sm.methods || []).map((m) => help.indexOf(`; ${m.name}`)).filter((k) => k > 0);
+      if (next.length) help = help.slice(0, Math.min(...next));
+      help = help.replace(new RegExp(`^${name}:\\s*`), "");
+    }
+    $("hint-search-method").textContent = help;
+    const caps = entry && entry.capabilities && Object.keys(entry.capabilities).length ? entry.capabilities : null;
+    const notes = [];
+    // options (GET /v1/search-methods options[]): the controls that set them
+    for (const opt of (sm && sm.options) || []) {
+      const off = Boolean(caps && Array.isArray(caps.options) && !caps.options.includes(opt.name));
+      const controls = [...document.querySelectorAll(`[data-plan-option="${opt.name}"]`)];
+      for (const el of controls) {
+        el.disabled = off || el.dataset.unsupported === "true";
+      }
+      for (const hint of document.querySelectorAll(`[data-plan-option-hint="${opt.name}"]`)) {
+        if (hint.dataset.text === undefined) hint.dataset.text = hint.textContent;
+        hint.textContent = off ? `Not with the ${entry.label || name} search: it does not give ${opt.what} (${opt.field}).` : hint.dataset.text;
+      }
+      if (off && controls.length) notes.push(`${opt.what} (${opt.field})`);
+    }
+    // the choices of the form it does not take
+    const allow = (sel, values) => {
+      for (const o of $(sel).options) o.disabled = Boolean(values) && !values.includes(o.value);
+    };
+    allow("f-pairs-mode", caps && caps.pair_models);
+    allow("f-wavefront", caps && caps.wavefronts);
+    const coverageOnly = caps && caps.objectives === "coverage";
+    for (const o of $("f-objective-kind").options) o.disabled = Boolean(coverageOnly) && OBJECTIVE_HIGHER[o.value] === false;
+    // what it takes, where another method takes more
+    const every = (key) => new Set(((sm && sm.methods) || []).flatMap((m) => (m.capabilities && m.capabilities[key]) || []));
+    const fewer = (key) => caps && Array.isArray(caps[key]) && caps[key].length < every(key).size;
+    const limits = [];
+    if (fewer("pair_models")) limits.push(`the pair models ${caps.pair_models.join(" and ")} only`);
+    if (fewer("wavefronts")) limits.push(`the ${caps.wavefronts.join(" and ")} wavefront only`);
+    if (coverageOnly) limits.push("coverage objectives");
+    if (caps && typeof caps.max_ris === "number") limits.push(`at most ${caps.max_ris} RISs`);
+    $("method-note").textContent = !caps ? ""
+      : (notes.length ? `Not with this search: ${notes.join("; ")} – those controls are disabled. ` : "")
+        + (limits.length ? `It takes ${limits.join(", ")}.` : "");
   }
 
   /** The generation form starts from the defaults of POST /v1/sites, which are those of
@@ -1165,6 +1298,11 @@
   }
 
   // ---------------------------------------------------------------- results panel
+  /* One view for every plan: plan.json has one shape whatever its search. Every share the page
+   * prints names its denominator directly after it ("90.4 % of the servable pairs", "28.7 % of
+   * all pairs", "38.5 % of the bound"): a coverage objective is a fraction of all pairs, its
+   * share of the servable pairs (those some layout of the candidates can locate at all:
+   * plan.json pairs_summary) is what the sizing target and the shares are of. */
   function countEntry(count) {
     return state.plan ? state.plan.by_count.find((b) => String(b.ris_count) === String(count)) : null;
   }
@@ -1172,34 +1310,157 @@
     const idx = state.plan ? state.plan.by_count.findIndex((b) => String(b.ris_count) === String(count)) : 0;
     return COUNT_COLOURS[Math.max(idx, 0) % COUNT_COLOURS.length];
   };
-  function fmtObjective(v) {
+  const SERVABLE = "the servable pairs";
+  const ALL_PAIRS = "all pairs";
+  const pct1 = (v) => `${(100 * v).toFixed(1)} %`;
+  /** "x % of <what>", or null for a missing value. */
+  const shareOf = (v, what) => (typeof v === "number" && Number.isFinite(v) ? `${pct1(v)} of ${what}` : null);
+  const plural = (n, one, many) => `${n} ${n === 1 ? one : many || `${one}s`}`;
+
+  /** The unit of the shown plan's objective ("" for a fraction). */
+  function objUnit() {
+    const plan = state.plan;
+    if (typeof plan.objective_unit === "string") return plan.objective_unit;
+    const kind = plan.objective.kind;
+    return kind in OBJECTIVE_UNIT ? OBJECTIVE_UNIT[kind] : "m";
+  }
+  /** The weight of the servable pairs (pairs_summary), or null. */
+  function servableWeight() {
+    const ps = state.plan && state.plan.pairs_summary;
+    return ps && typeof ps.servable_weight === "number" && ps.servable_weight > 0 ? ps.servable_weight : null;
+  }
+  /** Whether the plan's objective values are shares of the pairs (by_count share_of_servable). */
+  const sharesServable = () => servableWeight() !== null && state.plan.by_count.some((b) => typeof b.share_of_servable === "number");
+  /** An objective value as a share of the servable pairs (coverage), else null. */
+  const servableShare = (v) => (typeof v === "number" && sharesServable() ? v / servableWeight() : null);
+  /** An objective value with its unit: "0.851", "0.12 m". */
+  function fmtValue(v) {
     if (v === null || v === undefined) return "—";
-    const kind = state.plan.objective.kind;
-    return isFraction(kind) ? `${(100 * v).toFixed(1)} %` : `${fmtNum(v)} ${OBJECTIVE_UNIT[kind] || "m"}`;
+    const unit = objUnit();
+    return unit ? `${fmtNum(v)} ${unit}` : fmtNum(v);
+  }
+  /** An objective value and, for a coverage, its share of the servable pairs:
+   * "0.851 = 90.4 % of the servable pairs". ``share`` given: plan.json's own. */
+  function fmtObjective(v, share) {
+    const sh = typeof share === "number" ? share : servableShare(v);
+    const text = fmtValue(v);
+    return v === null || v === undefined || sh === null ? text : `${text} = ${shareOf(sh, SERVABLE)}`;
+  }
+  function fmtGain(g) {
+    return g === null || g === undefined ? "—" : fmtObjective(g);
   }
 
-  /** The name of candidate site i of the shown plan (plan.json candidates[i].name), else "#i". */
-  function siteName(i) {
-    const list = state.plan && Array.isArray(state.plan.candidates) ? state.plan.candidates : candidates();
-    const c = list[i];
-    return c && c.name ? String(c.name) : `#${i}`;
+  /** A candidate site by name with its index, as the command line prints it: "E8 [10]"
+   * (plan.json candidates[i].name; "[i]" for an unnamed site). */
+  function siteLabel(i, name) {
+    let n = name;
+    if (n === undefined) {
+      const list = state.plan && Array.isArray(state.plan.candidates) ? state.plan.candidates : candidates();
+      n = list[i] && list[i].name;
+    }
+    return n ? `${n} [${i}]` : `[${i}]`;
   }
-  /** Sites of a layout by name: indices into the candidates, or names already (district). */
-  const siteNames = (sites) => (sites || []).map((v) => (typeof v === "number" ? siteName(v) : String(v))).join(", ");
-  const isDistrict = (plan) => Boolean(plan && plan.method === "district");
+  /** Sites of a layout (candidate indices), with plan.json's names where it gives them. */
+  const siteList = (sites, names) => (sites || []).map((v, k) => siteLabel(v, names ? names[k] : undefined)).join(", ");
+
+  /** "coverage threshold 1 m": the objective's level from its kind's parameter. */
+  function levelWords(obj) {
+    const field = LEVEL_FIELD[obj.kind];
+    const v = field ? obj[field] : undefined;
+    if (v === undefined || v === null) return "";
+    const label = String(LEVEL_LABEL[obj.kind] || field);
+    const unit = (label.match(/\[([^\]]+)\]\s*$/) || [])[1] || "";
+    const name = label.replace(/\s*\[[^\]]*\]\s*$/, "");
+    return `${name.charAt(0).toLowerCase()}${name.slice(1)} ${fmtNum(v)}${unit ? ` ${unit}` : ""}`;
+  }
+
+  /** The objective in words: kind, metric, level, unit and direction. */
+  function objectiveWords(plan) {
+    const obj = plan.objective;
+    const metric = METRIC_LABEL[obj.metric] || obj.metric;
+    const level = levelWords(obj);
+    const unit = objUnit();
+    const what = unit ? `in ${unit}` : sharesServable() ? "a fraction of all pairs, 0 to 1" : "a number without unit";
+    const better = plan.objective_better === "higher" ? "higher is better" : "lower is better";
+    return `Objective: ${obj.kind} of ${metric}${level ? `, ${level}` : ""} (${what}; ${better}); ${plan.pairs} TX–RX pairs scored.`;
+  }
+
+  /** plan.json pairs_summary in words, the denominator defined. */
+  function pairsWords(plan) {
+    const ps = plan.pairs_summary;
+    if (!ps) return "";
+    const w = servableWeight();
+    const blind = ps.blind_everywhere || null;
+    const denominator = ps.denominator || "servable pairs";
+    const n = typeof ps.pairs === "number" && blind && typeof blind.pairs === "number" ? ps.pairs - blind.pairs : null;
+    const parts = [`${denominator.charAt(0).toUpperCase()}${denominator.slice(1)}: ${n === null ? "" : `${n} of the ${ps.pairs} pairs, `}`
+      + `${w === null ? "—" : shareOf(w, ALL_PAIRS)} by weight – those some layout of the candidates can locate at all; every share below is of them`];
+    if (typeof ps.coverable_share === "number") parts.push(`coverable at this RIS size: ${shareOf(ps.coverable_share, SERVABLE)}`);
+    const above = ps.above_level_everywhere;
+    if (above && typeof above.weight === "number" && w !== null) {
+      const level = levelWords(plan.objective);
+      parts.push(`above the ${level || "level"} with every candidate: ${plural(above.pairs, "pair")}, ${shareOf(above.weight / w, SERVABLE)}`);
+    }
+    if (blind && typeof blind.weight === "number") parts.push(`blind with every candidate: ${plural(blind.pairs, "pair")}, ${shareOf(blind.weight, ALL_PAIRS)}`);
+    return parts.join("; ") + ".";
+  }
+
+  /** How the plan searched: the method, its details (plan.json search_details) and, when it
+   * is not the one asked for, why. */
+  function searchWords(plan) {
+    const sm = plan.search_method || {};
+    const details = Object.entries(plan.search_details || {})
+      .filter(([, v]) => typeof v === "number")
+      .map(([k, v]) => `${k.replace(/_/g, " ")} ${fmtNum(v, 4)}`);
+    return `Search: ${methodLabel(sm.used)}${details.length ? ` – ${details.join(", ")}` : ""}.`;
+  }
+
+  function renderResultsNote(plan) {
+    const box = clear($("results-note"));
+    box.append(h("p", { id: "objective-note", text: objectiveWords(plan) }));
+    const pairs = pairsWords(plan);
+    if (pairs) box.append(h("p", { id: "pairs-note", text: pairs }));
+    box.append(h("p", { id: "search-note", text: searchWords(plan) }));
+    const why = searchWhy(plan.search_method, "");
+    if (why) box.append(h("p", { id: "search-why", class: "search-why", text: `${why}.` }));
+    if (plan.decision && plan.decision.message) box.append(h("p", { id: "decision-note", text: `Target: ${plan.decision.message}.` }));
+    box.append(h("p", { class: "muted small", text: plan.heatmap
+      ? `Heatmap: ${plan.heatmap.tx}; contour at ${plan.heatmap.threshold_label}.`
+      : "This job has no heatmap data." }));
+  }
+
+  /** One count's search: the method, how the layout was found, the layouts evaluated where the
+   * plan enumerates layouts (plan.json search_details.layouts_scored). */
+  function searchCell(b) {
+    const how = b.found_by && b.found_by !== b.method ? `${b.method}: ${b.found_by}` : String(b.method || "—");
+    const enumerates = state.plan.search_details && "layouts_scored" in state.plan.search_details;
+    return enumerates ? `${how}, ${b.layouts_evaluated} of ${b.layouts_total} layouts evaluated` : how;
+  }
+
+  /** The certified bound of a count: "optimal" when exact, else "≤ 0.412 = 41.4 % of the
+   * servable pairs" (no layout of the count does better; ≥ for a lower-is-better objective). */
+  function boundCell(cert) {
+    if (!cert) return "—";
+    if (cert.exact) return "optimal";
+    const side = cert.bound_side === "lower" ? "≥" : "≤";
+    return `${side} ${fmtObjective(cert.objective_bound)}`;
+  }
+  /** The gap between the layout found and the bound: absolute (with its share of the servable
+   * pairs for a coverage) and as a share of the bound. */
+  function gapCell(cert) {
+    if (!cert) return "—";
+    if (cert.exact) return "0";
+    const rel = shareOf(cert.relative_gap, "the bound");
+    return `${fmtObjective(cert.gap)}${rel ? `; ${rel}` : ""}`;
+  }
 
   function renderResults() {
     const plan = state.plan;
-    const district = isDistrict(plan);
     $("results").hidden = false;
     renderDiagnosis(plan.diagnosis);
     renderSizing(plan.sizing);
     renderEstimatorCheck(plan.validation);
-    const metric = METRIC_LABEL[plan.objective.metric] || plan.objective.metric;
-    const better = plan.objective_better === "higher" ? "higher is better" : "lower is better";
-    $("results-note").textContent = district ? districtNote(plan) :
-      `Objective: ${plan.objective.kind} of ${metric} (${better}); ${plan.pairs} TX–RX pairs scored. ` +
-      (plan.heatmap ? `Heatmap: ${plan.heatmap.tx}; contour at ${plan.heatmap.threshold_label}.` : "This job has no heatmap data (older version).");
+    renderResultsNote(plan);
     // count picker (rebuilt only for another plan, so arrow keys keep their focus in it)
     const opts = $("count-options");
     if (opts.dataset.plan !== state.job.id) {
@@ -1219,30 +1480,28 @@
     }
     for (const input of opts.querySelectorAll("input")) input.checked = input.value === state.count;
     $("count-picker").hidden = false;
-    $("charts").hidden = district;
-    $("top-layouts-h").hidden = district;
-    $("top-layouts").hidden = district;
-    renderDistrictFigure(district);
-    if (district) { renderDistrictTable(plan); renderDownloads(); return; }
+    renderDistrictFigure();
     // table per count
     const table = clear($("count-table"));
-    table.append(h("caption", { class: "sr-only", text: "Best layout per RIS count" }));
-    table.append(h("thead", {}, h("tr", {}, ["RIS", "Objective", "Median", "90 %", "Blind", "Gain vs previous", "Gain per added RIS", "Best sites", "Search"]
-      .map((t) => h("th", { scope: "col", text: t })))));
+    table.append(h("caption", { class: "sr-only", text: "Best layout per RIS count: objective, certified bound and gap, bounds, blind pairs, gain, sites and search" }));
+    table.append(h("thead", {}, h("tr", {}, ["RIS", "Objective", "Certified bound", "Gap", "Bound: median / 90th percentile", "Blind",
+      "Gain vs previous count", "Best sites", "Search"].map((t) => h("th", { scope: "col", text: t })))));
     const tb = h("tbody");
     let prevCount = null;
     for (const b of plan.by_count) {
-      const gainPer = b.marginal_gain === null || prevCount === null ? null : b.marginal_gain / (b.ris_count - prevCount);
-      tb.append(h("tr", { class: String(b.ris_count) === state.count ? "current" : null },
+      // over the previous count (per added RIS: the gain chart)
+      const gain = b.marginal_gain === null || b.marginal_gain === undefined || prevCount === null ? "—" : fmtGain(b.marginal_gain);
+      const q = b.quantiles_m || {};
+      tb.append(h("tr", { class: String(b.ris_count) === state.count ? "current" : null, "data-count": b.ris_count },
         h("th", { scope: "row", text: `${b.ris_count}` }),
-        h("td", { text: fmtObjective(b.objective) }),
-        h("td", { text: fmtM(b.quantiles_m["0.5"]) }),
-        h("td", { text: fmtM(b.quantiles_m["0.9"]) }),
-        h("td", { text: `${(100 * b.blind_fraction).toFixed(1)} %` }),
-        h("td", { text: fmtGain(b.marginal_gain) }),
-        h("td", { text: fmtGain(gainPer) }),
-        h("td", { class: "sites", text: siteNames(b.sites) }),
-        h("td", { text: `${b.method}, ${b.layouts_evaluated}/${b.layouts_total}` })));
+        h("td", { class: "objective", text: fmtObjective(b.objective, b.share_of_servable) }),
+        h("td", { class: "bound", text: boundCell(b.certificate) }),
+        h("td", { class: "gap", text: gapCell(b.certificate) }),
+        h("td", { class: "quantiles", text: `${fmtM(q["0.5"])} / ${fmtM(q["0.9"])}` }),
+        h("td", { class: "blind", text: shareOf(b.blind_fraction, ALL_PAIRS) || "—" }),
+        h("td", { class: "gain", text: gain }),
+        h("td", { class: "sites", text: siteList(b.sites, b.site_names) }),
+        h("td", { class: "search", text: searchCell(b) })));
       prevCount = b.ris_count;
     }
     table.append(tb);
@@ -1251,65 +1510,32 @@
     // top layouts of the shown count
     const list = clear($("top-layouts"));
     const entry = countEntry(state.count);
-    (entry ? entry.top_layouts : []).forEach((lay, i) => {
+    (entry ? entry.top_layouts || [] : []).forEach((lay, i) => {
       const btn = h("button", {
         type: "button", class: "secondary small", id: `layout-${i}`, "aria-pressed": String(i === state.layoutIdx),
         onclick: () => { state.layoutIdx = i; renderResults(); drawAll(); $(`layout-${i}`).focus(); },
       }, i === state.layoutIdx ? "Shown" : "Show");
-      list.append(h("li", {}, `sites ${siteNames(lay.sites)} – objective ${fmtObjective(lay.objective)} `, btn));
+      list.append(h("li", {}, `sites ${siteList(lay.sites)} – objective ${fmtObjective(lay.objective)} `, btn));
     });
     renderDownloads();
   }
 
-  const pctText = (v) => (v === null || v === undefined ? "—" : `${(100 * v).toFixed(1)} %`);
-
-  /** What a district plan worked on (plan.json pairs_summary). */
-  function districtNote(plan) {
-    const ps = plan.pairs_summary || {};
-    const metric = METRIC_LABEL[plan.objective.metric] || plan.objective.metric;
-    const level = plan.objective.threshold_m !== undefined ? ` ≤ ${fmtNum(plan.objective.threshold_m)} m` : "";
-    const parts = [`District search: coverage of ${metric}${level} over ${ps.pairs ?? "?"} pairs`];
-    if (ps.coverable_weight !== undefined) parts.push(`${pctText(ps.coverable_weight)} of the pair weight can be covered by some layout`);
-    if (ps.blind_everywhere) parts.push(`${pctText(ps.blind_everywhere.weight)} is blind with every candidate`);
-    if (ps.above_threshold_everywhere) parts.push(`${pctText(ps.above_threshold_everywhere.weight)} stays above the threshold with every candidate`);
-    if (typeof ps.serving_sites_per_pair === "number") parts.push(`${fmtNum(ps.serving_sites_per_pair)} serving sites per pair on average`);
-    return parts.join("; ") + ". The certified bound is the most any layout of that count can cover; the gap is how far the layout found may be from the best.";
-  }
-
-  /** The district plan's table: per count the coverage of its layout, the certified upper
-   * bound on any layout of that count, the gap between them, and the sites by name. */
-  function renderDistrictTable(plan) {
-    const table = clear($("count-table"));
-    table.append(h("caption", { class: "sr-only", text: "District search per RIS count: coverage, certified bound and gap" }));
-    table.append(h("thead", {}, h("tr", {}, ["RIS", "Coverage", "Certified bound", "Gap", "Of the coverable pairs", "Sites"]
-      .map((t) => h("th", { scope: "col", text: t })))));
-    const tb = h("tbody");
-    for (const b of plan.by_count) {
-      tb.append(h("tr", { class: String(b.ris_count) === state.count ? "current" : null, "data-count": b.ris_count },
-        h("th", { scope: "row", text: `${b.ris_count}` }),
-        h("td", { class: "coverage", text: fmtObjective(b.objective) }),
-        h("td", { class: "bound", text: fmtObjective(b.upper_bound) }),
-        h("td", { class: "gap", text: b.gap === null || b.gap === undefined ? "—" : `${(100 * b.gap).toFixed(1)} pts` }),
-        h("td", { text: pctText(b.objective_of_coverable) }),
-        h("td", { class: "sites", text: siteNames(b.sites) })));
-    }
-    table.append(tb);
-  }
-
-  /** The job's district.png, fetched with the API key when one is set (an image request could
-   * not send it) and shown from a blob URL. */
-  async function renderDistrictFigure(district) {
+  /** The job's district.png (when the job has it), fetched with the API key when one is set (an
+   * image request could not send it) and shown from a blob URL; ``data-loaded`` once drawn. */
+  async function renderDistrictFigure() {
     const box = $("district-figure-box");
-    const url = district && state.job && state.job.figures ? state.job.figures.district : null;
+    const img = $("district-figure");
+    const url = state.job && state.job.figures ? state.job.figures.district : null;
     const ref = url ? (typeof url === "string" ? url : url.url || url.href) : null;
     box.hidden = !ref;
     if (!ref || box.dataset.src === ref) return;
     box.dataset.src = ref;
+    delete img.dataset.loaded;
     try {
       const resp = await fetch(ref, { headers: headers() });
       if (!resp.ok) throw new ApiError(resp.status, null);
-      const img = $("district-figure");
       if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
+      img.onload = () => { img.dataset.loaded = "true"; };
       img.src = URL.createObjectURL(await resp.blob());
     } catch (_) {
       box.hidden = true;
@@ -1342,7 +1568,7 @@
     const link = h("a", { class: "cause-download", href: URL.createObjectURL(new Blob([csv], { type: "text/csv" })), download: file }, file);
     const item = (e) => {
       const extra = keys.filter((k) => k !== "index" && k !== "name").map((k) => `${k.replace(/_/g, " ")} ${diagText(e[k])}`).join(", ");
-      return h("li", { text: `${e.index} (${e.name})` + (extra ? `: ${extra}` : "") });
+      return h("li", { text: siteLabel(e.index, e.name || null) + (extra ? `: ${extra}` : "") });
     };
     return h("details", { class: "small cause-candidates" },
       h("summary", { text: `The ${list.length} candidate${list.length === 1 ? "" : "s"} (list)` }),
@@ -1367,11 +1593,11 @@
     box.setAttribute("role", verdict === "ok" ? "status" : "alert");
     box.dataset.verdict = verdict;
     box.append(h("h3", { text: VERDICT_TEXT[verdict] || `Diagnosis: ${verdict}` }));
-    // fractions of the pair weight (served, its floor, the spread of layouts) in %, the best
-    // and worst layout's objective in the objective's unit
-    const pct = (v) => `${(100 * v).toFixed(1)} %`;
-    const FIGURES = [["served_fraction", "served", pct], ["floor", "floor", pct], ["best", "best layout", fmtObjective],
-      ["worst", "worst layout", fmtObjective], ["spread", "spread of layouts", pct]];
+    // the served fraction and its floor are of all pairs' weight; the spread is |best − worst|
+    // over the better of the two; the best and worst layout's objective in its own terms
+    const FIGURES = [["served_fraction", "served", (v) => shareOf(v, ALL_PAIRS)], ["floor", "floor", (v) => shareOf(v, ALL_PAIRS)],
+      ["best", "best layout", fmtObjective], ["worst", "worst layout", fmtObjective],
+      ["spread", "spread of layouts", (v) => shareOf(v, "the better layout's objective")]];
     const figures = FIGURES.filter(([k]) => diag[k] !== undefined && diag[k] !== null)
       .map(([k, label, f]) => `${label}: ${typeof diag[k] === "number" ? f(diag[k]) : diagText(diag[k])}`);
     if (figures.length) box.append(h("p", { class: "small", text: figures.join(" · ") }));
@@ -1389,76 +1615,78 @@
     }
   }
 
-  /** plan.json's sizing: the smallest RIS size that reaches the objective, and the table. */
+  /** A sizing target ({min} or {max}) in words, with its denominator: "at least 80.0 % of the
+   * servable pairs (objective ≥ 0.797)". */
+  function targetWords(sizing) {
+    const t = sizing.target || {};
+    const g = sizing.goal || {};
+    const atLeast = typeof t.min === "number";
+    const v = atLeast ? t.min : t.max;
+    if (typeof v !== "number") return "";
+    const goal = atLeast ? g.min : g.max;
+    const said = sizing.of ? shareOf(v, `the ${sizing.of}`) : fmtValue(v);
+    const value = sizing.of && typeof goal === "number" ? ` (objective ${atLeast ? "≥" : "≤"} ${fmtValue(goal)})` : "";
+    return `Target: ${atLeast ? "at least" : "at most"} ${said}${value}.`;
+  }
+
+  /** plan.json's sizing (one shape for every search): the answer in the server's words, the
+   * certified interval (lower count to the count found), the sizes tried, the search that
+   * answered. */
   function renderSizing(sizing) {
     const box = clear($("sizing"));
     box.hidden = !sizing;
     if (!sizing) return;
-    if (sizing.method === "district") { renderDistrictSizing(box, sizing); return; }
-    box.append(h("h3", { text: "Smallest RIS size" }));
-    const ans = sizing.answer;
-    if (ans) {
-      box.append(h("p", { id: "sizing-answer" }, h("strong", { text: `${ans.rows} × ${ans.cols} elements with ${ans.count} RIS` }),
-        ` (objective ${fmtObjective(ans.objective)})`,
-        h("button", { type: "button", class: "secondary small", onclick: () => useRisSize(ans.rows, ans.cols) }, "Use this size")));
-    } else {
-      box.append(h("p", { id: "sizing-answer", text: "No RIS size tried reaches the objective." }));
-    }
-    if (sizing.message) box.append(h("p", { class: "muted", text: String(sizing.message) }));
-    const rows = Array.isArray(sizing.table) ? sizing.table : [];
-    if (rows.length) {
-      const table = h("table", { id: "sizing-table" }, h("caption", { class: "sr-only", text: "RIS sizes tried" }),
-        h("thead", {}, h("tr", {}, ["Rows", "Columns", "RIS", "Objective", "Reaches it"].map((t) => h("th", { scope: "col", text: t })))));
-      const tb = h("tbody");
-      for (const r of rows) {
-        const isAns = ans && r.rows === ans.rows && r.cols === ans.cols && r.count === ans.count;
-        tb.append(h("tr", { class: isAns ? "answer" : null },
-          h("td", { text: String(r.rows) }), h("td", { text: String(r.cols) }), h("td", { text: String(r.count) }),
-          h("td", { text: fmtObjective(r.objective) }), h("td", { text: r.reaches ? "yes" : "no" })));
-      }
-      table.append(tb);
-      box.append(h("div", { class: "table-wrap" }, table));
-    }
-  }
-
-  /** plan.json's sizing of a district plan: the smallest count (and RIS size, where the plan
-   * tried several) whose layout reaches the target – a fraction of the pairs some layout can
-   * serve – and the certified lower bound on the count; the sizes tried as a table. */
-  function renderDistrictSizing(box, sizing) {
-    box.append(h("h3", { text: "Smallest RIS count (district sizing)" }));
-    const plural = (n) => `${n} RIS${n === 1 ? "" : "s"}`;
-    const target = typeof sizing.target === "number" ? `${(100 * sizing.target).toFixed(1)} % of the ${sizing.of || "coverable pairs"}` : "the target";
-    const size = Array.isArray(sizing.ris_size) ? sizing.ris_size : null;
-    const lower = sizing.lower_bound === null || sizing.lower_bound === undefined ? null : sizing.lower_bound;
-    const certified = lower === null ? "no layout reaches the target"
-      : `no layout of fewer than ${plural(lower)}${size ? " of that size" : ""} can (certified)`;
-    const line = sizing.count === null || sizing.count === undefined
-      ? [h("strong", { text: "No RIS count the search tried reaches the target" }), ` (${target}); ${certified}.`]
-      : [h("strong", { text: `${plural(sizing.count)}${size ? ` of ${size[0]} × ${size[1]} elements` : ""} reach the target` }),
-        ` (${target}); ${certified}`, sizing.gap === null || sizing.gap === undefined ? "." : ` – gap ${plural(sizing.gap)}.`];
-    const p = h("p", { id: "sizing-answer", "data-count": sizing.count ?? "", "data-lower-bound": lower ?? "", "data-gap": sizing.gap ?? "" }, ...line);
-    if (size && sizing.count !== null && sizing.count !== undefined) {
-      p.append(h("button", { type: "button", class: "secondary small", onclick: () => useRisSize(size[0], size[1]) }, "Use this size"));
-    }
+    box.append(h("h3", { text: "Sizing: the smallest RIS count and size for the target" }));
+    const ans = sizing.answer || null;
+    const size = ans && Array.isArray(ans.ris_size) ? ans.ris_size : null;
+    const num = (v) => (typeof v === "number" ? v : "");
+    const p = h("p", { id: "sizing-answer", "data-count": num(ans && ans.count), "data-lower-bound": num(ans && ans.lower_bound),
+      "data-gap": num(ans && ans.gap) }, h("strong", { text: sizing.message ? String(sizing.message)
+      : ans ? `${plural(ans.count, "RIS", "RISs")} reach the target` : "No RIS size tried reaches the target" }));
+    if (size) p.append(h("button", { type: "button", class: "secondary small", onclick: () => useRisSize(size[0], size[1]) }, "Use this size"));
     box.append(p);
-    if (sizing.message) box.append(h("p", { class: "muted", text: String(sizing.message) }));
-    const sizes = Array.isArray(sizing.sizes) ? sizing.sizes : [];
-    if (sizes.length) {
-      const table = h("table", { id: "sizing-table" }, h("caption", { class: "sr-only", text: "RIS sizes tried by the district sizing" }),
-        h("thead", {}, h("tr", {}, ["RIS size", "RIS count", "Certified lower count", "Gap", "Coverage", "Note"].map((t) => h("th", { scope: "col", text: t })))));
-      const tb = h("tbody");
-      for (const r of sizes) {
-        const rs = Array.isArray(r.ris_size) ? `${r.ris_size[0]} × ${r.ris_size[1]}` : "—";
-        const isAns = size && Array.isArray(r.ris_size) && r.ris_size[0] === size[0] && r.ris_size[1] === size[1];
-        const val = (v) => (v === null || v === undefined ? "—" : String(v));
-        tb.append(h("tr", { class: isAns ? "answer" : null },
-          h("td", { text: rs }), h("td", { text: val(r.count) }), h("td", { text: val(r.lower_bound) }),
-          h("td", { text: val(r.gap) }), h("td", { text: typeof r.coverage === "number" ? fmtObjective(r.coverage) : "—" }),
-          h("td", { text: r.note ? String(r.note) : "" })));
-      }
-      table.append(tb);
-      box.append(h("div", { class: "table-wrap" }, table));
+    if (ans) {
+      const of = size ? ` of ${size[0]} × ${size[1]} elements` : "";
+      const lower = typeof ans.lower_bound === "number" ? ans.lower_bound : null;
+      box.append(h("p", { id: "sizing-interval", text: lower === null
+        ? `Found: ${plural(ans.count, "RIS", "RISs")}${of} reach the target; no certified lower count (a smaller count is not proven impossible).`
+        : lower >= ans.count
+          ? `Certified: exactly ${plural(ans.count, "RIS", "RISs")}${of} – no fewer can reach the target.`
+          : `Certified interval: ${lower} to ${ans.count} RISs${of} – no layout of fewer than ${plural(lower, "RIS", "RISs")} reaches the target (certified), `
+            + `the search found one of ${ans.count} (gap ${plural(ans.gap ?? ans.count - lower, "RIS", "RISs")}).` }));
     }
+    const target = targetWords(sizing);
+    if (target) box.append(h("p", { class: "muted", id: "sizing-target", text: target }));
+    const sm = sizing.search_method;
+    if (sm && sm.used) {
+      const plans = state.plan.search_method && state.plan.search_method.used;
+      box.append(h("p", { class: "muted", id: "sizing-search", text: `Answered by the ${methodLabel(sm.used)} search`
+        + (sm.used !== plans && sm.why ? `: ${sm.why}.` : " (the plan's own).") }));
+    }
+    const sizes = Array.isArray(sizing.sizes) ? sizing.sizes : [];
+    if (!sizes.length) return;
+    const table = h("table", { id: "sizing-table" }, h("caption", { class: "sr-only", text: "RIS sizes tried: count found, certified lower count, gap, objective" }),
+      h("thead", {}, h("tr", {}, ["RIS size", "Count found", "Certified lower count", "Gap", "Objective", "Note"].map((t) => h("th", { scope: "col", text: t })))));
+    const tb = h("tbody");
+    const val = (v) => (v === null || v === undefined ? "—" : String(v));
+    for (const r of sizes) {
+      const rs = Array.isArray(r.ris_size) ? `${r.ris_size[0]} × ${r.ris_size[1]}` : "—";
+      const isAns = size && Array.isArray(r.ris_size) && r.ris_size[0] === size[0] && r.ris_size[1] === size[1];
+      const gap = typeof r.count === "number" && typeof r.lower_bound === "number" ? r.count - r.lower_bound : null;
+      const note = h("td", { class: "note" }, r.note ? String(r.note) : "");
+      const counts = Array.isArray(r.counts) ? r.counts : [];
+      if (counts.length) {
+        note.append(h("details", { class: "small" }, h("summary", { text: `${plural(counts.length, "count")} searched` }),
+          h("ul", {}, counts.map((c) => h("li", { text: `${plural(c.count, "RIS", "RISs")}: ${fmtObjective(c.objective)}`
+            + (c.reaches ? " – reaches the target" : " – short of the target")
+            + (typeof c.objective_bound === "number" && c.objective_bound !== c.objective ? `; certified bound ${fmtObjective(c.objective_bound)}` : "") })))));
+      }
+      tb.append(h("tr", { class: isAns ? "answer" : null },
+        h("td", { text: rs }), h("td", { class: "count", text: val(r.count) }), h("td", { class: "lower", text: val(r.lower_bound) }),
+        h("td", { text: val(gap) }), h("td", { text: typeof r.objective === "number" ? fmtObjective(r.objective) : "—" }), note));
+    }
+    table.append(tb);
+    box.append(h("div", { class: "table-wrap" }, table));
   }
 
   /** The codebook the estimator check simulated (plan.json validation.codebook): the plan's
@@ -1470,8 +1698,8 @@
     return ", designed beams for some layouts, random for the others";
   }
 
-  /** plan.json's validation: per layout the estimator's coverage next to the bound's, and why
-   * and how often it falls short of the bound. */
+  /** plan.json's validation: per layout the estimator's coverage next to the bound's (both of
+   * the checked pairs), and why and how often it falls short of the bound. */
   function renderEstimatorCheck(v) {
     const box = clear($("estimator-check"));
     box.hidden = !v;
@@ -1480,7 +1708,8 @@
     box.append(h("p", { class: "muted", text: `${v.pairs} pairs × ${v.draws} draws, error ≤ ${fmtNum(v.threshold_m)} m` +
       (v.multipath ? ", with multipath" : "") + (v.reflections ? ", with site reflections" : "") + codebookText(v.codebook) }));
     const layouts = Array.isArray(v.layouts) ? v.layouts : [];
-    const pct = (x) => (x === null || x === undefined ? "—" : `${(100 * x).toFixed(0)} %`);
+    const checked = `the ${v.pairs} checked pairs`;
+    const pct = (x) => (x === null || x === undefined ? "—" : `${(100 * x).toFixed(0)} % of ${checked}`);
     const causes = (m) => Object.entries(m || {}).filter(([, k]) => k > 0).map(([c, k]) => `${c.replace(/_/g, " ")} ${k}`).join(", ") || "—";
     const table = h("table", { id: "estimator-check-table" }, h("caption", { class: "sr-only", text: "Estimator coverage next to the bound's" }),
       h("thead", {}, h("tr", {}, ["RIS", "Sites", "Estimator coverage", "Bound coverage", "Short of the bound", "Outlier draws"].map((t) => h("th", { scope: "col", text: t })))));
@@ -1488,19 +1717,13 @@
     for (const lay of layouts) {
       const sf = lay.shortfall || {};
       tb.append(h("tr", {},
-        h("td", { text: String(lay.ris_count) }), h("td", { text: siteNames(lay.sites) }),
+        h("td", { text: String(lay.ris_count) }), h("td", { text: siteList(lay.sites) }),
         h("td", { text: pct(lay.estimator_coverage) }), h("td", { text: pct(lay.bound_coverage) }),
         h("td", { text: `${sf.count || 0} of ${sf.covered_pairs || 0}` + (sf.count ? ` (${causes(sf.by_cause)})` : "") }),
         h("td", { text: causes(lay.outliers) })));
     }
     table.append(tb);
     box.append(h("div", { class: "table-wrap" }, table));
-  }
-
-  function fmtGain(g) {
-    if (g === null || g === undefined) return "—";
-    const kind = state.plan.objective.kind;
-    return isFraction(kind) ? `${(100 * g).toFixed(1)} pts` : `${fmtNum(g)} ${OBJECTIVE_UNIT[kind] || "m"}`;
   }
 
   /** File type of a job's non-PNG files by name (ris_planner.io.gis_outputs.GIS_FILES). */
@@ -1692,7 +1915,11 @@
     const Y = (v) => m.t + ((top - v) / (top - bottom || 1)) * (H - m.t - m.b);
     const bw = (W - m.l - m.r) / bars.length;
     svg.append(s("line", { x1: m.l, y1: Y(0), x2: W - m.r, y2: Y(0), stroke: "#4d5561" }));
-    const coverage = isFraction(plan.objective.kind);
+    // a coverage's gain as a share of the servable pairs (the axis names it), else in the
+    // objective's unit
+    const share = sharesServable();
+    const unit = objUnit();
+    const barText = (g) => (share ? (100 * servableShare(g)).toFixed(1) : fmtNum(g));
     bars.forEach((b, i) => {
       const x = m.l + i * bw + bw * 0.2;
       if (b.g !== null) {
@@ -1701,10 +1928,11 @@
       }
       svg.append(s("text", { x: x + bw * 0.3, y: H - m.b + 14, "text-anchor": "middle", "font-size": 11, fill: "#1a1a1a" }, b.label));
       svg.append(s("text", { x: x + bw * 0.3, y: (b.g === null ? Y(0) : Y(Math.max(b.g, 0))) - 3, "text-anchor": "middle", "font-size": 10, fill: "#1a1a1a" },
-        b.g === null ? "n/a" : coverage ? `${(100 * b.g).toFixed(1)} pts` : `${fmtNum(b.g)} m`));
+        b.g === null ? "n/a" : barText(b.g)));
     });
+    const what = plan.objective_better === "higher" ? "gain" : "reduction";
     svg.append(s("text", { x: (W + m.l) / 2, y: H - 4, "text-anchor": "middle", "font-size": 11, fill: "#1a1a1a" },
-      coverage ? "coverage gain per added RIS" : "objective reduction per added RIS [m]"));
+      share ? `${what} per added RIS [% of the servable pairs]` : `objective ${what} per added RIS${unit ? ` [${unit}]` : ""}`));
     svg.setAttribute("aria-label", "Marginal gain per added RIS: " + bars.map((b) => `${b.label}: ${fmtGain(b.g)}`).join(", "));
   }
 
@@ -1891,7 +2119,7 @@
     box.hidden = !inside.length;
     box.textContent = inside.length
       ? `${inside.length} candidate${inside.length === 1 ? " lies" : "s lie"} inside a building (red on the map): `
-        + inside.map((e) => `${e.index} (${e.name}) in ${e.building}`).join("; ")
+        + inside.map((e) => `${siteLabel(e.index, e.name)} in ${e.building}`).join("; ")
         + `. Move ${inside.length === 1 ? "it" : "them"} outside or remove ${inside.length === 1 ? "it" : "them"}: a plan refuses candidates inside buildings.`
       : "";
   }
@@ -2003,6 +2231,9 @@
     map.on("mousemove", onMapHover);
     map.on("mouseout", () => { $("tooltip").hidden = true; });
     map.on("moveend", drawGrid);
+    // a view change in progress (window.risPlanner.moving(), for the browser tests)
+    map.on("movestart zoomstart", () => { M.moving = true; });
+    map.on("moveend", () => { M.moving = false; });
     M.map = map;
   }
 
@@ -2167,7 +2398,7 @@
     const sz = isChosen || selected ? 11 : 9;
     const az = ((90 - deg(yaw)) % 360 + 360) % 360;
     const svg = s("svg", { width: GLYPH_PX, height: GLYPH_PX, viewBox: `0 0 ${GLYPH_PX} ${GLYPH_PX}` });
-    svg.append(s("title", {}, `Site ${c.index}${c.name ? " – " + c.name : ""}: x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m, height ${fmtNum(c.position[2])} m, facing ${fmtNum(az, 3)}° from north, tilt ${fmtNum(deg(pitch), 3)}° down` +
+    svg.append(s("title", {}, `Site ${siteLabel(c.index, c.name || null)}: x ${fmtNum(c.position[0])} m, y ${fmtNum(c.position[1])} m, height ${fmtNum(c.position[2])} m, facing ${fmtNum(az, 3)}° from north, tilt ${fmtNum(deg(pitch), 3)}° down` +
       (c.far_field_flag ? " (near field for part of the map)" : "") + (inside ? " – inside a building: move it out" : "")));
     if (len > 3) {
       svg.append(s("line", { class: "facing", x1: o, y1: o, x2: tip[0] - 0.6 * head * dx, y2: tip[1] - 0.6 * head * dy, stroke, "stroke-width": isChosen || selected ? 2.5 : 1.3 }));
@@ -2182,14 +2413,13 @@
     }));
     // what takes the pointer: a disc a little larger than the square (CSS: only .hit does)
     svg.append(s("circle", { class: "hit", cx: o, cy: o, r: 8, fill: "transparent" }));
-    if (isChosen) svg.append(s("text", { x: o + 8, y: o - 8, "font-size": 11, "font-weight": 700, fill: "#1a1a1a", stroke: "#ffffff", "stroke-width": 3, "paint-order": "stroke" }, `${c.index} (${fmtNum(c.position[2], 2)} m)`));
+    if (isChosen) svg.append(s("text", { x: o + 8, y: o - 8, "font-size": 11, "font-weight": 700, fill: "#1a1a1a", stroke: "#ffffff", "stroke-width": 3, "paint-order": "stroke" }, `${siteLabel(c.index, c.name || null)} · ${fmtNum(c.position[2], 2)} m`));
     return svg;
   }
 
   function shownLayout() {
     const entry = state.count ? countEntry(state.count) : null;
     if (!entry) return [];
-    if (Array.isArray(entry.site_indices)) return entry.site_indices; // district: names in sites
     const tops = entry.top_layouts || [];
     const lay = tops[state.layoutIdx] || tops[0];
     return lay ? lay.sites : entry.sites;
@@ -2320,7 +2550,7 @@
     if (state.inside && state.inside.size) item(h("span", { class: "sq", "data-colour": INSIDE_COLOUR }), "candidate inside a building (refused by a plan)");
     const plan = state.plan;
     if (plan && state.count && shownLayout().length) {
-      item(h("span", { class: "swatch", "data-colour": colourOf(state.count) }), `RIS site of the layout shown (${siteNames(shownLayout())})`);
+      item(h("span", { class: "swatch", "data-colour": colourOf(state.count) }), `RIS site of the layout shown (${siteList(shownLayout())})`);
     }
     if (plan && plan.heatmap && state.count) {
       const range = heatRange();
@@ -2419,7 +2649,7 @@
     const box = $("point-info");
     if (state.selected === null || !state.plan || !state.plan.points) {
       clear(box).append(state.plan && !state.plan.points
-        ? "This plan has no per-point results (a district plan reports coverage per RIS count: see Results)."
+        ? "This plan has no per-point results."
         : state.plan
           ? "Click a point of the RX map (or focus the map and use the arrow keys) to read its bound, serving RISs and blind reason."
           : "Load a document to see the site; after a job, click a point of the RX map to read its result.");
@@ -2443,9 +2673,11 @@
           const b = p.bound_m[c];
           const reason = p.reason[c];
           const serving = p.serving[c] || [];
+          const served = p.served_fraction || {}; // of the point's pairs (its TX partners)
           return h("td", { class: c === state.count ? "shown-count" : null, "data-count": c },
             h("span", { class: "bound", text: b === null ? "no bound" : `${fmtNum(b)} m` }),
-            ` · sites ${serving.length ? serving.join(", ") : "none"}`,
+            ` · sites ${serving.length ? siteList(serving) : "none"}`,
+            typeof served[c] === "number" ? h("div", { class: "served", text: `served: ${shareOf(served[c], "this point's pairs")}` }) : null,
             reason ? h("div", { class: "reason", text: `blind: ${reason}` }) : null);
         })));
     }
@@ -2547,8 +2779,7 @@
     renderCandSummary(note);
     renderCandEditor();
     drawAll();
-    clearTimeout(state.validateTimer);
-    state.validateTimer = setTimeout(() => validate({ auto: true }), 300);
+    scheduleValidation();
   }
 
   /** The list's summary; the last edit's note (generated, moved, …) stays until the next one. */
@@ -2691,9 +2922,38 @@
     }
   }
 
+  /** What the generation did (POST /v1/sites summary), in a few lines: the sites kept per
+   * kind, those dropped and why, how many UE points the kept sites see in their field of view
+   * (their sees_points), and the warnings (buildings without a site, notes) as a list. */
+  function renderGenerationSummary(sm, features) {
+    const box = clear($("gen-summary"));
+    box.hidden = !sm;
+    if (!sm) return;
+    const num = (v) => (typeof v === "number" ? v : 0);
+    const kinds = Object.entries(sm.by_kind || {}).map(([k, n]) => `${n} ${k}`).join(", ");
+    box.append(h("p", { id: "gen-kept" }, h("strong", { text: `${plural(num(sm.candidates), "site")} kept` }), kinds ? `: ${kinds}.` : "."));
+    const dropped = [["dropped_inside", "inside a building"], ["dropped_unseen", "seeing no UE point in their field of view"],
+      ["dropped_max_candidates", "beyond the most candidates"]].filter(([k]) => num(sm[k]) > 0).map(([k, why]) => `${sm[k]} ${why}`);
+    if (typeof sm.generated === "number") {
+      box.append(h("p", { id: "gen-dropped", text: `Of ${plural(sm.generated, "site")} generated` + (dropped.length ? `, dropped: ${dropped.join("; ")}.` : ", none dropped.") }));
+    }
+    const sees = (features || []).map((f) => f && f.properties && f.properties.sees_points).filter((v) => typeof v === "number").sort((a, b) => a - b);
+    const inside = num(sm.ue_points_inside) ? `; ${sm.ue_points_inside} more lie inside buildings` : "";
+    box.append(h("p", { id: "gen-view", text: "Field of view: " + (sees.length
+      ? `each kept site sees ${sees[0]} to ${sees[sees.length - 1]} of the site's ${plural(num(sm.ue_points), "UE point")} (median ${sees[Math.floor((sees.length - 1) / 2)]}${inside}).`
+      : `no kept site sees any of the site's ${plural(num(sm.ue_points), "UE point")}${inside}.`)
+      + ` The site: ${plural(num(sm.buildings), "building")}, ${plural(num(sm.roads), "road piece")}.` }));
+    const warnings = [...Object.entries(sm.buildings_without_candidates || {}).map(([b, why]) => `${b}: no site – ${why}`),
+      ...(sm.notes || []).map(String)];
+    if (warnings.length) {
+      box.append(h("p", { text: `${plural(warnings.length, "warning")}:` }), h("ul", { id: "gen-warnings" }, warnings.map((w) => h("li", { text: w }))));
+    }
+  }
+
   async function generateCandidates() {
     const err = $("err-gen");
     err.textContent = "";
+    state.tried = true;
     if (!state.sitesPath) { err.textContent = "This server cannot generate candidates (no POST /v1/sites)."; return; }
     if (!state.siteSource || !geographic()) { err.textContent = "Import a site (GeoJSON or OSM) first: candidates are generated on its buildings and roads."; return; }
     const nums = (id) => $(id).value.split(/[\s,;]+/).filter(Boolean).map((t) => (Number.isFinite(Number(t)) ? Number(t) : t));
@@ -2720,8 +2980,8 @@
       state.genMembers = pick(fc, LICENSE_MEMBERS);
       state.cands = $("gen-replace").checked ? conv.local : state.cands.concat(conv.local);
       state.selCand = null;
-      const sm = fc && fc.summary ? ` (${reportText(fc.summary)})` : "";
-      candidatesEdited(`Generated ${conv.local.length}${sm}.`);
+      renderGenerationSummary(fc && fc.summary, features);
+      candidatesEdited(`Generated ${plural(conv.local.length, "candidate site")}.`);
     } catch (e) {
       const fields = e.body && Array.isArray(e.body.fields) ? e.body.fields : [];
       err.textContent = fields.length ? fields.map((f) => `${f.field}: ${f.message}`).join("; ") : e.message;
@@ -2739,7 +2999,7 @@
     $("upload-geojson").addEventListener("change", importGeojson);
     $("f-objective-kind").addEventListener("change", updateLevelField);
     $("f-objective-kind").addEventListener("change", updateSizingField);
-    $("f-search-method").addEventListener("change", updateSearchField);
+    $("f-search-method").addEventListener("change", () => { updateSearchField(); if (state.doc) scheduleValidation(); });
     $("validate").addEventListener("click", validate);
     $("params").addEventListener("submit", submit);
     $("cancel").addEventListener("click", cancelJob);
@@ -2754,6 +3014,7 @@
         $("api-key-status").textContent = state.apiKey ? "Key accepted by the server." : "The server needs no key.";
       }).catch(() => { /* a 401 says so in the banner and the status */ });
       loadObjectives().finally(loadPresets);
+      loadSearchMethods();
       loadObstacleKinds();
       refreshJobs();
     });
@@ -2783,11 +3044,12 @@
     let resizeTimer = null;
     window.addEventListener("resize", () => {
       clearTimeout(resizeTimer);
-      resizeTimer = setTimeout(() => { drawAll(); if (state.plan && !isDistrict(state.plan)) { drawCdf(); drawGain(); } }, 150);
+      resizeTimer = setTimeout(() => { drawAll(); if (state.plan) { drawCdf(); drawGain(); } }, 150);
     });
     drawAll();
     checkHealth();
     inspectServer();
+    loadSearchMethods();
     loadObjectives().finally(loadPresets);
     loadObstacleKinds();
     refreshJobs();
@@ -2797,6 +3059,10 @@
   window.risPlanner = {
     state, jobFiles, screenOf,
     get map() { return M.map; },
+    /** A validation is pending (the pause after an edit) or in flight. */
+    busy: () => Boolean(state.validateTimer) || state.validating > 0,
+    /** The map's view is changing (a zoom animation, a pan). */
+    moving: () => Boolean(M.moving),
     pxPerMetre,
     mapInfo: () => ({ ues: M.ueInfo, sites: M.layers.candidates ? M.layers.candidates.getLayers().length : 0, zoom: M.map ? M.map.getZoom() : null }),
   };
