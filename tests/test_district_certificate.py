@@ -84,6 +84,7 @@ def test_the_bound_holds_for_every_count_and_any_multipliers(truth) -> None:
     for count in range(1, problem.n_sites + 1):
         got = model.coverage(count)
         assert got.bound >= best[count] - 1e-12, count
+        assert got.lp_value is not None
         assert got.bound <= got.lp_value + 1e-6 or got.bound >= min(1.0, model.coverable_weight)
         for _ in range(5):
             lam = rng.exponential(rng.choice([1e-3, 1e-1, 1.0]), size=model.a.shape[0])
@@ -195,3 +196,23 @@ def test_random_small_sites_bound_size_and_search_against_exhaustive_truth() -> 
             lower = model.lower_count(goal)
             assert lower is not None and lower <= min(reach), seed
     assert within >= 0.95 * total, (within, total)
+
+
+def test_a_large_model_bounds_every_count_from_a_few_solves(truth, monkeypatch) -> None:
+    """Above the simplex size only the first counts are solved: every other count's bound and
+    the lower count come from their multipliers, and still hold against brute force."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    monkeypatch.setattr(lp, "SIMPLEX_MAX_NONZEROS", 0)
+    model = lp.build_relaxation(problem, needs)
+    assert model.large
+    solved = [model.coverage(c) for c in (3, 5)]
+    assert all(r.lp_value is not None for r in solved)
+    for count in range(1, problem.n_sites + 1):
+        got = model.coverage(count)
+        assert got.lp_value is None and got.bound >= best[count] - 1e-12
+    for share in (0.3, 0.6, 0.9):
+        goal = share * model.coverable_weight
+        fewest = min(k for k, v in best.items() if v >= goal - 1e-12)
+        lower = model.lower_count(goal)
+        assert lower is not None and lower <= fewest

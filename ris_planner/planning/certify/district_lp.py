@@ -148,11 +148,14 @@ def _covering_subsets(problem: DistrictProblem, group: IntArray, subsets: IntArr
     return np.asarray((metric <= pr.threshold).reshape(len(group), -1))
 
 
-def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int, IntArray]:
+def _relaxation(
+    problem: DistrictProblem, needs: Needs, counting_sites: int | None = None
+) -> tuple[csr_matrix, int, IntArray]:
     """The relaxation's constraints A v ≤ 0 over v = [z (S), y (live pairs), u (complete
     pairs)], the number of variables, and the live pairs (m_p > 0):
 
-    * every live pair: y_p ≤ Σ_{s∈S_p} z_s / m_p (a covering layout holds m_p of its sites);
+    * every live pair (with at most ``counting_sites`` serving sites, when given):
+      y_p ≤ Σ_{s∈S_p} z_s / m_p (a covering layout holds m_p of its sites);
     * a pair with cover sets also: y_p ≤ Σ_{s∈U_p} z_s / m_p + u_p with U_p the sites of its
       covering m_p-subsets, and u_p ≤ Σ_{s∈S_p} z_s / (m_p + 1): a covering layout holds a
       covering m_p-subset (m_p sites of U_p) or at least m_p + 1 of its serving sites."""
@@ -165,6 +168,9 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     u_of[comp] = pr.n_sites + live.size + np.arange(comp.size)
     n_var = pr.n_sites + live.size + comp.size
     open_ = np.setdiff1d(live, comp)
+    if counting_sites is not None:  # the other pairs' rows hold all their sites: left out
+        open_ = open_[np.diff(pr.pair_start)[open_] <= counting_sites]
+    with_row = np.union1d(open_, comp)
     # rows: the open pairs' y, the complete pairs' y, the complete pairs' u
     row_y = np.full(pr.n_pairs, -1)
     row_y[open_] = np.arange(open_.size)
@@ -175,7 +181,7 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     e_comp = np.flatnonzero(np.isin(pr.entry_pair, comp))
     rows = np.concatenate(
         [
-            row_y[live],
+            row_y[with_row],
             row_y[pr.entry_pair[e_open]],
             row_y[needs.cover_pair],
             row_y[comp],
@@ -185,7 +191,7 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     )
     cols = np.concatenate(
         [
-            y_of[live],
+            y_of[with_row],
             pr.entry_site[e_open],
             needs.cover_site,
             u_of[comp],
@@ -195,7 +201,7 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     )
     vals = np.concatenate(
         [
-            np.ones(live.size),
+            np.ones(with_row.size),
             -1.0 / need[pr.entry_pair[e_open]],
             -1.0 / need[needs.cover_pair],
             -np.ones(comp.size),
@@ -217,12 +223,12 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
 
 @dataclass(frozen=True)
 class Relaxed:
-    """One solve of :class:`DistrictRelaxation`: the certified value (the Lagrangian bound of
-    the solver's multipliers), the solver's own objective, its site weights z [S], its status
-    and seconds."""
+    """One count of :class:`DistrictRelaxation`: the certified value (the least Lagrangian
+    bound of the solvers' multipliers), the solver's own objective (``None``: not solved for
+    this count), its site weights z [S] (zero when not solved), its status and seconds."""
 
     bound: float
-    lp_value: float
+    lp_value: float | None
     z: FloatArray
     status: str
     seconds: float
@@ -255,7 +261,9 @@ class DistrictRelaxation:
     ) -> None:
         pr = self.problem = problem
         self.required, self.excluded = tuple(required), tuple(excluded)
-        base, n_var, live = _relaxation(pr, needs)
+        # with the cuts, the counting rows of pairs seen by many sites (a district's millions
+        # of nonzeros, and the weaker rows) are left out
+        base, n_var, live = _relaxation(pr, needs, None if cuts is None else COUNTING_ROW_SITES)
         self.live = live
         self.coverable_weight = float(pr.weights[live].sum())
         self.n_var = n_var
@@ -282,6 +290,7 @@ class DistrictRelaxation:
         self.goal_row = self.count_row + 1
         self.highs: Any = None
         self.mode = ""
+        self.multipliers: list[FloatArray] = []
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickled without the solver's model (a plan's result travels to the figures'
@@ -298,7 +307,6 @@ class DistrictRelaxation:
         pr, n_var, live = self.problem, self.n_var, self.live
         h = self.highs = highspy._core._Highs()  # the base class: no banner, no callbacks
         h.setOptionValue("output_flag", False)
-        h.setOptionValue("time_limit", LP_TIME_LIMIT_S)
         if self.a.nnz > SIMPLEX_MAX_NONZEROS:
             # a district's first dual simplex solve takes minutes; the interior point method
             # without crossover gives multipliers as good for the Lagrangian bound
@@ -352,6 +360,8 @@ class DistrictRelaxation:
     def _solve(self) -> tuple[str, float, FloatArray, FloatArray, float]:
         h = self._model()
         t0 = time.perf_counter()
+        # HiGHS' clock runs over the model's life: the limit is per solve
+        h.setOptionValue("time_limit", float(h.getRunTime()) + LP_TIME_LIMIT_S)
         h.run()
         status = h.modelStatusToString(h.getModelStatus())
         sol = h.getSolution()
@@ -362,25 +372,62 @@ class DistrictRelaxation:
         value = float(h.getInfo().objective_function_value)
         return status, value, x, duals, time.perf_counter() - t0
 
+    @property
+    def large(self) -> bool:
+        """Whether the model is solved by the interior point method and for a few counts only
+        (:data:`SIMPLEX_MAX_NONZEROS`, :data:`LARGE_SOLVES`)."""
+        return int(self.a.nnz) > SIMPLEX_MAX_NONZEROS
+
     def coverage(self, count: int) -> Relaxed:
-        """An upper bound on the coverage of every layout of ``count`` sites."""
+        """An upper bound on the coverage of every layout of ``count`` sites: the least
+        Lagrangian value at ``count`` over the multipliers of this solve and every earlier
+        one (each is valid at any count). A large model solves only its first
+        :data:`LARGE_SOLVES` counts."""
         import highspy
 
+        n = self.problem.n_sites
         if self.live.size == 0:
-            return Relaxed(0.0, 0.0, np.zeros(self.problem.n_sites), "no coverable pair", 0.0)
-        h = self._model()
-        if self.mode != "coverage":
-            h.changeColsCost(self.n_var, np.arange(self.n_var, dtype=np.int32), -self.w)
-            h.changeRowBounds(self.goal_row, -highspy.kHighsInf, highspy.kHighsInf)
-            self.mode = "coverage"
-        h.changeRowBounds(self.count_row, float(count), float(count))
-        status, value, x, duals, seconds = self._solve()
-        lam = np.maximum(0.0, -duals[: self.a.shape[0]])
-        bound = lagrangian_coverage(
-            self.a, self.b, self.w, lam, self.problem.n_sites, count, self.required, self.excluded
-        )
-        bound = min(bound, self.coverable_weight, 1.0)
-        return Relaxed(bound, -value, x[: self.problem.n_sites], status, seconds)
+            return Relaxed(0.0, 0.0, np.zeros(n), "no coverable pair", 0.0)
+        status, z, seconds = "not solved: earlier multipliers", np.zeros(n), 0.0
+        lp_value: float | None = None
+        if not self.large or len(self.multipliers) < LARGE_SOLVES:
+            h = self._model()
+            if self.mode != "coverage":
+                h.changeColsCost(self.n_var, np.arange(self.n_var, dtype=np.int32), -self.w)
+                h.changeRowBounds(self.goal_row, -highspy.kHighsInf, highspy.kHighsInf)
+                self.mode = "coverage"
+            h.changeRowBounds(self.count_row, float(count), float(count))
+            status, value, x, duals, seconds = self._solve()
+            self.multipliers.append(np.maximum(0.0, -duals[: self.a.shape[0]]))
+            lp_value, z = -value, x[:n]
+        return Relaxed(self.bound_at(count), lp_value, z, status, seconds)
+
+    def bound_at(self, count: int) -> float:
+        """The least Lagrangian coverage bound at ``count`` over the stored multipliers
+        (the coverable weight without any)."""
+        bound = min(1.0, self.coverable_weight)
+        for lam in self.multipliers:
+            value = lagrangian_coverage(
+                self.a,
+                self.b,
+                self.w,
+                lam,
+                self.problem.n_sites,
+                count,
+                self.required,
+                self.excluded,
+            )
+            bound = min(bound, value)
+        return bound
+
+    def count_from_bounds(self, goal: float) -> int:
+        """The smallest count whose coverage bound (:meth:`bound_at`) reaches ``goal``: no
+        layout of fewer sites reaches it, each smaller count's bound being below it."""
+        n = self.problem.n_sites
+        for count in range(len(set(self.required)), n + 1):
+            if self.bound_at(count) >= goal:
+                return count
+        return n + 1
 
     def lower_count(self, goal: float) -> int | None:
         """The fewest sites any layout reaching coverage ``goal`` can have (the relaxation's
@@ -391,6 +438,9 @@ class DistrictRelaxation:
         pr = self.problem
         if self.coverable_weight < goal - 1e-12:
             return None
+        from_bounds = self.count_from_bounds(goal) if self.multipliers else len(self.required)
+        if self.large and self.multipliers:
+            return from_bounds
         h = self._model()
         if self.mode != "count":
             cost = np.zeros(self.n_var)
@@ -405,7 +455,7 @@ class DistrictRelaxation:
         value = lagrangian_count(
             self.a, self.b, self.w, lam, nu, goal, pr.n_sites, self.required, self.excluded
         )
-        return max(len(self.required), certified_count(value))
+        return max(len(self.required), certified_count(value), from_bounds)
 
 
 def _cut_matrix(cuts: CutRows, y_of: IntArray, n_var: int) -> csr_matrix:
@@ -527,7 +577,17 @@ SIMPLEX_MAX_NONZEROS = 200_000
 """Up to this many nonzeros :class:`DistrictRelaxation` solves by dual simplex from the last
 basis (warm starts across counts); above, by the interior point method (no crossover)."""
 
-LP_TIME_LIMIT_S = 30.0
+COUNTING_ROW_SITES = 64
+"""With the non-cover cuts, only pairs with at most this many serving sites keep their
+counting row m_p·y_p ≤ Σ_{S_p} z (the others' rows, a district's millions of nonzeros, are
+weaker than their cuts where the relaxation spreads z over their strong sets)."""
+
+LARGE_SOLVES = 2
+"""Above :data:`SIMPLEX_MAX_NONZEROS`, the coverage relaxation is solved for at most this many
+counts; every other count's bound, and the sizing's lower count, are the Lagrangian values of
+the multipliers of those solves (valid at any count: :meth:`DistrictRelaxation.coverage`)."""
+
+LP_TIME_LIMIT_S = 120.0
 """Seconds one solve of :class:`DistrictRelaxation` may take; a solve stopped there still
 gives a valid (looser) bound through its multipliers."""
 
