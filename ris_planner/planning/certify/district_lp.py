@@ -307,15 +307,11 @@ class DistrictRelaxation:
         pr, n_var, live = self.problem, self.n_var, self.live
         h = self.highs = highspy._core._Highs()  # the base class: no banner, no callbacks
         h.setOptionValue("output_flag", False)
-        if self.a.nnz > SIMPLEX_MAX_NONZEROS:
-            # a district's first dual simplex solve takes minutes; the interior point method
-            # without crossover gives multipliers as good for the Lagrangian bound
-            h.setOptionValue("solver", "ipm")
-            h.setOptionValue("run_crossover", "off")
-        else:  # dual simplex, each solve from the last basis
-            h.setOptionValue("solver", "simplex")
-            h.setOptionValue("simplex_strategy", 1)
-            h.setOptionValue("presolve", "off")
+        h.setOptionValue("solver", "simplex")
+        h.setOptionValue("simplex_strategy", 1)  # dual simplex
+        # a district's model is presolved first (its cold solve is minutes without); a small
+        # one solves from the last basis
+        h.setOptionValue("presolve", "on" if self.large else "off")
         lo = np.zeros(n_var)
         hi = np.ones(n_var)
         lo[list(self.required)] = 1.0
@@ -374,7 +370,7 @@ class DistrictRelaxation:
 
     @property
     def large(self) -> bool:
-        """Whether the model is solved by the interior point method and for a few counts only
+        """Whether the model is presolved and solved for a few counts only
         (:data:`SIMPLEX_MAX_NONZEROS`, :data:`LARGE_SOLVES`)."""
         return int(self.a.nnz) > SIMPLEX_MAX_NONZEROS
 
@@ -574,8 +570,9 @@ def certified_count(value: float) -> int:
 
 
 SIMPLEX_MAX_NONZEROS = 200_000
-"""Up to this many nonzeros :class:`DistrictRelaxation` solves by dual simplex from the last
-basis (warm starts across counts); above, by the interior point method (no crossover)."""
+"""Up to this many nonzeros :class:`DistrictRelaxation` solves each count by dual simplex from
+the last basis (warm starts across counts); above, it presolves first and solves only
+:data:`LARGE_SOLVES` counts."""
 
 COUNTING_ROW_SITES = 64
 """With the non-cover cuts, only pairs with at most this many serving sites keep their
