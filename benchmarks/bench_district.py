@@ -34,6 +34,10 @@ BBOX = "24.940,60.1660,24.9472,60.1696"
 """lon_min, lat_min, lon_max, lat_max: about 400 m × 400 m of central Helsinki (Kamppi to the
 Esplanadi): 59 buildings, 276 street pieces; facade candidates every 3.2 m give 2122 sites."""
 
+SECOND_BBOX = "24.9400,60.1700,24.9472,60.1736"
+"""The second district of the certificate's figures (``--only second``): a window of the same
+size 0.4 km north of the headline's (the extract reaches 60.1791° N), no area shared."""
+
 
 def run(cmd: list[str], cwd: Path) -> str:
     done = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, check=False)
@@ -42,8 +46,9 @@ def run(cmd: list[str], cwd: Path) -> str:
     return done.stdout
 
 
-def district(work: Path, spacing_m: float) -> dict[str, Any]:
-    """The imported plan document of the district (facade candidates every ``spacing_m``)."""
+def district(work: Path, spacing_m: float, bbox: str = BBOX) -> dict[str, Any]:
+    """The imported plan document of the district in ``bbox`` (facade candidates every
+    ``spacing_m``)."""
     try:
         import osmium  # noqa: F401
         import pyrosm  # noqa: F401
@@ -53,7 +58,7 @@ def district(work: Path, spacing_m: float) -> dict[str, Any]:
     site = work / "district.geojson"
     if not site.exists():
         extract = ROOT / "examples" / "helsinki" / "extract.py"
-        run([sys.executable, str(extract), "--bbox", BBOX, "--out", str(site)], work)
+        run([sys.executable, str(extract), "--bbox", bbox, "--out", str(site)], work)
     sites = work / f"sites-{spacing_m:g}.geojson"
     run(
         [
@@ -134,35 +139,68 @@ def estimate_columns(plan: dict[str, Any]) -> str:
     )
 
 
-def headline(work: Path, base: dict[str, Any], side: int, pairs: int) -> None:
-    """The district at 60 and 120 RISs with the sizing question at the document's RIS size,
-    then the same with a ladder of two RIS sizes."""
-    doc = district_doc(base, pairs, [60, 120], None, side)
-    doc["sizing"] = {"ris_sizes": [[side, side]], "target": {"objective": 0.9}}
-    plan = plan_district(work, doc, "headline")
-    s = plan["pairs_summary"]
+def certificate_table(plan: dict[str, Any]) -> None:
+    """Per count: coverage found, the certified bound, the gap, the method that found the
+    layout, the relaxation's own value and its solve time (plan.json
+    ``search_details.certificate``)."""
+    details = plan["search_details"].get("certificate") or {}
+    solves = {r["ris_count"]: r for r in details.get("by_count", [])}
+    model = details.get("model") or {}
     print(
-        f"\n## Headline: {len(doc['candidates'])} candidates, {s['pairs']} sidelink pairs"
+        f"relaxation: {model.get('columns')} columns, {model.get('rows')} rows"
+        f" ({model.get('cut_rows')} non-cover cuts), {model.get('nonzeros')} nonzeros"
+    )
+    print("| RISs | coverage | share of servable | certified ≤ | gap | found by | LP s |")
+    print("|---|---|---|---|---|---|---|")
+    for e in plan["by_count"]:
+        cert = e["certificate"]
+        solve = solves.get(e["ris_count"], {})
+        print(
+            f"| {e['ris_count']} | {e['objective']:.3f} | {e['share_of_servable']:.3f} |"
+            f" {cert['objective_bound']:.3f} | {cert['gap']:.3f} | {e['found_by']} |"
+            f" {solve.get('seconds', float('nan')):.1f} |"
+        )
+
+
+def headline(
+    work: Path,
+    base: dict[str, Any],
+    side: int,
+    pairs: int,
+    counts: list[int],
+    name: str,
+    ladder_too: bool = True,
+) -> None:
+    """The district at the given counts with the sizing question at the document's RIS size,
+    then the same with a ladder of two RIS sizes."""
+    doc = district_doc(base, pairs, counts, None, side)
+    doc["sizing"] = {"ris_sizes": [[side, side]], "target": {"objective": 0.9}}
+    plan = plan_district(work, doc, name)
+    s = plan["pairs_summary"]
+    d = plan["search_details"]
+    print(
+        f"\n## {name}: {len(doc['candidates'])} candidates, {s['pairs']} sidelink pairs"
         f" (≤ {doc['pairs']['max_separation_m']:g} m along the streets), {side}×{side} RISs,"
         f" PEB_R ≤ {doc['objective']['threshold_m']:g} m"
     )
     print(
-        f"serving sites per pair {s['serving_sites_per_pair']:.1f}; no candidate serves"
-        f" {s['blind_everywhere']['pairs']} pairs; {s['above_threshold_everywhere']['pairs']}"
+        f"serving sites per pair {d['serving_sites_per_pair']:.1f}; no candidate serves"
+        f" {s['blind_everywhere']['pairs']} pairs; {s['above_level_everywhere']['pairs']}"
         f" stay above the threshold with every candidate; coverable weight"
         f" {s['coverable_weight']:.3f}"
     )
-    print("| RISs | coverage | of coverable | certified ≤ | gap |")
-    print("|---|---|---|---|---|")
-    for e in plan["by_count"]:
-        print(
-            f"| {e['ris_count']} | {e['objective']:.3f} | {e['objective_of_coverable']:.3f} |"
-            f" {e['upper_bound']:.3f} | {e['gap']:.3f} |"
-        )
-    print(f"sizing: {plan['sizing']['message']}")
+    certificate_table(plan)
+    answer = plan["sizing"]["answer"] or {}
+    print(
+        f"sizing: {plan['sizing']['message']} (lower / found"
+        f" {answer.get('lower_bound')} / {answer.get('count')})"
+    )
     print(f"end to end {plan['wall_s']:.1f} s, peak {peak_mib(plan)} MiB")
+    print(f"timing_s: { {k: round(v, 1) for k, v in plan['timing_s'].items()} }")
+    if not ladder_too:
+        return
     doc["sizing"]["ris_sizes"] = [[side, side], [100, 100]]
-    ladder = plan_district(work, doc, "headline-ladder")
+    ladder = plan_district(work, doc, f"{name}-ladder")
     print(f"\nwith the RIS sizes {side}×{side} and 100×100: {ladder['sizing']['message']}")
     print(f"end to end {ladder['wall_s']:.1f} s, peak {peak_mib(ladder)} MiB")
     print("\n| run | estimated s | measured s | estimated MiB | peak MiB |")
@@ -194,16 +232,23 @@ def growth(work: Path, base: dict[str, Any], side: int, quick: bool) -> None:
 
 
 def quality(n_cases: int) -> None:
-    """District against exhaustive search on the small street site of the tests."""
+    """District search and certificate against brute force on the small street site of the
+    tests (random thresholds, pair samples, RIS sizes, separations): per count 2 and 3 the
+    searched layout against the best of all layouts, the certified bound against it, and the
+    certified lower count for the best 2-site coverage against the true minimum."""
+    import itertools
+
     sys.path.insert(0, str(ROOT / "tests"))
     from district_site import street_doc
 
-    from ris_planner.planning.pipeline import run_plan
+    from ris_planner.planning.certify import district_lp as lp
     from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.scoring.sparse import build_problem, exact_coverage
     from ris_planner.planning.search import district as dist
 
     rng = np.random.default_rng(7)
-    within, blind_miss, total, worst = 0, 0, 0, 0.0
+    within = blind_miss = total = holds = lower_ok = sized = 0
+    worst = 0.0
     for case in range(n_cases):
         doc = street_doc(
             threshold_m=float(rng.choice([0.3, 0.5, 1.0, 2.0])),
@@ -212,22 +257,33 @@ def quality(n_cases: int) -> None:
             separation_m=float(rng.choice([15, 30, 45])),
             seed=case,
         )
-        inputs = prepare_plan(doc)
-        problem = dist.build_problem(inputs)
+        problem = build_problem(prepare_plan(doc))
+        sites = range(problem.n_sites)
+        best = {
+            k: max(exact_coverage(problem, c) for c in itertools.combinations(sites, k))
+            for k in (1, 2, 3)
+        }
+        model = lp.build_relaxation(problem, lp.sites_needed(problem))
         path = dist.greedy_path(problem, 3)
-        exact = run_plan({**doc, "search": {"method": "exhaustive"}})
-        for cr in exact.counts:
-            best = -cr.ranked[0][1]
-            step = next(p for p in path if len(p.sites) == cr.ris_count)
+        for count in (2, 3):
+            step = next(p for p in path if len(p.sites) == count)
             _, cov = dist.improve(problem, step.sites)
             total += 1
-            within += cov >= best - 0.01 * max(best, 1e-12)
-            blind_miss += cov == 0 and best > 0
-            worst = max(worst, best - cov)
-    print(f"\n## Search quality: {n_cases} random small sites × 2 counts against exhaustive search")
+            within += cov >= best[count] - 0.01 * max(best[count], 1e-12)
+            blind_miss += cov == 0 and best[count] > 0
+            worst = max(worst, best[count] - cov)
+            holds += model.coverage(count).bound >= best[count] - 1e-12
+        if best[2] > 0:
+            fewest = min(k for k in (1, 2) if best[k] >= best[2] - 1e-12)
+            lower = model.lower_count(best[2])
+            sized += 1
+            lower_ok += lower is not None and lower <= fewest
+    print(f"\n## Search quality: {n_cases} random small sites × 2 counts against brute force")
     print(
         f"within 1 % of the optimum: {within}/{total} ({100 * within / total:.1f} %);"
-        f" worst shortfall {worst:.4f}; zero coverage where the optimum covers: {blind_miss}"
+        f" worst shortfall {worst:.4f}; zero coverage where the optimum covers: {blind_miss};"
+        f" certified bound ≥ optimum: {holds}/{total}; lower count ≤ true minimum:"
+        f" {lower_ok}/{sized}"
     )
 
 
@@ -238,19 +294,33 @@ def main() -> None:
     ap.add_argument("--side", type=int, default=64, help="RIS rows = cols (64)")
     ap.add_argument("--spacing-m", type=float, default=3.2, help="facade spacing (3.2 m)")
     ap.add_argument(
-        "--only", action="append", choices=["quality", "headline", "growth"], help="only these"
+        "--only",
+        action="append",
+        choices=["quality", "headline", "second", "growth"],
+        help="only these",
     )
+    ap.add_argument(
+        "--counts", default="40,60,80,120", help="RIS counts of the headline (comma-separated)"
+    )
+    ap.add_argument("--no-ladder", action="store_true", help="skip the two-size sizing run")
     args = ap.parse_args()
     work = args.out or Path(tempfile.mkdtemp(prefix="district-bench-"))
     work.mkdir(parents=True, exist_ok=True)
     base = district(work, args.spacing_m)
     print(f"# District benchmark ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())})")
     print(f"work folder {work}; {len(base['candidates'])} candidates")
-    parts = set(args.only or ["quality", "headline", "growth"])
+    parts = set(args.only or ["quality", "headline", "second", "growth"])
     if "quality" in parts:
         quality(10 if args.quick else 40)
+    counts = [int(c) for c in args.counts.split(",")]
     if "headline" in parts:
-        headline(work, base, args.side, 20000)
+        headline(work, base, args.side, 20000, counts, "headline", not args.no_ladder)
+    if "second" in parts:
+        other = work / "second"
+        other.mkdir(exist_ok=True)
+        second = district(other, args.spacing_m, SECOND_BBOX)
+        print(f"second district {SECOND_BBOX}: {len(second['candidates'])} candidates")
+        headline(other, second, args.side, 20000, counts, "second", False)
     if "growth" in parts:
         growth(work, base, args.side, args.quick)
 

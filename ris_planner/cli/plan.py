@@ -55,7 +55,17 @@ def count_line(entry: dict[str, Any], plan: dict[str, Any]) -> str:
     if cert is not None and not cert["exact"]:
         bound = rounded(cert["objective_bound"])
         side = "≤" if cert["bound_side"] == "upper" else "≥"
-        text += f", certified {side} {bound} (gap {rounded(cert['gap'])})"
+        text += f", certified {side} {bound} (gap {rounded(cert['gap'])}"
+        if cert.get("relative_gap") is not None:
+            text += f", {100 * cert['relative_gap']:.3g} % of the bound"
+        text += ")"
+        servable = (plan.get("pairs_summary") or {}).get("servable_weight")
+        if cert["bound_side"] == "upper" and share is not None and servable:
+            top = cert["objective_bound"] / servable
+            text += (
+                f": the best layout of {entry['ris_count']} RISs covers between"
+                f" {100 * share:.3g} % and {100 * min(1.0, top):.3g} % of the servable pairs"
+            )
     elif cert is not None:
         text += ", optimal (certified)"
     return f"{text}; sites {sites}"

@@ -61,7 +61,6 @@ from ris_planner.model.search_methods import (
 )
 from ris_planner.model.simulation import Multipath
 
-
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
 

@@ -27,9 +27,10 @@ from numpy.typing import NDArray
 from ris_planner.model.plan import Target, target_goal
 from ris_planner.model.profiles import block_count
 from ris_planner.planning.certify.district_lp import (
+    DistrictRelaxation,
     Needs,
-    count_lower_bound,
-    relaxed_coverage,
+    Relaxed,
+    build_relaxation,
     sites_needed,
 )
 from ris_planner.planning.certify.relaxation import Certificate
@@ -59,6 +60,7 @@ from ris_planner.planning.search.sizing import SizeRow
 from ris_planner.runtime.progress import ProgressCallback, StageClock, no_progress
 
 BoolArray = NDArray[np.bool_]
+CERTIFICATE_METHOD = "district relaxation: non-cover cuts, Lagrangian bound"
 Constraints = tuple[tuple[int, ...], tuple[int, ...], BoolArray | None]
 """(required sites, excluded sites, conflict [S, S] or None)."""
 
@@ -92,6 +94,8 @@ class DistrictSearch:
     seen: DistrictProblem
     needs: Needs
     path: list[PathStep]
+    relaxation: DistrictRelaxation | None = None
+    """The plan's relaxation (built on its certificate thread), solved again for the sizing."""
 
 
 def run_district(
@@ -132,10 +136,9 @@ def run_district(
     lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-relaxation")
     try:
         with clock.stage("search"):
-            relaxed = {
-                c: lp.submit(relaxed_coverage, problem, c, needs, required, excluded)
-                for c in counts
-            }
+            # one model, built and then solved count by count on the thread (in order)
+            model = lp.submit(build_relaxation, problem, needs, required, excluded, conflict)
+            relaxed = {c: lp.submit(_coverage, model, c) for c in counts}
             progress(0.5, "path")
             most = most_ris(doc.system.transmissions)
             longest = max(counts) if level is None else max(max(counts), most)
@@ -151,7 +154,8 @@ def run_district(
             progress(0.7, "swaps")
             found, infeasible = _count_results(problem, seen, path, counts, relaxed, cons, level)
     finally:
-        lp.shutdown(wait=False, cancel_futures=True)
+        # a solve under way ends first: the sizing solves the same model next
+        lp.shutdown(wait=True, cancel_futures=True)
     with clock.stage("rollout"):
         rollout = _rollout(doc, seen, problem, found, cons)
     timing = time_orthogonal(problem, found, doc.system.transmissions, blocks)
@@ -185,8 +189,9 @@ def run_district(
             "entries": problem.n_entries,
             "time_orthogonal": timing,
             "codebook": codebook_json(problem),
+            "certificate": _certificate_details(model.result(), relaxed),
         },
-        sizing_state=DistrictSearch(problem, seen, needs, path),
+        sizing_state=DistrictSearch(problem, seen, needs, path, model.result()),
     )
     if doc.beams is not None:  # the layouts' beams and power (one SDP over the slot powers)
         from ris_planner.planning.district_beams import district_beams
@@ -196,12 +201,38 @@ def run_district(
     return replace(result, timing=dict(clock.seconds))
 
 
+def _coverage(model: Future[DistrictRelaxation], count: int) -> Relaxed:
+    """One count's certified bound, on the certificate thread after the model's build."""
+    return model.result().coverage(count)
+
+
+def _certificate_details(
+    model: DistrictRelaxation, relaxed: dict[int, Future[Relaxed]]
+) -> dict[str, Any]:
+    """plan.json ``search_details.certificate``: the relaxation's size and, per count, its
+    certified bound, the solver's own value, status and seconds."""
+    done = {c: f.result() for c, f in relaxed.items() if f.done() and not f.cancelled()}
+    return {
+        "model": model.size,
+        "by_count": [
+            {
+                "ris_count": c,
+                "bound": r.bound,
+                "lp_value": r.lp_value,
+                "status": r.status,
+                "seconds": r.seconds,
+            }
+            for c, r in sorted(done.items())
+        ],
+    }
+
+
 def _count_results(
     problem: DistrictProblem,
     seen: DistrictProblem,
     path: list[PathStep],
     counts: list[int],
-    relaxed: dict[int, Future[tuple[float, Any]]],
+    relaxed: dict[int, Future[Relaxed]],
     cons: Constraints,
     goal: float | None,
 ) -> tuple[list[CountResult], list[int]]:
@@ -219,14 +250,15 @@ def _count_results(
             continue
         layout, cov = improve(seen, step.sites, required, excluded, rounds, conflict)
         found_by = "greedy path and swaps"
-        ub, z = relaxed[c].result()
+        cert = relaxed[c].result()
+        ub = cert.bound
         if small:  # the relaxation's own layout, improved likewise
-            rounded = rounded_layout(z, c, required, excluded, conflict)
+            rounded = rounded_layout(cert.z, c, required, excluded, conflict)
             if len(rounded) == c:
                 other, other_cov = improve(seen, rounded, required, excluded, rounds, conflict)
                 if other_cov > cov + GAIN_TIE:
                     layout, cov = other, other_cov
-                    found_by = "relaxation rounding and swaps"
+                    found_by = "LP rounding and swaps"
         out.append(count_result(problem, layout, ub, found_by))
         if goal is not None and -out[-1].ranked[0][1] >= goal - 1e-12:
             break  # target mode: the smallest count that reaches the target
@@ -310,7 +342,7 @@ def count_result(
         method="district",
         total_layouts=math.comb(problem.n_sites, len(layout)),
     )
-    cert = Certificate(-max(bound, cov), exact=False, method="district relaxation")
+    cert = Certificate(-max(bound, cov), exact=False, method=CERTIFICATE_METHOD)
     return CountResult(
         len(layout),
         outcome,
@@ -366,7 +398,7 @@ def district_size_rows(
     goal with every candidate says so. The other sizes' information shares the document's
     visibility; their lower bounds solve on a thread beside their paths."""
     doc = inputs.document
-    required, excluded, conflict = constraints_of(inputs)
+    required, excluded, conflict = cons = constraints_of(inputs)
     own = (doc.ris.rows, doc.ris.cols)
     lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-sizing")
     rows: list[SizeRow] = []
@@ -374,9 +406,11 @@ def district_size_rows(
     try:
         for k, (r, c) in enumerate(sizes):
             progress(k / len(sizes), f"sizing: {r}×{c}")
+            model: Any = state.relaxation
             if (r, c) == own:
                 pr, seen, nd, steps = state.problem, state.seen, state.needs, state.path
             else:
+                model = None
 
                 def on_build(f: float, m: str, k: int = k, r: int = r, c: int = c) -> None:
                     progress((k + 0.5 * f) / len(sizes), f"sizing {r}×{c}: {m}")
@@ -385,7 +419,7 @@ def district_size_rows(
                 pr = build_problem(_resized(inputs, r, c), on_build, state.problem, blocks)
                 seen, nd, steps = pr.strongest(SEARCH_SITES), sites_needed(pr), []
             lower: Callable[[], int | None] = lp.submit(
-                count_lower_bound, pr, goal, nd, required, excluded
+                _lower_count, pr, nd, cons, goal, model if (r, c) == own else None
             ).result
             if not steps or steps[-1].coverage < goal:
                 steps = greedy_path(
@@ -405,6 +439,22 @@ def district_size_rows(
     finally:
         lp.shutdown(wait=False, cancel_futures=True)
     return rows
+
+
+def _lower_count(
+    problem: DistrictProblem,
+    needs: Needs,
+    cons: Constraints,
+    goal: float,
+    model: DistrictRelaxation | None,
+) -> int | None:
+    """The certified lower count of one RIS size: its relaxation (the plan's own model at the
+    document's size) solved for the fewest sites reaching ``goal``."""
+    if float(problem.weights[needs.need > 0].sum()) < goal - 1e-12:
+        return None  # known before any model: the coverable pairs weigh less
+    if model is None:
+        model = build_relaxation(problem, needs, *cons)
+    return model.lower_count(goal)
 
 
 def _size_row(

@@ -1,29 +1,36 @@
-"""The district search's certificate (docs/concepts/district.md, "Certificate"): an upper
+"""The district search's certificate (docs/concepts/district.md, "The certificate"): an upper
 bound on the coverage of every layout of L sites and a lower bound on the count any layout
 reaching a coverage needs, from a linear relaxation.
 
-A pair covered by a layout C needs at least m_p of its serving sites in C (m_p from the
-counting rule and, where few enough, from every m-subset of its sites: :func:`sites_needed`),
-and none when even all its sites leave it above the threshold. So with z_s = 1[s ∈ C],
-y_p = 1[p covered]: y_p ≤ Σ_{s∈S_p} z_s / m_p and Σ z = L. The linear relaxation
-(0 ≤ y, z ≤ 1, HiGHS) bounds the best coverage of any L-site layout from above
-(:func:`relaxed_coverage`); :func:`count_lower_bound` is the relaxation's smallest Σ z with
-Σ w_p y_p ≥ target, rounded up.
+With z_s = 1[s ∈ C] and y_p = 1[p covered by layout C]:
+
+* a pair covered needs at least m_p of its serving sites (m_p from the counting rule and,
+  where few enough, from every m-subset of its sites: :func:`sites_needed`), and for the pairs
+  whose m_p-subsets were all tried, a covering one (the cover-set form of :func:`_relaxation`);
+* it needs a site of its strong set and, where the weak sites plus any one site still fail,
+  two (the non-cover cuts of :mod:`ris_planner.planning.certify.district_cuts`);
+* sites on one mounting point exclude each other (Σ z ≤ 1 per group), Σ z = L.
+
+The relaxation (0 ≤ y, z ≤ 1) lives in one HiGHS model per district problem
+(:class:`DistrictRelaxation`), re-solved per count and for the sizing question. Its bounds are
+not the solver's objective but Lagrangian values of the solver's multipliers, evaluated
+exactly in float64 (:func:`lagrangian_coverage`, :func:`lagrangian_count`): valid for any
+non-negative multipliers, so they do not depend on the solver's tolerances.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import linprog
 from scipy.sparse import csr_matrix, vstack
 
-from ris_planner.core.errors import RisPlannerError
+from ris_planner.planning.certify.district_cuts import CutRows, static_cuts
 from ris_planner.planning.scoring.sparse import (
     DistrictProblem,
     LayoutState,
@@ -49,10 +56,6 @@ would otherwise be 15.6 million evaluations."""
 SUBSET_BATCH = 200_000
 """(pair, subset) combinations evaluated per batch by :func:`sites_needed` (memory: about
 300 bytes each)."""
-
-LP_PAD = 1e-7
-"""HiGHS' primal feasibility tolerance: the coverage bound is padded by it and the sizing
-target lowered by it, so a relaxation solved to that tolerance still bounds."""
 
 
 @dataclass(frozen=True)
@@ -145,11 +148,14 @@ def _covering_subsets(problem: DistrictProblem, group: IntArray, subsets: IntArr
     return np.asarray((metric <= pr.threshold).reshape(len(group), -1))
 
 
-def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int, IntArray]:
+def _relaxation(
+    problem: DistrictProblem, needs: Needs, counting_sites: int | None = None
+) -> tuple[csr_matrix, int, IntArray]:
     """The relaxation's constraints A v ≤ 0 over v = [z (S), y (live pairs), u (complete
     pairs)], the number of variables, and the live pairs (m_p > 0):
 
-    * every live pair: y_p ≤ Σ_{s∈S_p} z_s / m_p (a covering layout holds m_p of its sites);
+    * every live pair (with at most ``counting_sites`` serving sites, when given):
+      y_p ≤ Σ_{s∈S_p} z_s / m_p (a covering layout holds m_p of its sites);
     * a pair with cover sets also: y_p ≤ Σ_{s∈U_p} z_s / m_p + u_p with U_p the sites of its
       covering m_p-subsets, and u_p ≤ Σ_{s∈S_p} z_s / (m_p + 1): a covering layout holds a
       covering m_p-subset (m_p sites of U_p) or at least m_p + 1 of its serving sites."""
@@ -162,6 +168,9 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     u_of[comp] = pr.n_sites + live.size + np.arange(comp.size)
     n_var = pr.n_sites + live.size + comp.size
     open_ = np.setdiff1d(live, comp)
+    if counting_sites is not None:  # the other pairs' rows hold all their sites: left out
+        open_ = open_[np.diff(pr.pair_start)[open_] <= counting_sites]
+    with_row = np.union1d(open_, comp)
     # rows: the open pairs' y, the complete pairs' y, the complete pairs' u
     row_y = np.full(pr.n_pairs, -1)
     row_y[open_] = np.arange(open_.size)
@@ -172,7 +181,7 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     e_comp = np.flatnonzero(np.isin(pr.entry_pair, comp))
     rows = np.concatenate(
         [
-            row_y[live],
+            row_y[with_row],
             row_y[pr.entry_pair[e_open]],
             row_y[needs.cover_pair],
             row_y[comp],
@@ -182,7 +191,7 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     )
     cols = np.concatenate(
         [
-            y_of[live],
+            y_of[with_row],
             pr.entry_site[e_open],
             needs.cover_site,
             u_of[comp],
@@ -192,7 +201,7 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     )
     vals = np.concatenate(
         [
-            np.ones(live.size),
+            np.ones(with_row.size),
             -1.0 / need[pr.entry_pair[e_open]],
             -1.0 / need[needs.cover_pair],
             -np.ones(comp.size),
@@ -212,22 +221,385 @@ def _relaxation(problem: DistrictProblem, needs: Needs) -> tuple[csr_matrix, int
     return csr_matrix((vals, (rows, cols)), shape=(n_rows, n_var)), n_var, live
 
 
-def _bounds(
-    problem: DistrictProblem, n_var: int, fixed: tuple[int, ...], excluded: tuple[int, ...]
-) -> list[tuple[float, float]]:
-    z = [(0.0, 1.0)] * problem.n_sites
-    for s in fixed:
-        z[s] = (1.0, 1.0)
-    for s in excluded:
-        z[s] = (0.0, 0.0)
-    return z + [(0.0, 1.0)] * (n_var - problem.n_sites)
+@dataclass(frozen=True)
+class Relaxed:
+    """One count of :class:`DistrictRelaxation`: the certified value (the least Lagrangian
+    bound of the solvers' multipliers), the solver's own objective (``None``: not solved for
+    this count), its site weights z [S] (zero when not solved), its status and seconds."""
+
+    bound: float
+    lp_value: float | None
+    z: FloatArray
+    status: str
+    seconds: float
 
 
-def _objective_y(problem: DistrictProblem, n_var: int, live: IntArray) -> FloatArray:
-    """The vector w·y over the relaxation's variables (the live pairs' weights on y)."""
-    c = np.zeros(n_var)
-    c[problem.n_sites : problem.n_sites + live.size] = problem.weights[live]
-    return c
+class DistrictRelaxation:
+    """The certificate's linear relaxation of one district problem, built once and solved
+    again per count (module docstring): columns z [S], y [live pairs], u [complete pairs];
+    rows: the cover-set form of :func:`_relaxation`, the non-cover cuts
+    (:mod:`ris_planner.planning.certify.district_cuts`), one row Σ z ≤ 1 per group of
+    mutually exclusive sites (one mounting point), the count row Σ z and the goal row
+    Σ w_p y_p. One HiGHS model (``highspy``): a count changes the count row's bounds, the
+    sizing question the objective and the goal row's bounds, and each solve starts from the
+    last basis.
+
+    The bound reported is not the solver's objective: it is the Lagrangian value of the
+    solver's row multipliers clipped to their sign (:func:`lagrangian_coverage`,
+    :func:`lagrangian_count`), evaluated in float64 with the required and excluded sites as
+    they are, a valid bound for any multipliers – a solve stopped early or slightly infeasible
+    only makes it looser."""
+
+    def __init__(
+        self,
+        problem: DistrictProblem,
+        needs: Needs,
+        required: tuple[int, ...] = (),
+        excluded: tuple[int, ...] = (),
+        conflict: BoolArray | None = None,
+        cuts: CutRows | None = None,
+    ) -> None:
+        pr = self.problem = problem
+        self.required, self.excluded = tuple(required), tuple(excluded)
+        # with the cuts, the counting rows of pairs seen by many sites (a district's millions
+        # of nonzeros, and the weaker rows) are left out
+        base, n_var, live = _relaxation(pr, needs, None if cuts is None else COUNTING_ROW_SITES)
+        self.live = live
+        self.coverable_weight = float(pr.weights[live].sum())
+        self.n_var = n_var
+        y_of = np.full(pr.n_pairs, -1, dtype=np.int64)
+        y_of[live] = pr.n_sites + np.arange(live.size)
+        blocks = [base.tocsr()]
+        rhs = [np.zeros(base.shape[0])]
+        if cuts is not None and cuts.n_rows:
+            blocks.append(_cut_matrix(cuts, y_of, n_var))
+            rhs.append(np.zeros(cuts.n_rows))
+        groups = exclusive_groups(conflict) if conflict is not None else []
+        if groups:
+            gi = np.concatenate([np.full(len(g), k) for k, g in enumerate(groups)])
+            gs = np.concatenate([np.asarray(g) for g in groups])
+            blocks.append(csr_matrix((np.ones(gs.size), (gi, gs)), shape=(len(groups), n_var)))
+            rhs.append(np.ones(len(groups)))
+        self.a = vstack(blocks).tocsr() if len(blocks) > 1 else blocks[0]
+        self.b = np.concatenate(rhs)
+        self.w = np.zeros(n_var)
+        self.w[pr.n_sites : pr.n_sites + live.size] = pr.weights[live]
+        self.cut_rows = 0 if cuts is None else cuts.n_rows
+        self.conflict_rows = len(groups)
+        self.count_row = int(self.a.shape[0])
+        self.goal_row = self.count_row + 1
+        self.highs: Any = None
+        self.mode = ""
+        self.multipliers: list[FloatArray] = []
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the solver's model (a plan's result travels to the figures'
+        process): it is built again on the next solve."""
+        return {**self.__dict__, "highs": None, "mode": ""}
+
+    def _model(self) -> Any:
+        """The HiGHS model, built on first use: the columns with their bounds, the rows, the
+        count and goal rows (free until a solve sets them)."""
+        import highspy
+
+        if self.highs is not None:
+            return self.highs
+        pr, n_var, live = self.problem, self.n_var, self.live
+        h = self.highs = highspy._core._Highs()  # the base class: no banner, no callbacks
+        h.setOptionValue("output_flag", False)
+        h.setOptionValue("solver", "simplex")
+        h.setOptionValue("simplex_strategy", 1)  # dual simplex
+        # a district's model is presolved first (its cold solve is minutes without); a small
+        # one solves from the last basis
+        h.setOptionValue("presolve", "on" if self.large else "off")
+        lo = np.zeros(n_var)
+        hi = np.ones(n_var)
+        lo[list(self.required)] = 1.0
+        hi[list(self.excluded)] = 0.0
+        none = np.zeros(0, dtype=np.int32)
+        h.addCols(n_var, np.zeros(n_var), lo, hi, 0, none, none, np.zeros(0))
+        a = self.a
+        inf = highspy.kHighsInf
+        h.addRows(
+            a.shape[0],
+            np.full(a.shape[0], -inf),
+            self.b,
+            a.nnz,
+            a.indptr[:-1].astype(np.int32),
+            a.indices.astype(np.int32),
+            a.data,
+        )
+        sites = np.arange(pr.n_sites, dtype=np.int32)
+        ys = np.arange(pr.n_sites, pr.n_sites + live.size, dtype=np.int32)
+        h.addRows(
+            2,
+            np.array([-inf, -inf]),
+            np.array([inf, inf]),
+            sites.size + ys.size,
+            np.array([0, sites.size], dtype=np.int32),
+            np.concatenate([sites, ys]),
+            np.concatenate([np.ones(sites.size), pr.weights[live]]),
+        )
+        return h
+
+    @property
+    def size(self) -> dict[str, int]:
+        """The model's size: columns, rows (cuts and exclusive groups among them), nonzeros."""
+        return {
+            "columns": self.n_var,
+            "rows": int(self.a.shape[0]) + 2,
+            "cut_rows": self.cut_rows,
+            "exclusive_rows": self.conflict_rows,
+            "nonzeros": int(self.a.nnz) + self.problem.n_sites + int(self.live.size),
+        }
+
+    def _solve(self) -> tuple[str, float, FloatArray, FloatArray, float]:
+        h = self._model()
+        t0 = time.perf_counter()
+        # HiGHS' clock runs over the model's life: the limit is per solve
+        h.setOptionValue("time_limit", float(h.getRunTime()) + LP_TIME_LIMIT_S)
+        h.run()
+        status = h.modelStatusToString(h.getModelStatus())
+        sol = h.getSolution()
+        x = np.asarray(sol.col_value, dtype=float)
+        duals = np.asarray(sol.row_dual, dtype=float)
+        if x.size != self.n_var or duals.size != self.a.shape[0] + 2:
+            x, duals = np.zeros(self.n_var), np.zeros(self.a.shape[0] + 2)
+        value = float(h.getInfo().objective_function_value)
+        return status, value, x, duals, time.perf_counter() - t0
+
+    @property
+    def large(self) -> bool:
+        """Whether the model is presolved and solved for a few counts only
+        (:data:`SIMPLEX_MAX_NONZEROS`, :data:`LARGE_SOLVES`)."""
+        return int(self.a.nnz) > SIMPLEX_MAX_NONZEROS
+
+    def coverage(self, count: int) -> Relaxed:
+        """An upper bound on the coverage of every layout of ``count`` sites: the least
+        Lagrangian value at ``count`` over the multipliers of this solve and every earlier
+        one (each is valid at any count). A large model solves only its first
+        :data:`LARGE_SOLVES` counts."""
+        import highspy
+
+        n = self.problem.n_sites
+        if self.live.size == 0:
+            return Relaxed(0.0, 0.0, np.zeros(n), "no coverable pair", 0.0)
+        status, z, seconds = "not solved: earlier multipliers", np.zeros(n), 0.0
+        lp_value: float | None = None
+        if not self.large or len(self.multipliers) < LARGE_SOLVES:
+            h = self._model()
+            if self.mode != "coverage":
+                h.changeColsCost(self.n_var, np.arange(self.n_var, dtype=np.int32), -self.w)
+                h.changeRowBounds(self.goal_row, -highspy.kHighsInf, highspy.kHighsInf)
+                self.mode = "coverage"
+            h.changeRowBounds(self.count_row, float(count), float(count))
+            status, value, x, duals, seconds = self._solve()
+            self.multipliers.append(np.maximum(0.0, -duals[: self.a.shape[0]]))
+            lp_value, z = -value, x[:n]
+        return Relaxed(self.bound_at(count), lp_value, z, status, seconds)
+
+    def bound_at(self, count: int) -> float:
+        """The least Lagrangian coverage bound at ``count`` over the stored multipliers
+        (the coverable weight without any)."""
+        bound = min(1.0, self.coverable_weight)
+        for lam in self.multipliers:
+            value = lagrangian_coverage(
+                self.a,
+                self.b,
+                self.w,
+                lam,
+                self.problem.n_sites,
+                count,
+                self.required,
+                self.excluded,
+            )
+            bound = min(bound, value)
+        return bound
+
+    def count_from_bounds(self, goal: float) -> int:
+        """The smallest count whose coverage bound (:meth:`bound_at`) reaches ``goal``: no
+        layout of fewer sites reaches it, each smaller count's bound being below it."""
+        n = self.problem.n_sites
+        for count in range(len(set(self.required)), n + 1):
+            if self.bound_at(count) >= goal:
+                return count
+        return n + 1
+
+    def lower_count(self, goal: float) -> int | None:
+        """The fewest sites any layout reaching coverage ``goal`` can have (the relaxation's
+        Lagrangian lower bound, rounded up by :func:`certified_count`); ``None`` when no
+        layout reaches it (the coverable pairs weigh less)."""
+        import highspy
+
+        pr = self.problem
+        if self.coverable_weight < goal - 1e-12:
+            return None
+        from_bounds = self.count_from_bounds(goal) if self.multipliers else len(self.required)
+        if self.large and self.multipliers:
+            return from_bounds
+        h = self._model()
+        if self.mode != "count":
+            cost = np.zeros(self.n_var)
+            cost[: pr.n_sites] = 1.0
+            h.changeColsCost(self.n_var, np.arange(self.n_var, dtype=np.int32), cost)
+            h.changeRowBounds(self.count_row, 0.0, highspy.kHighsInf)
+            self.mode = "count"
+        h.changeRowBounds(self.goal_row, float(goal), highspy.kHighsInf)
+        _, _, _, duals, _ = self._solve()
+        lam = np.maximum(0.0, -duals[: self.a.shape[0]])
+        nu = max(0.0, float(duals[self.goal_row]))
+        value = lagrangian_count(
+            self.a, self.b, self.w, lam, nu, goal, pr.n_sites, self.required, self.excluded
+        )
+        return max(len(self.required), certified_count(value), from_bounds)
+
+
+def _cut_matrix(cuts: CutRows, y_of: IntArray, n_var: int) -> csr_matrix:
+    """The cut rows over the relaxation's variables."""
+    r = cuts.n_rows
+    per = np.diff(cuts.start)
+    rows = np.concatenate([np.arange(r), np.repeat(np.arange(r), per)])
+    cols = np.concatenate([y_of[cuts.pair], cuts.site])
+    vals = np.concatenate([cuts.y_coef, -cuts.coef])
+    return csr_matrix((vals, (rows, cols)), shape=(r, n_var))
+
+
+def exclusive_groups(conflict: BoolArray) -> list[list[int]]:
+    """Groups of mutually exclusive sites (cliques of ``conflict``) that hold every
+    conflicting pair: each uncovered conflict grown greedily into a clique. Σ_{s∈group} z_s ≤ 1
+    holds for every feasible layout."""
+    left = np.triu(conflict, 1).copy()
+    groups: list[list[int]] = []
+    for a, b in zip(*np.nonzero(left), strict=True):
+        if not left[a, b]:
+            continue
+        group = [int(a), int(b)]
+        common = conflict[a] & conflict[b]
+        for c in np.flatnonzero(common).tolist():
+            if conflict[c, group].all():
+                group.append(c)
+        for i, j in itertools.combinations(sorted(group), 2):
+            left[i, j] = False
+        groups.append(sorted(group))
+    return groups
+
+
+def _pad(*terms: FloatArray) -> float:
+    """An upper bound on the float64 rounding of summing ``terms``' entries and forming them
+    (each a dot product of at most that many products): n·ε·Σ|term|."""
+    n = sum(t.size for t in terms) + 1
+    return float(n * np.finfo(float).eps * sum(np.abs(t).sum() for t in terms)) + 1e-300
+
+
+def lagrangian_coverage(
+    a: csr_matrix,
+    b: FloatArray,
+    w: FloatArray,
+    lam: FloatArray,
+    n_sites: int,
+    count: int,
+    required: tuple[int, ...] = (),
+    excluded: tuple[int, ...] = (),
+) -> float:
+    """An upper bound on max w·x over x ∈ [0, 1]ⁿ with A x ≤ b and exactly ``count`` of the
+    first ``n_sites`` columns (the z) at one – required ones at one, excluded at zero – for
+    any multipliers ``lam`` ≥ 0: the Lagrangian λ·b + Σ_j max(0, r_j) over the other columns
+    plus the ``count`` best z terms r_s (r = w − Aᵀλ), which every feasible x stays below.
+    Padded by its own rounding (:func:`_pad`); ``inf`` when no layout of that count exists."""
+    lam = np.maximum(lam, 0.0)
+    at_lam = a.T @ lam
+    r = w - at_lam
+    zr = r[:n_sites]
+    fixed = np.zeros(n_sites, dtype=bool)
+    fixed[list(required)] = True
+    free = ~fixed
+    free[list(excluded)] = False
+    take = count - len(set(required))
+    if take < 0 or take > int(free.sum()):
+        return math.inf
+    best = np.sort(zr[free])[::-1][:take]
+    rest = np.maximum(r[n_sites:], 0.0)
+    terms = (lam * b, rest, zr[fixed], best)
+    value = float(sum(float(t.sum()) for t in terms))
+    return value + _pad(*terms, w, at_lam)
+
+
+def lagrangian_count(
+    a: csr_matrix,
+    b: FloatArray,
+    w: FloatArray,
+    lam: FloatArray,
+    nu: float,
+    goal: float,
+    n_sites: int,
+    required: tuple[int, ...] = (),
+    excluded: tuple[int, ...] = (),
+) -> float:
+    """A lower bound on min Σ z (the first ``n_sites`` columns) over x ∈ [0, 1]ⁿ with
+    A x ≤ b and w·x ≥ ``goal`` – required z at one, excluded at zero – for any multipliers
+    ``lam`` ≥ 0, ``nu`` ≥ 0: ν·goal − λ·b + Σ_j min(0, c_j + (Aᵀλ)_j − ν w_j) (c_j = 1 on the
+    z, 0 else; required sites at their term, excluded ones out). Less its own rounding."""
+    lam = np.maximum(lam, 0.0)
+    nu = max(nu, 0.0)
+    at_lam = a.T @ lam
+    c = np.zeros(w.size)
+    c[:n_sites] = 1.0
+    r = c + at_lam - nu * w
+    fixed = np.zeros(w.size, dtype=bool)
+    fixed[list(required)] = True
+    out = np.zeros(w.size, dtype=bool)
+    out[list(excluded)] = True
+    free = ~fixed & ~out
+    terms = (np.array([nu * goal]), -lam * b, r[fixed], np.minimum(r[free], 0.0))
+    value = float(sum(float(t.sum()) for t in terms))
+    return value - _pad(*terms, at_lam, nu * w)
+
+
+COUNT_ROUNDING = 1e-6
+""":func:`certified_count` rounds a lower bound on a count up after taking this off: a value
+within it above an integer is that integer (rounding noise), never the next one."""
+
+
+def certified_count(value: float) -> int:
+    """The smallest integer count ≥ a lower bound ``value`` on it: ⌈value − 1e-6⌉
+    (:data:`COUNT_ROUNDING`), so a bound a rounding error above an integer is not lifted past
+    it; 0 for a value at or below 0."""
+    if not math.isfinite(value):
+        return 0 if value < 0 else 10**9
+    return max(0, math.ceil(value - COUNT_ROUNDING))
+
+
+SIMPLEX_MAX_NONZEROS = 200_000
+"""Up to this many nonzeros :class:`DistrictRelaxation` solves each count by dual simplex from
+the last basis (warm starts across counts); above, it presolves first and solves only
+:data:`LARGE_SOLVES` counts."""
+
+COUNTING_ROW_SITES = 64
+"""With the non-cover cuts, only pairs with at most this many serving sites keep their
+counting row m_p·y_p ≤ Σ_{S_p} z (the others' rows, a district's millions of nonzeros, are
+weaker than their cuts where the relaxation spreads z over their strong sets)."""
+
+LARGE_SOLVES = 2
+"""Above :data:`SIMPLEX_MAX_NONZEROS`, the coverage relaxation is solved for at most this many
+counts; every other count's bound, and the sizing's lower count, are the Lagrangian values of
+the multipliers of those solves (valid at any count: :meth:`DistrictRelaxation.coverage`)."""
+
+LP_TIME_LIMIT_S = 120.0
+"""Seconds one solve of :class:`DistrictRelaxation` may take; a solve stopped there still
+gives a valid (looser) bound through its multipliers."""
+
+
+def build_relaxation(
+    problem: DistrictProblem,
+    needs: Needs,
+    required: tuple[int, ...] = (),
+    excluded: tuple[int, ...] = (),
+    conflict: BoolArray | None = None,
+) -> DistrictRelaxation:
+    """The :class:`DistrictRelaxation` of a problem with its static non-cover cuts
+    (:func:`~ris_planner.planning.certify.district_cuts.static_cuts`)."""
+    cuts = static_cuts(problem, needs.need)
+    return DistrictRelaxation(problem, needs, required, excluded, conflict, cuts.rows)
 
 
 def coverage_upper_bound(
@@ -237,37 +609,9 @@ def coverage_upper_bound(
     required: tuple[int, ...] = (),
     excluded: tuple[int, ...] = (),
 ) -> float:
-    """An upper bound on the coverage of every layout of ``count`` sites (the relaxation of
-    :func:`_relaxation`; ``needs`` from :func:`sites_needed`)."""
-    return relaxed_coverage(problem, count, needs, required, excluded)[0]
-
-
-def relaxed_coverage(
-    problem: DistrictProblem,
-    count: int,
-    needs: Needs,
-    required: tuple[int, ...] = (),
-    excluded: tuple[int, ...] = (),
-) -> tuple[float, FloatArray]:
-    """(:func:`coverage_upper_bound`, the relaxation's site weights z [S])."""
-    a, n_var, live = _relaxation(problem, needs)
-    if live.size == 0:
-        return 0.0, np.zeros(problem.n_sites)
-    eq = np.zeros(n_var)
-    eq[: problem.n_sites] = 1.0
-    res = linprog(
-        -_objective_y(problem, n_var, live),
-        A_ub=a,
-        b_ub=np.zeros(a.shape[0]),
-        A_eq=csr_matrix(eq[None]),
-        b_eq=[float(count)],
-        bounds=_bounds(problem, n_var, required, excluded),
-        method="highs",
-    )
-    if res.status != 0:
-        raise RisPlannerError(f"coverage relaxation failed: {res.message}")
-    # HiGHS' optimum to its feasibility tolerance: pad by it so the bound stays a bound
-    return float(min(1.0, -res.fun + LP_PAD)), np.asarray(res.x[: problem.n_sites])
+    """An upper bound on the coverage of every layout of ``count`` sites (a model of its own:
+    :class:`DistrictRelaxation`)."""
+    return build_relaxation(problem, needs, required, excluded).coverage(count).bound
 
 
 def count_lower_bound(
@@ -277,25 +621,11 @@ def count_lower_bound(
     required: tuple[int, ...] = (),
     excluded: tuple[int, ...] = (),
 ) -> int | None:
-    """The fewest sites any layout reaching coverage ``target`` can have (relaxation: the
-    smallest Σ z with Σ w_p y_p ≥ target, rounded up); ``None`` when no layout reaches it
-    (the pairs some layout covers weigh less than the target: known before any LP)."""
+    """The fewest sites any layout reaching coverage ``target`` can have (a model of its own:
+    :meth:`DistrictRelaxation.lower_count`); ``None`` when no layout reaches it."""
     if float(problem.weights[needs.need > 0].sum()) < target - 1e-12:
         return None
-    a, n_var, live = _relaxation(problem, needs)
-    c = np.zeros(n_var)
-    c[: problem.n_sites] = 1.0
-    cover = -_objective_y(problem, n_var, live)
-    res = linprog(
-        c,
-        A_ub=vstack([a, csr_matrix(cover[None])]).tocsr(),
-        b_ub=np.concatenate([np.zeros(a.shape[0]), [-(target - LP_PAD)]]),
-        bounds=_bounds(problem, n_var, required, excluded),
-        method="highs",
-    )
-    if res.status != 0:
-        return None
-    return max(len(required), math.ceil(res.fun - 1e-6))
+    return build_relaxation(problem, needs, required, excluded).lower_count(target)
 
 
 def summary(problem: DistrictProblem, needs: Needs) -> dict[str, Any]:

@@ -1,0 +1,218 @@
+"""The district certificate (docs/concepts/district.md, "The certificate") against brute force
+on the suite's street site: no non-cover cut cuts off a covering layout, the Lagrangian bound
+holds for any multipliers and equals the relaxation's value at its own, the persistent model
+answers as a rebuilt one, and the sizing's lower count never exceeds the true minimum."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from district_site import street_doc
+
+from ris_planner.planning.certify import district_cuts as cuts
+from ris_planner.planning.certify import district_lp as lp
+from ris_planner.planning.prepare import prepare_plan
+from ris_planner.planning.scoring import sparse
+
+
+@pytest.fixture(scope="module", params=[0.5, 2.0])
+def truth(request: pytest.FixtureRequest):
+    """The street site's problem, its needs and, per layout of every size, each pair's
+    coverage (all 2^14 layouts: the brute-force truth)."""
+    problem = sparse.build_problem(prepare_plan(street_doc(threshold_m=request.param)))
+    needs = lp.sites_needed(problem)
+    layouts = [
+        c
+        for k in range(problem.n_sites + 1)
+        for c in itertools.combinations(range(problem.n_sites), k)
+    ]
+    covered = np.array(
+        [sparse.LayoutState(problem, list(c)).metric <= problem.threshold for c in layouts]
+    )
+    return problem, needs, layouts, covered
+
+
+def best_by_count(problem, layouts, covered) -> dict[int, float]:
+    cov = covered @ problem.weights
+    out: dict[int, float] = {}
+    for lay, c in zip(layouts, cov, strict=True):
+        out[len(lay)] = max(out.get(len(lay), 0.0), float(c))
+    return out
+
+
+def test_no_cut_cuts_off_a_covering_layout(truth) -> None:
+    """Every static cut (and every counting row) holds at y = 1 for every layout that covers
+    its pair: the cuts only remove fractional points."""
+    problem, needs, layouts, covered = truth
+    static = cuts.static_cuts(problem, needs.need)
+    assert static.rows.n_rows > 0
+    assert (static.rows.y_coef == 2).any() or (static.rows.y_coef == 1).all()
+    for rows in (static.rows, cuts.counting_rows(problem, needs.need)):
+        for lay, cov in zip(layouts, covered, strict=True):
+            z = np.zeros(problem.n_sites)
+            z[list(lay)] = 1.0
+            assert not cuts.violated(rows, cov.astype(float), z).any(), lay
+
+
+def test_the_strong_set_is_all_a_covering_layout_needs_one_of(truth) -> None:
+    """A pair's strong set (the complement of its longest non-covering prefix) meets every
+    layout that covers it, and the prefix itself leaves it uncovered."""
+    problem, needs, layouts, covered = truth
+    static = cuts.static_cuts(problem, needs.need)
+    rows = static.rows
+    for r in range(rows.n_rows):
+        p = int(rows.pair[r])
+        strong = set(rows.site[rows.start[r] : rows.start[r + 1]].tolist())
+        assert len(strong) == static.strong[p]
+        weak = sorted(set(problem.sites_of(p).tolist()) - strong)
+        assert not sparse.LayoutState(problem, weak).metric[p] <= problem.threshold
+        for lay, cov in zip(layouts, covered, strict=True):
+            if cov[p]:
+                assert strong & set(lay), (p, lay)
+
+
+def test_the_bound_holds_for_every_count_and_any_multipliers(truth) -> None:
+    """The Lagrangian bound of the model's own multipliers is at least the exhaustive optimum
+    of every count and within 1e-6 of the solver's value; random multipliers give valid,
+    looser bounds."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    model = lp.build_relaxation(problem, needs)
+    rng = np.random.default_rng(0)
+    for count in range(1, problem.n_sites + 1):
+        got = model.coverage(count)
+        assert got.bound >= best[count] - 1e-12, count
+        assert got.lp_value is not None
+        assert got.bound <= got.lp_value + 1e-6 or got.bound >= min(1.0, model.coverable_weight)
+        for _ in range(5):
+            lam = rng.exponential(rng.choice([1e-3, 1e-1, 1.0]), size=model.a.shape[0])
+            ub = lp.lagrangian_coverage(model.a, model.b, model.w, lam, problem.n_sites, count)
+            assert ub >= best[count] - 1e-12
+            assert ub >= got.lp_value - 1e-6  # no multipliers beat the relaxation's optimum
+
+
+def test_the_persistent_model_answers_as_a_rebuilt_one(truth) -> None:
+    """Counts solved one after another in one model (and the sizing question between them)
+    give the bounds of a model built for each."""
+    problem, needs, _, _ = truth
+    model = lp.build_relaxation(problem, needs)
+    goal = 0.5 * model.coverable_weight
+    for count in (3, 1, 5, 2):
+        again = model.coverage(count).bound
+        model.lower_count(goal)
+        fresh = lp.build_relaxation(problem, needs).coverage(count).bound
+        assert again == pytest.approx(fresh, abs=1e-7)
+
+
+def test_the_lower_count_never_exceeds_the_minimum(truth) -> None:
+    """For goals across the coverable weight, the certified lower count is at most the
+    fewest sites of any layout reaching the goal (brute force), and ``None`` exactly when no
+    layout does."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    model = lp.build_relaxation(problem, needs)
+    for share in (0.1, 0.3, 0.5, 0.7, 0.9, 1.0):
+        goal = share * model.coverable_weight
+        fewest = min(k for k, v in best.items() if v >= goal - 1e-12)
+        lower = model.lower_count(goal)
+        assert lower is not None and lower <= fewest, (share, lower, fewest)
+
+
+def test_required_excluded_and_exclusive_sites_keep_the_bound(truth) -> None:
+    """With a required site, an excluded one and two sites on one mounting point, the bound
+    still holds over the layouts that honour them."""
+    problem, needs, layouts, covered = truth
+    conflict = np.zeros((problem.n_sites, problem.n_sites), dtype=bool)
+    conflict[2, 3] = conflict[3, 2] = True
+    model = lp.build_relaxation(problem, needs, (0,), (1,), conflict)
+    assert model.size["exclusive_rows"] == 1
+    cov = covered @ problem.weights
+    for count in range(1, 6):
+        ok = [
+            c
+            for lay, c in zip(layouts, cov, strict=True)
+            if len(lay) == count and 0 in lay and 1 not in lay and not {2, 3} <= set(lay)
+        ]
+        assert model.coverage(count).bound >= max(ok) - 1e-12
+
+
+def test_exclusive_groups_hold_every_conflict() -> None:
+    conflict = np.zeros((6, 6), dtype=bool)
+    for a, b in [(0, 1), (1, 2), (0, 2), (4, 5)]:
+        conflict[a, b] = conflict[b, a] = True
+    groups = lp.exclusive_groups(conflict)
+    assert sorted(map(sorted, groups)) == [[0, 1, 2], [4, 5]]
+
+
+def test_counts_round_up_without_crossing_an_integer() -> None:
+    assert lp.certified_count(3.0000000001) == 3
+    assert lp.certified_count(2.9999999) == 3
+    assert lp.certified_count(3.01) == 4
+    assert lp.certified_count(-0.5) == 0
+
+
+def small_site_problems(n: int):
+    """The first ``n`` random small sites of the search-quality suite (tests/search_quality.py)
+    as coverage plans for the district search (PEB_R ≤ 0.3 m; their own candidates, pairs,
+    LOS and known parts)."""
+    from search_quality import quality_instance
+
+    for seed in range(n):
+        doc = quality_instance(seed)
+        doc["objective"] = {"kind": "coverage", "metric": "rx", "threshold_m": 0.3}
+        doc["search"] = {"method": "district"}
+        yield seed, sparse.build_problem(prepare_plan(doc))
+
+
+def test_random_small_sites_bound_size_and_search_against_exhaustive_truth() -> None:
+    """On random small sites, every count 2–4: the certified bound is at least the exhaustive
+    optimum and the lower count for half the coverable weight at most the true minimum
+    (always); the district search's layout is within 1 % of the optimum in at least 95 % of
+    the counts."""
+    from ris_planner.planning.search import district as search
+
+    within = total = 0
+    for seed, problem in small_site_problems(6):
+        needs = lp.sites_needed(problem)
+        model = lp.build_relaxation(problem, needs)
+        every = [
+            (k, sparse.exact_coverage(problem, c))
+            for k in range(1, 5)
+            for c in itertools.combinations(range(problem.n_sites), k)
+        ]
+        best = {k: max(v for kk, v in every if kk == k) for k in range(1, 5)}
+        path = search.greedy_path(problem, 4)
+        for count in (2, 3, 4):
+            assert model.coverage(count).bound >= best[count] - 1e-12, (seed, count)
+            step = next((p for p in path if len(p.sites) == count), None)
+            found = 0.0 if step is None else search.improve(problem, step.sites)[1]
+            total += 1
+            within += found >= best[count] - 0.01 * best[count]
+        goal = 0.5 * model.coverable_weight
+        reach = [k for k, v in best.items() if v >= goal - 1e-12]
+        if goal > 0 and reach:
+            lower = model.lower_count(goal)
+            assert lower is not None and lower <= min(reach), seed
+    assert within >= 0.95 * total, (within, total)
+
+
+def test_a_large_model_bounds_every_count_from_a_few_solves(truth, monkeypatch) -> None:
+    """Above the simplex size only the first counts are solved: every other count's bound and
+    the lower count come from their multipliers, and still hold against brute force."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    monkeypatch.setattr(lp, "SIMPLEX_MAX_NONZEROS", 0)
+    model = lp.build_relaxation(problem, needs)
+    assert model.large
+    solved = [model.coverage(c) for c in (3, 5)]
+    assert all(r.lp_value is not None for r in solved)
+    for count in range(1, problem.n_sites + 1):
+        got = model.coverage(count)
+        assert got.lp_value is None and got.bound >= best[count] - 1e-12
+    for share in (0.3, 0.6, 0.9):
+        goal = share * model.coverable_weight
+        fewest = min(k for k, v in best.items() if v >= goal - 1e-12)
+        lower = model.lower_count(goal)
+        assert lower is not None and lower <= fewest
