@@ -128,7 +128,7 @@ class Capabilities:
     """``any`` registered objective kind, or ``coverage`` objectives only (a higher-is-better
     fraction of pairs within a level: the kind has a screen level)."""
     pair_models: frozenset[str]
-    """Pair models it takes: ``all``, ``unordered``, ``sample``."""
+    """Pair models it takes: ``all``, ``unordered``, ``sample``, ``explicit``."""
     wavefronts: frozenset[str]
     """``system.wavefront`` values it takes."""
     options: frozenset[str]
@@ -234,8 +234,11 @@ def sparse_search(doc: PlanDocument) -> bool:
 
 
 def pair_model(doc: PlanDocument) -> str:
-    """The document's pair model: ``all``, ``unordered`` or ``sample``."""
-    return doc.pairs if isinstance(doc.pairs, str) else "sample"
+    """The document's pair model: ``all``, ``unordered``, ``sample`` or ``explicit``
+    (:func:`ris_planner.model.plan.pair_model_name`)."""
+    from ris_planner.model.plan import pair_model_name  # the plan model imports this module
+
+    return pair_model_name(doc.pairs)
 
 
 def plans_objective(method: SearchMethod, doc: PlanDocument) -> bool:
@@ -287,7 +290,7 @@ def method_refusals(method: SearchMethod, doc: PlanDocument) -> list[tuple[str, 
 
 ENUMERATING = Capabilities(
     objectives="any",
-    pair_models=frozenset({"all", "unordered", "sample"}),
+    pair_models=frozenset({"all", "unordered", "sample", "explicit"}),
     wavefronts=frozenset({"planar", "spherical"}),
     options=frozenset(o.name for o in PLAN_OPTIONS),
     search_fields=ENUMERATING_FIELDS,
@@ -324,7 +327,7 @@ def _builtin() -> None:
             " with a certified coverage interval (coverage objectives)",
             Capabilities(
                 objectives="coverage",
-                pair_models=frozenset({"all", "sample"}),
+                pair_models=frozenset({"all", "sample", "explicit"}),
                 wavefronts=frozenset({"planar"}),
                 options=frozenset({"sizing", "nested"}),
                 search_fields=frozenset(),

@@ -45,7 +45,13 @@ from ris_planner.model.limits import (
     memory_terms,
     rounded,
 )
-from ris_planner.model.plan import LayoutBeamsDocument, PlanDocument, WallSites, map_points
+from ris_planner.model.plan import (
+    LayoutBeamsDocument,
+    PlanDocument,
+    WallSites,
+    map_points,
+    pairs_given,
+)
 from ris_planner.model.search_methods import (
     AUTO,
     MAX_LAYOUT_RIS,
@@ -645,11 +651,7 @@ def plan_shape(doc: PlanDocument, shares: tuple[float, float] | None = None) -> 
     plan without ``shares``, the served-share sample: :func:`document_shares`)."""
     sites = plan_sites(doc)
     n_t, n_r = map_points(doc.tx_map), map_points(doc.rx_map)
-    pairs_spec = doc.pairs
-    if isinstance(pairs_spec, str):
-        pairs = n_t * (n_t - 1) // 2 if pairs_spec == "unordered" else n_t * n_r
-    else:
-        pairs = pairs_spec.sample
+    pairs = pairs_given(doc.pairs, n_t, n_r)
     counts = [c for c in doc.max_counts if c <= sites]
     relaxed = sum(not _exhaustive(doc, sites, c) for c in counts)
     district = sparse_search(doc)
@@ -694,11 +696,7 @@ def estimate_plan(doc: PlanDocument, shares: tuple[float, float] | None = None) 
     the document's :func:`document_shares` when the caller has them)."""
     shape = largest_plan_shape(doc, shares)
     n_t, n_r = shape.tx_points, shape.rx_points
-    pairs_spec = doc.pairs
-    if isinstance(pairs_spec, str):
-        pairs = n_t * (n_t - 1) // 2 if pairs_spec == "unordered" else n_t * n_r
-    else:
-        pairs = pairs_spec.sample
+    pairs = pairs_given(doc.pairs, n_t, n_r)
     heat_rx, heat_tx = shape.heatmap
     return Sizes(
         sites=shape.sites,
@@ -909,11 +907,7 @@ def _refuse(method: SearchMethod, doc: PlanDocument) -> None:
 def _pairs_built(doc: PlanDocument) -> int:
     """The pairs a plan run builds (the sample, or every pair up to ``max_pairs``)."""
     n_t, n_r = map_points(doc.tx_map), map_points(doc.rx_map)
-    spec = doc.pairs
-    if isinstance(spec, str):
-        pairs = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
-    else:
-        pairs = spec.sample
+    pairs = pairs_given(doc.pairs, n_t, n_r)
     return min(pairs, doc.max_pairs)
 
 
