@@ -52,6 +52,9 @@ from ris_planner.model.simulation import Multipath
 MAX_PAIRS_LIMIT = 500_000
 """The largest ``max_pairs`` a document may set (memory: a cached site holds 28 floats per pair)."""
 
+MIN_WALL_M = 1e-6
+"""A wall segment shorter than this has coinciding ends."""
+
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
 
@@ -378,8 +381,10 @@ class WallSites(DocumentModel):
             raise ValueError("a wall is either start + end (a segment) or a rectangle")
         pts = [*(self.rectangle or []), *(self.start or []), *(self.end or [])]
         finite_point(pts + list(self.heights_m), "wall coordinate")
-        if seg and np.allclose(self.start, self.end):  # type: ignore[arg-type]
-            raise ValueError("wall start and end coincide")
+        # an absolute length: a relative test calls a short facade far from the origin (a
+        # 1.6 mm wall left between two corner clearances at 400 m) "coinciding"
+        if seg and math.dist(self.start, self.end) < MIN_WALL_M:  # type: ignore[arg-type]
+            raise ValueError(f"wall start and end coincide (closer than {MIN_WALL_M:g} m)")
         if self.rectangle is not None:
             x0, y0, x1, y1 = self.rectangle
             if not (x1 > x0 and y1 > y0):
