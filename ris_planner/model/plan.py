@@ -304,14 +304,6 @@ class PairList(DocumentModel):
 PairsSpec = Literal["all", "unordered"] | PairSample | PairList
 
 
-def pair_model_name(spec: PairsSpec) -> str:
-    """The pair model of a ``pairs`` value: ``all``, ``unordered``, ``sample`` or
-    ``explicit``."""
-    if isinstance(spec, str):
-        return spec
-    return "sample" if isinstance(spec, PairSample) else "explicit"
-
-
 def pairs_given(spec: PairsSpec, tx_points: int, rx_points: int) -> int:
     """The pairs a ``pairs`` value gives over maps of ``tx_points`` and ``rx_points`` points,
     before any is built (``max_pairs`` not applied): every combination (``all``), every

@@ -234,11 +234,16 @@ def sparse_search(doc: PlanDocument) -> bool:
 
 
 def pair_model(doc: PlanDocument) -> str:
-    """The document's pair model: ``all``, ``unordered``, ``sample`` or ``explicit``
-    (:func:`ris_planner.model.plan.pair_model_name`)."""
-    from ris_planner.model.plan import pair_model_name  # the plan model imports this module
+    """The document's pair model: ``all``, ``unordered``, ``sample`` or ``explicit``."""
+    return pair_model_of(doc.pairs)
 
-    return pair_model_name(doc.pairs)
+
+def pair_model_of(spec: Any) -> str:
+    """The pair model of a ``pairs`` value (:data:`ris_planner.model.plan.PairsSpec`): its name
+    (``all``, ``unordered``), ``sample`` for a sample, ``explicit`` for a list of pairs."""
+    if isinstance(spec, str):
+        return spec
+    return "sample" if hasattr(spec, "sample") else "explicit"
 
 
 def plans_objective(method: SearchMethod, doc: PlanDocument) -> bool:
