@@ -22,7 +22,19 @@ from api.errors import V1_ERROR_RESPONSES, install_error_handlers
 from api.front import FrontMiddleware
 from api.kinds import JOB_KINDS
 from api.offload import ParsePool, install_answered_handler
-from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
+from api.routes import (
+    bounds,
+    candidates,
+    cities,
+    events,
+    imports,
+    jobs,
+    meta,
+    plans,
+    power,
+    sites,
+    web,
+)
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
@@ -130,6 +142,7 @@ def create_app(
         web.router,
         bounds.router,
         plans.router,
+        cities.router,
         power.router,
         imports.router,
         sites.router,
