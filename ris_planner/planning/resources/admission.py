@@ -13,9 +13,9 @@ temporaries of building them), rounded up; Python objects (sites, memo entries) 
 sizes on CPython 3.11. A plan's memory is the sum of :func:`plan_memory`'s terms, one table
 (:data:`PLAN_MEMORY_TERMS`) that holds each term's bytes with what a refusal says about it; a
 refusal names the largest term and the largest value of its quantity that fits, or that none
-does and which settings to change (:func:`explain_plan_memory`). ``benchmarks/bench_memory.py``
-checks the estimate against the measured peak resident memory of real runs
-(docs/validation/resources.md).
+does and which settings to change (:func:`explain_plan_memory`).
+``benchmarks/resources/bench_memory.py`` checks the estimate against the measured peak resident
+memory of real runs (docs/validation/resources.md).
 """
 
 from __future__ import annotations
