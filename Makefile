@@ -82,10 +82,10 @@ test: lint typecheck
 docs: setup
 	$(BIN)/mkdocs build --strict
 
+# one quick pass over every benchmark area (each script's --quick or --smoke mode, and the asv
+# suites once): a check that every benchmark runs, not a measurement (docs/validation/benchmarks.md)
 bench: setup
-	$(BIN)/python benchmarks/bench_bounds.py
-	$(BIN)/python benchmarks/bench_planning.py
-	$(BIN)/python benchmarks/bench_api.py
+	$(BIN)/python benchmarks/quick.py
 
 clean:
 	rm -rf $(VENV) $(OUT) site .pytest_cache .mypy_cache .ruff_cache

@@ -59,4 +59,25 @@ def power_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Pat
     return JobOutput(result.to_json())
 
 
-JOB_KINDS: dict[str, JobFunction] = {"plan": plan_job, "power": power_job}
+def city_job(document: dict[str, Any], progress: ProgressCallback, out_dir: Path) -> JobOutput:
+    """``ris-planner city``: {"document": …, "cell_m": M} → the city's plan.json and the files
+    ``geojson``, ``geotiff`` and ``points_csv`` over the whole city – the same function writes
+    them for the command line (:func:`ris_planner.io.cityplan.plan_city_document`). The cells
+    are planned on a local process pool started by this worker (``RIS_PLANNER_PLAN_WORKERS``
+    processes, default one per core), or on the Dask cluster of
+    ``RIS_PLANNER_DASK_SCHEDULER``: either gives the same answer."""
+    from api.settings import Settings
+    from ris_planner.io.cityplan import admit_city, plan_city_document
+    from ris_planner.planning import DaskExecutor, Executor, LocalExecutor
+
+    settings = Settings()
+    address = settings.dask_scheduler
+    executor: Executor = (
+        DaskExecutor(address) if address else LocalExecutor(settings.plan_workers or None)
+    )
+    request = admit_city(document["document"], document["cell_m"], settings.job_memory_mb)
+    done = plan_city_document(request, out_dir, executor, progress)
+    return JobOutput(done.plan, done.files)
+
+
+JOB_KINDS: dict[str, JobFunction] = {"plan": plan_job, "power": power_job, "city": city_job}

@@ -24,7 +24,19 @@ from api.errors import V1_ERROR_RESPONSES, install_error_handlers, install_polic
 from api.front import FrontMiddleware, with_security_headers
 from api.kinds import JOB_KINDS
 from api.offload import ParsePool, install_answered_handler
-from api.routes import bounds, candidates, events, imports, jobs, meta, plans, power, sites, web
+from api.routes import (
+    bounds,
+    candidates,
+    cities,
+    events,
+    imports,
+    jobs,
+    meta,
+    plans,
+    power,
+    sites,
+    web,
+)
 from api.settings import API_KEY_HEADER, Settings
 from api.store import JobStore, server_lock
 from api.worker import JobFunction, JobRunner
@@ -167,6 +179,7 @@ def create_app(
         web.router,
         bounds.router,
         plans.router,
+        cities.router,
         power.router,
         imports.router,
         sites.router,

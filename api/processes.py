@@ -9,7 +9,13 @@ import multiprocessing.forkserver
 import os
 import time
 
-WORKER_MODULES = ("api.routes.plans", "api.routes.web", "api.routes.imports", "api.routes.power")
+WORKER_MODULES = (
+    "api.routes.plans",
+    "api.routes.cities",
+    "api.routes.web",
+    "api.routes.imports",
+    "api.routes.power",
+)
 """Modules a worker process imports once at start (the routes' parse and job functions)."""
 
 ORPHAN_CHECK_S = 1.0

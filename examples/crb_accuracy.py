@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from bench_planning import square_plan
+from fixtures import square_plan
 
 from ris_planner.inversion import crb, ldl
 from ris_planner.planning import PlanDocument

@@ -1,9 +1,9 @@
 """The greedy search from before targets, constraints and certificates, and its chunking, kept
 verbatim: the reference the new search must never lose to on the same input
-(tests/test_planning_decisions.py) and the baseline of benchmarks/bench_search.py; and the greedy
-search as it was before the search-quality work (:func:`pre_quality_greedy`, verbatim: infinite
-losses compared as plain floats, restarts = the spec's), the baseline of
-benchmarks/bench_search_quality.py."""
+(tests/test_planning_decisions.py) and the baseline of benchmarks/planning/bench_search.py; and the
+greedy search as it was before the search-quality work (:func:`pre_quality_greedy`, verbatim:
+infinite losses compared as plain floats, restarts = the spec's), the baseline of
+benchmarks/planning/bench_search_quality.py."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Random small placement problems checked against exhaustive search (search
 quality): the instances and the comparison shared by tests/test_search_quality.py (a few seeded
-instances) and benchmarks/bench_search_quality.py (the table over many)."""
+instances) and benchmarks/planning/bench_search_quality.py (the table over many)."""
 
 from __future__ import annotations
 

@@ -268,13 +268,13 @@ def test_delete_of_a_running_job_cancels_and_removes_it(tmp_path: Path) -> None:
 
 
 def test_healthz_answers_under_load() -> None:
-    """A bounded version of ``benchmarks/bench_service_liveness.py`` on one server: 30
+    """A bounded version of ``benchmarks/service/bench_service_liveness.py`` on one server: 30
     concurrent plan submissions, a plan of 20 000 prisms (1.6 MB), the validation of 10 000,
     a GeoJSON import of 40 000 vertices and 20 open event streams; ``/healthz`` answers 200
     throughout each (the documents are parsed in the parse processes, api.offload). How fast it
     answers is the benchmark's figure (docs/validation/measured-times.md, "Service"), not a
     bound here: a busy machine slows every answer alike."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks" / "service"))
     from bench_service_liveness import measure
 
     loads = ("idle", "concurrent", "prisms", "import", "streams")

@@ -196,7 +196,7 @@ RECORDED = ROOT / "tests" / "data" / "estimates" / "real_sites.json"
 """Measured runs of the held-out real sites (docs/validation/resources.md, "Real sites")."""
 
 ESTIMATE_BOUNDS = (0.5, 2.0)
-"""Estimate / measured of the benchmark (benchmarks/bench_estimates.py, docs/validation/
+"""Estimate / measured of the benchmark (benchmarks/resources/bench_estimates.py, docs/validation/
 resources.md): time and peak memory."""
 
 

@@ -175,6 +175,18 @@ def test_short_edges_and_low_buildings_carry_nothing() -> None:
     assert "no mounting height below its top" in reasons["B1 (shed)"]
 
 
+def test_an_edge_just_longer_than_both_clearances_far_out_gets_its_site() -> None:
+    """A 4.0016 m edge 400 m from the origin (an OSM building of central Helsinki) leaves a
+    1.6 mm wall between its corner clearances: one site in its middle, not a refusal of the
+    whole site (a relative test at 400 m called the two ends one point)."""
+    edge = 2 * OPTIONS.corner_clearance_m + 1.6e-3
+    square = [[400.0, 0.0], [400.0 + edge, 0.0], [400.0 + edge, 12.0], [400.0, 12.0]]
+    pts = ring((400.0 + edge / 2, 6.0), 30.0)
+    fc, summary = candidate_sites(site_doc([prism(square)], pts), OPTIONS)
+    want = len(reference(square, OPTIONS, 10.0))
+    assert summary.candidates == len(fc["features"]) == want > 0
+
+
 def test_facades_facing_an_empty_or_blocked_side_give_nothing() -> None:
     """UE points north of building A and east beyond a tall long block C: A's north facade sees
     the north points; its east facade faces C (blocked), south and west face nobody."""

@@ -434,13 +434,13 @@ def test_flop_model_matches_an_instrumented_count(
 
 
 def test_bench_scorer_flops_smoke(capsys: pytest.CaptureFixture[str]) -> None:
-    """benchmarks/bench_scorer.py --sections flops on a small hall (200 pairs, 2 layouts, one
-    repeat): it runs, and every run reports a fraction of the peak measured in the same run
-    (no timing is asserted: the machine may be loaded)."""
+    """benchmarks/planning/bench_scorer.py --sections flops on a small hall (200 pairs, 2 layouts,
+    one repeat): it runs, and every run reports a fraction of the peak measured in the same run (no
+    timing is asserted: the machine may be loaded)."""
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks" / "planning"))
     from bench_scorer import flops
 
     got = flops(2, 1, n_pairs=200, reps=20)
@@ -455,7 +455,7 @@ def test_bench_scorer_refuses_more_layouts_than_the_search_run_has() -> None:
     import sys
     from pathlib import Path
 
-    script = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_scorer.py"
+    script = Path(__file__).resolve().parent.parent / "benchmarks" / "planning" / "bench_scorer.py"
     cmd = [sys.executable, str(script), "--sections", "flops", "--flops-layouts", "277"]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_S, check=False)
     assert res.returncode == 2 and "1 … 276" in res.stderr, res.stderr
@@ -468,7 +468,7 @@ def test_bench_scorer_counts_the_blocks_the_kernel_adds() -> None:
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks" / "planning"))
     from bench_scorer import batch_flops, summed_columns
 
     from ris_planner.inversion import _crb_jit as jit

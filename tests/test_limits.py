@@ -2,7 +2,7 @@
 built: each document below would need gigabytes (or hours); under a 1.5 GiB address-space cap
 each is refused with its limit named – exit status 2 and no MemoryError: nothing was built – by
 the CLI and by the service. How long a refusal takes is the benchmark's figure
-(benchmarks/bench_refusals.py, docs/validation/resources.md)."""
+(benchmarks/service/bench_refusals.py, docs/validation/resources.md)."""
 
 from __future__ import annotations
 
@@ -216,9 +216,9 @@ def test_extreme_relative_weights_give_finite_normalised_pair_weights() -> None:
 
 
 def test_smoke_estimates_cover_the_measured_peak_within_twice() -> None:
-    """benchmarks/bench_memory.py --smoke: each tiny plan run in a fresh process (plan, figures,
-    GIS files, as a job); 1 ≤ estimate / peak RSS ≤ 2 (docs/validation/resources.md)."""
-    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
+    """benchmarks/resources/bench_memory.py --smoke: each tiny plan run in a fresh process (plan,
+    figures, GIS files, as a job); 1 ≤ estimate / peak RSS ≤ 2 (docs/validation/resources.md)."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks" / "resources"))
     from bench_memory import SMOKE, run_case
 
     for case in SMOKE:
@@ -325,11 +325,11 @@ def test_a_ris_size_sweep_is_estimated_at_its_largest_run() -> None:
 
 
 def test_time_model_fit_recovers_covering_coefficients() -> None:
-    """benchmarks/fit_time_model.py on rows whose stage times are a known model of the smoke
-    cases' sizes (each stage its work.py coefficients times a per-stage factor): every case
-    lands in [low, high], and each fitted stage reproduces its rows to the fit's accuracy
-    (a linear model of the same terms exists, so the L1 residual is ~0)."""
-    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
+    """benchmarks/resources/fit_time_model.py on rows whose stage times are a known model of the
+    smoke cases' sizes (each stage its work.py coefficients times a per-stage factor): every case
+    lands in [low, high], and each fitted stage reproduces its rows to the fit's accuracy (a linear
+    model of the same terms exists, so the L1 residual is ~0)."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks" / "resources"))
     from bench_memory import FULL, SMOKE, cache_budget_mb, case_document
     from fit_time_model import NOT_FITTED, fit
     from tolerance import assert_close
@@ -369,7 +369,7 @@ def test_time_model_fit_recovers_covering_coefficients() -> None:
 
 def test_bench_memory_rows_carry_the_time_model_terms() -> None:
     """A bench_memory row holds the sizes the time model used (``terms``), the fit's input."""
-    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).parent.parent / "benchmarks" / "resources"))
     from bench_memory import SMOKE, run_case
 
     got = run_case(SMOKE[0], timeout=HANG_S)

@@ -140,7 +140,7 @@ def test_rest_job_stage_times_sum_to_the_job_time(tmp_path: Path) -> None:
 
 def test_bench_interactive_smoke() -> None:
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "bench_interactive.py"), "--smoke"],
+        [sys.executable, str(ROOT / "benchmarks" / "planning" / "bench_interactive.py"), "--smoke"],
         capture_output=True,
         text=True,
         timeout=HANG_S,

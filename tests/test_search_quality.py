@@ -1,6 +1,6 @@
 """Search quality: the default greedy search against exhaustive search on
 seeded random small instances (tests/search_quality.py; the full table is
-benchmarks/bench_search_quality.py), and how infinite and NaN losses rank."""
+benchmarks/planning/bench_search_quality.py), and how infinite and NaN losses rank."""
 
 from __future__ import annotations
 

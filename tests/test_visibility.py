@@ -374,7 +374,7 @@ def test_compiled_code_loaded_turns_true_with_the_first_kernel() -> None:
 def test_bench_visibility_warm_table_runs() -> None:
     root = Path(__file__).resolve().parents[1]
     done = subprocess.run(
-        [sys.executable, str(root / "benchmarks" / "bench_visibility.py"), "--warm"],
+        [sys.executable, str(root / "benchmarks" / "bounds" / "bench_visibility.py"), "--warm"],
         capture_output=True,
         text=True,
         timeout=HANG_S,

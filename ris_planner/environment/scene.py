@@ -61,7 +61,7 @@ AUTO_COMPILED_WARM_MIN_WORK = 50_000
 (:func:`ris_planner.runtime.kernels.compiled_code_loaded`: a plan after its search, a service
 that answered a plan): the walk then loads from the cache in ≈ 20 ms and runs 30–40× faster
 than the numpy engine (29 obstacles of a city block: 1000 legs 0.5 against 12 ms, 200 000 legs
-28 against 1100 ms, ``benchmarks/bench_visibility.py --warm``); below this numpy's ≈ 10 ms
+28 against 1100 ms, ``benchmarks/bounds/bench_visibility.py --warm``); below this numpy's ≈ 10 ms
 beats the first load."""
 
 VISIBILITY_TOLERANCE_M = 1e-3

@@ -55,6 +55,8 @@ WGS84 = "EPSG:4326"
 _POINT_FIELDS: tuple[tuple[tuple[str, ...], str], ...] = (
     (("candidates", "*", "position"), "p3"),
     (("heatmap_tx",), "p3"),
+    (("pairs", "tx", "*"), "p3"),
+    (("pairs", "rx", "*"), "p3"),
     (("ris", "*", "position"), "p3"),
     (("tx",), "p3s"),
     (("rx",), "p3s"),

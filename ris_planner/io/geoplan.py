@@ -63,7 +63,7 @@ class PlanFiles:
     """Why the GIS files were skipped (the GIS extra is missing), else None."""
     cpu_s: dict[str, float] = field(default_factory=dict)
     """This process's CPU seconds per stage of ``timing_s`` (not in plan.json: the time
-    estimate's calibration, ``benchmarks/bench_memory.py``)."""
+    estimate's calibration, ``benchmarks/resources/bench_memory.py``)."""
 
 
 def plan_document(

@@ -61,6 +61,9 @@ from ris_planner.model.search_methods import (
 )
 from ris_planner.model.simulation import Multipath
 
+MIN_WALL_M = 1e-6
+"""A wall segment shorter than this has coinciding ends."""
+
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
 
@@ -243,7 +246,83 @@ class PairSample(DocumentModel):
         return self
 
 
-PairsSpec = Literal["all", "unordered"] | PairSample
+class PairList(DocumentModel):
+    """Explicit TX–RX pairs (the pair model ``explicit``): the pairs a caller drew or chose
+    itself – a city's pairs handed to the cell that owns them (docs/concepts/district.md,
+    "A city"), measured links, a site survey. Each pair is a TX and an RX of the maps, given
+    either by their **map indices** (``tx_index``, ``rx_index``: the points of the maps as the
+    plan evaluates them, the indices of plan.json ``points``: every source in order – grid,
+    points, roads, CSV –, zero-weight points and points inside an obstacle left out) or by
+    their **positions** (``tx``, ``rx``: each a point of its map, matched within 1 mm). A pair
+    weighs ``weights[k]`` (relative; default 1 each); no pair is redrawn or left out."""
+
+    tx_index: list[Annotated[int, Field(ge=0)]] | None = Field(
+        None, max_length=MAX_PAIRS_LIMIT, description="TX map index of each pair"
+    )
+    rx_index: list[Annotated[int, Field(ge=0)]] | None = Field(
+        None, max_length=MAX_PAIRS_LIMIT, description="RX map index of each pair"
+    )
+    tx: list[Point3] | None = Field(
+        None, max_length=MAX_PAIRS_LIMIT, description="TX position of each pair [m] (a map point)"
+    )
+    rx: list[Point3] | None = Field(
+        None, max_length=MAX_PAIRS_LIMIT, description="RX position of each pair [m] (a map point)"
+    )
+    weights: list[float] | None = Field(
+        None,
+        max_length=MAX_PAIRS_LIMIT,
+        description="Relative weight of each pair (default 1 each; finite, ≥ 0, one positive)",
+    )
+
+    @model_validator(mode="after")
+    def _check_pairs(self) -> PairList:
+        by_index = self.tx_index is not None or self.rx_index is not None
+        by_position = self.tx is not None or self.rx is not None
+        if by_index == by_position:
+            raise ValueError(
+                "explicit pairs need tx_index and rx_index (map indices) or tx and rx"
+                " (positions), one of the two"
+            )
+        tx, rx = (self.tx_index, self.rx_index) if by_index else (self.tx, self.rx)
+        names = "tx_index and rx_index" if by_index else "tx and rx"
+        if tx is None or rx is None:
+            raise ValueError(f"explicit pairs need both {names}")
+        if len(tx) != len(rx) or not tx:
+            raise ValueError(f"{names} must list the same number of pairs, at least one")
+        if by_position:
+            finite_point(np.asarray([*tx, *rx], dtype=float).ravel().tolist(), "a pair position")
+        if self.weights is not None:
+            if len(self.weights) != len(tx):
+                raise ValueError("weights must hold one weight per pair")
+            finite_weights(self.weights, "pair weights")
+            if not any(w > 0 for w in self.weights):
+                raise ValueError("pair weights: at least one must be positive")
+        return self
+
+    @property
+    def size(self) -> int:
+        """The number of pairs."""
+        listed = self.tx_index if self.tx_index is not None else self.tx
+        return len(listed or [])
+
+    @property
+    def by_index(self) -> bool:
+        """Whether the pairs are given by map indices (else by positions)."""
+        return self.tx_index is not None
+
+
+PairsSpec = Literal["all", "unordered"] | PairSample | PairList
+
+
+def pairs_given(spec: PairsSpec, tx_points: int, rx_points: int) -> int:
+    """The pairs a ``pairs`` value gives over maps of ``tx_points`` and ``rx_points`` points,
+    before any is built (``max_pairs`` not applied): every combination (``all``), every
+    unordered pair of one map, the sample, or the listed pairs."""
+    if spec == "unordered":
+        return tx_points * (tx_points - 1) // 2
+    if spec == "all":
+        return tx_points * rx_points
+    return spec.sample if isinstance(spec, PairSample) else spec.size
 
 
 class Candidate(DocumentModel):
@@ -304,8 +383,10 @@ class WallSites(DocumentModel):
             raise ValueError("a wall is either start + end (a segment) or a rectangle")
         pts = [*(self.rectangle or []), *(self.start or []), *(self.end or [])]
         finite_point(pts + list(self.heights_m), "wall coordinate")
-        if seg and np.allclose(self.start, self.end):  # type: ignore[arg-type]
-            raise ValueError("wall start and end coincide")
+        # an absolute length: a relative test calls a short facade far from the origin (a
+        # 1.6 mm wall left between two corner clearances at 400 m) "coinciding"
+        if seg and math.dist(self.start, self.end) < MIN_WALL_M:  # type: ignore[arg-type]
+            raise ValueError(f"wall start and end coincide (closer than {MIN_WALL_M:g} m)")
         if self.rectangle is not None:
             x0, y0, x1, y1 = self.rectangle
             if not (x1 > x0 and y1 > y0):
@@ -1052,7 +1133,8 @@ class PlanDocument(DocumentModel):
         description="all: every TX×RX combination of distinct positions, weight w_T·w_R;"
         " unordered: every unordered pair of distinct points of one map (tx_map = rx_map,"
         " weight w_i·w_j), counted in both directions with half the weight each for the"
-        " metrics rx and tx (max is symmetric); or a seeded sample",
+        " metrics rx and tx (max is symmetric); a seeded sample; or explicit pairs (map indices"
+        " or positions, with weights)",
     )
     max_pairs: int = Field(
         DEFAULT_MAX_PAIRS,
@@ -1154,6 +1236,7 @@ class PlanDocument(DocumentModel):
             )
         if self.pairs == "unordered" and self.tx_map != self.rx_map:
             raise ValueError("pairs 'unordered' needs tx_map and rx_map to be the same map")
+        check_pair_indices(self.pairs, self.tx_map, self.rx_map)
         largest = max(self.max_counts)
         if largest > MAX_DISTRICT_RIS:
             raise ValueError(f"ris_count {largest} is above the limit of {MAX_DISTRICT_RIS}")
@@ -1315,6 +1398,7 @@ class LayoutBeamsDocument(DocumentModel):
             )
         if self.pairs == "unordered" and self.tx_map != self.rx_map:
             raise ValueError("pairs 'unordered' needs tx_map and rx_map to be the same map")
+        check_pair_indices(self.pairs, self.tx_map, self.rx_map)
         if self.beams.layouts:
             raise ValueError("beams.layouts is for plan documents; here 'ris' is the layout")
         if len(self.ris) + 1 > self.system.transmissions:
@@ -1349,6 +1433,18 @@ def map_points(spec: UEMap) -> int:
     if spec.csv_text is not None:
         n += csv_rows(spec.csv_text)
     return n
+
+
+def check_pair_indices(spec: PairsSpec, tx_map: UEMap, rx_map: UEMap) -> None:
+    """Explicit pairs by map index: every index below its map's point count
+    (:func:`map_points`, before the map is built; the built map's own count is checked when
+    the pairs are built)."""
+    if not isinstance(spec, PairList) or not spec.by_index:
+        return
+    for name, idx, m in (("tx_index", spec.tx_index, tx_map), ("rx_index", spec.rx_index, rx_map)):
+        n, top = map_points(m), max(idx or [0])
+        if top >= n:
+            raise ValueError(f"pairs.{name}: index {top} is beyond the map's {n} points")
 
 
 def physics_json(doc: PlanDocument) -> dict[str, Any]:

@@ -128,7 +128,7 @@ class Capabilities:
     """``any`` registered objective kind, or ``coverage`` objectives only (a higher-is-better
     fraction of pairs within a level: the kind has a screen level)."""
     pair_models: frozenset[str]
-    """Pair models it takes: ``all``, ``unordered``, ``sample``."""
+    """Pair models it takes: ``all``, ``unordered``, ``sample``, ``explicit``."""
     wavefronts: frozenset[str]
     """``system.wavefront`` values it takes."""
     codebooks: frozenset[str]
@@ -241,8 +241,16 @@ def sparse_search(doc: PlanDocument) -> bool:
 
 
 def pair_model(doc: PlanDocument) -> str:
-    """The document's pair model: ``all``, ``unordered`` or ``sample``."""
-    return doc.pairs if isinstance(doc.pairs, str) else "sample"
+    """The document's pair model: ``all``, ``unordered``, ``sample`` or ``explicit``."""
+    return pair_model_of(doc.pairs)
+
+
+def pair_model_of(spec: Any) -> str:
+    """The pair model of a ``pairs`` value (:data:`ris_planner.model.plan.PairsSpec`): its name
+    (``all``, ``unordered``), ``sample`` for a sample, ``explicit`` for a list of pairs."""
+    if isinstance(spec, str):
+        return spec
+    return "sample" if hasattr(spec, "sample") else "explicit"
 
 
 def plans_objective(method: SearchMethod, doc: PlanDocument) -> bool:
@@ -318,7 +326,7 @@ def _given(doc: Any, path: str) -> bool:
 
 ENUMERATING = Capabilities(
     objectives="any",
-    pair_models=frozenset({"all", "unordered", "sample"}),
+    pair_models=frozenset({"all", "unordered", "sample", "explicit"}),
     wavefronts=frozenset({"planar", "spherical"}),
     codebooks=frozenset({"expected_random"}),
     options=frozenset(o.name for o in PLAN_OPTIONS),
@@ -356,7 +364,7 @@ def _builtin() -> None:
             " with a certified coverage interval (coverage objectives)",
             Capabilities(
                 objectives="coverage",
-                pair_models=frozenset({"all", "sample"}),
+                pair_models=frozenset({"all", "sample", "explicit"}),
                 wavefronts=frozenset({"planar", "spherical"}),
                 codebooks=frozenset({"expected_random", "directional", "directional_derivative"}),
                 options=frozenset({"sizing", "nested", "validation", "beams"}),

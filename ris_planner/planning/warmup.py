@@ -1,6 +1,6 @@
 """``ris-planner warmup``: compile every numba kernel of the package once, into numba's on-disk
 cache, so that the first plan after an install pays no compilation (docs/getting-started.md,
-"Compiled kernels"; measured by ``benchmarks/bench_cold_start.py``).
+"Compiled kernels"; measured by ``benchmarks/planning/bench_cold_start.py``).
 
 The kernels are found, not listed: every module of the package whose source defines an
 ``@njit`` function (:func:`kernel_modules`) is imported and each numba dispatcher defined in it

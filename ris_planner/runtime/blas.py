@@ -5,10 +5,10 @@ The products there are medium-sized (a [3G̃, N] @ [N, P] steering product, the 
 thread saves little on them, and on a loaded one it costs a lot: with the 2-core machine busy
 the 100 × 100 spherical Gram took 0.46 s with OpenBLAS's two threads against 0.015 s with one
 (the threads wait for each other), and the planar ``random`` layout 0.28–0.43 s against
-0.16–0.18 s (``benchmarks/bench_bounds.py --blas-threads``). One thread also makes the results
-independent of the machine: a threaded Gram partitions its sums differently (spherical FIMs
-moved by ~5e-15 between 1 and 2 threads). The API and the plan's worker processes already run
-with one thread (``api.settings.blas_threads``, :func:`ris_planner.runtime.executor.
+0.16–0.18 s (``benchmarks/bounds/bench_bounds.py --blas-threads``). One thread also makes the
+results independent of the machine: a threaded Gram partitions its sums differently (spherical FIMs
+moved by ~5e-15 between 1 and 2 threads). The API and the plan's worker processes already run with
+one thread (``api.settings.blas_threads``, :func:`ris_planner.runtime.executor.
 capped_blas_threads`).
 
 The limit is process-wide while any caller holds it (BLAS has one thread count); nested and

@@ -3,6 +3,9 @@
 * ``Bounds.time_table1_single_pair``: ``compute_bounds`` of the paper's Table I (one pair);
 * ``Bounds.time_fig10_layout``: the Fig. 10 workload of the 4-RIS layout, ``random``
   codebook (4753 pairs, :func:`ris_planner.model.paper.fig10_pairs`);
+
+The workloads are the benchmarks' own (``benchmarks/fixtures.py``); the district search and the
+Kamppi block are in ``planning.py`` beside this file.
 * ``Planning.time_hall_plan``: a small hall plan (``run_plan``, serial executor);
 * ``Planning.time_hall_site_cache``: the hall's site cache (every site × pair);
 * ``Estimation.time_estimate``: one run of the estimator (Alg. 1 + 2) on a Table I signal;
@@ -19,42 +22,18 @@ from __future__ import annotations
 
 import asyncio
 import os
+import sys
 import tempfile
 from contextlib import ExitStack
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from ris_planner import compute_bounds, load_scenario, preset_document
-from ris_planner.model.paper import fig10_pairs
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: the fixtures
 
+from fixtures import fig10_document, fig10_pairs, small_hall, table1_document
 
-def hall_document(
-    spacing_m: float = 10.0, heights_m: tuple[float, ...] = (3.0,), pairs: int = 400
-) -> dict[str, Any]:
-    """A 40 × 25 m hall, candidate sites on its 4 inner walls (benchmarks/bench_search.py's
-    hall, thinned so a plan takes seconds), a 2 m UE grid at 1.5 m, sampled pairs."""
-    corners = ([0, 0], [40, 0], [40, 25], [0, 25])
-    walls = [
-        {
-            "start": corners[i],
-            "end": corners[(i + 1) % 4],
-            "side": "left",  # counter-clockwise corners: left is inside
-            "heights_m": list(heights_m),
-            "spacing_m": spacing_m,
-        }
-        for i in range(4)
-    ]
-    grid = {"grid": {"x": [2, 38, 2], "y": [2, 23, 2], "z": [1.5, 1.5, 1]}}
-    return {
-        "walls": walls,
-        "tx_map": grid,
-        "rx_map": grid,
-        "pairs": {"sample": pairs, "seed": 0},
-        "objective": {"kind": "coverage", "metric": "rx", "threshold_m": 1.0},
-        "ris_count": [2],
-    }
+from ris_planner import compute_bounds, load_scenario
 
 
 class Bounds:
@@ -63,9 +42,8 @@ class Bounds:
     timeout = 120.0
 
     def setup(self) -> None:
-        self.table1 = load_scenario(preset_document("paper-table1"))
-        doc = preset_document("4-ris") | {"codebook": {"kind": "random", "seed": 0}}
-        self.fig10 = load_scenario(doc)
+        self.table1 = load_scenario(table1_document())
+        self.fig10 = load_scenario(fig10_document("4-ris", "random"))
         self.tx, self.rx = fig10_pairs()
         compute_bounds(self.table1)  # imports and first-call work outside the timing
 
@@ -90,8 +68,8 @@ class Planning:
         from ris_planner.planning.inputs.ue_maps import build_map, build_pairs
         from ris_planner.planning.scoring.visibility import pair_visibility
 
-        self.plan_doc = hall_document()
-        d = PlanDocument.model_validate(hall_document(spacing_m=5.0, pairs=1600))
+        self.plan_doc = small_hall()
+        d = PlanDocument.model_validate(small_hall(spacing_m=5.0, pairs=1600))
         self.system = d.system
         self.sites = expand_sites(d)
         self.pairs = build_pairs(
@@ -128,7 +106,7 @@ class Estimation:
         )
         from ris_planner.model.simulation import EstimatorSettings, Multipath
 
-        doc = preset_document("paper-table1")
+        doc = table1_document()
         doc["system"]["noise_figure_db"] = 0.0
         sc = load_scenario(doc)
         setup = signal_setup(sc)
@@ -145,7 +123,7 @@ class Estimation:
 
 class Rest:
     """A burst of 50 concurrent ``POST /v1/bounds`` (Table I) against a real server, on 50
-    keep-alive connections opened in ``setup`` (as ``benchmarks/bench_api.py``: a new
+    keep-alive connections opened in ``setup`` (as ``benchmarks/service/bench_api.py``: a new
     connection per request costs the client about as much CPU as the server's work)."""
 
     timeout = 300.0
@@ -171,7 +149,7 @@ class Rest:
             raise
         finally:
             os.chdir(here)
-        self.doc = preset_document("paper-table1")
+        self.doc = table1_document()
         self.loop = asyncio.new_event_loop()  # the clients' connections live on this loop
         self.stack.callback(self.loop.close)
         self.clients = [

@@ -15,6 +15,7 @@ from ris_planner.environment import Scene
 from ris_planner.model.limits import MAX_MAP_POINTS
 from ris_planner.model.plan import (
     GridMap,
+    PairList,
     PairSample,
     PairsSpec,
     Road,
@@ -227,7 +228,8 @@ def build_pairs(
     both_directions: bool = False,
     scene: Scene | None = None,
 ) -> PairSet:
-    """Pairs per the document's ``pairs`` (see :class:`PlanDocument`); raises
+    """Pairs per the document's ``pairs`` (see :class:`PlanDocument`: every combination, the
+    unordered ones, a sample or the listed pairs, :func:`listed_pairs`); raises
     :class:`LimitExceededError` naming ``max_pairs`` when there are too many.
     ``both_directions`` (``unordered`` only): every pair i < j also as j → i, weights halved.
     ``scene``: the environment a ``line_of_sight`` sample checks its TX–RX legs against
@@ -241,6 +243,12 @@ def build_pairs(
         if spec.max_separation_m is None and not spec.line_of_sight:
             return _sample_pairs(tx_map, rx_map, spec)
         return _sample_near(tx_map, rx_map, spec, scene or Scene.from_environment(None))
+    if isinstance(spec, PairList):
+        if spec.size > max_pairs:
+            raise LimitExceededError(
+                f"pairs lists {spec.size} TX–RX pairs, above max_pairs = {max_pairs}"
+            )
+        return listed_pairs(tx_map, rx_map, spec)
     count = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
     if spec == "unordered" and both_directions:
         count *= 2
@@ -269,6 +277,51 @@ def build_pairs(
             " magnitude (their products are 0); use weights within 1e-150 of each other"
         )
     return PairSet(tx[keep], rx[keep], w / total, it[keep], ir[keep])
+
+
+PAIR_POSITION_TOLERANCE_M = 1e-3
+"""An explicit pair's position matches a map point this close (:func:`listed_pairs`)."""
+
+
+def listed_pairs(tx_map: PointMap, rx_map: PointMap, spec: PairList) -> PairSet:
+    """The explicit pairs of ``spec`` over the maps (:class:`~ris_planner.model.plan.PairList`),
+    in the listed order, weights normalised to sum 1: map indices as given, positions matched
+    to their map's nearest point (within :data:`PAIR_POSITION_TOLERANCE_M`). Raises naming the
+    first pair whose index is beyond its map, whose position is no point of it (a point inside
+    an obstacle is no longer one), or whose TX and RX coincide."""
+    ends = []
+    for side, pm in (("tx", tx_map), ("rx", rx_map)):
+        if spec.by_index:
+            idx = np.asarray(getattr(spec, f"{side}_index"), dtype=np.int64)
+            bad = np.flatnonzero(idx >= len(pm.points))
+            if bad.size:
+                k = int(bad[0])
+                raise RisPlannerError(
+                    f"pairs.{side}_index[{k}] = {int(idx[k])} is beyond the {side}_map's"
+                    f" {len(pm.points)} points (as planned: zero-weight points and points inside"
+                    " obstacles left out)"
+                )
+        else:
+            from scipy.spatial import cKDTree
+
+            pos = np.asarray(getattr(spec, side), dtype=float)
+            dist, idx = cKDTree(pm.points).query(pos)
+            bad = np.flatnonzero(dist > PAIR_POSITION_TOLERANCE_M)
+            if bad.size:
+                k = int(bad[0])
+                raise RisPlannerError(
+                    f"pairs.{side}[{k}] = {pos[k].tolist()} is no point of the {side}_map (the"
+                    f" nearest is {dist[k]:.3g} m away; a point inside an obstacle is left out)"
+                )
+        ends.append(idx.astype(np.int_))
+    it, ir = ends
+    tx, rx = tx_map.points[it], rx_map.points[ir]
+    same = np.flatnonzero(np.linalg.norm(tx - rx, axis=-1) < MIN_UE_RIS_DISTANCE_M)
+    if same.size:
+        raise RisPlannerError(f"pairs: pair {int(same[0])} has the same TX and RX position")
+    w = np.ones(len(it)) if spec.weights is None else np.asarray(spec.weights, dtype=float)
+    w = unit_scaled(w)
+    return PairSet(tx, rx, w / w.sum(), it, ir)
 
 
 def canonical_unordered(

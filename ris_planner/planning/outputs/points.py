@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from ris_planner.core.io_json import finite_or_none
 from ris_planner.environment import Scene
 from ris_planner.model.objectives import objective_kind
-from ris_planner.model.plan import PairSample
+from ris_planner.model.plan import PairList, PairSample
 from ris_planner.planning.outputs.rx_fields import (
     RxField,
     cell_medians,
@@ -184,11 +184,12 @@ REASON_TOO_FEW_PATHS = (
 def pair_local(result: PlanResult) -> bool:
     """Whether a plan's per-point fields come from its own pairs (:func:`pair_fields`): a
     pair model that keeps a pair's UEs near each other (``pairs.max_separation_m``) – the
-    heatmap's TX population would pair a point with UEs far beyond it – or the district
-    search's sparse scoring, whose pairs are the district's."""
+    heatmap's TX population would pair a point with UEs far beyond it –, explicit pairs (the
+    caller's own), or the district search's sparse scoring, whose pairs are the district's."""
     pairs = result.document.pairs
     near = isinstance(pairs, PairSample) and pairs.max_separation_m is not None
-    return near or result.scorer.storage_json().get("storage") == "sparse"
+    own = near or isinstance(pairs, PairList)
+    return own or result.scorer.storage_json().get("storage") == "sparse"
 
 
 def plan_fields(

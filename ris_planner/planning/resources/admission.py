@@ -13,9 +13,9 @@ temporaries of building them), rounded up; Python objects (sites, memo entries) 
 sizes on CPython 3.11. A plan's memory is the sum of :func:`plan_memory`'s terms, one table
 (:data:`PLAN_MEMORY_TERMS`) that holds each term's bytes with what a refusal says about it; a
 refusal names the largest term and the largest value of its quantity that fits, or that none
-does and which settings to change (:func:`explain_plan_memory`). ``benchmarks/bench_memory.py``
-checks the estimate against the measured peak resident memory of real runs
-(docs/validation/resources.md).
+does and which settings to change (:func:`explain_plan_memory`).
+``benchmarks/resources/bench_memory.py`` checks the estimate against the measured peak resident
+memory of real runs (docs/validation/resources.md).
 """
 
 from __future__ import annotations
@@ -45,7 +45,13 @@ from ris_planner.model.limits import (
     memory_terms,
     rounded,
 )
-from ris_planner.model.plan import LayoutBeamsDocument, PlanDocument, WallSites, map_points
+from ris_planner.model.plan import (
+    LayoutBeamsDocument,
+    PlanDocument,
+    WallSites,
+    map_points,
+    pairs_given,
+)
 from ris_planner.model.search_methods import (
     AUTO,
     MAX_LAYOUT_RIS,
@@ -657,11 +663,7 @@ def plan_shape(doc: PlanDocument, shares: tuple[float, float] | None = None) -> 
     plan without ``shares``, the served-share sample: :func:`document_shares`)."""
     sites = plan_sites(doc)
     n_t, n_r = map_points(doc.tx_map), map_points(doc.rx_map)
-    pairs_spec = doc.pairs
-    if isinstance(pairs_spec, str):
-        pairs = n_t * (n_t - 1) // 2 if pairs_spec == "unordered" else n_t * n_r
-    else:
-        pairs = pairs_spec.sample
+    pairs = pairs_given(doc.pairs, n_t, n_r)
     counts = [c for c in doc.max_counts if c <= sites]
     relaxed = sum(not _exhaustive(doc, sites, c) for c in counts)
     district = sparse_search(doc)
@@ -706,11 +708,7 @@ def estimate_plan(doc: PlanDocument, shares: tuple[float, float] | None = None) 
     the document's :func:`document_shares` when the caller has them)."""
     shape = largest_plan_shape(doc, shares)
     n_t, n_r = shape.tx_points, shape.rx_points
-    pairs_spec = doc.pairs
-    if isinstance(pairs_spec, str):
-        pairs = n_t * (n_t - 1) // 2 if pairs_spec == "unordered" else n_t * n_r
-    else:
-        pairs = pairs_spec.sample
+    pairs = pairs_given(doc.pairs, n_t, n_r)
     heat_rx, heat_tx = shape.heatmap
     return Sizes(
         sites=shape.sites,
@@ -921,11 +919,7 @@ def _refuse(method: SearchMethod, doc: PlanDocument) -> None:
 def _pairs_built(doc: PlanDocument) -> int:
     """The pairs a plan run builds (the sample, or every pair up to ``max_pairs``)."""
     n_t, n_r = map_points(doc.tx_map), map_points(doc.rx_map)
-    spec = doc.pairs
-    if isinstance(spec, str):
-        pairs = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
-    else:
-        pairs = spec.sample
+    pairs = pairs_given(doc.pairs, n_t, n_r)
     return min(pairs, doc.max_pairs)
 
 

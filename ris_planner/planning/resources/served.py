@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.bounds.paths import ris_serves
-from ris_planner.model.plan import PairSample, PlanDocument
+from ris_planner.model.plan import PairList, PairSample, PlanDocument
 from ris_planner.model.search_methods import sparse_search
 
 if TYPE_CHECKING:
@@ -132,6 +132,21 @@ def near_pairs_sample(
     return np.array(tx), np.array(rx), np.ones(len(tx))
 
 
+def listed_sample(
+    tx_map: PointMap, rx_map: PointMap, spec: PairList
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(TX [n, 3], RX [n, 3], weights [n]) of the explicit pairs before the plan builds them:
+    their positions (map indices looked up in the maps as the document gives them; an index
+    beyond a map is left to the plan's own check), for :func:`pair_served_share`."""
+    w = np.ones(spec.size) if spec.weights is None else np.asarray(spec.weights, dtype=float)
+    if not spec.by_index:
+        return np.asarray(spec.tx, dtype=float), np.asarray(spec.rx, dtype=float), w
+    it = np.asarray(spec.tx_index, dtype=np.int64)
+    ir = np.asarray(spec.rx_index, dtype=np.int64)
+    ok = (it < len(tx_map.points)) & (ir < len(rx_map.points))
+    return tx_map.points[it[ok]], rx_map.points[ir[ok]], w[ok]
+
+
 def document_shares(
     doc: PlanDocument,
     maps: tuple[PointMap, PointMap] | None = None,
@@ -140,7 +155,8 @@ def document_shares(
     """(:func:`served_share`, :func:`pair_served_share` over :func:`near_pairs_sample` – for a
     district plan with sampled pairs, else the former) of a validated document: its sites
     (``sites`` when the caller expanded them), maps (``maps``, likewise) and environment,
-    nothing computed on them beyond the sample."""
+    nothing computed on them beyond the sample. Explicit pairs are their own sample: both
+    shares are :func:`pair_served_share` over the listed pairs (:func:`listed_sample`)."""
     from ris_planner.environment import Scene
     from ris_planner.planning.inputs.sites import expand_sites
     from ris_planner.planning.inputs.ue_maps import build_map
@@ -150,6 +166,9 @@ def document_shares(
         maps = build_map(doc.tx_map, "tx_map"), build_map(doc.rx_map, "rx_map")
     tx_map, rx_map = maps
     scene = Scene.from_environment(doc.environment)
+    if isinstance(doc.pairs, PairList):
+        listed = pair_served_share(sites, *listed_sample(tx_map, rx_map, doc.pairs), scene)
+        return listed, listed
     share = served_share(sites, tx_map, rx_map, scene)
     by_pair = share
     if sparse_search(doc) and isinstance(doc.pairs, PairSample):

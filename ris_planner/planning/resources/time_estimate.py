@@ -14,9 +14,10 @@ them) and a seeded sample of its visibility (:func:`served_share`), so the estim
 before any work: ``ris-planner plan`` prints it, a service plan job holds it from its
 submission and plan.json keeps it beside what the run measured (:func:`plan_estimate`,
 :func:`resources_json`). The constants are calibrated with ``python
-benchmarks/bench_memory.py --stages`` (one process per case, ``SerialExecutor``) so that the
-estimate is within [0.8, 1.9] of the measured CPU time on its cases, and checked on held-out
-real sites (``benchmarks/bench_estimates.py``, docs/validation/resources.md).
+benchmarks/resources/bench_memory.py --stages`` (one process per case, ``SerialExecutor``) so
+that the estimate is within [0.8, 1.9] of the measured CPU time on its cases, and checked on
+held-out real sites (``benchmarks/resources/bench_estimates.py``,
+docs/validation/resources.md).
 """
 
 from __future__ import annotations
@@ -109,15 +110,16 @@ TIME_COEFFICIENTS: dict[str, dict[str, float]] = {
     "validation": {"const": 0, "per_estimate": 0.000709, "per_served_estimate": 0.0265},
 }
 """Seconds per unit of each size that drives a stage (:func:`stage_terms` names the sizes),
-fitted to the per-stage CPU seconds of ``python benchmarks/bench_memory.py --stages --json F``
-(the bench's ring cases, and ``--document`` runs of synthetic city grids and of the shipped
-junction and hall, plain, with sizing, nested and validated) by ``python
-benchmarks/fit_time_model.py F … --cpu --low 0.8 --high 1.9`` (docs/validation/resources.md,
-"The time estimate per stage"); none of the real OpenStreetMap sites, which are the held-out
-check (``benchmarks/bench_estimates.py``). ``const`` once, ``per_count`` per RIS count, the rest
-per unit of the size of the same name. ``per_served_…`` terms are the same size times the
-served share (:func:`served_share`: the work that follows the pairs a RIS serves – an open
-ring serves every pair, a city street a few percent); ``…_element_spherical`` terms are the
+fitted to the per-stage CPU seconds of ``python benchmarks/resources/bench_memory.py --stages
+--json F`` (the bench's ring cases, and ``--document`` runs of synthetic city grids and of the
+shipped junction and hall, plain, with sizing, nested and validated) by ``python
+benchmarks/resources/fit_time_model.py F … --cpu --low 0.8 --high 1.9``
+(docs/validation/resources.md, "The time estimate per stage"); none of the real OpenStreetMap
+sites, which are the held-out check (``benchmarks/resources/bench_estimates.py``). ``const``
+once, ``per_count`` per RIS count, the rest per unit of the size of the same name.
+``per_served_…`` terms are the same size times the served share (:func:`served_share`: the
+work that follows the pairs a RIS serves – an open ring serves every pair, a city street a few
+percent); ``…_element_spherical`` terms are the
 spherical model's (its expected Gram and Jacobians sum over the N elements per pair),
 ``per_rescored_site_pair`` the float32 cache's float64 re-score of the reported layouts
 (their sites × pairs, per count), ``per_relaxation_site_pair`` the Frank–Wolfe bound of each
@@ -484,7 +486,7 @@ DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
 }
 """Seconds per unit of the district search's work (:func:`district_terms` names the sizes),
 fitted by hand to the phases of eight district plans on the Helsinki district of
-``benchmarks/bench_district.py`` (500 and 2122 candidates, 5 000 and 20 000 pairs, 20–120
+``benchmarks/district/bench_district.py`` (500 and 2122 candidates, 5 000 and 20 000 pairs, 20–120
 RISs, with and without sizing; docs/validation/resources.md, "District plans"). ``search_main``
 is the main thread: each RIS size's (pair, serving site) entries and candidates (the
 information and its visibility), the greedy path's and the swaps' re-scores (per site placed or
