@@ -303,6 +303,12 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     assert json.loads(Path(dl.value.path()).read_text())["by_count"] == plan["by_count"]
     gj = pg.locator(f"#downloads a[href='{view['figures']['geojson']}']")
     assert gj.get_attribute("download") == f"plan-{job_id[:8]}.geojson"
+    # its name and what it holds are the writers' registry's (GET /v1/plan-files)
+    registry = httpx.get(f"{server}/v1/plan-files", timeout=HANG_S).json()["files"]
+    geo = next(f for f in registry if f["name"] == "geojson")
+    expect(pg.locator("#downloads li", has=gj)).to_contain_text(
+        f"{geo['filename']} – {geo['description']}"
+    )
     assert (
         httpx.get(server + view["figures"]["geojson"], timeout=HANG_S).json()["type"]
         == "FeatureCollection"

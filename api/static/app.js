@@ -75,6 +75,7 @@
     sizingSupported: false,
     bannerKind: null, // "auth" while the banner asks for an API key
     searchMethods: null, // GET /v1/search-methods: {auto, methods, options}
+    planFiles: null, // GET /v1/plan-files: the plan writers' registry (the downloads' names)
     tried: false, // the user asked to validate, submit or generate (problems are shown in red then)
     validating: 0, // validations in flight (window.risPlanner.busy(), for the browser tests)
   };
@@ -992,6 +993,7 @@
    * options it honours (the page's controls for an option a method does not honour are
    * disabled while it is chosen). */
   async function loadSearchMethods() {
+    api("/v1/plan-files").then((body) => { state.planFiles = body.files || []; }).catch(() => {});
     try {
       const body = await api("/v1/search-methods");
       state.searchMethods = body;
@@ -1726,8 +1728,11 @@
     box.append(h("div", { class: "table-wrap" }, table));
   }
 
-  /** File type of a job's non-PNG files by name (ris_planner.io.gis_outputs.GIS_FILES). */
-  const FILE_KINDS = { geojson: "geojson", geotiff: "tif", points_csv: "csv" };
+  /** A job file's entry of the plan writers' registry (GET /v1/plan-files), or undefined: a
+   * figure (PNG). */
+  const planFile = (name) => (state.planFiles || []).find((f) => f.name === name);
+  /** A job file's extension: its registry file name's, else a figure's (png). */
+  const fileKind = (name) => { const f = planFile(name); return f ? f.filename.split(".").pop() : "png"; };
 
   /** Download links: plan.json and every file the job lists (figures, and any other files). */
   function jobFiles(view) {
@@ -1739,7 +1744,7 @@
       const ext = ((url.split("?")[0].match(/\.([A-Za-z0-9]+)$/) || [])[1] || (name.match(/\.([A-Za-z0-9]+)$/) || [])[1] || kind || "file").toUpperCase();
       out.push({ name: typeof ref === "object" && ref.name ? ref.name : name, url, ext });
     };
-    for (const [name, ref] of Object.entries(view.figures || {})) add(name, ref, FILE_KINDS[name] || "png");
+    for (const [name, ref] of Object.entries(view.figures || {})) add(name, ref, fileKind(name));
     const files = view.files || {};
     if (Array.isArray(files)) files.forEach((f, i) => add(f.name || `file ${i + 1}`, f, null));
     else for (const [name, ref] of Object.entries(files)) add(name, ref, null);
@@ -1752,10 +1757,11 @@
     const blob = new Blob([JSON.stringify(state.plan, null, 1)], { type: "application/json" });
     ul.append(h("li", {}, h("a", { href: URL.createObjectURL(blob), download: `plan-${id8}.json` }, "plan.json"), " (the job's result)"));
     for (const f of jobFiles(state.job || {})) {
-      const file = f.name === "geojson" ? `plan-${id8}.geojson` : `${f.name}-${id8}.${f.ext.toLowerCase()}`;
+      const entry = planFile(f.name);
+      const file = entry ? entry.filename.replace(/\.([^.]+)$/, `-${id8}.$1`) : `${f.name}-${id8}.${f.ext.toLowerCase()}`;
       const a = h("a", { href: f.url, download: file }, `${f.name}`);
       if (state.apiKey) a.addEventListener("click", (ev) => { ev.preventDefault(); downloadWithKey(f.url, a.getAttribute("download")); });
-      ul.append(h("li", {}, a, f.name === "geojson" ? " (GEOJSON: plan.geojson – chosen sites, candidates, UE results, buildings)" : ` (${f.ext})`));
+      ul.append(h("li", {}, a, entry ? ` (${f.ext}: ${entry.filename} – ${entry.description})` : ` (${f.ext})`));
     }
     const origin = state.plan && state.plan.frame && state.plan.frame.origin;
     if (origin && Array.isArray(state.plan.candidates) && state.plan.candidates.length) {
