@@ -475,6 +475,8 @@ def test_scripts_and_make_targets_exist() -> None:
                     problems.append(f"{command.where}: {words[1]} does not exist")
                     continue
                 source = script.read_text(encoding="utf-8")
+                if "add_tree_arguments(" in source:  # the A/B harness's own options
+                    source += (ROOT / "benchmarks" / "harness.py").read_text(encoding="utf-8")
                 for flag in (w.split("=")[0] for w in words[2:] if w.startswith("--")):
                     if f'"{flag}"' not in source:
                         problems.append(f"{command.where}: {words[1]} has no option {flag}")

@@ -210,7 +210,8 @@ def test_the_time_estimate_meets_the_recorded_runs(tmp_path: Path) -> None:
     many times: docs/validation/robustness.md, "A loaded machine")."""
     from ris_planner.io.estimates import document_estimate
 
-    sys.path.insert(0, str(ROOT / "benchmarks"))
+    sys.path.insert(0, str(ROOT / "benchmarks" / "resources"))
+    sys.path.insert(1, str(ROOT / "benchmarks"))
     from bench_estimates import HELD_OUT, VARIANTS, write_documents
 
     runs = json.loads(RECORDED.read_text())["runs"]

@@ -446,6 +446,11 @@ LIST_LIMITS: dict[str, tuple[int, str]] = {
     "walls": (MAX_WALLS, "walls"),
     "facades": (MAX_WALLS, "facade groups"),
     "of": (MAX_FACADE_PRISMS, "prism names"),
+    "tx_index": (MAX_PAIRS_LIMIT, "listed pairs"),
+    "rx_index": (MAX_PAIRS_LIMIT, "listed pairs"),
+    "tx": (MAX_PAIRS_LIMIT, "listed pairs"),
+    "rx": (MAX_PAIRS_LIMIT, "listed pairs"),
+    "weights": (MAX_MAP_POINTS, "weights"),
 }
 """The lists a document may carry in bulk, by field name, with their limits (the models'
 ``max_length``: every list whose limit is 1000 items or more); :func:`prescan_document` refuses

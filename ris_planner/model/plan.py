@@ -107,7 +107,9 @@ class GridMap(DocumentModel):
     y: Range
     z: Range
     weights: list[float] | None = Field(
-        None, description="Relative weight of each grid point in x-major order (default all 1)"
+        None,
+        max_length=MAX_MAP_POINTS,
+        description="Relative weight of each grid point in x-major order (default all 1)",
     )
 
     @field_validator("x", "y", "z")
@@ -270,7 +272,7 @@ class PairList(DocumentModel):
     )
     weights: list[float] | None = Field(
         None,
-        max_length=MAX_PAIRS_LIMIT,
+        max_length=MAX_MAP_POINTS,  # one limit for every list named weights (one per pair)
         description="Relative weight of each pair (default 1 each; finite, ≥ 0, one positive)",
     )
 

@@ -246,7 +246,7 @@ def build_pairs(
     if isinstance(spec, PairList):
         if spec.size > max_pairs:
             raise LimitExceededError(
-                f"pairs lists {spec.size} TX–RX pairs, above max_pairs = {max_pairs}"
+                f"pairs lists {spec.size} TX–RX pairs, above max_pairs = {max_pairs}", max_pairs
             )
         return listed_pairs(tx_map, rx_map, spec)
     count = n_t * (n_t - 1) // 2 if spec == "unordered" else n_t * n_r
