@@ -327,6 +327,15 @@ def pairs_given(spec: PairsSpec, tx_points: int, rx_points: int) -> int:
     return spec.sample if isinstance(spec, PairSample) else spec.size
 
 
+def local_pairs(spec: PairsSpec) -> bool:
+    """Whether a ``pairs`` value keeps each pair's UEs near each other – sidelink pairs
+    (``max_separation_m``) or the caller's own listed pairs –, so a plan's per-point fields come
+    from its own pairs rather than from heatmap pairs (docs/concepts/planning.md, "Per-point
+    results")."""
+    near = isinstance(spec, PairSample) and spec.max_separation_m is not None
+    return near or isinstance(spec, PairList)
+
+
 class Candidate(DocumentModel):
     """An explicit candidate site: a RIS pose (docs/concepts/conventions.md; faces local +x)."""
 

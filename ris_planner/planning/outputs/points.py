@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from ris_planner.core.io_json import finite_or_none
 from ris_planner.environment import Scene
 from ris_planner.model.objectives import objective_kind
-from ris_planner.model.plan import PairList, PairSample
+from ris_planner.model.plan import local_pairs
 from ris_planner.planning.outputs.rx_fields import (
     RxField,
     cell_medians,
@@ -186,9 +186,7 @@ def pair_local(result: PlanResult) -> bool:
     pair model that keeps a pair's UEs near each other (``pairs.max_separation_m``) – the
     heatmap's TX population would pair a point with UEs far beyond it –, explicit pairs (the
     caller's own), or the district search's sparse scoring, whose pairs are the district's."""
-    pairs = result.document.pairs
-    near = isinstance(pairs, PairSample) and pairs.max_separation_m is not None
-    own = near or isinstance(pairs, PairList)
+    own = local_pairs(result.document.pairs)
     return own or result.scorer.storage_json().get("storage") == "sparse"
 
 

@@ -49,6 +49,7 @@ from ris_planner.model.plan import (
     LayoutBeamsDocument,
     PlanDocument,
     WallSites,
+    local_pairs,
     map_points,
     pairs_given,
 )
@@ -299,6 +300,9 @@ class PlanShape:
     district_sizes: int = 1
     """RIS sizes whose district information is held at once (the document's and the other
     sizes of ``sizing.ris_sizes``)."""
+    pair_fields: bool = False
+    """The per-point fields come from the plan's own pairs (:func:`local_pairs`): no heatmap
+    pairs are evaluated, only the per-point results are held."""
     obstructed: bool = False
     """The environment has obstacles: the heatmap forms RIS paths for the served pairs only
     (:data:`BYTES_PER_HEATMAP_PAIR_OBSTRUCTED`)."""
@@ -370,13 +374,15 @@ def _heatmap_bytes(shape: PlanShape) -> int:
     if shape.district:
         return 0
     heat_rx, heat_tx = shape.heatmap
+    per_point = BYTES_PER_HEATMAP_POINT + shape.counts * BYTES_PER_HEATMAP_POINT_COUNT
+    if shape.pair_fields:  # the plan's own pairs, already scored: the per-point results only
+        return heat_rx * per_point
     if shape.obstructed and shape.wavefront == "planar":
         per_pair = BYTES_PER_HEATMAP_PAIR_OBSTRUCTED
         per_pair += _ris_in_layout(shape) * BYTES_PER_HEATMAP_PAIR_RIS_OBSTRUCTED
     else:
         per_pair = BYTES_PER_HEATMAP_PAIR[shape.wavefront]
         per_pair += _ris_in_layout(shape) * BYTES_PER_HEATMAP_PAIR_RIS
-    per_point = BYTES_PER_HEATMAP_POINT + shape.counts * BYTES_PER_HEATMAP_POINT_COUNT
     return heat_rx * heat_tx * per_pair + heat_rx * per_point
 
 
@@ -682,6 +688,7 @@ def plan_shape(doc: PlanDocument, shares: tuple[float, float] | None = None) -> 
         wavefront=doc.system.wavefront,
         fixed_heatmap_tx=doc.heatmap_tx is not None,
         district=district,
+        pair_fields=local_pairs(doc.pairs),
         district_share=(document_shares(doc) if shares is None else shares)[1] if district else 0.0,
         district_sizes=len(doc.sizing_ris_sizes()) if district else 1,
         obstructed=doc.environment is not None and bool(doc.environment.obstacles),

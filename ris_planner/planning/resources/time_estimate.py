@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from ris_planner.model.limits import HEATMAP_MAX_PAIRS, budget_mb, grouped
-from ris_planner.model.plan import PlanDocument
+from ris_planner.model.plan import PlanDocument, local_pairs
 from ris_planner.model.search_methods import count_method, sparse_search
 from ris_planner.physics.codebooks import block_length
 from ris_planner.planning.resources.admission import (
@@ -250,8 +250,11 @@ def search_layouts(plan: Sized, count: int) -> float:
 
 def heatmap_pairs(plan: Sized) -> int:
     """TX × RX pairs of the per-point bounds
-    (:func:`~ris_planner.planning.outputs.rx_fields.rx_fields`)."""
+    (:func:`~ris_planner.planning.outputs.rx_fields.rx_fields`); none where the fields come
+    from the plan's own pairs (:func:`~ris_planner.model.plan.local_pairs`)."""
     w = WorkSizes.of(plan)
+    if local_pairs(w.document.pairs):
+        return 0
     n_rx = min(w.rx_points, HEATMAP_MAX_PAIRS)
     n_tx = 1 if w.document.heatmap_tx is not None else w.tx_points
     return min(n_tx * n_rx, max(HEATMAP_MAX_PAIRS, n_rx))
@@ -341,7 +344,7 @@ def _run_terms(w: WorkSizes) -> dict[str, dict[str, float]]:
     f = w.served
     n_points = w.tx_points + w.rx_points
     n_heat = heatmap_pairs(w)
-    n_rx = min(w.rx_points, n_heat)
+    n_rx = min(w.rx_points, n_heat or HEATMAP_MAX_PAIRS)
     obstacles = 0 if doc.environment is None else len(doc.environment.obstacles)
     checked = (1 + RANDOM_CODEBOOK_SEEDS) * sum(counts) * min(n_pairs, RANDOM_CODEBOOK_MAX_PAIRS)
     try:
