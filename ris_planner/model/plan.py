@@ -16,7 +16,14 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from ris_planner.core.errors import LimitExceededError
 from ris_planner.environment.kinds.prism import Prism
@@ -63,6 +70,17 @@ from ris_planner.model.simulation import Multipath
 
 MIN_WALL_M = 1e-6
 """A wall segment shorter than this has coinciding ends."""
+
+
+def _known_method(method: str) -> str:
+    """``auto`` or a registered search method's name (a ValueError naming the known ones)."""
+    if method != AUTO:
+        search_method(method)
+    return method
+
+
+MethodName = Annotated[str, AfterValidator(_known_method)]
+"""A ``method`` field of the plan documents: ``auto`` or a registered search method."""
 
 DEFAULT_MAX_PAIRS = 20_000
 """Default limit on the number of evaluated TX–RX pairs; larger maps need ``pairs.sample``."""
@@ -732,20 +750,13 @@ class Sizing(DocumentModel):
         " servable pairs; a mean_capped or quantile objective without objective.target needs"
         " it)",
     )
-    method: str = Field(
+    method: MethodName = Field(
         AUTO,
         description="The search that answers it at each size: auto (the plan's own enumerating"
         " search where its runs fit the search limits, else the district search – the reason is"
         " in plan.json sizing.search_method) or a registered method",
         json_schema_extra=_method_schema,
     )
-
-    @field_validator("method")
-    @classmethod
-    def _known_method(cls, method: str) -> str:
-        if method != AUTO:
-            search_method(method)  # a ValueError naming the known ones
-        return method
 
     @field_validator("ris_sizes")
     @classmethod
@@ -890,7 +901,7 @@ pays its interpreter, imports and kernels before its first task."""
 class SearchSpec(DocumentModel):
     """The placement search."""
 
-    method: str = Field(
+    method: MethodName = Field(
         AUTO,
         description="auto: the planner chooses – exhaustive when a count's layouts are at most"
         " max_exhaustive, else greedy, and district where those cannot take the document (the"
@@ -900,13 +911,6 @@ class SearchSpec(DocumentModel):
         " lists each method's capabilities",
         json_schema_extra=_method_schema,
     )
-
-    @field_validator("method")
-    @classmethod
-    def _known_method(cls, method: str) -> str:
-        if method != AUTO:
-            search_method(method)  # a ValueError naming the known ones
-        return method
 
     max_exhaustive: int = Field(
         100_000, ge=1, le=5_000_000, description="Largest layout count searched exhaustively"
