@@ -246,11 +246,17 @@ def test_a_real_site_plan_lands_within_the_memory_estimate(tmp_path: Path) -> No
         check=False,
     )
     assert imported.returncode == 0, imported.stderr[-2000:]
-    out = tmp_path / "out"
-    proc = subprocess.run(
-        [*cmd, "plan", str(plan), "--out", str(out)], capture_output=True, text=True, check=False
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    # the estimate is a warm plan's (the install's warm-up compiled every kernel): a first run
+    # makes sure no kernel compiles in the measured one, whatever other tests did to numba's
+    # cache meanwhile (a CI run measured 1100 MiB where a warm run measures 360 MiB)
+    for out in (tmp_path / "warm", tmp_path / "out"):
+        proc = subprocess.run(
+            [*cmd, "plan", str(plan), "--out", str(out)],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert proc.returncode == 0, proc.stderr[-2000:]
     assert LINE.match(proc.stderr.splitlines()[0]), proc.stderr[:300]
     res = json.loads((out / "plan.json").read_text())["resources"]
     memory = res["estimate"]["memory_mib"] / res["measured"]["peak_memory_mib"]

@@ -698,8 +698,9 @@ def test_import_a_geojson_site(page: tuple[Page, Console], server: str, shots: S
 
 def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, shots: Shots) -> None:
     """A street site planned with the district search from the page's controls: the methods
-    listed as GET /v1/search-methods lists them, the controls of an option the district search
-    does not honour disabled (and a document asking for one refused with the server's message);
+    listed as GET /v1/search-methods lists them, a control enabled exactly when the chosen
+    method honours its option (a document asking the district search for one it does not –
+    a sweep – refused with the server's message);
     sidelink pairs at most 30 m apart along the streets with line of sight, a coverage target of
     80 %; the job runs through POST /v1/plans with its progress, and the page shows the one
     results view of every plan: per count the objective with its share of the servable pairs,
@@ -708,7 +709,7 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     from district_site import street_doc
 
     pg, console = page
-    console.allow(r"status of 422")  # the document asking the district search for a check
+    console.allow(r"status of 422")  # the document asking the district search for a sweep
     doc = street_doc(counts=(2, 3))
     doc["pairs"] = {"sample": 300, "seed": 3}  # the page adds the pair model
     del doc["search"]  # and the method
@@ -725,13 +726,13 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
         pg.set_input_files("#upload", files=files)
         expect(pg.locator("#doc-name")).to_contain_text(name)
 
-    # a document asking for the estimator check: the district search refuses it, the page says
+    # a document asking for a parameter sweep: the district search refuses it, the page says
     # so with the server's message (the option is in the document, not in a control)
-    upload(doc | {"validation": {"pairs": 5}}, "streets-checked.json")
+    upload(doc | {"sweep": {"ris_size": [[16, 16], [32, 32]]}}, "streets-swept.json")
     expect(pg.locator("#validation-status")).to_contain_text("14 candidate sites", timeout=WAIT_MS)
     pg.select_option("#f-search-method", "district")
     expect(pg.locator("#other-errors")).to_contain_text(
-        "validation: search method 'district' does not give", timeout=WAIT_MS
+        "sweep: search method 'district' does not give", timeout=WAIT_MS
     )
     upload(doc, "streets.json")
     expect(pg.locator("#validation-status")).to_contain_text("14 candidate sites", timeout=WAIT_MS)
@@ -753,29 +754,28 @@ def test_district_plan_from_the_page(page: tuple[Page, Console], server: str, sh
     def controls(option: str) -> Any:
         return pg.locator(f"[data-plan-option='{option}']")
 
-    # district: the controls of the options it does not honour are disabled and say why, the
-    # pair models and wavefronts it does not take cannot be picked; another method again:
-    # enabled
-    refused = [o for o in listed["options"] if o["name"] not in caps["options"]]
-    assert any(controls(o["name"]).count() for o in refused)  # the estimator check's at least
+    # district: a control is enabled exactly when the method honours its option (the sizing
+    # and the estimator check it does: their hints keep their own text), the pair models and
+    # wavefronts it does not take cannot be picked, the note says what it takes; another
+    # method again: enabled
     pg.select_option("#f-search-method", "district")
-    for o in refused:
-        for k in range(controls(o["name"]).count()):
-            expect(controls(o["name"]).nth(k)).to_be_disabled()
     for o in listed["options"]:
-        if o["name"] in caps["options"]:
-            for k in range(controls(o["name"]).count()):
+        for k in range(controls(o["name"]).count()):
+            if o["name"] in caps["options"]:
                 expect(controls(o["name"]).nth(k)).to_be_enabled()
-    expect(pg.locator("#hint-validate-plan")).to_have_text(
-        f"Not with the {district['label']} search: it does not give"
-        f" {next(o['what'] for o in refused if o['name'] == 'validation')} (validation)."
-    )
+            else:
+                expect(controls(o["name"]).nth(k)).to_be_disabled()
+    assert {"sizing", "validation"} <= set(caps["options"])
+    expect(pg.locator("#validate-plan")).to_be_enabled()
+    expect(pg.locator("#hint-validate-plan")).not_to_contain_text("Not with the")
     choices = (("#f-pairs-mode", caps["pair_models"]), ("#f-wavefront", caps["wavefronts"]))
     for sel, allowed in choices:
         for value in pg.locator(f"{sel} option").evaluate_all("els => els.map(e => e.value)"):
             disabled = pg.locator(f"{sel} option[value='{value}']").is_disabled()
             assert disabled == (value not in allowed), (sel, value)
-    expect(pg.locator("#method-note")).to_contain_text("those controls are disabled")
+    expect(pg.locator("#method-note")).to_contain_text(
+        f"coverage objectives, at most {caps['max_ris']} RISs"
+    )
     pg.select_option("#f-search-method", "exhaustive")
     expect(pg.locator("#validate-plan")).to_be_enabled()
     expect(pg.locator("#f-pairs-mode option[value='unordered']")).to_be_enabled()
