@@ -306,7 +306,8 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     # its name and what it holds are the writers' registry's (GET /v1/plan-files)
     registry = httpx.get(f"{server}/v1/plan-files", timeout=HANG_S).json()["files"]
     geo = next(f for f in registry if f["name"] == "geojson")
-    expect(pg.locator("#downloads li", has=gj)).to_contain_text(
+    geo_link = pg.locator(f"a[href='{view['figures']['geojson']}']")
+    expect(pg.locator("#downloads li", has=geo_link)).to_contain_text(
         f"{geo['filename']} – {geo['description']}"
     )
     assert (
