@@ -10,6 +10,7 @@ import itertools
 import numpy as np
 import pytest
 from district_site import street_doc
+from tolerance import assert_close
 
 from ris_planner.planning.certify import district_cuts as cuts
 from ris_planner.planning.certify import district_lp as lp
@@ -216,3 +217,31 @@ def test_a_large_model_bounds_every_count_from_a_few_solves(truth, monkeypatch) 
         fewest = min(k for k, v in best.items() if v >= goal - 1e-12)
         lower = model.lower_count(goal)
         assert lower is not None and lower <= fewest
+
+
+@pytest.mark.parametrize("wavefront", ["planar", "spherical"])
+def test_prefix_bounds_by_the_square_root_rows_are_the_layouts(
+    wavefront: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The cuts' prefix bounds where the LDLᵀ does not settle a matrix (every matrix here:
+    the square-root rows of the prefix, 3 per entry planar and 7 spherical) equal the bound
+    of the layout of the prefix's sites – a spherical district's cuts broke on the row count
+    before (benchmark district, 20 000 pairs)."""
+    from ris_planner.inversion import crb
+
+    doc = street_doc(threshold_m=1.0)
+    doc["system"] = {**doc.get("system", {}), "wavefront": wavefront}
+    problem = sparse.build_problem(prepare_plan(doc))
+    monkeypatch.setattr(crb, "FAST_TRACE_LIMIT", -1.0)  # every matrix by its rows
+    pairs = np.flatnonzero(np.diff(problem.pair_start) >= 2)[:20]
+    order = np.arange(problem.n_entries)
+    pre = cuts._Prefixes(problem, pairs, order)
+    j = np.minimum(pre.n, 2)
+    got = pre.metric(np.arange(pairs.size), j)
+    for a, p in enumerate(pairs.tolist()):
+        sites = problem.entry_site[problem.pair_start[p] : problem.pair_start[p] + j[a]]
+        want = sparse.LayoutState(problem, sorted(sites.tolist())).metric[p]
+        if np.isinf(want):
+            assert np.isinf(got[a])
+        else:
+            assert_close(got[a], want)

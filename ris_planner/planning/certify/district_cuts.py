@@ -133,15 +133,17 @@ class _Prefixes:
             info += pr.info[extra]
             count = count + 3
 
+        per = pr.factor.shape[1]  # square-root rows per entry: 3 planar, 7 spherical
+
         def rows(k: IntArray) -> FloatArray:
             width = int(j[k].max(initial=0)) + (extra is not None)
-            f = np.zeros((len(k), 1 + 3 * width, pr.n_kept))
+            f = np.zeros((len(k), 1 + per * width, pr.n_kept))
             for a, kk in enumerate(k.tolist()):
                 e = self.entries[self.off[i[kk]] : self.off[i[kk]] + j[kk]]
                 if extra is not None:
                     e = np.append(e, extra[kk])
                 f[a, 0] = pr.los_factor[p[kk], 0]
-                f[a, 1 : 1 + 3 * e.size] = pr.factor[e].reshape(-1, pr.n_kept)
+                f[a, 1 : 1 + per * e.size] = pr.factor[e].reshape(-1, pr.n_kept)
             return f
 
         return entry_metric(pr, info, rows, count)
