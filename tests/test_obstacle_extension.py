@@ -365,7 +365,7 @@ def test_the_page_draws_it_from_its_spec(
         " name: 'in'}); })()"
     )
     pg.evaluate("window.dispatchEvent(new Event('resize'))")  # the page redraws on a resize
-    expect(pg.locator("#cand-inside")).to_contain_text("2 (in) in b1")
+    expect(pg.locator("#cand-inside")).to_contain_text("in [2] in b1")  # name [index]
     shots.take(pg, "obstacle-extension")
 
 

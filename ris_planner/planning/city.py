@@ -30,8 +30,6 @@ pairs, so the city meets it).
 from __future__ import annotations
 
 import math
-import resource
-import sys
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field, replace
@@ -49,6 +47,7 @@ from ris_planner.planning.inputs.ue_maps import PairSet, PointMap
 from ris_planner.planning.pipeline import run_plan
 from ris_planner.planning.prepare import prepare_plan
 from ris_planner.planning.resources.admission import Admitted, admit, resolve_search
+from ris_planner.planning.resources.time_estimate import peak_memory_mib
 from ris_planner.runtime.executor import Executor, SerialExecutor
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 from ris_planner.runtime.provenance import provenance
@@ -375,8 +374,7 @@ def _cell_task(_shared: None, task: tuple[str, dict[str, Any]]) -> dict[str, Any
     cell, document = task
     t0 = time.perf_counter()
     plan = run_plan(document, executor=SerialExecutor()).to_json()
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    peak_mib = peak / (1 << 20) if sys.platform == "darwin" else peak / 1024
+    peak_mib = peak_memory_mib()
     return {
         "cell": cell,
         "plan": plan,

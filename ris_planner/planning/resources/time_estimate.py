@@ -660,8 +660,18 @@ def plan_estimate(plan: Admitted | PlanDocument, memory_mb: int | None = None) -
 
 
 def peak_memory_mib() -> float:
-    """This process's peak resident memory so far [MiB] (``getrusage``; 0 where it is not
-    available)."""
+    """This process's peak resident memory so far [MiB]: Linux's ``VmHWM`` of
+    ``/proc/self/status`` – the high-water mark of this program's own memory since it was
+    started – else ``getrusage``'s ``ru_maxrss`` (0 where neither is available). Not
+    ``ru_maxrss`` on Linux: it survives ``exec``, so a plan started from a large process (a
+    test runner of 1.1 GB) reported its parent's size at the fork as its own peak."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except (OSError, ValueError, IndexError):
+        pass
     try:
         import resource
     except ImportError:  # not POSIX
