@@ -330,3 +330,15 @@ def test_sizing_path_stops_at_the_transmissions() -> None:
     RISs need L + 1 time-orthogonal transmissions) and at most MAX_DISTRICT_RIS."""
     assert search.most_ris(6) == 5
     assert search.most_ris(999) == search.MAX_DISTRICT_RIS
+
+
+def test_a_spherical_plan_is_not_told_to_use_the_spherical_model() -> None:
+    """The near-field advice ("use system.wavefront = 'spherical'") is for planar plans: the
+    benchmark district's spherical plan carried it (docs/validation/benchmarks.md, "District
+    physics"); the same street site planar still does."""
+    doc = street_doc(counts=(2,))
+    planar = run_plan(doc).to_json()["warnings"]
+    assert any(w.startswith("near field") for w in planar)
+    doc["system"] = {**doc.get("system", {}), "wavefront": "spherical"}
+    spherical = run_plan(doc).to_json()["warnings"]
+    assert not any(w.startswith("near field") for w in spherical), spherical

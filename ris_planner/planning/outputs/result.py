@@ -269,8 +269,8 @@ class PlanResult:
 
     def warnings(self) -> list[str]:
         """Expected-random optimism per RIS count, grating lobes of the candidate RISs, the
-        near-field advice for the best layout of the largest count, and candidates that serve
-        (almost) no pair."""
+        near-field advice for the best layout of the largest count (planar plans: a spherical
+        one already models the near field), and candidates that serve (almost) no pair."""
         doc = self.document
         out: list[str | None] = [
             advice.expected_random_warning(doc.system.transmissions, cr.ris_count)
@@ -278,8 +278,9 @@ class PlanResult:
         ]
         wavelength = Radio.from_system(doc.system).wavelength
         out += advice.spacing_warnings([self.sites[0].ris], wavelength, ["the candidate RIS"])
-        far = self.scorer.far_field_of(self.counts[-1].ranked[0][0])
-        out.append(advice.near_field_warning(float((far * self.pairs.weights).sum())))
+        if doc.system.wavefront == "planar":  # the advice is to leave the planar model
+            far = self.scorer.far_field_of(self.counts[-1].ranked[0][0])
+            out.append(advice.near_field_warning(float((far * self.pairs.weights).sum())))
         out += self.site_warnings or []
         return list(dict.fromkeys(w for w in out if w is not None))
 
