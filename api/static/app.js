@@ -989,11 +989,16 @@
     sel.value = names.includes(want) ? want : names.includes(state.schema.methodDefault) ? state.schema.methodDefault : names[0];
   }
 
+  /** GET /v1/plan-files: the plan writers' registry, the downloads' names and descriptions
+   * (without it a job's files are listed by their URL's extension). */
+  function loadPlanFiles() {
+    api("/v1/plan-files").then((body) => { state.planFiles = body.files || []; }).catch(() => {});
+  }
+
   /** GET /v1/search-methods: the list of the search select, each method's description and the
    * options it honours (the page's controls for an option a method does not honour are
    * disabled while it is chosen). */
   async function loadSearchMethods() {
-    api("/v1/plan-files").then((body) => { state.planFiles = body.files || []; }).catch(() => {});
     try {
       const body = await api("/v1/search-methods");
       state.searchMethods = body;
@@ -3021,6 +3026,7 @@
       }).catch(() => { /* a 401 says so in the banner and the status */ });
       loadObjectives().finally(loadPresets);
       loadSearchMethods();
+      loadPlanFiles();
       loadObstacleKinds();
       refreshJobs();
     });
@@ -3056,6 +3062,7 @@
     checkHealth();
     inspectServer();
     loadSearchMethods();
+    loadPlanFiles();
     loadObjectives().finally(loadPresets);
     loadObstacleKinds();
     refreshJobs();
