@@ -149,6 +149,7 @@ class ParsePool:
         self.limiter = anyio.CapacityLimiter(workers)
         self._closed = False
         self._starter: threading.Thread | None = None
+        self._swaps: list[threading.Thread] = []  # replacements under way (joined by close)
         self._idle = [self._new_executor() for _ in range(workers)]
         self._live = set(self._idle)
 
@@ -203,7 +204,9 @@ class ParsePool:
                 if not self._closed:
                     fresh.submit(_ready)
 
-        threading.Thread(target=swap, name="parse-pool-replace", daemon=True).start()
+        thread = threading.Thread(target=swap, name="parse-pool-replace", daemon=True)
+        self._swaps = [t for t in self._swaps if t.is_alive()] + [thread]
+        thread.start()
         return fresh
 
     async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
@@ -243,6 +246,8 @@ class ParsePool:
         self._closed = True
         if self._starter is not None:
             self._starter.join(timeout_s)
+        for thread in list(self._swaps):  # each terminates the executor it replaced
+            thread.join(timeout_s)
         for executor in list(self._live):
             self._terminate(executor, timeout_s)
         self._live.clear()
@@ -250,6 +255,9 @@ class ParsePool:
     @staticmethod
     def _terminate(pool: ProcessPoolExecutor, timeout_s: float = 10.0) -> None:
         procs = list((pool._processes or {}).values())
+        # taken before the shutdown, which forgets them (sets both to None)
+        manager = getattr(pool, "_executor_manager_thread", None)
+        wakeup = getattr(pool, "_executor_manager_thread_wakeup", None)
         pool.shutdown(wait=False, cancel_futures=True)
         for p in procs:
             with contextlib.suppress(OSError, ValueError):
@@ -263,12 +271,10 @@ class ParsePool:
         # the pool's manager thread closes its wake-up pipe on its way out; the interpreter's
         # exit hook writes to that pipe, and on Python 3.11 the two race (EBADF, a traceback
         # in the server's log at shutdown): let the thread finish first
-        manager = getattr(pool, "_executor_manager_thread", None)
         if manager is not None:
             manager.join(timeout_s)
         # and close that pipe here, once the thread is done with it: the exit hook skips a
         # closed one (its descriptor may be gone already: the hook's write then failed, EBADF)
-        wakeup = getattr(pool, "_executor_manager_thread_wakeup", None)
         if wakeup is not None and (manager is None or not manager.is_alive()):
             with contextlib.suppress(OSError):
                 wakeup.close()

@@ -138,6 +138,23 @@ def test_client_disconnect_mid_body_is_no_error(tmp_path: Path) -> None:
     assert "unexpected error" not in text
 
 
+def test_terminated_parse_executor_leaves_nothing_for_the_exit_hook() -> None:
+    """The interpreter's exit hook writes to every live executor's wake-up pipe while that
+    executor's manager thread may be closing it (Python 3.11: EBADF, a traceback in the
+    server's log at shutdown). A terminated executor's manager thread is joined and its pipe
+    closed before ``_terminate`` returns – both were forgotten by ``shutdown`` before."""
+    from api.offload import ParsePool, _ready
+
+    pool = ParsePool._new_executor()
+    assert pool.submit(_ready).result(timeout=HANG_S) > 0
+    manager = getattr(pool, "_executor_manager_thread", None)  # typeshed types it wrongly
+    wakeup = pool._executor_manager_thread_wakeup
+    assert manager is not None and wakeup is not None
+    ParsePool._terminate(pool, HANG_S)
+    assert not manager.is_alive()
+    assert wakeup._closed
+
+
 def nested(depth: int) -> str:
     return "[" * depth + "]" * depth
 
