@@ -61,7 +61,7 @@ PORTABLE_TESTS = tests/test_environment_bounds.py tests/test_beam_design.py test
   tests/test_site_cache_storage.py tests/test_coverage_screen.py tests/test_spherical.py \
   tests/test_planning_physics.py tests/test_planning_rollout.py tests/test_diagnosis.py \
   tests/test_search_quality.py tests/test_api_plan_pool.py tests/test_district.py \
-  tests/test_pairs_separation.py
+  tests/test_pairs_separation.py tests/test_district_physics.py tests/test_city.py
 portable: setup
 	OPENBLAS_CORETYPE=Sandybridge \
 	NPY_DISABLE_CPU_FEATURES="$$($(BIN)/python tests/avx512_features.py)" \
