@@ -242,12 +242,15 @@ def _count_results(
     goal: float | None,
 ) -> tuple[list[CountResult], list[int]]:
     """Each count's :class:`CountResult` (the searched layout re-scored with every serving
-    site, its certificate) and the counts the path never reached (no site adds information)."""
+    site, its certificate) and the counts the path never reached (no site adds information).
+    Each count also tries layouts rounded from the relaxation's site weights (its own, or on a
+    count answered from earlier multipliers those of the last count solved)."""
     required, excluded, conflict = cons
     small = problem.n_sites <= SMALL_DISTRICT_SITES
     rounds = 3 if small else 1
     out: list[CountResult] = []
     missing: list[int] = []
+    weights: NDArray[np.float64] | None = None  # the site weights of the last count solved
     for c in counts:
         step = next((p for p in path if len(p.sites) == c), None)
         if step is None:
@@ -257,8 +260,11 @@ def _count_results(
         found_by = "greedy path and swaps"
         cert = relaxed[c].result()
         ub = cert.bound
-        if cert.lp_value is not None:  # layouts rounded from the relaxation, improved likewise
-            starts = _lp_starts(seen, lp_layouts(cert.z, c, required, excluded, conflict), small)
+        if cert.lp_value is not None:
+            weights = cert.z
+        if weights is not None:  # layouts rounded from the relaxation, improved likewise
+            rounded = lp_layouts(weights, c, required, excluded, conflict)
+            starts = _lp_starts(seen, rounded, small)
             for start, how in starts:
                 other, other_cov = improve(seen, start, required, excluded, rounds, conflict)
                 if other_cov > cov + GAIN_TIE:
