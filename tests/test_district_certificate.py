@@ -127,6 +127,7 @@ def test_the_lower_count_never_exceeds_the_minimum(truth) -> None:
         fewest = min(k for k, v in best.items() if v >= goal - 1e-12)
         lower = model.lower_count(goal)
         assert lower is not None and lower <= fewest, (share, lower, fewest)
+    assert model.separated_rows > 0  # the sizing question's own separation rounds ran
 
 
 def test_required_excluded_and_exclusive_sites_keep_the_bound(truth) -> None:
@@ -176,13 +177,13 @@ def small_site_problems(n: int):
 
 
 def test_random_small_sites_bound_size_and_search_against_exhaustive_truth() -> None:
-    """On random small sites, every count 2–4: the certified bound is at least the exhaustive
-    optimum and the lower count for half the coverable weight at most the true minimum
-    (always); the district search's layout is within 1 % of the optimum in at least 95 % of
-    the counts."""
+    """On random small sites, every count 2–4: the certified bound (with separated cuts) is at
+    least the exhaustive optimum and the lower count for half the coverable weight at most the
+    true minimum (always); the district search's layout is within 1 % of the optimum in at
+    least 95 % of the counts."""
     from ris_planner.planning.search import district as search
 
-    within = total = 0
+    within = total = separated = 0
     for seed, problem in small_site_problems(6):
         needs = lp.sites_needed(problem)
         model = lp.build_relaxation(problem, needs)
@@ -204,7 +205,9 @@ def test_random_small_sites_bound_size_and_search_against_exhaustive_truth() -> 
         if goal > 0 and reach:
             lower = model.lower_count(goal)
             assert lower is not None and lower <= min(reach), seed
+        separated += model.separated_rows
     assert within >= 0.95 * total, (within, total)
+    assert separated > 0
 
 
 def test_a_large_model_bounds_every_count_from_a_few_solves(truth, monkeypatch) -> None:
