@@ -316,3 +316,21 @@ def test_separation_tightens_the_bound_and_keeps_it_valid(truth, monkeypatch) ->
     assert any(r.cut_rounds > 0 for r in got.values()) and model.separated_rows > 0
     for c, r in got.items():
         assert r.bound >= best[c] - 1e-12, c
+
+
+def test_a_pickled_model_keeps_its_separated_rows(truth) -> None:
+    """A model pickled after separation (a plan's result travels to the figures' process) is
+    built again with the separated rows after the count and goal rows; its bounds keep the
+    earlier multipliers (never above the bounds before) and stay above brute force."""
+    import pickle
+
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    model = lp.build_relaxation(problem, needs)
+    before = [model.coverage(c).bound for c in (2, 3)]
+    assert model.separated_rows > 0
+    again = pickle.loads(pickle.dumps(model))
+    assert again.highs is None and again.a.shape == model.a.shape
+    after = [again.coverage(c).bound for c in (2, 3)]
+    for c, b, a in zip((2, 3), before, after, strict=True):
+        assert best[c] - 1e-12 <= a <= b + 1e-12
