@@ -284,6 +284,26 @@ def test_the_relaxations_layout_keeps_the_constraints() -> None:
     assert search.rounded_layout(z, 5, (), (2,), conflict) == (0, 3, 4)  # runs out: fewer
 
 
+def test_lp_roundings_keep_the_constraints_and_are_reproducible() -> None:
+    """The top-L rounding first, then distinct randomized ones of the full count, each with the
+    required site, without the excluded one and never both sites of one mounting point; the
+    same seed gives the same layouts; a site of z = 0 is drawn only after every positive one."""
+    rng = np.random.default_rng(5)
+    z = rng.random(12) * (rng.random(12) > 0.3)
+    conflict = np.zeros((12, 12), dtype=bool)
+    conflict[0, 1] = conflict[1, 0] = True
+    got = search.lp_layouts(z, 4, (5,), (2,), conflict, tries=8)
+    assert got[0] == (search.rounded_layout(z, 4, (5,), (2,), conflict), "LP rounding")
+    assert len({lay for lay, _ in got}) == len(got) > 1
+    positive = set(np.flatnonzero(z > 0).tolist())
+    for lay, how in got:
+        assert how in ("LP rounding", "randomized LP rounding")
+        assert len(lay) == 4 and 5 in lay and 2 not in lay and not {0, 1} <= set(lay)
+        if len(positive - {2}) >= 4:
+            assert set(lay) - {5} <= positive
+    assert got == search.lp_layouts(z, 4, (5,), (2,), conflict, tries=8)
+
+
 def test_what_the_search_sees_is_each_pairs_strongest_sites(site) -> None:
     """strongest(k) keeps, per pair, exactly the k serving sites of largest information on the
     metric's position (brute force over each pair's entries, ties aside), the rest of the

@@ -94,17 +94,25 @@ def test_the_bound_holds_for_every_count_and_any_multipliers(truth) -> None:
             assert ub >= got.lp_value - 1e-6  # no multipliers beat the relaxation's optimum
 
 
-def test_the_persistent_model_answers_as_a_rebuilt_one(truth) -> None:
+def test_the_persistent_model_answers_as_a_rebuilt_one(truth, monkeypatch) -> None:
     """Counts solved one after another in one model (and the sizing question between them)
-    give the bounds of a model built for each."""
-    problem, needs, _, _ = truth
-    model = lp.build_relaxation(problem, needs)
-    goal = 0.5 * model.coverable_weight
-    for count in (3, 1, 5, 2):
-        again = model.coverage(count).bound
-        model.lower_count(goal)
-        fresh = lp.build_relaxation(problem, needs).coverage(count).bound
-        assert again == pytest.approx(fresh, abs=1e-7)
+    give the bounds of a model built for each; with separation, the persistent model keeps
+    every earlier count's separated rows (its bound differs from a rebuilt model's, the rows
+    depending on the points separated) and both stay at least the exhaustive optimum."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    for rounds in (0, lp.SEPARATION_ROUNDS):
+        monkeypatch.setattr(lp, "SEPARATION_ROUNDS", rounds)
+        model = lp.build_relaxation(problem, needs)
+        goal = 0.5 * model.coverable_weight
+        for count in (3, 1, 5, 2):
+            again = model.coverage(count).bound
+            model.lower_count(goal)
+            fresh = lp.build_relaxation(problem, needs).coverage(count).bound
+            if rounds == 0:
+                assert again == pytest.approx(fresh, abs=1e-7)
+            else:
+                assert min(again, fresh) >= best[count] - 1e-12, count
 
 
 def test_the_lower_count_never_exceeds_the_minimum(truth) -> None:
@@ -119,6 +127,7 @@ def test_the_lower_count_never_exceeds_the_minimum(truth) -> None:
         fewest = min(k for k, v in best.items() if v >= goal - 1e-12)
         lower = model.lower_count(goal)
         assert lower is not None and lower <= fewest, (share, lower, fewest)
+    assert model.separated_rows > 0  # the sizing question's own separation rounds ran
 
 
 def test_required_excluded_and_exclusive_sites_keep_the_bound(truth) -> None:
@@ -168,13 +177,13 @@ def small_site_problems(n: int):
 
 
 def test_random_small_sites_bound_size_and_search_against_exhaustive_truth() -> None:
-    """On random small sites, every count 2–4: the certified bound is at least the exhaustive
-    optimum and the lower count for half the coverable weight at most the true minimum
-    (always); the district search's layout is within 1 % of the optimum in at least 95 % of
-    the counts."""
+    """On random small sites, every count 2–4: the certified bound (with separated cuts) is at
+    least the exhaustive optimum and the lower count for half the coverable weight at most the
+    true minimum (always); the district search's layout is within 1 % of the optimum in at
+    least 95 % of the counts."""
     from ris_planner.planning.search import district as search
 
-    within = total = 0
+    within = total = separated = 0
     for seed, problem in small_site_problems(6):
         needs = lp.sites_needed(problem)
         model = lp.build_relaxation(problem, needs)
@@ -196,7 +205,9 @@ def test_random_small_sites_bound_size_and_search_against_exhaustive_truth() -> 
         if goal > 0 and reach:
             lower = model.lower_count(goal)
             assert lower is not None and lower <= min(reach), seed
+        separated += model.separated_rows
     assert within >= 0.95 * total, (within, total)
+    assert separated > 0
 
 
 def test_a_large_model_bounds_every_count_from_a_few_solves(truth, monkeypatch) -> None:
@@ -245,3 +256,81 @@ def test_prefix_bounds_by_the_square_root_rows_are_the_layouts(
             assert np.isinf(got[a])
         else:
             assert_close(got[a], want)
+
+
+def _dense(rows: cuts.CutRows, n_sites: int) -> np.ndarray:
+    """[R, S] the rows' site coefficients."""
+    m = np.zeros((rows.n_rows, n_sites))
+    r = np.repeat(np.arange(rows.n_rows), np.diff(rows.start))
+    np.add.at(m, (r, rows.site), rows.coef)
+    return m
+
+
+def test_no_separated_cut_cuts_off_a_covering_layout(truth, monkeypatch) -> None:
+    """The cuts separated at the relaxation's points of every count and at random points (many
+    different non-covering sets U) hold at y = 1 for every layout that covers their pair
+    (all 2^14 layouts), and U itself (a few per point) leaves its pair uncovered."""
+    problem, needs, layouts, covered = truth
+    monkeypatch.setattr(lp, "SEPARATION_ROUNDS", 0)
+    model = lp.build_relaxation(problem, needs)
+    live = model.live
+    found = []
+    for count in range(1, problem.n_sites + 1):
+        model.coverage(count)
+        h = model._model()
+        x = np.asarray(h.getSolution().col_value)
+        y = model._pairs_of(x)
+        found.append(cuts.separated_cuts(problem, live, y, x[: problem.n_sites], 10**6).rows)
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        z = rng.random(problem.n_sites) * rng.choice([0.1, 0.5, 1.0])
+        y = np.ones(problem.n_pairs)
+        found.append(cuts.separated_cuts(problem, live, y, z, 10**6).rows)
+    assert sum(r.n_rows for r in found) > 50
+    z_all = np.zeros((len(layouts), problem.n_sites))
+    for i, lay in enumerate(layouts):
+        z_all[i, list(lay)] = 1.0
+    for rows in found:
+        rhs = z_all @ _dense(rows, problem.n_sites).T  # [layouts, rows]
+        lhs = covered[:, rows.pair] * rows.y_coef
+        assert (lhs <= rhs + 1e-12).all()
+        for r in range(min(rows.n_rows, 4)):  # U = the pair's serving sites outside the row
+            p = int(rows.pair[r])
+            outside = set(rows.site[rows.start[r] : rows.start[r + 1]].tolist())
+            u = sorted(set(problem.sites_of(p).tolist()) - outside)
+            assert not sparse.LayoutState(problem, u).metric[p] <= problem.threshold
+
+
+def test_separation_tightens_the_bound_and_keeps_it_valid(truth, monkeypatch) -> None:
+    """On the street site, the bound with separated cuts is strictly below the static cuts'
+    at one RIS and at least the exhaustive optimum at every count."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    monkeypatch.setattr(lp, "SEPARATION_ROUNDS", 0)
+    static = [lp.build_relaxation(problem, needs).coverage(c).bound for c in (1, 3)]
+    monkeypatch.setattr(lp, "SEPARATION_ROUNDS", 4)
+    model = lp.build_relaxation(problem, needs)
+    got = {c: model.coverage(c) for c in range(1, problem.n_sites + 1)}
+    assert got[1].bound < static[0] - 1e-3
+    assert got[3].bound <= static[1] + 1e-9
+    assert any(r.cut_rounds > 0 for r in got.values()) and model.separated_rows > 0
+    for c, r in got.items():
+        assert r.bound >= best[c] - 1e-12, c
+
+
+def test_a_pickled_model_keeps_its_separated_rows(truth) -> None:
+    """A model pickled after separation (a plan's result travels to the figures' process) is
+    built again with the separated rows after the count and goal rows; its bounds keep the
+    earlier multipliers (never above the bounds before) and stay above brute force."""
+    import pickle
+
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    model = lp.build_relaxation(problem, needs)
+    before = [model.coverage(c).bound for c in (2, 3)]
+    assert model.separated_rows > 0
+    again = pickle.loads(pickle.dumps(model))
+    assert again.highs is None and again.a.shape == model.a.shape
+    after = [again.coverage(c).bound for c in (2, 3)]
+    for c, b, a in zip((2, 3), before, after, strict=True):
+        assert best[c] - 1e-12 <= a <= b + 1e-12

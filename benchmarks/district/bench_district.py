@@ -93,17 +93,21 @@ def estimate_columns(plan: dict[str, Any]) -> str:
 
 def certificate_table(plan: dict[str, Any]) -> None:
     """Per count: coverage found, the certified bound, the gap, the method that found the
-    layout, the relaxation's own value and its solve time (plan.json
+    layout, its solve time and the rounds of separated cuts (plan.json
     ``search_details.certificate``)."""
     details = plan["search_details"].get("certificate") or {}
     solves = {r["ris_count"]: r for r in details.get("by_count", [])}
     model = details.get("model") or {}
     print(
         f"relaxation: {model.get('columns')} columns, {model.get('rows')} rows"
-        f" ({model.get('cut_rows')} non-cover cuts), {model.get('nonzeros')} nonzeros"
+        f" ({model.get('cut_rows')} non-cover cuts, {model.get('separated_rows')} of them"
+        f" separated), {model.get('nonzeros')} nonzeros"
     )
-    print("| RISs | coverage | share of servable | certified ≤ | gap | found by | LP s |")
-    print("|---|---|---|---|---|---|---|")
+    print(
+        "| RISs | coverage | share of servable | certified ≤ | gap | found by | LP s"
+        " | cut rounds (rows) |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
     for e in plan["by_count"]:
         cert = e["certificate"]
         solve = solves.get(e["ris_count"], {})
@@ -111,6 +115,7 @@ def certificate_table(plan: dict[str, Any]) -> None:
             f"| {e['ris_count']} | {e['objective']:.3f} | {e['share_of_servable']:.3f} |"
             f" {cert['objective_bound']:.3f} | {cert['gap']:.3f} | {e['found_by']} |"
             f" {solve.get('seconds', float('nan')):.1f} |"
+            f" {solve.get('cut_rounds', 0)} ({solve.get('separated_rows', 0)}) |"
         )
 
 

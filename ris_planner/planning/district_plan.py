@@ -5,9 +5,10 @@ per-point fields are every plan's.
 
 :func:`run_district` builds the sparse information
 (:func:`~ris_planner.planning.scoring.sparse.build_problem`), searches each RIS count
-(:func:`~ris_planner.planning.search.district.greedy_path`, swaps, and the relaxation's own
-layout on small districts), certifies it (:mod:`ris_planner.planning.certify.district_lp`, on a
-thread beside the search: HiGHS releases the GIL) and, with ``rollout: nested``, extends each
+(:func:`~ris_planner.planning.search.district.greedy_path`, swaps, and layouts rounded from
+the relaxation's site weights where a count was solved), certifies it
+(:mod:`ris_planner.planning.certify.district_lp`, on a thread beside the search: HiGHS
+releases the GIL) and, with ``rollout: nested``, extends each
 count's nested layout greedily from the previous one. :func:`district_size_rows` answers the
 sizing question at each RIS size: the smallest count its greedy path needs and the certified
 lower bound on any layout's count.
@@ -51,8 +52,8 @@ from ris_planner.planning.search.district import (
     PathStep,
     greedy_path,
     improve,
+    lp_layouts,
     most_ris,
-    rounded_layout,
 )
 from ris_planner.planning.search.layouts import Layout, SearchOutcome
 from ris_planner.planning.search.rollout import NestedStep, rollout_json
@@ -106,10 +107,11 @@ def run_district(
     blocks: int | None = None,
 ) -> PlanResult:
     """The district search's plan run (module docstring): per RIS count the layout of the
-    greedy path improved by swaps (and, on small districts, the relaxation's own layout
-    improved likewise), its exact coverage and the certified upper bound on any layout of that
-    count; in target mode the counts up to the first that reaches the target (a share of the
-    servable pairs; ``goal``: that target as an objective value, when the caller fixed it).
+    greedy path improved by swaps (or a layout rounded from the relaxation's site weights and
+    improved likewise, when better), its exact coverage and the certified upper bound on any
+    layout of that count; in target mode the counts up to the first that reaches the target (a
+    share of the servable pairs; ``goal``: that target as an objective value, when the caller
+    fixed it).
 
     A designed codebook is built for ``blocks`` = Γ time-orthogonal blocks (default
     ``codebook.blocks``, else :func:`initial_blocks`); when a count's layout needs more
@@ -210,7 +212,8 @@ def _certificate_details(
     model: DistrictRelaxation, relaxed: dict[int, Future[Relaxed]]
 ) -> dict[str, Any]:
     """plan.json ``search_details.certificate``: the relaxation's size and, per count, its
-    certified bound, the solver's own value, status and seconds."""
+    certified bound, the solver's own value, status, seconds and the rounds of separated cuts
+    (with the rows they added)."""
     done = {c: f.result() for c, f in relaxed.items() if f.done() and not f.cancelled()}
     return {
         "model": model.size,
@@ -221,6 +224,8 @@ def _certificate_details(
                 "lp_value": r.lp_value,
                 "status": r.status,
                 "seconds": r.seconds,
+                "cut_rounds": r.cut_rounds,
+                "separated_rows": r.separated_rows,
             }
             for c, r in sorted(done.items())
         ],
@@ -237,12 +242,15 @@ def _count_results(
     goal: float | None,
 ) -> tuple[list[CountResult], list[int]]:
     """Each count's :class:`CountResult` (the searched layout re-scored with every serving
-    site, its certificate) and the counts the path never reached (no site adds information)."""
+    site, its certificate) and the counts the path never reached (no site adds information).
+    Each count also tries layouts rounded from the relaxation's site weights (its own, or on a
+    count answered from earlier multipliers those of the last count solved)."""
     required, excluded, conflict = cons
     small = problem.n_sites <= SMALL_DISTRICT_SITES
     rounds = 3 if small else 1
     out: list[CountResult] = []
     missing: list[int] = []
+    weights: NDArray[np.float64] | None = None  # the site weights of the last count solved
     for c in counts:
         step = next((p for p in path if len(p.sites) == c), None)
         if step is None:
@@ -252,17 +260,35 @@ def _count_results(
         found_by = "greedy path and swaps"
         cert = relaxed[c].result()
         ub = cert.bound
-        if small:  # the relaxation's own layout, improved likewise
-            rounded = rounded_layout(cert.z, c, required, excluded, conflict)
-            if len(rounded) == c:
-                other, other_cov = improve(seen, rounded, required, excluded, rounds, conflict)
+        if cert.lp_value is not None:
+            weights = cert.z
+        if weights is not None:  # layouts rounded from the relaxation, improved likewise
+            rounded = lp_layouts(weights, c, required, excluded, conflict)
+            starts = _lp_starts(seen, rounded, small)
+            for start, how in starts:
+                other, other_cov = improve(seen, start, required, excluded, rounds, conflict)
                 if other_cov > cov + GAIN_TIE:
                     layout, cov = other, other_cov
-                    found_by = "LP rounding and swaps"
+                    found_by = f"{how} and swaps"
         out.append(count_result(problem, layout, ub, found_by))
         if goal is not None and -out[-1].ranked[0][1] >= goal - 1e-12:
             break  # target mode: the smallest count that reaches the target
     return out, missing
+
+
+def _lp_starts(
+    seen: DistrictProblem, starts: list[tuple[tuple[int, ...], str]], small: bool
+) -> list[tuple[tuple[int, ...], str]]:
+    """The roundings the swaps start from: on a small district the top-L one and the best
+    randomized one (by the coverage the search sees), on a larger one only the best of all
+    (each swap pass re-scores every pair of the layout's sites)."""
+    if not starts:
+        return []
+    scored = [LayoutState(seen, list(lay)).coverage() for lay, _ in starts]
+    if not small:
+        return [starts[int(np.argmax(scored))]]
+    rest = scored[1:]
+    return starts[:1] + ([starts[1 + int(np.argmax(rest))]] if rest else [])
 
 
 INITIAL_COLOURS = 5

@@ -201,15 +201,35 @@ def static_cuts(problem: DistrictProblem, need: IntArray) -> StaticCuts:
     live = np.flatnonzero(need > 0)
     order = np.lexsort((pr.strength(), pr.entry_pair))
     length, maybe, tests = longest_noncover_prefix(pr, live, order)
+    rows, strong = _prefix_rows(pr, live, order, length, maybe)
+    return StaticCuts(rows, strong, tests)
+
+
+def _prefix_rows(
+    problem: DistrictProblem,
+    pairs: IntArray,
+    order: IntArray,
+    length: IntArray,
+    maybe: BoolArray,
+) -> tuple[CutRows, IntArray]:
+    """The cut of each pair of ``pairs`` with a non-covering prefix (``length`` ≥ 0) of its
+    entries in ``order`` (:func:`longest_noncover_prefix`), and per pair [P] the size of T."""
+    pr = problem
     strong = np.zeros(pr.n_pairs, dtype=np.int64)
     cut = length >= 0
-    pairs = live[cut]
+    pairs = pairs[cut]
     rest = pr.pair_start[pairs + 1] - pr.pair_start[pairs] - length[cut]
     strong[pairs] = rest
     first = np.repeat(pr.pair_start[pairs] + length[cut], rest)
     at = first + np.arange(int(rest.sum())) - np.repeat(np.cumsum(rest) - rest, rest)
     g = maybe[at]
-    all_g = np.add.reduceat(g.astype(np.int64), np.cumsum(rest) - rest) == rest
+    starts = np.cumsum(rest) - rest
+    all_g = (
+        np.add.reduceat(g.astype(np.int64), starts) == rest
+        if at.size
+        else np.ones(pairs.size, dtype=bool)
+    )
+    all_g |= rest == 0
     two = ~all_g
     coef = np.where(np.repeat(two, rest), np.where(g, 2.0, 1.0), 1.0)
     rows = CutRows(
@@ -219,7 +239,7 @@ def static_cuts(problem: DistrictProblem, need: IntArray) -> StaticCuts:
         pr.entry_site[order[at]],
         coef,
     )
-    return StaticCuts(rows, strong, tests)
+    return rows, strong
 
 
 def counting_rows(problem: DistrictProblem, need: IntArray) -> CutRows:
@@ -245,3 +265,98 @@ def violated(rows: CutRows, y: FloatArray, z: FloatArray) -> BoolArray:
     rhs = np.add.reduceat(rows.coef * z[rows.site], rows.start[:-1]) if rows.site.size else 0.0
     rhs = np.where(np.diff(rows.start) > 0, rhs, 0.0)
     return np.asarray(rows.y_coef * y[rows.pair] > rhs + 1e-12)
+
+
+SEPARATION_EXTENSIONS = 2
+""":func:`separated_cuts` grows each pair's non-covering set this many times past the first
+site that would make it cover (each time one more bisection over the sites left)."""
+
+VIOLATION_TOL = 1e-6
+"""A separated cut is added only where the relaxation's point breaks it by more than this
+(per unit of y: the row over its y coefficient)."""
+
+
+def take(rows: CutRows, index: IntArray) -> CutRows:
+    """The rows ``index`` of ``rows`` (in that order)."""
+    per = np.diff(rows.start)[index]
+    first = np.repeat(rows.start[:-1][index], per)
+    at = first + np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)
+    return CutRows(
+        rows.pair[index],
+        rows.y_coef[index],
+        np.concatenate([[0], np.cumsum(per)]).astype(np.int64),
+        rows.site[at],
+        rows.coef[at],
+    )
+
+
+def row_slack(rows: CutRows, y: FloatArray, z: FloatArray) -> FloatArray:
+    """[rows] how far (y [P], z [S]) breaks each row, per unit of its y coefficient
+    (positive: broken)."""
+    per = np.diff(rows.start)
+    rhs = np.zeros(rows.n_rows)
+    if rows.site.size:
+        sums = np.add.reduceat(rows.coef * z[rows.site], rows.start[:-1][per > 0])
+        rhs[per > 0] = sums
+    return np.asarray((rows.y_coef * y[rows.pair] - rhs) / rows.y_coef)
+
+
+@dataclass(frozen=True)
+class Separated:
+    """:func:`separated_cuts`: the violated rows (most violated × weight first), how many
+    pairs were tried and how many exact evaluations it took."""
+
+    rows: CutRows
+    tried: int
+    tests: int
+
+
+def separated_cuts(
+    problem: DistrictProblem,
+    pairs: IntArray,
+    y: FloatArray,
+    z: FloatArray,
+    max_rows: int,
+) -> Separated:
+    """Non-cover cuts that the relaxation's point (y [P], z [S]) breaks, for the pairs
+    ``pairs``: per pair, U a maximal non-covering set grown from the sites the point favours
+    (largest z first, ties by increasing strength): the longest surely non-covering prefix in
+    that order (bisection), then – :data:`SEPARATION_EXTENSIONS` times – the sites t with
+    U ∪ {t} surely non-covering moved before the others and the longest prefix found again
+    (it only grows: the old prefix is still one). The cut is the one of
+    :func:`static_cuts` for that U (with its 2-cut form where some U ∪ {t} fails). Every
+    row comes from the same exact, margined test (:func:`noncovering`), so each is valid for
+    every covering layout whatever the point. At most ``max_rows`` rows: the largest
+    violation × pair weight first."""
+    pr = problem
+    pairs = np.asarray(pairs, dtype=np.int64)
+    if pairs.size == 0:
+        return Separated(CutRows.empty(), 0, 0)
+    zs = z[pr.entry_site]
+    order = np.lexsort((pr.strength(), -zs, pr.entry_pair))
+    length, maybe, tests = longest_noncover_prefix(pr, pairs, order)
+    for _ in range(SEPARATION_EXTENSIONS):
+        ok = length >= 0
+        grow = pairs[ok]
+        if grow.size == 0:
+            break
+        # positions of each pair: 0 in the prefix, 1 after it and surely failing with it, 2 else
+        pos_pair = pr.entry_pair
+        prefix_end = np.full(pr.n_pairs, -1, dtype=np.int64)
+        prefix_end[grow] = pr.pair_start[grow] + length[ok]
+        q = np.arange(pr.n_entries)
+        group = np.where(q < prefix_end[pos_pair], 0, np.where(maybe, 2, 1))
+        group[prefix_end[pos_pair] < 0] = 0  # other pairs keep their order
+        order = order[np.lexsort((q, group, pos_pair))]
+        new_length, maybe, more = longest_noncover_prefix(pr, grow, order)
+        tests += more
+        if np.array_equal(new_length, length[ok]):
+            length[ok] = new_length
+            break
+        length[ok] = new_length
+    rows, _ = _prefix_rows(pr, pairs, order, length, maybe)
+    slack = row_slack(rows, y, z)
+    broken = np.flatnonzero(slack > VIOLATION_TOL)
+    score = slack[broken] * pr.weights[rows.pair[broken]]
+    keep = broken[np.argsort(-score, kind="stable")[:max_rows]]
+    return Separated(take(rows, keep), int(pairs.size), tests)

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csr_matrix, vstack
 
-from ris_planner.planning.certify.district_cuts import CutRows, static_cuts
+from ris_planner.planning.certify.district_cuts import CutRows, separated_cuts, static_cuts
 from ris_planner.planning.scoring.sparse import (
     DistrictProblem,
     LayoutState,
@@ -232,6 +232,11 @@ class Relaxed:
     z: FloatArray
     status: str
     seconds: float
+    cut_rounds: int = 0
+    """Rounds of separated non-cover cuts added and solved again (:meth:`DistrictRelaxation.
+    separate`)."""
+    separated_rows: int = 0
+    """The rows those rounds added."""
 
 
 class DistrictRelaxation:
@@ -284,13 +289,19 @@ class DistrictRelaxation:
         self.b = np.concatenate(rhs)
         self.w = np.zeros(n_var)
         self.w[pr.n_sites : pr.n_sites + live.size] = pr.weights[live]
+        self.y_of = y_of
         self.cut_rows = 0 if cuts is None else cuts.n_rows
+        self.separated_rows = 0
         self.conflict_rows = len(groups)
-        self.count_row = int(self.a.shape[0])
+        # the solver's rows: a's first n_base rows, the count and goal rows, then the rows
+        # separation appends to a (:meth:`add_cuts`)
+        self.n_base = int(self.a.shape[0])
+        self.count_row = self.n_base
         self.goal_row = self.count_row + 1
         self.highs: Any = None
         self.mode = ""
         self.multipliers: list[FloatArray] = []
+        self.solved_counts = 0
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickled without the solver's model (a plan's result travels to the figures'
@@ -318,17 +329,8 @@ class DistrictRelaxation:
         hi[list(self.excluded)] = 0.0
         none = np.zeros(0, dtype=np.int32)
         h.addCols(n_var, np.zeros(n_var), lo, hi, 0, none, none, np.zeros(0))
-        a = self.a
         inf = highspy.kHighsInf
-        h.addRows(
-            a.shape[0],
-            np.full(a.shape[0], -inf),
-            self.b,
-            a.nnz,
-            a.indptr[:-1].astype(np.int32),
-            a.indices.astype(np.int32),
-            a.data,
-        )
+        _add_rows(h, self.a[: self.n_base], self.b[: self.n_base])
         sites = np.arange(pr.n_sites, dtype=np.int32)
         ys = np.arange(pr.n_sites, pr.n_sites + live.size, dtype=np.int32)
         h.addRows(
@@ -340,7 +342,40 @@ class DistrictRelaxation:
             np.concatenate([sites, ys]),
             np.concatenate([np.ones(sites.size), pr.weights[live]]),
         )
+        if self.a.shape[0] > self.n_base:  # separated rows (a model built again)
+            _add_rows(h, self.a[self.n_base :], self.b[self.n_base :])
         return h
+
+    def add_cuts(self, cuts: CutRows) -> None:
+        """Append non-cover cut rows to the relaxation (and to the solver's model, whose basis
+        stays: the next solve starts from it). Earlier multipliers stay valid, with zero on
+        the new rows."""
+        if cuts.n_rows == 0:
+            return
+        m = _cut_matrix(cuts, self.y_of, self.n_var).tocsr()
+        self.a = vstack([self.a, m]).tocsr()
+        self.b = np.concatenate([self.b, np.zeros(cuts.n_rows)])
+        self.cut_rows += cuts.n_rows
+        self.separated_rows += cuts.n_rows
+        if self.highs is not None:
+            _add_rows(self.highs, m, np.zeros(cuts.n_rows))
+
+    def _pairs_of(self, x: FloatArray) -> FloatArray:
+        """[P] the y of a solution over every pair (zero for the pairs never covered)."""
+        y = np.zeros(self.problem.n_pairs)
+        n = self.problem.n_sites
+        y[self.live] = x[n : n + self.live.size]
+        return y
+
+    def separate(self, x: FloatArray) -> CutRows:
+        """One round of separation at the solution ``x``: the non-cover cuts it breaks
+        (:func:`~ris_planner.planning.certify.district_cuts.separated_cuts`, at most
+        :data:`CUTS_PER_ROUND`, over the pairs with y above :data:`SEPARATION_Y`), added."""
+        y = self._pairs_of(x)
+        pairs = self.live[y[self.live] > SEPARATION_Y]
+        sep = separated_cuts(self.problem, pairs, y, x[: self.problem.n_sites], CUTS_PER_ROUND)
+        self.add_cuts(sep.rows)
+        return sep.rows
 
     @property
     def size(self) -> dict[str, int]:
@@ -349,6 +384,7 @@ class DistrictRelaxation:
             "columns": self.n_var,
             "rows": int(self.a.shape[0]) + 2,
             "cut_rows": self.cut_rows,
+            "separated_rows": self.separated_rows,
             "exclusive_rows": self.conflict_rows,
             "nonzeros": int(self.a.nnz) + self.problem.n_sites + int(self.live.size),
         }
@@ -365,6 +401,9 @@ class DistrictRelaxation:
         duals = np.asarray(sol.row_dual, dtype=float)
         if x.size != self.n_var or duals.size != self.a.shape[0] + 2:
             x, duals = np.zeros(self.n_var), np.zeros(self.a.shape[0] + 2)
+        # in a's row order: the count and goal rows last
+        nb = self.n_base
+        duals = np.concatenate([duals[:nb], duals[nb + 2 :], duals[nb : nb + 2]])
         value = float(h.getInfo().objective_function_value)
         return status, value, x, duals, time.perf_counter() - t0
 
@@ -386,17 +425,31 @@ class DistrictRelaxation:
             return Relaxed(0.0, 0.0, np.zeros(n), "no coverable pair", 0.0)
         status, z, seconds = "not solved: earlier multipliers", np.zeros(n), 0.0
         lp_value: float | None = None
-        if not self.large or len(self.multipliers) < LARGE_SOLVES:
+        rounds = added = 0
+        if not self.large or self.solved_counts < LARGE_SOLVES:
             h = self._model()
             if self.mode != "coverage":
                 h.changeColsCost(self.n_var, np.arange(self.n_var, dtype=np.int32), -self.w)
                 h.changeRowBounds(self.goal_row, -highspy.kHighsInf, highspy.kHighsInf)
                 self.mode = "coverage"
             h.changeRowBounds(self.count_row, float(count), float(count))
-            status, value, x, duals, seconds = self._solve()
+            self.solved_counts += 1
+            t0 = time.perf_counter()
+            status, value, x, duals, _ = self._solve()
             self.multipliers.append(np.maximum(0.0, -duals[: self.a.shape[0]]))
             lp_value, z = -value, x[:n]
-        return Relaxed(self.bound_at(count), lp_value, z, status, seconds)
+            t1 = time.perf_counter()
+            while rounds < SEPARATION_ROUNDS and time.perf_counter() - t1 < SEPARATION_SECONDS:
+                cuts = self.separate(x)
+                if cuts.n_rows == 0:
+                    break
+                rounds += 1
+                added += cuts.n_rows
+                status, value, x, duals, _ = self._solve()
+                self.multipliers.append(np.maximum(0.0, -duals[: self.a.shape[0]]))
+                lp_value, z = -value, x[:n]
+            seconds = time.perf_counter() - t0
+        return Relaxed(self.bound_at(count), lp_value, z, status, seconds, rounds, added)
 
     def bound_at(self, count: int) -> float:
         """The least Lagrangian coverage bound at ``count`` over the stored multipliers
@@ -407,7 +460,7 @@ class DistrictRelaxation:
                 self.a,
                 self.b,
                 self.w,
-                lam,
+                self._padded(lam),
                 self.problem.n_sites,
                 count,
                 self.required,
@@ -415,6 +468,10 @@ class DistrictRelaxation:
             )
             bound = min(bound, value)
         return bound
+
+    def _padded(self, lam: FloatArray) -> FloatArray:
+        """Multipliers of an earlier solve over today's rows (zero on the rows added since)."""
+        return np.concatenate([lam, np.zeros(self.a.shape[0] - lam.size)])
 
     def count_from_bounds(self, goal: float) -> int:
         """The smallest count whose coverage bound (:meth:`bound_at`) reaches ``goal``: no
@@ -445,13 +502,39 @@ class DistrictRelaxation:
             h.changeRowBounds(self.count_row, 0.0, highspy.kHighsInf)
             self.mode = "count"
         h.changeRowBounds(self.goal_row, float(goal), highspy.kHighsInf)
-        _, _, _, duals, _ = self._solve()
-        lam = np.maximum(0.0, -duals[: self.a.shape[0]])
-        nu = max(0.0, float(duals[self.goal_row]))
-        value = lagrangian_count(
-            self.a, self.b, self.w, lam, nu, goal, pr.n_sites, self.required, self.excluded
-        )
-        return max(len(self.required), certified_count(value), from_bounds)
+        best = -math.inf
+        t0 = time.perf_counter()
+        for round_ in range(SEPARATION_ROUNDS + 1):
+            _, _, x, duals, _ = self._solve()
+            if round_ == 0:
+                t0 = time.perf_counter()
+            lam = np.maximum(0.0, -duals[: self.a.shape[0]])
+            nu = max(0.0, float(duals[-1]))  # the goal row's
+            value = lagrangian_count(
+                self.a, self.b, self.w, lam, nu, goal, pr.n_sites, self.required, self.excluded
+            )
+            best = max(best, value)
+            if round_ == SEPARATION_ROUNDS or time.perf_counter() - t0 > SEPARATION_SECONDS:
+                break
+            if self.separate(x).n_rows == 0:
+                break
+        return max(len(self.required), certified_count(best), from_bounds)
+
+
+def _add_rows(h: Any, a: csr_matrix, b: FloatArray) -> None:
+    """Rows ``a x ≤ b`` appended to the HiGHS model ``h``."""
+    import highspy
+
+    a = a.tocsr()
+    h.addRows(
+        a.shape[0],
+        np.full(a.shape[0], -highspy.kHighsInf),
+        b,
+        a.nnz,
+        a.indptr[:-1].astype(np.int32),
+        a.indices.astype(np.int32),
+        a.data,
+    )
 
 
 def _cut_matrix(cuts: CutRows, y_of: IntArray, n_var: int) -> csr_matrix:
@@ -583,6 +666,21 @@ LARGE_SOLVES = 2
 """Above :data:`SIMPLEX_MAX_NONZEROS`, the coverage relaxation is solved for at most this many
 counts; every other count's bound, and the sizing's lower count, are the Lagrangian values of
 the multipliers of those solves (valid at any count: :meth:`DistrictRelaxation.coverage`)."""
+
+SEPARATION_ROUNDS = 4
+"""Per solved count (and per sizing question), the most rounds of separated non-cover cuts
+(:meth:`DistrictRelaxation.separate`) added and solved again; each round's multipliers are
+one more Lagrangian bound (the least is kept)."""
+
+SEPARATION_SECONDS = 20.0
+"""No new separation round starts once a count's rounds (separation and solves after the
+count's first solve) have taken this long."""
+
+CUTS_PER_ROUND = 4000
+"""The most separated rows one round adds (the most violated × pair weight first)."""
+
+SEPARATION_Y = 1e-6
+"""Separation looks at the pairs whose y exceeds this in the relaxation's solution."""
 
 LP_TIME_LIMIT_S = 120.0
 """Seconds one solve of :class:`DistrictRelaxation` may take; a solve stopped there still

@@ -7,7 +7,8 @@ locality (docs/concepts/district.md, "Search").
   only its own pairs, so only the entries of those pairs are evaluated again (incremental
   scoring: one batched inversion over a handful of matrices per step).
 * :func:`improve`: a swap pass on the true coverage (and pair swaps on small layouts).
-* :func:`rounded_layout`: a layout from a relaxation's site weights.
+* :func:`rounded_layout`, :func:`lp_layouts`: layouts from a relaxation's site weights (top-L
+  and randomized roundings).
 
 The information is the sparse one of :mod:`ris_planner.planning.scoring.sparse`; the search
 sees each pair's :data:`SEARCH_SITES` strongest serving sites
@@ -324,6 +325,45 @@ def rounded_layout(
         if conflict is not None:
             banned |= conflict[s]
     return tuple(sorted(taken))
+
+
+LP_ROUNDINGS = 4
+"""Randomized roundings of the relaxation's site weights tried per count besides the top-L
+one (:func:`lp_layouts`)."""
+
+LP_ROUNDING_SEED = 0
+"""Seed of :func:`lp_layouts`' randomized roundings (a plan is reproducible)."""
+
+
+def lp_layouts(
+    z: FloatArray,
+    count: int,
+    required: tuple[int, ...],
+    excluded: tuple[int, ...],
+    conflict: BoolArray | None,
+    tries: int = LP_ROUNDINGS,
+    seed: int = LP_ROUNDING_SEED,
+) -> list[tuple[tuple[int, ...], str]]:
+    """Layouts of ``count`` sites from a relaxation's site weights ``z``, each with how it was
+    rounded: the top-L one (:func:`rounded_layout`), then ``tries`` randomized ones – sites
+    drawn without replacement with probability ∝ z (Gumbel keys on log z, fixed seed), the
+    conflicts honoured as in :func:`rounded_layout`. Repeated layouts and layouts short of
+    ``count`` sites are left out."""
+    out = [(rounded_layout(z, count, required, excluded, conflict), "LP rounding")]
+    rng = np.random.default_rng(seed)
+    logz = np.log(np.maximum(z, 1e-12))
+    for _ in range(tries):
+        key = logz + rng.gumbel(size=z.size)
+        out.append(
+            (rounded_layout(key, count, required, excluded, conflict), "randomized LP rounding")
+        )
+    seen: set[tuple[int, ...]] = set()
+    kept = []
+    for lay, how in out:
+        if len(lay) == count and lay not in seen:
+            seen.add(lay)
+            kept.append((lay, how))
+    return kept
 
 
 def most_ris(transmissions: int) -> int:
