@@ -130,6 +130,7 @@ def test_every_layout_fits_the_blocks_of_its_one_information_build(
     monkeypatch.setattr(district_plan, "INITIAL_COLOURS", 2)
     doc = _designed("directional_derivative")
     doc["ris_count"] = [2, 3, 4]
+    doc["sizing"] = {"ris_sizes": [[16, 16]], "target": {"objective": 0.3}}
     plan = run_plan(doc).to_json()
     assert builds == [3]  # one information build, for Γ = 3
     timing = plan["search_details"]["time_orthogonal"]
@@ -147,6 +148,10 @@ def test_every_layout_fits_the_blocks_of_its_one_information_build(
         sites = {int(s) for s in colours[h["ris_count"]]}
         assert not sites & set(h["removed"]) and set(h["added"]) <= sites
     assert "colours" in plan["timing_s"]
+    # the sizing's greedy path reaches the target only with 3 colours: no answer, and why
+    (row,) = plan["sizing"]["sizes"]
+    assert row["count"] is None and row["sites"] is None
+    assert "3 profile colours, more than the Γ − 1 = 2" in row["note"]
 
 
 def test_designed_codebooks_are_refused_by_the_enumerating_searches() -> None:

@@ -489,6 +489,8 @@ def district_size_rows(
                 )
             lb = lower()
             row = _size_row((r, c), pr, seen, steps, goal, lb, best)
+            if pr.codebooks.designed and row.sites is not None:
+                row = _held_size_row(pr, seen, row, goal, cons)
             rows.append(replace(row, coverable=float(pr.weights[nd.need > 0].sum())))
             row = rows[-1]
             if row.count is not None and (best is None or r * c * row.count < best):
@@ -535,6 +537,36 @@ def _size_row(
         return SizeRow(size, None, lower, note=note)
     cov = LayoutState(problem, list(hit.sites)).coverage() if seen is not problem else hit.coverage
     return SizeRow(size, len(hit.sites), lower, cov, tuple(hit.sites))
+
+
+def _held_size_row(
+    problem: DistrictProblem, seen: DistrictProblem, row: SizeRow, goal: float, cons: Constraints
+) -> SizeRow:
+    """A designed plan's sizing answer held to the Γ − 1 profile colours its information was
+    computed with (:func:`~ris_planner.planning.search.colour_fit.fit_colours`): the held
+    layout when it still reaches ``goal``, else no count, saying why."""
+    from ris_planner.planning.search.colour_fit import fit_colours
+
+    assert row.sites is not None and row.count is not None
+    colours = problem.codebooks.blocks - 1
+    fit = fit_colours(problem, seen, row.sites, colours, *cons)
+    if not fit.removed:
+        return row if fit.fits else _unheld(problem, row, colours)
+    cov = LayoutState(problem, list(fit.layout)).coverage()
+    if cov < goal - 1e-12:
+        return _unheld(problem, row, colours)
+    note = f"held to {colours} profile colours: {len(fit.removed)} sites exchanged"
+    return replace(row, sites=fit.layout, objective=cov, note=note)
+
+
+def _unheld(problem: DistrictProblem, row: SizeRow, colours: int) -> SizeRow:
+    assert row.sites is not None
+    need = int(profile_colours(problem, row.sites).max()) + 1
+    note = (
+        f"the greedy path reaches the target at {row.count} RISs with {need} profile colours,"
+        f" more than the Γ − 1 = {colours} its designed information was computed with"
+    )
+    return replace(row, count=None, objective=None, sites=None, note=note)
 
 
 def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:
