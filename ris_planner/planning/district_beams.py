@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -222,13 +222,21 @@ def _sdp_per_ris(
     so the layout's ``sdp`` allocation is the served-weight mean of the solved RISs' powers
     (a convex combination: Σ δ² = G̃ kept); ``None`` when no RIS's SDP solved – never a
     silent fallback: each RIS's status is in the rows."""
-    from ris_planner.power.sdp import mean_trace_bound, objective_index, solve_power_sdp
+    from ris_planner.power.sdp import (
+        mean_trace_bound,
+        objective_index,
+        position_traces,
+        solve_power_sdp,
+    )
 
     spec = result.document.beams
     assert spec is not None
     objective = POWER_OBJECTIVE_OF_METRIC[result.document.objective.metric]
     serves = result.scorer.serves(layout)
     resolved = np.isfinite(own.metric)
+    member = np.zeros(problem.n_sites, dtype=bool)
+    member[list(layout)] = True
+    strength = problem.strength()
     per = min(spec.design_positions, SDP_POSITIONS_PER_RIS)
     g_tilde = gamma_p.size
     rows: list[dict[str, Any]] = []
@@ -243,17 +251,31 @@ def _sdp_per_ris(
             row["message"] = "the layout resolves none of the pairs this RIS serves"
             continue
         pick = design_positions(problem.weights, mine, per, spec.seed + int(s))
-        info = _position_information(result, inputs, layout, blocks, pick, gamma)
         t0 = time.perf_counter()
-        sdp = solve_power_sdp(info, objective, solver=spec.solver)
+        rises = [_strongest_rises(problem, strength, member, int(s), p) for p in pick.tolist()]
+        info = _position_information(result, inputs, layout, blocks, pick, gamma, rises)
         index = objective_index(info, objective)
+        finite = np.isfinite(position_traces(info, np.ones(g_tilde), index))
+        row["positions_singular"] = int((~finite).sum())
+        if not finite.any():
+            row |= {"status": "no design positions", "design_positions": 0}
+            row["message"] = (
+                f"each of the {pick.size} design positions is singular with its"
+                f" {SDP_RISES_PER_POSITION} strongest RISs"
+            )
+            continue
+        info = _take_positions(info, np.flatnonzero(finite))
+        t_info = time.perf_counter() - t0
+        sdp = solve_power_sdp(info, objective, solver=spec.solver)
         row |= {
-            "design_positions": int(pick.size),
+            "design_positions": int(finite.sum()),
+            "information_s": t_info,
             "status": sdp.status,
             "solver": sdp.solver,
             "message": sdp.message,
             "solve_time_s": sdp.solve_time_s,
             "seconds": time.perf_counter() - t0,
+            "rises_per_position": max(len(r) for r in rises),
             "design_objective_m2": {
                 "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
                 "gamma_p": finite_or_none(mean_trace_bound(info, gamma_p, index)),
@@ -269,6 +291,37 @@ def _sdp_per_ris(
     w = np.array([x for x, _ in solved])
     mean = (w[:, None] * np.array([p for _, p in solved])).sum(axis=0) / w.sum()
     return rows, mean * (g_tilde / mean.sum())
+
+
+SDP_RISES_PER_POSITION = 6
+"""RISs that describe a design position of a per-RIS SDP: the RIS itself and the layout's
+strongest others serving the position (by their information on the metric's position,
+:meth:`~ris_planner.planning.scoring.sparse.DistrictProblem.strength`) – the LMI's size stays
+small however many RISs the layout has."""
+
+
+def _strongest_rises(
+    problem: DistrictProblem, strength: FloatArray, member: NDArray[np.bool_], site: int, pair: int
+) -> list[int]:
+    """``site`` and up to :data:`SDP_RISES_PER_POSITION` − 1 other layout sites serving
+    ``pair``, strongest first (``strength`` [E]: :meth:`DistrictProblem.strength`)."""
+    lo, hi = problem.pair_start[pair], problem.pair_start[pair + 1]
+    sites = problem.entry_site[lo:hi]
+    keep = member[sites] & (sites != site)
+    strength = strength[lo:hi][keep]
+    others = sites[keep][np.argsort(-strength, kind="stable")]
+    return [site, *[int(x) for x in others[: SDP_RISES_PER_POSITION - 1]]]
+
+
+def _take_positions(info: Any, idx: NDArray[np.int_]) -> Any:
+    """The :class:`~ris_planner.power.information.BeamInformation` of positions ``idx``."""
+    from ris_planner.power.information import PathBlocks
+
+    paths = tuple(
+        PathBlocks(p.blocks[idx], p.maps[idx], p.name, p.jacobian[idx], p.present[idx])
+        for p in info.paths
+    )
+    return replace(info, stack=info.stack[idx], paths=paths)
 
 
 def _sdp_summary(rows: list[dict[str, Any]], solver: str) -> dict[str, Any]:
@@ -330,18 +383,21 @@ def _position_information(
     blocks: dict[int, SeparableBlock],
     pick: NDArray[np.int_],
     gamma: int,
+    mine: list[list[int]] | None = None,
 ) -> Any:
     """The stacked per-beam information of the design positions in the plan's Γ blocks: each
-    with the layout's RISs that serve it, padded with RISs that serve nobody to the most any
-    position has (one state size for all: a padding RIS's gains are decoupled from every other
-    state, :data:`~ris_planner.power.information.ABSENT_GAIN_INFORMATION`)."""
+    with the layout's RISs that serve it (``mine``: the RISs of each position, when the caller
+    chose them), padded with RISs that serve nobody to the most any position has (one state
+    size for all: a padding RIS's gains are decoupled from every other state,
+    :data:`~ris_planner.power.information.ABSENT_GAIN_INFORMATION`)."""
     from ris_planner.planning.beams import layout_scenario
     from ris_planner.power.information import BeamInformation, PathBlocks, beam_information
 
     doc = result.document
     pairs = inputs.pairs
-    serves = result.scorer.serves(layout)  # [L, P]
-    mine = [[s for j, s in enumerate(layout) if serves[j, p]] for p in pick.tolist()]
+    if mine is None:
+        serves = result.scorer.serves(layout)  # [L, P]
+        mine = [[s for j, s in enumerate(layout) if serves[j, p]] for p in pick.tolist()]
     width = max(len(m) for m in mine)  # every position's state padded to the same size
     pad = padding_ris(inputs.sites[layout[0]].ris)
     parts = []
