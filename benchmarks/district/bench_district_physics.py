@@ -21,6 +21,7 @@ RISs, 5 validated pairs): a check that the script runs, not a measurement.
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 import tempfile
@@ -100,7 +101,7 @@ def run_table(work: Path, base: dict[str, Any], pairs: int, beams: bool) -> dict
     return rows
 
 
-def validation(base: dict[str, Any], pairs: int, n: int) -> None:
+def validation(work: Path, base: dict[str, Any], pairs: int, n: int) -> None:
     """``--validate`` of the designed plan at the first count, then the same check with the
     site's first-order reflections in the simulated signal: one plan (in this process), the
     plan's own estimator check (:func:`~ris_planner.planning.outputs.estimator_check.
@@ -137,13 +138,15 @@ def validation(base: dict[str, Any], pairs: int, n: int) -> None:
             body = result.validation
             seconds = result.timing.get("validation", float("nan"))
         assert body is not None
+        (work / f"validation-reflections-{reflections}.json").write_text(json.dumps(body))
         lay = body["layouts"][0]
         ratios = [p["ratio"] for p in lay["pairs"] if p["bound_covered"] and p["ratio"]]
         med = statistics.median(ratios) if ratios else float("nan")
         outl = sum(lay["outliers"].values())
+        causes = ", ".join(f"{k} {v}" for k, v in lay["outliers"].items() if v)
         print(
             f"| {reflections} | {lay['estimator_coverage']:.3f} | {lay['bound_coverage']:.3f} |"
-            f" {med:.2f} | {outl} | {seconds:.1f} |"
+            f" {med:.2f} | {outl} ({causes}) | {seconds:.1f} |"
         )
     print(f"(the plan with the first check: {plan_s:.1f} s)")
 
@@ -169,7 +172,7 @@ def main() -> None:
     print(f"work folder {work}; {len(base['candidates'])} candidates, {args.pairs} pairs")
     run_table(work, base, args.pairs, not args.no_beams)
     if args.validate:
-        validation(base, args.pairs, args.validate)
+        validation(work, base, args.pairs, args.validate)
 
 
 if __name__ == "__main__":
