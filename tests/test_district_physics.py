@@ -100,12 +100,58 @@ def test_a_designed_district_plan_reports_its_blocks_and_codebook() -> None:
     timing = plan["search_details"]["time_orthogonal"]
     assert timing["blocks"] >= timing["blocks_needed"]
     assert 192 % timing["blocks"] == 0 and timing["beams_per_block"] == 192 // timing["blocks"]
+    assert timing["information_builds"] == 1 and timing["blocks"] == timing["designed_for"]
     for row in timing["counts"]:
         assert row["blocks_needed"] == block_count(192, row["colours"])
+        assert row["colours"] <= timing["designed_for"] - 1  # fits the information's blocks
         assert len(row["colour_of_site"]) == row["ris_count"]
     cb = plan["search_details"]["codebook"]
     assert cb["kind"] == "directional_derivative" and cb["blocks"] == timing["blocks"]
     assert sum(cb["slot_powers"]) == pytest.approx(cb["beams_per_block"], rel=1e-12)
+
+
+def test_every_layout_fits_the_blocks_of_its_one_information_build(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Γ is fixed before the designed information and the layouts are held to its Γ − 1
+    profile colours: with the planner's first Γ too small for the searched layouts (2
+    colours: Γ = 3), the plan builds the information once – no second run with a larger Γ –
+    and every reported layout's colours fit, the held ones re-scored exactly."""
+    import ris_planner.planning.district_plan as district_plan
+
+    builds: list[int] = []
+    real = district_plan.build_problem
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        builds.append(kwargs.get("blocks", 0))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(district_plan, "build_problem", counted)
+    monkeypatch.setattr(district_plan, "INITIAL_COLOURS", 2)
+    doc = _designed("directional_derivative")
+    doc["ris_count"] = [2, 3, 4]
+    doc["sizing"] = {"ris_sizes": [[16, 16]], "target": {"objective": 0.3}}
+    plan = run_plan(doc).to_json()
+    assert builds == [3]  # one information build, for Γ = 3
+    timing = plan["search_details"]["time_orthogonal"]
+    assert timing["information_builds"] == 1 and timing["designed_for"] == 3
+    assert timing["blocks"] == 3 and timing["blocks_needed"] <= 3
+    assert all(row["colours"] <= 2 for row in timing["counts"])
+    held = timing["held_to_blocks"]
+    assert held and all(h["fits"] and h["removed"] and h["added"] for h in held)
+    by_count = {e["ris_count"]: e for e in plan["by_count"]}
+    colours = {row["ris_count"]: row["colour_of_site"] for row in timing["counts"]}
+    for h in held:
+        assert by_count[h["ris_count"]]["objective"] == pytest.approx(
+            h["coverage_after"], abs=1e-12
+        )
+        sites = {int(s) for s in colours[h["ris_count"]]}
+        assert not sites & set(h["removed"]) and set(h["added"]) <= sites
+    assert "colours" in plan["timing_s"]
+    # the sizing's greedy path reaches the target only with 3 colours: no answer, and why
+    (row,) = plan["sizing"]["sizes"]
+    assert row["count"] is None and row["sites"] is None
+    assert "3 profile colours, more than the Γ − 1 = 2" in row["note"]
 
 
 def test_designed_codebooks_are_refused_by_the_enumerating_searches() -> None:
@@ -117,24 +163,69 @@ def test_designed_codebooks_are_refused_by_the_enumerating_searches() -> None:
         admit(doc)
 
 
-def test_district_beams_solve_one_allocation_the_rises_share() -> None:
-    """``beams`` on a district plan: each count's layout gets DIR+DER blocks, the γ_P search and
-    the appendix SDP over the slot powers on the same design positions – the SDP's optimum
-    (mean PEB² there, by the bounds' route) is never above γ_P's, a feasible point of it, and
-    neither above uniform powers – and the layout is re-scored on every pair under each."""
+def test_district_beams_solve_one_sdp_per_ris() -> None:
+    """``beams`` on a district plan: each count's layout gets DIR+DER blocks, the γ_P search
+    over the layout's design positions and the appendix SDP once per RIS over the positions it
+    serves – each RIS's optimum (mean PEB² there, by the bounds' route) never above γ_P's or
+    uniform powers', both feasible points of it – its status and time as data, and the layout
+    re-scored on every pair under each allocation."""
     doc = _designed("directional_derivative") | {"beams": {"design_positions": 12}}
     doc["ris_count"] = [3]
     plan = run_plan(doc).to_json()
     (lay,) = plan["beams"]["layouts"]
-    assert lay["sdp"]["status"] in ("optimal", "inaccurate"), lay["sdp"]
+    sdp = lay["sdp"]
+    assert [r["site"] for r in sdp["per_ris"]] == lay["sites"]
+    solved = [r for r in sdp["per_ris"] if r["status"] in ("optimal", "inaccurate")]
+    assert solved, sdp
+    for r in solved:
+        own = r["design_objective_m2"]
+        assert 1 <= r["design_positions"] <= 8 and r["solve_time_s"] > 0
+        assert own["sdp"] <= own["gamma_p"] * (1 + SDP_ACCURACY)
+        assert own["sdp"] <= own["uniform"] * (1 + SDP_ACCURACY)
+    assert sum(sdp["status_counts"].values()) == len(lay["sites"])
+    assert sdp["solve_time_s"] == pytest.approx(
+        sum(r.get("solve_time_s", 0) for r in sdp["per_ris"])
+    )
     design = lay["design_objective_m2"]
-    assert design["sdp"] <= design["gamma_p"] * (1 + SDP_ACCURACY)
     assert design["gamma_p"] <= design["uniform"] * (1 + SDP_ACCURACY)
     for name in ("dir_der_uniform", "dir_der_gamma_p", "dir_der_sdp"):
         assert 0.0 <= lay["objective"][name] <= 1.0
     assert sum(lay["powers"]["sdp"]) == pytest.approx(lay["beams_per_block"], rel=1e-9)
     colours = plan["search_details"]["time_orthogonal"]["counts"][0]["colour_of_site"]
     assert [r["colour"] for r in lay["ris"]] == [colours[str(s)] for s in lay["sites"]]
+
+
+def test_a_failed_per_ris_sdp_is_data_never_a_silent_fallback(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A RIS whose SDP fails keeps its status and message in its row and adds nothing to the
+    layout's allocation; when every RIS's SDP fails the layout has no ``sdp`` allocation (no
+    powers, no objective) rather than another in its place."""
+    import ris_planner.power.sdp as sdp_module
+
+    real = sdp_module.solve_power_sdp
+    calls: list[int] = []
+
+    def failing(info, objective="rx", solver="CLARABEL", total_power=None):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) == 1 or fail_all:
+            return sdp_module.SdpResult("failed", None, None, 0.0, solver, "test: solver failed")
+        return real(info, objective, solver, total_power)
+
+    monkeypatch.setattr(sdp_module, "solve_power_sdp", failing)
+    doc = _designed("directional_derivative") | {"beams": {"design_positions": 12}}
+    doc["ris_count"] = [3]
+    fail_all = False
+    (lay,) = run_plan(doc).to_json()["beams"]["layouts"]
+    rows = lay["sdp"]["per_ris"]
+    assert rows[0]["status"] == "failed" and rows[0]["message"] == "test: solver failed"
+    assert rows[0]["design_objective_m2"]["sdp"] is None
+    assert lay["sdp"]["status_counts"]["failed"] == 1 and "sdp" in lay["powers"]
+    fail_all = True
+    (lay,) = run_plan(doc).to_json()["beams"]["layouts"]
+    assert lay["sdp"]["status_counts"] == {"failed": 3}
+    assert "sdp" not in lay["powers"] and "dir_der_sdp" not in lay["objective"]
+    assert lay["design_objective_m2"]["sdp"] is None
 
 
 def test_district_validation_checks_each_pair_with_the_rises_it_hears() -> None:

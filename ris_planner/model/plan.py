@@ -962,7 +962,8 @@ class BeamsSpec(DocumentModel):
         ge=1,
         le=MAX_DESIGN_POSITIONS,
         description="Pairs (LMIs) the γ_P search and the SDP optimise over: a seeded weighted"
-        " subsample of the pairs the layout resolves",
+        " subsample of the pairs the layout resolves (district plans: the γ_P search's; each"
+        " RIS's own SDP takes at most 8 of the pairs it serves)",
     )
     seed: int = Field(0, ge=0, description="Seed of the beam samples and the design positions")
     random_seeds: int = Field(

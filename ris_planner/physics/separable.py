@@ -26,7 +26,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ris_planner.physics.beams import BEAM_DER_XI, BEAM_DER_ZETA, ZERO_AMPLITUDE_RTOL
-from ris_planner.physics.fim import transmission_gram
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -101,18 +100,48 @@ def separable_gram(
 ) -> ComplexArray:
     """Q [P, 3, 3] = Σ_g w_g conj(t_g) t_gᵀ of the planar model, t_g = ωᵀ[∂a_R/∂ξ, ∂a_R/∂ζ,
     a_R] (the layout of :func:`ris_planner.physics.fim.transmission_gram`), for the pairs'
-    spatial frequencies ξ, ζ [P] and the block's beam powers ``weights`` [G̃] (δ²)."""
+    spatial frequencies ξ, ζ [P] and the block's beam powers ``weights`` [G̃] (δ²).
+
+    The distinct factors only (a DIR+DER sample's DIR and DER_ζ beams share their column
+    factor, its DIR and DER_ξ beams their row factor): one [2U, C] @ [C, p] product per block
+    of pairs for X and X′ over the U distinct columns, likewise rows; the phasors of the
+    uniform grid by a running product along the axis (:func:`grid_phasors`)."""
     k = 2 * np.pi / wavelength
     out = np.empty((xi.size, 3, 3), dtype=complex)
-    dy, dz = 1j * k * yc, 1j * k * zr
+    col_u, col_of = np.unique(block.cols, axis=0, return_inverse=True)
+    row_u, row_of = np.unique(block.rows, axis=0, return_inverse=True)
+    col_of, row_of = col_of.reshape(-1), row_of.reshape(-1)
+    n_col, n_row = col_u.shape[0], row_u.shape[0]
+    cy = np.concatenate([col_u, col_u * (1j * k * yc)])  # [2U, C]: X and X′
+    cz = np.concatenate([row_u, row_u * (1j * k * zr)])
+    w = np.asarray(weights, dtype=float)[:, None]
     for s in range(0, xi.size, PAIR_CHUNK):
         e = min(xi.size, s + PAIR_CHUNK)
-        a_y = np.exp(1j * k * np.multiply.outer(yc, xi[s:e]))  # [C, p]
-        a_z = np.exp(1j * k * np.multiply.outer(zr, zeta[s:e]))  # [R, p]
-        x = block.cols @ a_y  # [G̃, p]
-        x_d = block.cols @ (dy[:, None] * a_y)
-        z = block.rows @ a_z
-        z_d = block.rows @ (dz[:, None] * a_z)
-        t = np.stack([x_d * z, x * z_d, x * z], axis=-1).transpose(1, 0, 2)  # [p, G̃, 3]
-        out[s:e] = transmission_gram(t, weights)
+        xx = cy @ grid_phasors(yc, xi[s:e], k)  # [2U, p]
+        zz = cz @ grid_phasors(zr, zeta[s:e], k)
+        x, x_d = xx[col_of], xx[n_col + col_of]  # [G̃, p]
+        z, z_d = zz[row_of], zz[n_row + row_of]
+        t = (x_d * z, x * z_d, x * z)
+        conj = [np.conj(v) * w for v in t]
+        q = out[s:e]
+        for i in range(3):
+            q[:, i, i] = np.einsum("gp,gp->p", conj[i], t[i]).real
+            for j in range(i + 1, 3):
+                q[:, i, j] = np.einsum("gp,gp->p", conj[i], t[j])
+                q[:, j, i] = np.conj(q[:, i, j])
+    return out
+
+
+def grid_phasors(axis: FloatArray, freq: FloatArray, k: float) -> ComplexArray:
+    """[n, p] e^{jk u_i f} on a uniform axis u [n] for the frequencies f [p]: the first row
+    by its exponential, the others by the running product of the step's phasor e^{jk Δu f}
+    (n − 1 products per pair instead of n exponentials; the phase error grows by one rounding
+    per step, n·ε at the far end)."""
+    out = np.empty((axis.size, freq.size), dtype=complex)
+    if axis.size == 0:
+        return out
+    out[0] = np.exp(1j * k * axis[0] * freq)
+    if axis.size > 1:
+        out[1:] = np.exp(1j * k * (axis[1] - axis[0]) * freq)
+        np.cumprod(out, axis=0, out=out)
     return out

@@ -13,15 +13,18 @@ For each count's layout (and ``beams.layouts``):
    position's state has the same size): its per-beam information
    (:func:`ris_planner.power.information.beam_information` with the plan's Γ).
 3. **Power**: the slot powers δ² of the block are the transmitting UE's per transmission, the
-   same for every RIS a pair hears: one allocation for the district – γ_P (eq.
-   opt_formulation_3, :func:`ris_planner.power.gamma.search_gamma_p`) and the appendix SDP
-   (:func:`ris_planner.power.sdp.solve_power_sdp`, its status as data), each minimising the
-   mean PEB² over the design positions.
+   same for every RIS a pair hears. γ_P (eq. opt_formulation_3,
+   :func:`ris_planner.power.gamma.search_gamma_p`) is searched once for the layout over the
+   design positions; the appendix SDP (:func:`ris_planner.power.sdp.solve_power_sdp`) is
+   solved once per RIS of the layout, over at most :data:`SDP_POSITIONS_PER_RIS` pairs it
+   serves (a small SDP each: its status, time and objectives as data, per RIS and in total),
+   and the layout's ``sdp`` allocation is the served-weight mean of the solved RISs' powers.
 4. **Coverage**: the layout re-scored on every pair with each allocation
    (:func:`ris_planner.planning.scoring.sparse.layout_information`), next to the plan's own.
 
-plan.json ``beams.layouts[i]``: the objectives, the SDP's status, solver, time and powers,
-γ_P, the design positions, and per RIS its site, colour and beams (each slot's type and
+plan.json ``beams.layouts[i]``: the objectives, the per-RIS SDPs (``sdp.per_ris``: status,
+solver, message, seconds, objectives; ``sdp.status_counts``, total seconds), the powers, γ_P,
+the design positions, and per RIS its site, colour and beams (each slot's type and
 spatial frequencies, from which eqs. sum_diff_beam_1–3 give its phases) with the digest of its
 phases.
 """
@@ -30,7 +33,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -109,7 +112,7 @@ def layout_beams(
 ) -> DistrictBeams:
     """One layout's :class:`DistrictBeams` (module docstring)."""
     from ris_planner.power.gamma import search_gamma_p
-    from ris_planner.power.sdp import mean_trace_bound, objective_index, solve_power_sdp
+    from ris_planner.power.sdp import mean_trace_bound, objective_index
 
     doc = result.document
     spec = doc.beams
@@ -132,14 +135,17 @@ def layout_beams(
     index = objective_index(info, objective)
     gp = search_gamma_p(lambda p: mean_trace_bound(info, p, index), types)
     timing_s["gamma_p"] = time.perf_counter() - t1
-    progress(0.6, "beams: SDP")
-    sdp = solve_power_sdp(info, objective, solver=spec.solver)
-    timing_s["sdp"] = sdp.solve_time_s
+    progress(0.6, "beams: SDP per RIS")
+    t2 = time.perf_counter()
+    per_ris, sdp_powers = _sdp_per_ris(
+        result, inputs, problem, layout, blocks, gamma, own, np.asarray(gp.powers, float), progress
+    )
+    timing_s["sdp"] = time.perf_counter() - t2
     progress(0.8, "beams: coverage")
     t3 = time.perf_counter()
     powers = {"uniform": np.ones(g_tilde), "gamma_p": np.asarray(gp.powers, dtype=float)}
-    if sdp.powers is not None:
-        powers["sdp"] = np.asarray(sdp.powers, dtype=float)
+    if sdp_powers is not None:
+        powers["sdp"] = sdp_powers
     coverage = {
         name: LayoutState(layout_information(problem, inputs, blocks, gamma, p), list(layout))
         for name, p in powers.items()
@@ -180,22 +186,158 @@ def layout_beams(
             "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
             "gamma_p": finite_or_none(float(gp.objective)),
             "sdp": None
-            if sdp.powers is None
-            else finite_or_none(mean_trace_bound(info, sdp.powers, index)),
+            if sdp_powers is None
+            else finite_or_none(mean_trace_bound(info, sdp_powers, index)),
         },
         "powers": {k: [float(x) for x in v] for k, v in powers.items()},
-        "sdp": {
-            "status": sdp.status,
-            "solver": sdp.solver,
-            "solve_time_s": sdp.solve_time_s,
-            "message": sdp.message,
-            "design_objective_m2": finite_or_none(sdp.objective),
-        },
+        "sdp": _sdp_summary(per_ris, spec.solver),
         "ris": rises,
         "timing_s": timing_s,
     }
     progress(1.0, "beams: done")
     return DistrictBeams(blocks, powers, detail)
+
+
+SDP_POSITIONS_PER_RIS = 8
+"""Design positions of each RIS's SDP (at most ``beams.design_positions``): pairs the RIS
+serves and the layout resolves, drawn ∝ weight, seeded per site – one small SDP per RIS."""
+
+
+def _sdp_per_ris(
+    result: PlanResult,
+    inputs: PlanInputs,
+    problem: DistrictProblem,
+    layout: Layout,
+    blocks: dict[int, SeparableBlock],
+    gamma: int,
+    own: LayoutState,
+    gamma_p: FloatArray,
+    progress: ProgressCallback = no_progress,
+) -> tuple[list[dict[str, Any]], FloatArray | None]:
+    """The appendix SDP (:func:`ris_planner.power.sdp.solve_power_sdp`) once per RIS of the
+    layout, over its own design positions (:data:`SDP_POSITIONS_PER_RIS`: pairs it serves
+    that the layout resolves, each with every layout RIS that serves it): per RIS its
+    status, solver, message, seconds, and the mean PEB² there at uniform, γ_P and its own SDP
+    powers. The slot powers δ² are the transmitting UE's, shared by every RIS a pair hears,
+    so the layout's ``sdp`` allocation is the served-weight mean of the solved RISs' powers
+    (a convex combination: Σ δ² = G̃ kept); ``None`` when no RIS's SDP solved – never a
+    silent fallback: each RIS's status is in the rows."""
+    from ris_planner.power.sdp import (
+        mean_trace_bound,
+        objective_index,
+        position_traces,
+        solve_power_sdp,
+    )
+
+    spec = result.document.beams
+    assert spec is not None
+    objective = POWER_OBJECTIVE_OF_METRIC[result.document.objective.metric]
+    serves = result.scorer.serves(layout)
+    resolved = np.isfinite(own.metric)
+    member = np.zeros(problem.n_sites, dtype=bool)
+    member[list(layout)] = True
+    strength = problem.strength()
+    per = min(spec.design_positions, SDP_POSITIONS_PER_RIS)
+    g_tilde = gamma_p.size
+    rows: list[dict[str, Any]] = []
+    solved: list[tuple[float, FloatArray]] = []
+    for j, s in enumerate(layout):
+        progress(0.6 + 0.2 * j / len(layout), f"beams: SDP of RIS {j + 1}/{len(layout)}")
+        mine = serves[j] & resolved
+        row: dict[str, Any] = {"site": int(s), "weight": float(problem.weights[mine].sum())}
+        rows.append(row)
+        if not np.any(mine & (problem.weights > 0)):
+            row |= {"status": "no design positions", "design_positions": 0}
+            row["message"] = "the layout resolves none of the pairs this RIS serves"
+            continue
+        pick = design_positions(problem.weights, mine, per, spec.seed + int(s))
+        t0 = time.perf_counter()
+        rises = [_strongest_rises(problem, strength, member, int(s), p) for p in pick.tolist()]
+        info = _position_information(result, inputs, layout, blocks, pick, gamma, rises)
+        index = objective_index(info, objective)
+        finite = np.isfinite(position_traces(info, np.ones(g_tilde), index))
+        row["positions_singular"] = int((~finite).sum())
+        if not finite.any():
+            row |= {"status": "no design positions", "design_positions": 0}
+            row["message"] = (
+                f"each of the {pick.size} design positions is singular with its"
+                f" {SDP_RISES_PER_POSITION} strongest RISs"
+            )
+            continue
+        info = _take_positions(info, np.flatnonzero(finite))
+        t_info = time.perf_counter() - t0
+        sdp = solve_power_sdp(info, objective, solver=spec.solver)
+        row |= {
+            "design_positions": int(finite.sum()),
+            "information_s": t_info,
+            "status": sdp.status,
+            "solver": sdp.solver,
+            "message": sdp.message,
+            "solve_time_s": sdp.solve_time_s,
+            "seconds": time.perf_counter() - t0,
+            "rises_per_position": max(len(r) for r in rises),
+            "design_objective_m2": {
+                "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
+                "gamma_p": finite_or_none(mean_trace_bound(info, gamma_p, index)),
+                "sdp": None
+                if sdp.powers is None
+                else finite_or_none(mean_trace_bound(info, sdp.powers, index)),
+            },
+        }
+        if sdp.powers is not None:
+            solved.append((row["weight"], np.asarray(sdp.powers, dtype=float)))
+    if not solved:
+        return rows, None
+    w = np.array([x for x, _ in solved])
+    mean = (w[:, None] * np.array([p for _, p in solved])).sum(axis=0) / w.sum()
+    return rows, mean * (g_tilde / mean.sum())
+
+
+SDP_RISES_PER_POSITION = 6
+"""RISs that describe a design position of a per-RIS SDP: the RIS itself and the layout's
+strongest others serving the position (by their information on the metric's position,
+:meth:`~ris_planner.planning.scoring.sparse.DistrictProblem.strength`) – the LMI's size stays
+small however many RISs the layout has."""
+
+
+def _strongest_rises(
+    problem: DistrictProblem, strength: FloatArray, member: NDArray[np.bool_], site: int, pair: int
+) -> list[int]:
+    """``site`` and up to :data:`SDP_RISES_PER_POSITION` − 1 other layout sites serving
+    ``pair``, strongest first (``strength`` [E]: :meth:`DistrictProblem.strength`)."""
+    lo, hi = problem.pair_start[pair], problem.pair_start[pair + 1]
+    sites = problem.entry_site[lo:hi]
+    keep = member[sites] & (sites != site)
+    strength = strength[lo:hi][keep]
+    others = sites[keep][np.argsort(-strength, kind="stable")]
+    return [site, *[int(x) for x in others[: SDP_RISES_PER_POSITION - 1]]]
+
+
+def _take_positions(info: Any, idx: NDArray[np.int_]) -> Any:
+    """The :class:`~ris_planner.power.information.BeamInformation` of positions ``idx``."""
+    from ris_planner.power.information import PathBlocks
+
+    paths = tuple(
+        PathBlocks(p.blocks[idx], p.maps[idx], p.name, p.jacobian[idx], p.present[idx])
+        for p in info.paths
+    )
+    return replace(info, stack=info.stack[idx], paths=paths)
+
+
+def _sdp_summary(rows: list[dict[str, Any]], solver: str) -> dict[str, Any]:
+    """plan.json ``beams.layouts[i].sdp``: the per-RIS SDPs' rows, how many ended in each
+    status, their total time, and how the layout's allocation combines them."""
+    status: dict[str, int] = {}
+    for r in rows:
+        status[r["status"]] = status.get(r["status"], 0) + 1
+    return {
+        "per_ris": rows,
+        "status_counts": status,
+        "solver": solver,
+        "solve_time_s": float(sum(r.get("solve_time_s", 0.0) for r in rows)),
+        "seconds": float(sum(r.get("seconds", 0.0) for r in rows)),
+        "combined": "served-weight mean of the solved RISs' slot powers",
+    }
 
 
 def _layout_blocks(
@@ -241,18 +383,21 @@ def _position_information(
     blocks: dict[int, SeparableBlock],
     pick: NDArray[np.int_],
     gamma: int,
+    mine: list[list[int]] | None = None,
 ) -> Any:
     """The stacked per-beam information of the design positions in the plan's Γ blocks: each
-    with the layout's RISs that serve it, padded with RISs that serve nobody to the most any
-    position has (one state size for all: a padding RIS's gains are decoupled from every other
-    state, :data:`~ris_planner.power.information.ABSENT_GAIN_INFORMATION`)."""
+    with the layout's RISs that serve it (``mine``: the RISs of each position, when the caller
+    chose them), padded with RISs that serve nobody to the most any position has (one state
+    size for all: a padding RIS's gains are decoupled from every other state,
+    :data:`~ris_planner.power.information.ABSENT_GAIN_INFORMATION`)."""
     from ris_planner.planning.beams import layout_scenario
     from ris_planner.power.information import BeamInformation, PathBlocks, beam_information
 
     doc = result.document
     pairs = inputs.pairs
-    serves = result.scorer.serves(layout)  # [L, P]
-    mine = [[s for j, s in enumerate(layout) if serves[j, p]] for p in pick.tolist()]
+    if mine is None:
+        serves = result.scorer.serves(layout)  # [L, P]
+        mine = [[s for j, s in enumerate(layout) if serves[j, p]] for p in pick.tolist()]
     width = max(len(m) for m in mine)  # every position's state padded to the same size
     pad = padding_ris(inputs.sites[layout[0]].ris)
     parts = []

@@ -105,6 +105,7 @@ def run_district(
     clock: StageClock | None = None,
     goal: Target | None = None,
     blocks: int | None = None,
+    builds: int = 1,
 ) -> PlanResult:
     """The district search's plan run (module docstring): per RIS count the layout of the
     greedy path improved by swaps (or a layout rounded from the relaxation's site weights and
@@ -114,10 +115,11 @@ def run_district(
     fixed it).
 
     A designed codebook is built for ``blocks`` = Γ time-orthogonal blocks (default
-    ``codebook.blocks``, else :func:`initial_blocks`); when a count's layout needs more
-    profile colours than Γ − 1 (:func:`~ris_planner.planning.scoring.time_blocks.
-    profile_colours`) and the document leaves Γ to the planner, the plan is run again with the
-    Γ it needs, so every reported layout fits the blocks its information was computed with."""
+    ``codebook.blocks``, else :func:`initial_blocks`), fixed before its information, and each
+    count's layout is held to Γ − 1 profile colours (:func:`fit_blocks`), so every reported
+    layout fits the blocks its information was computed with in one run (``builds``: the
+    information builds so far; a layout no refill can hold runs the plan again with the Γ it
+    needs)."""
     doc = inputs.document
     clock = StageClock() if clock is None else clock
     if blocks is None:
@@ -136,6 +138,7 @@ def run_district(
         goal = target_goal(doc.objective.kind, target, summary.servable_weight)
     level = goal.min if doc.target_mode and goal is not None else None
     lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-relaxation")
+    fitted: list[dict[str, Any]] = []
     try:
         with clock.stage("search"):
             # one model, built and then solved count by count on the thread (in order)
@@ -155,15 +158,24 @@ def run_district(
             )
             progress(0.7, "swaps")
             found, infeasible = _count_results(problem, seen, path, counts, relaxed, cons, level)
+        if problem.codebooks.designed:
+            with clock.stage("colours"):  # every layout held to the Γ − 1 profile colours
+                progress(0.8, f"colours: Γ = {blocks} blocks")
+                found, fitted = fit_blocks(problem, seen, found, blocks, cons)
     finally:
         # a solve under way ends first: the sizing solves the same model next
         lp.shutdown(wait=True, cancel_futures=True)
     with clock.stage("rollout"):
         rollout = _rollout(doc, seen, problem, found, cons)
     timing = time_orthogonal(problem, found, doc.system.transmissions, blocks)
-    if timing["blocks_needed"] > blocks and problem.codebooks.designed and not doc.codebook.blocks:
-        progress(0.0, f"information for Γ = {timing['blocks_needed']} blocks")
-        return run_district(inputs, progress, clock, goal, timing["blocks_needed"])
+    if problem.codebooks.designed:
+        timing["held_to_blocks"] = fitted
+        timing["information_builds"] = builds
+        if timing["blocks_needed"] > blocks and not doc.codebook.blocks:
+            # a layout no refill could hold to Γ (never on the benchmarks): the plan again
+            # with the Γ it needs, counted in ``information_builds``
+            progress(0.0, f"information for Γ = {timing['blocks_needed']} blocks")
+            return run_district(inputs, progress, clock, goal, timing["blocks_needed"], builds + 1)
     progress(1.0, "done")
     result = PlanResult(
         doc,
@@ -291,11 +303,56 @@ def _lp_starts(
     return starts[:1] + ([starts[1 + int(np.argmax(rest))]] if rest else [])
 
 
+def fit_blocks(
+    problem: DistrictProblem,
+    seen: DistrictProblem,
+    found: list[CountResult],
+    blocks: int,
+    cons: Constraints,
+) -> tuple[list[CountResult], list[dict[str, Any]]]:
+    """Each count's layout held to the Γ − 1 profile colours of the ``blocks`` its designed
+    information was computed with (:func:`~ris_planner.planning.search.colour_fit.
+    fit_colours`), re-scored; plan.json ``time_orthogonal.held_to_blocks``: per count whose
+    layout needed more colours the sites taken out and put in and the coverage before and
+    after (``fits`` false, with the colours it needs, where no refill could hold it)."""
+    from ris_planner.planning.scoring.time_blocks import audible_incidence
+    from ris_planner.planning.search.colour_fit import fit_colours
+
+    required, excluded, conflict = cons
+    heard = audible_incidence(problem)
+    out: list[CountResult] = []
+    notes: list[dict[str, Any]] = []
+    for cr in found:
+        layout = cr.ranked[0][0]
+        fit = fit_colours(problem, seen, layout, blocks - 1, required, excluded, conflict, heard)
+        if not fit.fits:
+            need = int(profile_colours(problem, layout, heard).max()) + 1
+            notes.append({"ris_count": cr.ris_count, "fits": False, "colours": need})
+        if not fit.removed:
+            out.append(cr)
+            continue
+        bound = -cr.certificate.loss_bound if cr.certificate is not None else 1.0
+        found_by = f"{cr.found_by}, held to {blocks - 1} profile colours"
+        new = count_result(problem, fit.layout, bound, found_by)
+        out.append(new)
+        notes.append(
+            {
+                "ris_count": cr.ris_count,
+                "fits": True,
+                "removed": list(fit.removed),
+                "added": list(fit.added),
+                "coverage_before": -cr.ranked[0][1],
+                "coverage_after": -new.ranked[0][1],
+            }
+        )
+    return out, notes
+
+
 INITIAL_COLOURS = 5
 """Profile colours a designed codebook's blocks are first built for (Γ ≥ 6: G̃ = 32 beams
 per block at G = 192): on the street districts of docs/validation/benchmarks.md a pair hears at
 most a few RISs of a layout, and the conflict graph's colourings stay within it; a layout that
-needs more runs the plan again with the Γ it needs (:func:`run_district`)."""
+needs more is held to them (:func:`fit_blocks`)."""
 
 
 def initial_blocks(doc: Any) -> int:
@@ -458,6 +515,8 @@ def district_size_rows(
                 )
             lb = lower()
             row = _size_row((r, c), pr, seen, steps, goal, lb, best)
+            if pr.codebooks.designed and row.sites is not None:
+                row = _held_size_row(pr, seen, row, goal, cons)
             rows.append(replace(row, coverable=float(pr.weights[nd.need > 0].sum())))
             row = rows[-1]
             if row.count is not None and (best is None or r * c * row.count < best):
@@ -504,6 +563,36 @@ def _size_row(
         return SizeRow(size, None, lower, note=note)
     cov = LayoutState(problem, list(hit.sites)).coverage() if seen is not problem else hit.coverage
     return SizeRow(size, len(hit.sites), lower, cov, tuple(hit.sites))
+
+
+def _held_size_row(
+    problem: DistrictProblem, seen: DistrictProblem, row: SizeRow, goal: float, cons: Constraints
+) -> SizeRow:
+    """A designed plan's sizing answer held to the Γ − 1 profile colours its information was
+    computed with (:func:`~ris_planner.planning.search.colour_fit.fit_colours`): the held
+    layout when it still reaches ``goal``, else no count, saying why."""
+    from ris_planner.planning.search.colour_fit import fit_colours
+
+    assert row.sites is not None and row.count is not None
+    colours = problem.codebooks.blocks - 1
+    fit = fit_colours(problem, seen, row.sites, colours, *cons)
+    if not fit.removed:
+        return row if fit.fits else _unheld(problem, row, colours)
+    cov = LayoutState(problem, list(fit.layout)).coverage()
+    if cov < goal - 1e-12:
+        return _unheld(problem, row, colours)
+    note = f"held to {colours} profile colours: {len(fit.removed)} sites exchanged"
+    return replace(row, sites=fit.layout, objective=cov, note=note)
+
+
+def _unheld(problem: DistrictProblem, row: SizeRow, colours: int) -> SizeRow:
+    assert row.sites is not None
+    need = int(profile_colours(problem, row.sites).max()) + 1
+    note = (
+        f"the greedy path reaches the target at {row.count} RISs with {need} profile colours,"
+        f" more than the Γ − 1 = {colours} its designed information was computed with"
+    )
+    return replace(row, count=None, objective=None, sites=None, note=note)
 
 
 def _resized(inputs: PlanInputs, rows: int, cols: int) -> PlanInputs:

@@ -202,6 +202,28 @@ def beam_information(
         return _beam_information(scenario, tx, rx, profiles, known, n_blocks)
 
 
+def distinct_rows(rows: ComplexArray) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
+    """(first, group): the first index of each distinct row of ``rows`` [G, n], in the order
+    of first occurrence, and each row's distinct row (rows compared exactly). Rows are grouped
+    by a projection first and each group checked element by element (a collision falls back to
+    sorting the rows), so a district's long concatenated profiles are not sorted column by
+    column; the order of first occurrence makes the numbering the same for every position
+    whose profiles repeat in the same slots."""
+    g = rows.shape[0]
+    if g == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    probe = np.random.default_rng(0).standard_normal((rows.shape[1], 2)) @ np.array([1, 1j])
+    _, first_key, group_key = np.unique(rows @ probe, return_index=True, return_inverse=True)
+    group_key = group_key.reshape(-1)
+    if not all(np.array_equal(rows[i], rows[first_key[group_key[i]]]) for i in range(g)):
+        _, first_key, group_key = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+        group_key = group_key.reshape(-1)
+    perm = np.argsort(first_key, kind="stable")
+    rank = np.empty_like(perm)
+    rank[perm] = np.arange(perm.size)
+    return np.asarray(first_key[perm], dtype=np.int64), np.asarray(rank[group_key], np.int64)
+
+
 def _beam_information(
     scenario: Scenario,
     tx: FloatArray,
@@ -221,9 +243,7 @@ def _beam_information(
     n_full = 7 + 2 * n_paths
     # distinct beams: the same profile on every RIS in the same slot (exact comparison)
     beams_total = profiles[0].shape[0]  # G̃ before merging identical beams
-    _, first, group = np.unique(
-        np.concatenate(profiles, axis=1), axis=0, return_index=True, return_inverse=True
-    )
+    first, group = distinct_rows(np.concatenate(profiles, axis=1))
     profiles = [prof[first] for prof in profiles]
     n_pos, g_tilde = tx.shape[0], first.size
     kept = bounds.kept_states(scenario.known if known is None else known)

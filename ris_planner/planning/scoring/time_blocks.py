@@ -17,37 +17,51 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import csr_matrix
+from scipy.sparse import csc_matrix
 
 from ris_planner.planning.scoring.sparse import DistrictProblem
 
 IntArray = NDArray[np.int_]
 
 
-def conflict_graph(problem: DistrictProblem, layout: Sequence[int]) -> NDArray[np.bool_]:
+def audible_incidence(problem: DistrictProblem) -> csc_matrix:
+    """[P, S] 1 where the pair hears the site audibly (:data:`~ris_planner.planning.scoring.
+    sparse.AUDIBLE_SNR_DB`), column-compressed: a layout's conflict graph is the product of
+    its columns."""
+    keep = problem.audible
+    return csc_matrix(
+        (np.ones(int(keep.sum())), (problem.entry_pair[keep], problem.entry_site[keep])),
+        shape=(problem.n_pairs, problem.n_sites),
+    )
+
+
+def conflict_graph(
+    problem: DistrictProblem, layout: Sequence[int], heard: csc_matrix | None = None
+) -> NDArray[np.bool_]:
     """[L, L] whether some pair hears two sites of ``layout`` audibly (their paths must be
     separated: :data:`~ris_planner.planning.scoring.sparse.AUDIBLE_SNR_DB`; False on the
-    diagonal)."""
-    layout = [int(s) for s in layout]
-    column = np.full(problem.n_sites, -1)
-    column[layout] = np.arange(len(layout))
-    keep = (column[problem.entry_site] >= 0) & problem.audible
-    m = csr_matrix(
-        (np.ones(int(keep.sum())), (problem.entry_pair[keep], column[problem.entry_site[keep]])),
-        shape=(problem.n_pairs, len(layout)),
-    )
+    diagonal). ``heard``: :func:`audible_incidence` of the problem, when the caller has it."""
+    heard = audible_incidence(problem) if heard is None else heard
+    m = heard[:, [int(s) for s in layout]]
     adjacent = np.asarray((m.T @ m).toarray() > 0)
     np.fill_diagonal(adjacent, False)
     return adjacent
 
 
-def profile_colours(problem: DistrictProblem, layout: Sequence[int]) -> IntArray:
+def profile_colours(
+    problem: DistrictProblem, layout: Sequence[int], heard: csc_matrix | None = None
+) -> IntArray:
     """[L] a column of B per site of ``layout`` (0-based, the LOS's column aside) such that no
-    pair hears two sites of one colour: DSatur's greedy colouring of the conflict graph (the
-    uncoloured site with the most distinctly coloured neighbours next, ties by degree, then
-    layout order; the smallest colour no neighbour has). Never more colours than sites, and
-    at least the most sites any one pair hears (they form a clique)."""
-    adjacent = conflict_graph(problem, layout)
+    pair hears two sites of one colour: DSatur's greedy colouring of the conflict graph
+    (:func:`dsatur`). Never more colours than sites, and at least the most sites any one pair
+    hears (they form a clique)."""
+    return dsatur(conflict_graph(problem, layout, heard))
+
+
+def dsatur(adjacent: NDArray[np.bool_]) -> IntArray:
+    """DSatur's greedy colouring of the graph ``adjacent`` [n, n]: the uncoloured vertex with
+    the most distinctly coloured neighbours next, ties by degree, then index; the smallest
+    colour no neighbour has."""
     n = adjacent.shape[0]
     colour = np.full(n, -1)
     degree = adjacent.sum(axis=1)
