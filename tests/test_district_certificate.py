@@ -318,6 +318,32 @@ def test_separation_tightens_the_bound_and_keeps_it_valid(truth, monkeypatch) ->
         assert r.bound >= best[c] - 1e-12, c
 
 
+def test_no_separation_after_a_solve_stopped_early(truth, monkeypatch) -> None:
+    """A solve that did not finish (its time limit) is not separated from and not solved
+    again – its point is no guide and a re-solve would take the limit again – for a count
+    and for the sizing question; its multipliers still give a valid bound."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    model = lp.build_relaxation(problem, needs)
+    solve = model._solve
+    solves = []
+
+    def stopped() -> tuple:
+        status, *rest = solve()
+        assert status == lp.OPTIMAL  # the street site's model solves: the status is the mock's
+        solves.append(status)
+        return ("Time limit reached", *rest)
+
+    monkeypatch.setattr(model, "_solve", stopped)
+    got = model.coverage(2)
+    assert got.cut_rounds == 0 and model.separated_rows == 0 and len(solves) == 1
+    assert got.status == "Time limit reached" and got.bound >= best[2] - 1e-12
+    goal = 0.5 * best[3]
+    lower = model.lower_count(goal)
+    assert len(solves) == 2 and model.separated_rows == 0
+    assert lower is not None and lower <= 3
+
+
 def test_a_pickled_model_keeps_its_separated_rows(truth) -> None:
     """A model pickled after separation (a plan's result travels to the figures' process) is
     built again with the separated rows after the count and goal rows; its bounds keep the

@@ -439,7 +439,13 @@ class DistrictRelaxation:
             self.multipliers.append(np.maximum(0.0, -duals[: self.a.shape[0]]))
             lp_value, z = -value, x[:n]
             t1 = time.perf_counter()
-            while rounds < SEPARATION_ROUNDS and time.perf_counter() - t1 < SEPARATION_SECONDS:
+            # separated at an optimal point only: a solve stopped at its time limit leaves a
+            # point that is no guide, and re-solving would take that limit again
+            while (
+                status == OPTIMAL
+                and rounds < SEPARATION_ROUNDS
+                and time.perf_counter() - t1 < SEPARATION_SECONDS
+            ):
                 cuts = self.separate(x)
                 if cuts.n_rows == 0:
                     break
@@ -505,7 +511,7 @@ class DistrictRelaxation:
         best = -math.inf
         t0 = time.perf_counter()
         for round_ in range(SEPARATION_ROUNDS + 1):
-            _, _, x, duals, _ = self._solve()
+            status, _, x, duals, _ = self._solve()
             if round_ == 0:
                 t0 = time.perf_counter()
             lam = np.maximum(0.0, -duals[: self.a.shape[0]])
@@ -514,7 +520,11 @@ class DistrictRelaxation:
                 self.a, self.b, self.w, lam, nu, goal, pr.n_sites, self.required, self.excluded
             )
             best = max(best, value)
-            if round_ == SEPARATION_ROUNDS or time.perf_counter() - t0 > SEPARATION_SECONDS:
+            if (
+                status != OPTIMAL
+                or round_ == SEPARATION_ROUNDS
+                or time.perf_counter() - t0 > SEPARATION_SECONDS
+            ):
                 break
             if self.separate(x).n_rows == 0:
                 break
@@ -675,6 +685,10 @@ one more Lagrangian bound (the least is kept)."""
 SEPARATION_SECONDS = 20.0
 """No new separation round starts once a count's rounds (separation and solves after the
 count's first solve) have taken this long."""
+
+OPTIMAL = "Optimal"
+"""HiGHS' status string of a solve that finished (:meth:`DistrictRelaxation.coverage`
+separates only at such a point)."""
 
 CUTS_PER_ROUND = 4000
 """The most separated rows one round adds (the most violated × pair weight first)."""
