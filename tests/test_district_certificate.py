@@ -318,6 +318,30 @@ def test_separation_tightens_the_bound_and_keeps_it_valid(truth, monkeypatch) ->
         assert r.bound >= best[c] - 1e-12, c
 
 
+def test_a_large_model_starts_by_interior_point(truth, monkeypatch) -> None:
+    """A large model's first solve runs interior point (crossed over to a basis), the next
+    the dual simplex from that basis; both bounds equal the small model's simplex bounds
+    (the LP optimum: HiGHS' optimality tolerances are 1e-7) and stay above brute force."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    monkeypatch.setattr(lp, "SEPARATION_ROUNDS", 0)  # the same rows in both models
+    small = lp.build_relaxation(problem, needs)
+    assert not small.large
+    want = [small.coverage(c).bound for c in (2, 3)]
+    monkeypatch.setattr(lp, "SIMPLEX_MAX_NONZEROS", 0)
+    large = lp.build_relaxation(problem, needs)
+    assert large.large
+    got, ipm = [], []
+    for c in (2, 3):
+        got.append(large.coverage(c))
+        ipm.append(large.highs.getInfo().ipm_iteration_count)
+    assert ipm[0] > 0 and ipm[1] == 0
+    assert all(r.status == lp.OPTIMAL for r in got)
+    assert_close([r.bound for r in got], want, accuracy=1e-6)
+    for c, r in zip((2, 3), got, strict=True):
+        assert r.bound >= best[c] - 1e-12
+
+
 def test_no_separation_after_a_solve_stopped_early(truth, monkeypatch) -> None:
     """A solve that did not finish (its time limit) is not separated from and not solved
     again – its point is no guide and a re-solve would take the limit again – for a count
