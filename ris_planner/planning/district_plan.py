@@ -172,7 +172,8 @@ def run_district(
         timing["held_to_blocks"] = fitted
         timing["information_builds"] = builds
         if timing["blocks_needed"] > blocks and not doc.codebook.blocks:
-            # a layout no refill could hold to Γ (never on the benchmarks): the plan again
+            # a layout no refill could hold to Γ (the benchmark district's designed plan
+            # after the LP-guided layouts, docs/validation/benchmarks.md): the plan again
             # with the Γ it needs, counted in ``information_builds``
             progress(0.0, f"information for Γ = {timing['blocks_needed']} blocks")
             return run_district(inputs, progress, clock, goal, timing["blocks_needed"], builds + 1)
