@@ -23,6 +23,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -441,26 +442,12 @@ class DistrictRelaxation:
                 self.mode = "coverage"
             h.changeRowBounds(self.count_row, float(count), float(count))
             self.solved_counts += 1
-            t0 = time.perf_counter()
-            status, value, x, duals, _ = self._solve()
-            self.multipliers.append(np.maximum(0.0, -duals[: self.a.shape[0]]))
-            lp_value, z = -value, x[:n]
-            t1 = time.perf_counter()
-            # separated at an optimal point only: a solve stopped at its time limit leaves a
-            # point that is no guide, and re-solving would take that limit again
-            while (
-                status == OPTIMAL
-                and rounds < SEPARATION_ROUNDS
-                and time.perf_counter() - t1 < SEPARATION_SECONDS
-            ):
-                cuts = self.separate(x)
-                if cuts.n_rows == 0:
-                    break
-                rounds += 1
-                added += cuts.n_rows
-                status, value, x, duals, _ = self._solve()
-                self.multipliers.append(np.maximum(0.0, -duals[: self.a.shape[0]]))
+            t0, before = time.perf_counter(), self.separated_rows
+            # the last solve's status is the count's; each solve after the first is a round
+            for rounds, (status, value, x, duals) in enumerate(self._solves()):  # noqa: B007
+                self.multipliers.append(self._clipped(duals))
                 lp_value, z = -value, x[:n]
+            added = self.separated_rows - before
             seconds = time.perf_counter() - t0
         return Relaxed(self.bound_at(count), lp_value, z, status, seconds, rounds, added)
 
@@ -481,6 +468,28 @@ class DistrictRelaxation:
             )
             bound = min(bound, value)
         return bound
+
+    def _solves(self) -> Iterator[tuple[str, float, FloatArray, FloatArray]]:
+        """The model solved (status, objective, solution, row duals), then again after each
+        round of separated cuts at the last solution (:meth:`separate`): at most
+        :data:`SEPARATION_ROUNDS` rounds, none once the rounds have taken
+        :data:`SEPARATION_SECONDS` after the first solve or when no row is broken, and only
+        from a solve that finished (:data:`OPTIMAL`: a solve stopped at its time limit leaves
+        a point that is no guide, and solving again would take that limit again)."""
+        status, value, x, duals, _ = self._solve()
+        yield status, value, x, duals
+        t1 = time.perf_counter()
+        for _ in range(SEPARATION_ROUNDS):
+            if status != OPTIMAL or time.perf_counter() - t1 >= SEPARATION_SECONDS:
+                return
+            if self.separate(x).n_rows == 0:
+                return
+            status, value, x, duals, _ = self._solve()
+            yield status, value, x, duals
+
+    def _clipped(self, duals: FloatArray) -> FloatArray:
+        """The multipliers of a solve's row duals: a's rows, clipped to their sign."""
+        return np.maximum(0.0, -duals[: self.a.shape[0]])
 
     def _padded(self, lam: FloatArray) -> FloatArray:
         """Multipliers of an earlier solve over today's rows (zero on the rows added since)."""
@@ -516,25 +525,20 @@ class DistrictRelaxation:
             self.mode = "count"
         h.changeRowBounds(self.goal_row, float(goal), highspy.kHighsInf)
         best = -math.inf
-        t0 = time.perf_counter()
-        for round_ in range(SEPARATION_ROUNDS + 1):
-            status, _, x, duals, _ = self._solve()
-            if round_ == 0:
-                t0 = time.perf_counter()
-            lam = np.maximum(0.0, -duals[: self.a.shape[0]])
+        for _, _, _, duals in self._solves():
             nu = max(0.0, float(duals[-1]))  # the goal row's
             value = lagrangian_count(
-                self.a, self.b, self.w, lam, nu, goal, pr.n_sites, self.required, self.excluded
+                self.a,
+                self.b,
+                self.w,
+                self._clipped(duals),
+                nu,
+                goal,
+                pr.n_sites,
+                self.required,
+                self.excluded,
             )
             best = max(best, value)
-            if (
-                status != OPTIMAL
-                or round_ == SEPARATION_ROUNDS
-                or time.perf_counter() - t0 > SEPARATION_SECONDS
-            ):
-                break
-            if self.separate(x).n_rows == 0:
-                break
         return max(len(self.required), certified_count(best), from_bounds)
 
 
