@@ -100,7 +100,7 @@ def test_a_designed_district_plan_reports_its_blocks_and_codebook() -> None:
     timing = plan["search_details"]["time_orthogonal"]
     assert timing["blocks"] >= timing["blocks_needed"]
     assert 192 % timing["blocks"] == 0 and timing["beams_per_block"] == 192 // timing["blocks"]
-    assert timing["information_builds"] == 1 and timing["blocks"] == timing["designed_for"]
+    assert timing["blocks"] == timing["designed_for"]
     for row in timing["counts"]:
         assert row["blocks_needed"] == block_count(192, row["colours"])
         assert row["colours"] <= timing["designed_for"] - 1  # fits the information's blocks
@@ -134,7 +134,7 @@ def test_every_layout_fits_the_blocks_of_its_one_information_build(
     plan = run_plan(doc).to_json()
     assert builds == [3]  # one information build, for Γ = 3
     timing = plan["search_details"]["time_orthogonal"]
-    assert timing["information_builds"] == 1 and timing["designed_for"] == 3
+    assert timing["designed_for"] == 3
     assert timing["blocks"] == 3 and timing["blocks_needed"] <= 3
     assert all(row["colours"] <= 2 for row in timing["counts"])
     held = timing["held_to_blocks"]
@@ -152,6 +152,92 @@ def test_every_layout_fits_the_blocks_of_its_one_information_build(
     (row,) = plan["sizing"]["sizes"]
     assert row["count"] is None and row["sites"] is None
     assert "3 profile colours, more than the Γ − 1 = 2" in row["note"]
+
+
+def test_a_refill_that_no_tried_site_fits_takes_a_site_sharing_no_pair(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """When none of the best candidates keeps DSatur within the colours (here: none tried,
+    ``FIT_TRIES`` = 0), a refill step takes a site that shares no audible pair with the
+    layout: it always fits, so the layout is held at its count – never given up, which made
+    the plan build its information again for a larger Γ."""
+    import ris_planner.planning.search.colour_fit as colour_fit
+    from ris_planner.planning.scoring.time_blocks import audible_incidence
+
+    problem = build_problem(prepare_plan(_designed("directional_derivative")), blocks=3)
+    layout = (0, 1, 2)  # three RISs one pair hears: 3 colours, one site to refill
+    assert profile_colours(problem, layout).max() + 1 == 3
+    monkeypatch.setattr(colour_fit, "FIT_TRIES", 0)
+    fit = colour_fit.fit_colours(problem, problem, layout, 2)
+    assert fit.fits and len(fit.layout) == len(layout) and fit.added
+    assert int(profile_colours(problem, fit.layout).max()) + 1 <= 2
+    heard = audible_incidence(problem).toarray() > 0
+    kept = [s for s in fit.layout if s not in fit.added]
+    for i, s in enumerate(fit.added):  # each shares no audible pair with those before it
+        before = kept + list(fit.added[:i])
+        assert not (heard[:, [s]] & heard[:, before]).any()
+
+
+def test_a_count_no_refill_can_hold_is_infeasible_not_a_second_build(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A count whose layout cannot be held to the Γ − 1 colours (no site tried fits and none
+    is left that shares no pair with it) is reported as an infeasible count, saying how many
+    colours it needs – the information is still built once, for the Γ fixed before it."""
+    import ris_planner.planning.district_plan as district_plan
+    import ris_planner.planning.search.colour_fit as colour_fit
+
+    builds: list[int] = []
+    real = district_plan.build_problem
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        builds.append(kwargs.get("blocks", 0))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(district_plan, "build_problem", counted)
+    monkeypatch.setattr(district_plan, "INITIAL_COLOURS", 2)
+    monkeypatch.setattr(colour_fit, "FIT_TRIES", 0)
+    doc = _designed("directional_derivative")
+    doc["ris_count"] = [2, 3, 4, 5, 6, 7]
+    plan = run_plan(doc).to_json()
+    assert builds == [3]
+    held = plan["search_details"]["time_orthogonal"]["held_to_blocks"]
+    unheld = [h["ris_count"] for h in held if not h["fits"]]
+    assert unheld and plan["infeasible_counts"] == unheld
+    assert all(h["colours"] > 2 for h in held if not h["fits"])
+    reported = {e["ris_count"] for e in plan["by_count"]}
+    assert not reported & set(unheld) and reported
+    for row in plan["search_details"]["time_orthogonal"]["counts"]:
+        assert row["colours"] <= 2
+
+
+def test_nested_layouts_of_a_designed_plan_are_held_to_its_colours(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """With ``rollout: nested`` each nested layout of a designed plan fits the Γ − 1 profile
+    colours its information was computed with, and still holds the previous count's sites."""
+    import ris_planner.planning.district_plan as district_plan
+
+    monkeypatch.setattr(district_plan, "INITIAL_COLOURS", 2)
+    doc = _designed("directional_derivative")
+    doc["ris_count"] = [2, 3, 4, 5]
+    doc["rollout"] = "nested"
+    inputs = prepare_plan(doc)
+    result = run_plan(doc)
+    problem = result.scorer.problem  # type: ignore[attr-defined]
+    assert problem.codebooks.blocks == 3
+    rows = result.to_json()["rollout"]["counts"]
+    prev: set[int] = set()
+    nested = [r["nested_layout"] for r in rows[1:]]
+    assert any(n is not None for n in nested)
+    for r in rows[1:]:
+        lay = r["nested_layout"]
+        if lay is None:
+            continue
+        assert prev <= set(lay) and len(lay) == r["ris_count"]
+        assert int(profile_colours(problem, lay).max()) + 1 <= 2
+        prev = set(lay)
+    assert inputs.document.rollout == "nested"
 
 
 def test_designed_codebooks_are_refused_by_the_enumerating_searches() -> None:

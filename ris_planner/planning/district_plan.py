@@ -105,7 +105,6 @@ def run_district(
     clock: StageClock | None = None,
     goal: Target | None = None,
     blocks: int | None = None,
-    builds: int = 1,
 ) -> PlanResult:
     """The district search's plan run (module docstring): per RIS count the layout of the
     greedy path improved by swaps (or a layout rounded from the relaxation's site weights and
@@ -117,9 +116,8 @@ def run_district(
     A designed codebook is built for ``blocks`` = Γ time-orthogonal blocks (default
     ``codebook.blocks``, else :func:`initial_blocks`), fixed before its information, and each
     count's layout is held to Γ − 1 profile colours (:func:`fit_blocks`), so every reported
-    layout fits the blocks its information was computed with in one run (``builds``: the
-    information builds so far; a layout no refill can hold runs the plan again with the Γ it
-    needs)."""
+    layout fits the blocks its information was computed with, built once (a count no refill
+    can hold is reported without a layout, saying why)."""
     doc = inputs.document
     clock = StageClock() if clock is None else clock
     if blocks is None:
@@ -162,6 +160,7 @@ def run_district(
             with clock.stage("colours"):  # every layout held to the Γ − 1 profile colours
                 progress(0.8, f"colours: Γ = {blocks} blocks")
                 found, fitted = fit_blocks(problem, seen, found, blocks, cons)
+                infeasible += [n["ris_count"] for n in fitted if not n["fits"]]
     finally:
         # a solve under way ends first: the sizing solves the same model next
         lp.shutdown(wait=True, cancel_futures=True)
@@ -170,13 +169,6 @@ def run_district(
     timing = time_orthogonal(problem, found, doc.system.transmissions, blocks)
     if problem.codebooks.designed:
         timing["held_to_blocks"] = fitted
-        timing["information_builds"] = builds
-        if timing["blocks_needed"] > blocks and not doc.codebook.blocks:
-            # a layout no refill could hold to Γ (the benchmark district's designed plan
-            # after the LP-guided layouts, docs/validation/benchmarks.md): the plan again
-            # with the Γ it needs, counted in ``information_builds``
-            progress(0.0, f"information for Γ = {timing['blocks_needed']} blocks")
-            return run_district(inputs, progress, clock, goal, timing["blocks_needed"], builds + 1)
     progress(1.0, "done")
     result = PlanResult(
         doc,
@@ -315,7 +307,8 @@ def fit_blocks(
     information was computed with (:func:`~ris_planner.planning.search.colour_fit.
     fit_colours`), re-scored; plan.json ``time_orthogonal.held_to_blocks``: per count whose
     layout needed more colours the sites taken out and put in and the coverage before and
-    after (``fits`` false, with the colours it needs, where no refill could hold it)."""
+    after (``fits`` false, with the colours it needs, where no refill could hold it: that
+    count is left out of the results, an infeasible count)."""
     from ris_planner.planning.scoring.time_blocks import audible_incidence
     from ris_planner.planning.search.colour_fit import fit_colours
 
@@ -329,6 +322,7 @@ def fit_blocks(
         if not fit.fits:
             need = int(profile_colours(problem, layout, heard).max()) + 1
             notes.append({"ris_count": cr.ris_count, "fits": False, "colours": need})
+            continue
         if not fit.removed:
             out.append(cr)
             continue
@@ -445,9 +439,13 @@ def _rollout(
     cons: Constraints,
 ) -> dict[str, Any]:
     """plan.json ``rollout``: with ``nested`` each count's layout the greedy extension of the
-    previous count's nested one (the first is the free one), priced against the free layout;
-    in free mode the free layouts only."""
-    _, excluded, conflict = cons
+    previous count's nested one (the first is the free one), priced against the free layout
+    – a designed plan's held to its Γ − 1 profile colours like the free layouts, the previous
+    count's sites kept (:func:`~ris_planner.planning.search.colour_fit.fit_colours`; no nested
+    layout where that cannot hold it); in free mode the free layouts only."""
+    from ris_planner.planning.search.colour_fit import fit_colours
+
+    required, excluded, conflict = cons
     free = [(cr.ris_count, cr.ranked[0][0], cr.ranked[0][1]) for cr in found]
     if doc.rollout != "nested":
         note = 'the nested chain is searched with rollout "nested"'
@@ -460,6 +458,11 @@ def _rollout(
         prev = steps[-1].layout or ()
         grown = greedy_path(seen, count, None, tuple(prev), excluded, conflict=conflict)
         nested = grown[-1].sites if grown and len(grown[-1].sites) == count else None
+        if nested is not None and problem.codebooks.designed:
+            kept = tuple(sorted({*prev, *required}))
+            colours = problem.codebooks.blocks - 1
+            fit = fit_colours(problem, seen, nested, colours, kept, excluded, conflict)
+            nested = fit.layout if fit.fits else None
         if nested is None:
             steps.append(NestedStep(count, None, math.inf, "district greedy", 0))
             continue

@@ -8,7 +8,10 @@ profile colours (:func:`~ris_planner.planning.scoring.time_blocks.profile_colour
 (:class:`~ris_planner.planning.search.district.GainBook`: the largest covered-weight gain,
 ties by the surrogate) from the sites that fit – a site fits when some colour below Γ − 1 is
 free of every layout site it shares an audible pair with, and DSatur's colouring of the
-grown layout stays within Γ − 1. Each reported layout then fits in the one run; its
+grown layout stays within Γ − 1. Where none of the :data:`FIT_TRIES` best does, the step
+takes the best site that shares no audible pair with the layout: DSatur colours it 0 and
+leaves every other colour as it was, so it always fits, and a layout can only fail to be held
+when no candidate is left at all. Each reported layout then fits in the one run; its
 certificate (an upper bound over every layout of its count, coloured or not) still holds.
 """
 
@@ -35,8 +38,8 @@ DSatur on the grown layout."""
 @dataclass(frozen=True)
 class ColourFit:
     """A layout held to ``colours`` profile colours: the layout, the sites taken out and put
-    in, and whether it fits (False only where no candidate could be added without exceeding
-    the colours: the layout is then returned as it was)."""
+    in, and whether it fits (False only where no candidate is left to add, or the required
+    sites alone need more colours: the layout is then returned as it was)."""
 
     layout: tuple[int, ...]
     removed: tuple[int, ...]
@@ -71,35 +74,46 @@ def fit_colours(
     if conflict is not None:
         for s in keep:
             allowed &= ~conflict[s]
-    # used[s, c]: a layout site of colour c shares an audible pair with candidate s
+    # used[s, c]: a layout site of colour c shares an audible pair with candidate s;
+    # touched[s]: some layout site does
     used = np.zeros((problem.n_sites, colours), dtype=bool)
+    touched = np.zeros(problem.n_sites, dtype=bool)
     kept_colour = profile_colours(problem, keep, heard)
     for s, c in zip(keep, kept_colour, strict=True):
+        near = _neighbours(heard, by_pair, s)
+        touched[near] = True
         if c < colours:
-            used[_neighbours(heard, by_pair, s), c] = True
+            used[near, c] = True
     added: list[int] = []
     while len(keep) < len(layout):
-        fits = allowed & ~used.all(axis=1)
-        key = np.where(fits, book.gain_c + GAIN_TIE * book.gain_s, -np.inf)
+        key = np.where(allowed & ~used.all(axis=1), book.gain_c + GAIN_TIE * book.gain_s, -np.inf)
         order = np.argsort(-key, kind="stable")[:FIT_TRIES]
         pick = None
         for s in order[np.isfinite(key[order])].tolist():
-            grown = [*keep, s]
-            if int(profile_colours(problem, grown, heard).max()) < colours:
+            if int(profile_colours(problem, [*keep, s], heard).max()) < colours:
                 pick = s
                 break
             allowed[s] = False  # DSatur needs more colours with it: not tried again
-        if pick is None:
-            return ColourFit(tuple(layout), (), (), False)
+        if pick is None:  # a site no layout site shares a pair with always fits
+            lone = allowed & ~touched
+            if not lone.any():
+                return ColourFit(tuple(layout), (), (), False)
+            pick = book.best(lone)
         book.set(pick, True)
         keep.append(pick)
         added.append(pick)
         allowed[pick] = False
         if conflict is not None:
             allowed &= ~conflict[pick]
-        c = int(np.flatnonzero(~used[pick])[0])
-        used[_neighbours(heard, by_pair, pick), c] = True
-    return ColourFit(tuple(sorted(keep)), removed, tuple(sorted(added)), True)
+        near = _neighbours(heard, by_pair, pick)
+        touched[near] = True
+        free = np.flatnonzero(~used[pick])
+        if free.size:
+            used[near, int(free[0])] = True
+    held = tuple(sorted(keep))
+    if int(profile_colours(problem, held, heard).max()) >= colours:  # a required site's
+        return ColourFit(tuple(layout), (), (), False)
+    return ColourFit(held, removed, tuple(sorted(added)), True)
 
 
 def _neighbours(heard: csc_matrix, by_pair: csr_matrix, site: int) -> IntArray:
