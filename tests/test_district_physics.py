@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from district_site import street_doc
+from numpy.typing import NDArray
 from tolerance import BOUND_ACCURACY, SDP_ACCURACY, assert_close
 
 from ris_planner.bounds.compute import compute_bounds
@@ -16,8 +17,11 @@ from ris_planner.physics.separable import beam_block, grid_axes
 from ris_planner.planning.beams import layout_scenario
 from ris_planner.planning.pipeline import run_plan
 from ris_planner.planning.prepare import prepare_plan
-from ris_planner.planning.scoring.sparse import LayoutState, build_problem
+from ris_planner.planning.scoring.sparse import DistrictProblem, LayoutState, build_problem
 from ris_planner.planning.scoring.time_blocks import conflict_graph, profile_colours
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int_]
 
 
 def _designed(kind: str) -> dict:
@@ -26,19 +30,17 @@ def _designed(kind: str) -> dict:
     return doc
 
 
-@pytest.mark.parametrize("kind", ["directional", "directional_derivative"])
-def test_designed_information_is_compute_bounds_with_the_same_profiles(kind: str) -> None:
-    """For a layout and every pair it serves, the district's metric with each site's designed
-    block equals ``compute_bounds`` (element-by-element products, its own state assembly and
-    inversion) on a scenario of those sites with the same profiles and beam powers – Γ made
-    the district's by padding the scenario with RISs that serve no pair."""
-    doc = _designed(kind)
+def _designed_layout_bounds(
+    doc: dict, layout: list[int], blocks: int
+) -> tuple[DistrictProblem, FloatArray, IntArray, FloatArray]:
+    """(the district problem, its metric of ``layout`` on the pairs the layout serves, those
+    pairs, ``compute_bounds``' PEB_R of them) on a scenario of the layout's sites with each
+    site's designed profiles and the district's beam powers – Γ made the district's by padding
+    the scenario with RISs that serve no pair; the scenario's wavefront the document's."""
     inputs = prepare_plan(doc)
-    blocks = 4
     problem = build_problem(inputs, blocks=blocks)
     cb = problem.codebooks
     assert cb.designed and cb.blocks == blocks and cb.xi.shape[1] == 192 // blocks
-    layout = [0, 10, 12]
     state = LayoutState(problem, layout)
     served = np.flatnonzero(
         np.isin(problem.entry_pair, problem.entry_pair[np.isin(problem.entry_site, layout)])
@@ -69,12 +71,64 @@ def test_designed_information_is_compute_bounds_with_the_same_profiles(kind: str
         beam_powers=cb.powers,
         channel=False,
     )
-    got = state.metric[pairs]
-    want = res.peb_rx
+    return problem, state.metric[pairs], pairs, res.peb_rx
+
+
+@pytest.mark.parametrize("kind", ["directional", "directional_derivative"])
+def test_designed_information_is_compute_bounds_with_the_same_profiles(kind: str) -> None:
+    """For a layout and every pair it serves, the district's metric with each site's designed
+    block equals ``compute_bounds`` (element-by-element products, its own state assembly and
+    inversion) on a scenario of those sites with the same profiles and beam powers – Γ made
+    the district's by padding the scenario with RISs that serve no pair."""
+    _, got, _, want = _designed_layout_bounds(_designed(kind), [0, 10, 12], 4)
     assert np.array_equal(np.isfinite(got), np.isfinite(want))
     fin = np.isfinite(got)
     assert fin.sum() > 10
     assert_close(got[fin], want[fin], accuracy=BOUND_ACCURACY)
+
+
+@pytest.mark.parametrize("kind", ["directional", "directional_derivative"])
+@pytest.mark.parametrize("layout", [[0, 10, 12], [6]])
+def test_designed_near_field_information_is_spherical_compute_bounds(
+    kind: str, layout: list[int]
+) -> None:
+    """With ``system.wavefront: "spherical"`` a designed block's entries inside the Fraunhofer
+    distance take the exact per-element response with the block's dense profiles, the others
+    the planar O(columns + rows) products: a pair every RIS of the layout serves from inside
+    its Fraunhofer distance has the metric of the spherical ``compute_bounds`` (element by
+    element for every path) with the same profiles and powers. 32 × 32 RISs at 30 GHz on the
+    street's facades (2D²/λ ≈ 10 m) leave both near and far entries."""
+    doc = _designed(kind)
+    doc["ris"] = {"rows": 32, "cols": 32}
+    doc["system"] = {**doc["system"], "wavefront": "spherical"}
+    problem, got, pairs, want = _designed_layout_bounds(doc, layout, 4)
+    assert problem.factor.shape[1] == 7  # the spherical square-root rows
+    mine = np.isin(problem.entry_site, layout)
+    assert np.any(problem.far[mine]) and np.any(~problem.far[mine])
+    # pairs whose every layout entry is near: the spherical model for all their RIS paths
+    far_entry = np.zeros(problem.n_pairs, dtype=bool)
+    np.logical_or.at(far_entry, problem.entry_pair[mine], problem.far[mine])
+    near = ~far_entry[pairs]
+    assert np.array_equal(np.isfinite(got[near]), np.isfinite(want[near]))
+    fin = near & np.isfinite(got)
+    assert fin.sum() > 10
+    assert_close(got[fin], want[fin], accuracy=BOUND_ACCURACY)
+
+
+def test_a_designed_spherical_district_plan_plans() -> None:
+    """A designed codebook with ``system.wavefront: "spherical"`` – refused before the near
+    entries took the block's dense profiles – plans: its layouts cover pairs from inside and
+    outside the Fraunhofer distance, with the codebook it was designed with."""
+    doc = _designed("directional_derivative")
+    doc["ris"] = {"rows": 32, "cols": 32}
+    doc["system"] = {**doc["system"], "wavefront": "spherical"}
+    plan = run_plan(doc).to_json()
+    assert plan["physics"]["wavefront"] == "spherical"
+    assert plan["search_details"]["codebook"]["kind"] == "directional_derivative"
+    assert sorted(lay["ris_count"] for lay in plan["layouts"]) == [2, 3]
+    for lay in plan["layouts"]:
+        assert 0.0 < lay["near_field_fraction"] < 1.0
+        assert 0.0 < lay["objective"] <= 1.0
 
 
 def test_profile_colours_separate_every_pairs_rises() -> None:

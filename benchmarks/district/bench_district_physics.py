@@ -5,7 +5,8 @@ the sizing answer and the coverage at 60 and 120 RISs
 
 * with random phases (the expected FIM) and with DIR+DER beams designed per site (γ_P), each
   count's layout then given the appendix SDP's slot powers (``--beams``);
-* planar and spherical (exact per element inside the Fraunhofer distance);
+* planar and spherical (exact per element inside the Fraunhofer distance, with the site's
+  designed profiles for DIR+DER);
 
 each with its certified interval and the time of each part; then ``--validate`` on the
 designed plan: the two-stage estimator against the bound per pair, with and without the site's
@@ -43,6 +44,7 @@ RUNS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("random phases", "planar", {"kind": "expected_random"}),
     ("DIR+DER, γ_P", "planar", {"kind": "directional_derivative"}),
     ("random phases", "spherical", {"kind": "expected_random"}),
+    ("DIR+DER, γ_P", "spherical", {"kind": "directional_derivative"}),
 )
 
 

@@ -1267,13 +1267,6 @@ class PlanDocument(DocumentModel):
             )
         if self.sizing is not None:
             self.sizing_target()  # a target exists
-        if self.codebook.kind != "expected_random" and self.system.wavefront == "spherical":
-            raise ValueError(
-                f"codebook.kind {self.codebook.kind!r} is scored with the planar (far-field)"
-                " model: a designed block of 64×64 beams needs its O(columns + rows) products"
-                " per pair (docs/concepts/district-physics.md); the spherical wavefront plans"
-                " with expected_random"
-            )
         blocks = self.codebook.blocks
         if blocks is not None and self.system.transmissions % blocks:
             raise ValueError(

@@ -125,19 +125,29 @@ def expected_gram(tx: FloatArray, rx: FloatArray, ris: RIS, wavelength: float) -
 def transmission_vectors(
     profiles: ComplexArray, tx: FloatArray, rx: FloatArray, ris: RIS, wavelength: float
 ) -> ComplexArray:
-    """t_g = ω_gᵀ [j a ⊙ ∂φ/∂p, a] for the first-block profiles [G̃, N], [P, G̃, 7]."""
+    """t_g = ω_gᵀ [j a ⊙ ∂φ/∂p, a] for the first-block profiles [G̃, N], [P, G̃, 7].
+
+    j a ∂φ/∂p = −jk a V: a chunk's columns [a V_T, a V_R, a] are laid out [p·7, N] and take one
+    matrix product with the profiles, the factor −jk applied to the [p, 7, G̃] result."""
     k = 2 * np.pi / wavelength
-    n_el = profiles.shape[1]
+    g, n_el = profiles.shape
     pts, it, ir = _unique_points(tx, rx)
     phi, v = point_terms(pts, ris, wavelength)
     phasor = np.exp(1j * phi)  # [U, N]
-    out = np.empty((tx.shape[0], profiles.shape[0], 7), dtype=complex)
+    vt = np.ascontiguousarray(v.transpose(0, 2, 1))  # [U, 3, N]
+    del v
+    right = np.ascontiguousarray(profiles.T)  # [N, G̃]
+    out = np.empty((tx.shape[0], g, 7), dtype=complex)
     for sl in chunks(tx.shape[0], n_el):
+        p = sl.stop - sl.start
         a = phasor[it[sl]] * phasor[ir[sl]]  # [p, N]
-        # [p, N, 7]: j a ∂φ/∂p = −jk a V, then a
-        col = -1j * k * a[:, :, None]
-        w = np.concatenate([col * v[it[sl]], col * v[ir[sl]], a[:, :, None]], axis=2)
-        out[sl] = profiles[None] @ w
+        w = np.empty((p, 7, n_el), dtype=complex)
+        np.multiply(a[:, None, :], vt[it[sl]], out=w[:, 0:3])
+        np.multiply(a[:, None, :], vt[ir[sl]], out=w[:, 3:6])
+        w[:, 6] = a
+        t = (w.reshape(p * 7, n_el) @ right).reshape(p, 7, g)
+        t[:, :6] *= -1j * k
+        out[sl] = t.transpose(0, 2, 1)
     return out
 
 

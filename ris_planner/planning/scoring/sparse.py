@@ -373,7 +373,9 @@ def site_information(
     it): the expected-random FIM without ``codebook``, else its designed block's; referred to
     the LOS delay with the pairs' LOS gradients ``los_grad`` when the clock is; with
     ``spherical`` the pairs inside the Fraunhofer distance get the exact per-element response
-    (:func:`ris_planner.bounds.compute.ris_path_information`)."""
+    (:func:`ris_planner.bounds.compute.ris_path_information`), with a designed block's dense
+    profiles [G̃, N] (its planar O(columns + rows) products rest on the far-field
+    factorisation)."""
     ones = np.ones(radio.transmissions)  # the expected-random FIM: Σ_g δ_g² = G
     if codebook is None:
         info, far = ris_path_information(ris, tx, rx, radio, None, 1, ones)
@@ -396,9 +398,21 @@ def site_information(
     factor[:, :3] = info.factor()[:, :, kept]
     near = np.flatnonzero(~far) if spherical else np.zeros(0, dtype=int)
     if near.size:  # inside the Fraunhofer distance: the exact per-element response
-        sph, _ = ris_path_information(
-            ris, tx[near], rx[near], radio, None, 1, ones, wavefront="spherical"
-        )
+        if codebook is None:
+            sph, _ = ris_path_information(
+                ris, tx[near], rx[near], radio, None, 1, ones, wavefront="spherical"
+            )
+        else:  # the designed block's dense profiles [G̃, N], element by element
+            sph, _ = ris_path_information(
+                ris,
+                tx[near],
+                rx[near],
+                radio,
+                codebook.block.profiles(),
+                codebook.blocks,
+                codebook.powers,
+                wavefront="spherical",
+            )
         if los_grad is not None:
             sph = to_los_reference(sph, los_grad[near])
         packed[:, near] = pack(sph.state_information()[:, kept][:, :, kept])
