@@ -60,6 +60,7 @@ from ris_planner.planning.search.layouts import Layout
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int_]
 
 
 @dataclass
@@ -155,7 +156,7 @@ def layout_beams(
         **{f"dir_der_{k}": finite_or_none(v.coverage()) for k, v in coverage.items()},
     }
     timing_s["evaluate"] = time.perf_counter() - t3
-    colour = profile_colours(problem, layout)
+    colour = layout_colours(result, problem, layout)
     kinds = ("dir", "der_xi", "der_zeta")
     rises = []
     for j, s in enumerate(layout):
@@ -196,6 +197,18 @@ def layout_beams(
     }
     progress(1.0, "beams: done")
     return DistrictBeams(blocks, powers, detail)
+
+
+def layout_colours(result: PlanResult, problem: DistrictProblem, layout: Layout) -> IntArray:
+    """[L] each layout RIS's profile colour: the one the plan reported for a count's layout
+    (plan.json ``time_orthogonal.counts``: a designed plan's held colouring), DSatur's for
+    another layout."""
+    timing = result.search_details.get("time_orthogonal") or {}
+    for row in timing.get("counts", []):
+        by_site = row["colour_of_site"]
+        if {int(s) for s in by_site} == set(layout):
+            return np.array([int(by_site[str(s)]) for s in layout])
+    return profile_colours(problem, layout)
 
 
 SDP_POSITIONS_PER_RIS = 8

@@ -137,6 +137,7 @@ def run_district(
     level = goal.min if doc.target_mode and goal is not None else None
     lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-relaxation")
     fitted: list[dict[str, Any]] = []
+    colouring: dict[Layout, tuple[int, ...]] = {}
     try:
         with clock.stage("search"):
             # one model, built and then solved count by count on the thread (in order)
@@ -159,14 +160,14 @@ def run_district(
         if problem.codebooks.designed:
             with clock.stage("colours"):  # every layout held to the Γ − 1 profile colours
                 progress(0.8, f"colours: Γ = {blocks} blocks")
-                found, fitted = fit_blocks(problem, seen, found, blocks, cons)
+                found, fitted, colouring = fit_blocks(problem, seen, found, blocks, cons)
                 infeasible += [n["ris_count"] for n in fitted if not n["fits"]]
     finally:
         # a solve under way ends first: the sizing solves the same model next
         lp.shutdown(wait=True, cancel_futures=True)
     with clock.stage("rollout"):
         rollout = _rollout(doc, seen, problem, found, cons)
-    timing = time_orthogonal(problem, found, doc.system.transmissions, blocks)
+    timing = time_orthogonal(problem, found, doc.system.transmissions, blocks, colouring)
     if problem.codebooks.designed:
         timing["held_to_blocks"] = fitted
     progress(1.0, "done")
@@ -302,13 +303,14 @@ def fit_blocks(
     found: list[CountResult],
     blocks: int,
     cons: Constraints,
-) -> tuple[list[CountResult], list[dict[str, Any]]]:
+) -> tuple[list[CountResult], list[dict[str, Any]], dict[Layout, tuple[int, ...]]]:
     """Each count's layout held to the Γ − 1 profile colours of the ``blocks`` its designed
     information was computed with (:func:`~ris_planner.planning.search.colour_fit.
     fit_colours`), re-scored; plan.json ``time_orthogonal.held_to_blocks``: per count whose
     layout needed more colours the sites taken out and put in and the coverage before and
     after (``fits`` false, with the colours it needs, where no refill could hold it: that
-    count is left out of the results, an infeasible count)."""
+    count is left out of the results, an infeasible count); and each held layout's colouring
+    (the one the fit built: DSatur run again could need more)."""
     from ris_planner.planning.scoring.time_blocks import audible_incidence
     from ris_planner.planning.search.colour_fit import fit_colours
 
@@ -316,13 +318,15 @@ def fit_blocks(
     heard = audible_incidence(problem)
     out: list[CountResult] = []
     notes: list[dict[str, Any]] = []
+    colouring: dict[Layout, tuple[int, ...]] = {}
     for cr in found:
         layout = cr.ranked[0][0]
         fit = fit_colours(problem, seen, layout, blocks - 1, required, excluded, conflict, heard)
         if not fit.fits:
-            need = int(profile_colours(problem, layout, heard).max()) + 1
+            need = int(max(fit.colour)) + 1
             notes.append({"ris_count": cr.ris_count, "fits": False, "colours": need})
             continue
+        colouring[fit.layout] = fit.colour
         if not fit.removed:
             out.append(cr)
             continue
@@ -340,7 +344,7 @@ def fit_blocks(
                 "coverage_after": -new.ranked[0][1],
             }
         )
-    return out, notes
+    return out, notes, colouring
 
 
 INITIAL_COLOURS = 5
@@ -359,16 +363,21 @@ def initial_blocks(doc: Any) -> int:
 
 
 def time_orthogonal(
-    problem: DistrictProblem, found: list[CountResult], transmissions: int, blocks: int
+    problem: DistrictProblem,
+    found: list[CountResult],
+    transmissions: int,
+    blocks: int,
+    colouring: dict[Layout, tuple[int, ...]] | None = None,
 ) -> dict[str, Any]:
     """plan.json ``search_details.time_orthogonal``: per count the profile colours its layout
-    needs and each RIS's colour (the column of B it takes after the LOS's), the Γ they need
-    (the largest over the counts) and the Γ a designed codebook was built for with its beams
-    per block."""
+    needs and each RIS's colour (the column of B it takes after the LOS's: the held
+    ``colouring`` of a designed plan's layout, else DSatur's), the Γ they need (the largest
+    over the counts) and the Γ a designed codebook was built for with its beams per block."""
     rows: list[dict[str, Any]] = []
     for cr in found:
         layout = cr.ranked[0][0]
-        colour = profile_colours(problem, layout)
+        held = (colouring or {}).get(tuple(sorted(layout)))
+        colour = profile_colours(problem, layout) if held is None else np.array(held)
         n = int(colour.max()) + 1 if colour.size else 0
         rows.append(
             {

@@ -4,14 +4,17 @@
 A designed codebook's information depends on Γ (G̃ = G/Γ beams per block), so Γ is fixed
 before the information is built and the searched layouts are held to it: a layout whose
 profile colours (:func:`~ris_planner.planning.scoring.time_blocks.profile_colours`) exceed
-Γ − 1 keeps the sites DSatur coloured below Γ − 1 and is refilled greedily
+Γ − 1 keeps the sites that find a colour below Γ − 1 (at least those DSatur coloured below it)
+and is refilled greedily
 (:class:`~ris_planner.planning.search.district.GainBook`: the largest covered-weight gain,
 ties by the surrogate) from the sites that fit – a site fits when some colour below Γ − 1 is
-free of every layout site it shares an audible pair with, and DSatur's colouring of the
-grown layout stays within Γ − 1. Where none of the :data:`FIT_TRIES` best does, the step
-takes the best site that shares no audible pair with the layout: DSatur colours it 0 and
-leaves every other colour as it was, so it always fits, and a layout can only fail to be held
-when no candidate is left at all. Each reported layout then fits in the one run; its
+free of every layout site it shares an audible pair with; the site takes the first such
+colour. The held layout's colouring is built with it – its sites in the order of their DSatur
+colour classes, each taking the first colour free of its neighbours (never more colours than
+DSatur's), then each refilled site its free colour – so it is proper and below Γ − 1 by
+construction, and it is the colouring the plan reports (DSatur run again on the held layout
+could need more). A layout fails to be held only when no candidate with a free colour is
+left. Each reported layout then fits in the one run; its
 certificate (an upper bound over every layout of its count, coloured or not) still holds.
 """
 
@@ -25,26 +28,25 @@ from scipy.sparse import csc_matrix, csr_matrix
 
 from ris_planner.planning.scoring.sparse import DistrictProblem, LayoutState
 from ris_planner.planning.scoring.time_blocks import audible_incidence, profile_colours
-from ris_planner.planning.search.district import GAIN_TIE, GainBook
+from ris_planner.planning.search.district import GainBook
 
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int_]
 
-FIT_TRIES = 64
-"""Candidates a refill step tries (by gain) before giving up on a step: each checked by
-DSatur on the grown layout."""
-
 
 @dataclass(frozen=True)
 class ColourFit:
-    """A layout held to ``colours`` profile colours: the layout, the sites taken out and put
-    in, and whether it fits (False only where no candidate is left to add, or the required
-    sites alone need more colours: the layout is then returned as it was)."""
+    """A layout held to ``colours`` profile colours: the layout (sorted), the sites taken out
+    and put in, whether it fits, and the colour of each of its sites (a proper colouring below
+    ``colours`` where it fits). ``fits`` is False only where no candidate with a free colour is
+    left to add (or the required sites alone need more colours): the layout is then returned
+    as it was, with its DSatur colours."""
 
     layout: tuple[int, ...]
     removed: tuple[int, ...]
     added: tuple[int, ...]
     fits: bool
+    colour: tuple[int, ...]
 
 
 def fit_colours(
@@ -61,59 +63,54 @@ def fit_colours(
     the search ranks sites on, ``problem`` the one whose audible paths the colours separate."""
     heard = audible_incidence(problem) if heard is None else heard
     by_pair = heard.tocsr()
-    colour = profile_colours(problem, layout, heard)
-    if colour.size == 0 or int(colour.max()) < colours:
-        return ColourFit(tuple(layout), (), (), True)
+    ordered = tuple(sorted(int(s) for s in layout))
+    dsatur = profile_colours(problem, ordered, heard)
+    if dsatur.size == 0 or int(dsatur.max()) < colours:
+        return ColourFit(ordered, (), (), True, tuple(int(c) for c in dsatur))
+    unheld = ColourFit(ordered, (), (), False, tuple(int(c) for c in dsatur))
     fixed = set(required)
-    keep = [s for s, c in zip(layout, colour, strict=True) if c < colours or s in fixed]
-    removed = tuple(sorted(set(layout) - set(keep)))
+    # used[s, c]: a layout site of colour c shares an audible pair with candidate s
+    used = np.zeros((problem.n_sites, colours), dtype=bool)
+    colour_of: dict[int, int] = {}
+
+    def place(site: int) -> bool:
+        free = np.flatnonzero(~used[site])
+        if free.size == 0:
+            return False
+        colour_of[site] = int(free[0])
+        used[_neighbours(heard, by_pair, site), int(free[0])] = True
+        return True
+
+    # the layout's sites again, required first, then by their DSatur colour: greedy in the
+    # order of a colouring's classes never needs more colours than it, so every site DSatur
+    # coloured below the limit keeps a place
+    by_class = sorted(range(len(ordered)), key=lambda i: (ordered[i] not in fixed, dsatur[i]))
+    for i in by_class:
+        if not place(ordered[i]) and ordered[i] in fixed:
+            return unheld
+    keep = sorted(colour_of)
+    removed = tuple(sorted(set(ordered) - set(keep)))
     book = GainBook(LayoutState(seen, keep))
     allowed = np.ones(problem.n_sites, dtype=bool)
     allowed[list(excluded)] = False
-    allowed[list(layout)] = False  # a removed site would need its colour again
+    allowed[list(ordered)] = False  # a removed site would need its colour again
     if conflict is not None:
         for s in keep:
             allowed &= ~conflict[s]
-    # used[s, c]: a layout site of colour c shares an audible pair with candidate s;
-    # touched[s]: some layout site does
-    used = np.zeros((problem.n_sites, colours), dtype=bool)
-    touched = np.zeros(problem.n_sites, dtype=bool)
-    kept_colour = profile_colours(problem, keep, heard)
-    for s, c in zip(keep, kept_colour, strict=True):
-        near = _neighbours(heard, by_pair, s)
-        touched[near] = True
-        if c < colours:
-            used[near, c] = True
     added: list[int] = []
-    while len(keep) < len(layout):
-        key = np.where(allowed & ~used.all(axis=1), book.gain_c + GAIN_TIE * book.gain_s, -np.inf)
-        order = np.argsort(-key, kind="stable")[:FIT_TRIES]
-        pick = None
-        for s in order[np.isfinite(key[order])].tolist():
-            if int(profile_colours(problem, [*keep, s], heard).max()) < colours:
-                pick = s
-                break
-            allowed[s] = False  # DSatur needs more colours with it: not tried again
-        if pick is None:  # a site no layout site shares a pair with always fits
-            lone = allowed & ~touched
-            if not lone.any():
-                return ColourFit(tuple(layout), (), (), False)
-            pick = book.best(lone)
+    while len(colour_of) < len(ordered):
+        fits = allowed & ~used.all(axis=1)  # a colour below the limit is free of its pairs
+        if not fits.any():
+            return unheld
+        pick = book.best(fits)
         book.set(pick, True)
-        keep.append(pick)
+        place(pick)
         added.append(pick)
         allowed[pick] = False
         if conflict is not None:
             allowed &= ~conflict[pick]
-        near = _neighbours(heard, by_pair, pick)
-        touched[near] = True
-        free = np.flatnonzero(~used[pick])
-        if free.size:
-            used[near, int(free[0])] = True
-    held = tuple(sorted(keep))
-    if int(profile_colours(problem, held, heard).max()) >= colours:  # a required site's
-        return ColourFit(tuple(layout), (), (), False)
-    return ColourFit(held, removed, tuple(sorted(added)), True)
+    held = tuple(sorted(colour_of))
+    return ColourFit(held, removed, tuple(sorted(added)), True, tuple(colour_of[s] for s in held))
 
 
 def _neighbours(heard: csc_matrix, by_pair: csr_matrix, site: int) -> IntArray:
