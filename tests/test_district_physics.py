@@ -398,3 +398,61 @@ def test_district_validation_checks_each_pair_with_the_rises_it_hears() -> None:
     assert lay["codebook"]["kind"] == "designed" and lay["codebook"]["blocks"] >= 4
     for pair in lay["pairs"]:
         assert set(pair["paths"]["ris"]) <= set(lay["sites"])
+
+
+def test_the_audible_only_coverage_is_compute_bounds_with_the_rises_each_pair_hears() -> None:
+    """plan.json ``search_details.audible_paths``: per count the layout's coverage counting
+    only the RIS paths heard above the noise over the whole pilot – per pair, the metric equals
+    ``compute_bounds`` on a scenario of the layout's RISs that pair hears audibly (random
+    phases: no Γ to pad), and the covered weight is the plan's figure; never above the
+    coverage that counts every path."""
+    doc = street_doc(threshold_m=1.0, side=16, counts=(3,))
+    result = run_plan(doc)
+    plan = result.to_json()
+    problem = result.scorer.problem  # type: ignore[attr-defined]
+    (row,) = plan["search_details"]["audible_paths"]["by_count"]
+    layout = [int(x) for x in plan["by_count"][0]["sites"]]
+    state = LayoutState(problem.audible_only(), layout)
+    inputs = prepare_plan(doc)
+    d = inputs.document
+    heard: dict[tuple[int, ...], list[int]] = {}
+    for pair in range(problem.n_pairs):
+        lo, hi = problem.pair_start[pair], problem.pair_start[pair + 1]
+        loud = set(problem.entry_site[lo:hi][problem.audible[lo:hi]].tolist())
+        heard.setdefault(tuple(s for s in layout if s in loud), []).append(pair)
+    checked = 0
+    for rises, pairs in heard.items():
+        got = state.metric[pairs]
+        if not rises:
+            assert np.isinf(got).all()
+            continue
+        scenario = layout_scenario(
+            d.system, [inputs.sites[s].ris for s in rises], list(d.known), d.environment
+        )
+        res = compute_bounds(
+            scenario, inputs.pairs.tx[pairs], inputs.pairs.rx[pairs], channel=False
+        )
+        assert np.array_equal(np.isfinite(got), np.isfinite(res.peb_rx))
+        fin = np.isfinite(got)
+        assert_close(got[fin], res.peb_rx[fin], accuracy=BOUND_ACCURACY)
+        checked += int(fin.sum())
+    assert checked > 20
+    covered = float(problem.weights[state.metric <= problem.threshold].sum())
+    assert row["audible_only"] == pytest.approx(covered, abs=1e-12)
+    assert row["audible_only"] <= row["coverage"] + 1e-12
+    assert row["coverage"] == pytest.approx(plan["by_count"][0]["objective"], abs=1e-12)
+    share = plan["search_details"]["audible_paths"]["audible_entries_share"]
+    assert share == pytest.approx(problem.audible.mean(), abs=1e-12)
+    warned = [w for w in plan["warnings"] if "counting only RIS paths heard" in w]
+    assert bool(warned) == (row["audible_only"] < 0.8 * row["coverage"]), (row, warned)
+
+
+def test_no_audible_paths_warning_where_the_paths_are_heard() -> None:
+    """At 60 dBm on the street site most paths are audible and the coverage counting only
+    them is within the warning's share: no warning (at 30 dBm the same layout count warns)."""
+    doc = street_doc(threshold_m=1.0, side=16, counts=(3,))
+    doc["system"]["tx_power_dbm"] = 60
+    plan = run_plan(doc).to_json()
+    (row,) = plan["search_details"]["audible_paths"]["by_count"]
+    assert row["audible_only"] >= 0.8 * row["coverage"] > 0
+    assert not [w for w in plan["warnings"] if "counting only RIS paths heard" in w]

@@ -167,6 +167,8 @@ def run_district(
         lp.shutdown(wait=True, cancel_futures=True)
     with clock.stage("rollout"):
         rollout = _rollout(doc, seen, problem, found, cons)
+    with clock.stage("audible"):
+        heard, heard_warning = audible_paths(problem, found)
     timing = time_orthogonal(problem, found, doc.system.transmissions, blocks, colouring)
     if problem.codebooks.designed:
         timing["held_to_blocks"] = fitted
@@ -196,10 +198,12 @@ def run_district(
             else 0.0,
             "entries": problem.n_entries,
             "time_orthogonal": timing,
+            "audible_paths": heard,
             "codebook": codebook_json(problem),
             "certificate": _certificate_details(model.result(), relaxed),
         },
         sizing_state=DistrictSearch(problem, seen, needs, path, model.result()),
+        site_warnings=[heard_warning] if heard_warning else None,
     )
     if doc.beams is not None:  # the layouts' beams and power (one SDP over the slot powers)
         from ris_planner.planning.district_beams import district_beams
@@ -207,6 +211,51 @@ def run_district(
         with clock.stage("beams"):
             result = replace(result, beams=district_beams(result, inputs, progress))
     return replace(result, timing=dict(clock.seconds))
+
+
+AUDIBLE_WARNING_SHARE = 0.8
+"""The plan warns when the largest count's coverage counting audible paths only is below this
+share of its coverage (:func:`audible_paths`)."""
+
+
+def audible_paths(
+    problem: DistrictProblem, found: list[CountResult]
+) -> tuple[dict[str, Any], str | None]:
+    """plan.json ``search_details.audible_paths``: per count the layout's coverage and its
+    coverage counting only the audible RIS paths (integrated SNR over the whole pilot at least
+    :data:`~ris_planner.planning.scoring.sparse.AUDIBLE_SNR_DB`:
+    :meth:`~ris_planner.planning.scoring.sparse.DistrictProblem.audible_only`), and the share
+    of (pair, site) entries that are audible; with a warning when the largest count's covered
+    weight rests mostly on the rest (:data:`AUDIBLE_WARNING_SHARE`). The bound counts every
+    path, as ``compute_bounds`` does; the estimator cannot detect a path below the noise."""
+    from ris_planner.planning.scoring.sparse import AUDIBLE_SNR_DB
+
+    audible = problem.audible_only()
+    rows = [
+        {
+            "ris_count": cr.ris_count,
+            "coverage": -cr.ranked[0][1],
+            "audible_only": LayoutState(audible, list(cr.ranked[0][0])).coverage(),
+        }
+        for cr in found
+    ]
+    details = {
+        "snr_db": AUDIBLE_SNR_DB,
+        "audible_entries_share": audible.n_entries / max(problem.n_entries, 1),
+        "by_count": rows,
+    }
+    last = rows[-1] if rows else None
+    if last is None or last["audible_only"] >= AUDIBLE_WARNING_SHARE * last["coverage"]:
+        return details, None
+    warning = (
+        f"at {last['ris_count']} RISs the layout covers {last['coverage']:.3f} of the pairs'"
+        f" weight, {last['audible_only']:.3f} counting only RIS paths heard above the noise over"
+        f" the whole pilot (integrated SNR ≥ {AUDIBLE_SNR_DB:g} dB): the rest rests on paths"
+        " below it, whose information the bound counts as compute_bounds does but which the"
+        " estimator cannot detect (search_details.audible_paths; docs/concepts/"
+        "district-physics.md, Audible paths)"
+    )
+    return details, warning
 
 
 def _coverage(model: Future[DistrictRelaxation], count: int) -> Relaxed:

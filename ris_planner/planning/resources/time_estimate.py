@@ -477,26 +477,36 @@ DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
     "inputs": {"const": 0.6, "per_site": 1.5e-4},
     "search_main": {
         "per_entry_size": 2.5e-6,
+        "per_designed_entry_size": 7.5e-6,
+        "per_near_element_size": 1.3e-8,
+        "per_designed_near_element_size": 6e-8,
         "per_site_size": 7.5e-4,
         "per_path_rescore": 3.9e-7,
         "per_swap_rescore": 7e-7,
     },
-    "search_lp": {"per_lp_row_entry": 1.8e-6},
-    "figures": {"const": 1.0},
+    "search_lp": {"per_lp_row_entry": 1.8e-6, "per_large_solve_row_entry": 9e-6},
+    "beams": {"per_layout": 15.0, "per_ris": 0.8},
+    "figures": {"const": 1.0, "per_pair": 5e-4},
     "fields": {"per_pair": 2e-6},
     "report": {"per_pair": 2e-6},
     "exports": {"per_pair": 2e-6},
 }
 """Seconds per unit of the district search's work (:func:`district_terms` names the sizes),
-fitted by hand to the phases of eight district plans on the Helsinki district of
-``benchmarks/district/bench_district.py`` (500 and 2122 candidates, 5 000 and 20 000 pairs, 20–120
-RISs, with and without sizing; docs/validation/resources.md, "District plans"). ``search_main``
-is the main thread: each RIS size's (pair, serving site) entries and candidates (the
-information and its visibility), the greedy path's and the swaps' re-scores (per site placed or
-swapped, the search's entries of the pairs that site serves); ``search_lp`` the relaxations on
-the thread beside it, per LP solved (one per RIS count, a lower bound per RIS size of the
-sizing, which costs :data:`DISTRICT_LOWER_BOUND_LPS` of them), per entry plus
-:data:`DISTRICT_LP_ROWS_PER_PAIR` per pair."""
+fitted by hand to the phases of district plans on the Helsinki district of
+``benchmarks/district/bench_district.py`` and ``bench_district_physics.py``
+(docs/validation/resources.md, "District plans"). ``search_main`` is the main thread: each RIS
+size's (pair, serving site) entries and candidates (the information and its visibility; a
+designed codebook's blocks and, with the spherical wavefront, the exact per-element response
+of the entries inside the Fraunhofer distance, per entry and element), the greedy path's and
+the swaps' re-scores (per site placed or swapped, the search's entries of the pairs that site
+serves); ``search_lp`` the relaxations on the thread beside it, per entry plus
+:data:`DISTRICT_LP_ROWS_PER_PAIR` per pair: a small model per LP (one per RIS count, a lower
+bound per RIS size of the sizing, which costs :data:`DISTRICT_LOWER_BOUND_LPS` of them), a
+large one (:data:`~ris_planner.planning.certify.district_lp.SIMPLEX_MAX_NONZEROS`) per solve –
+its first :data:`~ris_planner.planning.certify.district_lp.LARGE_SOLVES` counts, each solved
+and solved again after :data:`DISTRICT_SEPARATION_SOLVES` rounds of separated cuts; ``beams``
+(``beams`` set) per layout (its γ_P search and coverage under each allocation) and per RIS
+(its SDP and its positions' information); the figures per pair."""
 
 DISTRICT_LOWER_BOUND_LPS = 1.8
 """A sizing lower bound (min Σ z) costs this many coverage relaxations (measured 1.8 on the
@@ -505,6 +515,16 @@ Helsinki district)."""
 DISTRICT_LP_ROWS_PER_PAIR = 60
 """Per pair, the relaxation's cost in entries beyond its serving sites (its rows, its cover
 sets)."""
+
+DISTRICT_NONZEROS_PER_ENTRY = 0.55
+"""The relaxation's nonzeros per estimated entry (1.26 million of 2.37 million on the Helsinki
+district): above :data:`~ris_planner.planning.certify.district_lp.SIMPLEX_MAX_NONZEROS` the
+model is a large one."""
+
+DISTRICT_SEPARATION_SOLVES = 1
+"""Solves after a large model's first per count: the separation rounds that fit in
+:data:`~ris_planner.planning.certify.district_lp.SEPARATION_SECONDS` (one on the Helsinki
+district)."""
 
 DISTRICT_OVERLAP = 0.5
 """The search is the longer of its main thread and its relaxations' thread plus this share of
@@ -522,6 +542,7 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     site's re-score K² · pairs / sites; with a target or sizing each RIS size's greedy path runs
     up to :func:`~ris_planner.planning.search.district.most_ris` (it stops at the target, which
     the estimate cannot know)."""
+    from ris_planner.planning.certify.district_lp import LARGE_SOLVES, SIMPLEX_MAX_NONZEROS
     from ris_planner.planning.search.district import (
         SEARCH_SITES,
         SMALL_DISTRICT_SITES,
@@ -541,27 +562,47 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     longest = min(max(max(counts), most) if target else max(counts), n_sites)
     path = longest + (sizes - 1) * min(most, n_sites) if target else longest
     swaps = sum(counts) * (6 if n_sites <= SMALL_DISTRICT_SITES else 1)
-    lps = len(counts) + (DISTRICT_LOWER_BOUND_LPS * sizes if target else 0.0)
-    return {
+    lp_units = entries + DISTRICT_LP_ROWS_PER_PAIR * n_pairs
+    if entries * DISTRICT_NONZEROS_PER_ENTRY > SIMPLEX_MAX_NONZEROS:
+        # the plan's counts up to LARGE_SOLVES, each with its separation rounds; the lower
+        # bound of every other RIS size of the sizing (the document's own: from the bounds)
+        solves = min(len(counts), LARGE_SOLVES) + ((sizes - 1) if target else 0)
+        small_lps, large_solves = 0.0, solves * (1.0 + DISTRICT_SEPARATION_SOLVES)
+    else:
+        small_lps = len(counts) + (DISTRICT_LOWER_BOUND_LPS * sizes if target else 0.0)
+        large_solves = 0.0
+    designed = doc.codebook.kind != "expected_random"
+    near = entries * w.elements * sizes if doc.system.wavefront == "spherical" else 0.0
+    terms: dict[str, dict[str, float]] = {
         "inputs": {"const": 1.0, "per_site": float(n_sites)},
         "search_main": {
             "per_entry_size": entries * sizes,
+            "per_designed_entry_size": entries * sizes if designed else 0.0,
+            "per_near_element_size": 0.0 if designed else near,
+            "per_designed_near_element_size": near if designed else 0.0,
             "per_site_size": float(n_sites * sizes),
             "per_path_rescore": rescore * (path + DISTRICT_LOOKAHEAD_STEPS * sizes),
             "per_swap_rescore": rescore * swaps,
         },
-        "search_lp": {"per_lp_row_entry": (entries + DISTRICT_LP_ROWS_PER_PAIR * n_pairs) * lps},
-        "figures": {"const": 1.0},
+        "search_lp": {
+            "per_lp_row_entry": lp_units * small_lps,
+            "per_large_solve_row_entry": lp_units * large_solves,
+        },
+        "figures": {"const": 1.0, "per_pair": float(n_pairs)},
         "fields": {"per_pair": float(n_pairs) * len(counts)},
         "report": {"per_pair": float(n_pairs) * len(counts)},
         "exports": {"per_pair": float(n_pairs) * len(counts)},
     }
+    if doc.beams is not None:
+        layouts = [*counts, *(len(lay) for lay in doc.beams.layouts)]
+        terms["beams"] = {"per_layout": float(len(layouts)), "per_ris": float(sum(layouts))}
+    return terms
 
 
 def district_seconds(plan: Sized) -> dict[str, float]:
     """Estimated seconds of a district plan's stages (plan.json ``timing_s``: ``inputs``,
-    ``search``, ``figures``), :data:`MARGIN` included; the search's two threads overlap
-    (:data:`DISTRICT_OVERLAP`)."""
+    ``search``, ``figures``, with ``beams`` its ``beams``), :data:`MARGIN` included; the
+    search's two threads overlap (:data:`DISTRICT_OVERLAP`)."""
     part = {
         stage: sum(DISTRICT_COEFFICIENTS[stage][t] * v for t, v in sizes.items())
         for stage, sizes in district_terms(plan).items()

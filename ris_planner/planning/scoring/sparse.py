@@ -160,7 +160,17 @@ class DistrictProblem:
         order = np.lexsort((-key, self.entry_pair))
         rank = np.empty(self.n_entries, dtype=np.int64)
         rank[order] = np.arange(self.n_entries) - self.pair_start[self.entry_pair[order]]
-        keep = np.flatnonzero(rank < per_pair)
+        return self.kept(np.flatnonzero(rank < per_pair))
+
+    def audible_only(self) -> DistrictProblem:
+        """The same problem with the audible entries only (:data:`AUDIBLE_SNR_DB`): a layout's
+        coverage on it counts no RIS path below the noise over the whole pilot
+        (docs/concepts/district-physics.md, "Audible paths")."""
+        return self.kept(np.flatnonzero(self.audible))
+
+    def kept(self, keep: IntArray) -> DistrictProblem:
+        """The same problem with the entries ``keep`` only (ascending: pairs stay
+        contiguous)."""
         entry_pair, entry_site = self.entry_pair[keep], self.entry_site[keep]
         by_site = np.argsort(entry_site, kind="stable")
         return replace(
