@@ -183,7 +183,7 @@ def growth(work: Path, base: dict[str, Any], side: int, quick: bool) -> None:
                 plan = plan_district(work, doc, f"g-{n_sites}-{pairs}-{count}")
                 print(
                     f"| {len(doc['candidates'])} | {pairs} | {count} |"
-                    f" {plan['pairs_summary']['entries']} | {plan['wall_s']:.1f} |"
+                    f" {plan['search_details']['entries']} | {plan['wall_s']:.1f} |"
                     f" {peak_mib(plan)} | {estimate_columns(plan)} |"
                 )
 

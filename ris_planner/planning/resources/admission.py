@@ -331,10 +331,11 @@ def _ris_in_layout(shape: PlanShape) -> int:
     return min(shape.max_count, max(shape.sites, 1))
 
 
-BYTES_PER_DISTRICT_ENTRY = 700
+BYTES_PER_DISTRICT_ENTRY = 1200
 """Bytes per estimated (pair, serving site) of the district search (pairs × sites × the served
 share): packed information and square-root rows on up to 7 states, the search's strongest
-entries, indices, gains and the relaxation's matrix (fitted to the peaks of the Helsinki
+entries, indices, gains and the relaxation – its matrix with the non-cover cuts and the
+separated rows, and the solver's interior-point factors (fitted to the peaks of the Helsinki
 district plans, docs/validation/resources.md; the sample's share runs low on streets)."""
 
 DISTRICT_SIZE_SHARE = 0.8

@@ -484,7 +484,7 @@ DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
         "per_path_rescore": 3.9e-7,
         "per_swap_rescore": 7e-7,
     },
-    "search_lp": {"per_lp_row_entry": 1.8e-6, "per_large_solve_row_entry": 9e-6},
+    "search_lp": {"per_lp_row_entry": 1.8e-6, "per_large_solve_row_entry": 8e-6},
     "beams": {"per_layout": 15.0, "per_ris": 0.8},
     "figures": {"const": 1.0, "per_pair": 5e-4},
     "fields": {"per_pair": 2e-6},
@@ -504,7 +504,9 @@ serves); ``search_lp`` the relaxations on the thread beside it, per entry plus
 bound per RIS size of the sizing, which costs :data:`DISTRICT_LOWER_BOUND_LPS` of them), a
 large one (:data:`~ris_planner.planning.certify.district_lp.SIMPLEX_MAX_NONZEROS`) per solve –
 its first :data:`~ris_planner.planning.certify.district_lp.LARGE_SOLVES` counts, each solved
-and solved again after :data:`DISTRICT_SEPARATION_SOLVES` rounds of separated cuts; ``beams``
+and solved again after each round of separated cuts that starts within
+:data:`~ris_planner.planning.certify.district_lp.SEPARATION_SECONDS` of its first solve (a
+round modelled as long as a solve); ``beams``
 (``beams`` set) per layout (its γ_P search and coverage under each allocation) and per RIS
 (its SDP and its positions' information); the figures per pair."""
 
@@ -516,15 +518,11 @@ DISTRICT_LP_ROWS_PER_PAIR = 60
 """Per pair, the relaxation's cost in entries beyond its serving sites (its rows, its cover
 sets)."""
 
-DISTRICT_NONZEROS_PER_ENTRY = 0.55
-"""The relaxation's nonzeros per estimated entry (1.26 million of 2.37 million on the Helsinki
-district): above :data:`~ris_planner.planning.certify.district_lp.SIMPLEX_MAX_NONZEROS` the
-model is a large one."""
-
-DISTRICT_SEPARATION_SOLVES = 1
-"""Solves after a large model's first per count: the separation rounds that fit in
-:data:`~ris_planner.planning.certify.district_lp.SEPARATION_SECONDS` (one on the Helsinki
-district)."""
+DISTRICT_NONZEROS_PER_PAIR = 50
+"""The relaxation's nonzeros per pair, at least (50–191 on the Helsinki district's plans of
+500 and 2122 candidates, 5 000 and 20 000 pairs): above
+:data:`~ris_planner.planning.certify.district_lp.SIMPLEX_MAX_NONZEROS` the model is a large
+one."""
 
 DISTRICT_OVERLAP = 0.5
 """The search is the longer of its main thread and its relaxations' thread plus this share of
@@ -542,7 +540,12 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     site's re-score K² · pairs / sites; with a target or sizing each RIS size's greedy path runs
     up to :func:`~ris_planner.planning.search.district.most_ris` (it stops at the target, which
     the estimate cannot know)."""
-    from ris_planner.planning.certify.district_lp import LARGE_SOLVES, SIMPLEX_MAX_NONZEROS
+    from ris_planner.planning.certify.district_lp import (
+        LARGE_SOLVES,
+        SEPARATION_ROUNDS,
+        SEPARATION_SECONDS,
+        SIMPLEX_MAX_NONZEROS,
+    )
     from ris_planner.planning.search.district import (
         SEARCH_SITES,
         SMALL_DISTRICT_SITES,
@@ -563,11 +566,14 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     path = longest + (sizes - 1) * min(most, n_sites) if target else longest
     swaps = sum(counts) * (6 if n_sites <= SMALL_DISTRICT_SITES else 1)
     lp_units = entries + DISTRICT_LP_ROWS_PER_PAIR * n_pairs
-    if entries * DISTRICT_NONZEROS_PER_ENTRY > SIMPLEX_MAX_NONZEROS:
-        # the plan's counts up to LARGE_SOLVES, each with its separation rounds; the lower
-        # bound of every other RIS size of the sizing (the document's own: from the bounds)
+    if n_pairs * DISTRICT_NONZEROS_PER_PAIR > SIMPLEX_MAX_NONZEROS:
+        # the plan's counts up to LARGE_SOLVES, each solved and solved again after each round
+        # of separated cuts that starts within SEPARATION_SECONDS; the lower bound of every
+        # other RIS size of the sizing (the document's own: from the bounds)
         solves = min(len(counts), LARGE_SOLVES) + ((sizes - 1) if target else 0)
-        small_lps, large_solves = 0.0, solves * (1.0 + DISTRICT_SEPARATION_SOLVES)
+        one = DISTRICT_COEFFICIENTS["search_lp"]["per_large_solve_row_entry"] * lp_units
+        rounds = min(SEPARATION_ROUNDS, math.ceil(SEPARATION_SECONDS / max(one, 1e-9)))
+        small_lps, large_solves = 0.0, solves * (1.0 + rounds)
     else:
         small_lps = len(counts) + (DISTRICT_LOWER_BOUND_LPS * sizes if target else 0.0)
         large_solves = 0.0
