@@ -164,13 +164,9 @@ def test_a_designed_district_plan_reports_its_blocks_and_codebook() -> None:
     assert sum(cb["slot_powers"]) == pytest.approx(cb["beams_per_block"], rel=1e-12)
 
 
-def test_every_layout_fits_the_blocks_of_its_one_information_build(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    """Γ is fixed before the designed information and the layouts are held to its Γ − 1
-    profile colours: with the planner's first Γ too small for the searched layouts (2
-    colours: Γ = 3), the plan builds the information once – no second run with a larger Γ –
-    and every reported layout's colours fit, the held ones re-scored exactly."""
+def _counted_builds(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The Γ of every information build of a district plan run after the call (the list
+    fills as the plan runs)."""
     import ris_planner.planning.district_plan as district_plan
 
     builds: list[int] = []
@@ -181,6 +177,19 @@ def test_every_layout_fits_the_blocks_of_its_one_information_build(
         return real(*args, **kwargs)
 
     monkeypatch.setattr(district_plan, "build_problem", counted)
+    return builds
+
+
+def test_every_layout_fits_the_blocks_of_its_one_information_build(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Γ is fixed before the designed information and the layouts are held to its Γ − 1
+    profile colours: with the planner's first Γ too small for the searched layouts (2
+    colours: Γ = 3), the plan builds the information once – no second run with a larger Γ –
+    and every reported layout's colours fit, the held ones re-scored exactly."""
+    import ris_planner.planning.district_plan as district_plan
+
+    builds = _counted_builds(monkeypatch)
     monkeypatch.setattr(district_plan, "INITIAL_COLOURS", 2)
     doc = _designed("directional_derivative")
     doc["ris_count"] = [2, 3, 4]
@@ -261,14 +270,7 @@ def test_a_count_no_refill_can_hold_is_infeasible_not_a_second_build(
     colours it needs – the information is still built once, for the Γ fixed before it."""
     import ris_planner.planning.district_plan as district_plan
 
-    builds: list[int] = []
-    real = district_plan.build_problem
-
-    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
-        builds.append(kwargs.get("blocks", 0))
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(district_plan, "build_problem", counted)
+    builds = _counted_builds(monkeypatch)
     monkeypatch.setattr(district_plan, "INITIAL_COLOURS", 1)  # Γ = 2: one colour
     doc = _designed("directional_derivative")
     doc["ris_count"] = [2, 3, 4]
