@@ -82,8 +82,8 @@ def fit_colours(
         return True
 
     # the layout's sites again, required first, then by their DSatur colour: greedy in the
-    # order of a colouring's classes never needs more colours than it, so every site DSatur
-    # coloured below the limit keeps a place
+    # order of a colouring's classes never needs more colours than it, so (required sites
+    # aside) every site DSatur coloured below the limit keeps a place
     by_class = sorted(range(len(ordered)), key=lambda i: (ordered[i] not in fixed, dsatur[i]))
     for i in by_class:
         if not place(ordered[i]) and ordered[i] in fixed:
