@@ -458,3 +458,28 @@ def test_no_audible_paths_warning_where_the_paths_are_heard() -> None:
     (row,) = plan["search_details"]["audible_paths"]["by_count"]
     assert row["audible_only"] >= 0.8 * row["coverage"] > 0
     assert not [w for w in plan["warnings"] if "counting only RIS paths heard" in w]
+
+
+def test_a_designed_plan_no_count_of_which_can_be_held_says_why() -> None:
+    """When no count's layout can be held to the Γ − 1 colours (12 of the street's 14 sites,
+    which need 8 colours, against Γ = 6), the plan stops with a message naming the colours and
+    what to change – not an empty plan (its summary and figures have no count to show)."""
+    from ris_planner.core.errors import RisPlannerError
+
+    doc = street_doc(threshold_m=1.0, side=16, counts=(12,))
+    doc["codebook"] = {"kind": "directional_derivative"}
+    with pytest.raises(RisPlannerError, match="fits the 5 profile colours") as err:
+        run_plan(doc)
+    assert "codebook.blocks" in str(err.value)
+
+
+def test_the_expected_random_warning_follows_the_profile_colours() -> None:
+    """A district plan's random-phase blocks are sized by its profile colours, not its RIS
+    count: 12 RISs in 8 colours take Γ = 12 (G̃ = 16 beams, no optimism warning, where 12 + 1
+    RISs would have given G̃ = 12), and a designed codebook has no random phases to warn of."""
+    plan = run_plan(street_doc(threshold_m=1.0, side=16, counts=(12,))).to_json()
+    (row,) = plan["search_details"]["time_orthogonal"]["counts"]
+    assert row["colours"] < 12 and 192 // block_count(192, row["colours"]) >= 16
+    assert not [w for w in plan["warnings"] if "expected_random optimism" in w]
+    designed = run_plan(_designed("directional_derivative")).to_json()
+    assert not [w for w in designed["warnings"] if "expected_random optimism" in w]

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ris_planner.core.errors import RisPlannerError
 from ris_planner.model.plan import Target, target_goal
 from ris_planner.model.profiles import block_count
 from ris_planner.planning.certify.district_lp import (
@@ -165,6 +166,8 @@ def run_district(
     finally:
         # a solve under way ends first: the sizing solves the same model next
         lp.shutdown(wait=True, cancel_futures=True)
+    if not found:
+        raise RisPlannerError(no_count_message(counts, fitted, blocks))
     with clock.stage("rollout"):
         rollout = _rollout(doc, seen, problem, found, cons)
     with clock.stage("audible"):
@@ -211,6 +214,25 @@ def run_district(
         with clock.stage("beams"):
             result = replace(result, beams=district_beams(result, inputs, progress))
     return replace(result, timing=dict(clock.seconds))
+
+
+def no_count_message(counts: list[int], fitted: list[dict[str, Any]], blocks: int) -> str:
+    """Why a district plan has no count to report: no layout of a designed plan's counts could
+    be held to the Γ − 1 profile colours (:func:`fit_blocks`), or the greedy path reached none
+    of them (no further site adds information)."""
+    unheld = [n for n in fitted if not n["fits"]]
+    if unheld:
+        need = max(n["colours"] for n in unheld)
+        return (
+            f"no layout of {counts} RISs fits the {blocks - 1} profile colours of the designed"
+            f" codebook's Γ = {blocks} blocks (the searched layouts need up to {need}, and no"
+            " refill could hold them): set codebook.blocks to a larger divisor of"
+            " system.transmissions, or plan fewer RISs"
+        )
+    return (
+        f"no layout of {counts} RISs: the search's greedy path stops before the smallest count"
+        " (no further candidate adds information to any pair); plan fewer RISs"
+    )
 
 
 AUDIBLE_WARNING_SHARE = 0.8

@@ -273,8 +273,8 @@ class PlanResult:
         one already models the near field), and candidates that serve (almost) no pair."""
         doc = self.document
         out: list[str | None] = [
-            advice.expected_random_warning(doc.system.transmissions, cr.ris_count)
-            for cr in self.counts
+            advice.expected_random_warning(doc.system.transmissions, n)
+            for n in self._random_phase_rises()
         ]
         wavelength = Radio.from_system(doc.system).wavelength
         out += advice.spacing_warnings([self.sites[0].ris], wavelength, ["the candidate RIS"])
@@ -283,6 +283,18 @@ class PlanResult:
             out.append(advice.near_field_warning(float((far * self.pairs.weights).sum())))
         out += self.site_warnings or []
         return list(dict.fromkeys(w for w in out if w is not None))
+
+    def _random_phase_rises(self) -> list[int]:
+        """Per count, the RISs whose columns of B the expected-random FIM's blocks are sized for
+        (:func:`~ris_planner.bounds.advice.expected_random_warning`): the count itself, or a
+        district plan's profile colours (RISs no pair hears together share a column); none for
+        a district plan with a designed codebook (no random phases)."""
+        timing = self.search_details.get("time_orthogonal")
+        if timing is None:
+            return [cr.ris_count for cr in self.counts]
+        if timing.get("designed_for") is not None:
+            return []
+        return [int(row["colours"]) for row in timing["counts"]]
 
     def to_json(self) -> dict[str, Any]:
         """The plan.json content (``inf`` → ``null``), formatted from what the stages stored;

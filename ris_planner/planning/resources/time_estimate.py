@@ -478,8 +478,8 @@ DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
     "search_main": {
         "per_entry_size": 2.5e-6,
         "per_designed_entry_size": 7.5e-6,
-        "per_near_element_size": 1.3e-8,
-        "per_designed_near_element_size": 6e-8,
+        "per_near_element_size": 2.3e-8,
+        "per_designed_near_element_size": 1.05e-7,
         "per_site_size": 7.5e-4,
         "per_path_rescore": 3.9e-7,
         "per_swap_rescore": 7e-7,
