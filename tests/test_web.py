@@ -193,6 +193,14 @@ def screen_of(pg: Page, x: float, y: float) -> tuple[float, float]:
     return round(got[0]), round(got[1])
 
 
+def settle(pg: Page) -> None:
+    """Wait out the page's automatic validation after an edit (a 300 ms debounce, then the
+    request and a redraw of the markers: window.risPlanner.busy()), so no redraw replaces a
+    marker under the pointer."""
+    pg.wait_for_function("() => !window.risPlanner.busy()", timeout=WAIT_MS)
+    expect(pg.locator("#validation-status")).to_have_text(re.compile(r"^Valid: "))
+
+
 def map_info(pg: Page) -> dict[str, Any]:
     """What the map draws: per UE map the points drawn and those inside buildings, the sites."""
     info: dict[str, Any] = pg.evaluate("window.risPlanner.mapInfo()")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from typing import Any
 
 import httpx
@@ -27,6 +26,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     page,
     screen_of,
     server,
+    settle,
     shots,
 )
 from waits import HANG_MS, HANG_S
@@ -205,14 +205,6 @@ def test_add_mode_adds_one_site_over_others(
         f"Valid: {ROW + 2} candidate sites", timeout=WAIT_MS
     )
     shots.take(pg, "map-02-added-over-sites", full_page=False)
-
-
-def settle(pg: Page) -> None:
-    """Wait out the page's automatic validation after an edit (a 300 ms debounce, then the
-    request and a redraw of the markers: window.risPlanner.busy()), so no redraw replaces a
-    marker under the pointer."""
-    pg.wait_for_function("() => !window.risPlanner.busy()", timeout=WAIT_MS)
-    expect(pg.locator("#validation-status")).to_have_text(re.compile(r"^Valid: "))
 
 
 def drag(pg: Page, src: tuple[float, float], dst: tuple[float, float]) -> None:

@@ -33,6 +33,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     page,
     screen_of,
     server,
+    settle,
     shots,
     undeclared_percentages,
     unlabelled_controls,
@@ -234,6 +235,9 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     expect(pg.locator("#cand-editor-title")).to_contain_text("Candidate 2")
     expect(pg.locator("#ce-azimuth")).to_be_focused()
     pg.check("#mode-inspect")
+    # the removal's automatic validation ends (status text, redraw) before the form is used: a
+    # layout change under a click made the clock checkbox miss it on a busy machine
+    settle(pg)
 
     # parameters: a small, fast plan
     pg.fill("#f-ris_count", "1, 2")
