@@ -5,6 +5,8 @@ colours."""
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 import pytest
 from district_site import street_doc
@@ -354,6 +356,46 @@ def test_district_beams_solve_one_sdp_per_ris() -> None:
     assert sum(lay["powers"]["sdp"]) == pytest.approx(lay["beams_per_block"], rel=1e-9)
     colours = plan["search_details"]["time_orthogonal"]["counts"][0]["colour_of_site"]
     assert [r["colour"] for r in lay["ris"]] == [colours[str(s)] for s in lay["sites"]]
+
+
+def test_per_ris_sdps_on_the_plan_pool_answer_as_here(monkeypatch: pytest.MonkeyPatch) -> None:
+    """From ``SDP_POOL_MIN_RIS`` RISs on, each RIS's information and SDP is a task on the plan's
+    process pool (:class:`RisSdpTask`, with the shared :class:`RisSdpShared`): the same rows – statuses, design
+    positions, the mean PEB² at uniform, γ_P and SDP powers (the SDP's to its accuracy, the
+    others by the bounds' rule: another process, another BLAS thread count) – and the same
+    layout allocation as solved here."""
+    import ris_planner.planning.district_beams as district_beams
+    from ris_planner.runtime.executor import LocalExecutor
+
+    class Recording(LocalExecutor):
+        tasks: ClassVar[list[tuple[str, int]]] = []
+
+        def map(self, fn, shared, chunks, on_done=None):  # type: ignore[no-untyped-def]
+            self.tasks.append((fn.__name__, len(chunks)))
+            return super().map(fn, shared, chunks, on_done)
+
+    doc = _designed("directional_derivative") | {"beams": {"design_positions": 12}}
+    doc["ris_count"] = [3]
+    (here,) = run_plan(doc).to_json()["beams"]["layouts"]
+    monkeypatch.setattr(district_beams, "SDP_POOL_MIN_RIS", 1)
+    pool = Recording(workers=2)
+    try:
+        (pooled,) = run_plan(doc, executor=pool).to_json()["beams"]["layouts"]
+        assert pool.worker_pids()  # the pool ran (its workers stop with it)
+    finally:
+        pool.close()
+    assert ("_solve_ris", 3) in Recording.tasks
+    for a, b in zip(here["sdp"]["per_ris"], pooled["sdp"]["per_ris"], strict=True):
+        assert (a["site"], a["status"], a["design_positions"]) == (
+            b["site"],
+            b["status"],
+            b["design_positions"],
+        )
+        got, want = b["design_objective_m2"], a["design_objective_m2"]
+        for kind in ("uniform", "gamma_p"):
+            assert_close(got[kind], want[kind], accuracy=BOUND_ACCURACY)
+        assert_close(got["sdp"], want["sdp"], accuracy=SDP_ACCURACY)
+    assert pooled["sdp"]["status_counts"] == here["sdp"]["status_counts"]
 
 
 def test_a_failed_per_ris_sdp_is_data_never_a_silent_fallback(

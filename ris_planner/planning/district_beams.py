@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from ris_planner.core.io_json import finite_or_none
 from ris_planner.model.plan import PlanCodebook
+from ris_planner.model.power import Objective
 from ris_planner.physics.separable import SeparableBlock, beam_block, grid_axes
 from ris_planner.planning.beams import POWER_OBJECTIVE_OF_METRIC, design_positions
 from ris_planner.planning.inputs.plan_inputs import PlanInputs
@@ -57,6 +58,7 @@ from ris_planner.planning.scoring.sparse import (
 )
 from ris_planner.planning.scoring.time_blocks import profile_colours
 from ris_planner.planning.search.layouts import Layout
+from ris_planner.runtime.executor import Executor, SerialExecutor
 from ris_planner.runtime.progress import ProgressCallback, no_progress
 
 FloatArray = NDArray[np.float64]
@@ -82,7 +84,10 @@ class DistrictBeams:
 
 
 def district_beams(
-    result: PlanResult, inputs: PlanInputs, progress: ProgressCallback = no_progress
+    result: PlanResult,
+    inputs: PlanInputs,
+    progress: ProgressCallback = no_progress,
+    executor: Executor | None = None,
 ) -> dict[Layout, DistrictBeams]:
     """Every count's layout (and ``beams.layouts``): beams, γ_P, the SDP and the coverage
     under each (module docstring)."""
@@ -100,7 +105,7 @@ def district_beams(
         def sub(f: float, m: str, i: int = i) -> None:
             progress((i + f) / len(layouts), m)
 
-        out[layout] = layout_beams(result, inputs, scorer.problem, layout, sub)
+        out[layout] = layout_beams(result, inputs, scorer.problem, layout, sub, executor)
     return out
 
 
@@ -110,8 +115,10 @@ def layout_beams(
     problem: DistrictProblem,
     layout: Layout,
     progress: ProgressCallback = no_progress,
+    executor: Executor | None = None,
 ) -> DistrictBeams:
-    """One layout's :class:`DistrictBeams` (module docstring)."""
+    """One layout's :class:`DistrictBeams` (module docstring; the per-RIS SDPs on
+    ``executor``: :func:`_sdp_per_ris`)."""
     from ris_planner.power.gamma import search_gamma_p
     from ris_planner.power.sdp import mean_trace_bound, objective_index
 
@@ -139,7 +146,16 @@ def layout_beams(
     progress(0.6, "beams: SDP per RIS")
     t2 = time.perf_counter()
     per_ris, sdp_powers = _sdp_per_ris(
-        result, inputs, problem, layout, blocks, gamma, own, np.asarray(gp.powers, float), progress
+        result,
+        inputs,
+        problem,
+        layout,
+        blocks,
+        gamma,
+        own,
+        np.asarray(gp.powers, float),
+        progress,
+        executor,
     )
     timing_s["sdp"] = time.perf_counter() - t2
     progress(0.8, "beams: coverage")
@@ -216,6 +232,94 @@ SDP_POSITIONS_PER_RIS = 8
 serves and the layout resolves, drawn ∝ weight, seeded per site – one small SDP per RIS."""
 
 
+SDP_POOL_MIN_RIS = 12
+"""From this many RISs with design positions on, a layout's per-RIS SDPs run on the plan's
+process pool (each task builds its RIS's information and solves its SDP); fewer run here (a
+pool's start costs more than they take)."""
+
+
+@dataclass(frozen=True)
+class RisSdpShared:
+    """What every per-RIS SDP of a layout shares (a pool's shared object): the plan's system,
+    environment and Γ, the padding RIS and its block, the objective, solver and γ_P powers."""
+
+    system: Any
+    environment: Any
+    pad: tuple[Any, SeparableBlock]
+    gamma: int
+    objective: Objective
+    solver: str
+    gamma_p: FloatArray
+
+
+@dataclass(frozen=True)
+class RisSdpTask:
+    """One RIS's SDP (a pool task): its design positions' transmitters and receivers, and
+    each position's RISs (this one first) with their DIR+DER blocks."""
+
+    tx: FloatArray
+    rx: FloatArray
+    ris: list[list[Any]]
+    blocks: list[list[SeparableBlock]]
+
+
+def _solve_ris(common: RisSdpShared, task: RisSdpTask) -> dict[str, Any]:
+    """A :class:`RisSdpTask`'s row of plan.json ``sdp.per_ris`` (with ``powers``: the SDP's slot
+    powers, ``None`` unless solved): its information, the positions singular there, the
+    appendix SDP (:func:`ris_planner.power.sdp.solve_power_sdp`) and the mean PEB² at
+    uniform, γ_P and SDP powers."""
+    from ris_planner.power.sdp import (
+        mean_trace_bound,
+        objective_index,
+        position_traces,
+        solve_power_sdp,
+    )
+
+    t0 = time.perf_counter()
+    info = _stacked_information(
+        common.system,
+        common.environment,
+        task.tx,
+        task.rx,
+        task.ris,
+        task.blocks,
+        common.pad,
+        common.gamma,
+    )
+    g_tilde = common.gamma_p.size
+    index = objective_index(info, common.objective)
+    finite = np.isfinite(position_traces(info, np.ones(g_tilde), index))
+    row: dict[str, Any] = {"positions_singular": int((~finite).sum()), "powers": None}
+    if not finite.any():
+        row |= {"status": "no design positions", "design_positions": 0}
+        row["message"] = (
+            f"each of the {finite.size} design positions is singular with its"
+            f" {SDP_RISES_PER_POSITION} strongest RISs"
+        )
+        return row
+    info = _take_positions(info, np.flatnonzero(finite))
+    t_info = time.perf_counter() - t0
+    sdp = solve_power_sdp(info, common.objective, solver=common.solver)
+    return row | {
+        "design_positions": int(finite.sum()),
+        "information_s": t_info,
+        "status": sdp.status,
+        "solver": sdp.solver,
+        "message": sdp.message,
+        "solve_time_s": sdp.solve_time_s,
+        "seconds": time.perf_counter() - t0,
+        "rises_per_position": max(len(r) for r in task.ris),
+        "design_objective_m2": {
+            "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
+            "gamma_p": finite_or_none(mean_trace_bound(info, common.gamma_p, index)),
+            "sdp": None
+            if sdp.powers is None
+            else finite_or_none(mean_trace_bound(info, sdp.powers, index)),
+        },
+        "powers": None if sdp.powers is None else np.asarray(sdp.powers, dtype=float),
+    }
+
+
 def _sdp_per_ris(
     result: PlanResult,
     inputs: PlanInputs,
@@ -226,6 +330,7 @@ def _sdp_per_ris(
     own: LayoutState,
     gamma_p: FloatArray,
     progress: ProgressCallback = no_progress,
+    executor: Executor | None = None,
 ) -> tuple[list[dict[str, Any]], FloatArray | None]:
     """The appendix SDP (:func:`ris_planner.power.sdp.solve_power_sdp`) once per RIS of the
     layout, over its own design positions (:data:`SDP_POSITIONS_PER_RIS`: pairs it serves
@@ -234,17 +339,12 @@ def _sdp_per_ris(
     powers. The slot powers δ² are the transmitting UE's, shared by every RIS a pair hears,
     so the layout's ``sdp`` allocation is the served-weight mean of the solved RISs' powers
     (a convex combination: Σ δ² = G̃ kept); ``None`` when no RIS's SDP solved – never a
-    silent fallback: each RIS's status is in the rows."""
-    from ris_planner.power.sdp import (
-        mean_trace_bound,
-        objective_index,
-        position_traces,
-        solve_power_sdp,
-    )
-
-    spec = result.document.beams
+    silent fallback: each RIS's status is in the rows. From :data:`SDP_POOL_MIN_RIS` RISs on
+    the SDPs run on ``executor`` (the plan's process pool), in the layout's order."""
+    doc = result.document
+    spec = doc.beams
     assert spec is not None
-    objective = POWER_OBJECTIVE_OF_METRIC[result.document.objective.metric]
+    objective = POWER_OBJECTIVE_OF_METRIC[doc.objective.metric]
     serves = result.scorer.serves(layout)
     resolved = np.isfinite(own.metric)
     member = np.zeros(problem.n_sites, dtype=bool)
@@ -252,10 +352,12 @@ def _sdp_per_ris(
     strength = problem.strength()
     per = min(spec.design_positions, SDP_POSITIONS_PER_RIS)
     g_tilde = gamma_p.size
+    pad = (padding_ris(inputs.sites[layout[0]].ris), blocks[layout[0]])
+    common = RisSdpShared(doc.system, doc.environment, pad, gamma, objective, spec.solver, gamma_p)
     rows: list[dict[str, Any]] = []
-    solved: list[tuple[float, FloatArray]] = []
+    tasks: list[RisSdpTask] = []
+    asked: list[int] = []
     for j, s in enumerate(layout):
-        progress(0.6 + 0.2 * j / len(layout), f"beams: SDP of RIS {j + 1}/{len(layout)}")
         mine = serves[j] & resolved
         row: dict[str, Any] = {"site": int(s), "weight": float(problem.weights[mine].sum())}
         rows.append(row)
@@ -264,41 +366,28 @@ def _sdp_per_ris(
             row["message"] = "the layout resolves none of the pairs this RIS serves"
             continue
         pick = design_positions(problem.weights, mine, per, spec.seed + int(s))
-        t0 = time.perf_counter()
         rises = [_strongest_rises(problem, strength, member, int(s), p) for p in pick.tolist()]
-        info = _position_information(result, inputs, layout, blocks, pick, gamma, rises)
-        index = objective_index(info, objective)
-        finite = np.isfinite(position_traces(info, np.ones(g_tilde), index))
-        row["positions_singular"] = int((~finite).sum())
-        if not finite.any():
-            row |= {"status": "no design positions", "design_positions": 0}
-            row["message"] = (
-                f"each of the {pick.size} design positions is singular with its"
-                f" {SDP_RISES_PER_POSITION} strongest RISs"
+        tasks.append(
+            RisSdpTask(
+                inputs.pairs.tx[pick],
+                inputs.pairs.rx[pick],
+                [[inputs.sites[r].ris for r in rs] for rs in rises],
+                [[blocks[r] for r in rs] for rs in rises],
             )
-            continue
-        info = _take_positions(info, np.flatnonzero(finite))
-        t_info = time.perf_counter() - t0
-        sdp = solve_power_sdp(info, objective, solver=spec.solver)
-        row |= {
-            "design_positions": int(finite.sum()),
-            "information_s": t_info,
-            "status": sdp.status,
-            "solver": sdp.solver,
-            "message": sdp.message,
-            "solve_time_s": sdp.solve_time_s,
-            "seconds": time.perf_counter() - t0,
-            "rises_per_position": max(len(r) for r in rises),
-            "design_objective_m2": {
-                "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
-                "gamma_p": finite_or_none(mean_trace_bound(info, gamma_p, index)),
-                "sdp": None
-                if sdp.powers is None
-                else finite_or_none(mean_trace_bound(info, sdp.powers, index)),
-            },
-        }
-        if sdp.powers is not None:
-            solved.append((row["weight"], np.asarray(sdp.powers, dtype=float)))
+        )
+        asked.append(j)
+
+    def done(n: int) -> None:
+        progress(0.6 + 0.2 * n / max(len(tasks), 1), f"beams: SDP of RIS {n}/{len(tasks)}")
+
+    runner = executor if executor is not None and len(tasks) >= SDP_POOL_MIN_RIS else None
+    answers = (runner or SerialExecutor()).map(_solve_ris, common, tasks, done)
+    solved: list[tuple[float, FloatArray]] = []
+    for j, answer in zip(asked, answers, strict=True):
+        powers = answer.pop("powers")
+        rows[j] |= answer
+        if powers is not None:
+            solved.append((rows[j]["weight"], powers))
     if not solved:
         return rows, None
     w = np.array([x for x, _ in solved])
@@ -403,26 +492,46 @@ def _position_information(
     chose them), padded with RISs that serve nobody to the most any position has (one state
     size for all: a padding RIS's gains are decoupled from every other state,
     :data:`~ris_planner.power.information.ABSENT_GAIN_INFORMATION`)."""
-    from ris_planner.planning.beams import layout_scenario
-    from ris_planner.power.information import BeamInformation, PathBlocks, beam_information
-
-    doc = result.document
     pairs = inputs.pairs
     if mine is None:
         serves = result.scorer.serves(layout)  # [L, P]
         mine = [[s for j, s in enumerate(layout) if serves[j, p]] for p in pick.tolist()]
-    width = max(len(m) for m in mine)  # every position's state padded to the same size
-    pad = padding_ris(inputs.sites[layout[0]].ris)
+    doc = result.document
+    return _stacked_information(
+        doc.system,
+        doc.environment,
+        pairs.tx[pick],
+        pairs.rx[pick],
+        [[inputs.sites[s].ris for s in sites] for sites in mine],
+        [[blocks[s] for s in sites] for sites in mine],
+        (padding_ris(inputs.sites[layout[0]].ris), blocks[layout[0]]),
+        gamma,
+    )
+
+
+def _stacked_information(
+    system: Any,
+    environment: Any,
+    tx: FloatArray,
+    rx: FloatArray,
+    ris: list[list[Any]],
+    blocks: list[list[SeparableBlock]],
+    pad: tuple[Any, SeparableBlock],
+    gamma: int,
+) -> Any:
+    """:func:`_position_information` from its parts: per position (``tx[i]``, ``rx[i]``) its
+    RISs and their blocks, padded with the padding RIS and block ``pad`` to the most any
+    position has."""
+    from ris_planner.planning.beams import layout_scenario
+    from ris_planner.power.information import BeamInformation, PathBlocks, beam_information
+
+    width = max(len(r) for r in ris)  # every position's state padded to the same size
     parts = []
-    for p, sites in zip(pick.tolist(), mine, strict=True):
-        ris = [inputs.sites[s].ris for s in sites]
-        n_pad = width - len(ris)
-        scenario = layout_scenario(doc.system, ris + [pad] * n_pad, [], doc.environment)
-        prof = [blocks[s].profiles() for s in sites]
-        prof += [blocks[layout[0]].profiles()] * n_pad
-        parts.append(
-            beam_information(scenario, pairs.tx[[p]], pairs.rx[[p]], prof, [], n_blocks=gamma)
-        )
+    for i, (rises, own) in enumerate(zip(ris, blocks, strict=True)):
+        n_pad = width - len(rises)
+        scenario = layout_scenario(system, list(rises) + [pad[0]] * n_pad, [], environment)
+        prof = [b.profiles() for b in own] + [pad[1].profiles()] * n_pad
+        parts.append(beam_information(scenario, tx[[i]], rx[[i]], prof, [], n_blocks=gamma))
     first = parts[0]
     paths = tuple(
         PathBlocks(

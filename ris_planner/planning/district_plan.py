@@ -59,6 +59,7 @@ from ris_planner.planning.search.district import (
 from ris_planner.planning.search.layouts import Layout, SearchOutcome
 from ris_planner.planning.search.rollout import NestedStep, rollout_json
 from ris_planner.planning.search.sizing import SizeRow
+from ris_planner.runtime.executor import Executor
 from ris_planner.runtime.progress import ProgressCallback, StageClock, no_progress
 
 BoolArray = NDArray[np.bool_]
@@ -106,6 +107,7 @@ def run_district(
     clock: StageClock | None = None,
     goal: Target | None = None,
     blocks: int | None = None,
+    executor: Executor | None = None,
 ) -> PlanResult:
     """The district search's plan run (module docstring): per RIS count the layout of the
     greedy path improved by swaps (or a layout rounded from the relaxation's site weights and
@@ -118,7 +120,9 @@ def run_district(
     ``codebook.blocks``, else :func:`initial_blocks`), fixed before its information, and each
     count's layout is held to Γ − 1 profile colours (:func:`fit_blocks`), so every reported
     layout fits the blocks its information was computed with, built once (a count no refill
-    can hold is reported without a layout, saying why)."""
+    can hold is reported without a layout, saying why). ``executor``: the plan's process pool,
+    for the per-RIS SDPs of ``beams`` (:func:`~ris_planner.planning.district_beams.
+    district_beams`)."""
     doc = inputs.document
     clock = StageClock() if clock is None else clock
     if blocks is None:
@@ -212,7 +216,7 @@ def run_district(
         from ris_planner.planning.district_beams import district_beams
 
         with clock.stage("beams"):
-            result = replace(result, beams=district_beams(result, inputs, progress))
+            result = replace(result, beams=district_beams(result, inputs, progress, executor))
     return replace(result, timing=dict(clock.seconds))
 
 

@@ -120,7 +120,7 @@ class District:
         # on first use: an enumerating plan's start-up does not import the LP solver
         from ris_planner.planning.district_plan import run_district
 
-        return run_district(inputs, progress, clock, goal)
+        return run_district(inputs, progress, clock, goal, executor=executor)
 
     def size_rows(
         self,
