@@ -229,6 +229,30 @@ def street_document(**options: Any) -> dict[str, Any]:
     return street_doc(**options)
 
 
+def district_inputs(plan: Path) -> Any:
+    """A district plan document's inputs as ``ris-planner plan`` prepares them (geographic
+    frames converted to local metres)."""
+    from ris_planner.io.candidates import in_document_coordinates
+    from ris_planner.io.frames import to_local
+    from ris_planner.planning.inputs.presets import load_plan_file
+    from ris_planner.planning.prepare import prepare_plan
+    from ris_planner.planning.resources.admission import admit
+
+    local, frame = to_local(load_plan_file(plan))
+    with in_document_coordinates(frame):
+        return prepare_plan(admit(local))
+
+
+def quick_street_plan(prefix: str) -> Path:
+    """The suite's street site (300 pairs) written as a plan document in a new temporary
+    folder: the district scripts' ``--quick`` input."""
+    import tempfile
+
+    path = Path(tempfile.mkdtemp(prefix=prefix)) / "street.json"
+    path.write_text(json.dumps(street_document(sample=300)))
+    return path
+
+
 def run_cli(args: list[str], cwd: Path | None = None) -> str:
     """``python -m ris_planner.cli ARGS`` (its standard output); exits with its error."""
     cmd = [sys.executable, "-m", "ris_planner.cli", *args]

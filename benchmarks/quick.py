@@ -63,6 +63,7 @@ QUICK: dict[str, list[list[str]]] = {
         ["bench_city.py", "--quick"],
         ["bench_district_physics.py", "--quick"],
         ["district_strong_sets.py", "--quick"],
+        ["gap_probes.py", "--quick"],
         ["coverable_by_size.py", "--quick"],
     ],
 }

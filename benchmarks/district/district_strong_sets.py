@@ -13,6 +13,7 @@ The plan document is read as ``ris-planner plan`` reads it (geographic frames co
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -25,31 +26,19 @@ def main() -> None:
     ap.add_argument("--png", type=Path, default=None, help="write the histogram figure here")
     ap.add_argument("--quick", action="store_true", help="the suite's small street site")
     args = ap.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from fixtures import district_inputs, quick_street_plan
+
     if args.quick:
-        import json
-        import sys
-        import tempfile
-
-        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-        from fixtures import street_document
-
-        args.plan = Path(tempfile.mkdtemp(prefix="strong-sets-")) / "street.json"
-        args.plan.write_text(json.dumps(street_document(sample=300)))
+        args.plan = quick_street_plan("strong-sets-")
     elif args.plan is None:
         ap.error("a plan document is needed (or --quick)")
 
-    from ris_planner.io.candidates import in_document_coordinates
-    from ris_planner.io.frames import to_local
     from ris_planner.planning.certify.district_cuts import static_cuts
     from ris_planner.planning.certify.district_lp import sites_needed
-    from ris_planner.planning.inputs.presets import load_plan_file
-    from ris_planner.planning.prepare import prepare_plan
-    from ris_planner.planning.resources.admission import admit
     from ris_planner.planning.scoring.sparse import build_problem
 
-    local, frame = to_local(load_plan_file(args.plan))
-    with in_document_coordinates(frame):
-        inputs = prepare_plan(admit(local))
+    inputs = district_inputs(args.plan)
     t0 = time.perf_counter()
     problem = build_problem(inputs)
     t1 = time.perf_counter()

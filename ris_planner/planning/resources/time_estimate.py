@@ -485,7 +485,7 @@ DISTRICT_COEFFICIENTS: dict[str, dict[str, float]] = {
         "per_swap_rescore": 7e-7,
     },
     "search_lp": {"per_lp_row_entry": 1.8e-6, "per_large_solve_row_entry": 8e-6},
-    "beams": {"per_layout": 15.0, "per_ris": 0.8},
+    "beams": {"per_layout": 15.0, "per_ris": 0.7},
     "figures": {"const": 1.0, "per_pair": 5e-4},
     "fields": {"per_pair": 2e-6},
     "report": {"per_pair": 2e-6},
@@ -508,7 +508,9 @@ and solved again after each round of separated cuts that starts within
 :data:`~ris_planner.planning.certify.district_lp.SEPARATION_SECONDS` of its first solve (a
 round modelled as long as a solve); ``beams``
 (``beams`` set) per layout (its γ_P search and coverage under each allocation) and per RIS
-(its SDP and its positions' information); the figures per pair."""
+(its SDP and its positions' information, a worker's seconds: shared by the plan's pool from
+:data:`~ris_planner.planning.district_beams.SDP_POOL_MIN_RIS` RISs on); the figures per
+pair."""
 
 DISTRICT_LOWER_BOUND_LPS = 1.8
 """A sizing lower bound (min Σ z) costs this many coverage relaxations (measured 1.8 on the
@@ -600,8 +602,16 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
         "exports": {"per_pair": float(n_pairs) * len(counts)},
     }
     if doc.beams is not None:
+        import os
+
+        from ris_planner.planning.district_beams import SDP_POOL_MIN_RIS
+
+        # the per-RIS SDPs of a layout of SDP_POOL_MIN_RIS or more run on the plan's pool, one
+        # worker per core
+        pool = max(1, os.cpu_count() or 1)
         layouts = [*counts, *(len(lay) for lay in doc.beams.layouts)]
-        terms["beams"] = {"per_layout": float(len(layouts)), "per_ris": float(sum(layouts))}
+        rises = sum(n / pool if n >= SDP_POOL_MIN_RIS else n for n in layouts)
+        terms["beams"] = {"per_layout": float(len(layouts)), "per_ris": float(rises)}
     return terms
 
 
