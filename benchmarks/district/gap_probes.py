@@ -134,19 +134,29 @@ def probe_rounds(problem: Any, needs: Any, cons: Any, count: int, rounds: int) -
         h = m._model()
         h.changeColsCost(m.n_var, np.arange(m.n_var, dtype=np.int32), -m.w)
         t0 = time.perf_counter()
-        for i, (status, _, _, duals) in enumerate(m._solves()):
+        for i, (status, _, x, duals) in enumerate(m._solves()):
             m.multipliers.append(m._clipped(duals))
             print(
                 f"  round {i}: {status}, bound {m.bound_at(count):.4f},"
                 f" {m.separated_rows} separated rows, {time.perf_counter() - t0:.1f} s",
                 flush=True,
             )
+            if i == 0:
+                z, y = x[: problem.n_sites], m._pairs_of(x)
+                print(
+                    f"  its site weights: {int((z > 1e-6).sum())} sites above 0, the largest"
+                    f" {z.max():.3f}; the pairs with y = 1 weigh"
+                    f" {problem.weights[y > 1 - 1e-6].sum():.3f}"
+                )
     finally:
         dl.SEPARATION_ROUNDS, dl.SEPARATION_SECONDS = saved
 
 
 def probe_mip(problem: Any, needs: Any, cons: Any, count: int, seconds: float) -> None:
-    """HiGHS's MIP on the static rows at ``count`` with the site variables binary."""
+    """HiGHS's MIP on the static rows at ``count`` with the site variables binary (none for
+    ``seconds`` ≤ 0)."""
+    if seconds <= 0:
+        return
     import ris_planner.planning.certify.district_lp as dl
     from ris_planner.planning.scoring.sparse import exact_coverage
 
