@@ -360,10 +360,10 @@ def test_district_beams_solve_one_sdp_per_ris() -> None:
 
 def test_per_ris_sdps_on_the_plan_pool_answer_as_here(monkeypatch: pytest.MonkeyPatch) -> None:
     """From ``SDP_POOL_MIN_RIS`` RISs on, each RIS's information and SDP is a task on the plan's
-    process pool (:class:`RisSdpTask`, with the shared :class:`RisSdpShared`): the same rows – statuses, design
-    positions, the mean PEB² at uniform, γ_P and SDP powers (the SDP's to its accuracy, the
-    others by the bounds' rule: another process, another BLAS thread count) – and the same
-    layout allocation as solved here."""
+    process pool (:class:`RisSdpTask`, with the shared :class:`RisSdpShared`), answering as
+    in-process: the same statuses and design positions, the mean PEB² at uniform and γ_P
+    powers to the bounds' accuracy (another process, another BLAS thread count) and at the SDP
+    powers to the SDP's."""
     import ris_planner.planning.district_beams as district_beams
     from ris_planner.runtime.executor import LocalExecutor
 
