@@ -75,6 +75,13 @@ class LayoutBeams:
     """RISs that serve none of the pairs (their beams are seeded random phases)."""
 
 
+SDP_POOL_MIN_RIS = 12
+"""From this many RISs with design positions on, a district layout's per-RIS SDPs run on the
+plan's process pool (each task builds its RIS's information and solves its SDP:
+:mod:`ris_planner.planning.district_beams`); fewer run in the plan's process (a pool's start
+costs more than they take)."""
+
+
 def served_pairs(scene: Scene, ris: list[RIS], pairs: PairSet) -> BoolArray:
     """[L, P] whether each RIS serves both UEs of each pair (field of view and clear legs)."""
     return np.stack([ris_serves(scene, r, pairs.tx) & ris_serves(scene, r, pairs.rx) for r in ris])

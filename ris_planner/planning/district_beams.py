@@ -43,7 +43,11 @@ from ris_planner.core.io_json import finite_or_none
 from ris_planner.model.plan import PlanCodebook
 from ris_planner.model.power import Objective
 from ris_planner.physics.separable import SeparableBlock, beam_block, grid_axes
-from ris_planner.planning.beams import POWER_OBJECTIVE_OF_METRIC, design_positions
+from ris_planner.planning.beams import (
+    POWER_OBJECTIVE_OF_METRIC,
+    SDP_POOL_MIN_RIS,
+    design_positions,
+)
 from ris_planner.planning.inputs.plan_inputs import PlanInputs
 from ris_planner.planning.outputs.estimator_check import padding_ris
 from ris_planner.planning.outputs.result import PlanResult
@@ -230,12 +234,6 @@ def layout_colours(result: PlanResult, problem: DistrictProblem, layout: Layout)
 SDP_POSITIONS_PER_RIS = 8
 """Design positions of each RIS's SDP (at most ``beams.design_positions``): pairs the RIS
 serves and the layout resolves, drawn ∝ weight, seeded per site – one small SDP per RIS."""
-
-
-SDP_POOL_MIN_RIS = 12
-"""From this many RISs with design positions on, a layout's per-RIS SDPs run on the plan's
-process pool (each task builds its RIS's information and solves its SDP); fewer run here (a
-pool's start costs more than they take)."""
 
 
 @dataclass(frozen=True)

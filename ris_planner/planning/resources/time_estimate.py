@@ -509,7 +509,7 @@ and solved again after each round of separated cuts that starts within
 round modelled as long as a solve); ``beams``
 (``beams`` set) per layout (its γ_P search and coverage under each allocation) and per RIS
 (its SDP and its positions' information, a worker's seconds: shared by the plan's pool from
-:data:`~ris_planner.planning.district_beams.SDP_POOL_MIN_RIS` RISs on); the figures per
+:data:`~ris_planner.planning.beams.SDP_POOL_MIN_RIS` RISs on); the figures per
 pair."""
 
 DISTRICT_LOWER_BOUND_LPS = 1.8
@@ -604,7 +604,7 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     if doc.beams is not None:
         import os
 
-        from ris_planner.planning.district_beams import SDP_POOL_MIN_RIS
+        from ris_planner.planning.beams import SDP_POOL_MIN_RIS
 
         # the per-RIS SDPs of a layout of SDP_POOL_MIN_RIS or more run on the plan's pool, one
         # worker per core
