@@ -26,6 +26,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     page,
     screen_of,
     server,
+    set_box,
     settle,
     shots,
 )
@@ -182,7 +183,7 @@ def test_add_mode_adds_one_site_over_others(
     title = pg.locator(f"#candidates .site[data-site='{last}'] title")
     expect(title).to_contain_text(f"Site C{last} [{last}]: x ")
     assert pg.evaluate("window.risPlanner.state.cands.length") == ROW
-    pg.check("#mode-add")
+    set_box(pg, "#mode-add")
     pg.mouse.click(*screen_of(pg, x, y))
     expect(pg.locator("#cand-summary")).to_contain_text(f"Added candidate {ROW}")
     cands = pg.evaluate("window.risPlanner.state.cands")
@@ -271,7 +272,7 @@ def test_dragged_site_snaps_to_a_facade(
     assert math.hypot(c["position"][0], c["position"][1] + 28) <= PX_TOL / k
     assert c["name"] == f"C{second} (moved)"
     # snapping off: a site dropped 1 m off a facade stays there, renamed
-    pg.uncheck("#snap-facades")
+    set_box(pg, "#snap-facades", False)
     drag(pg, home[third], (-3, 4))
     expect(pg.locator("#cand-summary")).to_contain_text(f"Moved candidate {third}")
     c = pg.evaluate(f"window.risPlanner.state.cands[{third}]")
@@ -316,6 +317,6 @@ def test_ue_points_inside_buildings_not_drawn(
     assert ue["droppedByPlan"] == INSIDE
     expect(legend).to_contain_text(f"{INSIDE} inside buildings not drawn")
     # off, the layer draws nothing and the legend still counts the dropped points
-    pg.uncheck("#layer-ues")
+    set_box(pg, "#layer-ues", False)
     assert map_info(pg)["ues"][0]["drawn"] == 0
     expect(legend).to_contain_text(f"{INSIDE} inside buildings (dropped by the plan)")

@@ -33,6 +33,7 @@ from test_web import (  # noqa: F401  (fixtures: browser, page, server, shots)
     page,
     screen_of,
     server,
+    set_box,
     settle,
     shots,
     undeclared_percentages,
@@ -145,8 +146,8 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     # import again: residential streets only, UEs at 2 m, the default building height 12 m (the
     # options fold away once a file is imported: opened on request)
     pg.click("#import-options summary")
-    pg.uncheck("#road-footway")
-    pg.uncheck("#road-service")
+    set_box(pg, "#road-footway", False)
+    set_box(pg, "#road-service", False)
     pg.fill("#imp-ue_height", "2")
     pg.fill("#imp-default_height", "12")
     pg.fill("#imp-origin", "24.949, 60.1655")
@@ -176,7 +177,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
 
     # place three candidates on street points, drag one, turn one, add and remove a fourth
     spots = spread_near_centre(points, 4, SPOT_SPACING_M)
-    pg.check("#mode-add")
+    set_box(pg, "#mode-add")
     for k, (x, y, _) in enumerate(spots[:3]):
         pg.mouse.click(*screen_of(pg, x, y))
         expect(pg.locator("#cand-summary")).to_contain_text(f"Added candidate {k}")
@@ -190,8 +191,8 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     )
     # a drag moves a site in "read a point" mode; unsnapped it lands where it is dropped (the
     # snapping to facades: tests/test_web_map.py), renamed: its old name no longer says where
-    pg.check("#mode-inspect")
-    pg.uncheck("#snap-facades")
+    set_box(pg, "#mode-inspect")
+    set_box(pg, "#snap-facades", False)
     target = spots[3]
     start = screen_of(pg, *cands[0]["position"][:2])
     end = screen_of(pg, *target[:2])
@@ -206,7 +207,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     )
     assert moved["name"] == "added 1 (moved)"
     assert pg.evaluate("window.risPlanner.state.cands.length") == 3  # a drag adds nothing
-    pg.check("#snap-facades")
+    set_box(pg, "#snap-facades")
     # select candidate 1 and turn it 15° clockwise (azimuth +15°, yaw −15°)
     pg.mouse.click(*screen_of(pg, *cands[1]["position"][:2]))
     expect(pg.locator("#cand-editor-title")).to_contain_text("Candidate 1")
@@ -221,7 +222,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     pg.press("#ce-tilt", "Enter")
     pitch = pg.evaluate("window.risPlanner.state.cands[1].orientation[1]")
     assert pitch == pytest.approx(math.radians(20), rel=1e-12)
-    pg.check("#mode-add")
+    set_box(pg, "#mode-add")
     x4, y4 = screen_of(pg, *points[len(points) // 2][:2])
     pg.mouse.click(x4 + 30, y4)
     expect(pg.locator("#cand-summary")).to_contain_text("Added candidate 3")
@@ -234,7 +235,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     pg.get_by_role("button", name="Edit candidate 2").click()
     expect(pg.locator("#cand-editor-title")).to_contain_text("Candidate 2")
     expect(pg.locator("#ce-azimuth")).to_be_focused()
-    pg.check("#mode-inspect")
+    set_box(pg, "#mode-inspect")
     # the removal's automatic validation ends (status text, redraw) before the form is used: a
     # layout change under a click made the clock checkbox miss it on a busy machine
     settle(pg)
@@ -246,7 +247,7 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
     pg.fill("#f-objective-level", "5")
     pg.select_option("#f-pairs-mode", "sample")
     pg.fill("#f-pairs-sample", "200")
-    pg.check("#f-known-clock")
+    set_box(pg, "#f-known-clock")
     expect(pg.locator("#f-known-height")).to_be_checked()  # the import's default
     pg.click("#validate")
     expect(pg.locator("#validation-status")).to_contain_text(
@@ -291,13 +292,13 @@ def test_plan_a_real_site_end_to_end(page: tuple[Page, Console], server: str, sh
         expect(legend).to_contain_text(text)
     expect(pg.locator("#layer-ues")).not_to_be_checked()
     assert drawn_ue_points(pg) == 0
-    pg.check("#layer-ues")  # on request: small, translucent, above the heatmap
+    set_box(pg, "#layer-ues")  # on request: small, translucent, above the heatmap
     assert drawn_ue_points(pg) > 0
     expect(legend).to_contain_text("UE points")
-    pg.uncheck("#layer-buildings")
+    set_box(pg, "#layer-buildings", False)
     expect(pg.locator("path.prism")).to_have_count(0)
-    pg.check("#layer-buildings")
-    pg.uncheck("#layer-ues")
+    set_box(pg, "#layer-buildings")
+    set_box(pg, "#layer-ues", False)
     shots.take(pg, "planner-03-results")
 
     # exports: plan.json, plan.geojson (the job's file) and the candidates as a sites file
@@ -628,7 +629,7 @@ def test_generate_candidates_from_the_site(
     k = next(i for i, ob in enumerate(obstacles) if ob["height_m"] > 7)
     inner = shapely_geometry.Polygon(obstacles[k]["footprint"]).representative_point()
     pg.locator("#map").scroll_into_view_if_needed()
-    pg.uncheck("#snap-facades")  # placed where dropped, not snapped out to a facade
+    set_box(pg, "#snap-facades", False)  # placed where dropped, not snapped out to a facade
     first = pg.evaluate("window.risPlanner.state.cands[0]")
     pg.mouse.move(*screen_of(pg, *first["position"][:2]))
     pg.mouse.down()
@@ -700,7 +701,7 @@ def test_a_swapped_file_and_the_swap_check(
     err = pg.locator("#err-upload-geojson")
     expect(err).to_contain_text("turn the swap check off", timeout=WAIT_MS)
     expect(err).to_contain_text("untick “Lat/lon swap check” under Import options")
-    pg.uncheck("#imp-swap_check")  # (a refused file leaves the options open)
+    set_box(pg, "#imp-swap_check", False)  # (a refused file leaves the options open)
     pg.click("#reimport")
     expect(pg.locator("#import-summary")).to_be_visible(timeout=WAIT_MS)
     expect(err).to_be_empty()
