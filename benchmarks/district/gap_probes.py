@@ -122,6 +122,19 @@ def probe_rows(problem: Any, needs: Any, cons: Any, counts: list[int], quick: bo
         dl.SEPARATION_ROUNDS = rounds
 
 
+def coverage_model(problem: Any, needs: Any, cons: Any, count: int) -> tuple[Any, Any]:
+    """The district relaxation with its static cuts and its HiGHS model set up as
+    :meth:`~ris_planner.planning.certify.district_lp.DistrictRelaxation.coverage` sets it for
+    ``count`` sites (objective −Σ w y, the count row fixed): (relaxation, model)."""
+    import ris_planner.planning.certify.district_lp as dl
+
+    m = dl.build_relaxation(problem, needs, *cons)
+    h = m._model()
+    h.changeColsCost(m.n_var, np.arange(m.n_var, dtype=np.int32), -m.w)
+    h.changeRowBounds(m.count_row, float(count), float(count))
+    return m, h
+
+
 def probe_rounds(problem: Any, needs: Any, cons: Any, count: int, rounds: int) -> None:
     """The bound at ``count`` after each of ``rounds`` separation rounds (no time budget)."""
     import ris_planner.planning.certify.district_lp as dl
@@ -129,10 +142,7 @@ def probe_rounds(problem: Any, needs: Any, cons: Any, count: int, rounds: int) -
     saved = dl.SEPARATION_ROUNDS, dl.SEPARATION_SECONDS
     dl.SEPARATION_ROUNDS, dl.SEPARATION_SECONDS = rounds, float("inf")
     try:
-        m = dl.build_relaxation(problem, needs, *cons)
-        m._model().changeRowBounds(m.count_row, float(count), float(count))
-        h = m._model()
-        h.changeColsCost(m.n_var, np.arange(m.n_var, dtype=np.int32), -m.w)
+        m, _ = coverage_model(problem, needs, cons, count)
         t0 = time.perf_counter()
         for i, (status, _, x, duals) in enumerate(m._solves()):
             m.multipliers.append(m._clipped(duals))
@@ -157,13 +167,9 @@ def probe_mip(problem: Any, needs: Any, cons: Any, count: int, seconds: float) -
     ``seconds`` ≤ 0)."""
     if seconds <= 0:
         return
-    import ris_planner.planning.certify.district_lp as dl
     from ris_planner.planning.scoring.sparse import exact_coverage
 
-    m = dl.build_relaxation(problem, needs, *cons)
-    h = m._model()
-    h.changeColsCost(m.n_var, np.arange(m.n_var, dtype=np.int32), -m.w)
-    h.changeRowBounds(m.count_row, float(count), float(count))
+    _, h = coverage_model(problem, needs, cons, count)
     n = problem.n_sites
     h.changeColsIntegrality(n, np.arange(n, dtype=np.int32), np.ones(n, dtype=np.uint8))
     h.setOptionValue("solver", "choose")
