@@ -114,6 +114,39 @@ def test_sizing_answers_with_a_certified_count(site) -> None:
     assert lp.coverage_upper_bound(problem, lower - 1, needs) < goal + 1e-6
 
 
+def test_fewer_sites_never_claims_fewer_than_brute_force(site) -> None:
+    """The sizing's descent below the greedy path's answer (:func:`search.fewer_sites`): every
+    layout tried has the count it was tried at, fewer sites than the path's answer and its
+    exact coverage (re-scored with every serving site, also when the search saw each pair's
+    two strongest); one that reaches the goal never has fewer sites than the exhaustive
+    minimum – and on this site the descent finds fewer than the path for some goals."""
+    _, problem, _ = site
+    layouts = [
+        c
+        for k in range(problem.n_sites + 1)
+        for c in itertools.combinations(range(problem.n_sites), k)
+    ]
+    cov = np.array([sparse.LayoutState(problem, list(c)).coverage() for c in layouts])
+    sizes = np.array([len(c) for c in layouts])
+    fewer = 0
+    for seen in (problem, problem.strongest(2)):
+        for share in np.linspace(0.2, 0.95, 16):
+            goal = share * float(cov.max())
+            fewest = int(sizes[cov >= goal - 1e-12].min())
+            path = search.greedy_path(seen, problem.n_sites, goal)
+            hit = next((len(p.sites) for p in path if p.coverage >= goal - 1e-12), None)
+            tried = search.fewer_sites(problem, seen, path, goal)
+            assert len(tried) <= search.SIZING_PROBES
+            assert hit is not None or not tried
+            for lay, got in tried:
+                assert hit is not None and len(set(lay)) == len(lay) < hit
+                assert_close(got, sparse.LayoutState(problem, list(lay)).coverage())
+                if got >= goal - 1e-12:
+                    assert len(lay) >= fewest
+                    fewer += 1
+    assert fewer > 0
+
+
 def test_counts_above_sixteen_need_the_district_search() -> None:
     """The enumerating searches place at most sixteen RISs: named explicitly they are refused
     (naming the method and the count); under auto the district search takes the document."""
@@ -247,6 +280,15 @@ def test_sizing_ladder_answers_the_fewest_elements(tmp_path: Path) -> None:
     for row in reached:
         assert row["lower_bound"] <= row["count"]
         assert row["objective"] >= sizing["goal"]["min"] - 1e-12
+        # the greedy path's layout, then the counts the swaps tried below it; the row's count
+        # is the fewest that reaches the goal
+        tried = row["counts"]
+        assert tried[0]["found_by"] == "greedy path"
+        assert all(t["found_by"] == "greedy path and swaps" for t in tried[1:])
+        assert all(t["count"] < tried[0]["count"] for t in tried[1:])
+        for t in tried:
+            assert t["reaches"] == (t["objective"] >= sizing["goal"]["min"] - 1e-12)
+        assert row["count"] == min(t["count"] for t in tried if t["reaches"])
     best = min(reached, key=lambda r: r["count"] * r["ris_size"][0] * r["ris_size"][1])
     answer = sizing["answer"]
     assert answer["ris_size"] == best["ris_size"] and answer["count"] == best["count"]

@@ -10,8 +10,8 @@ the relaxation's site weights where a count was solved), certifies it
 (:mod:`ris_planner.planning.certify.district_lp`, on a thread beside the search: HiGHS
 releases the GIL) and, with ``rollout: nested``, extends each
 count's nested layout greedily from the previous one. :func:`district_size_rows` answers the
-sizing question at each RIS size: the smallest count its greedy path needs and the certified
-lower bound on any layout's count.
+sizing question at each RIS size: the smallest count found to reach the target (the greedy
+path's, or fewer by swaps) and the certified lower bound on any layout's count.
 """
 
 from __future__ import annotations
@@ -51,6 +51,7 @@ from ris_planner.planning.search.district import (
     SEARCH_SITES,
     SMALL_DISTRICT_SITES,
     PathStep,
+    fewer_sites,
     greedy_path,
     improve,
     lp_layouts,
@@ -563,8 +564,9 @@ def district_size_rows(
     progress: ProgressCallback = no_progress,
 ) -> list[SizeRow]:
     """The sizing question at each RIS size (ascending element count): the smallest count
-    whose greedy path reaches ``goal`` (an objective value: a share of the servable pairs'
-    weight) and the certified lower bound on any layout's count; a size whose lower bound
+    found to reach ``goal`` (an objective value: a share of the servable pairs' weight) – the
+    greedy path's, or fewer by swaps on the path's layouts (:func:`_size_row`) – and the
+    certified lower bound on any layout's count; a size whose lower bound
     already needs more elements than the answer so far is skipped, one that cannot reach the
     goal with every candidate says so. The other sizes' information shares the document's
     visibility; their lower bounds solve on a thread beside their paths."""
@@ -602,7 +604,7 @@ def district_size_rows(
                     conflict=conflict,
                 )
             lb = lower()
-            row = _size_row((r, c), pr, seen, steps, goal, lb, best)
+            row = _size_row((r, c), pr, seen, steps, goal, lb, best, cons)
             if pr.codebooks.designed and row.sites is not None:
                 row = _held_size_row(pr, seen, row, goal, cons)
             rows.append(replace(row, coverable=float(pr.weights[nd.need > 0].sum())))
@@ -638,7 +640,11 @@ def _size_row(
     goal: float,
     lower: int | None,
     best: int | None,
+    cons: Constraints,
 ) -> SizeRow:
+    """One RIS size's answer: the greedy path's first layout that reaches ``goal``, or a
+    smaller one of the path improved by swaps (:func:`~ris_planner.planning.search.district.
+    fewer_sites`); ``counts`` lists the path's layout and each count tried below it."""
     r, c = size
     if lower is None:
         return SizeRow(size, None, None, note="not reachable: every candidate together covers less")
@@ -650,7 +656,23 @@ def _size_row(
         note = f"the greedy path stops at {len(steps)} RISs below the target"
         return SizeRow(size, None, lower, note=note)
     cov = LayoutState(problem, list(hit.sites)).coverage() if seen is not problem else hit.coverage
-    return SizeRow(size, len(hit.sites), lower, cov, tuple(hit.sites))
+    tried = [(tuple(hit.sites), cov, "greedy path")]
+    required, excluded, conflict = cons
+    for lay, got in fewer_sites(problem, seen, steps, goal, lower, required, excluded, conflict):
+        tried.append((lay, got, "greedy path and swaps"))
+    counts = tuple(
+        {
+            "count": len(lay),
+            "objective": got,
+            "reaches": got >= goal - 1e-12,
+            "objective_bound": None,
+            "found_by": how,
+        }
+        for lay, got, how in tried
+    )
+    sites, cov, how = min((t for t in tried if t[1] >= goal - 1e-12), key=lambda t: len(t[0]))
+    said = None if how == "greedy path" else f"{how}; the path alone: {len(hit.sites)} RISs"
+    return SizeRow(size, len(sites), lower, cov, sites, note=said, counts=counts)
 
 
 def _held_size_row(

@@ -499,7 +499,9 @@ size's (pair, serving site) entries and candidates (the information and its visi
 designed codebook's blocks and, with the spherical wavefront, the exact per-element response
 of the entries inside the Fraunhofer distance, per entry and element), the greedy path's and
 the swaps' re-scores (per site placed or swapped, the search's entries of the pairs that site
-serves); ``search_lp`` the relaxations on the thread beside it, per entry plus
+serves; with ``sizing`` also the descent's swap passes below each size's answer,
+:data:`~ris_planner.planning.search.district.SIZING_PROBES` of at most the most RISs a layout
+takes); ``search_lp`` the relaxations on the thread beside it, per entry plus
 :data:`DISTRICT_LP_ROWS_PER_PAIR` per pair: a small model per LP (one per RIS count, a lower
 bound per RIS size of the sizing, which costs :data:`DISTRICT_LOWER_BOUND_LPS` of them), a
 large one (:data:`~ris_planner.planning.certify.district_lp.SIMPLEX_MAX_NONZEROS`) per solve –
@@ -550,6 +552,7 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     )
     from ris_planner.planning.search.district import (
         SEARCH_SITES,
+        SIZING_PROBES,
         SMALL_DISTRICT_SITES,
         most_ris,
     )
@@ -567,6 +570,8 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     longest = min(max(max(counts), most) if target else max(counts), n_sites)
     path = longest + (sizes - 1) * min(most, n_sites) if target else longest
     swaps = sum(counts) * (6 if n_sites <= SMALL_DISTRICT_SITES else 1)
+    if doc.sizing is not None:  # the sizing's descent: swap passes below each size's answer
+        swaps += SIZING_PROBES * sizes * min(most, n_sites)
     lp_units = entries + DISTRICT_LP_ROWS_PER_PAIR * n_pairs
     if n_pairs * DISTRICT_NONZEROS_PER_PAIR > SIMPLEX_MAX_NONZEROS:
         # the plan's counts up to LARGE_SOLVES, each solved and solved again after each round

@@ -269,6 +269,60 @@ def improve(
     return tuple(int(s) for s in np.flatnonzero(state.member)), best
 
 
+SIZING_PROBES = 5
+"""The most counts :func:`fewer_sites` tries below the greedy path's answer (each a swap pass
+on a layout of that count: about 7 s at 170 RISs on the benchmark district)."""
+
+SIZING_SWAP_REACH = 0.02
+""":func:`fewer_sites` tries no count whose greedy-path coverage is further below the goal than
+this or the largest step of the path's second half (up to its answer), whichever is larger:
+one swap pass raised a path layout's coverage by at most 0.009 near the answer on the
+benchmark district (docs/validation/benchmarks.md)."""
+
+
+def fewer_sites(
+    problem: DistrictProblem,
+    seen: DistrictProblem,
+    path: list[PathStep],
+    goal: float,
+    floor: int = 0,
+    required: tuple[int, ...] = (),
+    excluded: tuple[int, ...] = (),
+    conflict: BoolArray | None = None,
+) -> list[tuple[tuple[int, ...], float]]:
+    """Layouts of fewer sites than the greedy path's first step that reaches ``goal``: the
+    path's layouts improved by one swap pass (:func:`improve`, on ``seen``) and re-scored on
+    ``problem``, in bisection between that step's count and the largest count below
+    ``floor`` (a certified lower count) or whose path coverage is below the goal by more than
+    :data:`SIZING_SWAP_REACH` and the largest step of the path's second half; at most
+    :data:`SIZING_PROBES` counts. The
+    layouts tried, in order, each with its coverage on ``problem`` (none when the path never
+    reaches the goal or no count lies between)."""
+    steps = {len(p.sites): p for p in path}
+    hi = next((len(p.sites) for p in path if p.coverage >= goal - GAIN_TIE), None)
+    if hi is None:
+        return []
+    gains = np.diff([0.0, *(p.coverage for p in path)])
+    late = [g for p, g in zip(path, gains, strict=True) if hi // 2 < len(p.sites) <= hi]
+    reach = max([SIZING_SWAP_REACH, *late])
+    far = [c for c, p in steps.items() if c < hi and p.coverage < goal - reach]
+    lo = max([floor - 1, min(steps) - 1, *far])
+    tried: list[tuple[tuple[int, ...], float]] = []
+    for _ in range(SIZING_PROBES):
+        mid = (lo + hi) // 2
+        if hi - lo <= 1 or mid not in steps:
+            break
+        layout, cov = improve(seen, steps[mid].sites, required, excluded, 1, conflict)
+        if seen is not problem:
+            cov = LayoutState(problem, list(layout)).coverage()
+        tried.append((layout, cov))
+        if cov >= goal - GAIN_TIE:
+            hi = mid
+        else:
+            lo = mid
+    return tried
+
+
 def _pair_swaps(
     book: GainBook, fixed: set[int], banned: BoolArray, conflict: BoolArray | None, best: float
 ) -> bool:

@@ -42,10 +42,11 @@ class SizeRow:
     """The objective of the layout found."""
     sites: tuple[int, ...] | None = None
     note: str | None = None
-    """Why no count is given, when none is."""
+    """Why no count is given, when none is; else how the count was found, where it is not the
+    search's first answer (a district's swaps, the profile colours it was held to)."""
     counts: tuple[dict[str, Any], ...] = field(default_factory=tuple)
-    """Each count tried (enumerating searches: ``{"count", "objective", "reaches",
-    "objective_bound"}``)."""
+    """Each count tried: ``{"count", "objective", "reaches", "objective_bound"}`` (a district's
+    also ``found_by``: its greedy path's layout, then each count the swaps tried below it)."""
     coverable: float | None = None
     """The weight every candidate of this size together brings within the objective's level
     (the coverable pairs depend on the RIS size; the servable ones do not)."""
