@@ -603,8 +603,10 @@ def district_size_rows(
                     excluded,
                     conflict=conflict,
                 )
+            # the descent below the path's answer runs while the lower bound solves
+            tried = fewer_sites(pr, seen, steps, goal, required, excluded, conflict)
             lb = lower()
-            row = _size_row((r, c), pr, seen, steps, goal, lb, best, cons)
+            row = _size_row((r, c), pr, seen, steps, goal, lb, best, tried)
             if pr.codebooks.designed and row.sites is not None:
                 row = _held_size_row(pr, seen, row, goal, cons)
             rows.append(replace(row, coverable=float(pr.weights[nd.need > 0].sum())))
@@ -640,11 +642,12 @@ def _size_row(
     goal: float,
     lower: int | None,
     best: int | None,
-    cons: Constraints,
+    fewer: list[tuple[tuple[int, ...], float]],
 ) -> SizeRow:
     """One RIS size's answer: the greedy path's first layout that reaches ``goal``, or a
-    smaller one of the path improved by swaps (:func:`~ris_planner.planning.search.district.
-    fewer_sites`); ``counts`` lists the path's layout and each count tried below it."""
+    smaller one of ``fewer`` (the path's layouts improved by swaps:
+    :func:`~ris_planner.planning.search.district.fewer_sites`); ``counts`` lists the path's
+    layout and each count tried below it."""
     r, c = size
     if lower is None:
         return SizeRow(size, None, None, note="not reachable: every candidate together covers less")
@@ -657,9 +660,7 @@ def _size_row(
         return SizeRow(size, None, lower, note=note)
     cov = LayoutState(problem, list(hit.sites)).coverage() if seen is not problem else hit.coverage
     tried = [(tuple(hit.sites), cov, "greedy path")]
-    required, excluded, conflict = cons
-    for lay, got in fewer_sites(problem, seen, steps, goal, lower, required, excluded, conflict):
-        tried.append((lay, got, "greedy path and swaps"))
+    tried += [(lay, got, "greedy path and swaps") for lay, got in fewer]
     counts = tuple(
         {
             "count": len(lay),

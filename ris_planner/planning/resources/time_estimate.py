@@ -576,8 +576,8 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     if n_pairs * DISTRICT_NONZEROS_PER_PAIR > SIMPLEX_MAX_NONZEROS:
         # the plan's counts up to LARGE_SOLVES, each solved and solved again after each round
         # of separated cuts that starts within SEPARATION_SECONDS; the lower bound of every
-        # other RIS size of the sizing (the document's own: from the bounds)
-        solves = min(len(counts), LARGE_SOLVES) + ((sizes - 1) if target else 0)
+        # RIS size of the sizing
+        solves = min(len(counts), LARGE_SOLVES) + (sizes if target else 0)
         one = DISTRICT_COEFFICIENTS["search_lp"]["per_large_solve_row_entry"] * lp_units
         rounds = min(SEPARATION_ROUNDS, math.ceil(SEPARATION_SECONDS / max(one, 1e-9)))
         small_lps, large_solves = 0.0, solves * (1.0 + rounds)

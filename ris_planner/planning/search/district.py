@@ -285,17 +285,15 @@ def fewer_sites(
     seen: DistrictProblem,
     path: list[PathStep],
     goal: float,
-    floor: int = 0,
     required: tuple[int, ...] = (),
     excluded: tuple[int, ...] = (),
     conflict: BoolArray | None = None,
 ) -> list[tuple[tuple[int, ...], float]]:
     """Layouts of fewer sites than the greedy path's first step that reaches ``goal``: the
     path's layouts improved by one swap pass (:func:`improve`, on ``seen``) and re-scored on
-    ``problem``, in bisection between that step's count and the largest count below
-    ``floor`` (a certified lower count) or whose path coverage is below the goal by more than
-    :data:`SIZING_SWAP_REACH` and the largest step of the path's second half; at most
-    :data:`SIZING_PROBES` counts. The
+    ``problem``, in bisection between that step's count and the largest count whose path
+    coverage is below the goal by more than :data:`SIZING_SWAP_REACH` and the largest step of
+    the path's second half; at most :data:`SIZING_PROBES` counts. The
     layouts tried, in order, each with its coverage on ``problem`` (none when the path never
     reaches the goal or no count lies between)."""
     steps = {len(p.sites): p for p in path}
@@ -306,7 +304,7 @@ def fewer_sites(
     late = [g for p, g in zip(path, gains, strict=True) if hi // 2 < len(p.sites) <= hi]
     reach = max([SIZING_SWAP_REACH, *late])
     far = [c for c, p in steps.items() if c < hi and p.coverage < goal - reach]
-    lo = max([floor - 1, min(steps) - 1, *far])
+    lo = max([min(steps) - 1, *far])
     tried: list[tuple[tuple[int, ...], float]] = []
     for _ in range(SIZING_PROBES):
         mid = (lo + hi) // 2
