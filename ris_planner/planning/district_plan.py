@@ -44,6 +44,7 @@ from ris_planner.planning.scoring.sparse import (
     LayoutState,
     SparseScorer,
     build_problem,
+    exact_coverage,
 )
 from ris_planner.planning.scoring.time_blocks import profile_colours
 from ris_planner.planning.search.district import (
@@ -658,7 +659,7 @@ def _size_row(
     if hit is None:
         note = f"the greedy path stops at {len(steps)} RISs below the target"
         return SizeRow(size, None, lower, note=note)
-    cov = LayoutState(problem, list(hit.sites)).coverage() if seen is not problem else hit.coverage
+    cov = exact_coverage(problem, hit.sites) if seen is not problem else hit.coverage
     tried = [(tuple(hit.sites), cov, "greedy path")]
     tried += [(lay, got, "greedy path and swaps") for lay, got in fewer]
     counts = tuple(

@@ -27,6 +27,7 @@ from ris_planner.model.search_methods import MAX_DISTRICT_RIS
 from ris_planner.planning.scoring.sparse import (
     DistrictProblem,
     LayoutState,
+    exact_coverage,
     pair_entries,
     summed_entry_metric,
 )
@@ -312,7 +313,7 @@ def fewer_sites(
             break
         layout, cov = improve(seen, steps[mid].sites, required, excluded, 1, conflict)
         if seen is not problem:
-            cov = LayoutState(problem, list(layout)).coverage()
+            cov = exact_coverage(problem, layout)
         tried.append((layout, cov))
         if cov >= goal - GAIN_TIE:
             hi = mid
