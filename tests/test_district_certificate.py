@@ -320,8 +320,10 @@ def test_separation_tightens_the_bound_and_keeps_it_valid(truth, monkeypatch) ->
 
 def test_a_large_model_starts_by_interior_point(truth, monkeypatch) -> None:
     """A large model's first solve runs interior point (crossed over to a basis), the next
-    the dual simplex from that basis; both bounds equal the small model's simplex bounds
-    (the LP optimum: HiGHS' optimality tolerances are 1e-7) and stay above brute force."""
+    the parallel dual simplex from that basis; both bounds equal the small model's simplex
+    bounds (the LP optimum: HiGHS' optimality tolerances are 1e-7) and stay above brute force.
+    Its sizing question starts again by interior point (a new objective) and gives the small
+    model's lower count."""
     problem, needs, layouts, covered = truth
     best = best_by_count(problem, layouts, covered)
     monkeypatch.setattr(lp, "SEPARATION_ROUNDS", 0)  # the same rows in both models
@@ -340,6 +342,14 @@ def test_a_large_model_starts_by_interior_point(truth, monkeypatch) -> None:
     assert_close([r.bound for r in got], want, accuracy=1e-6)
     for c, r in zip((2, 3), got, strict=True):
         assert r.bound >= best[c] - 1e-12
+    for h, strategy in ((small.highs, 1), (large.highs, 2)):
+        assert h.getOptionValue("simplex_strategy")[1] == strategy
+        assert h.getOptionValue("threads")[1] == lp.LP_THREADS
+    goal = 0.6 * large.coverable_weight
+    lower = large.lower_count(goal)
+    assert large.highs.getInfo().ipm_iteration_count > 0
+    assert lower == small.lower_count(goal)
+    assert lower is not None and lower <= min(k for k, v in best.items() if v >= goal - 1e-12)
 
 
 def test_no_separation_after_a_solve_stopped_early(truth, monkeypatch) -> None:

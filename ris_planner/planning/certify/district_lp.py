@@ -320,7 +320,10 @@ class DistrictRelaxation:
         h = self.highs = highspy._core._Highs()  # the base class: no banner, no callbacks
         h.setOptionValue("output_flag", False)
         h.setOptionValue("solver", "simplex")
-        h.setOptionValue("simplex_strategy", 1)  # dual simplex
+        # every model the same threads (HiGHS schedules its threads once per process); a large
+        # one by the dual simplex's parallel variant: the search mostly waits for its bound
+        h.setOptionValue("threads", LP_THREADS)
+        h.setOptionValue("simplex_strategy", 2 if self.large else 1)
         h.setOptionValue("run_crossover", "on")  # a cold interior-point solve ends at a basis
         # a district's model is presolved first (its cold solve is minutes without); a small
         # one solves from the last basis
@@ -523,6 +526,10 @@ class DistrictRelaxation:
             cost[: pr.n_sites] = 1.0
             h.changeColsCost(self.n_var, np.arange(self.n_var, dtype=np.int32), cost)
             h.changeRowBounds(self.count_row, 0.0, highspy.kHighsInf)
+            if self.large and self.mode:
+                # the coverage basis is far from optimal for the new objective: interior point
+                # from nothing is faster than the simplex from it (:data:`LP_THREADS`)
+                h.clearSolver()
             self.mode = "count"
         h.changeRowBounds(self.goal_row, float(goal), highspy.kHighsInf)
         best = -math.inf
@@ -708,6 +715,14 @@ CUTS_PER_ROUND = 4000
 
 SEPARATION_Y = 1e-6
 """Separation looks at the pairs whose y exceeds this in the relaxation's solution."""
+
+LP_THREADS = 2
+"""Threads of every district model's HiGHS solves. A large model (:data:`SIMPLEX_MAX_NONZEROS`)
+re-solves by the parallel dual simplex (PAMI) on them and, for the sizing question after its
+counts, starts again by interior point: on the benchmark district's designed-beam model a
+re-solve after a round of cuts took 55 s against 97 s for the serial dual simplex, and the
+sizing solve 35 s from nothing against 65 s from the coverage basis
+(docs/validation/benchmarks.md, "Faster LP solves")."""
 
 LP_TIME_LIMIT_S = 120.0
 """Seconds one solve of :class:`DistrictRelaxation` may take; a solve stopped there still
