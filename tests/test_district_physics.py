@@ -331,10 +331,16 @@ def test_district_beams_solve_one_sdp_per_ris() -> None:
     over the layout's design positions and the appendix SDP once per RIS over the positions it
     serves – each RIS's optimum (mean PEB² there, by the bounds' route) never above γ_P's or
     uniform powers', both feasible points of it – its status and time as data, and the layout
-    re-scored on every pair under each allocation."""
+    re-scored on every pair under each allocation; the progress bar moves on through the
+    beams stage."""
     doc = _designed("directional_derivative") | {"beams": {"design_positions": 12}}
     doc["ris_count"] = [3]
-    plan = run_plan(doc).to_json()
+    seen: list[tuple[float, str]] = []
+    plan = run_plan(doc, lambda f, m: seen.append((f, m))).to_json()
+    fractions = [f for f, _ in seen]
+    assert fractions == sorted(fractions)
+    beams = [f for f, m in seen if "beams" in m]
+    assert beams and beams[-1] > beams[0] + 0.1, seen
     (lay,) = plan["beams"]["layouts"]
     sdp = lay["sdp"]
     assert [r["site"] for r in sdp["per_ris"]] == lay["sites"]

@@ -130,9 +130,14 @@ def run_district(
     if blocks is None:
         blocks = doc.codebook.blocks or initial_blocks(doc)
     required, excluded, conflict = cons = constraints_of(inputs)
+    share = 1.0 if doc.beams is None else 1.0 - BEAMS_PROGRESS_SHARE
+
+    def on_search(f: float, m: str) -> None:  # the search's share of the run, beams the rest
+        progress(share * f, m)
+
     with clock.stage("cache"):  # the sparse information, what every candidate gives
-        progress(0.0, "information")
-        problem = build_problem(inputs, lambda f, m: progress(0.4 * f, m), blocks=blocks)
+        on_search(0.0, "information")
+        problem = build_problem(inputs, lambda f, m: on_search(0.4 * f, m), blocks=blocks)
         scorer = SparseScorer(problem)
         seen = problem.strongest(SEARCH_SITES)
         needs = sites_needed(problem)
@@ -150,7 +155,7 @@ def run_district(
             # one model, built and then solved count by count on the thread (in order)
             model = lp.submit(build_relaxation, problem, needs, required, excluded, conflict)
             relaxed = {c: lp.submit(_coverage, model, c) for c in counts}
-            progress(0.5, "path")
+            on_search(0.5, "path")
             most = most_ris(doc.system.transmissions)
             longest = max(counts) if level is None else max(max(counts), most)
             path = greedy_path(
@@ -162,11 +167,11 @@ def run_district(
                 min_count=0 if level is not None else max(counts),
                 conflict=conflict,
             )
-            progress(0.7, "swaps")
+            on_search(0.7, "swaps")
             found, infeasible = _count_results(problem, seen, path, counts, relaxed, cons, level)
         if problem.codebooks.designed:
             with clock.stage("colours"):  # every layout held to the Γ − 1 profile colours
-                progress(0.8, f"colours: Γ = {blocks} blocks")
+                on_search(0.8, f"colours: Γ = {blocks} blocks")
                 found, fitted, colouring = fit_blocks(problem, seen, found, blocks, cons)
                 infeasible += [n["ris_count"] for n in fitted if not n["fits"]]
     finally:
@@ -181,7 +186,7 @@ def run_district(
     timing = time_orthogonal(problem, found, doc.system.transmissions, blocks, colouring)
     if problem.codebooks.designed:
         timing["held_to_blocks"] = fitted
-    progress(1.0, "done")
+    on_search(1.0, "done")
     result = PlanResult(
         doc,
         inputs.sites,
@@ -218,8 +223,14 @@ def run_district(
         from ris_planner.planning.district_beams import district_beams
 
         with clock.stage("beams"):
-            result = replace(result, beams=district_beams(result, inputs, progress, executor))
+            on_beams = lambda f, m: progress(share + (1.0 - share) * f, m)  # noqa: E731
+            result = replace(result, beams=district_beams(result, inputs, on_beams, executor))
     return replace(result, timing=dict(clock.seconds))
+
+
+BEAMS_PROGRESS_SHARE = 0.35
+"""The share of a district run's progress bar its ``beams`` stage takes (the designed-beam plan
+of docs/validation/benchmarks.md: beams 86 s after 156 s of information and search)."""
 
 
 def no_count_message(counts: list[int], fitted: list[dict[str, Any]], blocks: int) -> str:
