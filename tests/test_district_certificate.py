@@ -352,6 +352,36 @@ def test_a_large_model_starts_by_interior_point(truth, monkeypatch) -> None:
     assert lower is not None and lower <= min(k for k, v in best.items() if v >= goal - 1e-12)
 
 
+def test_a_large_model_takes_its_fixed_rounds_whatever_the_clock(truth, monkeypatch) -> None:
+    """A large model separates up to its :attr:`rounds` per solved count and sizing question
+    (:data:`SEPARATION_NONZEROS` over its nonzeros, at least one) – a number, not a time
+    budget, so a plan's certificate is the same every run: with a clock that jumps a minute at
+    every look the rounds, bounds and lower count stay those of a model on the real clock, and
+    the bounds stay above brute force."""
+    problem, needs, layouts, covered = truth
+    best = best_by_count(problem, layouts, covered)
+    monkeypatch.setattr(lp, "SIMPLEX_MAX_NONZEROS", 0)
+    nonzeros = lp.build_relaxation(problem, needs).base_nonzeros
+    for budget, want in ((0, 1), (2 * nonzeros, 2), (100 * nonzeros, lp.SEPARATION_ROUNDS)):
+        monkeypatch.setattr(lp, "SEPARATION_NONZEROS", budget)
+        assert lp.build_relaxation(problem, needs).rounds == want
+    monkeypatch.setattr(lp, "SEPARATION_NONZEROS", 2 * nonzeros)
+    runs = []
+    for slow in (False, True):
+        if slow:
+            ticks = itertools.count()
+            monkeypatch.setattr(lp.time, "perf_counter", lambda t=ticks: 60.0 * next(t))
+        model = lp.build_relaxation(problem, needs)
+        got = [model.coverage(c) for c in (1, 2)]
+        lower = model.lower_count(0.6 * model.coverable_weight)
+        runs.append(([r.cut_rounds for r in got], [r.bound for r in got], lower))
+    assert max(runs[0][0]) >= 1 and max(runs[0][0]) <= 2
+    assert runs[0][0] == runs[1][0] and runs[0][2] == runs[1][2]
+    assert_close(runs[0][1], runs[1][1], accuracy=1e-9)
+    for c, bound in zip((1, 2), runs[1][1], strict=True):
+        assert bound >= best[c] - 1e-12
+
+
 def test_no_separation_after_a_solve_stopped_early(truth, monkeypatch) -> None:
     """A solve that did not finish (its time limit) is not separated from and not solved
     again – its point is no guide and a re-solve would take the limit again – for a count

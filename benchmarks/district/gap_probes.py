@@ -136,30 +136,23 @@ def coverage_model(problem: Any, needs: Any, cons: Any, count: int) -> tuple[Any
 
 
 def probe_rounds(problem: Any, needs: Any, cons: Any, count: int, rounds: int) -> None:
-    """The bound at ``count`` after each of ``rounds`` separation rounds (no time budget)."""
-    import ris_planner.planning.certify.district_lp as dl
-
-    saved = dl.SEPARATION_ROUNDS, dl.SEPARATION_SECONDS
-    dl.SEPARATION_ROUNDS, dl.SEPARATION_SECONDS = rounds, float("inf")
-    try:
-        m, _ = coverage_model(problem, needs, cons, count)
-        t0 = time.perf_counter()
-        for i, (status, _, x, duals) in enumerate(m._solves()):
-            m.multipliers.append(m._clipped(duals))
+    """The bound at ``count`` after each of ``rounds`` separation rounds."""
+    m, _ = coverage_model(problem, needs, cons, count)
+    t0 = time.perf_counter()
+    for i, (status, _, x, duals) in enumerate(m._solves(rounds)):
+        m.multipliers.append(m._clipped(duals))
+        print(
+            f"  round {i}: {status}, bound {m.bound_at(count):.4f},"
+            f" {m.separated_rows} separated rows, {time.perf_counter() - t0:.1f} s",
+            flush=True,
+        )
+        if i == 0:
+            z, y = x[: problem.n_sites], m._pairs_of(x)
             print(
-                f"  round {i}: {status}, bound {m.bound_at(count):.4f},"
-                f" {m.separated_rows} separated rows, {time.perf_counter() - t0:.1f} s",
-                flush=True,
+                f"  its site weights: {int((z > 1e-6).sum())} sites above 0, the largest"
+                f" {z.max():.3f}; the pairs with y = 1 weigh"
+                f" {problem.weights[y > 1 - 1e-6].sum():.3f}"
             )
-            if i == 0:
-                z, y = x[: problem.n_sites], m._pairs_of(x)
-                print(
-                    f"  its site weights: {int((z > 1e-6).sum())} sites above 0, the largest"
-                    f" {z.max():.3f}; the pairs with y = 1 weigh"
-                    f" {problem.weights[y > 1 - 1e-6].sum():.3f}"
-                )
-    finally:
-        dl.SEPARATION_ROUNDS, dl.SEPARATION_SECONDS = saved
 
 
 def probe_mip(problem: Any, needs: Any, cons: Any, count: int, seconds: float) -> None:

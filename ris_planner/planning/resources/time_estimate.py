@@ -506,9 +506,9 @@ takes); ``search_lp`` the relaxations on the thread beside it, per entry plus
 bound per RIS size of the sizing, which costs :data:`DISTRICT_LOWER_BOUND_LPS` of them), a
 large one (:data:`~ris_planner.planning.certify.district_lp.SIMPLEX_MAX_NONZEROS`) per solve –
 its first :data:`~ris_planner.planning.certify.district_lp.LARGE_SOLVES` counts, each solved
-and solved again after each round of separated cuts that starts within
-:data:`~ris_planner.planning.certify.district_lp.SEPARATION_SECONDS` of its first solve (a
-round modelled as long as a solve); ``beams``
+and solved again after each round of separated cuts (as many as
+:data:`~ris_planner.planning.certify.district_lp.SEPARATION_NONZEROS` over the model's
+nonzeros allow; a round modelled as long as a solve); ``beams``
 (``beams`` set) per layout (its γ_P search and coverage under each allocation) and per RIS
 (its SDP and its positions' information, a worker's seconds: shared by the plan's pool from
 :data:`~ris_planner.planning.beams.SDP_POOL_MIN_RIS` RISs on); the figures per
@@ -546,8 +546,8 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     the estimate cannot know)."""
     from ris_planner.planning.certify.district_lp import (
         LARGE_SOLVES,
+        SEPARATION_NONZEROS,
         SEPARATION_ROUNDS,
-        SEPARATION_SECONDS,
         SIMPLEX_MAX_NONZEROS,
     )
     from ris_planner.planning.search.district import (
@@ -573,13 +573,12 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     if doc.sizing is not None:  # the sizing's descent: swap passes below each size's answer
         swaps += SIZING_PROBES * sizes * min(most, n_sites)
     lp_units = entries + DISTRICT_LP_ROWS_PER_PAIR * n_pairs
-    if n_pairs * DISTRICT_NONZEROS_PER_PAIR > SIMPLEX_MAX_NONZEROS:
-        # the plan's counts up to LARGE_SOLVES, each solved and solved again after each round
-        # of separated cuts that starts within SEPARATION_SECONDS; the lower bound of every
-        # RIS size of the sizing
+    nonzeros = n_pairs * DISTRICT_NONZEROS_PER_PAIR
+    if nonzeros > SIMPLEX_MAX_NONZEROS:
+        # the plan's counts up to LARGE_SOLVES and the lower bound of every RIS size of the
+        # sizing, each solved and solved again after each round of separated cuts
         solves = min(len(counts), LARGE_SOLVES) + (sizes if target else 0)
-        one = DISTRICT_COEFFICIENTS["search_lp"]["per_large_solve_row_entry"] * lp_units
-        rounds = min(SEPARATION_ROUNDS, math.ceil(SEPARATION_SECONDS / max(one, 1e-9)))
+        rounds = min(SEPARATION_ROUNDS, max(1, SEPARATION_NONZEROS // nonzeros))
         small_lps, large_solves = 0.0, solves * (1.0 + rounds)
     else:
         small_lps = len(counts) + (DISTRICT_LOWER_BOUND_LPS * sizes if target else 0.0)
