@@ -64,6 +64,7 @@ QUICK: dict[str, list[list[str]]] = {
         ["bench_district_physics.py", "--quick"],
         ["district_strong_sets.py", "--quick"],
         ["gap_probes.py", "--quick"],
+        ["lp_solves.py", "--quick"],
         ["coverable_by_size.py", "--quick"],
     ],
 }
