@@ -322,8 +322,8 @@ def test_a_large_model_starts_by_interior_point(truth, monkeypatch) -> None:
     """A large model's first solve runs interior point (crossed over to a basis), the next
     the parallel dual simplex from that basis; both bounds equal the small model's simplex
     bounds (the LP optimum: HiGHS' optimality tolerances are 1e-7) and stay above brute force.
-    Its sizing question starts again by interior point (a new objective) and gives the small
-    model's lower count."""
+    Its sizing question after two counts starts again by interior point (a new objective), after
+    one from that count's basis, and both give the small model's lower count."""
     problem, needs, layouts, covered = truth
     best = best_by_count(problem, layouts, covered)
     monkeypatch.setattr(lp, "SEPARATION_ROUNDS", 0)  # the same rows in both models
@@ -347,8 +347,12 @@ def test_a_large_model_starts_by_interior_point(truth, monkeypatch) -> None:
         assert h.getOptionValue("threads")[1] == lp.LP_THREADS
     goal = 0.6 * large.coverable_weight
     lower = large.lower_count(goal)
-    assert large.highs.getInfo().ipm_iteration_count > 0
+    assert large.highs.getInfo().ipm_iteration_count > 0  # after two counts: from nothing
     assert lower == small.lower_count(goal)
+    one = lp.build_relaxation(problem, needs)
+    one.coverage(2)
+    assert one.lower_count(goal) == lower
+    assert one.highs.getInfo().ipm_iteration_count == 0  # after one: from its basis
     assert lower is not None and lower <= min(k for k, v in best.items() if v >= goal - 1e-12)
 
 

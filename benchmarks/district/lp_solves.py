@@ -56,13 +56,13 @@ def run_variant(plan: Path, count: int, share: float, spec: dict[str, Any], quic
     from fixtures import district_inputs
 
     import ris_planner.planning.certify.district_lp as dl
-    from ris_planner.planning.district_plan import constraints_of
-    from ris_planner.planning.scoring.sparse import build_problem, servable_pairs
+    from ris_planner.planning.district_plan import constraints_of, district_state
+    from ris_planner.planning.scoring.sparse import servable_pairs
 
     if quick:  # the street site's model is small: made a large one, solved the large way
         dl.SIMPLEX_MAX_NONZEROS = 0
     inputs = district_inputs(plan)
-    problem = build_problem(inputs)
+    problem = district_state(inputs).problem  # a designed codebook's blocks as the plan's
     model = dl.build_relaxation(problem, dl.sites_needed(problem), *constraints_of(inputs))
     h = model._model()
     h.setOptionValue("threads", int(spec["threads"]))

@@ -539,9 +539,10 @@ class DistrictRelaxation:
             cost[: pr.n_sites] = 1.0
             h.changeColsCost(self.n_var, np.arange(self.n_var, dtype=np.int32), cost)
             h.changeRowBounds(self.count_row, 0.0, highspy.kHighsInf)
-            if self.large and self.mode:
-                # the coverage basis is far from optimal for the new objective: interior point
-                # from nothing is faster than the simplex from it (:data:`LP_THREADS`)
+            if self.large and self.mode == "coverage" and self.solved_counts > 1:
+                # after two counts their basis is far from this objective's optimum: interior
+                # point from nothing is faster than the simplex from it (after one, slower:
+                # :data:`LP_THREADS`)
                 h.clearSolver()
             self.mode = "count"
         h.changeRowBounds(self.goal_row, float(goal), highspy.kHighsInf)
@@ -737,11 +738,11 @@ SEPARATION_Y = 1e-6
 
 LP_THREADS = 2
 """Threads of every district model's HiGHS solves. A large model (:data:`SIMPLEX_MAX_NONZEROS`)
-re-solves by the parallel dual simplex (PAMI) on them and, for the sizing question after its
-counts, starts again by interior point: on the benchmark district's designed-beam model a
-re-solve after a round of cuts took 55 s against 97 s for the serial dual simplex, and the
-sizing solve 35 s from nothing against 65 s from the coverage basis
-(docs/validation/benchmarks.md, "Faster LP solves")."""
+re-solves by the parallel dual simplex (PAMI) on them: 19–21 % off the serial dual simplex on
+the benchmark district's models. Its sizing question after two or more counts starts again by
+interior point (24 s against 17 s + a slower round on the headline, 35 s against 65 s on the
+designed-beam model); after one count it re-solves from that count's basis (6–24 s against
+49–50 s from nothing) (docs/validation/benchmarks.md, "Faster LP solves")."""
 
 LP_TIME_LIMIT_S = 120.0
 """Seconds one solve of :class:`DistrictRelaxation` may take; a solve stopped there still
