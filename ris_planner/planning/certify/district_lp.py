@@ -424,9 +424,7 @@ class DistrictRelaxation:
         """Separation rounds per solved count and sizing question: :data:`SEPARATION_ROUNDS`,
         a large model's as many as :data:`SEPARATION_NONZEROS` over its nonzeros at build
         allow (at least one)."""
-        if not self.large:
-            return SEPARATION_ROUNDS
-        return min(SEPARATION_ROUNDS, max(1, SEPARATION_NONZEROS // max(self.base_nonzeros, 1)))
+        return separation_rounds(self.base_nonzeros) if self.large else SEPARATION_ROUNDS
 
     @property
     def large(self) -> bool:
@@ -725,6 +723,13 @@ brought the bound from 0.820 to 0.811 for about 30 s more; four on a district of
 number fixed by the model, not a time budget: the budget of 20 s before it let the same
 document get one round at 40 RISs in one run and two in the next (a lower count of 81 or 83);
 now a plan's certificate is the same every run."""
+
+
+def separation_rounds(nonzeros: int) -> int:
+    """The separation rounds of a large model of ``nonzeros`` at build
+    (:data:`SEPARATION_NONZEROS`): between one and :data:`SEPARATION_ROUNDS`."""
+    return min(SEPARATION_ROUNDS, max(1, SEPARATION_NONZEROS // max(nonzeros, 1)))
+
 
 OPTIMAL = "Optimal"
 """HiGHS' status string of a solve that finished (:meth:`DistrictRelaxation.coverage`

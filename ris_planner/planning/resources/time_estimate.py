@@ -547,9 +547,8 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
     the estimate cannot know)."""
     from ris_planner.planning.certify.district_lp import (
         LARGE_SOLVES,
-        SEPARATION_NONZEROS,
-        SEPARATION_ROUNDS,
         SIMPLEX_MAX_NONZEROS,
+        separation_rounds,
     )
     from ris_planner.planning.search.district import (
         SEARCH_SITES,
@@ -579,8 +578,7 @@ def district_terms(plan: Sized) -> dict[str, dict[str, float]]:
         # the plan's counts up to LARGE_SOLVES and the lower bound of every RIS size of the
         # sizing, each solved and solved again after each round of separated cuts
         solves = min(len(counts), LARGE_SOLVES) + (sizes if target else 0)
-        rounds = min(SEPARATION_ROUNDS, max(1, SEPARATION_NONZEROS // nonzeros))
-        small_lps, large_solves = 0.0, solves * (1.0 + rounds)
+        small_lps, large_solves = 0.0, solves * (1.0 + separation_rounds(nonzeros))
     else:
         small_lps = len(counts) + (DISTRICT_LOWER_BOUND_LPS * sizes if target else 0.0)
         large_solves = 0.0
