@@ -91,16 +91,20 @@ def test_cli_stage_times_sum_to_the_wall_time(tmp_path: Path) -> None:
 
 def test_cli_process_stage_times_sum_to_its_wall_time(tmp_path: Path) -> None:
     """The command as a process: ``startup`` (the interpreter, the imports, reading the
-    document) and the stages account for the process's whole wall time, measured outside
-    it; only the process runs the clock from its start (in-process calls above have none)."""
+    document) and the stages account for the process's wall time up to writing plan.json,
+    measured outside it – from the launch to plan.json's modification time, on the same
+    system clock; only the process runs the clock from its start (in-process calls above
+    have none). What follows plan.json – the summary lines and the interpreter's exit,
+    0.02–0.1 s, more on a busy machine – cannot be in the file it has written
+    (docs/concepts/planning.md, "Output")."""
     doc = tmp_path / "plan.json"
     doc.write_text(json.dumps(timed_plan()))
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "ris_planner.cli", "plan", str(doc), "--out", str(out)]
-    t0 = time.perf_counter()
+    t0 = time.time()
     proc = subprocess.run([*cmd, "--workers", "1"], capture_output=True, text=True, check=False)
-    wall = time.perf_counter() - t0
     assert proc.returncode == 0, proc.stderr[-2000:]
+    wall = (out / "plan.json").stat().st_mtime - t0
     timing = json.loads((out / "plan.json").read_text())["timing_s"]
     assert timing["startup"] > 0
     check_sum(timing, wall)
