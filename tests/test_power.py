@@ -6,7 +6,7 @@ from __future__ import annotations
 import itertools
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pytest
@@ -18,6 +18,7 @@ from ris_planner.bounds.compute import compute_bounds, first_block_profiles
 from ris_planner.cli import main
 from ris_planner.core.errors import RisPlannerError
 from ris_planner.inversion import ldl
+from ris_planner.model.power import Objective
 from ris_planner.model.scenario import Scenario, load_scenario, preset_document
 from ris_planner.physics.beams import codebook_block, gamma_p_powers
 from ris_planner.power import run_power
@@ -128,6 +129,38 @@ def test_sdp_recomputed_objective_from_powers_directly() -> None:
     assert scs.objective == pytest.approx(res.objective, rel=1e-3)
 
 
+@pytest.mark.parametrize(
+    ("kind", "objective", "seed"),
+    [
+        ("directional", "rx", 2),
+        ("directional_derivative", "sum", 3),
+        ("directional_derivative", "tx", 4),
+    ],
+)
+def test_direct_cone_program_is_the_cvxpy_programs_optimum(
+    kind: str, objective: Objective, seed: int
+) -> None:
+    """Clarabel's cone program written directly (the default) against the same SDP stated in
+    cvxpy (an independent construction of the program): the same status, optimum and – at
+    the powers each returns – the same mean PEB² by the bounds' route, within the solver's
+    tolerance; the solver's own time is reported by both."""
+    sc = load_scenario(paper_doc(kind=kind, samples=12, seed=seed, sigma_m=0.3))
+    block = codebook_block(sc)
+    info = beam_information(sc, block.tx, block.rx, block.profiles)
+    direct = solve_power_sdp(info, objective)
+    stated = solve_power_sdp(info, objective, modeller="cvxpy")
+    assert direct.status == stated.status == "optimal", (direct, stated)
+    assert direct.objective is not None and stated.objective is not None
+    assert direct.powers is not None and stated.powers is not None
+    assert direct.objective == pytest.approx(stated.objective, rel=SOLVER_RTOL)
+    index = objective_index(info, objective)
+    assert mean_trace_bound(info, direct.powers, index) == pytest.approx(
+        mean_trace_bound(info, stated.powers, index), rel=SOLVER_RTOL
+    )
+    assert direct.powers.sum() == pytest.approx(block.beam_types.size, rel=1e-12)
+    assert direct.solver_time_s is not None and stated.solver_time_s is not None
+
+
 def test_solver_trouble_is_data_not_an_exception() -> None:
     """One RIS, no LOS: 3 channel parameters for 7 states, singular at every power: the LMI
     is infeasible, reported as a status with no powers; the JSON says null with a reason."""
@@ -236,16 +269,24 @@ def test_known_height_restricts_the_objective_to_xy() -> None:
     assert np.mean(ref.peb_rx**2) == pytest.approx(out["sdp"]["objective"], rel=1e-12)
 
 
-def test_solver_exception_becomes_a_failed_status(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("modeller", ["direct", "cvxpy"])
+def test_solver_exception_becomes_a_failed_status(
+    monkeypatch: pytest.MonkeyPatch, modeller: Literal["direct", "cvxpy"]
+) -> None:
+    import clarabel
     import cvxpy as cp
 
-    def broken(self: cp.Problem, *args: Any, **kwargs: Any) -> None:
-        raise cp.SolverError("solver crashed")
+    def broken(*args: Any, **kwargs: Any) -> None:
+        raise (cp.SolverError if modeller == "cvxpy" else RuntimeError)("solver crashed")
 
-    monkeypatch.setattr(cp.Problem, "solve", broken)
+    if modeller == "cvxpy":
+        monkeypatch.setattr(cp.Problem, "solve", broken)
+    else:
+        monkeypatch.setattr(clarabel, "DefaultSolver", broken)
     sc = load_scenario(paper_doc(samples=2))
     block = codebook_block(sc)
-    res = solve_power_sdp(beam_information(sc, block.tx, block.rx, block.profiles))
+    info = beam_information(sc, block.tx, block.rx, block.profiles)
+    res = solve_power_sdp(info, modeller=modeller)
     assert res.status == "failed" and res.powers is None and "crashed" in (res.message or "")
 
 

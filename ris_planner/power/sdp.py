@@ -35,7 +35,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import cvxpy as cp
 import numpy as np
@@ -67,8 +67,8 @@ class SdpResult:
 
     objective : the solver's mean PEB² [m²] (``None`` unless optimal/inaccurate);
     powers : [G̃] first-block beam powers, clipped to ≥ 0 and rescaled to sum G̃ (``None``
-    without a solution); solve_time_s : wall time of the solve call incl. cvxpy
-    canonicalisation; message : the solver's complaint, if any; solver_time_s : the solver's
+    without a solution); solve_time_s : wall time of building the program (the whitening,
+    and cvxpy's canonicalisation where it states it) and solving it; message : the solver's complaint, if any; solver_time_s : the solver's
     own time as it reports it (``None`` if it did not).
     """
 
@@ -139,15 +139,34 @@ def _clean_powers(raw: FloatArray | None, total: float) -> FloatArray | None:
     return np.asarray(g * (total / g.sum()))
 
 
+@dataclass(frozen=True)
+class _Lmis:
+    """The SDP's data after whitening: per position p its whitened path sum S_p [G, r_p, r_p]
+    as one [Σ_p r_p², G] matrix (``mat``, rows of position p from ``offsets[p]``), its kept
+    rows and E_p = W_p E / √c [r_p, m]; ``scale`` is c, the uniform objective."""
+
+    mat: FloatArray
+    offsets: NDArray[np.int_]
+    rows: list[NDArray[np.int_]]
+    e: list[FloatArray]
+    scale: float
+    m: int
+
+
 def solve_power_sdp(
     info: BeamInformation,
     objective: Objective = "rx",
     solver: str = "CLARABEL",
     total_power: float | None = None,
+    modeller: Literal["direct", "cvxpy"] = "direct",
 ) -> SdpResult:
     """Minimise the mean PEB² over the sampled positions by the beam powers (appendix SDP).
 
     total_power : Σ_g γ_g (default G̃, i.e. mean power 1 per beam as in ``compute_bounds``).
+    modeller : ``direct`` hands Clarabel the cone program itself (:func:`_solve_direct`: the
+    problem cvxpy would build, without its canonicalisation – a third of a small SDP's time);
+    ``cvxpy`` states it in cvxpy (:func:`_solve_cvxpy`, always for SCS; the reference the
+    suite checks the direct program against).
     """
     if solver not in SOLVERS:
         raise RisPlannerError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
@@ -180,7 +199,33 @@ def solve_power_sdp(
             f"the objective's states are not identifiable at {blind.size} of {n_pos} design"
             " positions at any power allocation (singular Fisher information)",
         )
-    scale_obj = float(np.mean(traces))
+    start = time.perf_counter()
+    lmis = _whitened_lmis(info, uniform, index, float(np.mean(traces)))
+    if solver == "CLARABEL" and modeller == "direct":
+        status, value, group, message, own = _solve_direct(lmis, n_groups, total)
+    else:
+        status, value, group, message, own = _solve_cvxpy(lmis, n_groups, total, solver)
+    elapsed = time.perf_counter() - start
+    powers = None
+    if status in ("optimal", "inaccurate"):
+        clean = _clean_powers(group, total)
+        powers = None if clean is None else info.beam_powers(clean)
+    if powers is None and status in ("optimal", "inaccurate"):
+        status, message = "failed", message or "solver returned no usable powers"
+    value = None if powers is None or value is None else value * lmis.scale
+    return SdpResult(status, value, powers, elapsed, solver, message, own)
+
+
+_Solved = tuple[SolverStatus, float | None, FloatArray | None, str | None, float | None]
+"""(status, the solver's objective before the scale c, γ per distinct beam, message, the
+solver's own time)."""
+
+
+def _whitened_lmis(
+    info: BeamInformation, uniform: FloatArray, index: NDArray[np.int_], scale: float
+) -> _Lmis:
+    """The LMIs' data at the whitening of uniform power (module docstring, "Scaling")."""
+    n_groups = info.stack.shape[1]
     w, kept = whitening(info, uniform)
     # [P, J, n, n] whitened stack W S Wᵀ = Σ_ℓ (T_ℓ Wᵀ)ᵀ F_ℓ (T_ℓ Wᵀ) from the path blocks
     # (never W (Σ_ℓ T_ℓᵀ F_ℓ T_ℓ) Wᵀ: forming S first loses ε·cond(S) where F(1) is ill
@@ -195,19 +240,104 @@ def solve_power_sdp(
     mat = np.concatenate(
         [scaled[p][:, r][:, :, r].reshape(n_groups, -1).T for p, r in enumerate(rows)]
     )
-    offsets = np.concatenate([[0], np.cumsum([r.size**2 for r in rows])])
-    m = index.size
+    offsets = np.concatenate([[0], np.cumsum([r.size**2 for r in rows])]).astype(np.int_)
+    e = [w[p][r][:, index] / np.sqrt(scale) for p, r in enumerate(rows)]
+    return _Lmis(mat, offsets, rows, e, scale, int(index.size))
+
+
+_CLARABEL_STATUS: dict[str, SolverStatus] = {
+    "Solved": "optimal",
+    "AlmostSolved": "inaccurate",
+    "PrimalInfeasible": "infeasible",
+    "DualInfeasible": "infeasible",
+    "AlmostPrimalInfeasible": "infeasible",
+    "AlmostDualInfeasible": "infeasible",
+}
+
+
+def _triangle(k: int) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
+    """(i, j) of a k × k symmetric matrix's upper triangle column by column – Clarabel's
+    order of a PSD cone's entries, the off-diagonal ones scaled by √2."""
+    lower_r, lower_c = np.tril_indices(k)
+    return lower_c, lower_r
+
+
+def _solve_direct(lmis: _Lmis, n_groups: int, total: float) -> _Solved:
+    """The SDP as Clarabel's cone program min qᵀx s.t. Ax + s = b, s ∈ K, with
+    x = (γ [G], the upper triangle of each U_p): Σγ = total (zero cone), γ ≥ 0, and per
+    position s = svec([[F_p(γ), E_p], [E_pᵀ, U_p]]) in the PSD cone – cvxpy's program for
+    Clarabel, entry for entry (the suite compares the two)."""
+    import clarabel
+    import scipy.sparse as sp
+
+    m, n_pos = lmis.m, len(lmis.rows)
+    nu = m * (m + 1) // 2
+    n_x = n_groups + n_pos * nu
+    ui, uj = _triangle(m)
+    q = np.zeros(n_x)
+    for p in range(n_pos):
+        q[n_groups + p * nu + np.flatnonzero(ui == uj)] = 1.0 / n_pos
+    data: list[FloatArray] = [np.ones(n_groups), -np.ones(n_groups)]
+    row_ix: list[NDArray[np.int_]] = [np.zeros(n_groups, np.int_), 1 + np.arange(n_groups)]
+    col_ix: list[NDArray[np.int_]] = [np.arange(n_groups), np.arange(n_groups)]
+    b_parts: list[FloatArray] = [np.array([total]), np.zeros(n_groups)]
+    cones: list[Any] = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(n_groups)]
+    row0 = 1 + n_groups
+    for p, r in enumerate(lmis.rows):
+        nr = r.size
+        k = nr + m
+        i, j = _triangle(k)
+        f = np.where(i == j, 1.0, np.sqrt(2.0))
+        t = np.arange(i.size)
+        s_p = lmis.mat[lmis.offsets[p] : lmis.offsets[p + 1]].reshape(nr, nr, n_groups)
+        fb = j < nr  # the F block: −svec(Σ_g γ_g S_g)
+        tt, gg = np.repeat(t[fb], n_groups), np.tile(np.arange(n_groups), int(fb.sum()))
+        data.append(-(f[fb, None] * s_p[i[fb], j[fb]]).ravel())
+        row_ix.append(row0 + tt)
+        col_ix.append(gg)
+        ub = i >= nr  # the U block: −svec(U_p)
+        ii, jj = i[ub] - nr, j[ub] - nr
+        data.append(-f[ub])
+        row_ix.append(row0 + t[ub])
+        col_ix.append(n_groups + p * nu + jj * (jj + 1) // 2 + ii)
+        b = np.zeros(i.size)  # the E block, constant: b = svec([[0, E], [Eᵀ, 0]])
+        eb = (i < nr) & (j >= nr)
+        b[eb] = f[eb] * lmis.e[p][i[eb], j[eb] - nr]
+        b_parts.append(b)
+        cones.append(clarabel.PSDTriangleConeT(k))
+        row0 += i.size
+    a = sp.csc_matrix(
+        (np.concatenate(data), (np.concatenate(row_ix), np.concatenate(col_ix))),
+        shape=(row0, n_x),
+    )
+    a.eliminate_zeros()  # as cvxpy's: stored zeros would change the solver's KKT pattern
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    try:
+        sol = clarabel.DefaultSolver(
+            sp.csc_matrix((n_x, n_x)), q, a, np.concatenate(b_parts), cones, settings
+        ).solve()
+    except (ValueError, RuntimeError, ArithmeticError) as exc:
+        return "failed", None, None, str(exc), None
+    name = str(sol.status).rsplit(".", 1)[-1]
+    status = _CLARABEL_STATUS.get(name, "failed")
+    message = None if status in ("optimal", "infeasible") else f"Clarabel: {name}"
+    group = np.asarray(sol.x[:n_groups], dtype=float)
+    return status, float(sol.obj_val), group, message, float(sol.solve_time)
+
+
+def _solve_cvxpy(lmis: _Lmis, n_groups: int, total: float, solver: str) -> _Solved:
+    """The SDP stated in cvxpy and solved by ``solver`` (its canonicalisation included)."""
+    m, n_pos = lmis.m, len(lmis.rows)
     # total power of each distinct beam (shared equally by its copies afterwards)
     gam = cp.Variable(n_groups, nonneg=True)
-    flat = mat @ gam
+    flat = lmis.mat @ gam
     u_vars = [cp.Variable((m, m), symmetric=True) for _ in range(n_pos)]
     cons: list[cp.Constraint] = [cp.sum(gam) == total]
-    for p, r in enumerate(rows):
-        fp = cp.reshape(flat[offsets[p] : offsets[p + 1]], (r.size, r.size), order="C")
-        e = w[p][r][:, index] / np.sqrt(scale_obj)
-        cons.append(cp.bmat([[fp, e], [e.T, u_vars[p]]]) >> 0)
+    for p, r in enumerate(lmis.rows):
+        fp = cp.reshape(flat[lmis.offsets[p] : lmis.offsets[p + 1]], (r.size, r.size), order="C")
+        cons.append(cp.bmat([[fp, lmis.e[p]], [lmis.e[p].T, u_vars[p]]]) >> 0)
     prob = cp.Problem(cp.Minimize(sum(cp.trace(u) for u in u_vars) / n_pos), cons)
-    start = time.perf_counter()
     message = None
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -216,16 +346,9 @@ def solve_power_sdp(
         if caught:
             message = "; ".join(str(warn.message) for warn in caught)
     except (cp.SolverError, ArithmeticError, ValueError) as exc:
-        return SdpResult("failed", None, None, time.perf_counter() - start, solver, str(exc))
-    elapsed = time.perf_counter() - start
+        return "failed", None, None, str(exc), None
     status = _STATUS.get(str(prob.status), "failed")
-    powers = None
-    if status in ("optimal", "inaccurate"):
-        group = _clean_powers(gam.value, total)
-        powers = None if group is None else info.beam_powers(group)
-    if powers is None and status in ("optimal", "inaccurate"):
-        status, message = "failed", message or "solver returned no usable powers"
-    value = None if powers is None or prob.value is None else float(prob.value) * scale_obj
     stats = prob.solver_stats
     own = None if stats is None or stats.solve_time is None else float(stats.solve_time)
-    return SdpResult(status, value, powers, elapsed, solver, message, own)
+    value = None if prob.value is None else float(prob.value)
+    return status, value, gam.value, message, own
