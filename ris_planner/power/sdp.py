@@ -68,8 +68,9 @@ class SdpResult:
     objective : the solver's mean PEB² [m²] (``None`` unless optimal/inaccurate);
     powers : [G̃] first-block beam powers, clipped to ≥ 0 and rescaled to sum G̃ (``None``
     without a solution); solve_time_s : wall time of building the program (the whitening,
-    and cvxpy's canonicalisation where it states it) and solving it; message : the solver's complaint, if any; solver_time_s : the solver's
-    own time as it reports it (``None`` if it did not).
+    and cvxpy's canonicalisation where it states it) and solving it; message : the solver's
+    complaint, if any; solver_time_s : the solver's own time as it reports it (``None`` if it
+    did not).
     """
 
     status: SolverStatus
