@@ -6,6 +6,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
+from ris_planner.planning.scoring.sparse import DistrictProblem, LayoutState
+
 
 def street_doc(
     threshold_m: float = 1.0,
@@ -59,3 +64,24 @@ def street_doc(
         "known": ["height"],
         "search": {"method": method},
     }
+
+
+def every_layout(problem: DistrictProblem) -> tuple[list[tuple[int, ...]], NDArray[np.bool_]]:
+    """The brute-force truth: every layout of the problem's sites (all 2^S, in Gray-code
+    order) and, per layout, which pairs it covers ([2^S, P]). One :class:`LayoutState` walks
+    the Gray code, putting in or taking out one site per step: each step refreshes the pairs
+    that site serves from the layout's members (no running sums), half the time of building
+    each layout afresh."""
+    n = problem.n_sites
+    state = LayoutState(problem)
+    covered = np.zeros((2**n, problem.n_pairs), dtype=bool)
+    layouts: list[tuple[int, ...]] = [()]
+    covered[0] = state.metric <= problem.threshold
+    code = 0
+    for i in range(1, 2**n):
+        site = (i & -i).bit_length() - 1  # the bit that changes from Gray code i − 1 to i
+        code ^= 1 << site
+        state.set(site, bool(code >> site & 1))
+        covered[i] = state.metric <= problem.threshold
+        layouts.append(tuple(s for s in range(n) if code >> s & 1))
+    return layouts, covered

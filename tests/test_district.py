@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from district_site import street_doc
+from district_site import every_layout, street_doc
 from tolerance import BOUND_ACCURACY, assert_close
 from waits import HANG_S
 
@@ -121,12 +121,8 @@ def test_fewer_sites_never_claims_fewer_than_brute_force(site) -> None:
     two strongest); one that reaches the goal never has fewer sites than the exhaustive
     minimum – and on this site the descent finds fewer than the path for some goals."""
     _, problem, _ = site
-    layouts = [
-        c
-        for k in range(problem.n_sites + 1)
-        for c in itertools.combinations(range(problem.n_sites), k)
-    ]
-    cov = np.array([sparse.LayoutState(problem, list(c)).coverage() for c in layouts])
+    layouts, covered = every_layout(problem)
+    cov = covered @ problem.weights
     sizes = np.array([len(c) for c in layouts])
     fewer = 0
     for seen in (problem, problem.strongest(2)):

@@ -9,7 +9,7 @@ import itertools
 
 import numpy as np
 import pytest
-from district_site import street_doc
+from district_site import every_layout, street_doc
 from tolerance import assert_close
 
 from ris_planner.planning.certify import district_cuts as cuts
@@ -24,14 +24,7 @@ def truth(request: pytest.FixtureRequest):
     coverage (all 2^14 layouts: the brute-force truth)."""
     problem = sparse.build_problem(prepare_plan(street_doc(threshold_m=request.param)))
     needs = lp.sites_needed(problem)
-    layouts = [
-        c
-        for k in range(problem.n_sites + 1)
-        for c in itertools.combinations(range(problem.n_sites), k)
-    ]
-    covered = np.array(
-        [sparse.LayoutState(problem, list(c)).metric <= problem.threshold for c in layouts]
-    )
+    layouts, covered = every_layout(problem)
     return problem, needs, layouts, covered
 
 

@@ -143,3 +143,26 @@ def test_the_hand_over_leaves_the_site_cache_behind() -> None:
     near = job.scorer.near_field_by_site(weights)
     assert np.array_equal(near, result.scorer.near_field_by_site(weights))
     assert np.array_equal(job.metric_weights, result.metric_weights)
+
+
+def test_the_hand_over_leaves_the_sizing_state_behind(tmp_path: Path) -> None:
+    """A district plan with sizing keeps its search's state for the sizing (the problem, the
+    search view, the relaxation: hundreds of MB for a district); the helper gets none of it,
+    and draws every figure of the plan from what it gets – the sizing and district ones too."""
+    import pickle
+
+    from district_site import street_doc
+
+    from ris_planner.planning.pipeline import run_plan
+
+    doc = street_doc(counts=(2, 3))
+    doc["sizing"] = {"target": {"objective": 0.5}}
+    result = run_plan(doc, executor=SerialExecutor())
+    assert result.sizing is not None and result.sizing_state is not None
+    job = figure_process.figure_job(result)
+    assert job.sizing_state is None
+    data = pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL)
+    kept = pickle.dumps(result.sizing_state, protocol=pickle.HIGHEST_PROTOCOL)
+    assert b"DistrictRelaxation" not in data and len(data) < len(kept)
+    files = figure_process._draw(job, tmp_path)
+    assert {"sizing", "district"} <= set(files) and all(p.is_file() for p in files.values())

@@ -83,13 +83,18 @@ class _ScorerView:
 
 
 def figure_job(result: PlanResult) -> PlanResult:
-    """``result`` as the helper needs it: without its pending checks (they stay here) and with
-    a view of its scorer that holds only what the figures read (:class:`_ScorerView`), so the
-    hand-over's size follows the maps and fields, not the information."""
+    """``result`` as the helper needs it: without its pending checks (they stay here), without
+    the search's state kept for the sizing (a district plan's problem, search view and
+    relaxation: 355 MB at 5000 pairs, docs/validation/benchmarks.md "District physics"; the
+    sizing has run by now) and with a view of its scorer that holds only what the figures
+    read (:class:`_ScorerView`), so the hand-over's size follows the maps and fields, not the
+    information."""
     scorer = result.scorer
     near = scorer.near_field_by_site(result.pairs.weights)
     view = _ScorerView(near, scorer.metric_weights, scorer.mirror)
-    return dataclasses.replace(result, pending_checks=None, scorer=cast(LayoutScorer, view))
+    return dataclasses.replace(
+        result, pending_checks=None, sizing_state=None, scorer=cast(LayoutScorer, view)
+    )
 
 
 def _draw(result: PlanResult, out_dir: Path) -> dict[str, Path]:
