@@ -149,3 +149,43 @@ def test_unique_rows_is_numpys_unique_by_rows() -> None:
         got, got_inverse = unique_rows(flags)
         np.testing.assert_array_equal(got, want)
         np.testing.assert_array_equal(got_inverse, inverse.ravel())
+
+
+def test_per_pair_presence_is_path_presence_pair_by_pair() -> None:
+    """:func:`path_presence_per_pair` (every pair its own RISs, one visibility query) answers
+    as :func:`path_presence` called pair by pair with that pair's RISs, on the street site's
+    buildings, with paths both blocked and clear among the answers; :func:`serves_each` as
+    the rule itself point by point (in the RIS's field of view and the leg to its centre
+    clear, one :meth:`Scene.blocked` query per point)."""
+    from district_site import street_doc
+
+    from ris_planner.bounds.paths import (
+        in_field_of_view,
+        path_presence,
+        path_presence_per_pair,
+        serves_each,
+    )
+    from ris_planner.environment.scene import Scene
+    from ris_planner.planning.prepare import prepare_plan
+
+    inputs = prepare_plan(street_doc())
+    scene = Scene.from_environment(inputs.document.environment)
+    rises = [s.ris for s in inputs.sites]
+    rng = np.random.default_rng(5)
+    pick = rng.choice(inputs.pairs.tx.shape[0], 60, replace=False)
+    tx, rx = inputs.pairs.tx[pick], inputs.pairs.rx[pick]
+    slots = rng.integers(0, len(rises), (pick.size, 4))
+    got = path_presence_per_pair(scene, rises, slots, tx, rx, los=True)
+    for p in range(pick.size):
+        want = path_presence(scene, [rises[j] for j in slots[p]], tx[[p]], rx[[p]], los=True)
+        assert {k: bool(v[p]) for k, v in got.items()} == {k: bool(v[0]) for k, v in want.items()}
+    ris_paths = np.stack([got[f"ris{j + 1}"] for j in range(4)])
+    assert ris_paths.any() and not ris_paths.all()
+    which = rng.integers(0, len(rises), 200)
+    points = np.concatenate([tx, rx, tx, rx])[rng.integers(0, 4 * pick.size, 200)]
+    each = serves_each(scene, rises, which, points)
+    assert each.any() and not each.all()
+    for k in range(200):
+        ris = rises[which[k]]
+        clear = not scene.blocked(points[[k]], np.array([ris.position], dtype=float))[0]
+        assert each[k] == (bool(in_field_of_view(ris, points[[k]])[0]) and clear), k

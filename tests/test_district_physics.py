@@ -531,3 +531,43 @@ def test_the_expected_random_warning_follows_the_profile_colours() -> None:
     assert not [w for w in plan["warnings"] if "expected_random optimism" in w]
     designed = run_plan(_designed("directional_derivative")).to_json()
     assert not [w for w in designed["warnings"] if "expected_random optimism" in w]
+
+
+def test_design_positions_information_takes_presence_in_one_query() -> None:
+    """The design positions' stacked information finds every position's paths in one
+    visibility query (:func:`~ris_planner.planning.district_beams._presence`) and is, bit for
+    bit, the information of each position found on its own (``beam_information`` finding its
+    paths); the padding RIS carries no path and the layout's RISs theirs."""
+    from ris_planner.planning import district_beams as db
+    from ris_planner.planning.outputs.estimator_check import padding_ris
+    from ris_planner.power.information import beam_information
+
+    doc = _designed("directional_derivative")
+    inputs = prepare_plan(doc)
+    problem = build_problem(inputs, blocks=3)
+    layout = (0, 4, 9)
+    design = db.PlanCodebook(kind="directional_derivative", seed=0)
+    g_tilde = db.beams_per_block(inputs.document.system.transmissions, 3, "directional_derivative")
+    blocks, _, _ = db._layout_blocks(problem, inputs, layout, design, g_tilde)
+    serves = LayoutState(problem, list(layout))
+    pick = np.flatnonzero(np.isfinite(serves.metric))[:6]
+    assert pick.size == 6
+    start = problem.pair_start
+    mine = [[s for s in layout if s in problem.entry_site[start[p] : start[p + 1]]] for p in pick]
+    sys_, env = inputs.document.system, inputs.document.environment
+    pad = (padding_ris(inputs.sites[layout[0]].ris), blocks[layout[0]])
+    ris = [[inputs.sites[s].ris for s in m] for m in mine]
+    own = [[blocks[s] for s in m] for m in mine]
+    tx, rx = inputs.pairs.tx[pick], inputs.pairs.rx[pick]
+    got = db._stacked_information(sys_, env, tx, rx, ris, own, pad, 3)
+    width = max(len(r) for r in ris)
+    for i in range(pick.size):
+        n_pad = width - len(ris[i])
+        scenario = layout_scenario(sys_, ris[i] + [pad[0]] * n_pad, [], env)
+        prof = [b.profiles() for b in own[i]] + [pad[1].profiles()] * n_pad
+        want = beam_information(scenario, tx[[i]], rx[[i]], prof, [], n_blocks=3)
+        np.testing.assert_array_equal(got.stack[i], want.stack[0])
+        for k, path in enumerate(want.paths):
+            assert bool(got.paths[k].present[i]) == bool(path.present[0]), (i, path.name)
+            if path.name != "los":  # the position's own RISs serve it, the padding nobody
+                assert path.present[0] == (int(path.name[3:]) <= len(ris[i])), (i, path.name)

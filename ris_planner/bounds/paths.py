@@ -13,6 +13,7 @@ Visibility is a property of (point, site), so callers that score many layouts co
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -58,11 +59,28 @@ def pattern_factor(ris: RIS, tx: ArrayLike, rx: ArrayLike) -> FloatArray:
 def ris_serves(scene: Scene, ris: RIS, points: ArrayLike) -> BoolArray:
     """[M] whether the RIS serves each point: in its field of view and the leg is clear."""
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
-    ok = in_field_of_view(ris, pts)
+    return serves_each(scene, [ris], np.zeros(pts.shape[0], dtype=np.int64), pts)
+
+
+def serves_each(
+    scene: Scene, rises: Sequence[RIS], which: NDArray[np.int_], points: ArrayLike
+) -> BoolArray:
+    """[K] whether ``rises[which[k]]`` serves ``points[k]`` (the rule of :func:`ris_serves`),
+    every leg in one visibility query: a caller with a few points for each of many RISs (a
+    district layout's design positions) pays one query, not one per RIS and point."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    which = np.asarray(which, dtype=np.int64).reshape(-1)
+    ok = np.zeros(pts.shape[0], dtype=bool)
+    order = np.argsort(which, kind="stable")
+    ends = np.searchsorted(which[order], np.arange(len(rises) + 1))
+    for i, ris in enumerate(rises):
+        rows = order[ends[i] : ends[i + 1]]
+        if rows.size:
+            ok[rows] = in_field_of_view(ris, pts[rows])
     if not scene.empty and np.any(ok):
         idx = np.nonzero(ok)[0]
-        centre = np.broadcast_to(np.asarray(ris.position, dtype=float), (idx.size, 3))
-        ok[idx] = ~scene.blocked(pts[idx], centre)
+        centres = np.array([r.position for r in rises], dtype=float).reshape(-1, 3)
+        ok[idx] = ~scene.blocked(pts[idx], centres[which[idx]])
     return ok
 
 
@@ -80,10 +98,32 @@ def path_presence(
     """``{"los": [P], "ris1": [P], …}``: which paths exist for each pair (environment.md rules);
     ``"los"`` only when the system has a LOS path (``los`` False: absent from the dict)."""
     a = np.asarray(tx, dtype=float).reshape(-1, 3)
+    slots = np.broadcast_to(np.arange(len(ris)), (a.shape[0], len(ris)))
+    return path_presence_per_pair(scene, ris, slots, a, rx, los)
+
+
+def path_presence_per_pair(
+    scene: Scene,
+    rises: Sequence[RIS],
+    slots: NDArray[np.int_],
+    tx: ArrayLike,
+    rx: ArrayLike,
+    los: bool,
+) -> dict[str, BoolArray]:
+    """:func:`path_presence` where each pair has RISs of its own: pair p's path ``ris{j+1}``
+    is ``rises[slots[p, j]]``'s (``slots`` [P, W]). Every RIS leg of every pair in one
+    visibility query (:func:`serves_each`), the LOS legs in another."""
+    a = np.asarray(tx, dtype=float).reshape(-1, 3)
     b = np.asarray(rx, dtype=float).reshape(-1, 3)
+    slots = np.asarray(slots, dtype=np.int64).reshape(a.shape[0], -1)
+    n, width = slots.shape
     out: dict[str, BoolArray] = {}
     if los:
         out["los"] = los_clear(scene, a, b)
-    for i, r in enumerate(ris):
-        out[f"ris{i + 1}"] = np.asarray(ris_serves(scene, r, a) & ris_serves(scene, r, b))
+    which = np.concatenate([slots.ravel(), slots.ravel()])
+    ends = np.concatenate([np.repeat(a, width, axis=0), np.repeat(b, width, axis=0)])
+    ok = serves_each(scene, rises, which, ends)
+    both = (ok[: n * width] & ok[n * width :]).reshape(n, width)
+    for j in range(width):
+        out[f"ris{j + 1}"] = np.ascontiguousarray(both[:, j])
     return out

@@ -524,12 +524,16 @@ def _stacked_information(
     from ris_planner.power.information import BeamInformation, PathBlocks, beam_information
 
     width = max(len(r) for r in ris)  # every position's state padded to the same size
+    padded = [list(rises) + [pad[0]] * (width - len(rises)) for rises in ris]
+    present = _presence(system, environment, padded, tx, rx)
     parts = []
-    for i, (rises, own) in enumerate(zip(ris, blocks, strict=True)):
-        n_pad = width - len(rises)
-        scenario = layout_scenario(system, list(rises) + [pad[0]] * n_pad, [], environment)
-        prof = [b.profiles() for b in own] + [pad[1].profiles()] * n_pad
-        parts.append(beam_information(scenario, tx[[i]], rx[[i]], prof, [], n_blocks=gamma))
+    for i, (rises, own) in enumerate(zip(padded, blocks, strict=True)):
+        scenario = layout_scenario(system, rises, [], environment)
+        prof = [b.profiles() for b in own] + [pad[1].profiles()] * (width - len(own))
+        mine = {k: v[[i]] for k, v in present.items()}
+        parts.append(
+            beam_information(scenario, tx[[i]], rx[[i]], prof, [], n_blocks=gamma, presence=mine)
+        )
     first = parts[0]
     paths = tuple(
         PathBlocks(
@@ -550,6 +554,28 @@ def _stacked_information(
         first.known,
         first.n_observations,
     )
+
+
+def _presence(
+    system: Any, environment: Any, padded: list[list[Any]], tx: FloatArray, rx: FloatArray
+) -> dict[str, NDArray[np.bool_]]:
+    """The paths present at each design position (``padded[i]``: position i's RISs, all
+    positions as many) as :func:`~ris_planner.bounds.compute.scenario_path_presence` finds them
+    position by position – in one visibility query over every position's legs
+    (:func:`~ris_planner.bounds.paths.path_presence_per_pair`)."""
+    from ris_planner.bounds.paths import path_presence_per_pair
+    from ris_planner.environment.scene import Scene
+
+    rises: list[Any] = []
+    index: dict[int, int] = {}
+    for r in (r for row in padded for r in row):
+        index.setdefault(id(r), len(rises))
+        if len(rises) < len(index):
+            rises.append(r)
+    slots = np.array([[index[id(r)] for r in row] for row in padded], dtype=np.int64)
+    scene = Scene.from_environment(environment)
+    found = path_presence_per_pair(scene, rises, slots, tx, rx, bool(system.los))
+    return {"los": found.pop("los", np.zeros(tx.shape[0], dtype=bool))} | found
 
 
 def _digest(block: SeparableBlock) -> str:

@@ -190,16 +190,20 @@ def beam_information(
     profiles: list[ComplexArray],
     known: list[KnownPart] | tuple[KnownPart, ...] | None = None,
     n_blocks: int | None = None,
+    presence: dict[str, NDArray[np.bool_]] | None = None,
 ) -> BeamInformation:
     """S_j for every distinct first-block beam and every TX–RX pair (tx, rx : [P, 3]).
 
     ``n_blocks``: Γ when the profiles were made for another block count than the scenario's RIS
     count gives (a district's colours, :mod:`ris_planner.planning.scoring.time_blocks`); each
-    profile then has G/Γ rows. A pair on a RIS or with TX = RX gives non-finite entries (no
-    warning); the SDP reports that as a ``failed`` status.
+    profile then has G/Γ rows. ``presence``: the paths present per pair as
+    :func:`~ris_planner.bounds.compute.scenario_path_presence` gives them, when the caller
+    knows them (one visibility query for many calls); else found here. A pair on a RIS or
+    with TX = RX gives non-finite entries (no warning); the SDP reports that as a ``failed``
+    status.
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _beam_information(scenario, tx, rx, profiles, known, n_blocks)
+        return _beam_information(scenario, tx, rx, profiles, known, n_blocks, presence)
 
 
 def distinct_rows(rows: ComplexArray) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
@@ -231,13 +235,14 @@ def _beam_information(
     profiles: list[ComplexArray],
     known: list[KnownPart] | tuple[KnownPart, ...] | None,
     n_blocks: int | None = None,
+    presence: dict[str, NDArray[np.bool_]] | None = None,
 ) -> BeamInformation:
     system = scenario.system
     radio = fim.Radio.from_system(system)
     n_ris = len(scenario.ris)
     # paths that exist per position (docs/concepts/environment.md): a missing path carries no
     # information, exactly as in compute_bounds; the pattern factor scales each RIS gain
-    present = bounds.scenario_path_presence(scenario, tx, rx)
+    present = presence if presence is not None else bounds.scenario_path_presence(scenario, tx, rx)
     gamma = codebooks.block_count(system.transmissions, n_ris) if n_blocks is None else n_blocks
     n_paths = n_ris + (1 if system.los else 0)
     n_full = 7 + 2 * n_paths
