@@ -307,6 +307,7 @@ def _solve_ris(common: RisSdpShared, task: RisSdpTask) -> dict[str, Any]:
         "solve_time_s": sdp.solve_time_s,
         "seconds": time.perf_counter() - t0,
         "rises_per_position": max(len(r) for r in task.ris),
+        "solver_objective_m2": finite_or_none(sdp.objective),
         "design_objective_m2": {
             "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
             "gamma_p": finite_or_none(mean_trace_bound(info, common.gamma_p, index)),
