@@ -400,3 +400,43 @@ def test_a_spherical_plan_is_not_told_to_use_the_spherical_model() -> None:
     doc["system"] = {**doc.get("system", {}), "wavefront": "spherical"}
     spherical = run_plan(doc).to_json()["warnings"]
     assert not any(w.startswith("near field") for w in spherical), spherical
+
+
+@pytest.mark.parametrize("large", [False, True])
+def test_sizing_lower_count_starts_beside_the_beams(large, monkeypatch) -> None:
+    """A plan whose sizing reuses its district run starts the sizing's certified lower count
+    at the document's size on the certificate thread as soon as the counts are certified
+    (beside the colours, the roll-out and the beams), not in the sizing stage: the sizing and
+    the certificate are those of the plan that solves it in the sizing stage – for a small
+    model and for one solved the large way (interior point, rounds of separated cuts)."""
+    import threading
+
+    if large:
+        monkeypatch.setattr(lp, "SIMPLEX_MAX_NONZEROS", 0)
+    threads: list[str] = []
+    real_lower, real_run = district_plan._lower_count, district_plan.run_district
+
+    def spy(*args):  # type: ignore[no-untyped-def]
+        threads.append(threading.current_thread().name)
+        return real_lower(*args)
+
+    monkeypatch.setattr(district_plan, "_lower_count", spy)
+    doc = street_doc(counts=(2, 3))  # 32 × 32 RISs: the document's own size alone
+    doc["sizing"] = {"target": {"objective": 0.5}, "ris_sizes": [[32, 32]]}
+    early = run_plan(doc).to_json()
+    assert len(threads) == 1 and threads[0].startswith("district-relaxation"), threads
+    threads.clear()
+    monkeypatch.setattr(
+        district_plan, "run_district", lambda *a, **k: real_run(*a, **{**k, "sizing": None})
+    )
+    late = run_plan(doc).to_json()
+    assert len(threads) == 1 and threads[0].startswith("district-sizing"), threads
+
+    def certified(plan: dict) -> tuple:
+        cert = plan["search_details"]["certificate"]
+        rows = [(r["ris_count"], r["bound"], r["cut_rounds"]) for r in cert["by_count"]]
+        size = [(r["count"], r["lower_bound"]) for r in plan["sizing"]["sizes"]]
+        return cert["model"], rows, size
+
+    assert certified(early) == certified(late)
+    assert early["sizing"]["sizes"][0]["lower_bound"] >= 1

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -101,6 +101,14 @@ class DistrictSearch:
     path: list[PathStep]
     relaxation: DistrictRelaxation | None = None
     """The plan's relaxation (built on its certificate thread), solved again for the sizing."""
+    lower: tuple[float, Future[int | None]] | None = None
+    """(goal, its certified lower count) when the plan started the sizing's own-size solve on
+    its certificate thread as soon as its counts were certified (:func:`run_district`): it
+    runs beside the plan's beams; the sizing takes its answer for that goal."""
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the sizing solve under way (a thread's future)."""
+        return {**self.__dict__, "lower": None}
 
 
 def run_district(
@@ -110,6 +118,7 @@ def run_district(
     goal: Target | None = None,
     blocks: int | None = None,
     executor: Executor | None = None,
+    sizing: Target | None = None,
 ) -> PlanResult:
     """The district search's plan run (module docstring): per RIS count the layout of the
     greedy path improved by swaps (or a layout rounded from the relaxation's site weights and
@@ -124,7 +133,11 @@ def run_district(
     layout fits the blocks its information was computed with, built once (a count no refill
     can hold is reported without a layout, saying why). ``executor``: the plan's process pool,
     for the per-RIS SDPs of ``beams`` (:func:`~ris_planner.planning.district_beams.
-    district_beams`)."""
+    district_beams`). ``sizing``: the sizing target when the plan's sizing question will
+    reuse this run at the document's RIS size; its certified lower count then solves on the
+    certificate thread right after the counts' bounds, beside the colours, the roll-out and
+    the beams (:attr:`DistrictSearch.lower`), from the same model state as the sizing stage
+    would solve it in: the same answer, earlier."""
     doc = inputs.document
     clock = StageClock() if clock is None else clock
     if blocks is None:
@@ -150,6 +163,7 @@ def run_district(
     lp = ThreadPoolExecutor(max_workers=1, thread_name_prefix="district-relaxation")
     fitted: list[dict[str, Any]] = []
     colouring: dict[Layout, tuple[int, ...]] = {}
+    early: tuple[float, Future[int | None]] | None = None
     try:
         with clock.stage("search"):
             # one model, built and then solved count by count on the thread (in order)
@@ -174,9 +188,20 @@ def run_district(
                 on_search(0.8, f"colours: Γ = {blocks} blocks")
                 found, fitted, colouring = fit_blocks(problem, seen, found, blocks, cons)
                 infeasible += [n["ris_count"] for n in fitted if not n["fits"]]
+        # count solves not started are dropped and the one under way ends, as at a shutdown;
+        # the counts' certificate as solved, before the sizing's solve adds its rows
+        for f in relaxed.values():
+            f.cancel()
+        wait([f for f in relaxed.values() if not f.cancelled()])
+        certificate = _certificate_details(model.result(), relaxed)
+        if sizing is not None and found:
+            want = target_goal(doc.objective.kind, sizing, summary.servable_weight).min
+            if want is not None:
+                lower = lp.submit(_lower_count, problem, needs, cons, want, model.result())
+                early = (want, lower)
     finally:
-        # a solve under way ends first: the sizing solves the same model next
-        lp.shutdown(wait=True, cancel_futures=True)
+        # on failure a solve under way ends first; else the sizing's own solve goes on
+        lp.shutdown(wait=early is None, cancel_futures=early is None)
     if not found:
         raise RisPlannerError(no_count_message(counts, fitted, blocks))
     with clock.stage("rollout"):
@@ -214,9 +239,9 @@ def run_district(
             "time_orthogonal": timing,
             "audible_paths": heard,
             "codebook": codebook_json(problem),
-            "certificate": _certificate_details(model.result(), relaxed),
+            "certificate": certificate,
         },
-        sizing_state=DistrictSearch(problem, seen, needs, path, model.result()),
+        sizing_state=DistrictSearch(problem, seen, needs, path, model.result(), early),
         site_warnings=[heard_warning] if heard_warning else None,
     )
     if doc.beams is not None:  # the layouts' beams and power (one SDP over the slot powers)
@@ -603,9 +628,12 @@ def district_size_rows(
                 blocks = state.problem.codebooks.blocks
                 pr = build_problem(_resized(inputs, r, c), on_build, state.problem, blocks)
                 seen, nd, steps = pr.strongest(SEARCH_SITES), sites_needed(pr), []
-            lower: Callable[[], int | None] = lp.submit(
-                _lower_count, pr, nd, cons, goal, model if (r, c) == own else None
-            ).result
+            if (r, c) == own and state.lower is not None and state.lower[0] == goal:
+                lower: Callable[[], int | None] = state.lower[1].result  # under way already
+            else:
+                lower = lp.submit(
+                    _lower_count, pr, nd, cons, goal, model if (r, c) == own else None
+                ).result
             if not steps or steps[-1].coverage < goal:
                 steps = greedy_path(
                     seen,

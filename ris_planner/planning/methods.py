@@ -120,7 +120,15 @@ class District:
         # on first use: an enumerating plan's start-up does not import the LP solver
         from ris_planner.planning.district_plan import run_district
 
-        return run_district(inputs, progress, clock, goal, executor=executor)
+        doc = inputs.document
+        reused = (  # the sizing stage will reuse this run at the document's size
+            doc.sizing is not None
+            and strategy_for(doc.sizing.method) is self
+            and inputs.choice is not None
+            and strategy_for(inputs.choice.used) is self
+        )
+        sizing = doc.sizing_target() if reused else None
+        return run_district(inputs, progress, clock, goal, executor=executor, sizing=sizing)
 
     def size_rows(
         self,
