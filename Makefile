@@ -46,13 +46,8 @@ browser-check:
 	  echo "  (outside CI the browser tests are skipped)"; \
 	fi
 
-# three workers on the two cores: a third of the suite waits on servers, jobs and browsers (the
-# API fault, storage-health and end-to-end files use 81 % of one core with two workers),
-# and a third worker runs meanwhile; the tests hold on a busy machine (docs/validation/robustness.md)
-XDIST ?= 3
-
 unit: setup browser-check
-	RIS_PLANNER_CHROMIUM=$(CHROMIUM) $(BIN)/pytest -n $(XDIST) -rs
+	RIS_PLANNER_CHROMIUM=$(CHROMIUM) $(BIN)/pytest -n 2 -rs
 
 # The suite's verdict must not depend on the CPU (docs/concepts/numerics.md, "Comparing
 # results"): the tests of every comparison class – stored files, other processes (REST, CLI,
@@ -70,7 +65,7 @@ PORTABLE_TESTS = tests/test_environment_bounds.py tests/test_beam_design.py test
 portable: setup
 	OPENBLAS_CORETYPE=Sandybridge \
 	NPY_DISABLE_CPU_FEATURES="$$($(BIN)/python tests/avx512_features.py)" \
-	$(BIN)/pytest -n $(XDIST) -p no:cacheprovider $(PORTABLE_TESTS)
+	$(BIN)/pytest -n 2 -p no:cacheprovider $(PORTABLE_TESTS)
 
 # both halves run whatever the first gives, each reports, and the target fails if either did
 # (a failure in the suite on this CPU must not hide what the other kernels give)
