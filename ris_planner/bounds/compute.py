@@ -24,9 +24,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ris_planner.bounds import advice
-from ris_planner.bounds.paths import path_presence, pattern_factor
+from ris_planner.bounds.paths import path_presence_per_pair, pattern_factor
 from ris_planner.core.io_json import finite_or_none
 from ris_planner.environment import Scene
+from ris_planner.environment.model import Environment
 from ris_planner.inversion import crb, ldl
 from ris_planner.model.scenario import (
     MIN_UE_RIS_DISTANCE_M,
@@ -480,10 +481,25 @@ def scenario_path_presence(
     default 90°, the open front half-space); without ``environment`` no leg is blocked, so the
     paper's scenes (every UE in front of every RIS) keep exactly the paper's model.
     """
-    n = tx.shape[0]
-    scene = Scene.from_environment(scenario.environment)
-    found = path_presence(scene, list(scenario.ris), tx, rx, scenario.system.los)
-    return {"los": found.pop("los", np.zeros(n, dtype=bool))} | found
+    ris = list(scenario.ris)
+    slots = np.broadcast_to(np.arange(len(ris)), (np.asarray(tx).reshape(-1, 3).shape[0], len(ris)))
+    return presence_per_pair(scenario.environment, ris, slots, tx, rx, scenario.system.los)
+
+
+def presence_per_pair(
+    environment: Environment | None,
+    rises: Sequence[RIS],
+    slots: NDArray[np.int_],
+    tx: FloatArray,
+    rx: FloatArray,
+    los: bool,
+) -> dict[str, BoolArray]:
+    """:func:`scenario_path_presence` where each pair has RISs of its own (pair p's path
+    ``ris{j+1}`` is ``rises[slots[p, j]]``'s): every leg in one visibility query
+    (:func:`ris_planner.bounds.paths.path_presence_per_pair`); ``"los"`` False without ``los``."""
+    scene = Scene.from_environment(environment)
+    found = path_presence_per_pair(scene, rises, slots, tx, rx, los)
+    return {"los": found.pop("los", np.zeros(np.asarray(tx).reshape(-1, 3).shape[0], bool))} | found
 
 
 def present_path_mask(paths: Sequence[PathInfo], presence: dict[str, BoolArray]) -> BoolArray:

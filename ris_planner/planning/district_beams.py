@@ -563,20 +563,17 @@ def _presence(
     """The paths present at each design position (``padded[i]``: position i's RISs, all
     positions as many) as :func:`~ris_planner.bounds.compute.scenario_path_presence` finds them
     position by position – in one visibility query over every position's legs
-    (:func:`~ris_planner.bounds.paths.path_presence_per_pair`)."""
-    from ris_planner.bounds.paths import path_presence_per_pair
-    from ris_planner.environment.scene import Scene
+    (:func:`~ris_planner.bounds.compute.presence_per_pair`)."""
+    from ris_planner.bounds.compute import presence_per_pair
 
-    rises: list[Any] = []
+    rises: list[Any] = []  # each distinct RIS object once, in first-seen order
     index: dict[int, int] = {}
     for r in (r for row in padded for r in row):
-        index.setdefault(id(r), len(rises))
-        if len(rises) < len(index):
+        if id(r) not in index:
+            index[id(r)] = len(rises)
             rises.append(r)
     slots = np.array([[index[id(r)] for r in row] for row in padded], dtype=np.int64)
-    scene = Scene.from_environment(environment)
-    found = path_presence_per_pair(scene, rises, slots, tx, rx, bool(system.los))
-    return {"los": found.pop("los", np.zeros(tx.shape[0], dtype=bool))} | found
+    return presence_per_pair(environment, rises, slots, tx, rx, bool(system.los))
 
 
 def _digest(block: SeparableBlock) -> str:
