@@ -143,6 +143,25 @@ def test_fewer_sites_never_claims_fewer_than_brute_force(site) -> None:
     assert fewer > 0
 
 
+def test_a_layouts_information_is_its_entries_summed_in_order() -> None:
+    """:class:`sparse.LayoutState`'s per-pair sum: each item's entries added one after another
+    in entry order – the bits of the plain loop (the same additions in the same order), for
+    items with none, one or many entries."""
+    rng = np.random.default_rng(5)
+    info = rng.standard_normal((40, 6)) * 10.0 ** rng.integers(-8, 8, (40, 1))
+    per_item = rng.integers(0, 6, 9)
+    per_item[3] = 0
+    item = np.repeat(np.arange(9), per_item)
+    entry = np.sort(rng.choice(40, item.size, replace=False))
+    got = sparse._sum_by_item(info, item, entry, per_item)
+    want = np.zeros((9, 6))
+    for i, e in zip(item, entry, strict=True):
+        want[i] = want[i] + info[e]
+    assert np.array_equal(got, want)  # exact by construction: the same float additions
+    empty = sparse._sum_by_item(info, item[:0], entry[:0], np.zeros(4, dtype=int))
+    assert np.array_equal(empty, np.zeros((4, 6)))
+
+
 def test_counts_above_sixteen_need_the_district_search() -> None:
     """The enumerating searches place at most sixteen RISs: named explicitly they are refused
     (naming the method and the count); under auto the district search takes the document."""

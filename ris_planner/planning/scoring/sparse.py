@@ -20,7 +20,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import csr_matrix
 
 from ris_planner.bounds.compute import (
     kept_states,
@@ -503,6 +502,30 @@ def pair_entries(problem: DistrictProblem, pairs: IntArray) -> tuple[IntArray, I
     return item, first + np.arange(int(n.sum()))
 
 
+def _sum_by_item(
+    info: FloatArray, item: IntArray, entry: IntArray, per_item: IntArray
+) -> FloatArray:
+    """[n, K] Σ info[entry] per item, each item's entries added one after another in entry
+    order (``item`` sorted, ``per_item`` its counts): the n-th entries of all items in one
+    vectorised step, so the sums are those of a sequential loop (and of a sparse gather)."""
+    out = np.zeros((per_item.size, info.shape[1]))
+    if item.size == 0:
+        return out
+    rank = _rank_in_item(item, per_item.size)
+    order = np.argsort(rank, kind="stable")
+    size = np.bincount(rank)
+    ends = np.cumsum(size)
+    for lo, hi in zip(ends - size, ends, strict=True):
+        at = order[lo:hi]
+        out[item[at]] += info[entry[at]]
+    return out
+
+
+def _rank_in_item(item: IntArray, n: int) -> IntArray:
+    """The rank of each entry within its item (``item`` sorted, items 0..n−1)."""
+    return np.arange(item.size) - np.searchsorted(item, np.arange(n))[item]
+
+
 class LayoutState:
     """A layout's per-pair information, channel-parameter count and metric, updated site by
     site (only the pairs a site serves change)."""
@@ -526,9 +549,7 @@ class LayoutState:
         if extra is not None:
             keep |= entry == extra[item]
         item, entry = item[keep], entry[keep]
-        # the rank of each kept entry within its item (items are contiguous and increasing)
-        start = np.searchsorted(item, np.arange(len(pairs)))
-        rank = np.arange(item.size) - start[item]
+        rank = _rank_in_item(item, len(pairs))  # items are contiguous and increasing
         width = int(rank.max(initial=-1)) + 1
         f = np.zeros((len(pairs), width, pr.factor.shape[1], pr.n_kept))
         f[item, rank] = pr.factor[entry]
@@ -539,9 +560,9 @@ class LayoutState:
         item, entry = pair_entries(pr, pairs)
         keep = self.member[pr.entry_site[entry]]
         item, entry = item[keep], entry[keep]
-        gather = csr_matrix((np.ones(entry.size), (item, entry)), shape=(len(pairs), pr.n_entries))
-        info = pr.los.T[pairs] + gather @ pr.info
-        count = pr.los_present[pairs] + 3 * np.bincount(item, minlength=len(pairs))
+        per_item = np.bincount(item, minlength=len(pairs))
+        info = pr.los.T[pairs] + _sum_by_item(pr.info, item, entry, per_item)
+        count = pr.los_present[pairs] + 3 * per_item
         self.info[pairs] = info
         self.count[pairs] = count
         self.metric[pairs] = entry_metric(pr, info, lambda i: self.rows(pairs[i]), count)
