@@ -414,8 +414,11 @@ def test_a_failed_per_ris_sdp_is_data_never_a_silent_fallback(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """A RIS whose SDP fails keeps its status and message in its row and adds nothing to the
-    layout's allocation; when every RIS's SDP fails the layout has no ``sdp`` allocation (no
+    layout's allocation, nor does one whose solve is ``inaccurate`` (its powers are not what
+    its optimum claims); when every RIS's SDP fails the layout has no ``sdp`` allocation (no
     powers, no objective) rather than another in its place."""
+    from dataclasses import replace
+
     import ris_planner.power.sdp as sdp_module
 
     real = sdp_module.solve_power_sdp
@@ -423,14 +426,28 @@ def test_a_failed_per_ris_sdp_is_data_never_a_silent_fallback(
 
     def failing(info, objective="rx", solver="CLARABEL", total_power=None):  # type: ignore[no-untyped-def]
         calls.append(1)
-        if len(calls) == 1 or fail_all:
+        if fail_all or (len(calls) == 1 and not inaccurate_first):
             return sdp_module.SdpResult("failed", None, None, 0.0, solver, "test: solver failed")
-        return real(info, objective, solver, total_power)
+        res = real(info, objective, solver, total_power)
+        assert res.powers is not None
+        if not inaccurate_first:
+            return res
+        if len(calls) == 1:  # every power on one slot, said to be inaccurate
+            lopsided = np.zeros_like(res.powers)
+            lopsided[0] = res.powers.sum()
+            return replace(res, status="inaccurate", powers=lopsided, message="test")
+        return replace(res, status="optimal", powers=np.ones_like(res.powers))
 
     monkeypatch.setattr(sdp_module, "solve_power_sdp", failing)
     doc = _designed("directional_derivative") | {"beams": {"design_positions": 12}}
     doc["ris_count"] = [3]
-    fail_all = False
+    fail_all, inaccurate_first = False, True
+    (lay,) = run_plan(doc).to_json()["beams"]["layouts"]
+    assert [r["status"] for r in lay["sdp"]["per_ris"]] == ["inaccurate", "optimal", "optimal"]
+    # the two optimal RISs' uniform powers alone: the lopsided inaccurate ones are left out
+    assert_close(lay["powers"]["sdp"], np.ones(lay["beams_per_block"]))
+    calls.clear()
+    inaccurate_first = False
     (lay,) = run_plan(doc).to_json()["beams"]["layouts"]
     rows = lay["sdp"]["per_ris"]
     assert rows[0]["status"] == "failed" and rows[0]["message"] == "test: solver failed"

@@ -391,6 +391,7 @@ def test_ill_conditioned_design_positions_equal_compute_bounds(known: list[str])
     res = solve_power_sdp(info)
     assert res.status == "optimal" and res.powers is not None and res.objective is not None
     own = mean_trace_bound(info, res.powers, info.rx_index)
+    assert res.bound == own  # the result's re-evaluation: the same function, the same process
     assert_close(own, evaluate(res.powers), accuracy=BOUND_ACCURACY)
     assert_close(res.objective, own, accuracy=SDP_ACCURACY)
     assert own <= mean_trace_bound(info, np.ones(g), info.rx_index) * (1 + SOLVER_RTOL)

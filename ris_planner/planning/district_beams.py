@@ -18,7 +18,8 @@ For each count's layout (and ``beams.layouts``):
    design positions; the appendix SDP (:func:`ris_planner.power.sdp.solve_power_sdp`) is
    solved once per RIS of the layout, over at most :data:`SDP_POSITIONS_PER_RIS` pairs it
    serves (a small SDP each: its status, time and objectives as data, per RIS and in total),
-   and the layout's ``sdp`` allocation is the served-weight mean of the solved RISs' powers.
+   and the layout's ``sdp`` allocation is the served-weight mean of the powers of the RISs
+   whose SDP is ``optimal``.
 4. **Coverage**: the layout re-scored on every pair with each allocation
    (:func:`ris_planner.planning.scoring.sparse.layout_information`), next to the plan's own.
 
@@ -286,7 +287,8 @@ def _solve_ris(common: RisSdpShared, task: RisSdpTask) -> dict[str, Any]:
     )
     g_tilde = common.gamma_p.size
     index = objective_index(info, common.objective)
-    finite = np.isfinite(position_traces(info, np.ones(g_tilde), index))
+    uniform = position_traces(info, np.ones(g_tilde), index)
+    finite = np.isfinite(uniform)
     row: dict[str, Any] = {"positions_singular": int((~finite).sum()), "powers": None}
     if not finite.any():
         row |= {"status": "no design positions", "design_positions": 0}
@@ -309,11 +311,9 @@ def _solve_ris(common: RisSdpShared, task: RisSdpTask) -> dict[str, Any]:
         "rises_per_position": max(len(r) for r in task.ris),
         "solver_objective_m2": finite_or_none(sdp.objective),
         "design_objective_m2": {
-            "uniform": finite_or_none(mean_trace_bound(info, np.ones(g_tilde), index)),
+            "uniform": finite_or_none(float(np.mean(uniform[finite]))),
             "gamma_p": finite_or_none(mean_trace_bound(info, common.gamma_p, index)),
-            "sdp": None
-            if sdp.powers is None
-            else finite_or_none(mean_trace_bound(info, sdp.powers, index)),
+            "sdp": finite_or_none(sdp.bound),
         },
         "powers": None if sdp.powers is None else np.asarray(sdp.powers, dtype=float),
     }
@@ -336,10 +336,12 @@ def _sdp_per_ris(
     that the layout resolves, each with every layout RIS that serves it): per RIS its
     status, solver, message, seconds, and the mean PEB² there at uniform, γ_P and its own SDP
     powers. The slot powers δ² are the transmitting UE's, shared by every RIS a pair hears,
-    so the layout's ``sdp`` allocation is the served-weight mean of the solved RISs' powers
-    (a convex combination: Σ δ² = G̃ kept); ``None`` when no RIS's SDP solved – never a
-    silent fallback: each RIS's status is in the rows. From :data:`SDP_POOL_MIN_RIS` RISs on
-    the SDPs run on ``executor`` (the plan's process pool), in the layout's order."""
+    so the layout's ``sdp`` allocation is the served-weight mean of the powers of the RISs
+    whose SDP is ``optimal`` (a convex combination: Σ δ² = G̃ kept); an ``inaccurate`` solve's
+    powers are left out of it (its optimum is not the bound at its powers); ``None`` when no
+    RIS's SDP is optimal – never a silent fallback: each RIS's status is in the rows. From
+    :data:`SDP_POOL_MIN_RIS` RISs on the SDPs run on ``executor`` (the plan's process pool),
+    in the layout's order."""
     doc = result.document
     spec = doc.beams
     assert spec is not None
@@ -385,7 +387,7 @@ def _sdp_per_ris(
     for j, answer in zip(asked, answers, strict=True):
         powers = answer.pop("powers")
         rows[j] |= answer
-        if powers is not None:
+        if powers is not None and answer["status"] == "optimal":
             solved.append((rows[j]["weight"], powers))
     if not solved:
         return rows, None
@@ -437,7 +439,8 @@ def _sdp_summary(rows: list[dict[str, Any]], solver: str) -> dict[str, Any]:
         "solver": solver,
         "solve_time_s": float(sum(r.get("solve_time_s", 0.0) for r in rows)),
         "seconds": float(sum(r.get("seconds", 0.0) for r in rows)),
-        "combined": "served-weight mean of the solved RISs' slot powers",
+        "combined": "served-weight mean of the slot powers of the RISs whose SDP is optimal"
+        " (inaccurate, infeasible and failed solves left out)",
     }
 
 

@@ -71,7 +71,9 @@ class SdpResult:
     without a solution); solve_time_s : wall time of building the program (the whitening,
     and cvxpy's canonicalisation where it states it) and solving it; message : the solver's
     complaint, if any; solver_time_s : the solver's own time as it reports it (``None`` if it
-    did not).
+    did not); bound : the mean PEB² [m²] re-evaluated at ``powers`` by the bounds' route
+    (:func:`mean_trace_bound`; ``None`` without powers) – the number to report and to
+    compare allocations by, whatever the status.
     """
 
     status: SolverStatus
@@ -81,6 +83,7 @@ class SdpResult:
     solver: str
     message: str | None = None
     solver_time_s: float | None = None
+    bound: float | None = None
 
 
 def objective_index(info: BeamInformation, objective: Objective) -> NDArray[np.int_]:
@@ -215,16 +218,20 @@ def solve_power_sdp(
     if powers is None and status in ("optimal", "inaccurate"):
         status, message = "failed", message or "solver returned no usable powers"
     value = None if powers is None or value is None else value * lmis.scale
-    if status == "optimal" and powers is not None and value is not None:
-        bound = mean_trace_bound(info, powers, index)
-        if not abs(bound - value) <= OBJECTIVE_AGREEMENT * bound:  # also a non-finite bound
-            status = "inaccurate"
-            message = (
-                f"the solver's optimum {value:.6g} m² is not the bound at its powers"
-                f" ({bound:.6g} m²): the allocation leaves a design position's information"
-                " close to singular, where the solver's tolerance hides a large inverse"
-            )
-    return SdpResult(status, value, powers, elapsed, solver, message, own)
+    bound = None if powers is None else mean_trace_bound(info, powers, index)
+    agree = (
+        bound is not None
+        and value is not None
+        and abs(bound - value) <= OBJECTIVE_AGREEMENT * bound
+    )
+    if status == "optimal" and value is not None and not agree:  # also a non-finite bound
+        status = "inaccurate"
+        message = (
+            f"the solver's optimum {value:.6g} m² is not the bound at its powers"
+            f" ({bound:.6g} m²): the allocation leaves a design position's information"
+            " close to singular, where the solver's tolerance hides a large inverse"
+        )
+    return SdpResult(status, value, powers, elapsed, solver, message, own, bound)
 
 
 OBJECTIVE_AGREEMENT = 1e-3
