@@ -75,19 +75,26 @@ def alive(pid: int) -> bool:
     return state != "Z"
 
 
+def spawned_children(pid: int) -> set[int]:
+    """The children of ``pid`` that are multiprocessing spawn workers (by their command line);
+    a child that exits between the listing and the read is none of them."""
+    found = set()
+    for c in children(pid):
+        try:
+            if b"spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes():
+                found.add(c)
+        except OSError:  # gone meanwhile
+            continue
+    return found
+
+
 def pool_of(client: Any, timeout_s: float = HANG_S) -> tuple[int, set[int]]:
     """(the running job's worker pid, its pool's processes) once the pool has 2 workers."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         pids = client.app.state.runner.worker_pids()
-        if pids:
-            spawned = {
-                c
-                for c in children(pids[0])
-                if b"spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes()
-            }
-            if len(spawned) >= 2:
-                return pids[0], children(pids[0])
+        if pids and len(spawned_children(pids[0])) >= 2:
+            return pids[0], children(pids[0])
         time.sleep(0.05)
     raise AssertionError("the plan job started no process pool")
 
@@ -162,12 +169,7 @@ def test_no_process_outlives_a_real_server(tmp_path: Path, stop: str) -> None:
         assert r.status_code == 202
         deadline = time.monotonic() + HANG_S
         while True:
-            spawned = [
-                c
-                for c in children(server.process.pid)
-                if b"spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes()
-            ]
-            if len(spawned) >= 2:
+            if len(spawned_children(server.process.pid)) >= 2:
                 break
             assert time.monotonic() < deadline, "the plan job started no process pool"
             time.sleep(0.05)
