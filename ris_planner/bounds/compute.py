@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ris_planner.bounds import advice
-from ris_planner.bounds.paths import path_presence_per_pair, pattern_factor
+from ris_planner.bounds.paths import path_presence, path_presence_per_pair, pattern_factor
 from ris_planner.core.io_json import finite_or_none
 from ris_planner.environment import Scene
 from ris_planner.environment.model import Environment
@@ -481,9 +481,9 @@ def scenario_path_presence(
     default 90°, the open front half-space); without ``environment`` no leg is blocked, so the
     paper's scenes (every UE in front of every RIS) keep exactly the paper's model.
     """
-    ris = list(scenario.ris)
-    slots = np.broadcast_to(np.arange(len(ris)), (np.asarray(tx).reshape(-1, 3).shape[0], len(ris)))
-    return presence_per_pair(scenario.environment, ris, slots, tx, rx, scenario.system.los)
+    scene = Scene.from_environment(scenario.environment)
+    found = path_presence(scene, list(scenario.ris), tx, rx, scenario.system.los)
+    return _los_always(found, tx)
 
 
 def presence_per_pair(
@@ -498,8 +498,14 @@ def presence_per_pair(
     ``ris{j+1}`` is ``rises[slots[p, j]]``'s): every leg in one visibility query
     (:func:`ris_planner.bounds.paths.path_presence_per_pair`); ``"los"`` False without ``los``."""
     scene = Scene.from_environment(environment)
-    found = path_presence_per_pair(scene, rises, slots, tx, rx, los)
-    return {"los": found.pop("los", np.zeros(np.asarray(tx).reshape(-1, 3).shape[0], bool))} | found
+    return _los_always(path_presence_per_pair(scene, rises, slots, tx, rx, los), tx)
+
+
+def _los_always(found: dict[str, BoolArray], tx: FloatArray) -> dict[str, BoolArray]:
+    """The presence with ``"los"`` first and always there (all False where the system has no
+    LOS path: :func:`ris_planner.bounds.paths.path_presence` leaves it out)."""
+    n = np.asarray(tx).reshape(-1, 3).shape[0]
+    return {"los": found.pop("los", np.zeros(n, dtype=bool))} | found
 
 
 def present_path_mask(paths: Sequence[PathInfo], presence: dict[str, BoolArray]) -> BoolArray:
